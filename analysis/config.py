@@ -1,0 +1,568 @@
+"""Validated TOML configs shared by every cutlab package.
+
+Machines, tools, materials, dynamometers and DAQs are described in TOML files under ``configs/``.
+They live here, in the lowest package, because all three packages read them. Every model is a
+frozen pydantic model with ``extra="forbid"``: an unknown key is an error, and every error names the
+file, the line (where it can be found), the dotted field, the value given and the expected unit or
+range, e.g.::
+
+    configs/tools.toml:14: tools.phi10-flat.diameter_mm = -10: must be > 0 (mm)
+
+Units follow DESIGN.md: mm, mm/min, rpm, N, N/mm, N/mm^2, s, Hz and degrees in configs.
+
+Where the configs are: ``$CUTLAB_CONFIG_DIR`` if set, else the ``configs/`` folder of the checkout
+(cutlab is installed editable from its repository, see README).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import tomllib
+from collections.abc import Mapping
+from functools import lru_cache
+from pathlib import Path
+from typing import Annotated, Any, Literal, TypeVar
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from analysis.errors import ConfigError
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+
+
+def config_dir() -> Path:
+    """The folder holding cutlab's config files."""
+    return Path(os.environ.get("CUTLAB_CONFIG_DIR", REPO_ROOT / "configs"))
+
+
+class Model(BaseModel):
+    """Base of all config models: frozen, unknown keys rejected."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+
+def _mm(desc: str = "mm", **kw: Any) -> Any:
+    return Field(description=desc, **kw)
+
+
+# ----------------------------------------------------------------------------------------------
+# Machine
+# ----------------------------------------------------------------------------------------------
+
+
+class AxisTravel(Model):
+    """Travel of one linear axis in machine coordinates, mm."""
+
+    min_mm: float = _mm()
+    max_mm: float = _mm()
+
+    @model_validator(mode="after")
+    def _ordered(self) -> AxisTravel:
+        if not self.max_mm > self.min_mm:
+            raise ValueError(f"max_mm ({self.max_mm}) must be greater than min_mm ({self.min_mm})")
+        return self
+
+
+class RotaryAxis(Model):
+    """A rotary axis of a 5-axis machine, degrees."""
+
+    min_deg: float = Field(-360.0, description="deg")
+    max_deg: float = Field(360.0, description="deg")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> RotaryAxis:
+        if not self.max_deg > self.min_deg:
+            raise ValueError(
+                f"max_deg ({self.max_deg}) must be greater than min_deg ({self.min_deg})"
+            )
+        return self
+
+
+class FiveAxis(Model):
+    """Kinematics of a 5-axis machine for inverse kinematics (seed 002 output)."""
+
+    kind: Literal["table-table-AC", "head-table-AC", "table-table-BC", "head-head-AC"] = Field(
+        description="kinematic chain"
+    )
+    a: RotaryAxis = RotaryAxis(min_deg=-120.0, max_deg=30.0)
+    b: RotaryAxis = RotaryAxis(min_deg=-120.0, max_deg=120.0)
+    c: RotaryAxis = RotaryAxis(min_deg=-360.0, max_deg=360.0)
+    pivot_mm: tuple[float, float, float] = Field(
+        (0.0, 0.0, 0.0), description="mm, rotary-table centre (table kinematics) in machine axes"
+    )
+    head_pivot_length_mm: float = Field(0.0, ge=0, description="mm, spindle nose to head pivot")
+
+
+class SerialConfig(Model):
+    """RS-232 settings of the DNC link (pyserial names)."""
+
+    port: str = Field("/dev/ttyUSB0", min_length=1, description="port name or pyserial URL")
+    baudrate: int = Field(9600, gt=0, le=4_000_000, description="baud")
+    bytesize: Literal[7, 8] = Field(7, description="data bits")
+    parity: Literal["N", "E", "O"] = Field("E", description="N, E or O")
+    stopbits: Literal[1, 2] = Field(2, description="stop bits")
+    flow_control: Literal["xonxoff", "rtscts", "none"] = Field(
+        "xonxoff", description="flow control"
+    )
+    xonxoff_in_streamer: bool = Field(
+        True, description="handle DC1/DC3 in the streamer (USB adapters often ignore the kernel's)"
+    )
+    end_of_block: Literal["LF", "CRLF", "CR"] = Field("LF", description="end of block characters")
+    code: Literal["ISO", "EIA"] = Field("ISO", description="tape code")
+    leader_nuls: int = Field(0, ge=0, le=1000, description="count of NUL leader/trailer bytes")
+    timeout_s: float = Field(10.0, gt=0, le=3600, description="s, no answer -> fault")
+    program_folder: str = Field("", description="folder of programs served on remote request")
+
+
+class MachineConfig(Model):
+    """A machining centre (or a lab mill) as cutlab needs to know it."""
+
+    name: str = Field(min_length=1)
+    description: str = ""
+    dialect: Literal["fanuc", "grbl"] = Field("fanuc", description="controller dialect")
+    x: AxisTravel
+    y: AxisTravel
+    z: AxisTravel
+    rapid_mm_min: float = Field(gt=0, le=200_000, description="mm/min")
+    feed_min_mm_min: float = Field(gt=0, description="mm/min")
+    feed_max_mm_min: float = Field(gt=0, le=200_000, description="mm/min")
+    spindle_max_rpm: float = Field(gt=0, le=100_000, description="rpm")
+    spindle_min_rpm: float = Field(0.0, ge=0, description="rpm")
+    arc_radius_tolerance_mm: float = Field(
+        0.002, gt=0, le=1, description="mm, arc end radius mismatch"
+    )
+    min_arc_radius_mm: float = Field(0.0, ge=0, description="mm, smallest arc the control can cut")
+    serial: SerialConfig = SerialConfig()
+    five_axis: FiveAxis | None = None
+
+    @model_validator(mode="after")
+    def _feeds(self) -> MachineConfig:
+        if not self.feed_max_mm_min > self.feed_min_mm_min:
+            raise ValueError(
+                f"feed_max_mm_min ({self.feed_max_mm_min}) must exceed feed_min_mm_min "
+                f"({self.feed_min_mm_min})"
+            )
+        return self
+
+
+# ----------------------------------------------------------------------------------------------
+# Tools
+# ----------------------------------------------------------------------------------------------
+
+
+class Holder(Model):
+    """Tool holder and spindle nose as stacked cylinders above the cutter (5-axis, Z-map checks)."""
+
+    diameter_mm: float = Field(40.0, gt=0, le=500, description="mm")
+    length_mm: float = Field(60.0, gt=0, le=1000, description="mm")
+    spindle_nose_diameter_mm: float = Field(100.0, gt=0, le=1000, description="mm")
+    spindle_nose_length_mm: float = Field(100.0, gt=0, le=2000, description="mm")
+
+
+class EndMill(Model):
+    """A flat, ball or bull-nose end mill. Ball: corner radius = D/2; flat: 0; bull: in between."""
+
+    kind: Literal["flat", "ball", "bull"]
+    description: str = ""
+    diameter_mm: float = Field(gt=0, le=200, description="mm")
+    corner_radius_mm: float = Field(0.0, ge=0, description="mm")
+    flute_length_mm: float = Field(gt=0, le=500, description="mm")
+    flutes: int = Field(ge=1, le=16, description="count")
+    helix_deg: float = Field(30.0, ge=0, lt=80, description="deg")
+    stickout_mm: float | None = Field(None, gt=0, le=1000, description="mm, gauge length")
+    shank_diameter_mm: float | None = Field(None, gt=0, le=200, description="mm")
+    runout_mm: float = Field(0.0, ge=0, le=1, description="mm, radial runout of the cutter")
+    material: str = Field("carbide", description="cutter material")
+    holder: Holder = Holder()
+
+    @model_validator(mode="after")
+    def _geometry(self) -> EndMill:
+        r = self.diameter_mm / 2
+        rc = self.corner_radius_mm
+        if self.kind == "flat" and rc != 0:
+            raise ValueError(f"corner_radius_mm = {rc}: a flat end mill has corner radius 0 mm")
+        if self.kind == "ball" and not math.isclose(rc, r, rel_tol=1e-9):
+            raise ValueError(
+                f"corner_radius_mm = {rc}: a ball end mill has corner radius D/2 = {r} mm"
+            )
+        if self.kind == "bull" and not 0 < rc < r:
+            raise ValueError(
+                f"corner_radius_mm = {rc}: a bull end mill needs 0 < corner radius < D/2 = {r} mm"
+            )
+        if self.stickout_mm is not None and self.stickout_mm < self.flute_length_mm:
+            raise ValueError(
+                f"stickout_mm = {self.stickout_mm} is shorter than flute_length_mm = "
+                f"{self.flute_length_mm}"
+            )
+        return self
+
+    @property
+    def radius_mm(self) -> float:
+        return self.diameter_mm / 2
+
+    @property
+    def length_mm(self) -> float:
+        """Cutter length below the holder, mm (stickout, or 1.5 x flute length if not given)."""
+        return self.stickout_mm if self.stickout_mm is not None else 1.5 * self.flute_length_mm
+
+
+class FaceMill(Model):
+    """An indexable face mill (seed 003: M415SP04R-12 with SPGN120304 inserts)."""
+
+    kind: Literal["facemill"]
+    description: str = ""
+    diameter_mm: float = Field(gt=0, le=1000, description="mm")
+    inserts: int = Field(ge=1, le=64, description="count")
+    lead_angle_deg: float = Field(ge=-10, le=80, description="deg, gamma_L")
+    axial_rake_deg: float = Field(ge=-30, le=30, description="deg, gamma_A")
+    radial_rake_deg: float = Field(ge=-30, le=30, description="deg, gamma_R")
+    nose_radius_mm: float = Field(ge=0, le=10, description="mm")
+    insert_edge_length_mm: float = Field(12.7, gt=0, le=50, description="mm, usable cutting edge")
+    max_depth_mm: float | None = Field(None, gt=0, le=50, description="mm, largest axial depth")
+    insert_angles_deg: tuple[float, ...] | None = Field(
+        None, description="deg, angular positions of the inserts (default: evenly spaced)"
+    )
+    runout_mm: float = Field(0.0, ge=0, le=1, description="mm, radial runout per insert")
+    holder: Holder = Holder(diameter_mm=60.0, length_mm=50.0)
+
+    @model_validator(mode="after")
+    def _geometry(self) -> FaceMill:
+        if self.insert_angles_deg is not None and len(self.insert_angles_deg) != self.inserts:
+            raise ValueError(
+                f"insert_angles_deg has {len(self.insert_angles_deg)} entries, "
+                f"inserts = {self.inserts}"
+            )
+        if self.nose_radius_mm >= self.insert_edge_length_mm:
+            raise ValueError(
+                f"nose_radius_mm = {self.nose_radius_mm} must be smaller than "
+                f"insert_edge_length_mm = {self.insert_edge_length_mm}"
+            )
+        return self
+
+    @property
+    def radius_mm(self) -> float:
+        return self.diameter_mm / 2
+
+    @property
+    def depth_limit_mm(self) -> float:
+        """Deepest axial cut the inserts allow, mm."""
+        if self.max_depth_mm is not None:
+            return self.max_depth_mm
+        return self.insert_edge_length_mm * math.cos(math.radians(self.lead_angle_deg))
+
+    @property
+    def flute_length_mm(self) -> float:
+        return self.depth_limit_mm
+
+
+Tool = Annotated[EndMill | FaceMill, Field(discriminator="kind")]
+
+
+class ToolLibrary(Model):
+    tools: dict[str, Tool]
+
+
+# ----------------------------------------------------------------------------------------------
+# Materials
+# ----------------------------------------------------------------------------------------------
+
+
+class FaceMillCoefficients(Model):
+    """Seed 003 eqs 3-4: F_T' = P_T l + K_T S, F_R' = P_R l + K_R K_T S, with an axial pair."""
+
+    K_T_n_mm2: float = Field(gt=0, le=20_000, description="N/mm^2, specific cutting pressure")
+    K_R: float = Field(
+        ge=0, le=10, description="ratio K_R' (seed 003 prints N/mm^2; eq 4 makes it a ratio)"
+    )
+    P_T_n_mm: float = Field(ge=0, le=5_000, description="N/mm, ploughing force per edge length")
+    P_R_n_mm: float = Field(ge=0, le=5_000, description="N/mm, ploughing force per edge length")
+    K_A: float = Field(0.0, ge=-10, le=10, description="ratio, axial cutting force to tangential")
+    P_A_n_mm: float = Field(0.0, ge=-5_000, le=5_000, description="N/mm, axial ploughing force")
+
+
+class EndMillCoefficients(Model):
+    """Linear edge-force model: dF = K_c h db + K_e db per direction (Altintas)."""
+
+    Ktc_n_mm2: float = Field(gt=0, le=20_000, description="N/mm^2")
+    Krc_n_mm2: float = Field(ge=0, le=20_000, description="N/mm^2")
+    Kac_n_mm2: float = Field(ge=-20_000, le=20_000, description="N/mm^2")
+    Kte_n_mm: float = Field(ge=0, le=5_000, description="N/mm")
+    Kre_n_mm: float = Field(ge=0, le=5_000, description="N/mm")
+    Kae_n_mm: float = Field(ge=-5_000, le=5_000, description="N/mm")
+
+
+class Material(Model):
+    description: str = ""
+    density_kg_m3: float = Field(gt=0, le=25_000, description="kg/m^3")
+    hardness_hb: float | None = Field(None, gt=0, le=1000, description="HB")
+    facemill: FaceMillCoefficients | None = None
+    endmill: EndMillCoefficients | None = None
+
+
+class MaterialLibrary(Model):
+    materials: dict[str, Material]
+
+
+# ----------------------------------------------------------------------------------------------
+# Dynamometer, amplifier and DAQ
+# ----------------------------------------------------------------------------------------------
+
+
+class Mode(Model):
+    """One structural mode of the dynamometer (seed 003 Table 2)."""
+
+    axis: Literal["x", "y", "z"]
+    frequency_hz: float = Field(gt=0, le=200_000, description="Hz")
+    damping_ratio: float = Field(gt=0, lt=1, description="fraction of critical")
+
+
+class DynoChannel(Model):
+    """One force channel: dynamometer sensitivity and the charge amplifier's range."""
+
+    name: str = Field(min_length=1)
+    axis: Literal["x", "y", "z"]
+    sign: Literal[1, -1] = Field(1, description="+1 or -1, dynamometer axis to cutlab axis")
+    sensitivity_pc_n: float = Field(description="pC/N (Kistler 9257B: about -7.5 x/y, -3.7 z)")
+    range_n_v: float = Field(gt=0, le=1e6, description="N/V, amplifier scale (range / 10 V)")
+
+    @model_validator(mode="after")
+    def _nonzero(self) -> DynoChannel:
+        if self.sensitivity_pc_n == 0:
+            raise ValueError("sensitivity_pc_n = 0: a sensitivity must be non-zero (pC/N)")
+        return self
+
+
+class Dynamometer(Model):
+    model: str = Field(min_length=1)
+    description: str = ""
+    channels: tuple[DynoChannel, ...] = Field(min_length=1)
+    crosstalk: tuple[tuple[float, ...], ...] | None = Field(
+        None, description="square matrix, measured = C @ true, from the calibration sheet"
+    )
+    modes: tuple[Mode, ...] = ()
+    modes_without_workpiece: tuple[Mode, ...] = ()
+    calibration_id: str = Field("", description="identity of the calibration sheet")
+
+    @model_validator(mode="after")
+    def _shape(self) -> Dynamometer:
+        n = len(self.channels)
+        if self.crosstalk is not None:
+            rows = len(self.crosstalk)
+            cols = {len(r) for r in self.crosstalk}
+            if rows != n or cols != {n}:
+                raise ValueError(
+                    f"crosstalk is {rows} x {sorted(cols)}: expected {n} x {n} for {n} channels"
+                )
+        names = [c.name for c in self.channels]
+        if len(set(names)) != n:
+            raise ValueError(f"channel names repeat: {names}")
+        return self
+
+
+class DaqConfig(Model):
+    """An NI DAQ task (or the simulated DAQ's matching settings)."""
+
+    device: str = Field("Dev1", min_length=1, description="NI device name")
+    channels: tuple[str, ...] = Field(
+        ("Dev1/ai0", "Dev1/ai1", "Dev1/ai2"), min_length=1, description="physical channels"
+    )
+    rate_hz: float = Field(10_000.0, gt=0, le=10_000_000, description="Hz, per channel")
+    input_range_v: float = Field(10.0, gt=0, le=100, description="V, symmetric +-range")
+    terminal_config: Literal["DIFF", "RSE", "NRSE", "PSEUDO_DIFF", "DEFAULT"] = "DIFF"
+    buffer_s: float = Field(5.0, gt=0, le=600, description="s of samples held by the driver")
+    read_interval_s: float = Field(0.1, gt=0, le=10, description="s between reads")
+    raw: bool = Field(True, description="read int16 ADC codes and store the scaling")
+
+
+class RigConfig(Model):
+    """Dynamometer + DAQ of one rig, as a file ``configs/rig.toml``."""
+
+    dynamometer: Dynamometer
+    daq: DaqConfig = DaqConfig()
+
+
+# ----------------------------------------------------------------------------------------------
+# Loading and error reporting
+# ----------------------------------------------------------------------------------------------
+
+M = TypeVar("M", bound=BaseModel)
+
+
+def _find_line(text: str, loc: tuple[Any, ...]) -> int | None:
+    """Best-effort line of the key named by a pydantic error location (1-based)."""
+    keys = [str(k) for k in loc if isinstance(k, str)]
+    if not keys:
+        return None
+    lines = text.splitlines()
+    # Prefer the key after the deepest table header that matches the location.
+    start = 0
+    for depth in range(len(keys) - 1, 0, -1):
+        header = ".".join(keys[:depth])
+        pat = re.compile(r"^\s*\[\[?\s*" + re.escape(header).replace(r"\.", r"\s*\.\s*") + r"\s*\]")
+        for i, line in enumerate(lines):
+            if pat.match(line):
+                start = i
+                break
+        else:
+            continue
+        break
+    key_pat = re.compile(r"^\s*\"?" + re.escape(keys[-1]) + r"\"?\s*=")
+    for i in range(start, len(lines)):
+        if key_pat.match(lines[i]):
+            return i + 1
+    for i, line in enumerate(lines):
+        if key_pat.match(line) or re.match(r"^\s*\[\[?" + re.escape(".".join(keys)) + r"\]", line):
+            return i + 1
+    return None
+
+
+def _all_models(root: type[BaseModel] = BaseModel) -> list[type[BaseModel]]:
+    out, todo = [], [Model]
+    while todo:
+        m = todo.pop()
+        out.append(m)
+        todo.extend(m.__subclasses__())
+    return out
+
+
+def _field_unit(model: type[BaseModel], field: str) -> str:
+    """The description (unit) of a field name, looked up in ``model`` and then every config model.
+
+    Field names carry their unit and are unique enough across cutlab's configs for this to be exact.
+    """
+    for m in (model, *_all_models()):
+        f = m.model_fields.get(field)
+        if f is not None and f.description:
+            return f.description
+    return ""
+
+
+def _clean_loc(loc: tuple[Any, ...], data: Any) -> tuple[Any, ...]:
+    """Drop the discriminator tags pydantic inserts into union locations, guided by the data."""
+    out: list[Any] = []
+    cur = data
+    for part in loc:
+        if isinstance(cur, Mapping) and part not in cur and cur.get("kind") == part:
+            continue
+        out.append(part)
+        if isinstance(cur, Mapping):
+            cur = cur.get(part)
+        elif isinstance(cur, list | tuple) and isinstance(part, int) and part < len(cur):
+            cur = cur[part]
+        else:
+            cur = None
+    return tuple(out)
+
+
+def format_validation_error(
+    err: ValidationError, model: type[BaseModel], where: str, text: str = "", data: Any = None
+) -> str:
+    """One line per problem: ``file:line: field = value: why (unit)``."""
+    out = []
+    for e in err.errors():
+        loc = _clean_loc(tuple(e["loc"]), data)
+        field = ".".join(str(p) for p in loc) or "(top level)"
+        line = _find_line(text, loc) if text else None
+        place = f"{where}:{line}" if line else where
+        msg = e["msg"].removeprefix("Value error, ")
+        if e["type"] == "extra_forbidden":
+            msg = "unknown key (check the spelling; unknown keys are not ignored)"
+        elif e["type"] == "missing":
+            msg = "missing required field"
+        last = next((p for p in reversed(loc) if isinstance(p, str)), "")
+        unit = _field_unit(model, last) if e["type"] not in ("extra_forbidden",) else ""
+        inp = e.get("input")
+        value = "" if e["type"] == "missing" or isinstance(inp, Mapping) else f" = {inp!r}"
+        suffix = f" ({unit})" if unit and unit not in msg else ""
+        out.append(f"{place}: {field}{value}: {msg}{suffix}")
+    return "\n".join(out)
+
+
+def read_toml(path: str | Path) -> tuple[dict[str, Any], str]:
+    """Parse a TOML file; a syntax error names the file and line."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{p}: config file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{p}: cannot read config file: {exc}") from None
+    try:
+        return tomllib.loads(text), text
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{p}: not valid TOML: {exc}") from None
+
+
+def validate(model: type[M], data: Mapping[str, Any], where: str = "<config>", text: str = "") -> M:
+    """Validate a mapping into ``model``; raise :class:`ConfigError` naming every bad field."""
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        raise ConfigError(format_validation_error(exc, model, where, text, data)) from None
+
+
+def load_model(model: type[M], path: str | Path) -> M:
+    data, text = read_toml(path)
+    return validate(model, data, str(path), text)
+
+
+def _resolve(name_or_path: str | Path, sub: str) -> Path:
+    p = Path(name_or_path)
+    if p.suffix == ".toml" or p.exists():
+        return p
+    cand = config_dir() / sub / f"{name_or_path}.toml"
+    if cand.exists():
+        return cand
+    known = sorted(q.stem for q in (config_dir() / sub).glob("*.toml"))
+    raise ConfigError(f"{sub[:-1]} '{name_or_path}' not found: not a file, and not one of {known}")
+
+
+def load_machine(name_or_path: str | Path = "ace-h63") -> MachineConfig:
+    """A machine by file path or by name in ``configs/machines/``."""
+    return load_model(MachineConfig, _resolve(name_or_path, "machines"))
+
+
+@lru_cache(maxsize=8)
+def _tool_library(path: str) -> ToolLibrary:
+    return load_model(ToolLibrary, path)
+
+
+def load_tools(path: str | Path | None = None) -> dict[str, EndMill | FaceMill]:
+    """All tools of a tool library file (default ``configs/tools.toml``)."""
+    return dict(_tool_library(str(path or config_dir() / "tools.toml")).tools)
+
+
+def get_tool(name: str, path: str | Path | None = None) -> EndMill | FaceMill:
+    tools = load_tools(path)
+    if name not in tools:
+        raise ConfigError(
+            f"{path or config_dir() / 'tools.toml'}: tool '{name}' not found; known tools: "
+            f"{', '.join(sorted(tools))}"
+        )
+    return tools[name]
+
+
+@lru_cache(maxsize=8)
+def _material_library(path: str) -> MaterialLibrary:
+    return load_model(MaterialLibrary, path)
+
+
+def load_materials(path: str | Path | None = None) -> dict[str, Material]:
+    return dict(_material_library(str(path or config_dir() / "materials.toml")).materials)
+
+
+def get_material(name: str, path: str | Path | None = None) -> Material:
+    mats = load_materials(path)
+    if name not in mats:
+        raise ConfigError(
+            f"{path or config_dir() / 'materials.toml'}: material '{name}' not found; known: "
+            f"{', '.join(sorted(mats))}"
+        )
+    return mats[name]
+
+
+def load_rig(path: str | Path | None = None) -> RigConfig:
+    """Dynamometer and DAQ settings (default ``configs/rig.toml``)."""
+    return load_model(RigConfig, path or config_dir() / "rig.toml")

@@ -1,0 +1,55 @@
+"""The ``cutlab`` command: one console script whose subcommands are thin and call the packages.
+
+Each command group lives in its own module here with a ``register(subparsers)`` function; heavy
+imports happen inside the handlers so that ``cutlab --help`` stays fast. Results go to stdout,
+status and progress to stderr. An error caused by input (any :class:`analysis.errors.CutlabError`)
+prints its message and exits with status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from analysis import __version__
+from analysis.errors import CutlabError
+
+# Top-level groups, in help order. ``plan`` is a group whose subcommands live in plan_*.py.
+GROUPS = ("demo", "nc", "daq", "data", "dnc", "analyze", "rules", "campaign")
+PLAN_COMMANDS = ("plan_rough", "plan_feed", "plan_orient")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="cutlab",
+        description="Hardware-in-the-loop machining experiments (run `cutlab demo` to start).",
+    )
+    parser.add_argument("--version", action="version", version=f"cutlab {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    for name in GROUPS:
+        importlib.import_module(f"rig.cli.{name}").register(sub)
+    plan = sub.add_parser("plan", help="roughing levels, feed post-processing, 5-axis orientation")
+    plan_sub = plan.add_subparsers(dest="plan_command", metavar="PLAN_COMMAND")
+    plan_sub.required = True
+    for name in PLAN_COMMANDS:
+        importlib.import_module(f"rig.cli.{name}").register(plan_sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except CutlabError as exc:
+        print(f"cutlab: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("cutlab: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
