@@ -1,0 +1,525 @@
+"""Z-map stock model (seed 001 2.1): one height per grid point, lowered under each cutter move.
+
+The stock is a regular grid of points at the centres of square cells of side ``spacing_mm``; each
+point holds the top of the material above it (a Z-map cannot hold overhangs, which a 3-axis cutter
+with a vertical shank cannot leave either). A move of the cutter lowers every point under its swept
+envelope (see :mod:`planning._zmap_kernels` for the flat, ball and bull geometry, including Choi's
+formulas); the volume removed is the sum of the height drops times the cell area. Each move touches
+only the patch of grid covering its footprint, so the cost of a move is its footprint in cells.
+
+Starting shapes: a box (:meth:`ZMap.box`), a height field (:meth:`ZMap.from_heights`), or a mesh /
+STL part (:meth:`ZMap.from_mesh`, top-most surface per point).
+
+Example
+-------
+>>> stock = ZMap.box(0, 100, 0, 50, bottom_mm=-20, top_mm=0, spacing_mm=0.5)
+>>> cutter = Cutter("flat", radius_mm=5)
+>>> removed = stock.cut(cutter, (0, 25, -1), (100, 25, -1))   # a 1 mm deep slot, mm^3
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from planning import _zmap_kernels as _k
+from planning.errors import PlanningError
+
+_KIND_CODES = {"flat": _k.FLAT, "ball": _k.BALL, "bull": _k.BULL}
+#: grid points beyond this count are refused (8 bytes each: 400 MB)
+MAX_GRID_POINTS = 50_000_000
+
+
+@dataclass(frozen=True)
+class Cutter:
+    """Axisymmetric end mill as the Z-map sees it (tip at the programmed point).
+
+    ``kind`` flat (corner radius 0), ball (corner radius = radius) or bull (0 < rc < radius).
+    """
+
+    kind: Literal["flat", "ball", "bull"]
+    radius_mm: float
+    corner_radius_mm: float = 0.0
+
+    def __post_init__(self) -> None:
+        r, rc = self.radius_mm, self.corner_radius_mm
+        if self.kind not in _KIND_CODES:
+            raise PlanningError(f"cutter kind '{self.kind}': expected flat, ball or bull")
+        if not (math.isfinite(r) and r > 0):
+            raise PlanningError(f"cutter radius_mm = {r}: must be > 0 (mm)")
+        if self.kind == "ball" and rc == 0.0:
+            object.__setattr__(self, "corner_radius_mm", r)
+            rc = r
+        ok = {
+            "flat": rc == 0,
+            "ball": math.isclose(rc, r, rel_tol=1e-9),
+            "bull": 0 < rc < r,
+        }[self.kind]
+        if not ok:
+            raise PlanningError(
+                f"cutter {self.kind} corner_radius_mm = {rc}: flat needs 0, ball R = {r}, "
+                f"bull 0 < rc < {r} (mm)"
+            )
+
+    @classmethod
+    def from_tool(cls, tool: object) -> Cutter:
+        """From an :class:`analysis.config.EndMill` (a face mill is refused)."""
+        kind = getattr(tool, "kind", None)
+        if kind not in _KIND_CODES:
+            raise PlanningError(
+                f"tool kind '{kind}': the Z-map models flat, ball and bull end mills only"
+            )
+        return cls(kind, tool.diameter_mm / 2, tool.corner_radius_mm)  # type: ignore[attr-defined]
+
+    def profile_mm(self, rho_mm: ArrayLike) -> NDArray[np.float64]:
+        """Height of the lower surface above the tip at radius ``rho_mm``, mm (inf beyond R)."""
+        rho = np.asarray(rho_mm, dtype=float)
+        return _k.profile_mm(
+            _KIND_CODES[self.kind], self.radius_mm, self.corner_radius_mm, rho * rho
+        )
+
+
+@dataclass(frozen=True)
+class PathCut:
+    """What a sequence of linear moves removed, per piece and per move.
+
+    Long moves are cut in pieces no longer than the requested piece length, in order, so the
+    removed volume is known along each move (the feed post-processor splits blocks with it).
+
+    Attributes
+    ----------
+    move : ndarray, shape (k,), int
+        Index of the move each piece belongs to.
+    start_mm, end_mm : ndarray, shape (k, 3), mm
+        Tip positions at the ends of each piece.
+    removed_mm3 : ndarray, shape (k,), mm^3
+        Volume removed by each piece (given the stock left by everything before it).
+    removed_per_move_mm3 : ndarray, shape (n,), mm^3
+    """
+
+    move: NDArray[np.int64]
+    start_mm: NDArray[np.float64]
+    end_mm: NDArray[np.float64]
+    removed_mm3: NDArray[np.float64]
+    removed_per_move_mm3: NDArray[np.float64]
+
+    @property
+    def length_mm(self) -> NDArray[np.float64]:
+        """3-D length of each piece, mm."""
+        return np.linalg.norm(self.end_mm - self.start_mm, axis=1)
+
+
+def split_moves(
+    starts_mm: NDArray[np.float64], ends_mm: NDArray[np.float64], piece_mm: float
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """Cut each move into equal pieces no longer than ``piece_mm`` (vectorised).
+
+    Returns ``(move index (k,), piece starts (k, 3), piece ends (k, 3))``; zero-length moves give
+    one piece.
+    """
+    starts = np.asarray(starts_mm, dtype=float).reshape(-1, 3)
+    ends = np.asarray(ends_mm, dtype=float).reshape(-1, 3)
+    n = len(starts)
+    if not math.isfinite(piece_mm):
+        return np.arange(n), starts, ends
+    if not piece_mm > 0:
+        raise PlanningError(f"piece_mm = {piece_mm}: must be > 0 (mm)")
+    length = np.linalg.norm(ends - starts, axis=1)
+    count = np.maximum(np.ceil(length / piece_mm - 1e-9), 1).astype(np.int64)
+    move = np.repeat(np.arange(n), count)
+    first = np.cumsum(count) - count
+    k = np.arange(len(move)) - first[move]
+    frac0 = (k / count[move])[:, None]
+    frac1 = ((k + 1) / count[move])[:, None]
+    d = (ends - starts)[move]
+    p0 = starts[move] + frac0 * d
+    p1 = np.where(frac1 >= 1.0, ends[move], starts[move] + frac1 * d)
+    return move, p0, p1
+
+
+class ZMap:
+    """A Z-map stock: ``heights_mm[j, i]`` is the top of the material at ``(x_mm[i], y_mm[j])``.
+
+    Mutable on purpose: cutting lowers it in place (the stock "at any moment" is the object itself,
+    :meth:`copy` keeps a snapshot). Heights never go below ``bottom_mm`` (the stock's underside).
+
+    Parameters
+    ----------
+    heights_mm : array_like, shape (ny, nx), mm
+    x0_mm, y0_mm : float, mm
+        Corner of the grid: cell (j, i) spans ``[x0 + i s, x0 + (i+1) s] x [y0 + j s, ...]`` and
+        its point is the cell centre.
+    spacing_mm : float, mm
+    bottom_mm : float, mm
+        Underside of the stock; a cutter below it removes nothing more.
+    """
+
+    def __init__(
+        self,
+        heights_mm: ArrayLike,
+        x0_mm: float,
+        y0_mm: float,
+        spacing_mm: float,
+        bottom_mm: float,
+    ) -> None:
+        h = np.array(heights_mm, dtype=np.float64, order="C", copy=True)
+        if h.ndim != 2 or h.size == 0:
+            raise PlanningError(
+                f"heights_mm has shape {h.shape}: expected (ny, nx) with ny, nx > 0"
+            )
+        if not (math.isfinite(spacing_mm) and spacing_mm > 0):
+            raise PlanningError(f"spacing_mm = {spacing_mm}: must be > 0 (mm)")
+        if not np.all(np.isfinite(h)):
+            raise PlanningError("heights_mm holds NaN or inf: every grid point needs a height (mm)")
+        if np.any(h < bottom_mm - 1e-9):
+            raise PlanningError(
+                f"heights_mm min {h.min():.4g} is below bottom_mm = {bottom_mm} (mm)"
+            )
+        self.heights_mm = h
+        self.x0_mm = float(x0_mm)
+        self.y0_mm = float(y0_mm)
+        self.spacing_mm = float(spacing_mm)
+        self.bottom_mm = float(bottom_mm)
+        ny, nx = h.shape
+        self.x_mm = self.x0_mm + (np.arange(nx) + 0.5) * self.spacing_mm
+        self.y_mm = self.y0_mm + (np.arange(ny) + 0.5) * self.spacing_mm
+        self._ycol = self.y_mm[:, None]
+
+    # ------------------------------------------------------------------ construction
+
+    @staticmethod
+    def _grid_size(extent_mm: float, spacing_mm: float, name: str) -> int:
+        if not (math.isfinite(spacing_mm) and spacing_mm > 0):
+            raise PlanningError(f"spacing_mm = {spacing_mm}: must be > 0 (mm)")
+        if not (math.isfinite(extent_mm) and extent_mm > 0):
+            raise PlanningError(f"stock {name} extent = {extent_mm}: must be > 0 (mm)")
+        return max(1, round(extent_mm / spacing_mm))
+
+    @classmethod
+    def box(
+        cls,
+        xmin_mm: float,
+        xmax_mm: float,
+        ymin_mm: float,
+        ymax_mm: float,
+        bottom_mm: float,
+        top_mm: float,
+        spacing_mm: float,
+    ) -> ZMap:
+        """A rectangular block; the extents are rounded to whole cells of ``spacing_mm``."""
+        nx = cls._grid_size(xmax_mm - xmin_mm, spacing_mm, "x")
+        ny = cls._grid_size(ymax_mm - ymin_mm, spacing_mm, "y")
+        if nx * ny > MAX_GRID_POINTS:
+            raise PlanningError(
+                f"stock grid {nx} x {ny} at spacing_mm = {spacing_mm} exceeds "
+                f"{MAX_GRID_POINTS} points: use a coarser spacing (mm)"
+            )
+        if not top_mm > bottom_mm:
+            raise PlanningError(f"stock top_mm = {top_mm} must be above bottom_mm = {bottom_mm}")
+        return cls(np.full((ny, nx), float(top_mm)), xmin_mm, ymin_mm, spacing_mm, bottom_mm)
+
+    @classmethod
+    def from_heights(
+        cls,
+        heights_mm: ArrayLike,
+        x0_mm: float,
+        y0_mm: float,
+        spacing_mm: float,
+        bottom_mm: float | None = None,
+    ) -> ZMap:
+        """A height-field start (e.g. a cast near-net shape); bottom defaults to its minimum."""
+        h = np.asarray(heights_mm, dtype=float)
+        bottom = float(np.min(h)) if bottom_mm is None else bottom_mm
+        return cls(h, x0_mm, y0_mm, spacing_mm, bottom)
+
+    @classmethod
+    def from_mesh(
+        cls,
+        mesh: object,
+        spacing_mm: float,
+        margin_mm: float = 0.0,
+        bottom_mm: float | None = None,
+    ) -> ZMap:
+        """The top-most surface of a triangle mesh (``trimesh.Trimesh`` or an STL path).
+
+        Grid points the mesh does not cover get ``bottom_mm`` (default: the mesh's lowest z).
+        Rasterised here, vectorised over triangles, because trimesh's ray queries need rtree or
+        embree and a height field only needs the highest triangle over each point.
+        """
+        import trimesh
+
+        if isinstance(mesh, str | Path):
+            try:
+                loaded = trimesh.load(str(mesh), force="mesh")
+            except Exception as exc:  # trimesh raises many types on a bad file
+                raise PlanningError(f"{mesh}: cannot read the stock mesh: {exc}") from None
+            mesh = loaded
+        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+            raise PlanningError("stock mesh has no triangles")
+        lo, hi = mesh.bounds
+        bottom = float(lo[2]) if bottom_mm is None else float(bottom_mm)
+        x0, y0 = lo[0] - margin_mm, lo[1] - margin_mm
+        nx = cls._grid_size(hi[0] - lo[0] + 2 * margin_mm, spacing_mm, "x")
+        ny = cls._grid_size(hi[1] - lo[1] + 2 * margin_mm, spacing_mm, "y")
+        h = _rasterise_top(np.asarray(mesh.triangles), x0, y0, spacing_mm, nx, ny, bottom)
+        return cls(np.maximum(h, bottom), x0, y0, spacing_mm, bottom)
+
+    def copy(self) -> ZMap:
+        """An independent snapshot of the stock."""
+        return ZMap(self.heights_mm, self.x0_mm, self.y0_mm, self.spacing_mm, self.bottom_mm)
+
+    # ------------------------------------------------------------------ queries
+
+    @property
+    def cell_area_mm2(self) -> float:
+        return self.spacing_mm * self.spacing_mm
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(ny, nx) grid points."""
+        return self.heights_mm.shape  # type: ignore[return-value]
+
+    @property
+    def extent_mm(self) -> tuple[float, float, float, float]:
+        """(xmin, xmax, ymin, ymax) of the grid, mm."""
+        ny, nx = self.shape
+        s = self.spacing_mm
+        return (self.x0_mm, self.x0_mm + nx * s, self.y0_mm, self.y0_mm + ny * s)
+
+    def volume_mm3(self) -> float:
+        """Material above ``bottom_mm``, mm^3."""
+        return float((self.heights_mm - self.bottom_mm).sum() * self.cell_area_mm2)
+
+    def height_at(self, x_mm: ArrayLike, y_mm: ArrayLike) -> NDArray[np.float64]:
+        """Height of the grid point nearest to each (x, y), mm (NaN outside the grid)."""
+        x = np.asarray(x_mm, dtype=float)
+        y = np.asarray(y_mm, dtype=float)
+        i = np.floor((x - self.x0_mm) / self.spacing_mm).astype(int)
+        j = np.floor((y - self.y0_mm) / self.spacing_mm).astype(int)
+        ny, nx = self.shape
+        ok = (i >= 0) & (i < nx) & (j >= 0) & (j < ny)
+        out = np.full(np.broadcast(i, j).shape, np.nan)
+        out[ok] = self.heights_mm[j[ok], i[ok]]
+        return out
+
+    def _patch(self, xlo: float, xhi: float, ylo: float, yhi: float) -> tuple[int, int, int, int]:
+        """Index ranges (i0, i1, j0, j1) of the grid points inside [xlo, xhi] x [ylo, yhi]."""
+        s = self.spacing_mm
+        ny, nx = self.heights_mm.shape
+        cx = self.x0_mm + 0.5 * s
+        cy = self.y0_mm + 0.5 * s
+        i0 = max(0, math.ceil((xlo - cx) / s - 1e-9))
+        i1 = min(nx, math.floor((xhi - cx) / s + 1e-9) + 1)
+        j0 = max(0, math.ceil((ylo - cy) / s - 1e-9))
+        j1 = min(ny, math.floor((yhi - cy) / s + 1e-9) + 1)
+        return i0, i1, j0, j1
+
+    def max_height_near(
+        self, start_mm: ArrayLike, end_mm: ArrayLike, radius_mm: float
+    ) -> NDArray[np.float64]:
+        """Stock height over the points within ``radius_mm`` of the horizontal path, per point.
+
+        Returns the heights of the footprint patch, ``-inf`` outside the footprint (shape of the
+        patch); used for holder clearance checks.
+        """
+        x0, y0, _ = (float(v) for v in start_mm)  # type: ignore[union-attr]
+        x1, y1, _ = (float(v) for v in end_mm)  # type: ignore[union-attr]
+        i0, i1, j0, j1 = self._patch(
+            min(x0, x1) - radius_mm, max(x0, x1) + radius_mm,
+            min(y0, y1) - radius_mm, max(y0, y1) + radius_mm,
+        )  # fmt: skip
+        if i0 >= i1 or j0 >= j1:
+            return np.empty((0, 0))
+        h = self.heights_mm[j0:j1, i0:i1]
+        env = _k.envelope(
+            _k.FLAT, radius_mm, 0.0, self.x_mm[i0:i1] - x0, self._ycol[j0:j1] - y0,
+            x1 - x0, y1 - y0, 0.0, 0.0,
+        )  # fmt: skip
+        return np.where(np.isfinite(env), h, -np.inf)
+
+    # ------------------------------------------------------------------ cutting
+
+    def cut(self, cutter: Cutter, start_mm: ArrayLike, end_mm: ArrayLike) -> float:
+        """Move the cutter tip in a straight line from ``start_mm`` to ``end_mm``; removed mm^3."""
+        x0, y0, z0 = (float(v) for v in start_mm)  # type: ignore[union-attr]
+        x1, y1, z1 = (float(v) for v in end_mm)  # type: ignore[union-attr]
+        return self._cut_one(
+            _KIND_CODES[cutter.kind], cutter.radius_mm, cutter.corner_radius_mm,
+            x0, y0, z0, x1, y1, z1,
+        )  # fmt: skip
+
+    def cut_path(
+        self,
+        cutter: Cutter,
+        starts_mm: ArrayLike,
+        ends_mm: ArrayLike,
+        piece_mm: float = math.inf,
+        progress: Callable[[int], None] | None = None,
+    ) -> PathCut:
+        """Cut a sequence of linear moves in order; pieces no longer than ``piece_mm``.
+
+        Parameters
+        ----------
+        starts_mm, ends_mm : array_like, shape (n, 3), mm
+            Tip positions at the start and end of each move.
+        piece_mm : float, mm
+            Longest piece a move is cut in (the removed volume is reported per piece).
+        progress : callable, optional
+            Called with the number of pieces done, every 4096 pieces.
+        """
+        move, p0, p1 = split_moves(
+            np.asarray(starts_mm, float), np.asarray(ends_mm, float), piece_mm
+        )
+        n = len(np.asarray(starts_mm).reshape(-1, 3))
+        removed = np.zeros(len(move))
+        kind = _KIND_CODES[cutter.kind]
+        r, rc = cutter.radius_mm, cutter.corner_radius_mm
+        cut_one = self._cut_one
+        rows = np.concatenate([p0, p1], axis=1).tolist()  # python floats: cheaper per piece
+        for k, (x0, y0, z0, x1, y1, z1) in enumerate(rows):
+            removed[k] = cut_one(kind, r, rc, x0, y0, z0, x1, y1, z1)
+            if progress is not None and k % 4096 == 4095:
+                progress(k + 1)
+        per_move = np.bincount(move, weights=removed, minlength=n)
+        return PathCut(move, p0, p1, removed, per_move)
+
+    def _cut_one(
+        self,
+        kind: int,
+        r: float,
+        rc: float,
+        x0: float,
+        y0: float,
+        z0: float,
+        x1: float,
+        y1: float,
+        z1: float,
+    ) -> float:
+        """Lower the grid under one linear move; return the removed volume, mm^3."""
+        i0, i1, j0, j1 = self._patch(
+            min(x0, x1) - r, max(x0, x1) + r, min(y0, y1) - r, max(y0, y1) + r
+        )
+        if i0 >= i1 or j0 >= j1:
+            return 0.0
+        h = self.heights_mm[j0:j1, i0:i1]
+        zlow = max(z0 if z0 < z1 else z1, self.bottom_mm)
+        if h.max() <= zlow:  # the cutter passes above everything here (air move)
+            return 0.0
+        qx = self.x_mm[i0:i1] - x0
+        qy = self._ycol[j0:j1] - y0
+        dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
+        if kind == _k.FLAT and dz == 0.0:
+            # Level flat cut, the common roughing move: the envelope is the tip height over the
+            # points within R of the path segment.
+            l2 = dx * dx + dy * dy
+            if l2 > 0.0:
+                t = qx * (dx / l2) + qy * (dy / l2)
+                np.clip(t, 0.0, 1.0, out=t)
+                ex = qx - t * dx
+                ey = qy - t * dy
+                d2 = ex * ex
+                d2 += ey * ey
+            else:
+                d2 = qx * qx + qy * qy
+            diff = h - zlow
+            np.maximum(diff, 0.0, out=diff)
+            diff *= d2 <= r * r
+        else:
+            env = _k.envelope(kind, r, rc, qx, qy, dx, dy, dz, z0)
+            np.maximum(env, self.bottom_mm, out=env)
+            diff = h - env
+            np.maximum(diff, 0.0, out=diff)
+        removed = float(diff.sum())
+        if removed > 0.0:
+            h -= diff
+        return removed * self.spacing_mm * self.spacing_mm
+
+    # ------------------------------------------------------------------ output
+
+    def save_png(self, path: str | Path, title: str = "stock") -> Path:
+        """Shaded height map of the stock, PNG (matplotlib, Agg)."""
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        from matplotlib.colors import LightSource
+
+        h = self.heights_mm
+        step = max(1, int(math.ceil(max(h.shape) / 1500)))  # keep the image a sane size
+        hs = h[::step, ::step]
+        xmin, xmax, ymin, ymax = self.extent_mm
+        fig, ax = plt.subplots(figsize=(7, 6), dpi=110)
+        ls = LightSource(azdeg=315, altdeg=45)
+        span = float(hs.max() - hs.min()) or 1.0
+        shaded = ls.shade(
+            hs, cmap=plt.get_cmap("viridis"), vert_exag=max(hs.shape) / span * 0.05,
+            blend_mode="soft", dx=self.spacing_mm * step, dy=self.spacing_mm * step,
+        )  # fmt: skip
+        ax.imshow(shaded, origin="lower", extent=(xmin, xmax, ymin, ymax))
+        sm = plt.cm.ScalarMappable(
+            cmap="viridis", norm=plt.Normalize(float(hs.min()), float(hs.max()))
+        )
+        fig.colorbar(sm, ax=ax, label="height (mm)")
+        ax.set_xlabel("x (mm)")
+        ax.set_ylabel("y (mm)")
+        ax.set_title(title)
+        fig.tight_layout()
+        out = Path(path)
+        fig.savefig(out)
+        plt.close(fig)
+        return out
+
+
+def _rasterise_top(
+    tri: NDArray[np.float64], x0: float, y0: float, s: float, nx: int, ny: int, bottom: float
+) -> NDArray[np.float64]:
+    """Highest triangle height over each cell centre; ``bottom`` where no triangle covers it."""
+    h = np.full(ny * nx, -np.inf)
+    # Skip vertical triangles: they add nothing to a height field.
+    e1 = tri[:, 1, :2] - tri[:, 0, :2]
+    e2 = tri[:, 2, :2] - tri[:, 0, :2]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    keep = np.abs(det) > 1e-12
+    tri, det, e1, e2 = tri[keep], det[keep], e1[keep], e2[keep]
+    i_lo = np.clip(np.ceil((tri[:, :, 0].min(1) - x0) / s - 0.5), 0, nx).astype(np.int64)
+    i_hi = np.clip(np.floor((tri[:, :, 0].max(1) - x0) / s - 0.5) + 1, 0, nx).astype(np.int64)
+    j_lo = np.clip(np.ceil((tri[:, :, 1].min(1) - y0) / s - 0.5), 0, ny).astype(np.int64)
+    j_hi = np.clip(np.floor((tri[:, :, 1].max(1) - y0) / s - 0.5) + 1, 0, ny).astype(np.int64)
+    wi = np.maximum(i_hi - i_lo, 0)
+    wj = np.maximum(j_hi - j_lo, 0)
+    count = wi * wj
+    # In batches so the expanded (triangle, cell) list stays bounded.
+    start = 0
+    csum = np.cumsum(count)
+    while start < len(tri):
+        base = csum[start - 1] if start else 0
+        stop = int(np.searchsorted(csum, base + 4_000_000, side="right"))
+        stop = max(stop, start + 1)
+        sl = slice(start, stop)
+        c = count[sl]
+        t_idx = np.repeat(np.arange(start, stop), c)
+        if len(t_idx):
+            off = np.arange(len(t_idx)) - np.repeat(np.cumsum(c) - c, c)
+            ii = i_lo[t_idx] + off % wi[t_idx]
+            jj = j_lo[t_idx] + off // wi[t_idx]
+            px = x0 + (ii + 0.5) * s - tri[t_idx, 0, 0]
+            py = y0 + (jj + 0.5) * s - tri[t_idx, 0, 1]
+            d = det[t_idx]
+            u = (px * e2[t_idx, 1] - py * e2[t_idx, 0]) / d
+            v = (py * e1[t_idx, 0] - px * e1[t_idx, 1]) / d
+            inside = (u >= -1e-9) & (v >= -1e-9) & (u + v <= 1 + 1e-9)
+            z = (
+                tri[t_idx, 0, 2]
+                + u * (tri[t_idx, 1, 2] - tri[t_idx, 0, 2])
+                + v * (tri[t_idx, 2, 2] - tri[t_idx, 0, 2])
+            )
+            np.maximum.at(h, (jj * nx + ii)[inside], z[inside])
+        start = stop
+    h[~np.isfinite(h)] = bottom
+    return h.reshape(ny, nx)
