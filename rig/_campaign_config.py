@@ -1,0 +1,404 @@
+"""The campaign TOML: its validated model, the expansion of its test matrix, and the checks that
+every test is possible on the named machine with the named tool before anything runs.
+
+A campaign file has these tables (all lengths mm, feeds mm/min or mm/tooth, speeds rpm)::
+
+    [campaign]      name, machine, tool, material, rig = "sim" | "real", output_dir, ...
+    [program]       kind = "facemill-pass" | "slot" | "feed-sweep" | "step-depth" and its geometry
+    [daq]           optional overrides of configs/rig.toml's DAQ (rate_hz, ...)
+    [sim]           the simulated rig: speed, noise, drift, hum, seed and sim_ fault knobs
+    [suspenders]    conditions that pause or stop a run on their own
+    [analysis]      what runs after the campaign (kind and which groups feed it)
+    [[matrix]]      one or more groups; every list-valued field is expanded as a product
+    [[tests]]       single tests (scalars only), appended after the matrix
+
+See ``configs/campaigns/*.toml`` for commented examples.
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import Field, model_validator
+
+from analysis.config import (
+    EndMill,
+    FaceMill,
+    MachineConfig,
+    Material,
+    Model,
+    RigConfig,
+    config_dir,
+    get_material,
+    get_tool,
+    load_machine,
+    load_rig,
+    read_toml,
+    validate,
+)
+from analysis.errors import ConfigError
+
+FloatOrList = float | list[float]
+
+ProgramKind = Literal["facemill-pass", "slot", "feed-sweep", "step-depth"]
+FeedMode = Literal["constant", "post-processed"]
+
+
+class CampaignSection(Model):
+    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
+    description: str = ""
+    machine: str = Field(min_length=1, description="machine name in configs/machines or a path")
+    tool: str = Field(min_length=1, description="tool name in configs/tools.toml")
+    material: str = Field(min_length=1, description="material name in configs/materials.toml")
+    rig: Literal["sim", "real"] = Field("sim", description="sim or real")
+    rig_config: str | None = Field(None, description="rig TOML (default configs/rig.toml)")
+    output_dir: str = Field("data/campaigns", description="folder of campaign folders")
+    operator: str = ""
+
+
+class ProgramSection(Model):
+    """Geometry of the generated test programs. The block's top face is Z = 0 (work offset G54),
+    it spans X 0..block_length_mm and Y -block_width_mm/2..+block_width_mm/2."""
+
+    kind: ProgramKind = Field(description="generator")
+    block_length_mm: float = Field(30.0, gt=0, le=2000, description="mm, along the cut (X)")
+    block_width_mm: float = Field(50.0, gt=0, le=2000, description="mm, across the cut (Y)")
+    approach_mm: float = Field(3.0, ge=0, le=100, description="mm, air cut before the block")
+    safe_z_mm: float = Field(5.0, gt=0, le=200, description="mm above the block top")
+    offset_y_mm: float = Field(0.0, ge=-1000, le=1000, description="mm, cutter path off centre")
+    step_depths_mm: tuple[float, ...] = Field(
+        (), description="mm, step-depth cut: depth of cut on each step, in cutting order"
+    )
+    sweep_feeds_mm_min: tuple[float, ...] = Field(
+        (), description="mm/min, feed-sweep: the feeds stepped along one slot"
+    )
+    program_number: int = Field(1001, ge=1, le=9999, description="Fanuc O number")
+
+    @model_validator(mode="after")
+    def _kind_fields(self) -> ProgramSection:
+        if self.kind == "step-depth" and len(self.step_depths_mm) < 2:
+            raise ValueError("step_depths_mm needs >= 2 depths (mm) for a step-depth program")
+        if any(d <= 0 for d in self.step_depths_mm):
+            raise ValueError(f"step_depths_mm = {list(self.step_depths_mm)}: must be > 0 (mm)")
+        if self.kind == "feed-sweep" and len(self.sweep_feeds_mm_min) < 2:
+            raise ValueError("sweep_feeds_mm_min needs >= 2 feeds (mm/min) for a feed-sweep")
+        if any(f <= 0 for f in self.sweep_feeds_mm_min):
+            raise ValueError(f"sweep_feeds_mm_min = {list(self.sweep_feeds_mm_min)}: must be > 0")
+        return self
+
+
+class DaqOverride(Model):
+    rate_hz: float | None = Field(None, gt=0, le=10_000_000, description="Hz, per channel")
+    read_interval_s: float | None = Field(None, gt=0, le=10, description="s between reads")
+
+
+class SimSection(Model):
+    """The simulated rig. Noise, drift and hum are given in newtons at the amplifier output."""
+
+    speed: float = Field(40.0, gt=0, le=10_000, description="simulated s per wall s")
+    noise_n: float = Field(1.0, ge=0, le=1e4, description="N, rms white noise per channel")
+    drift_n_s: float = Field(0.05, ge=-1e3, le=1e3, description="N/s, charge amplifier drift")
+    hum_n: float = Field(0.5, ge=0, le=1e4, description="N, mains hum amplitude")
+    hum_hz: float = Field(50.0, gt=0, le=1000, description="Hz, mains frequency")
+    seed: int = Field(2003, ge=0, description="rng seed")
+    protocol: Literal["fanuc", "grbl"] | None = Field(
+        None, description="simulated controller (default: the machine's dialect)"
+    )
+    sim_controller_stall_at_s: float | None = Field(
+        None, gt=0, description="s into a run: the controller stops answering"
+    )
+    sim_daq_overflow_at_s: float | None = Field(
+        None, gt=0, description="s into a run: the DAQ buffer overflows"
+    )
+    sim_interlock_at_s: float | None = Field(
+        None, gt=0, description="s into a run: the door interlock trips"
+    )
+    sim_fault_run: int = Field(0, ge=0, description="index of the run the sim_ faults hit")
+
+
+class SuspenderSection(Model):
+    """Conditions that stop a run on their own (Bluesky's suspenders)."""
+
+    force_limit_n: float | None = Field(None, gt=0, le=1e6, description="N, resultant force")
+    on_force: Literal["hold", "abort"] = Field(
+        "hold", description="feed hold, then abort after hold_timeout_s; or abort at once"
+    )
+    hold_timeout_s: float = Field(0.0, ge=0, le=3600, description="s held before aborting")
+    on_overflow: Literal["fail", "continue"] = Field("fail", description="DAQ overflow")
+    stop_campaign_on_fail: bool = Field(False, description="stop the campaign after a failed run")
+
+
+class AnalysisSection(Model):
+    kind: Literal["none", "facemill-coefficients", "feed-rule", "afc-compare"] = "none"
+    identify_groups: tuple[str, ...] = ()
+    validate_groups: tuple[str, ...] = ()
+    rule_name: str = Field("derived", description="name of a derived feed rule")
+    compare_groups: tuple[str, ...] = Field((), description="afc-compare: constant, adjusted")
+
+
+class MatrixEntry(Model):
+    """A group of tests: the product of every list-valued field."""
+
+    group: str = Field("main", min_length=1, pattern=r"^[A-Za-z0-9_.-]+$")
+    fz_mm: FloatOrList | None = Field(None, description="mm/tooth")
+    feed_mm_min: FloatOrList | None = Field(None, description="mm/min (instead of fz_mm)")
+    depth_mm: FloatOrList | None = Field(None, description="mm, axial depth of cut")
+    width_mm: FloatOrList | None = Field(None, description="mm, radial width of cut")
+    spindle_rpm: FloatOrList = Field(description="rpm")
+    feed_mode: FeedMode | list[FeedMode] = "constant"
+    rule: str | None = Field(None, description="feed rule file for post-processed tests")
+    repeat: int = Field(1, ge=1, le=100, description="count")
+
+    @model_validator(mode="after")
+    def _feed(self) -> MatrixEntry:
+        if (self.fz_mm is None) == (self.feed_mm_min is None):
+            raise ValueError("give exactly one of fz_mm (mm/tooth) and feed_mm_min (mm/min)")
+        for name in ("fz_mm", "feed_mm_min", "depth_mm", "width_mm", "spindle_rpm"):
+            v = getattr(self, name)
+            vals = v if isinstance(v, list) else [v]
+            if isinstance(v, list) and not v:
+                raise ValueError(f"{name} = []: give at least one value")
+            bad = [x for x in vals if x is not None and not x > 0]
+            if bad:
+                raise ValueError(f"{name} = {bad[0]}: must be > 0")
+        return self
+
+
+class CampaignFile(Model):
+    campaign: CampaignSection
+    program: ProgramSection
+    daq: DaqOverride = DaqOverride()
+    sim: SimSection = SimSection()
+    suspenders: SuspenderSection = SuspenderSection()
+    analysis: AnalysisSection = AnalysisSection()
+    matrix: tuple[MatrixEntry, ...] = ()
+    tests: tuple[MatrixEntry, ...] = ()
+
+    @model_validator(mode="after")
+    def _some_tests(self) -> CampaignFile:
+        if not self.matrix and not self.tests:
+            raise ValueError("no tests: add a [[matrix]] or [[tests]] table")
+        return self
+
+
+@dataclass(frozen=True)
+class RunConditions:
+    """One test of a campaign, after expansion. Feeds in both units are filled in."""
+
+    index: int
+    name: str
+    group: str
+    fz_mm: float
+    feed_mm_min: float
+    depth_mm: float
+    width_mm: float
+    spindle_rpm: float
+    feed_mode: str
+    rule: str | None
+    source_line: int | None
+
+    def as_dict(self) -> dict[str, Any]:
+        return {k: v for k, v in self.__dict__.items() if k != "source_line"}
+
+
+@dataclass(frozen=True)
+class Campaign:
+    """A loaded, validated campaign with its resolved configs and expanded tests."""
+
+    path: Path
+    text: str
+    spec: CampaignFile
+    machine: MachineConfig
+    tool: EndMill | FaceMill
+    material: Material
+    rig: RigConfig
+    tests: tuple[RunConditions, ...]
+
+    @property
+    def name(self) -> str:
+        return self.spec.campaign.name
+
+    @property
+    def teeth(self) -> int:
+        return _teeth(self.tool)
+
+
+def _teeth(tool: EndMill | FaceMill) -> int:
+    return tool.inserts if isinstance(tool, FaceMill) else tool.flutes
+
+
+def _as_list(v: Any) -> list[Any]:
+    return list(v) if isinstance(v, list) else [v]
+
+
+def _table_lines(text: str, table: str) -> list[int]:
+    """1-based lines of each ``[[table]]`` header, in order."""
+    pat = re.compile(r"^\s*\[\[\s*" + re.escape(table) + r"\s*\]\]")
+    return [i + 1 for i, line in enumerate(text.splitlines()) if pat.match(line)]
+
+
+def _fmt(x: float) -> str:
+    return f"{x:g}"
+
+
+def expand_matrix(
+    entries: tuple[MatrixEntry, ...], tool: EndMill | FaceMill, lines: list[int] | None = None
+) -> list[RunConditions]:
+    """Expand matrix groups into tests (product of list-valued fields, in file order).
+
+    Width defaults to the tool diameter for end mills (a slot); depth must be given.
+    """
+    out: list[RunConditions] = []
+    teeth = _teeth(tool)
+    for k, e in enumerate(entries):
+        line = lines[k] if lines and k < len(lines) else None
+        feeds = _as_list(e.fz_mm if e.fz_mm is not None else e.feed_mm_min)
+        width_default = tool.diameter_mm if isinstance(tool, EndMill) else None
+        widths = _as_list(e.width_mm if e.width_mm is not None else width_default)
+        depths = _as_list(e.depth_mm)
+        for rpm, feed, depth, width, mode, rep in itertools.product(
+            _as_list(e.spindle_rpm), feeds, depths, widths, _as_list(e.feed_mode), range(e.repeat)
+        ):
+            if e.fz_mm is not None:
+                fz = float(feed)
+                f_min = fz * teeth * rpm
+            else:
+                f_min = float(feed)
+                fz = f_min / (teeth * rpm)
+            name = f"{e.group}-n{len(out):03d}-fz{fz:.4g}-d{_fmt(depth or 0)}-s{_fmt(rpm)}"
+            if mode != "constant":
+                name += f"-{mode}"
+            if e.repeat > 1:
+                name += f"-r{rep}"
+            out.append(
+                RunConditions(
+                    index=len(out),
+                    name=name,
+                    group=e.group,
+                    fz_mm=fz,
+                    feed_mm_min=f_min,
+                    depth_mm=float(depth) if depth is not None else float("nan"),
+                    width_mm=float(width) if width is not None else float("nan"),
+                    spindle_rpm=float(rpm),
+                    feed_mode=mode,
+                    rule=e.rule,
+                    source_line=line,
+                )
+            )
+    return out
+
+
+def check_tests(
+    tests: list[RunConditions],
+    machine: MachineConfig,
+    tool: EndMill | FaceMill,
+    program: ProgramSection,
+    where: str,
+) -> None:
+    """Raise :class:`ConfigError` listing every impossible test (all of them, not just the first)."""
+    problems: list[str] = []
+    depth_limit = tool.depth_limit_mm if isinstance(tool, FaceMill) else tool.flute_length_mm
+    for t in tests:
+        place = f"{where}:{t.source_line}" if t.source_line else where
+        head = f"{place}: test {t.index} ({t.group})"
+        feeds = [t.feed_mm_min]
+        if program.kind == "feed-sweep":
+            feeds = list(program.sweep_feeds_mm_min)
+        for f in feeds:
+            if f > machine.feed_max_mm_min:
+                problems.append(
+                    f"{head}: feed = {f:g} mm/min (fz {t.fz_mm:g} mm/tooth x {_teeth(tool)} x "
+                    f"{t.spindle_rpm:g} rpm) is above machine '{machine.name}' feed_max_mm_min = "
+                    f"{machine.feed_max_mm_min:g} mm/min"
+                )
+            if f < machine.feed_min_mm_min:
+                problems.append(
+                    f"{head}: feed = {f:g} mm/min is below feed_min_mm_min = "
+                    f"{machine.feed_min_mm_min:g} mm/min"
+                )
+        if t.spindle_rpm > machine.spindle_max_rpm:
+            problems.append(
+                f"{head}: spindle_rpm = {t.spindle_rpm:g} is above machine '{machine.name}' "
+                f"spindle_max_rpm = {machine.spindle_max_rpm:g} rpm"
+            )
+        depths = [t.depth_mm]
+        if program.kind == "step-depth":
+            depths = list(program.step_depths_mm)
+        for d in depths:
+            if not d == d:  # NaN
+                problems.append(f"{head}: depth_mm missing: give the axial depth of cut (mm)")
+            elif d > depth_limit:
+                kind = "usable insert edge" if isinstance(tool, FaceMill) else "flute length"
+                problems.append(
+                    f"{head}: depth_mm = {d:g} is beyond the {kind} of tool '{program_tool(tool)}'"
+                    f" ({depth_limit:.3g} mm)"
+                )
+        if isinstance(tool, EndMill) and t.width_mm > tool.diameter_mm + 1e-9:
+            problems.append(
+                f"{head}: width_mm = {t.width_mm:g} exceeds the tool diameter "
+                f"{tool.diameter_mm:g} mm (one pass cuts at most a slot)"
+            )
+        if t.width_mm == t.width_mm and t.width_mm > program.block_width_mm + 1e-9:
+            problems.append(
+                f"{head}: width_mm = {t.width_mm:g} exceeds program.block_width_mm = "
+                f"{program.block_width_mm:g} mm"
+            )
+        if t.feed_mode == "post-processed" and not t.rule:
+            problems.append(f"{head}: feed_mode = 'post-processed' needs rule = 'FILE' (a rule)")
+    if isinstance(tool, FaceMill) and program.kind != "facemill-pass":
+        problems.append(
+            f"{where}: program.kind = '{program.kind}' needs an end mill, got a face mill"
+        )
+    if isinstance(tool, EndMill) and program.kind == "facemill-pass":
+        problems.append(f"{where}: program.kind = 'facemill-pass' needs a face mill tool")
+    if problems:
+        raise ConfigError("\n".join(problems))
+
+
+def program_tool(tool: EndMill | FaceMill) -> str:
+    return tool.description or tool.kind
+
+
+def _resolve_campaign(path: str | Path) -> Path:
+    p = Path(path)
+    if p.exists() or p.suffix == ".toml":
+        return p
+    cand = config_dir() / "campaigns" / f"{path}.toml"
+    if cand.exists():
+        return cand
+    known = sorted(q.stem for q in (config_dir() / "campaigns").glob("*.toml"))
+    raise ConfigError(f"campaign '{path}' not found: not a file, and not one of {known}")
+
+
+def load_campaign(path: str | Path) -> Campaign:
+    """Load and check a campaign: every error (config, tool, material, impossible test) is a
+    :class:`ConfigError` raised here, before anything runs."""
+    p = _resolve_campaign(path)
+    data, text = read_toml(p)
+    spec = validate(CampaignFile, data, str(p), text)
+    c = spec.campaign
+    machine = load_machine(c.machine)
+    try:
+        tool = get_tool(c.tool)
+    except ConfigError as exc:
+        raise ConfigError(f"{p}: campaign.tool = {c.tool!r}: {exc}") from None
+    try:
+        material = get_material(c.material)
+    except ConfigError as exc:
+        raise ConfigError(f"{p}: campaign.material = {c.material!r}: {exc}") from None
+    rig = load_rig(c.rig_config)
+    if c.rig == "sim":
+        need = "facemill" if isinstance(tool, FaceMill) else "endmill"
+        if getattr(material, need) is None:
+            raise ConfigError(
+                f"{p}: campaign.material = {c.material!r} has no [{need}] coefficients; the "
+                f"simulated rig needs them as its truth for tool {c.tool!r}"
+            )
+    lines = _table_lines(text, "matrix") + _table_lines(text, "tests")
+    tests = expand_matrix(spec.matrix + spec.tests, tool, lines)
+    check_tests(tests, machine, tool, spec.program, str(p))
+    return Campaign(p, text, spec, machine, tool, material, rig, tuple(tests))

@@ -1,0 +1,158 @@
+"""NC programs for a campaign's tests, and the test block they cut.
+
+Every program cuts the same kind of block: top face at Z = 0 (G54), X from 0 to
+``block_length_mm``, Y from -``block_width_mm``/2 to +``block_width_mm``/2. A step-depth block has
+steps along X whose tops sit at ``z_cut + depth_i``. The cutter always enters from -X, is lowered
+to depth in the air before the block and leaves along +X, so no test plunges into material.
+
+Programs are plain ISO text (Fanuc: O number and N words; GRBL: neither), and each is checked by
+the NC parser before anything is sent.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from analysis.config import EndMill, FaceMill
+from rig._campaign_config import ProgramSection, RunConditions
+
+
+@dataclass(frozen=True)
+class CutBlock:
+    """The workpiece of one test: a block with a stepped top.
+
+    ``step_x_mm`` (k+1,) are the X edges of k steps, ``step_top_mm`` (k,) their top Z, mm.
+    """
+
+    y_min_mm: float
+    y_max_mm: float
+    step_x_mm: tuple[float, ...]
+    step_top_mm: tuple[float, ...]
+
+    @property
+    def x_min_mm(self) -> float:
+        return self.step_x_mm[0]
+
+    @property
+    def x_max_mm(self) -> float:
+        return self.step_x_mm[-1]
+
+    def top_z(self, x_mm: np.ndarray, y_mm: np.ndarray) -> np.ndarray:
+        """Top of the uncut block at (x, y), mm; -inf outside the block. Any matching shapes."""
+        x = np.asarray(x_mm, dtype=float)
+        y = np.asarray(y_mm, dtype=float)
+        edges = np.asarray(self.step_x_mm)
+        tops = np.append(np.asarray(self.step_top_mm), -np.inf)
+        k = np.searchsorted(edges, x, side="right") - 1
+        k = np.where((k < 0) | (k >= len(self.step_top_mm)), len(tops) - 1, k)
+        inside = (y >= self.y_min_mm) & (y <= self.y_max_mm)
+        return np.where(inside, tops[k], -np.inf)
+
+
+@dataclass(frozen=True)
+class CutProgram:
+    """One generated program: text, the block it cuts, the cutting Z and the path X range, mm."""
+
+    text: str
+    block: CutBlock
+    z_cut_mm: float
+    x_start_mm: float
+    x_end_mm: float
+    y_path_mm: float
+    cut_feed_mm_min: float
+
+
+def _f(x: float, nd: int = 3) -> str:
+    s = f"{x:.{nd}f}".rstrip("0").rstrip(".")
+    return "0" if s in ("-0", "") else s
+
+
+class _Writer:
+    """Collects blocks; Fanuc gets N words every block, GRBL none."""
+
+    def __init__(self, dialect: str, number: int, title: str) -> None:
+        self.dialect = dialect
+        self.lines: list[str] = []
+        self._n = 0
+        if dialect == "fanuc":
+            self.lines.append(f"O{number:04d} ({title[:60].upper()})")
+        else:
+            self.lines.append(f"({title[:70]})")
+
+    def add(self, words: str) -> None:
+        if self.dialect == "fanuc":
+            self._n += 10
+            self.lines.append(f"N{self._n} {words}")
+        else:
+            self.lines.append(words)
+
+    def text(self) -> str:
+        return "\n".join(self.lines) + "\n"
+
+
+def _exit_x(block_x_max: float, radius_mm: float, y_path: float, block: CutBlock, air: float):
+    """X where the cutter centre has left all material along +X (leading half only), mm."""
+    half = max(abs(block.y_min_mm - y_path), abs(block.y_max_mm - y_path))
+    reach = math.sqrt(max(radius_mm**2 - half**2, 0.0)) if half < radius_mm else 0.0
+    return block_x_max - reach + air
+
+
+def generate_program(
+    prog: ProgramSection,
+    test: RunConditions,
+    tool: EndMill | FaceMill,
+    dialect: str,
+    title: str = "",
+) -> CutProgram:
+    """The NC program of one test (see the module docstring for the block and path)."""
+    r = tool.diameter_mm / 2
+    half_w = prog.block_width_mm / 2
+    length = prog.block_length_mm
+    if prog.kind == "step-depth":
+        depths = np.asarray(prog.step_depths_mm, dtype=float)
+        z_cut = -float(depths.max())
+        edges = tuple(float(x) for x in np.linspace(0.0, length, len(depths) + 1))
+        tops = tuple(float(z_cut + d) for d in depths)
+    else:
+        z_cut = -test.depth_mm
+        edges = (0.0, length)
+        tops = (0.0,)
+    # The path: a face mill runs with its centre offset in Y (seed 003 cuts symmetrically by
+    # default); an end mill cuts a slot (width = D) or a side cut of width w on the +Y side.
+    if isinstance(tool, FaceMill):
+        y_path = prog.offset_y_mm
+        block = CutBlock(-half_w, half_w, edges, tops)
+    else:
+        w = test.width_mm if test.width_mm == test.width_mm else tool.diameter_mm
+        y_path = prog.offset_y_mm + (0.0 if w >= tool.diameter_mm else half_w + r - w)
+        block = CutBlock(-half_w, half_w, edges, tops)
+    x_start = -r - prog.approach_mm
+    if isinstance(tool, FaceMill):
+        x_end = _exit_x(length, r, y_path, block, prog.approach_mm)
+    else:
+        x_end = length + r + prog.approach_mm
+    feed = test.feed_mm_min
+    w = _Writer(dialect, prog.program_number, title or test.name)
+    w.add("G21 G90 G17 G94")
+    w.add("G54")
+    w.add(f"S{_f(test.spindle_rpm, 1)} M3")
+    w.add(f"G0 X{_f(x_start)} Y{_f(y_path)}")
+    w.add(f"G0 Z{_f(prog.safe_z_mm)}")
+    plunge = min(feed, 500.0)
+    w.add(f"G1 Z{_f(z_cut)} F{_f(plunge)}")
+    if prog.kind == "feed-sweep":
+        feeds = prog.sweep_feeds_mm_min
+        xs = np.linspace(0.0, length, len(feeds) + 1)[1:]
+        xs[-1] = x_end
+        w.add(f"G1 X{_f(-r)} F{_f(feeds[0])}")
+        for x, f in zip(xs, feeds):
+            w.add(f"G1 X{_f(float(x))} F{_f(f)}")
+    else:
+        w.add(f"G1 X{_f(x_end)} F{_f(feed)}")
+    w.add(f"G0 Z{_f(prog.safe_z_mm)}")
+    w.add("M5")
+    w.add("M30")
+    return CutProgram(w.text(), block, z_cut, x_start, x_end, y_path, feed)

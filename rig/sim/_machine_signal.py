@@ -1,0 +1,98 @@
+"""From true cutting forces to the volts the DAQ reads: dynamometer modes, cross-talk, charge
+amplifier scaling, and the amplifier's noise, drift and mains hum.
+
+Each configured mode of an axis is a unit-DC-gain second-order system
+``H(s) = wn^2 / (s^2 + 2 zeta wn s + wn^2)`` (several modes of one axis in series), discretised
+by zero-order hold at the DAQ rate; the filter state carries across blocks so consecutive reads
+form one continuous signal. Then ``measured = crosstalk @ filtered`` (rows: channel), each channel
+takes its axis with its sign, and ``volts = newtons / range_n_v`` (the amplifier is set to the
+sensor's sensitivity, so pC cancel): :class:`rig.calibration.Calibration` run forwards.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import signal
+
+from analysis.config import Dynamometer
+from rig.calibration import Calibration
+
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+class DynoChain:
+    """Stateful force -> volts chain at a fixed sample rate.
+
+    Parameters: ``dyno`` (channels, modes, cross-talk), ``rate_hz``; ``noise_n`` rms white noise,
+    ``drift_n_s`` linear drift, ``hum_n`` amplitude of ``hum_hz`` mains hum, all in newtons at the
+    amplifier output; ``seed`` for the noise; ``modes`` False bypasses the dynamometer's dynamics.
+    """
+
+    def __init__(
+        self,
+        dyno: Dynamometer,
+        rate_hz: float,
+        noise_n: float = 0.0,
+        drift_n_s: float = 0.0,
+        hum_n: float = 0.0,
+        hum_hz: float = 50.0,
+        seed: int = 0,
+        modes: bool = True,
+    ) -> None:
+        self.dyno = dyno
+        self.rate_hz = float(rate_hz)
+        self.noise_n = noise_n
+        self.drift_n_s = drift_n_s
+        self.hum_n = hum_n
+        self.hum_hz = hum_hz
+        self._rng = np.random.default_rng(seed)
+        self._hum_phase = self._rng.uniform(0, 2 * np.pi, len(dyno.channels))
+        dt = 1.0 / self.rate_hz
+        self._filters: list[list[tuple[np.ndarray, np.ndarray]]] = [[], [], []]
+        if modes:
+            for m in dyno.modes:
+                wn = 2 * np.pi * m.frequency_hz
+                num, den = [wn**2], [1.0, 2 * m.damping_ratio * wn, wn**2]
+                bd, ad, _ = signal.cont2discrete((num, den), dt, method="zoh")
+                self._filters[_AXES[m.axis]].append((np.ravel(bd), np.ravel(ad)))
+        self._zi: list[list[np.ndarray | None]] = [[None] * len(f) for f in self._filters]
+        # The amplifier chain (sign, cross-talk, sensitivity, range) is the DAQ's calibration run
+        # forwards, so the logger's inverse recovers the filtered force exactly.
+        self.calibration = Calibration.from_dynamometer(dyno)
+        self._axes = np.asarray([_AXES[ch.axis] for ch in dyno.channels])
+        self._t_next: float | None = None
+
+    @property
+    def channel_names(self) -> list[str]:
+        return [ch.name for ch in self.dyno.channels]
+
+    def filtered(self, force_n: np.ndarray, t0_s: float) -> np.ndarray:
+        """Pass forces (n, 3) N through the modes; state continues if ``t0_s`` follows the last
+        block, otherwise it restarts from rest at the first sample's value."""
+        n = force_n.shape[0]
+        contiguous = self._t_next is not None and abs(t0_s - self._t_next) < 0.5 / self.rate_hz
+        if not contiguous:
+            self._zi = [[None] * len(f) for f in self._filters]
+        out = np.array(force_n, dtype=float, copy=True)
+        for ax in range(3):
+            for k, (b, a) in enumerate(self._filters[ax]):
+                zi = self._zi[ax][k]
+                if zi is None:
+                    zi = signal.lfilter_zi(b, a) * (out[0, ax] if n else 0.0)
+                out[:, ax], self._zi[ax][k] = signal.lfilter(b, a, out[:, ax], zi=zi)
+        self._t_next = t0_s + n / self.rate_hz
+        return out
+
+    def volts(self, force_n: np.ndarray, t0_s: float) -> np.ndarray:
+        """Volts (channels, n) for true forces (n, 3) N sampled from ``t0_s`` at the rate."""
+        n = force_n.shape[0]
+        f = self.filtered(force_n, t0_s)[:, self._axes]  # (n, channels) in cutlab axes
+        t = t0_s + np.arange(n) / self.rate_hz
+        # Amplifier drift, hum and noise are disturbances at the output, given in newtons.
+        extra = self.drift_n_s * t[:, None] + self.hum_n * np.sin(
+            2 * np.pi * self.hum_hz * t[:, None] + self._hum_phase
+        )
+        if self.noise_n:
+            extra = extra + self._rng.normal(0.0, self.noise_n, f.shape)
+        volts = self.calibration.volts_from_force(f)
+        return (volts + extra / self.calibration.range_n_v).T

@@ -1,0 +1,227 @@
+"""The simulated machine: executed motion -> edge engagement -> cutting forces -> dynamometer
+volts, as a signal source for the simulated DAQ.
+
+The simulated controller reports every segment it executes on the shared :class:`SimClock`
+(:meth:`SimMachine.on_segment`); the simulated DAQ asks for volts over a span of that same clock
+(:meth:`SimMachine.source`). For each sample the machine finds where the cutter is, its feed and
+spindle angle (:mod:`rig.sim._machine_timeline`), which inserts or flute elements are in the stock
+(:mod:`rig.sim._machine_engagement`), the forces of those edges from the ``analysis`` force models
+with the material's *true* coefficients, and passes the summed force through the dynamometer's
+modes and the charge amplifier (:mod:`rig.sim._machine_signal`).
+
+The stock is the test block (:class:`rig._campaign_nc.CutBlock`) for a face mill's single pass, or
+a ``planning.zmap.ZMap`` lowered by every completed segment for end mills, so a later pass sees what
+an earlier one left.
+
+Notes
+-----
+How the twin differs from a real machine and dynamometer:
+
+- Engagement is the leading half of the cutter in uncut stock; a reversing path inside one DAQ
+  read (0.1 s) sees the stock as it was at the start of that read.
+- Forces are quasi-static (no tool deflection or chatter, no regeneration); only the
+  dynamometer's modes add dynamics. Runout, tool wear and built-up edge are not modelled.
+- Noise is white and Gaussian, drift linear, hum one sinusoid; the amplifier never saturates here
+  (the simulated DAQ's ``sim_`` knobs do that).
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+
+from analysis.config import Dynamometer, EndMill, FaceMill, Material
+from rig.errors import RigError
+from rig.sim._machine_engagement import (
+    EndMillEngagement,
+    FaceMillEngagement,
+    endmill_engagement,
+    facemill_engagement,
+)
+from rig.sim._machine_signal import DynoChain
+from rig.sim._machine_timeline import ExecutedSegment, MotionTimeline
+
+
+@dataclass(frozen=True)
+class SignalSettings:
+    """Disturbances at the amplifier output (N, N/s, Hz) and the rng seed."""
+
+    noise_n: float = 1.0
+    drift_n_s: float = 0.05
+    hum_n: float = 0.5
+    hum_hz: float = 50.0
+    seed: int = 2003
+    modes: bool = True
+
+
+class BlockStock:
+    """An analytic block (``CutBlock``-like: anything with ``top_z(x, y)``) as the stock."""
+
+    def __init__(self, block: object) -> None:
+        self.block = block
+
+    def top_z(self, x_mm: np.ndarray, y_mm: np.ndarray) -> np.ndarray:
+        return self.block.top_z(x_mm, y_mm)  # type: ignore[attr-defined]
+
+    def advance(self, t_s: float, timeline: MotionTimeline) -> None:
+        """A single pass never meets its own cut on the leading half: nothing to update."""
+
+    @property
+    def z_max_mm(self) -> float:
+        return float(max(self.block.step_top_mm))  # type: ignore[attr-defined]
+
+
+class ZMapStock:
+    """A ``planning.zmap.ZMap`` lowered by each segment once the clock has passed its end."""
+
+    def __init__(self, zmap: object, tool: EndMill) -> None:
+        from planning.zmap import Cutter
+
+        self.zmap = zmap
+        self.cutter = Cutter.from_tool(tool)
+        self._applied = 0
+        self.removed_mm3: list[float] = []
+
+    def top_z(self, x_mm: np.ndarray, y_mm: np.ndarray) -> np.ndarray:
+        h = self.zmap.height_at(x_mm, y_mm)  # type: ignore[attr-defined]
+        return np.where(np.isnan(h), -np.inf, h)
+
+    def advance(self, t_s: float, timeline: MotionTimeline) -> None:
+        segs = timeline.segments
+        while self._applied < len(segs) and segs[self._applied].t_end_s <= t_s:
+            g = segs[self._applied]
+            self.removed_mm3.append(self.zmap.cut(self.cutter, g.start_mm, g.end_mm))  # type: ignore[attr-defined]
+            self._applied += 1
+
+    @property
+    def z_max_mm(self) -> float:
+        return float(np.nanmax(self.zmap.heights_mm))  # type: ignore[attr-defined]
+
+
+def _rotate_xy(f: np.ndarray, beta: np.ndarray) -> np.ndarray:
+    """Rotate forces (n, 3) given in a frame with the feed along +X into machine axes."""
+    c, s = np.cos(beta), np.sin(beta)
+    out = f.copy()
+    out[:, 0] = c * f[:, 0] - s * f[:, 1]
+    out[:, 1] = s * f[:, 0] + c * f[:, 1]
+    return out
+
+
+def facemill_forces(eng: FaceMillEngagement, tool: FaceMill, material: Material) -> np.ndarray:
+    """Summed insert forces (n, 3) N in machine axes (seed 003 model with ploughing)."""
+    from analysis import facemill
+
+    coef = material.facemill
+    if coef is None:
+        raise RigError("material has no facemill coefficients: the simulator needs a truth")
+    n = eng.theta_rad.shape[0]
+    f = np.zeros((n, 3))
+    idx = np.nonzero(eng.engaged)
+    if idx[0].size:
+        fz = eng.fz_mm[idx[0]]
+        per = facemill.insert_forces_xyz(
+            eng.theta_rad[idx], eng.depth_mm[idx], fz, tool, coef
+        )  # (m, 3)
+        np.add.at(f, idx[0], per)
+    return _rotate_xy(f, eng.feed_angle_rad)
+
+
+def endmill_forces(eng: EndMillEngagement, tool: EndMill, material: Material) -> np.ndarray:
+    """Summed edge-element forces (n, 3) N in machine axes (linear edge-force model)."""
+    from analysis import endmill
+
+    coef = material.endmill
+    if coef is None:
+        raise RigError("material has no endmill coefficients: the simulator needs a truth")
+    n = eng.theta_rad.shape[0]
+    f = np.zeros((n, 3))
+    idx = np.nonzero(eng.engaged)
+    if idx[0].size:
+        per = endmill.element_forces_xyz(
+            eng.theta_rad[idx], eng.h_mm[idx], eng.dz_mm[idx[2]], eng.kappa_rad[idx[2]], coef
+        )
+        np.add.at(f, idx[0], per)
+    return _rotate_xy(f, eng.feed_angle_rad)
+
+
+class SimMachine:
+    """The twin's physics for one test: feed it executed segments, ask it for volts.
+
+    Parameters
+    ----------
+    tool, material : the cutter and the work material (its coefficients are the truth).
+    dyno : the dynamometer (channels, modes, cross-talk, amplifier ranges).
+    stock : :class:`BlockStock` or :class:`ZMapStock`.
+    rate_hz : the DAQ's sample rate, Hz.
+    signal : disturbances; ``n_slices`` axial slices per flute for end mills.
+    """
+
+    def __init__(
+        self,
+        tool: EndMill | FaceMill,
+        material: Material,
+        dyno: Dynamometer,
+        stock: BlockStock | ZMapStock,
+        rate_hz: float,
+        signal: SignalSettings = SignalSettings(),
+        n_slices: int = 16,
+    ) -> None:
+        self.tool = tool
+        self.material = material
+        self.stock = stock
+        self.rate_hz = float(rate_hz)
+        self.timeline = MotionTimeline()
+        self.chain = DynoChain(
+            dyno, rate_hz, signal.noise_n, signal.drift_n_s, signal.hum_n, signal.hum_hz,
+            signal.seed, signal.modes,
+        )  # fmt: skip
+        self.n_slices = n_slices
+        self._lock = threading.Lock()
+        self.peak_force_n = 0.0
+
+    @property
+    def n_channels(self) -> int:
+        return len(self.chain.channel_names)
+
+    # -- from the controller ----------------------------------------------------------------
+
+    def on_segment(self, seg: ExecutedSegment) -> None:
+        """Listener for the simulated controller: one executed segment."""
+        self.timeline.add(seg)
+
+    def on_spindle(self, t_s: float, rpm: float) -> None:
+        """Listener for spindle changes outside motion (M3/M4/M5), rpm signed."""
+        self.timeline.add_spindle_breakpoint(t_s, rpm)
+
+    # -- physics -----------------------------------------------------------------------------
+
+    def cutting_force(self, t_s: np.ndarray) -> np.ndarray:
+        """True cutting force (n, 3) N in machine axes at sample times ``t_s`` (n,) s."""
+        t = np.asarray(t_s, dtype=float)
+        if t.size:
+            self.stock.advance(float(t[0]), self.timeline)
+        st = self.timeline.state(t)
+        if isinstance(self.tool, FaceMill):
+            eng = facemill_engagement(st, self.tool, self.stock)
+            return facemill_forces(eng, self.tool, self.material)
+        depth = self.stock.z_max_mm - float(np.min(st.position_mm[:, 2])) if t.size else 0.0
+        if depth <= 0:
+            return np.zeros((t.size, 3))
+        eng = endmill_engagement(st, self.tool, self.stock, depth, self.n_slices)
+        return endmill_forces(eng, self.tool, self.material)
+
+    def source(self, t0_s: float, n: int, rate_hz: float) -> np.ndarray:
+        """Volts (channels, n) for the DAQ: samples at ``t0_s + k / rate_hz``, k = 0..n-1."""
+        if abs(rate_hz - self.rate_hz) > 1e-9 * self.rate_hz:
+            raise RigError(
+                f"the DAQ samples at {rate_hz:g} Hz but the machine was built for "
+                f"{self.rate_hz:g} Hz"
+            )
+        t = t0_s + np.arange(n) / self.rate_hz
+        with self._lock:
+            f = self.cutting_force(t)
+            if n:
+                self.peak_force_n = max(self.peak_force_n, float(np.max(np.linalg.norm(f, axis=1))))
+            return self.chain.volts(f, t0_s)

@@ -1,0 +1,212 @@
+"""The simulated machine's kinematics, engagement geometry and signal chain against closed forms."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from analysis.config import Dynamometer, DynoChannel, EndMill, FaceMill, Mode
+from rig._campaign_nc import CutBlock
+from rig.calibration import Calibration
+from rig.sim._machine_engagement import endmill_engagement, facemill_engagement
+from rig.sim._machine_signal import DynoChain
+from rig.sim._machine_timeline import ARC_CCW, ExecutedSegment, MotionTimeline
+from rig.sim.machine import BlockStock
+
+FACEMILL = FaceMill(
+    kind="facemill", diameter_mm=125, inserts=1, lead_angle_deg=15, axial_rake_deg=7,
+    radial_rake_deg=0, nose_radius_mm=0.4,
+)  # fmt: skip
+FLAT = EndMill(kind="flat", diameter_mm=10, flute_length_mm=22, flutes=3, helix_deg=30)
+BALL = EndMill(kind="ball", diameter_mm=30, corner_radius_mm=15, flute_length_mm=30, flutes=2,
+               helix_deg=0)  # fmt: skip
+
+
+def _line(x0, x1, y, z, feed_mm_min, rpm, t0=0.0, block=0, dx=(1.0, 0.0)):
+    d = math.hypot(x1 - x0, 0.0) if dx == (1.0, 0.0) else abs(x1 - x0)
+    dur = d / (feed_mm_min / 60.0)
+    if dx == (1.0, 0.0):
+        a, b = (x0, y, z), (x1, y, z)
+    else:  # along +Y: x0, x1 are Y values, y is the X position
+        a, b = (y, x0, z), (y, x1, z)
+    return ExecutedSegment(t0, t0 + dur, a, b, rpm, block, feed_mm_min=feed_mm_min)
+
+
+def _one_rev_times(t_mid: float, rpm: float, n: int = 20000) -> np.ndarray:
+    return t_mid + np.arange(n) / n * 60.0 / rpm
+
+
+@pytest.mark.parametrize("width", [30.0, 50.0, 80.0])
+@pytest.mark.parametrize("along_y", [False, True])
+def test_facemill_symmetric_pass_engaged_arc(width: float, along_y: bool) -> None:
+    # A 125 mm cutter centred on a block of width W engages 2 asin(W / 2R) per revolution.
+    rpm, fz, depth = 600.0, 0.236, 1.5
+    feed = fz * rpm
+    tl = MotionTimeline()
+    dx = (0.0, 1.0) if along_y else (1.0, 0.0)
+    tl.add(_line(-70, 100, 0.0, -depth, feed, rpm, dx=dx))
+    blk = CutBlock(-width / 2, width / 2, (0.0, 80.0), (0.0,))
+    if along_y:  # rotate the block with the path
+
+        class _Rot:
+            def top_z(self, x, y):
+                return blk.top_z(y, -np.asarray(x))
+
+        stock = _Rot()
+    else:
+        stock = BlockStock(blk)
+    # Cutter centre at -20 mm: the whole engaged arc lies inside the block along the feed.
+    t_mid = 50.0 / (feed / 60.0)
+    eng = facemill_engagement(tl.state(_one_rev_times(t_mid, rpm)), FACEMILL, stock)
+    frac = eng.engaged.mean()
+    assert frac == pytest.approx(2 * math.asin(width / 125.0) / (2 * math.pi), abs=2e-4)
+    assert np.allclose(eng.depth_mm[eng.engaged], depth)
+    assert np.allclose(eng.fz_mm, fz)
+    th = eng.theta_rad[eng.engaged]
+    # Symmetric immersion about the feed direction.
+    assert th.mean() == pytest.approx(math.pi / 2, abs=2e-3)
+
+
+def test_facemill_out_of_block_and_spindle_off_do_not_cut() -> None:
+    tl = MotionTimeline()
+    tl.add(_line(-200, -100, 0.0, -1.0, 141.6, 600.0))
+    tl.add(_line(-100, 20, 0.0, -1.0, 141.6, 0.0, t0=tl.segments[-1].t_end_s))
+    stock = BlockStock(CutBlock(-25, 25, (0.0, 40.0), (0.0,)))
+    t = np.linspace(0, tl.segments[-1].t_end_s, 5000)
+    eng = facemill_engagement(tl.state(t), FACEMILL, stock)
+    assert not eng.engaged.any()
+
+
+@pytest.mark.parametrize("width", [1.0, 2.5, 5.0, 8.0, 10.0])
+def test_endmill_radial_immersion_matches_closed_form(width: float) -> None:
+    # Down-milling a width w with radius R: each tooth is engaged acos(1 - w/R) per revolution,
+    # exiting at theta = pi; a full slot (w = D) engages half a revolution.
+    rpm, fz = 3000.0, 0.05
+    feed = fz * FLAT.flutes * rpm
+    r = FLAT.radius_mm
+    half = 20.0
+    y_path = half + r - width if width < FLAT.diameter_mm else 0.0
+    tl = MotionTimeline()
+    tl.add(_line(-20, 80, y_path, -2.0, feed, rpm))
+    stock = BlockStock(CutBlock(-half, half, (0.0, 60.0), (0.0,)))
+    t_mid = 50.0 / (feed / 60.0)
+    eng = endmill_engagement(tl.state(_one_rev_times(t_mid, rpm, 30000)), FLAT, stock, 2.0, 4)
+    frac = eng.engaged.mean()
+    expect = math.acos(1 - min(width, FLAT.diameter_mm) / r) / (2 * math.pi)
+    if width >= FLAT.diameter_mm:
+        expect = 0.5
+    assert frac == pytest.approx(expect, abs=1e-3)
+    th = eng.theta_rad[eng.engaged]
+    assert th.max() == pytest.approx(math.pi, abs=2e-3)
+    # Chip thickness follows h = fz sin(theta).
+    assert np.allclose(eng.h_mm[eng.engaged], fz * np.sin(th))
+
+
+def test_ball_endmill_slices_above_depth_do_not_cut() -> None:
+    rpm, feed, depth = 2000.0, 1000.0, 0.7
+    tl = MotionTimeline()
+    tl.add(_line(-20, 80, 0.0, -depth, feed, rpm))
+    stock = BlockStock(CutBlock(-25, 25, (0.0, 60.0), (0.0,)))
+    t_mid = 40.0 / (feed / 60.0)
+    eng = endmill_engagement(tl.state(_one_rev_times(t_mid, rpm)), BALL, stock, 1.4, 14)
+    cuts = eng.engaged.any(axis=(0, 1))
+    assert np.array_equal(cuts, eng.z_mm < depth)
+    # On the ball the edge normal tilts: kappa = acos((R - z)/R).
+    assert np.allclose(eng.kappa_rad, np.arccos((15 - eng.z_mm) / 15))
+
+
+def test_timeline_positions_blocks_and_arc() -> None:
+    tl = MotionTimeline()
+    tl.add(ExecutedSegment(0.0, 1.0, (0, 0, 0), (10, 0, 0), 600.0, 3))
+    # Quarter circle CCW about (10, 10) from (10, 0) to (20, 10).
+    tl.add(ExecutedSegment(1.0, 2.0, (10, 0, 0), (20, 10, 0), 600.0, 4, ARC_CCW, (10, 10, 0)))
+    s = tl.state(np.array([-0.5, 0.5, 1.5, 2.5]))
+    assert s.block.tolist() == [-1, 3, 4, 4]
+    assert np.allclose(s.position_mm[1], (5, 0, 0))
+    p = s.position_mm[2]
+    assert math.hypot(p[0] - 10, p[1] - 10) == pytest.approx(10)
+    assert np.allclose(s.position_mm[3], (20, 10, 0))
+    assert np.allclose(s.velocity_mm_s[3], 0)
+    assert np.allclose(s.velocity_mm_s[1], (10, 0, 0))
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.floats(0.01, 2.0), min_size=1, max_size=6), st.floats(100, 3000))
+def test_spindle_angle_is_continuous_and_turns_clockwise(durs: list[float], rpm: float) -> None:
+    tl = MotionTimeline()
+    t = 0.0
+    for k, d in enumerate(durs):
+        tl.add(ExecutedSegment(t, t + d, (0, 0, 0), (1, 0, 0), rpm * (1 + 0.1 * k), k))
+        t += d
+    tt = np.linspace(0, t, 4000)
+    a = tl.state(tt).spindle_angle_rad
+    assert np.all(np.diff(a) < 0)  # M3: clockwise from +Z
+    step = np.abs(np.diff(a)).max()
+    assert step <= 2 * np.pi * rpm * (1 + 0.1 * len(durs)) / 60 * (tt[1] - tt[0]) * 1.0001
+
+
+def _dyno(modes=()) -> Dynamometer:
+    return Dynamometer(
+        model="test",
+        channels=(
+            DynoChannel(name="Fx", axis="x", sensitivity_pc_n=-7.9, range_n_v=500),
+            DynoChannel(name="Fy", axis="y", sensitivity_pc_n=-7.9, range_n_v=500, sign=-1),
+            DynoChannel(name="Fz", axis="z", sensitivity_pc_n=-3.7, range_n_v=250),
+        ),
+        crosstalk=((1.0, 0.01, 0.02), (-0.01, 1.0, 0.01), (0.015, -0.01, 1.0)),
+        modes=modes,
+    )
+
+
+def test_chain_round_trips_through_the_daq_calibration() -> None:
+    dyno = _dyno()
+    chain = DynoChain(dyno, 10_000.0, modes=False)
+    rng = np.random.default_rng(1)
+    f = rng.normal(0, 300, (1000, 3))
+    v = chain.volts(f, 0.0)
+    back = Calibration.from_dynamometer(dyno).force_from_volts(v.T)
+    assert np.allclose(back, f, rtol=0, atol=1e-9)
+
+
+def test_mode_has_unit_dc_gain_and_resonant_peak() -> None:
+    fn, zeta, rate = 2050.0, 0.02742, 50_000.0
+    dyno = _dyno((Mode(axis="x", frequency_hz=fn, damping_ratio=zeta),))
+    chain = DynoChain(dyno, rate)
+    n = 50_000
+    t = np.arange(n) / rate
+    f = np.zeros((n, 3))
+    f[:, 0] = 100.0
+    out = chain.filtered(f, 0.0)
+    assert out[-1000:, 0] == pytest.approx(100.0, rel=1e-6)
+    chain2 = DynoChain(dyno, rate)
+    f[:, 0] = np.sin(2 * np.pi * fn * t)
+    amp = np.abs(chain2.filtered(f, 0.0)[n // 2 :, 0]).max()
+    assert amp == pytest.approx(1 / (2 * zeta), rel=0.03)
+
+
+def test_chain_state_continues_across_reads() -> None:
+    dyno = _dyno((Mode(axis="y", frequency_hz=1810, damping_ratio=0.0872),))
+    rng = np.random.default_rng(2)
+    f = rng.normal(0, 10, (3000, 3))
+    whole = DynoChain(dyno, 20_000.0).filtered(f, 0.0)
+    c = DynoChain(dyno, 20_000.0)
+    parts = [c.filtered(f[i : i + 700], i / 20_000.0) for i in range(0, 3000, 700)]
+    assert np.allclose(np.vstack(parts), whole)
+
+
+def test_noise_drift_and_hum_are_as_configured() -> None:
+    dyno = _dyno()
+    rate = 10_000.0
+    chain = DynoChain(dyno, rate, noise_n=2.0, drift_n_s=0.5, hum_n=0.0, seed=3, modes=False)
+    n = 200_000
+    v = chain.volts(np.zeros((n, 3)), 0.0)
+    f = Calibration.from_dynamometer(dyno).force_from_volts(v.T)  # inverse includes cross-talk
+    t = np.arange(n) / rate
+    slope = np.polyfit(t, f[:, 0], 1)[0]
+    assert slope == pytest.approx(0.5, rel=0.05)
+    resid = f[:, 0] - np.polyval(np.polyfit(t, f[:, 0], 1), t)
+    assert resid.std() == pytest.approx(2.0, rel=0.05)
