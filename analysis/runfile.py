@@ -1,0 +1,581 @@
+"""The HDF5 run file: its layout (documented here and only here) and the loader.
+
+``rig.logger.RunWriter`` writes run files using the constants below; everything else reads them
+through :func:`load_run` (whole run, or a time window) or :class:`RunFollower` (a run still being
+written). Nothing outside this module and ``rig.logger`` should name an HDF5 path of a run file.
+
+Layout (format ``cutlab-run``, version 1; HDF5 >= 1.10 "latest" format so that the file can be read
+while it is written, SWMR)::
+
+    /                                   attrs: cutlab_format = "cutlab-run"
+                                               cutlab_format_version = 1
+                                               software_version (analysis.__version__)
+                                               created_utc (ISO 8601)
+    /forces/                            attrs: rate_hz (Hz, per channel), sample_format
+                                               ("raw_int16" | "volts_float64"),
+                                               channel_names (force names, e.g. Fx Fy Fz),
+                                               physical_channels (e.g. Dev1/ai0), device,
+                                               input_range_v (V, symmetric), units_force = "N",
+                                               units_volts = "V", units_raw = "ADC code"
+    /forces/raw          int16   (n, c)  ADC codes (sample_format raw_int16), or
+    /forces/volts        float64 (n, c)  volts     (sample_format volts_float64)
+                                         chunked, resizable along n; gzip+shuffle for int16 codes
+                                         (they compress about 2x), none for float64 noise (it does
+                                         not pay and would halve the sustained rate)
+    /forces/scaling_coeff float64 (c, k) raw only: device polynomial, volts = sum_j a[:, j] code^j
+                                         (nidaqmx ``ai_dev_scaling_coeff``)
+    /calibration/                       attrs: calibration_id, dynamometer, sensitivity_pc_n (c),
+                                               amp_sensitivity_pc_n (c), range_n_v (c), sign (c),
+                                               crosstalk (c, c) (measured = C @ true)
+    /calibration/volts_to_n   float64 (c, c) N/V: force_n = volts_to_n @ (volts - zero - drift)
+    /calibration/zero_v       float64 (c,)   V, amplifier output at zero load (reset/operate)
+    /calibration/zero_time_s  float64 ()     s on the run clock when the zero was taken
+    /calibration/drift_v_s    float64 (c,)   V/s, linear drift removed as drift_v_s * (t - zero_t)
+    /events              compound (m,)   sample int64 (device sample index, see below),
+                                         lost int64 (samples per channel missing at this point),
+                                         time_s float64 (run clock), wall_utc float64 (Unix s),
+                                         kind S16 (EVENT_KINDS), message S200
+    /nc/blocks           compound (b,)   block int64 (0-based), line int64 (1-based source line),
+                                         send_s, ack_s float64 (run clock; ack NaN until acked),
+                                         text S256 (the block as sent; full text in meta/program)
+    /meta/<name>         uint8 (bytes,)  UTF-8 text, resizable so it can change during the run:
+                                         conditions (JSON), rig (JSON), program (NC text),
+                                         program_info (JSON: name, sha256, lines),
+                                         acquisition (JSON: t0_s, started_utc), status (JSON:
+                                         status running|success|abort|fail, reason, closed_utc)
+
+Sample indices and time: the DAQ numbers its samples 0, 1, 2, ... from the start of acquisition
+(the device's own count). Stored samples are contiguous in ``/forces/*`` but a dropped block leaves
+a hole on the device clock; every hole is an event with ``lost > 0`` (kinds ``gap`` and
+``queue_full``) at the device index of the first missing sample. So the device index of stored
+sample i is i plus the sum of ``lost`` over events with ``sample`` before it, and its time on the
+run clock is ``t0_s + index / rate_hz``. ``t0_s`` is the run clock (SimClock seconds on the
+simulated rig, ``time.monotonic`` on hardware) at device sample 0; block send/ack times use the
+same clock.
+
+Why the metadata that changes during a run lives in small byte datasets rather than attributes:
+under SWMR a writer may not create objects or attributes, so everything is created before SWMR is
+switched on and changed later only by writing into existing datasets.
+
+A file whose writer was killed still opens (HDF5 leaves it marked "open for writing"; the loader
+then opens it in SWMR read mode) and holds everything up to the writer's last flush; its status
+stays ``running`` and :attr:`Run.complete` is False.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+import pandas as pd
+
+from analysis.errors import AnalysisError
+
+FORMAT_NAME = "cutlab-run"
+FORMAT_VERSION = 1
+
+# Root attributes.
+ATTR_FORMAT = "cutlab_format"
+ATTR_FORMAT_VERSION = "cutlab_format_version"
+ATTR_SOFTWARE_VERSION = "software_version"
+ATTR_CREATED_UTC = "created_utc"
+
+# Samples.
+FORCES = "forces"
+RAW = "forces/raw"
+VOLTS = "forces/volts"
+SCALING_COEFF = "forces/scaling_coeff"
+SAMPLE_FORMAT_RAW = "raw_int16"
+SAMPLE_FORMAT_VOLTS = "volts_float64"
+
+# Calibration.
+CALIBRATION = "calibration"
+CAL_VOLTS_TO_N = "calibration/volts_to_n"
+CAL_ZERO_V = "calibration/zero_v"
+CAL_ZERO_TIME_S = "calibration/zero_time_s"
+CAL_DRIFT_V_S = "calibration/drift_v_s"
+
+# Tables.
+EVENTS = "events"
+BLOCKS = "nc/blocks"
+EVENT_MESSAGE_BYTES = 200
+BLOCK_TEXT_BYTES = 256
+EVENT_DTYPE = np.dtype(
+    [
+        ("sample", "<i8"),
+        ("lost", "<i8"),
+        ("time_s", "<f8"),
+        ("wall_utc", "<f8"),
+        ("kind", "S16"),
+        ("message", f"S{EVENT_MESSAGE_BYTES}"),
+    ]
+)
+BLOCK_DTYPE = np.dtype(
+    [
+        ("block", "<i8"),
+        ("line", "<i8"),
+        ("send_s", "<f8"),
+        ("ack_s", "<f8"),
+        ("text", f"S{BLOCK_TEXT_BYTES}"),
+    ]
+)
+
+# Event kinds. ``gap`` and ``queue_full`` carry ``lost`` > 0 (samples missing from the file).
+EV_START = "start"
+EV_STOP = "stop"
+EV_PAUSE = "pause"
+EV_RESUME = "resume"
+EV_OVERFLOW = "overflow"  # the DAQ's buffer overran (DAQmx -200279 and kin)
+EV_GAP = "gap"  # samples missing on the device clock (a dropped or unread block)
+EV_QUEUE_FULL = "queue_full"  # the logger's queue was full; the block was dropped
+EV_INTERLOCK = "interlock"
+EV_FAULT = "fault"  # a DAQ or rig error
+EV_SATURATION = "saturation"  # samples at the ADC limits
+EV_ZERO = "zero"  # amplifier zeroed (reset/operate)
+EV_NOTE = "note"
+EVENT_KINDS = (
+    EV_START,
+    EV_STOP,
+    EV_PAUSE,
+    EV_RESUME,
+    EV_OVERFLOW,
+    EV_GAP,
+    EV_QUEUE_FULL,
+    EV_INTERLOCK,
+    EV_FAULT,
+    EV_SATURATION,
+    EV_ZERO,
+    EV_NOTE,
+)
+LOSS_KINDS = (EV_GAP, EV_QUEUE_FULL)
+
+# Text metadata (``/meta/<name>``).
+META = "meta"
+META_CONDITIONS = "conditions"
+META_RIG = "rig"
+META_PROGRAM = "program"
+META_PROGRAM_INFO = "program_info"
+META_ACQUISITION = "acquisition"
+META_STATUS = "status"
+META_NAMES = (
+    META_CONDITIONS,
+    META_RIG,
+    META_PROGRAM,
+    META_PROGRAM_INFO,
+    META_ACQUISITION,
+    META_STATUS,
+)
+META_JSON = frozenset(META_NAMES) - {META_PROGRAM}
+
+STATUS_RUNNING = "running"
+STATUS_SUCCESS = "success"
+STATUS_ABORT = "abort"
+STATUS_FAIL = "fail"
+STATUSES = (STATUS_RUNNING, STATUS_SUCCESS, STATUS_ABORT, STATUS_FAIL)
+
+
+class RunFileError(AnalysisError):
+    """A run file cannot be read: missing, not HDF5, another program's HDF5, or truncated."""
+
+
+def meta_path(name: str) -> str:
+    """HDF5 path of the text metadata ``name`` (one of :data:`META_NAMES`)."""
+    return f"{META}/{name}"
+
+
+def decode_text(ds: h5py.Dataset) -> str:
+    """The UTF-8 text held in a ``/meta/<name>`` byte dataset."""
+    return bytes(np.asarray(ds[()], dtype=np.uint8)).decode("utf-8")
+
+
+def raw_to_volts(raw: np.ndarray, coeff: np.ndarray) -> np.ndarray:
+    """Scale ADC codes to volts with the device polynomial.
+
+    raw : ndarray, shape (n, c), int16 codes. coeff : ndarray, shape (c, k), volts per code^j.
+    Returns float64 volts, shape (n, c).
+    """
+    x = raw.astype(np.float64)
+    out = np.zeros_like(x)
+    for j in range(coeff.shape[1] - 1, -1, -1):  # Horner, per channel
+        out = out * x + coeff[:, j]
+    return out
+
+
+def volts_to_force(
+    volts: np.ndarray,
+    time_s: np.ndarray,
+    volts_to_n: np.ndarray,
+    zero_v: np.ndarray,
+    zero_time_s: float,
+    drift_v_s: np.ndarray,
+) -> np.ndarray:
+    """Apply the stored affine calibration (built by ``rig.calibration``).
+
+    volts : (n, c) V; time_s : (n,) run clock s. Returns force, (n, c) N:
+    ``force = volts_to_n @ (volts - zero_v - drift_v_s * (t - zero_time_s))`` per sample.
+    """
+    dt = time_s - (zero_time_s if math.isfinite(zero_time_s) else 0.0)
+    corrected = volts - zero_v[None, :] - dt[:, None] * drift_v_s[None, :]
+    return corrected @ volts_to_n.T
+
+
+@dataclass(frozen=True)
+class CalibrationRecord:
+    """The calibration stored in a run: the affine map and the sheet values it came from."""
+
+    volts_to_n: np.ndarray  # (c, c) N/V
+    zero_v: np.ndarray  # (c,) V
+    zero_time_s: float  # s, run clock (NaN: not zeroed)
+    drift_v_s: np.ndarray  # (c,) V/s
+    attrs: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Run:
+    """One recorded run, as returned by :func:`load_run`.
+
+    Sample arrays are (n_samples, n_channels), one row per stored sample; ``time_s`` and
+    ``sample_index`` account for any hole (see the module docstring).
+    """
+
+    path: Path
+    rate_hz: float
+    channel_names: tuple[str, ...]
+    physical_channels: tuple[str, ...]
+    device: str
+    sample_format: str
+    raw: np.ndarray | None  # (n, c) int16 ADC codes, or None when volts were stored
+    scaling_coeff: np.ndarray | None  # (c, k)
+    volts: np.ndarray  # (n, c) V
+    force_n: np.ndarray | None  # (n, c) N, None without a calibration
+    sample_index: np.ndarray  # (n,) int64, device sample index
+    time_s: np.ndarray  # (n,) s, run clock
+    t0_s: float  # s, run clock at device sample 0 (NaN if acquisition never started)
+    events: pd.DataFrame
+    blocks: pd.DataFrame
+    calibration: CalibrationRecord | None
+    conditions: dict[str, Any]
+    rig: dict[str, Any]
+    program_text: str
+    program_info: dict[str, Any]
+    status: str
+    reason: str
+    complete: bool  # the writer closed the file (False: killed, or still writing)
+    software_version: str
+    samples_stored: int  # per channel, in the file
+    samples_acquired: int  # per channel, on the device clock (stored + lost)
+    samples_lost: int
+
+    @property
+    def duration_s(self) -> float:
+        """Span of the device clock covered, s (stored plus lost samples)."""
+        return self.samples_acquired / self.rate_hz
+
+    def forces(self) -> pd.DataFrame:
+        """Calibrated forces (N), or volts if the run has no calibration, indexed by time_s."""
+        data = self.force_n if self.force_n is not None else self.volts
+        df = pd.DataFrame(data, columns=list(self.channel_names))
+        df.index = pd.Index(self.time_s, name="time_s")
+        return df
+
+
+def _open(path: str | Path) -> h5py.File:
+    """Open a run file for reading with errors that say what is wrong with it."""
+    p = Path(path)
+    if not p.exists():
+        raise RunFileError(f"{p}: run file not found")
+    if p.is_dir():
+        raise RunFileError(f"{p}: is a folder, expected an HDF5 run file")
+    with p.open("rb") as fh:
+        head = fh.read(8)
+    if not h5py.is_hdf5(str(p)):
+        what = "an empty file" if not head else f"starts with {head!r}"
+        raise RunFileError(f"{p}: not an HDF5 file ({what}); expected a cutlab run file")
+    try:
+        f = h5py.File(p, "r")
+    except OSError as exc:
+        msg = str(exc)
+        if "already open for write" in msg:
+            # Killed writer (consistency flags left set) or a live one: SWMR read works for both.
+            try:
+                return h5py.File(p, "r", libver="latest", swmr=True)
+            except OSError as exc2:
+                raise RunFileError(f"{p}: cannot open the run file: {exc2}") from None
+        if "truncated" in msg or "eof" in msg.lower():
+            raise RunFileError(
+                f"{p}: truncated HDF5 file ({p.stat().st_size} bytes on disk): {msg}"
+            ) from None
+        raise RunFileError(f"{p}: cannot open as HDF5: {msg}") from None
+    _check_format(f, p)
+    return f
+
+
+def _check_format(f: h5py.File, p: Path) -> None:
+    fmt = f.attrs.get(ATTR_FORMAT)
+    if isinstance(fmt, bytes):
+        fmt = fmt.decode()
+    if fmt != FORMAT_NAME:
+        top = ", ".join(sorted(f.keys())[:8]) or "nothing"
+        f.close()
+        raise RunFileError(
+            f"{p}: HDF5 file of another program (no '{ATTR_FORMAT}' = '{FORMAT_NAME}' attribute; "
+            f"top level holds {top}); expected a cutlab run file"
+        )
+    ver = int(f.attrs.get(ATTR_FORMAT_VERSION, -1))
+    if ver > FORMAT_VERSION:
+        f.close()
+        raise RunFileError(
+            f"{p}: run file format version {ver} is newer than this cutlab reads "
+            f"({FORMAT_VERSION}); update cutlab"
+        )
+
+
+def _str_list(v: Any) -> tuple[str, ...]:
+    return tuple(x.decode() if isinstance(x, bytes) else str(x) for x in np.atleast_1d(v))
+
+
+def _text(f: h5py.File, name: str) -> str:
+    p = meta_path(name)
+    return decode_text(f[p]) if p in f else ""
+
+
+def _json(f: h5py.File, name: str) -> dict[str, Any]:
+    t = _text(f, name)
+    if not t:
+        return {}
+    try:
+        return json.loads(t)
+    except json.JSONDecodeError:  # half-written under SWMR is impossible; a corrupt file is not
+        raise RunFileError(f"{f.filename}: /{meta_path(name)} is not valid JSON") from None
+
+
+def _table(f: h5py.File, path: str) -> np.ndarray:
+    if path not in f:
+        return np.zeros(0, dtype=EVENT_DTYPE if path == EVENTS else BLOCK_DTYPE)
+    return f[path][()]
+
+
+def events_frame(rows: np.ndarray) -> pd.DataFrame:
+    """Events table rows (EVENT_DTYPE) as a DataFrame with str columns."""
+    df = pd.DataFrame({n: rows[n] for n in EVENT_DTYPE.names})
+    for col in ("kind", "message"):
+        df[col] = [b.decode("utf-8", "replace") for b in rows[col]]
+    return df
+
+
+def blocks_frame(rows: np.ndarray) -> pd.DataFrame:
+    """NC blocks table rows (BLOCK_DTYPE) as a DataFrame with str text."""
+    df = pd.DataFrame({n: rows[n] for n in BLOCK_DTYPE.names})
+    df["text"] = [b.decode("utf-8", "replace") for b in rows["text"]]
+    return df
+
+
+def stored_to_device_index(n_stored: int, events: np.ndarray) -> np.ndarray:
+    """Device sample index of each stored sample, (n_stored,) int64, from the loss events."""
+    idx = np.arange(n_stored, dtype=np.int64)
+    loss = events[np.isin(events["kind"], [k.encode() for k in LOSS_KINDS]) & (events["lost"] > 0)]
+    if len(loss) == 0:
+        return idx
+    order = np.argsort(loss["sample"], kind="stable")
+    at, lost = loss["sample"][order], loss["lost"][order]
+    # A hole at device index s with L lost shifts every stored sample from (s - lost so far) on.
+    stored_at = at - np.concatenate([[0], np.cumsum(lost)[:-1]])
+    shift = np.searchsorted(stored_at, idx, side="right")
+    cum = np.concatenate([[0], np.cumsum(lost)])
+    return idx + cum[shift]
+
+
+def _read_samples(f: h5py.File, p: Path, sl: slice) -> tuple[np.ndarray | None, np.ndarray]:
+    fmt = f[FORCES].attrs["sample_format"]
+    fmt = fmt.decode() if isinstance(fmt, bytes) else str(fmt)
+    try:
+        if fmt == SAMPLE_FORMAT_RAW:
+            raw = f[RAW][sl]
+            return raw, raw_to_volts(raw, f[SCALING_COEFF][()])
+        return None, np.asarray(f[VOLTS][sl], dtype=np.float64)
+    except (OSError, KeyError) as exc:
+        raise RunFileError(f"{p}: samples cannot be read (truncated or corrupt): {exc}") from None
+
+
+def _samples_ds(f: h5py.File) -> h5py.Dataset:
+    return f[RAW] if RAW in f else f[VOLTS]
+
+
+def load_run(path: str | Path, start_s: float | None = None, stop_s: float | None = None) -> Run:
+    """Load a run file (optionally the samples between ``start_s`` and ``stop_s`` after t0).
+
+    Raises :class:`RunFileError` for a missing file, a non-HDF5 file, another program's HDF5
+    file, a newer format version, or a truncated file.
+    """
+    p = Path(path)
+    f = _open(p)
+    try:
+        return _load(f, p, start_s, stop_s)
+    except (OSError, KeyError) as exc:
+        raise RunFileError(f"{p}: damaged run file (truncated or corrupt): {exc}") from None
+    finally:
+        f.close()
+
+
+def _load(f: h5py.File, p: Path, start_s: float | None, stop_s: float | None) -> Run:
+    fa = f[FORCES].attrs
+    rate_hz = float(fa["rate_hz"])
+    ds = _samples_ds(f)
+    n_stored = int(ds.shape[0])
+    events = _table(f, EVENTS)
+    device_idx_all = stored_to_device_index(n_stored, events)
+    lo, hi = 0, n_stored
+    if start_s is not None:
+        lo = int(np.searchsorted(device_idx_all, math.ceil(start_s * rate_hz)))
+    if stop_s is not None:
+        hi = int(np.searchsorted(device_idx_all, math.ceil(stop_s * rate_hz)))
+    raw, volts = _read_samples(f, p, slice(lo, max(lo, hi)))
+    sample_index = device_idx_all[lo : max(lo, hi)]
+    acq = _json(f, META_ACQUISITION)
+    t0_s = float(acq.get("t0_s", math.nan))
+    time_s = (0.0 if math.isnan(t0_s) else t0_s) + sample_index / rate_hz
+
+    cal = None
+    force_n = None
+    if CAL_VOLTS_TO_N in f:
+        cal = CalibrationRecord(
+            volts_to_n=f[CAL_VOLTS_TO_N][()],
+            zero_v=f[CAL_ZERO_V][()],
+            zero_time_s=float(f[CAL_ZERO_TIME_S][()]),
+            drift_v_s=f[CAL_DRIFT_V_S][()],
+            attrs={k: _attr_value(v) for k, v in f[CALIBRATION].attrs.items()},
+        )
+        force_n = volts_to_force(
+            volts, time_s, cal.volts_to_n, cal.zero_v, cal.zero_time_s, cal.drift_v_s
+        )
+    status = _json(f, META_STATUS)
+    lost = int(events["lost"][np.isin(events["kind"], [k.encode() for k in LOSS_KINDS])].sum())
+    return Run(
+        path=p,
+        rate_hz=rate_hz,
+        channel_names=_str_list(fa["channel_names"]),
+        physical_channels=_str_list(fa.get("physical_channels", [])),
+        device=str(_attr_value(fa.get("device", ""))),
+        sample_format=str(_attr_value(fa["sample_format"])),
+        raw=raw,
+        scaling_coeff=f[SCALING_COEFF][()] if SCALING_COEFF in f else None,
+        volts=volts,
+        force_n=force_n,
+        sample_index=sample_index,
+        time_s=time_s,
+        t0_s=t0_s,
+        events=events_frame(events),
+        blocks=blocks_frame(_table(f, BLOCKS)),
+        calibration=cal,
+        conditions=_json(f, META_CONDITIONS),
+        rig=_json(f, META_RIG),
+        program_text=_text(f, META_PROGRAM),
+        program_info=_json(f, META_PROGRAM_INFO),
+        status=str(status.get("status", STATUS_RUNNING)),
+        reason=str(status.get("reason", "")),
+        complete=status.get("status", STATUS_RUNNING) != STATUS_RUNNING,
+        software_version=str(_attr_value(f.attrs.get(ATTR_SOFTWARE_VERSION, ""))),
+        samples_stored=n_stored,
+        samples_acquired=n_stored + lost,
+        samples_lost=lost,
+    )
+
+
+def _attr_value(v: Any) -> Any:
+    if isinstance(v, bytes):
+        return v.decode()
+    if isinstance(v, np.ndarray):
+        if v.dtype.kind in "SO":
+            return [x.decode() if isinstance(x, bytes) else x for x in v.tolist()]
+        return v.tolist()
+    if isinstance(v, np.generic):
+        return v.item()
+    return v
+
+
+class RunFollower:
+    """Read a run while it is being written (HDF5 SWMR read mode).
+
+    Each :meth:`poll` returns the samples and events that arrived since the previous call::
+
+        with RunFollower("run.h5") as fol:
+            while not fol.finished:
+                first, volts, events = fol.poll()   # first stored index, (k, c) V, DataFrame
+    """
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        _open(self.path).close()  # format check with clear errors
+        self._f = h5py.File(self.path, "r", libver="latest", swmr=True)
+        self._n = 0
+        self._n_events = 0
+        fa = self._f[FORCES].attrs
+        self.rate_hz = float(fa["rate_hz"])
+        self.channel_names = _str_list(fa["channel_names"])
+        self._coeff = self._f[SCALING_COEFF][()] if SCALING_COEFF in self._f else None
+        self.status = STATUS_RUNNING
+
+    def poll(self) -> tuple[int, np.ndarray, pd.DataFrame]:
+        """New stored samples as (first stored index, volts (k, c), new events)."""
+        # Status first: a writer flushes every sample before it marks the run closed, so a
+        # "closed" status read here guarantees the reads below see the final samples.
+        st = self._f[meta_path(META_STATUS)]
+        st.refresh()
+        text = decode_text(st)
+        status = json.loads(text).get("status", STATUS_RUNNING) if text else STATUS_RUNNING
+        ds = _samples_ds(self._f)
+        ds.refresh()
+        n = int(ds.shape[0])
+        block = ds[self._n : n]
+        volts = raw_to_volts(block, self._coeff) if self._coeff is not None else block
+        first, self._n = self._n, n
+        ev = self._f[EVENTS]
+        ev.refresh()
+        m = int(ev.shape[0])
+        new_events = events_frame(ev[self._n_events : m])
+        self._n_events = m
+        self.status = status
+        return first, np.asarray(volts, dtype=np.float64), new_events
+
+    @property
+    def finished(self) -> bool:
+        """True once the writer has closed the run (status other than running)."""
+        return self.status != STATUS_RUNNING
+
+    def close(self) -> None:
+        self._f.close()
+
+    def __enter__(self) -> RunFollower:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def follow(
+    path: str | Path, poll_s: float = 0.2, idle_timeout_s: float = 10.0
+) -> Iterator[tuple[int, np.ndarray, pd.DataFrame]]:
+    """Yield ``(first stored index, volts (k, c), new events)`` as a run grows.
+
+    Ends when the writer closes the run, or after ``idle_timeout_s`` without new samples (a
+    killed writer never closes its file).
+    """
+    with RunFollower(path) as fol:
+        idle_since = time.monotonic()
+        while True:
+            first, volts, ev = fol.poll()
+            if len(volts) or len(ev):
+                idle_since = time.monotonic()
+                yield first, volts, ev
+            if fol.finished:
+                return
+            if time.monotonic() - idle_since > idle_timeout_s:
+                return
+            time.sleep(poll_s)

@@ -1,0 +1,604 @@
+"""Crash-safe HDF5 run writer: a bounded queue and one writer thread, SWMR, periodic flush.
+
+The acquisition thread calls :meth:`RunWriter.on_block`, which copies the block into a free buffer
+of a fixed pool and returns at once; the writer thread moves filled buffers into chunk-aligned
+HDF5 writes. When the pool is empty (disk too slow) the block is dropped and recorded as a
+``queue_full`` event with its exact device sample index and length, so the acquisition never waits
+on the disk and nothing is lost silently. Every dataset is created before SWMR is switched on, so
+``analysis.runfile.RunFollower`` can read the file while it grows, and a writer killed at any moment
+leaves a file that opens and holds everything up to its last flush (default every 1 s).
+
+The layout is documented in :mod:`analysis.runfile` and written here only through its constants.
+
+Other threads (the DNC streamer, the campaign runner) write through thread-safe methods that
+queue small records for the writer thread: :meth:`append_blocks`, :meth:`ack_blocks`,
+:meth:`event`, :meth:`set_conditions`, :meth:`set_rig`, :meth:`set_program`,
+:meth:`set_calibration`; :meth:`close` ends the run with a status and reason.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import datetime as dt
+import hashlib
+import json
+import math
+import queue
+import threading
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import asdict, dataclass, is_dataclass
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from analysis import __version__
+from analysis import runfile as rf
+from rig.calibration import Calibration
+from rig.daq.base import SAMPLE_FORMAT_RAW, DaqEvent, DaqInfo
+from rig.errors import RigError
+
+_STOP = object()
+_CHUNK_BYTES = 1 << 20  # 1 MiB chunks: large sequential writes, cheap SWMR tail reads
+
+
+class RunWriterError(RigError):
+    """The run file cannot be created or written."""
+
+
+def _utc() -> str:
+    return dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds")
+
+
+def _jsonable(obj: Any) -> Any:
+    if is_dataclass(obj) and not isinstance(obj, type):
+        return _jsonable(asdict(obj))
+    if hasattr(obj, "model_dump"):
+        return _jsonable(obj.model_dump())
+    if isinstance(obj, Mapping):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+@dataclass(frozen=True)
+class WriterStats:
+    """Counts at the time of asking; samples are per channel."""
+
+    samples_written: int
+    blocks_written: int
+    blocks_dropped: int
+    samples_dropped: int
+    samples_missing: int  # holes reported as gap events
+    flushes: int
+    max_queue_depth: int
+
+
+class RunWriter:
+    """Write one run file; implements :class:`rig.daq.base.DaqSink`.
+
+    Parameters
+    ----------
+    path : the run file (``.h5``); an existing file is an error unless ``overwrite``.
+    info : what the DAQ acquires (channels, rate, sample format, scaling).
+    calibration : volts -> newtons of the channels (stored; newtons are derived on load).
+    clock : the run clock (``SimClock.now`` on the simulated rig), s; block and event times use it.
+    flush_interval_s : at most this long between flushes (what a killed run can lose), s.
+    queue_blocks : blocks the queue can hold before blocks are dropped (``queue_full`` events).
+    compression : "auto" (gzip level 1 + shuffle for int16 codes, none for float64), "gzip", None.
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        info: DaqInfo,
+        calibration: Calibration | None = None,
+        *,
+        clock: Callable[[], float] = time.monotonic,
+        flush_interval_s: float = 1.0,
+        queue_blocks: int = 64,
+        compression: str | None = "auto",
+        overwrite: bool = False,
+    ) -> None:
+        if not 0 < flush_interval_s <= 60:
+            raise RunWriterError(f"flush_interval_s = {flush_interval_s}: must be in (0, 60] s")
+        if queue_blocks < 1:
+            raise RunWriterError(f"queue_blocks = {queue_blocks}: must be >= 1")
+        if calibration is not None and calibration.n_channels != info.n_channels:
+            raise RunWriterError(
+                f"calibration has {calibration.n_channels} channels "
+                f"({', '.join(calibration.channel_names)}), the DAQ task has {info.n_channels}"
+            )
+        self.path = Path(path)
+        self.info = info
+        self.clock = clock
+        self.flush_interval_s = float(flush_interval_s)
+        self._c = info.n_channels
+        self._dtype = info.dtype
+        self._chunk = max(1024, _CHUNK_BYTES // (self._dtype.itemsize * self._c))
+        if compression == "auto":
+            compression = "gzip" if info.sample_format == SAMPLE_FORMAT_RAW else None
+        self._f = self._create(calibration, compression, overwrite)
+
+        # Producer side (acquisition thread): a pool of free buffers is the bounded queue.
+        self._free: queue.SimpleQueue[np.ndarray] = queue.SimpleQueue()
+        for _ in range(queue_blocks):
+            self._free.put(np.empty((self._c, info.block_samples), self._dtype))
+        self._filled: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self._control: collections.deque[tuple[str, Any]] = collections.deque()
+        self._expect = 0
+        self._drop: list[int] | None = None  # [first, n] of the drop being coalesced
+        self._lock = threading.Lock()  # producer-side bookkeeping shared with event()
+        self._t0_s = math.nan
+        self._held = threading.Event()
+        self._held.set()
+
+        # Writer side.
+        self._acc = np.empty((self._chunk, self._c), self._dtype)
+        self._acc_fill = 0
+        self._committed = 0  # rows in complete chunks on disk
+        self._block_rows: dict[int, int] = {}
+        self._n_events = 0
+        self._n_blocks = 0
+        self._blocks_written = 0
+        self._blocks_dropped = 0
+        self._samples_dropped = 0
+        self._samples_missing = 0
+        self._flushes = 0
+        self._max_depth = 0
+        self._depth = 0
+        self.error: BaseException | None = None
+        self._closed = False
+        self._final_status = ""
+        self._thread = threading.Thread(target=self._run, name=f"RunWriter({self.path.name})")
+        self._thread.daemon = True
+        self._thread.start()
+
+    # ------------------------------------------------------------------------------------------
+    # File creation: every object exists before SWMR is switched on.
+    # ------------------------------------------------------------------------------------------
+
+    def _create(
+        self, cal: Calibration | None, compression: str | None, overwrite: bool
+    ) -> h5py.File:
+        if self.path.exists() and not overwrite:
+            raise RunWriterError(f"{self.path}: file exists (pass overwrite / --force)")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            f = h5py.File(
+                self.path,
+                "w",
+                libver="latest",
+                rdcc_nbytes=8 * _CHUNK_BYTES,
+                rdcc_nslots=1009,
+            )
+        except OSError as exc:
+            raise RunWriterError(f"{self.path}: cannot create the run file: {exc}") from None
+        info = self.info
+        f.attrs[rf.ATTR_FORMAT] = rf.FORMAT_NAME
+        f.attrs[rf.ATTR_FORMAT_VERSION] = rf.FORMAT_VERSION
+        f.attrs[rf.ATTR_SOFTWARE_VERSION] = __version__
+        f.attrs[rf.ATTR_CREATED_UTC] = _utc()
+        g = f.create_group(rf.FORCES)
+        g.attrs.update(
+            rate_hz=float(info.rate_hz),
+            sample_format=info.sample_format,
+            channel_names=list(cal.channel_names if cal else info.channel_names),
+            physical_channels=list(info.physical_channels),
+            device=info.device,
+            input_range_v=float(info.input_range_v),
+            units_force="N",
+            units_volts="V",
+            units_raw="ADC code",
+        )
+        kw: dict[str, Any] = {}
+        if compression:
+            kw = {"compression": compression, "shuffle": True}
+            if compression == "gzip":
+                kw["compression_opts"] = 1
+        name = rf.RAW if info.sample_format == SAMPLE_FORMAT_RAW else rf.VOLTS
+        self._ds = f.create_dataset(
+            name,
+            shape=(0, self._c),
+            maxshape=(None, self._c),
+            chunks=(self._chunk, self._c),
+            dtype=self._dtype,
+            **kw,
+        )
+        if info.sample_format == SAMPLE_FORMAT_RAW:
+            f.create_dataset(rf.SCALING_COEFF, data=np.asarray(info.scaling_coeff, np.float64))
+        if cal is not None:
+            cg = f.create_group(rf.CALIBRATION)
+            for k, v in cal.as_attrs().items():
+                cg.attrs[k] = v
+            f.create_dataset(rf.CAL_VOLTS_TO_N, data=cal.volts_to_n)
+            f.create_dataset(rf.CAL_ZERO_V, data=cal.zero_v)
+            f.create_dataset(rf.CAL_ZERO_TIME_S, data=float(cal.zero_time_s))
+            f.create_dataset(rf.CAL_DRIFT_V_S, data=cal.drift_v_s)
+        for path, dtype, chunk in (
+            (rf.EVENTS, rf.EVENT_DTYPE, 256),
+            (rf.BLOCKS, rf.BLOCK_DTYPE, 512),
+        ):
+            f.create_dataset(
+                path, shape=(0,), maxshape=(None,), chunks=(chunk,), dtype=dtype,
+                compression="gzip", compression_opts=1, shuffle=True,
+            )  # fmt: skip
+        for name in rf.META_NAMES:
+            f.create_dataset(
+                rf.meta_path(name), shape=(0,), maxshape=(None,), chunks=(4096,), dtype=np.uint8
+            )
+        self._write_text(f, rf.META_STATUS, json.dumps({"status": rf.STATUS_RUNNING}))
+        f.swmr_mode = True
+        f.flush()
+        return f
+
+    @staticmethod
+    def _write_text(f: h5py.File, name: str, text: str) -> None:
+        data = np.frombuffer(text.encode("utf-8"), dtype=np.uint8)
+        ds = f[rf.meta_path(name)]
+        ds.resize((len(data),))
+        if len(data):
+            ds[:] = data
+
+    # ------------------------------------------------------------------------------------------
+    # DaqSink: called from the acquisition thread. Never blocks on the disk.
+    # ------------------------------------------------------------------------------------------
+
+    def on_start(self, info: DaqInfo, t0_s: float) -> None:
+        if info.n_channels != self._c or info.dtype != self._dtype:
+            raise RunWriterError(
+                f"DAQ delivers {info.n_channels} channels of {info.dtype}; the run file was "
+                f"created for {self._c} channels of {self._dtype}"
+            )
+        self._t0_s = float(t0_s)
+        acq = {"t0_s": self._t0_s, "started_utc": _utc(), "block_samples": info.block_samples}
+        self._control.append(("text", (rf.META_ACQUISITION, json.dumps(acq))))
+        self._control.append(("event", DaqEvent(rf.EV_START, 0, "acquisition started")))
+
+    def on_block(self, first_sample: int, data: np.ndarray) -> None:
+        """Queue a copy of ``data`` (c, n) starting at device sample ``first_sample``."""
+        n = int(data.shape[1])
+        with self._lock:
+            if first_sample != self._expect:
+                if first_sample > self._expect:
+                    lost = first_sample - self._expect
+                    self._samples_missing += lost
+                    ev = DaqEvent(rf.EV_GAP, self._expect, f"{lost} samples missing", lost=lost)
+                else:
+                    ev = DaqEvent(
+                        rf.EV_FAULT,
+                        first_sample,
+                        f"block starts at {first_sample}, before the expected {self._expect}; "
+                        "overlap dropped",
+                    )
+                    self._control.append(("event", ev))
+                    return
+                self._control.append(("event", ev))
+            self._expect = first_sample + n
+            try:
+                buf = self._free.get_nowait()
+            except queue.Empty:
+                self._record_drop(first_sample, n)
+                return
+            if self._drop is not None:
+                self._flush_drop()
+        if buf.shape[1] < n:
+            buf = np.empty((self._c, n), self._dtype)  # a longer last block (rare)
+        np.copyto(buf[:, :n], data)
+        self._depth += 1
+        self._filled.put((first_sample, n, buf))
+
+    def _record_drop(self, first: int, n: int) -> None:
+        self._blocks_dropped += 1
+        self._samples_dropped += n
+        if self._drop is not None and self._drop[0] + self._drop[1] == first:
+            self._drop[1] += n  # consecutive drops make one event
+        else:
+            if self._drop is not None:
+                self._flush_drop()
+            self._drop = [first, n]
+
+    def _flush_drop(self) -> None:
+        first, n = self._drop  # type: ignore[misc]
+        self._drop = None
+        msg = f"logger queue full: {n} samples dropped"
+        self._control.append(("event", DaqEvent(rf.EV_QUEUE_FULL, first, msg, lost=n)))
+
+    def on_event(self, event: DaqEvent) -> None:
+        self._control.append(("event", event))
+
+    # ------------------------------------------------------------------------------------------
+    # Thread-safe API for other threads.
+    # ------------------------------------------------------------------------------------------
+
+    def event(
+        self,
+        kind: str,
+        message: str = "",
+        *,
+        time_s: float | None = None,
+        sample: int | None = None,
+    ) -> None:
+        """Record an event (interlock, pause, fault, note ...) at run-clock ``time_s`` (default:
+        now) or at device ``sample``."""
+        if kind not in rf.EVENT_KINDS:
+            raise RunWriterError(
+                f"event kind {kind!r}: expected one of {', '.join(rf.EVENT_KINDS)}"
+            )
+        t = self.clock() if time_s is None and sample is None else time_s
+        self._control.append(
+            ("event", DaqEvent(kind, -1 if sample is None else int(sample), message,
+                               time_s=math.nan if t is None else float(t)))
+        )  # fmt: skip
+
+    def append_blocks(
+        self,
+        block: int | Sequence[int],
+        line: int | Sequence[int],
+        text: str | Sequence[str],
+        send_s: float | Sequence[float],
+        ack_s: float | Sequence[float] | None = None,
+    ) -> None:
+        """Append NC blocks sent by the DNC streamer (scalars or equal-length sequences).
+
+        block : 0-based block index; line : 1-based source line; text : the block as sent;
+        send_s, ack_s : run-clock times, s (ack NaN/None until acknowledged, see ack_blocks).
+        """
+        blocks = np.atleast_1d(np.asarray(block, dtype=np.int64))
+        n = len(blocks)
+        texts = [text] if isinstance(text, str) else list(text)
+        lines = np.broadcast_to(np.asarray(line, dtype=np.int64), (n,))
+        sends = np.broadcast_to(np.asarray(send_s, dtype=np.float64), (n,))
+        acks = np.broadcast_to(
+            np.asarray(np.nan if ack_s is None else ack_s, dtype=np.float64), (n,)
+        )
+        if len(texts) != n:
+            raise RunWriterError(f"append_blocks: {n} block indices but {len(texts)} texts")
+        rows = np.zeros(n, dtype=rf.BLOCK_DTYPE)
+        rows["block"], rows["line"], rows["send_s"], rows["ack_s"] = blocks, lines, sends, acks
+        for i, t in enumerate(texts):
+            b = t.encode("utf-8")
+            if len(b) > rf.BLOCK_TEXT_BYTES:
+                self.event(
+                    rf.EV_NOTE,
+                    f"block {blocks[i]} text is {len(b)} bytes; table keeps the first "
+                    f"{rf.BLOCK_TEXT_BYTES} (full text in meta/program)",
+                    time_s=float(sends[i]),
+                )
+            rows["text"][i] = b[: rf.BLOCK_TEXT_BYTES]
+        self._control.append(("blocks", rows))
+
+    def ack_blocks(self, block: int | Sequence[int], ack_s: float | Sequence[float]) -> None:
+        """Set the ack time (run clock, s) of blocks already appended (latest row per block)."""
+        b = np.atleast_1d(np.asarray(block, dtype=np.int64))
+        a = np.broadcast_to(np.asarray(ack_s, dtype=np.float64), b.shape)
+        self._control.append(("ack", (b.copy(), a.copy())))
+
+    def set_conditions(self, conditions: Mapping[str, Any]) -> None:
+        """Cutting conditions (tool, material, spindle_rpm, feed_mm_min, fz_mm, depth_mm, ...)."""
+        self._control.append(("text", (rf.META_CONDITIONS, json.dumps(_jsonable(conditions)))))
+
+    def set_rig(self, rig: Mapping[str, Any]) -> None:
+        """Rig description (device, dynamometer, amplifier, calibration id, machine ...)."""
+        self._control.append(("text", (rf.META_RIG, json.dumps(_jsonable(rig)))))
+
+    def set_program(self, text: str, name: str = "") -> None:
+        """The NC program sent in this run; its SHA-256 and line count go to program_info."""
+        info = {
+            "name": name,
+            "sha256": hashlib.sha256(text.encode("utf-8")).hexdigest(),
+            "lines": text.count("\n") + (0 if text.endswith("\n") or not text else 1),
+        }
+        self._control.append(("text", (rf.META_PROGRAM, text)))
+        self._control.append(("text", (rf.META_PROGRAM_INFO, json.dumps(info))))
+
+    def set_calibration(self, cal: Calibration, message: str = "") -> None:
+        """Update zero and drift (after reset/operate or a drift fit); the sheet values are fixed
+        when the file is created. Also records a ``zero`` event at ``cal.zero_time_s``."""
+        if rf.CAL_VOLTS_TO_N not in self._f:
+            raise RunWriterError(f"{self.path}: created without a calibration; cannot update it")
+        self._control.append(("cal", cal))
+        if math.isfinite(cal.zero_time_s):
+            self.event(rf.EV_ZERO, message or "amplifier zeroed", time_s=cal.zero_time_s)
+
+    @contextlib.contextmanager
+    def hold(self) -> Iterator[None]:
+        """Pause the writer thread: blocks pile up in the queue and, once it is full, are dropped
+        as ``queue_full`` events (what a stalled disk does; used to prove the drop path)."""
+        self._held.clear()
+        try:
+            yield
+        finally:
+            self._held.set()
+
+    @property
+    def t0_s(self) -> float:
+        return self._t0_s
+
+    def stats(self) -> WriterStats:
+        return WriterStats(
+            samples_written=self._committed + self._acc_fill,
+            blocks_written=self._blocks_written,
+            blocks_dropped=self._blocks_dropped,
+            samples_dropped=self._samples_dropped,
+            samples_missing=self._samples_missing,
+            flushes=self._flushes,
+            max_queue_depth=self._max_depth,
+        )
+
+    def close(self, status: str = rf.STATUS_SUCCESS, reason: str = "") -> WriterStats:
+        """Write what is queued, record the exit status and close the file. Idempotent."""
+        if status not in rf.STATUSES or status == rf.STATUS_RUNNING:
+            raise RunWriterError(f"status {status!r}: expected success, abort or fail")
+        if self._closed:
+            return self.stats()
+        self._closed = True
+        self._held.set()
+        with self._lock:
+            if self._drop is not None:
+                self._flush_drop()
+        # Written by the writer thread after the last sample is flushed, so a follower that sees
+        # a closed status has every sample.
+        self._final_status = json.dumps({"status": status, "reason": reason, "closed_utc": _utc()})
+        self._filled.put(_STOP)
+        self._thread.join()
+        err = self.error
+        try:
+            self._f.close()
+        except Exception as exc:  # noqa: BLE001 - reported below with the writer's error
+            err = err or exc
+        if err is not None:
+            raise RunWriterError(f"{self.path}: writing the run file failed: {err}") from err
+        return self.stats()
+
+    def __enter__(self) -> RunWriter:
+        return self
+
+    def __exit__(self, exc_type: type | None, exc: BaseException | None, tb: object) -> None:
+        if exc is None:
+            self.close(rf.STATUS_SUCCESS)
+        elif isinstance(exc, KeyboardInterrupt):
+            self.close(rf.STATUS_ABORT, "interrupted")
+        else:
+            self.close(rf.STATUS_FAIL, f"{type(exc).__name__}: {exc}"[:500])
+
+    # ------------------------------------------------------------------------------------------
+    # Writer thread.
+    # ------------------------------------------------------------------------------------------
+
+    def _run(self) -> None:
+        last_flush = time.monotonic()
+        try:
+            while True:
+                self._held.wait()
+                try:
+                    item = self._filled.get(timeout=min(0.05, self.flush_interval_s))
+                except queue.Empty:
+                    item = None
+                if item is _STOP:
+                    break
+                if item is not None:
+                    self._depth -= 1
+                    self._max_depth = max(self._max_depth, self._depth + 1)
+                    first, n, buf = item
+                    self._append(buf, n)
+                    self._blocks_written += 1
+                    self._free.put(buf)
+                self._drain_control()
+                if time.monotonic() - last_flush >= self.flush_interval_s:
+                    self._flush()
+                    last_flush = time.monotonic()
+            # Closing: samples first, then control records (the status last), then flush.
+            while True:
+                try:
+                    first, n, buf = self._filled.get_nowait()
+                except queue.Empty:
+                    break
+                self._append(buf, n)
+                self._blocks_written += 1
+            self._drain_control()
+            self._flush()
+            self._write_text(self._f, rf.META_STATUS, self._final_status)
+            self._f.flush()
+        except BaseException as exc:  # noqa: BLE001 - surfaced by close()
+            self.error = exc
+
+    def _append(self, buf: np.ndarray, n: int) -> None:
+        """Copy (c, n) into the chunk accumulator (transposing to rows), writing full chunks."""
+        done = 0
+        while done < n:
+            k = min(n - done, self._chunk - self._acc_fill)
+            self._acc[self._acc_fill : self._acc_fill + k] = buf[:, done : done + k].T
+            self._acc_fill += k
+            done += k
+            if self._acc_fill == self._chunk:
+                end = self._committed + self._chunk
+                if self._ds.shape[0] < end:
+                    self._ds.resize((end, self._c))
+                self._ds[self._committed : end] = self._acc
+                self._committed = end
+                self._acc_fill = 0
+
+    def _flush(self) -> None:
+        """Write the partial chunk (rewritten when it completes) and flush for SWMR readers."""
+        if self._acc_fill:
+            end = self._committed + self._acc_fill
+            if self._ds.shape[0] != end:
+                self._ds.resize((end, self._c))
+            self._ds[self._committed : end] = self._acc[: self._acc_fill]
+        self._f.flush()
+        self._flushes += 1
+
+    def _drain_control(self) -> None:
+        events: list[DaqEvent] = []
+        while self._control:
+            kind, payload = self._control.popleft()
+            if kind == "event":
+                events.append(payload)
+                continue
+            if events:  # keep order between events and the rest
+                self._write_events(events)
+                events = []
+            if kind == "text":
+                self._write_text(self._f, *payload)
+            elif kind == "blocks":
+                self._write_blocks(payload)
+            elif kind == "ack":
+                self._write_acks(*payload)
+            elif kind == "cal":
+                self._f[rf.CAL_ZERO_V][...] = payload.zero_v
+                self._f[rf.CAL_ZERO_TIME_S][()] = float(payload.zero_time_s)
+                self._f[rf.CAL_DRIFT_V_S][...] = payload.drift_v_s
+        if events:
+            self._write_events(events)
+
+    def _write_events(self, events: list[DaqEvent]) -> None:
+        rows = np.zeros(len(events), dtype=rf.EVENT_DTYPE)
+        now = time.time()
+        rate, t0 = self.info.rate_hz, self._t0_s
+        for i, e in enumerate(events):
+            sample, t = e.sample, e.time_s
+            if sample < 0 and math.isfinite(t) and math.isfinite(t0):
+                sample = int(round((t - t0) * rate))
+            if not math.isfinite(t) and sample >= 0 and math.isfinite(t0):
+                t = t0 + sample / rate
+            rows[i] = (sample, e.lost, t, now, e.kind.encode()[:16],
+                       e.message.encode("utf-8")[: rf.EVENT_MESSAGE_BYTES])  # fmt: skip
+        ds = self._f[rf.EVENTS]
+        ds.resize((self._n_events + len(rows),))
+        ds[self._n_events :] = rows
+        self._n_events += len(rows)
+
+    def _write_blocks(self, rows: np.ndarray) -> None:
+        ds = self._f[rf.BLOCKS]
+        ds.resize((self._n_blocks + len(rows),))
+        ds[self._n_blocks :] = rows
+        for i, b in enumerate(rows["block"]):
+            self._block_rows[int(b)] = self._n_blocks + i
+        self._n_blocks += len(rows)
+
+    def _write_acks(self, blocks: np.ndarray, acks: np.ndarray) -> None:
+        ds = self._f[rf.BLOCKS]
+        unknown = []
+        for b, a in zip(blocks.tolist(), acks.tolist()):
+            row = self._block_rows.get(b)
+            if row is None:
+                unknown.append(b)
+                continue
+            rec = ds[row]
+            rec["ack_s"] = a
+            ds[row] = rec
+        if unknown:
+            self._write_events(
+                [DaqEvent(rf.EV_NOTE, -1, f"ack for blocks never appended: {unknown[:10]}")]
+            )
