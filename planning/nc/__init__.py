@@ -1,0 +1,88 @@
+"""planning.nc — the NC language: parse, interpret to canonical motion, edit and write programs.
+
+Quick tour::
+
+    from planning.nc import Program, interpret, interpret_file, motion_stats, Interpreter
+
+    prog = Program.read("data/programs/pocket.nc")      # layout-keeping text (editable)
+    motion = interpret(prog)                             # -> Motion (struct of numpy arrays)
+    stats = motion_stats(motion, machine)                # time, lengths, bbox
+
+    motion = interpret_file("big.nc")                    # streaming, for huge programs
+
+    it = Interpreter(machine, strict=False)              # one block at a time (controllers)
+    seg = it.execute("G1 X10 F300"); snapshot = it.state.copy(); it.warnings
+
+    state = state_at_block(prog, 120)                    # DNC restart from block 120
+    blocks = restart_preamble(state)
+
+    prog.set_word(12, "F", 250)                          # edits touch only those words
+    prog.replace_blocks({40: [{"X": 5, "F": 200}, {"X": 10, "F": 300}]})
+    prog.write("out.nc")
+
+    lin = linearize(motion, chord_tol_mm=0.005)          # arcs -> chords, lin.source maps back
+    motion_to_program(motion).write("path.nc")           # motion -> NC
+
+Modules: :mod:`~planning.nc.motion` (Motion, kinds), :mod:`~planning.nc.interpreter`,
+:mod:`~planning.nc.state` (ModalState), :mod:`~planning.nc.program` (Program, editing),
+:mod:`~planning.nc.writer`, :mod:`~planning.nc.arcs`, :mod:`~planning.nc.canned`,
+:mod:`~planning.nc.stats`, :mod:`~planning.nc.restart`, :mod:`~planning.nc.plot`,
+:mod:`~planning.nc.errors`.
+"""
+
+from planning.nc.arcs import (
+    Linearized,
+    arc_radius_mm,
+    arc_sweep_rad,
+    linearize,
+    segment_length_mm,
+)
+from planning.nc.errors import NCError, NCWarning
+from planning.nc.interpreter import Interpreter, interpret, interpret_file, state_at_block
+from planning.nc.motion import (
+    ARC_CCW,
+    ARC_CW,
+    DWELL,
+    FULL_CIRCLE_TOL_MM,
+    KIND_NAMES,
+    LINE,
+    RAPID,
+    Motion,
+    MotionBuilder,
+)
+from planning.nc.program import NumberStyle, Program
+from planning.nc.restart import restart_preamble
+from planning.nc.state import CannedCycle, ModalState
+from planning.nc.stats import MotionStats, motion_stats
+from planning.nc.writer import motion_to_program
+
+__all__ = [
+    "ARC_CCW",
+    "ARC_CW",
+    "DWELL",
+    "FULL_CIRCLE_TOL_MM",
+    "KIND_NAMES",
+    "LINE",
+    "RAPID",
+    "CannedCycle",
+    "Interpreter",
+    "Linearized",
+    "ModalState",
+    "Motion",
+    "MotionBuilder",
+    "MotionStats",
+    "NCError",
+    "NCWarning",
+    "NumberStyle",
+    "Program",
+    "arc_radius_mm",
+    "arc_sweep_rad",
+    "interpret",
+    "interpret_file",
+    "linearize",
+    "motion_stats",
+    "motion_to_program",
+    "restart_preamble",
+    "segment_length_mm",
+    "state_at_block",
+]

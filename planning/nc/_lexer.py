@@ -1,0 +1,158 @@
+"""Splitting one block's text into words (private).
+
+Two paths that accept exactly the same language:
+
+* :func:`block_words` — the hot path: comments removed by one regex, the rest upper-cased, checked
+  by one ``fullmatch`` and split by one ``findall`` into ``(letter, number_text)`` pairs. No column
+  bookkeeping: errors are rare, so the error path re-reads the line.
+* :func:`tokenize` — the layout-keeping path used by the editor and for error columns: every
+  character of the line belongs to exactly one :class:`Token` (space, word, comment, block delete,
+  percent), so joining the tokens' text gives the line back byte for byte.
+
+Language: words are a letter (either case) followed by a signed decimal number, spaces allowed
+between words and between letter and number (``g1x10y-2.5f300``, ``G01 X 10.``); comments are
+``( ... )`` (not nested, closed on the same line) or ``;`` to the end of the line; ``/`` (optionally
+``/1``..``/9``) as the first thing on a line marks block delete; a line holding ``%`` (and at most
+comments) is the tape start/end mark. Only ASCII outside comments.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from planning.nc.errors import NCError
+
+NUMBER = r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)"
+WS = "[ \t\r\n\f\v]"
+_WS_CHARS = " \t\r\n\f\v"
+_WORD_RE = re.compile(r"([A-Z])" + WS + "*(" + NUMBER + ")")
+_BLOCK_OK = re.compile(WS + "*(?:[A-Z]" + WS + "*" + NUMBER + WS + "*)*")
+_COMMENT_RE = re.compile(r"\([^()]*\)|;.*")
+_TOKEN_RE = re.compile(
+    r"(?P<space>" + WS + "+)"
+    r"|(?P<comment>\([^()]*\)|;.*)"
+    r"|(?P<word>([A-Za-z])" + WS + "*(" + NUMBER + "))"
+    r"|(?P<delete>/[1-9]?)"
+    r"|(?P<percent>%)"
+    r"|(?P<bad>\([^)]*\(|\(.*|.)",
+    re.DOTALL,
+)
+
+_NEWLINE_RE = re.compile(r"\r\n|\r|\n")
+Words = list[tuple[str, str]]
+_EMPTY: Words = []
+
+
+@dataclass(frozen=True, slots=True)
+class Token:
+    """A piece of a line: ``kind`` is space, word, comment, delete, percent or bad.
+
+    For words, ``letter`` is upper-case and ``number`` the number text as written.
+    ``column`` is 1-based.
+    """
+
+    kind: str
+    text: str
+    column: int
+    letter: str = ""
+    number: str = ""
+
+
+def tokenize(raw: str) -> list[Token]:
+    """All tokens of one line, in order; ``"".join(t.text for t in tokens) == raw``."""
+    out = []
+    for m in _TOKEN_RE.finditer(raw):
+        kind = m.lastgroup
+        if kind == "word":
+            out.append(Token("word", m.group(), m.start() + 1, m.group(4).upper(), m.group(5)))
+        else:
+            out.append(Token(kind, m.group(), m.start() + 1))
+    return out
+
+
+def split_lines(text: str) -> list[str]:
+    """Lines of ``text`` split at CR LF, CR or LF (as Python's universal newlines), no line ends."""
+    lines = _NEWLINE_RE.split(text)
+    if lines and lines[-1] == "":
+        lines.pop()
+    return lines
+
+
+def block_words(raw: str, file: str, line: int) -> tuple[Words, int]:
+    """The words of one block and a flag: 0 plain, 1 block delete ``/``, 2 the ``%`` mark.
+
+    Raises :class:`NCError` (with the column) if the line is not in the language.
+    """
+    s = raw
+    if "(" in s or ";" in s or ")" in s:
+        s = _COMMENT_RE.sub(" ", s)
+        if "(" in s or ")" in s:
+            raise line_error(raw, file, line)
+    s = s.strip(_WS_CHARS)
+    if not s:
+        return _EMPTY, 0
+    flag = 0
+    c = s[0]
+    if c == "/":
+        flag = 1
+        s = s[2:] if len(s) > 1 and "1" <= s[1] <= "9" else s[1:]
+    elif c == "%":
+        if s != "%":
+            raise line_error(raw, file, line)
+        return _EMPTY, 2
+    if not s.isascii():
+        raise line_error(raw, file, line)
+    s = s.upper()
+    if _BLOCK_OK.fullmatch(s) is None:
+        raise line_error(raw, file, line)
+    return _WORD_RE.findall(s), flag
+
+
+def word_tokens(raw: str) -> list[Token]:
+    """The word tokens of a line (for mapping a word's index back to its column)."""
+    return [t for t in tokenize(raw) if t.kind == "word"]
+
+
+def line_error(raw: str, file: str, line: int) -> NCError:
+    """The NCError describing why ``raw`` is not a valid block (first problem found)."""
+    seen = ""  # "" nothing yet, "code" words or "/", "%" the tape mark
+    for t in tokenize(raw):
+        where = {"file": file, "line": line, "column": t.column}
+        if t.kind == "bad":
+            ch = t.text[0]
+            if ch == "(":
+                if "(" in t.text[1:]:
+                    return NCError("'(' inside a comment: comments do not nest", word="(", **where)
+                return NCError("comment '(' is not closed on this line", word="(", **where)
+            if ch == ")":
+                return NCError("')' without an opening '('", word=")", **where)
+            if ch.isascii() and ch.isalpha():
+                return NCError(f"letter '{ch}' is not followed by a number", word=ch, **where)
+            if ch in "0123456789.+-":
+                return NCError("number without an address letter", word=ch, **where)
+            return NCError(f"character {ch!r} is not allowed in a block", word=ch, **where)
+        if t.kind == "delete" and seen:
+            return NCError("block delete '/' must start the block", word=t.text, **where)
+        if t.kind == "percent" and seen or t.kind in ("word", "delete") and seen == "%":
+            return NCError("'%' must stand alone on its line", word=t.text, **where)
+        if t.kind in ("word", "percent", "delete"):
+            seen = "%" if t.kind == "percent" else "code"
+    return NCError("unreadable block", file=file, line=line, column=1)
+
+
+def word_error(raw: str, index: int, reason: str, file: str, line: int) -> NCError:
+    """NCError about the ``index``-th word of a block (columns found by re-reading the line)."""
+    toks = word_tokens(raw)
+    if 0 <= index < len(toks):
+        t = toks[index]
+        return NCError(reason, file=file, line=line, column=t.column, word=t.text.strip())
+    return NCError(reason, file=file, line=line, column=1)
+
+
+def find_word(raw: str, letter: str) -> int:
+    """Index among the block's words of the first word with ``letter`` (upper-case), or -1."""
+    for i, t in enumerate(word_tokens(raw)):
+        if t.letter == letter:
+            return i
+    return -1

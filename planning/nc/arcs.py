@@ -1,0 +1,207 @@
+"""Arc geometry: centres from I/J/K or R, sweeps, lengths, linearisation within a chord tolerance.
+
+Plane conventions (RS-274): G17 works in (X, Y) about +Z, G18 in (Z, X) about +Y, G19 in (Y, Z)
+about +X; :data:`PLANE_AXES` gives the indices ``(a, b, normal)`` so that ``a x b = normal``. CCW is
+positive rotation about the normal. R > 0 asks for the arc of at most 180 degrees, R < 0 for the
+larger one. An arc whose start and end coincide in the plane (within
+:data:`~planning.nc.motion.FULL_CIRCLE_TOL_MM`) is a full circle.
+
+:func:`center_from_ijk` / :func:`center_from_r` are scalar (the interpreter calls them per block);
+everything taking a :class:`~planning.nc.Motion` is vectorised over segments.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from planning.nc.motion import ARC_CCW, ARC_CW, DWELL, FULL_CIRCLE_TOL_MM, Motion
+
+PLANE_AXES: dict[int, tuple[int, int, int]] = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
+TWO_PI = 2.0 * math.pi
+
+
+def center_from_r(
+    a0: float, b0: float, a1: float, b1: float, r_mm: float, cw: bool, tol_mm: float
+) -> tuple[float, float]:
+    """In-plane centre of an R-format arc from (a0, b0) to (a1, b1).
+
+    Raises ``ValueError`` with the reason (the interpreter adds the place) when the end points
+    coincide (use I/J/K for a full circle) or the chord is longer than ``2|R|`` by more than
+    ``tol_mm``.
+    """
+    da, db = a1 - a0, b1 - b0
+    d = math.hypot(da, db)
+    if d <= FULL_CIRCLE_TOL_MM:
+        raise ValueError(
+            "R-format arc with start = end is undefined; program a full circle by I/J/K"
+        )
+    if r_mm == 0.0:
+        raise ValueError("arc radius R must not be 0")
+    half = 0.5 * d
+    h2 = r_mm * r_mm - half * half
+    if h2 < 0.0:
+        if half - abs(r_mm) > tol_mm:
+            raise ValueError(
+                f"arc radius |R| = {abs(r_mm):.6g} mm is smaller than half the chord "
+                f"({half:.6g} mm) by more than the tolerance {tol_mm:.6g} mm"
+            )
+        h2 = 0.0
+    h = math.sqrt(h2)
+    # centre left of the chord (seen from +normal) for a CCW minor arc; CW or R<0 flips it
+    s = h / d if (not cw) == (r_mm > 0.0) else -h / d
+    return a0 + 0.5 * da - s * db, b0 + 0.5 * db + s * da
+
+
+def check_radius(
+    a0: float, b0: float, a1: float, b1: float, ca: float, cb: float, tol_mm: float
+) -> float:
+    """Start radius of an I/J/K arc; ``ValueError`` if the end radius differs by > ``tol_mm``."""
+    r0 = math.hypot(a0 - ca, b0 - cb)
+    r1 = math.hypot(a1 - ca, b1 - cb)
+    if abs(r1 - r0) > tol_mm:
+        raise ValueError(
+            f"arc end radius {r1:.6g} mm differs from start radius {r0:.6g} mm by "
+            f"{abs(r1 - r0):.3g} mm, more than the tolerance {tol_mm:.6g} mm"
+        )
+    if r0 <= FULL_CIRCLE_TOL_MM:
+        raise ValueError("arc centre coincides with the start point (radius 0)")
+    return r0
+
+
+def _plane_coords(motion: Motion) -> tuple[np.ndarray, ...]:
+    """Per segment in-plane coordinates (a0, b0, a1, b1, ca, cb) and normal start/end (n0, n1)."""
+    axes = np.array([PLANE_AXES.get(int(p), (0, 1, 2)) for p in range(20)])
+    idx = axes[np.clip(motion.plane.astype(int), 0, 19)]
+    rows = np.arange(len(motion))
+    ia, ib, ic = idx[:, 0], idx[:, 1], idx[:, 2]
+    s, e, c = motion.start, motion.end, motion.center
+    return (
+        s[rows, ia],
+        s[rows, ib],
+        e[rows, ia],
+        e[rows, ib],
+        c[rows, ia],
+        c[rows, ib],
+        s[rows, ic],
+        e[rows, ic],
+        idx,
+    )
+
+
+def arc_radius_mm(motion: Motion) -> np.ndarray:
+    """Arc radius (n,), mm; NaN for segments that are not arcs."""
+    a0, b0, _, _, ca, cb, *_ = _plane_coords(motion)
+    r = np.hypot(a0 - ca, b0 - cb)
+    return np.where(motion.is_arc, r, np.nan)
+
+
+def arc_sweep_rad(motion: Motion) -> np.ndarray:
+    """Unsigned swept angle (n,) of each arc in (0, 2*pi], radians; 0 for non-arcs."""
+    a0, b0, a1, b1, ca, cb, *_ = _plane_coords(motion)
+    with np.errstate(invalid="ignore"):
+        t0 = np.arctan2(b0 - cb, a0 - ca)
+        t1 = np.arctan2(b1 - cb, a1 - ca)
+        ccw = np.mod(t1 - t0, TWO_PI)
+        sweep = np.where(motion.kind == ARC_CW, np.mod(-ccw, TWO_PI), ccw)
+        full = np.hypot(a1 - a0, b1 - b0) <= FULL_CIRCLE_TOL_MM
+    sweep = np.where(full, TWO_PI, sweep)
+    return np.where(motion.is_arc, sweep, 0.0)
+
+
+def segment_length_mm(motion: Motion) -> np.ndarray:
+    """Path length (n,) of each segment, mm (helical arcs included; 0 for dwells)."""
+    chord = np.linalg.norm(motion.end - motion.start, axis=1)
+    if not motion.is_arc.any():
+        return np.where(motion.kind == DWELL, 0.0, chord)
+    a0, b0, _, _, ca, cb, n0, n1, _ = _plane_coords(motion)
+    r = np.hypot(a0 - ca, b0 - cb)
+    arc = np.hypot(r * arc_sweep_rad(motion), n1 - n0)
+    return np.where(motion.is_arc, arc, np.where(motion.kind == DWELL, 0.0, chord))
+
+
+@dataclass(frozen=True)
+class Linearized:
+    """Straight pieces approximating a motion.
+
+    start, end : ndarray, shape (k, 3), mm
+    source : ndarray, shape (k,), int64 — index of the motion segment each piece comes from
+        (non-decreasing; every segment has at least one piece, a dwell a zero-length one)
+    kind : ndarray, shape (k,), int8 — the source segment's kind
+    """
+
+    start: np.ndarray
+    end: np.ndarray
+    source: np.ndarray
+    kind: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.source.shape[0])
+
+
+def pieces_per_segment(motion: Motion, chord_tol_mm: float) -> np.ndarray:
+    """How many straight pieces each segment needs so the chord error stays <= ``chord_tol_mm``."""
+    if not chord_tol_mm > 0:
+        raise ValueError(f"chord tolerance must be > 0 mm, got {chord_tol_mm}")
+    r = arc_radius_mm(motion)
+    sweep = arc_sweep_rad(motion)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # sagitta r (1 - cos(d/2)) <= tol  <=>  d <= 2 acos(1 - tol/r); at most 120 deg per piece
+        dmax = np.where(r > chord_tol_mm, 2.0 * np.arccos(1.0 - chord_tol_mm / r), math.pi)
+        dmax = np.minimum(dmax, TWO_PI / 3.0)
+        m = np.ceil(sweep / dmax - 1e-12)
+    return np.where(motion.is_arc, np.maximum(m, 1), 1).astype(np.int64)
+
+
+def linearize(motion: Motion, chord_tol_mm: float = 0.001) -> Linearized:
+    """Replace every arc by chords whose deviation from the arc is at most ``chord_tol_mm``.
+
+    Lines, rapids and dwells map to one piece each. Helical arcs interpolate the normal axis
+    linearly in angle. Vectorised: no Python loop over segments.
+    """
+    m = pieces_per_segment(motion, chord_tol_mm)
+    source = np.repeat(np.arange(len(motion)), m)
+    first = np.cumsum(m) - m
+    j = np.arange(source.size) - first[source]  # piece index within its segment
+    mm = m[source]
+    f0, f1 = j / mm, (j + 1) / mm
+    start = motion.start[source] + f0[:, None] * (motion.end - motion.start)[source]
+    end = motion.start[source] + f1[:, None] * (motion.end - motion.start)[source]
+    arcs = motion.is_arc[source]
+    if arcs.any():
+        a0, b0, _, _, ca, cb, n0, n1, idx = _plane_coords(motion)
+        r = np.hypot(a0 - ca, b0 - cb)
+        t0 = np.arctan2(b0 - cb, a0 - ca)
+        sgn = np.where(motion.kind == ARC_CCW, 1.0, -1.0)
+        sweep = arc_sweep_rad(motion) * sgn
+        k = np.nonzero(arcs)[0]
+        s = source[k]
+        for frac, out in ((f0[k], start), (f1[k], end)):
+            th = t0[s] + frac * sweep[s]
+            pa = ca[s] + r[s] * np.cos(th)
+            pb = cb[s] + r[s] * np.sin(th)
+            pn = n0[s] + frac * (n1[s] - n0[s])
+            out[k, idx[s, 0]] = pa
+            out[k, idx[s, 1]] = pb
+            out[k, idx[s, 2]] = pn
+        # exact end points where the source has them (no rounding drift at joints)
+        last = k[f1[k] == 1.0]
+        end[last] = motion.end[source[last]]
+        firsts = k[f0[k] == 0.0]
+        start[firsts] = motion.start[source[firsts]]
+    return Linearized(start=start, end=end, source=source, kind=motion.kind[source])
+
+
+__all__ = [
+    "PLANE_AXES",
+    "Linearized",
+    "arc_radius_mm",
+    "arc_sweep_rad",
+    "center_from_r",
+    "check_radius",
+    "linearize",
+    "pieces_per_segment",
+    "segment_length_mm",
+]

@@ -1,0 +1,697 @@
+"""The NC interpreter: blocks of text in, canonical :class:`~planning.nc.Motion` segments out.
+
+Two ways in:
+
+* whole programs — :func:`interpret` (text, :class:`~planning.nc.Program` or lines) and
+  :func:`interpret_file` (streams the file line by line; memory grows only with the segment
+  arrays, so million-block programs are fine);
+* one block at a time — :class:`Interpreter`: ``it.execute("G1 X10 F300")`` returns that block's
+  segments as a (small) Motion and updates ``it.state`` (a :class:`~planning.nc.ModalState`, copy
+  it with ``it.state.copy()``). The simulated controllers use this as blocks arrive over serial.
+
+Semantics (RS-274 / Fanuc flavour; ``dialect`` only changes G4/G82 ``P``: milliseconds on Fanuc,
+seconds on GRBL):
+
+* Within a block: G-codes first (plane, units, distance modes, ...), then F S T, M6, M3/M4/M5,
+  M7/M8/M9, dwell, motion, then M0/M1/M2/M30. Units switched in a block apply to that block's words.
+* Positions and feeds are converted to mm and mm/min; positions are in the machine frame, i.e.
+  program coordinates plus the active work offset G54..G59 (zero unless ``work_offsets_mm`` is
+  given). G53 moves to machine coordinates for one block.
+* G40/G41/G42 (with D) and G43/G49 (with H) are recorded in the state; the motion is the
+  programmed tool-tip path (no cutter or length compensation applied).
+* A/B/C words are recorded in ``state.rotary_deg`` only.
+* G80..G83 with G98/G99 expand to rapid/feed/dwell moves (:mod:`planning.nc.canned`).
+* After M2/M30 or the closing ``%`` nothing more is executed; blocks with words there give a
+  warning.
+* Strict mode (default) raises :class:`~planning.nc.NCError` for unknown G/M codes, unknown
+  letters and words no code uses; lenient mode records them as
+  :class:`~planning.nc.NCWarning` in ``warnings`` and goes on. Errors that leave the motion
+  unknown (bad arcs, feed move with no F, ...) raise in both modes.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Iterator, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from planning.nc import _lexer
+from planning.nc.arcs import PLANE_AXES, center_from_r, check_radius
+from planning.nc.canned import drill_hole
+from planning.nc.errors import NCError, NCWarning
+from planning.nc.motion import ARC_CCW, ARC_CW, DWELL, LINE, RAPID, Motion, MotionBuilder
+from planning.nc.state import CannedCycle, ModalState
+
+if TYPE_CHECKING:
+    from analysis.config import MachineConfig
+    from planning.nc.program import Program
+
+INCH_MM = 25.4
+DEFAULT_ARC_TOLERANCE_MM = 0.002  # MachineConfig's default
+NAN = math.nan
+
+# G-code (times 10, so G90.1 is 901) -> modal group (RS-274 numbering; 0 = non-modal)
+_G_GROUP = {
+    0: 1, 10: 1, 20: 1, 30: 1, 800: 1, 810: 1, 820: 1, 830: 1,
+    40: 0, 530: 0,
+    170: 2, 180: 2, 190: 2,
+    900: 3, 910: 3,
+    901: 4, 911: 4,
+    930: 5, 940: 5,
+    200: 6, 210: 6,
+    400: 7, 410: 7, 420: 7,
+    430: 8, 490: 8,
+    980: 10, 990: 10,
+    540: 12, 550: 12, 560: 12, 570: 12, 580: 12, 590: 12,
+}  # fmt: skip
+_MOTION = {0: 0, 10: 1, 20: 2, 30: 3, 800: 80, 810: 81, 820: 82, 830: 83}
+_KNOWN_M = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 30}
+_LETTERS = frozenset("ABCDFHIJKLNOPQRSTXYZ")
+_FAST_LETTERS = frozenset("XYZF")
+_GKEY: dict[str, int] = {}  # number text -> G key cache (programs repeat the same few)
+
+
+def _gkey(num: str) -> int:
+    k = _GKEY.get(num)
+    if k is None:
+        k = round(float(num) * 10.0)
+        if len(_GKEY) < 4096:
+            _GKEY[num] = k
+    return k
+
+
+def _gname(key: int) -> str:
+    return f"G{key // 10}" if key % 10 == 0 else f"G{key / 10:g}"
+
+
+class _NullSink:
+    """Builder stand-in that drops segments (modal state only)."""
+
+    class _Drop:
+        def extend(self, _: object) -> None:
+            pass
+
+    fbuf = ibuf = _Drop()
+
+
+class Interpreter:
+    """Executes NC blocks one at a time, tracking all modal state.
+
+    Parameters
+    ----------
+    machine : MachineConfig, optional
+        Gives the arc radius tolerance and the dialect (else 0.002 mm and ``"fanuc"``).
+    strict : bool
+        Unknown codes/letters and unused words raise (True) or become warnings (False).
+    file : str
+        Name used in error messages.
+    dialect : {"fanuc", "grbl"}, optional
+        Overrides the machine's; only the unit of G4/G82 ``P`` depends on it.
+    block_delete : bool
+        The block-delete switch: True skips blocks starting with ``/``.
+    arc_tolerance_mm : float, optional
+        Overrides the machine's arc radius tolerance, mm.
+    work_offsets_mm : mapping {54..59: (x, y, z)}, optional
+        Work offsets added to program coordinates; default all zero.
+    peck_clearance_mm : float
+        G83 re-entry clearance above the previous peck, mm.
+    state : ModalState, optional
+        Start from this state (copied), e.g. to resume a program at a block.
+
+    Attributes
+    ----------
+    state : ModalState
+        The modal state after the blocks executed so far.
+    warnings : list of NCWarning
+        What lenient mode skipped, and blocks ignored after the program end.
+    blocks_seen : int
+        Number of blocks executed so far (the default block index of the next one).
+    """
+
+    def __init__(
+        self,
+        machine: MachineConfig | None = None,
+        *,
+        strict: bool = True,
+        file: str = "<program>",
+        dialect: str | None = None,
+        block_delete: bool = True,
+        arc_tolerance_mm: float | None = None,
+        work_offsets_mm: dict[int, Sequence[float]] | None = None,
+        peck_clearance_mm: float = 0.1,
+        state: ModalState | None = None,
+    ) -> None:
+        self.strict = strict
+        self.file = str(file)
+        self.dialect = dialect or (machine.dialect if machine is not None else "fanuc")
+        if self.dialect not in ("fanuc", "grbl"):
+            raise NCError(f"dialect must be 'fanuc' or 'grbl', got {self.dialect!r}", file=file)
+        self.block_delete = block_delete
+        tol = arc_tolerance_mm
+        if tol is None:
+            tol = machine.arc_radius_tolerance_mm if machine is not None else None
+        self.arc_tolerance_mm = DEFAULT_ARC_TOLERANCE_MM if tol is None else float(tol)
+        self.work_offsets_mm = {
+            k: tuple(float(c) for c in v) for k, v in (work_offsets_mm or {}).items()
+        }
+        self.peck_clearance_mm = float(peck_clearance_mm)
+        self.state = state.copy() if state is not None else ModalState()
+        self.warnings: list[NCWarning] = []
+        self.blocks_seen = 0
+
+    # ------------------------------------------------------------------ public API
+    def execute(self, text: str, *, line: int | None = None, block: int | None = None) -> Motion:
+        """Execute one block's text; return its segments (often 0 or 1, more for canned cycles).
+
+        ``line`` (1-based) and ``block`` (0-based) label the segments and errors; by default the
+        block count so far is used. On NCError the state is left as it was before the block.
+        """
+        out = MotionBuilder()
+        b = self.blocks_seen if block is None else block
+        self._execute_safe(text, b + 1 if line is None else line, b, out)
+        return out.build()
+
+    def run(self, lines: Iterable[str], *, first_line: int = 1) -> Motion:
+        """Execute many blocks (one per line, block i = line i + 1); return all their segments."""
+        out = MotionBuilder()
+        self._run(lines, first_line, out)
+        return out.build()
+
+    def skip(self, lines: Iterable[str], *, first_line: int = 1) -> None:
+        """Execute blocks for their modal effect only (no segments are kept)."""
+        self._run(lines, first_line, _NullSink())
+
+    # ------------------------------------------------------------------ internals
+    def _run(self, lines: Iterable[str], first_line: int, out: MotionBuilder | _NullSink) -> None:
+        block = first_line - 1
+        execute = self._execute
+        for raw in lines:
+            execute(raw, block + 1, block, out)
+            block += 1
+        self.blocks_seen = block
+
+    def _execute_safe(self, raw: str, line: int, block: int, out: MotionBuilder) -> None:
+        saved = self.state.copy()
+        try:
+            self._execute(raw, line, block, out)
+        except NCError:
+            self.state = saved
+            raise
+        self.blocks_seen = block + 1
+
+    def _problem(self, raw: str, index: int, reason: str, line: int) -> None:
+        """Strict: raise; lenient: record a warning about word ``index`` of the block."""
+        err = _lexer.word_error(raw, index, reason, self.file, line)
+        if self.strict:
+            raise err
+        self.warnings.append(NCWarning(err.reason, err.file, err.line, err.column, err.word))
+
+    def _fail(self, raw: str, letter_or_index: str | int, reason: str, line: int) -> NCError:
+        idx = letter_or_index
+        if isinstance(idx, str):
+            idx = _lexer.find_word(raw, idx)
+        return _lexer.word_error(raw, idx, reason, self.file, line)
+
+    def _execute(self, raw: str, line: int, block: int, out: MotionBuilder | _NullSink) -> None:
+        words, flag = _lexer.block_words(raw, self.file, line)
+        st = self.state
+        if flag:
+            if flag == 2:
+                st.tape_marks += 1
+                return
+            if self.block_delete:
+                return
+        if not words:
+            return
+        if st.ended or st.tape_marks >= 2:
+            self.warnings.append(
+                NCWarning(
+                    "block after the program end (M2/M30 or closing %) is ignored",
+                    self.file,
+                    line,
+                    1,
+                    raw.strip()[:40],
+                )
+            )
+            return
+        st.stopped = False
+        gcodes: list[tuple[int, int]] | None = None
+        mcodes: list[tuple[int, int]] | None = None
+        v: dict[str, str] = {}
+        for k, (letter, num) in enumerate(words):
+            if letter == "G":
+                if gcodes is None:
+                    gcodes = [(_gkey(num), k)]
+                else:
+                    gcodes.append((_gkey(num), k))
+            elif letter == "M":
+                if mcodes is None:
+                    mcodes = []
+                mcodes.append((round(float(num) * 10.0), k))
+            elif letter in v:
+                raise _lexer.word_error(
+                    raw, k, f"address {letter} appears twice in the block", self.file, line
+                )
+            else:
+                v[letter] = num
+
+        # ---- G codes: modes first so this block's words use them
+        explicit_motion = False
+        dwell = g53 = False
+        if gcodes is not None:
+            prev_motion = st.motion
+            groups: dict[int, int] = {}
+            for key, k in gcodes:
+                grp = _G_GROUP.get(key)
+                if grp is None:
+                    self._problem(raw, k, f"unknown G-code {_gname(key)}", line)
+                    continue
+                if grp in groups:
+                    other = groups[grp]
+                    raise _lexer.word_error(
+                        raw,
+                        k,
+                        f"{_gname(key)} and {_gname(other)} are in the same modal group "
+                        f"(group {grp}) and cannot share a block",
+                        self.file,
+                        line,
+                    )
+                groups[grp] = key
+                if grp == 1:
+                    st.motion = _MOTION[key]
+                    explicit_motion = True
+                elif grp == 0:
+                    if key == 40:
+                        dwell = True
+                    else:
+                        g53 = True
+                elif grp == 2:
+                    st.plane = key // 10
+                elif grp == 6:
+                    st.inch = key == 200
+                elif grp == 3:
+                    st.absolute = key == 900
+                elif grp == 4:
+                    st.arc_absolute = key == 901
+                elif grp == 5:
+                    if key == 930:
+                        raise _lexer.word_error(
+                            raw,
+                            k,
+                            "inverse-time feed G93 is not supported; use G94 (mm/min)",
+                            self.file,
+                            line,
+                        )
+                elif grp == 7:
+                    st.cutter_comp = key // 10
+                elif grp == 8:
+                    st.tool_length = key // 10
+                elif grp == 10:
+                    st.retract_initial = key == 980
+                else:  # 12, work offsets
+                    st.work_offset = key // 10
+            if explicit_motion and (st.motion < 81 or prev_motion < 81):
+                # leaving a cycle, or starting one: its initial level is the Z here
+                st.canned = CannedCycle(initial_z_mm=st.position_mm[2])
+
+        scale = INCH_MM if st.inch else 1.0
+        # ---- other words
+        if not v.keys() <= _FAST_LETTERS:
+            self._words(raw, v, scale, line, dwell, explicit_motion)
+        elif "F" in v:
+            f = float(v["F"]) * scale
+            if not f > 0.0:
+                raise self._fail(raw, "F", "feed F must be > 0 (mm/min, or in/min under G20)", line)
+            st.feed_mm_min = f
+
+        # ---- M codes before motion (tool change, spindle, coolant)
+        end = False
+        if mcodes is not None:
+            for key, k in mcodes:
+                m = key // 10
+                if key % 10 or m not in _KNOWN_M:
+                    self._problem(raw, k, f"unknown M-code M{key / 10:g}", line)
+                elif m == 6:
+                    st.tool = st.tool_selected
+                elif m == 3:
+                    st.spindle_dir = 1
+                elif m == 4:
+                    st.spindle_dir = -1
+                elif m == 5:
+                    st.spindle_dir = 0
+                elif m == 7 or m == 8:
+                    st.coolant = True
+                elif m == 9:
+                    st.coolant = False
+                elif m == 0 or m == 1:
+                    st.stopped = True
+                else:
+                    end = True
+
+        # ---- dwell
+        if dwell:
+            self._dwell(raw, v, line, block, out)
+
+        # ---- motion
+        has_axes = ("X" in v or "Y" in v or "Z" in v) and not dwell
+        mode = st.motion
+        if has_axes or (
+            explicit_motion and mode >= 2 and mode <= 3 and ("I" in v or "J" in v or "K" in v)
+        ):
+            if mode == 80:
+                raise self._fail(
+                    raw,
+                    next(L for L in "XYZ" if L in v),
+                    "axis word with no motion mode in force (G80 cancelled it; program G0/G1)",
+                    line,
+                )
+            if mode >= 81:
+                self._canned(raw, v, scale, line, block, out)
+            else:
+                self._move(raw, v, scale, line, block, out, mode, g53)
+        elif g53:
+            raise self._fail(raw, 0, "G53 needs an axis word (X, Y or Z)", line)
+        if end:
+            st.ended = True
+
+    def _words(
+        self, raw: str, v: dict[str, str], scale: float, line: int, dwell: bool, motion: bool
+    ) -> None:
+        """F S T D H O N P Q L R I J K and A B C: checks and recording."""
+        st = self.state
+        for letter in v:
+            if letter not in _LETTERS:
+                self._problem(
+                    raw, _lexer.find_word(raw, letter), f"unknown address letter {letter}", line
+                )
+        if "F" in v:
+            f = float(v["F"]) * scale
+            if not f > 0.0:
+                raise self._fail(raw, "F", "feed F must be > 0 (mm/min, or in/min under G20)", line)
+            st.feed_mm_min = f
+        if "S" in v:
+            s = float(v["S"])
+            if s < 0.0:
+                raise self._fail(raw, "S", "spindle speed S must be >= 0 rpm", line)
+            st.spindle_speed_rpm = s
+        for letter in ("T", "D", "H", "O", "N"):
+            if letter in v:
+                n = float(v[letter])
+                if n < 0 or n != int(n):
+                    raise self._fail(
+                        raw, letter, f"{letter} must be a whole number >= 0, got {v[letter]}", line
+                    )
+                n = int(n)
+                if letter == "T":
+                    st.tool_selected = n
+                elif letter == "D":
+                    st.cutter_comp_d = n
+                elif letter == "H":
+                    st.tool_length_h = n
+                elif letter == "O":
+                    st.program_number = n
+                else:
+                    st.sequence_number = n
+        for letter in ("A", "B", "C"):
+            if letter in v:
+                st.rotary_deg[letter] = float(v[letter])
+        mode = st.motion
+        used = set()
+        if mode in (2, 3):
+            used.update("IJKR")
+        if mode >= 81:
+            used.update("RLPQ")
+        if dwell:
+            used.add("P")
+        for letter in "IJKRPQL":
+            if letter in v and letter not in used:
+                self._problem(
+                    raw,
+                    _lexer.find_word(raw, letter),
+                    f"word {letter} is not used by any code in force (motion G{mode})",
+                    line,
+                )
+
+    def _seg(
+        self, out, kind: int, p0, p1, c, feed: float, dwell_s: float, line: int, block: int
+    ) -> None:
+        st = self.state
+        out.fbuf.extend(
+            (
+                p0[0],
+                p0[1],
+                p0[2],
+                p1[0],
+                p1[1],
+                p1[2],
+                c[0],
+                c[1],
+                c[2],
+                feed,
+                st.spindle_dir * st.spindle_speed_rpm,
+                dwell_s,
+            )
+        )
+        out.ibuf.extend((kind, st.plane, st.tool, st.coolant, line, block))
+
+    def _dwell(self, raw: str, v: dict[str, str], line: int, block: int, out) -> None:
+        if "P" in v:
+            t = float(v["P"])
+            t = t / 1000.0 if self.dialect == "fanuc" else t
+            letter = "P"
+        elif "X" in v:
+            t, letter = float(v["X"]), "X"
+        else:
+            raise self._fail(raw, 0, "G4 dwell needs P (ms on Fanuc, s on GRBL) or X (s)", line)
+        if t < 0:
+            raise self._fail(raw, letter, "dwell time must be >= 0 s", line)
+        p = self.state.position_mm
+        self._seg(out, DWELL, p, p, (NAN, NAN, NAN), NAN, t, line, block)
+
+    def _target(self, v: dict[str, str], scale: float, g53: bool) -> tuple[float, float, float]:
+        st = self.state
+        x, y, z = st.position_mm
+        if g53:
+            ox = oy = oz = 0.0
+        else:
+            ox, oy, oz = self.work_offsets_mm.get(st.work_offset, (0.0, 0.0, 0.0))
+        if st.absolute or g53:
+            if "X" in v:
+                x = float(v["X"]) * scale + ox
+            if "Y" in v:
+                y = float(v["Y"]) * scale + oy
+            if "Z" in v:
+                z = float(v["Z"]) * scale + oz
+        else:
+            if "X" in v:
+                x += float(v["X"]) * scale
+            if "Y" in v:
+                y += float(v["Y"]) * scale
+            if "Z" in v:
+                z += float(v["Z"]) * scale
+        return x, y, z
+
+    def _need_feed(self, raw: str, line: int) -> float:
+        f = self.state.feed_mm_min
+        if f != f:
+            raise self._fail(raw, 0, "feed move with no feed rate set (program F first)", line)
+        return f
+
+    def _move(self, raw, v, scale, line, block, out, mode: int, g53: bool) -> None:
+        st = self.state
+        p0 = st.position_mm
+        p1 = self._target(v, scale, g53)
+        if g53 and mode not in (0, 1):
+            raise self._fail(raw, 0, "G53 needs G0 or G1 in force", line)
+        if mode == 0:
+            self._seg(out, RAPID, p0, p1, (NAN, NAN, NAN), NAN, 0.0, line, block)
+        elif mode == 1:
+            self._seg(
+                out, LINE, p0, p1, (NAN, NAN, NAN), self._need_feed(raw, line), 0.0, line, block
+            )
+        else:
+            feed = self._need_feed(raw, line)
+            c = self._arc_center(raw, v, scale, line, p0, p1, mode == 2)
+            self._seg(out, ARC_CW if mode == 2 else ARC_CCW, p0, p1, c, feed, 0.0, line, block)
+        st.position_mm = p1
+
+    def _arc_center(self, raw, v, scale, line, p0, p1, cw: bool) -> tuple[float, float, float]:
+        st = self.state
+        ia, ib, ic = PLANE_AXES[st.plane]
+        tol = self.arc_tolerance_mm
+        ijk = "IJK"
+        la, lb, ln = ijk[ia], ijk[ib], ijk[ic]
+        has_r = "R" in v
+        has_ijk = la in v or lb in v
+        if ln in v:
+            self._problem(
+                raw,
+                _lexer.find_word(raw, ln),
+                f"{ln} is not an in-plane centre word for G{st.plane} arcs",
+                line,
+            )
+        a0, b0, a1, b1 = p0[ia], p0[ib], p1[ia], p1[ib]
+        try:
+            if has_r and has_ijk:
+                raise ValueError("give the arc by R or by I/J/K, not both")
+            if has_r:
+                r = float(v["R"]) * scale
+                ca, cb = center_from_r(a0, b0, a1, b1, r, cw, tol)
+            elif has_ijk:
+                if st.arc_absolute:
+                    if not (la in v and lb in v):
+                        raise ValueError(f"G90.1 (absolute centre) needs both {la} and {lb}")
+                    off = self.work_offsets_mm.get(st.work_offset, (0.0, 0.0, 0.0))
+                    ca = float(v[la]) * scale + off[ia]
+                    cb = float(v[lb]) * scale + off[ib]
+                else:
+                    ca = a0 + float(v.get(la, "0")) * scale
+                    cb = b0 + float(v.get(lb, "0")) * scale
+                check_radius(a0, b0, a1, b1, ca, cb, tol)
+            else:
+                raise ValueError(f"arc needs its centre ({la}, {lb}) or a radius R")
+        except ValueError as exc:
+            which = "R" if has_r else (la if la in v else lb if lb in v else 0)
+            raise self._fail(raw, which, str(exc), line) from None
+        c = [0.0, 0.0, 0.0]
+        c[ia], c[ib], c[ic] = ca, cb, p0[ic]
+        return c[0], c[1], c[2]
+
+    def _canned(self, raw, v, scale, line, block, out) -> None:
+        st = self.state
+        cy = st.canned
+        x0, y0, z0 = st.position_mm
+        oz = self.work_offsets_mm.get(st.work_offset, (0.0, 0.0, 0.0))[2]
+        if cy.initial_z_mm != cy.initial_z_mm:
+            cy.initial_z_mm = z0
+        try:
+            if "R" in v:
+                r = float(v["R"]) * scale
+                cy.r_mm = r + oz if st.absolute else cy.initial_z_mm + r
+            if "Z" in v:
+                z = float(v["Z"]) * scale
+                if st.absolute:
+                    cy.z_mm = z + oz
+                elif cy.r_mm == cy.r_mm:
+                    cy.z_mm = cy.r_mm + z
+            if "Q" in v:
+                cy.q_mm = abs(float(v["Q"]) * scale)
+            if "P" in v:
+                p = float(v["P"])
+                cy.dwell_s = p / 1000.0 if self.dialect == "fanuc" else p
+            if cy.r_mm != cy.r_mm:
+                raise ValueError("canned cycle needs the R plane (R word)")
+            if cy.z_mm != cy.z_mm:
+                raise ValueError("canned cycle needs the hole bottom (Z word)")
+            repeats = 1
+            if "L" in v:
+                repeats = float(v["L"])
+                if repeats < 0 or repeats != int(repeats):
+                    raise ValueError(f"repeat count L must be a whole number >= 0, got {v['L']}")
+                repeats = int(repeats)
+            feed = self._need_feed(raw, line)
+            vxy = {k: v[k] for k in ("X", "Y") if k in v}
+            for _ in range(repeats):
+                x, y, _z = self._target(vxy, scale, False)
+                moves = drill_hole(
+                    st.motion,
+                    st.position_mm,
+                    x,
+                    y,
+                    cy.r_mm,
+                    cy.z_mm,
+                    cy.initial_z_mm,
+                    retract_initial=st.retract_initial,
+                    q_mm=cy.q_mm,
+                    dwell_s=cy.dwell_s,
+                    peck_clearance_mm=self.peck_clearance_mm,
+                )
+                for kind, p0, p1, dwell_s in moves:
+                    f = feed if kind == LINE else NAN
+                    self._seg(out, kind, p0, p1, (NAN, NAN, NAN), f, dwell_s, line, block)
+                    st.position_mm = p1
+        except ValueError as exc:
+            which = next((L for L in "ZRQL" if L in v), 0)
+            raise self._fail(raw, which, str(exc), line) from None
+
+
+def _lines_of(source: str | Program | Iterable[str]) -> Iterable[str]:
+    if isinstance(source, str):
+        return _lexer.split_lines(source)
+    lines = getattr(source, "lines", None)
+    return lines if lines is not None else source
+
+
+def interpret(
+    source: str | Program | Iterable[str],
+    machine: MachineConfig | None = None,
+    *,
+    strict: bool = True,
+    file: str | None = None,
+    **options,
+) -> Motion:
+    """Interpret a whole program (text, Program, or iterable of lines) to Motion.
+
+    ``options`` go to :class:`Interpreter` (dialect, block_delete, arc_tolerance_mm,
+    work_offsets_mm, peck_clearance_mm, state). Use :class:`Interpreter` directly to get the
+    warnings of lenient mode and the final state.
+    """
+    name = file or getattr(source, "file", None) or "<program>"
+    it = Interpreter(machine, strict=strict, file=name, **options)
+    return it.run(_lines_of(source))
+
+
+def _file_lines(path: Path) -> Iterator[str]:
+    try:
+        with open(path, encoding="utf-8", errors="strict", newline=None) as fh:
+            yield from fh
+    except UnicodeDecodeError as exc:
+        raise NCError(
+            f"not a text file (UTF-8 / ASCII): {exc.reason} at byte {exc.start}", file=str(path)
+        ) from None
+    except OSError as exc:
+        raise NCError(f"cannot read the program: {exc.strerror}", file=str(path)) from None
+
+
+def interpret_file(
+    path: str | Path, machine: MachineConfig | None = None, *, strict: bool = True, **options
+) -> Motion:
+    """Interpret a program file, streaming it line by line (memory: the segment arrays only)."""
+    it = Interpreter(machine, strict=strict, file=str(path), **options)
+    return it.run(_file_lines(Path(path)))
+
+
+def state_at_block(
+    source: str | Program | Iterable[str],
+    block: int,
+    machine: MachineConfig | None = None,
+    *,
+    strict: bool = True,
+    file: str | None = None,
+    **options,
+) -> ModalState:
+    """The modal state in force just before block ``block`` (0-based) executes.
+
+    This is what a restart from block N must re-establish (units, plane, distance mode, work
+    offset, tool, spindle, coolant, feed, position); see
+    :func:`planning.nc.restart.restart_preamble`.
+    """
+    if block < 0:
+        raise NCError(f"block index must be >= 0, got {block}", file=file or "<program>")
+    name = file or getattr(source, "file", None) or "<program>"
+    it = Interpreter(machine, strict=strict, file=name, **options)
+    lines = _lines_of(source)
+
+    def head() -> Iterator[str]:
+        for i, raw in enumerate(lines):
+            if i >= block:
+                return
+            yield raw
+
+    it.skip(head())
+    if it.blocks_seen < block:
+        raise NCError(
+            f"block {block} is past the end of the program ({it.blocks_seen} blocks)", file=name
+        )
+    return it.state

@@ -1,0 +1,95 @@
+"""Program statistics: machining time, cutting and rapid lengths, bounding box.
+
+Time model: feed moves (lines, arcs) take ``length / F``; rapids take the longest single-axis
+travel at the machine's rapid rate (each axis moves at its rapid rate independently, as on Fanuc
+non-interpolated positioning); dwells take their time. Acceleration is ignored, so times are lower
+bounds. Without a machine, rapids use :data:`DEFAULT_RAPID_MM_MIN`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from planning.nc.arcs import linearize, segment_length_mm
+from planning.nc.motion import DWELL, RAPID, Motion
+
+if TYPE_CHECKING:
+    from analysis.config import MachineConfig
+
+DEFAULT_RAPID_MM_MIN = 10_000.0
+
+
+@dataclass(frozen=True)
+class MotionStats:
+    """Summary of a motion.
+
+    segments : number of segments; cutting_length_mm / rapid_length_mm : path lengths, mm;
+    time_s : machining time, s (feed + rapid + dwell); feed_time_s, rapid_time_s, dwell_s : the
+    parts, s; bbox_min_mm / bbox_max_mm : (3,) extent of the whole path including arc bulges, mm
+    (NaN without motion); cutting_bbox_min_mm / cutting_bbox_max_mm : extent of feed moves only;
+    rapid_mm_min : rapid rate used, mm/min.
+    """
+
+    segments: int
+    cutting_length_mm: float
+    rapid_length_mm: float
+    time_s: float
+    feed_time_s: float
+    rapid_time_s: float
+    dwell_s: float
+    bbox_min_mm: tuple[float, float, float]
+    bbox_max_mm: tuple[float, float, float]
+    cutting_bbox_min_mm: tuple[float, float, float]
+    cutting_bbox_max_mm: tuple[float, float, float]
+    rapid_mm_min: float
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _bbox(lin_start: np.ndarray, lin_end: np.ndarray) -> tuple[tuple, tuple]:
+    if lin_start.shape[0] == 0:
+        nan = (float("nan"),) * 3
+        return nan, nan
+    pts = np.concatenate([lin_start, lin_end])
+    return tuple(map(float, pts.min(axis=0))), tuple(map(float, pts.max(axis=0)))
+
+
+def motion_stats(
+    motion: Motion, machine: MachineConfig | None = None, *, rapid_mm_min: float | None = None
+) -> MotionStats:
+    """Lengths, time and bounding box of ``motion`` (vectorised).
+
+    ``rapid_mm_min`` overrides the machine's rapid rate.
+    """
+    rapid = rapid_mm_min or (machine.rapid_mm_min if machine is not None else DEFAULT_RAPID_MM_MIN)
+    length = segment_length_mm(motion)
+    feed = motion.is_feed
+    rap = motion.kind == RAPID
+    with np.errstate(invalid="ignore", divide="ignore"):
+        feed_time = float(np.sum(length[feed] / motion.feed_mm_min[feed])) * 60.0
+    axis_travel = np.abs(motion.end - motion.start).max(axis=1) if len(motion) else np.zeros(0)
+    rapid_time = float(np.sum(axis_travel[rap])) / rapid * 60.0
+    dwell = float(np.sum(motion.dwell_s[motion.kind == DWELL]))
+    # bbox: tolerance small relative to any sensible arc; only arcs are subdivided
+    lin = linearize(motion, chord_tol_mm=0.001)
+    lo, hi = _bbox(lin.start, lin.end)
+    cut = motion.is_feed[lin.source]
+    clo, chi = _bbox(lin.start[cut], lin.end[cut])
+    return MotionStats(
+        segments=len(motion),
+        cutting_length_mm=float(length[feed].sum()),
+        rapid_length_mm=float(length[rap].sum()),
+        time_s=feed_time + rapid_time + dwell,
+        feed_time_s=feed_time,
+        rapid_time_s=rapid_time,
+        dwell_s=dwell,
+        bbox_min_mm=lo,
+        bbox_max_mm=hi,
+        cutting_bbox_min_mm=clo,
+        cutting_bbox_max_mm=chi,
+        rapid_mm_min=float(rapid),
+    )

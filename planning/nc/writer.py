@@ -1,0 +1,111 @@
+"""Writing canonical motion out as an NC program.
+
+:func:`motion_to_program` turns a :class:`~planning.nc.Motion` (e.g. a planned roughing path) into a
+:class:`~planning.nc.Program` in G21/G90/G91.1/G94 that interprets back to the same motion (to the
+written precision): modal G0/G1/G2/G3 only when they change, F only when the feed changes, I/J/K
+relative to each arc's start, tool changes ``T M6``, spindle ``S M3/M4``/``M5``, coolant
+``M8/M9``, dwells ``G4``. Coordinates are rounded to ``style.decimals`` and every later value is
+computed from the rounded one, so no error accumulates.
+
+Editing an existing program keeps its layout: see :class:`~planning.nc.Program`.
+"""
+
+from __future__ import annotations
+
+import math
+
+from planning.nc.arcs import PLANE_AXES
+from planning.nc.motion import ARC_CCW, ARC_CW, DWELL, LINE, RAPID, Motion
+from planning.nc.program import NumberStyle, Program
+
+_G = {RAPID: "G0", LINE: "G1", ARC_CW: "G2", ARC_CCW: "G3"}
+
+
+def motion_to_program(
+    motion: Motion,
+    *,
+    style: NumberStyle | None = None,
+    dialect: str = "fanuc",
+    program_number: int | None = None,
+    comment: str | None = None,
+    start_mm: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    end: bool = True,
+    file: str = "<program>",
+) -> Program:
+    """An NC program whose interpretation reproduces ``motion``.
+
+    ``start_mm`` is where the machine is before the program (the interpreter's start, 0 0 0);
+    when a segment does not start where the previous one ended, a ``G0`` is inserted. Dwells are
+    written ``G4 X<s>`` (Fanuc) or ``G4 P<s>`` (GRBL). ``end`` appends ``M30``.
+    """
+    st = style or NumberStyle()
+    fmt = st.format
+    out: list[str] = ["%"]
+    if program_number is not None:
+        out.append(f"O{program_number:04d}" + (f" ({_clean(comment)})" if comment else ""))
+    elif comment:
+        out.append(f"({_clean(comment)})")
+    out.append("G21 G90 G91.1 G94 G17")
+    pos = [float(fmt(c)) for c in start_mm]
+    mode, plane, feed, tool, rpm, coolant = None, 17, math.nan, 0, 0.0, False
+
+    def coords(p) -> list[str]:
+        words = []
+        for ax, letter in enumerate("XYZ"):
+            txt = fmt(float(p[ax]))
+            if float(txt) != pos[ax]:
+                words.append(letter + txt)
+                pos[ax] = float(txt)
+        return words
+
+    for k in range(len(motion)):
+        kind = int(motion.kind[k])
+        if int(motion.tool[k]) != tool:
+            tool = int(motion.tool[k])
+            out.append(f"T{tool} M6")
+        srpm = float(motion.spindle_rpm[k])
+        if srpm != rpm:
+            out.append("M5" if srpm == 0 else f"S{fmt(abs(srpm))} {'M3' if srpm > 0 else 'M4'}")
+            rpm = srpm
+        if bool(motion.coolant[k]) != coolant:
+            coolant = bool(motion.coolant[k])
+            out.append("M8" if coolant else "M9")
+        if int(motion.plane[k]) != plane:
+            plane = int(motion.plane[k])
+            out.append(f"G{plane}")
+        if kind == DWELL:
+            t = float(motion.dwell_s[k])
+            out.append(f"G4 X{format(t, '.3f')}" if dialect == "fanuc" else f"G4 P{t:.3f}")
+            continue
+        s = motion.start[k]
+        if any(float(fmt(float(s[a]))) != pos[a] for a in range(3)):
+            w = coords(s)
+            out.append(" ".join(([] if mode == RAPID else ["G0"]) + w))
+            mode = RAPID
+        words = [] if kind == mode else [_G[kind]]
+        start = list(pos)
+        moved = coords(motion.end[k])
+        words += moved or ["X" + fmt(pos[0])]  # a zero-length move still needs an axis word
+        if kind in (ARC_CW, ARC_CCW):
+            ia, ib, _ = PLANE_AXES[plane]
+            c = motion.center[k]
+            words += [
+                "IJK"[ia] + fmt(float(c[ia]) - start[ia]),
+                "IJK"[ib] + fmt(float(c[ib]) - start[ib]),
+            ]
+        if kind != RAPID:
+            f = float(motion.feed_mm_min[k])
+            if feed != feed or fmt(f) != fmt(feed):
+                words.append("F" + fmt(f))
+                feed = f
+        out.append(" ".join(words))
+        mode = kind
+    if end:
+        out += ["M5", "M30"] if rpm else ["M30"]
+    out.append("%")
+    return Program.from_blocks(out, file=file, style=st)
+
+
+def _clean(text: str) -> str:
+    """Comment text safe inside ( ): no parentheses, one line."""
+    return " ".join(text.replace("(", "[").replace(")", "]").split())
