@@ -1,0 +1,214 @@
+"""Insert geometry of seed 003: projected tool angles, [M]^-1, chip section with a nose radius.
+
+Private helpers of :mod:`analysis.facemill` (the public names are re-exported there).
+
+Frames (seed 003 Fig. 1): T is the cutting-velocity direction at the insert, R the radial direction
+(outwards), A the cutter axis (up, away from the machined floor). T', R', A' are the insert's own
+axes: T' is the rake-face normal, A' runs along the major cutting edge and R' along the minor edge.
+The tool angles gamma_L (lead), gamma_R (radial rake) and gamma_A (axial rake) are the angles of
+the projections of A', R', T' on the RA, TR and TA planes (seed 003 2.2.2), not rotation angles.
+
+Slip in the seed text (found while implementing, not in the seeds index): eqs 6 and 7 as printed
+are not the solution of the orthogonality conditions and give a [M]^-1 that is not orthonormal
+(0.8 % off for the seed's 15/0/7 deg tool). Eq 5 is right; eqs 6 and 7 follow from it by the cyclic
+substitution (A, R, L) -> (R, L, A) -> (L, A, R), whose last numerator terms are
+sin(gamma_R) tan(gamma_L) tan(gamma_R) and sin(gamma_L) tan(gamma_A) tan(gamma_L) (the text
+prints tan(gamma_A) and tan(gamma_R) as the last factors). ``projected_angles`` uses the
+corrected forms; ``tests/test_facemill_geometry.py`` shows they solve the orthogonality equations.
+
+Chip section (eqs 11-13, 16): the text's eq 11 refers to points of a figure that the seed does not
+include, so the section is computed here from first principles with the same decomposition: the
+edge (minor edge, nose arc of radius r, major edge) is drawn on the rake face, projected on the RA
+plane with [M]^-1 (the lead angle is the projected angle by construction), and the chip section is
+the area between the current and the previous tooth path, which lie h = CI(theta) apart in R.
+Slicing it horizontally (height z above the floor) gives, exactly for a convex edge,
+
+    S_RA(h, d) = W(min(d, e)) + h * max(d - e, 0),   W(z) = int_0^z w(z') dz'
+
+where w(z) is the width of the edge's cup at height z and e the cusp height (w(e) = h). Above the
+cusp this is the paper's A2 = h (d - c) term, below it the nose term A1'. The area on the rake face
+is S = S_RA / cos(nu) (eq 13) with cos(nu) = a11, the cosine between the RA and R'A' planes. The
+engaged edge length l (eq 16) is the edge's true length from the cusp on the trailing side, round
+the nose, up to the top of the cut on the major edge.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from analysis.errors import AnalysisError
+
+_ARC_POINTS = 721
+_EDGE_POINTS = 400
+_TABLE_POINTS = 4001
+
+
+def projected_angles(lead_rad, radial_rake_rad, axial_rake_rad):
+    """theta_1, theta_2, theta_3 of seed 003 eqs 5-7 (eqs 6-7 corrected, see module docstring).
+
+    Parameters are arrays (any broadcastable shape), radians. Returns three arrays, radians.
+    """
+    gl, gr, ga = np.broadcast_arrays(
+        np.asarray(lead_rad, float), np.asarray(radial_rake_rad, float),
+        np.asarray(axial_rake_rad, float),
+    )  # fmt: skip
+    tl, tr, ta = np.tan(gl), np.tan(gr), np.tan(ga)
+    den = 1.0 + tl * tr * ta
+    t1 = np.arctan((np.cos(ga) * tr - np.sin(ga) * tl + np.sin(ga) * tr * ta) / den)
+    t2 = np.arctan((np.cos(gr) * tl - np.sin(gr) * ta + np.sin(gr) * tl * tr) / den)
+    t3 = np.arctan((np.cos(gl) * ta - np.sin(gl) * tr + np.sin(gl) * ta * tl) / den)
+    return t1, t2, t3
+
+
+def rotation_inverse(lead_rad, radial_rake_rad, axial_rake_rad):
+    """[M]^-1 of seed 003 eq 9: columns are T', R', A' expressed in T, R, A.
+
+    ``[T, R, A]^T = M_inv @ [T', R', A']^T`` (eq 8); eq 15's [M'] is its transpose.
+    Returns an array of shape (..., 3, 3) for broadcastable angle arrays in radians.
+    """
+    gl, gr, ga = np.broadcast_arrays(
+        np.asarray(lead_rad, float), np.asarray(radial_rake_rad, float),
+        np.asarray(axial_rake_rad, float),
+    )  # fmt: skip
+    t1, t2, t3 = projected_angles(gl, gr, ga)
+    m = np.empty(gl.shape + (3, 3))
+    m[..., 0, 0] = np.cos(ga) * np.cos(t1)
+    m[..., 0, 1] = np.sin(gr) * np.cos(t2)
+    m[..., 0, 2] = -np.sin(t3)
+    m[..., 1, 0] = -np.sin(t1)
+    m[..., 1, 1] = np.cos(gr) * np.cos(t2)
+    m[..., 1, 2] = np.sin(gl) * np.cos(t3)
+    m[..., 2, 0] = np.sin(ga) * np.cos(t1)
+    m[..., 2, 1] = -np.sin(t2)
+    m[..., 2, 2] = np.cos(gl) * np.cos(t3)
+    return m
+
+
+@dataclass(frozen=True)
+class EdgeTable:
+    """The insert edge projected on the RA plane, tabulated against height above the floor.
+
+    All arrays have shape (n,) over ``z_mm`` (0 at the lowest point of the edge, increasing).
+    ``width_mm`` is the cup width w(z), ``area_mm2`` W(z), ``s_left_mm``/``s_right_mm`` the arc
+    length along the true edge (on the rake face) at height z on the trailing (inner) and leading
+    (major-edge) sides, measured from the inner end of the minor edge.
+    """
+
+    z_mm: np.ndarray
+    width_mm: np.ndarray
+    area_mm2: np.ndarray
+    s_left_mm: np.ndarray
+    s_right_mm: np.ndarray
+    m_inv: np.ndarray
+    cos_nu: float
+    tangent_height_mm: float  # c of eq 16: where the nose arc meets the major edge
+
+    @property
+    def max_depth_mm(self) -> float:
+        return float(self.z_mm[-1])
+
+
+def _interp_branch(zt, zb, vb, last: bool):
+    """Interpolate a branch quantity at heights zt; on flat runs of zb keep the point nearest the
+    nose (last=False) or farthest from it (last=True)."""
+    keep = np.ones(len(zb), bool)
+    same = np.diff(zb) <= 1e-12
+    if last:
+        keep[:-1] &= ~same
+    else:
+        keep[1:] &= ~same
+    return np.interp(zt, zb[keep], vb[keep])
+
+
+@lru_cache(maxsize=32)
+def edge_table(
+    lead_deg: float, radial_rake_deg: float, axial_rake_deg: float, nose_radius_mm: float,
+    edge_length_mm: float,
+) -> EdgeTable:  # fmt: skip
+    """Tabulate the projected edge of a square-cornered insert (SPGN-like, minor edge at 90 deg).
+
+    Raises :class:`AnalysisError` for a geometry the model cannot describe (edge not rising on
+    both sides of the nose once projected, i.e. the cup is not convex).
+    """
+    r = nose_radius_mm
+    m = rotation_inverse(*np.radians([lead_deg, radial_rake_deg, axial_rake_deg]))
+    straight = edge_length_mm - r
+    # Edge on the rake face (u along R', v along A'): minor edge, nose arc, major edge.
+    u_minor = np.linspace(-straight, 0.0, _EDGE_POINTS)
+    v_minor = np.full_like(u_minor, -r)
+    phi = np.linspace(0.0, np.pi / 2, _ARC_POINTS)[1:]
+    u_arc, v_arc = r * np.sin(phi), -r * np.cos(phi)
+    v_major = np.linspace(0.0, straight, _EDGE_POINTS)[1:]
+    u_major = np.full_like(v_major, r)
+    u = np.concatenate([u_minor, u_arc, u_major])
+    v = np.concatenate([v_minor, v_arc, v_major])
+    s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(u), np.diff(v)))])
+    x = m[1, 1] * u + m[1, 2] * v
+    z = m[2, 1] * u + m[2, 2] * v
+    # The lowest point; with a flat wiper on the floor take its end at the nose.
+    i0 = int(np.flatnonzero(z <= z.min() + 1e-12 * max(1.0, r))[-1])
+    z = z - z[i0]
+    zl, xl, sl = z[: i0 + 1][::-1], x[: i0 + 1][::-1], s[: i0 + 1][::-1]
+    zr, xr, sr = z[i0:], x[i0:], s[i0:]
+    bad = i0 == len(z) - 1 or np.any(np.diff(zl) < -1e-12) or np.any(np.diff(zr) < -1e-12)
+    if not bad and zl[-1] < zr[-1]:
+        # A minor edge that never rises (zero lead: a wiper on the floor) ends at the insert's
+        # next corner, which bounds the cup from the inside.
+        zl, xl, sl = np.append(zl, zr[-1]), np.append(xl, xl[-1]), np.append(sl, sl[-1])
+    top = min(zl[-1], zr[-1])
+    if bad or top <= 0:
+        raise AnalysisError(
+            f"face-mill insert lead {lead_deg} deg, radial rake {radial_rake_deg} deg, axial rake "
+            f"{axial_rake_deg} deg: the projected edge does not rise on both sides of the nose; "
+            "the seed 003 model needs a convex cutting corner"
+        )
+    # Dense near the floor, where the nose makes w(z) grow like sqrt(z) (the cusp lives there).
+    t = np.linspace(0.0, 1.0, _TABLE_POINTS)
+    zt = np.unique(np.concatenate([top * t**3, top * t]))
+    xlz = _interp_branch(zt, zl, xl, last=True)
+    xrz = _interp_branch(zt, zr, xr, last=False)
+    slz = _interp_branch(zt, zl, sl, last=False)
+    srz = _interp_branch(zt, zr, sr, last=False)
+    w = xrz - xlz
+    if np.any(np.diff(w) < -1e-9):
+        raise AnalysisError(
+            f"face-mill insert lead {lead_deg} deg, radial rake {radial_rake_deg} deg, axial rake "
+            f"{axial_rake_deg} deg: the major edge leans inwards (undercut) in projection; the "
+            "seed 003 chip model needs a lead angle that opens the cut (lead >= 0 deg)"
+        )
+    area = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(zt))])
+    tangent = float(z[_EDGE_POINTS + _ARC_POINTS - 2])
+    return EdgeTable(zt, w, area, slz, srz, m, float(m[0, 0]), tangent)
+
+
+def chip_section(table: EdgeTable, h_mm, depth_mm):
+    """Chip area on the rake face S (eq 13) and engaged edge length l (eq 16).
+
+    Parameters
+    ----------
+    table : EdgeTable of the insert.
+    h_mm : array, chip thickness CI(theta) in R (mm), >= 0.
+    depth_mm : array broadcastable with h_mm, local axial depth of cut (mm), >= 0.
+
+    Returns
+    -------
+    (S_mm2, l_mm) : arrays of the broadcast shape. Both are 0 where depth is 0.
+    """
+    h, d = np.broadcast_arrays(np.asarray(h_mm, float), np.asarray(depth_mm, float))
+    h = np.maximum(h, 0.0)
+    d = np.maximum(d, 0.0)
+    if np.any(d > table.max_depth_mm + 1e-9):
+        raise AnalysisError(
+            f"depth of cut {float(d.max()):.4g} mm exceeds the insert's usable edge "
+            f"({table.max_depth_mm:.4g} mm in projection)"
+        )
+    # Cusp height e: w(e) = h (w increases with z for a convex cup).
+    e = np.interp(h, table.width_mm, table.z_mm)
+    lo = np.minimum(d, e)
+    s_rra = np.interp(lo, table.z_mm, table.area_mm2) + h * np.maximum(d - e, 0.0)
+    l_mm = np.interp(d, table.z_mm, table.s_right_mm) - np.interp(lo, table.z_mm, table.s_left_mm)
+    l_mm = np.where(d > 0, l_mm, 0.0)
+    return s_rra / table.cos_nu, l_mm
