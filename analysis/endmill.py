@@ -47,6 +47,7 @@ __all__ = [
     "EndMillCut",
     "coefficient_vector",
     "coefficients_from_vector",
+    "element_forces",
     "endmill_design",
     "endmill_forces",
     "immersion_angles",
@@ -184,6 +185,37 @@ def endmill_design(
         design[..., :, j] = np.einsum("...km,...kmi->...i", hw, d)
         design[..., :, 3 + j] = np.einsum("...km,...kmi->...i", w, d)
     return _rotate_feed(design, cut.feed_angle_deg)
+
+
+def element_forces(
+    theta_rad: ArrayLike, h_mm: ArrayLike, dz_mm: ArrayLike, kappa_rad: ArrayLike,
+    coef: EndMillCoefficients,
+) -> np.ndarray:  # fmt: skip
+    """Force of one edge element on the workpiece, model frame (X feed, Y, Z up), shape (..., 3) N.
+
+    ``theta_rad`` the element's angular position, ``h_mm`` its chip thickness (normal to the edge,
+    already including sin(kappa)), ``dz_mm`` the slice height, ``kappa_rad`` the axial immersion
+    (pi/2 on a flat flank). Chip width db = dz / sin(kappa); an element with h <= 0 gives 0.
+    """
+    th, h, dz, k = np.broadcast_arrays(
+        *(np.asarray(a, float) for a in (theta_rad, h_mm, dz_mm, kappa_rad))
+    )
+    sk, ck = np.sin(k), np.cos(k)
+    cut = h > 0
+    db = np.where(cut, dz / np.where(sk > 1e-12, sk, 1.0), 0.0)
+    hh = np.where(cut, h, 0.0)
+    ft = coef.Ktc_n_mm2 * hh * db + coef.Kte_n_mm * db
+    fr = coef.Krc_n_mm2 * hh * db + coef.Kre_n_mm * db
+    fa = coef.Kac_n_mm2 * hh * db + coef.Kae_n_mm * db
+    sp, cp = np.sin(th), np.cos(th)
+    return np.stack(
+        [
+            ft * cp + fr * sk * sp + fa * ck * sp,
+            -ft * sp + fr * sk * cp + fa * ck * cp,
+            -fr * ck + fa * sk,
+        ],
+        axis=-1,
+    )
 
 
 def _rotate_feed(design: np.ndarray, feed_angle_deg: ArrayLike) -> np.ndarray:
