@@ -1,0 +1,257 @@
+"""Inverse kinematics of AC 5-axis machines, axis-limit checks, CL data CSV and NC text.
+
+Machines (``MachineConfig.five_axis.kind``):
+
+* ``table-table-AC``: the spindle is fixed along machine +Z; the table tilts about machine X (A)
+  and carries a rotary table about its own Z (C, mounted on the A cradle). A workpiece point p
+  goes to ``M(p) = Rx(A) Rz(C) (p - pivot) + pivot`` (pivot = ``pivot_mm``, where the A and C
+  axes meet). The tool axis u (workpiece frame) is brought to +Z: ``Rx(A) Rz(C) u = (0, 0, 1)``.
+  X, Y, Z are the tool tip in machine coordinates (tool length compensated by the control, G43).
+* ``head-table-AC``: the head tilts the spindle about X (A), the table turns about Z (C). The
+  spindle direction is ``t(A) = Rx(A) (0, 0, 1) = (0, -sin A, cos A)``, and
+  ``Rz(C) u = t(A)``. X, Y, Z are the head pivot, ``tip + (gauge length + head_pivot_length_mm)
+  t(A)``, with the tip rotated by C about the pivot.
+
+A and C are the angles by which the machine turns the workpiece (table) or the spindle (head),
+right-handed about +X and +Z, in degrees. Of the two solutions (A, C) and (-A, C + 180 deg) the
+one inside the A limits is taken (preferring the one nearer the previous point), and C is unwrapped
+to the turn nearest the previous C inside its limits; with the axis along +Z, C keeps its previous
+value (the singular pose).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from analysis.config import MachineConfig
+from planning.errors import PlanningError
+
+
+@dataclass(frozen=True)
+class AxisMoves:
+    """Machine axis positions per CL point: x, y, z (m,) mm; a_deg, c_deg (m,) deg."""
+
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
+    a_deg: np.ndarray
+    c_deg: np.ndarray
+    kind: str
+
+    def as_array(self) -> np.ndarray:
+        """(m, 5) X, Y, Z, A, C."""
+        return np.stack([self.x, self.y, self.z, self.a_deg, self.c_deg], 1)
+
+
+def _rx(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def _rz(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def forward(kind: str, machine: MachineConfig, moves: AxisMoves, gauge_length_mm: float):
+    """Tool tip (m, 3) and unit axis (m, 3) in the workpiece frame from machine positions."""
+    fa = _five(machine)
+    pivot = np.asarray(fa.pivot_mm, float)
+    tips, axes = [], []
+    for x, y, z, a, c in moves.as_array():
+        A, C = np.radians(a), np.radians(c)
+        if kind == "table-table-AC":
+            Rm = _rx(A) @ _rz(C)
+            tip_m = np.array([x, y, z])
+            tips.append(Rm.T @ (tip_m - pivot) + pivot)
+            axes.append(Rm.T @ np.array([0.0, 0.0, 1.0]))
+        else:
+            t = _rx(A) @ np.array([0.0, 0.0, 1.0])
+            tip_m = np.array([x, y, z]) - (gauge_length_mm + fa.head_pivot_length_mm) * t
+            tips.append(_rz(C).T @ (tip_m - pivot) + pivot)
+            axes.append(_rz(C).T @ t)
+    return np.asarray(tips), np.asarray(axes)
+
+
+def _five(machine: MachineConfig):
+    if machine.five_axis is None:
+        raise PlanningError(
+            f"machine {machine.name!r} has no [five_axis] section: cannot post 5-axis motion"
+        )
+    return machine.five_axis
+
+
+def inverse(
+    machine: MachineConfig,
+    tip_mm: np.ndarray,
+    axis: np.ndarray,
+    gauge_length_mm: float = 0.0,
+    check_limits: bool = True,
+) -> AxisMoves:
+    """Machine X, Y, Z, A, C for tool tips (m, 3) mm and unit axes (m, 3) in the workpiece frame.
+
+    Raises PlanningError naming the first point whose axis has no solution inside the A limits or
+    whose C, X, Y or Z leaves its travel (when ``check_limits``).
+    """
+    fa = _five(machine)
+    kind = fa.kind
+    if kind not in ("table-table-AC", "head-table-AC"):
+        raise PlanningError(
+            f"machine {machine.name!r}: five_axis.kind = {kind!r} is not supported "
+            "(supported: table-table-AC, head-table-AC)"
+        )
+    tip_mm = np.asarray(tip_mm, float).reshape(-1, 3)
+    axis = np.asarray(axis, float).reshape(-1, 3)
+    norms = np.linalg.norm(axis, axis=1)
+    if np.any(np.abs(norms - 1) > 1e-6):
+        i = int(np.argmax(np.abs(norms - 1)))
+        raise PlanningError(
+            f"CL point {i}: tool axis length {norms[i]:.6g}, expected a unit vector"
+        )
+    pivot = np.asarray(fa.pivot_mm, float)
+    a_lo, a_hi = fa.a.min_deg, fa.a.max_deg
+    c_lo, c_hi = fa.c.min_deg, fa.c.max_deg
+    m = len(axis)
+    A, C, P = np.zeros(m), np.zeros(m), np.zeros((m, 3))
+    prev_a, prev_c = 0.0, 0.0
+    for i, (ux, uy, uz) in enumerate(axis):
+        rho = np.hypot(ux, uy)
+        if kind == "table-table-AC":
+            # Rz(C) u = (0, rho', uz) with rho' = +-rho, then Rx(A) takes it to +Z.
+            sols = [(np.degrees(np.arctan2(rho, uz)), np.degrees(np.arctan2(ux, uy)))]
+            sols.append((-sols[0][0], sols[0][1] + 180.0))
+        else:
+            # Rz(C) (ux, uy) = (0, -sin A); cos A = uz.
+            a0 = np.degrees(np.arccos(np.clip(uz, -1, 1)))
+            sols = [(a0, np.degrees(np.arctan2(-ux, -uy))), (-a0, np.degrees(np.arctan2(ux, uy)))]
+        if rho < 1e-9:  # axis along the C axis: C is free, keep it
+            sols = [(s[0], prev_c) for s in sols]
+        inside = [s for s in sols if a_lo - 1e-9 <= s[0] <= a_hi + 1e-9]
+        if not inside:
+            raise PlanningError(
+                f"CL point {i}: tool axis {np.round(axis[i], 5).tolist()} needs A = "
+                f"{sols[0][0]:.3f} or {sols[1][0]:.3f} deg, outside the A limits "
+                f"[{a_lo:g}, {a_hi:g}] deg of machine {machine.name!r}"
+            )
+        best = None
+        for a, c in inside:
+            cands = c + 360.0 * np.arange(-3, 4)
+            cands = cands[(cands >= c_lo - 1e-9) & (cands <= c_hi + 1e-9)]
+            if cands.size == 0:
+                continue
+            cc = float(cands[np.argmin(np.abs(cands - prev_c))])
+            cost = abs(a - prev_a) + abs(cc - prev_c)
+            if best is None or cost < best[2]:
+                best = (a, cc, cost)
+        if best is None:
+            raise PlanningError(
+                f"CL point {i}: C = {inside[0][1]:.3f} deg (mod 360) is outside the C limits "
+                f"[{c_lo:g}, {c_hi:g}] deg of machine {machine.name!r}"
+            )
+        A[i], C[i] = best[0], best[1]
+        prev_a, prev_c = A[i], C[i]
+        Ar, Cr = np.radians(A[i]), np.radians(C[i])
+        if kind == "table-table-AC":
+            P[i] = _rx(Ar) @ _rz(Cr) @ (tip_mm[i] - pivot) + pivot
+        else:
+            t = _rx(Ar) @ np.array([0.0, 0.0, 1.0])
+            P[i] = (
+                _rz(Cr) @ (tip_mm[i] - pivot)
+                + pivot
+                + (gauge_length_mm + fa.head_pivot_length_mm) * t
+            )
+    moves = AxisMoves(P[:, 0], P[:, 1], P[:, 2], A, C, kind)
+    if check_limits:
+        for label, vals, trav in (
+            ("X", P[:, 0], machine.x),
+            ("Y", P[:, 1], machine.y),
+            ("Z", P[:, 2], machine.z),
+        ):
+            bad = np.flatnonzero((vals < trav.min_mm) | (vals > trav.max_mm))
+            if bad.size:
+                i = int(bad[0])
+                raise PlanningError(
+                    f"CL point {i}: {label} = {vals[i]:.3f} mm is outside the travel "
+                    f"[{trav.min_mm:g}, {trav.max_mm:g}] mm of machine {machine.name!r} "
+                    f"({bad.size} points affected)"
+                )
+    return moves
+
+
+def write_cl_csv(path: str | Path, result) -> None:
+    """CL data: one row per CC point (feasible ones), cutter tip, centre and axis, angles, mm/deg."""
+    import pandas as pd
+
+    ok = result.feasible
+    cc = result.cc
+    df = pd.DataFrame(
+        {
+            "index": np.flatnonzero(ok),
+            "line": cc.line[ok],
+            "u": cc.u[ok],
+            "v": cc.v[ok],
+            "cc_x_mm": cc.point[ok, 0],
+            "cc_y_mm": cc.point[ok, 1],
+            "cc_z_mm": cc.point[ok, 2],
+            "tip_x_mm": result.tip_mm[ok, 0],
+            "tip_y_mm": result.tip_mm[ok, 1],
+            "tip_z_mm": result.tip_mm[ok, 2],
+            "centre_x_mm": result.centre_mm[ok, 0],
+            "centre_y_mm": result.centre_mm[ok, 1],
+            "centre_z_mm": result.centre_mm[ok, 2],
+            "axis_i": result.axis[ok, 0],
+            "axis_j": result.axis[ok, 1],
+            "axis_k": result.axis[ok, 2],
+            "alpha_deg": result.alpha_deg[ok],
+            "beta_deg": result.beta_deg[ok],
+            "kappa_per_mm": cc.kappa_per_mm[ok],
+            "K_per_mm": result.K_per_mm[ok],
+            "clearance_mm": result.clearance_mm[ok],
+        }
+    )
+    df.to_csv(path, index=False, float_format="%.6f")
+
+
+def nc_program(
+    moves: AxisMoves,
+    line: np.ndarray,
+    feed_mm_min: float,
+    spindle_rpm: float,
+    tool_number: int = 1,
+    safe_z_mm: float | None = None,
+    title: str = "cutlab plan orient",
+) -> str:
+    """Fanuc-style G-code: G90 G94 G21, G43, one G01 X Y Z A C per CL point, F in mm/min.
+
+    Each iso-parameter line starts with a rapid positioning of A and C and an approach; lines are
+    separated by a retract to ``safe_z_mm`` (default: 20 mm above the highest Z).
+    """
+    P = moves.as_array()
+    safe = float(np.max(P[:, 2]) + 20.0) if safe_z_mm is None else safe_z_mm
+    out = [
+        "%",
+        f"O1000 ({title.upper()[:40]})",
+        "G90 G94 G21 G17",
+        f"T{tool_number} M06",
+        f"S{spindle_rpm:.0f} M03",
+        f"G43 H{tool_number} Z{safe:.4f}",
+    ]
+
+    def w(v):
+        return f"{v:.4f}"
+
+    for i, (x, y, z, a, c) in enumerate(P):
+        first = i == 0 or line[i] != line[i - 1]
+        if first:
+            if i:
+                out.append(f"G00 Z{w(safe)}")
+            out.append(f"G00 A{w(a)} C{w(c)}")
+            out.append(f"G00 X{w(x)} Y{w(y)}")
+            out.append(f"G01 Z{w(z)} F{feed_mm_min:.0f}")
+        else:
+            out.append(f"G01 X{w(x)} Y{w(y)} Z{w(z)} A{w(a)} C{w(c)}")
+    out += [f"G00 Z{w(safe)}", "M05", "M30", "%"]
+    return "\n".join(out) + "\n"
