@@ -408,8 +408,18 @@ def _samples_ds(f: h5py.File) -> h5py.Dataset:
     return f[RAW] if RAW in f else f[VOLTS]
 
 
-def load_run(path: str | Path, start_s: float | None = None, stop_s: float | None = None) -> Run:
+def load_run(
+    path: str | Path,
+    start_s: float | None = None,
+    stop_s: float | None = None,
+    *,
+    samples: bool = True,
+) -> Run:
     """Load a run file (optionally the samples between ``start_s`` and ``stop_s`` after t0).
+
+    ``start_s``/``stop_s`` are seconds of the device clock from its first sample. With
+    ``samples=False`` only metadata, events and blocks are read (sample arrays have 0 rows; the
+    counts are still filled in): cheap for a large run.
 
     Raises :class:`RunFileError` for a missing file, a non-HDF5 file, another program's HDF5
     file, a newer format version, or a truncated file.
@@ -417,14 +427,14 @@ def load_run(path: str | Path, start_s: float | None = None, stop_s: float | Non
     p = Path(path)
     f = _open(p)
     try:
-        return _load(f, p, start_s, stop_s)
+        return _load(f, p, start_s, stop_s, samples)
     except (OSError, KeyError) as exc:
         raise RunFileError(f"{p}: damaged run file (truncated or corrupt): {exc}") from None
     finally:
         f.close()
 
 
-def _load(f: h5py.File, p: Path, start_s: float | None, stop_s: float | None) -> Run:
+def _load(f: h5py.File, p: Path, start_s: float | None, stop_s: float | None, samples: bool) -> Run:
     fa = f[FORCES].attrs
     rate_hz = float(fa["rate_hz"])
     ds = _samples_ds(f)
@@ -436,6 +446,8 @@ def _load(f: h5py.File, p: Path, start_s: float | None, stop_s: float | None) ->
         lo = int(np.searchsorted(device_idx_all, math.ceil(start_s * rate_hz)))
     if stop_s is not None:
         hi = int(np.searchsorted(device_idx_all, math.ceil(stop_s * rate_hz)))
+    if not samples:
+        lo = hi = 0
     raw, volts = _read_samples(f, p, slice(lo, max(lo, hi)))
     sample_index = device_idx_all[lo : max(lo, hi)]
     acq = _json(f, META_ACQUISITION)

@@ -1,9 +1,128 @@
-"""`cutlab data` commands (placeholder: registers nothing until its issue lands)."""
+"""`cutlab data` commands: look at recorded HDF5 run files.
+
+cutlab data info run.h5 [--json]     channels, rate, duration, samples, events, gaps, status
+cutlab data plot run.h5 -o forces.png
+"""
 
 from __future__ import annotations
 
 import argparse
+from typing import Any
+
+
+def run_summary(path: str) -> dict[str, Any]:
+    """What `data info` reports, as a dict (JSON-able)."""
+    from analysis.runfile import LOSS_KINDS, load_run
+
+    run = load_run(path, samples=False)
+    ev = run.events
+    gaps = ev[ev["kind"].isin(LOSS_KINDS) & (ev["lost"] > 0)]
+    counts = ev["kind"].value_counts().to_dict()
+    return {
+        "file": str(run.path),
+        "status": run.status,
+        "reason": run.reason,
+        "complete": run.complete,
+        "channels": list(run.channel_names),
+        "physical_channels": list(run.physical_channels),
+        "sample_format": run.sample_format,
+        "rate_hz": run.rate_hz,
+        "samples_stored": run.samples_stored,
+        "samples_acquired": run.samples_acquired,
+        "samples_lost": run.samples_lost,
+        "duration_s": run.duration_s,
+        "t0_s": run.t0_s,
+        "events": {str(k): int(v) for k, v in counts.items()},
+        "gaps": [
+            {
+                "kind": r.kind,
+                "sample": int(r.sample),
+                "lost": int(r.lost),
+                "time_s": float(r.sample / run.rate_hz),
+                "message": r.message,
+            }
+            for r in gaps.itertuples()
+        ],
+        "nc_blocks": len(run.blocks),
+        "program": run.program_info,
+        "conditions": run.conditions,
+        "calibration_id": (
+            run.calibration.attrs.get("calibration_id") if run.calibration else None
+        ),
+        "software_version": run.software_version,
+    }
+
+
+def _info(args: argparse.Namespace) -> int:
+    from rig.cli._common import print_json, print_table
+
+    s = run_summary(args.file)
+    if args.json:
+        print_json(s)
+        return 0
+    if not s["complete"]:
+        print(
+            f"INCOMPLETE: the writer never closed {s['file']} (killed or still running); it holds "
+            f"{s['samples_stored']} samples per channel = {s['duration_s']:.3f} s up to its last "
+            "flush"
+        )
+    rows = [
+        {"quantity": k, "value": s[k]}
+        for k in (
+            "status",
+            "reason",
+            "sample_format",
+            "rate_hz",
+            "samples_stored",
+            "samples_acquired",
+            "samples_lost",
+            "duration_s",
+            "nc_blocks",
+            "calibration_id",
+            "software_version",
+        )
+    ]
+    rows.insert(1, {"quantity": "channels", "value": " ".join(s["channels"])})
+    rows.append(
+        {"quantity": "events", "value": ", ".join(f"{k} {v}" for k, v in s["events"].items())}
+    )
+    if s["conditions"]:
+        rows.append({"quantity": "conditions", "value": s["conditions"]})
+    print_table(rows)
+    if s["gaps"]:
+        print()
+        print_table(s["gaps"])
+    return 0
+
+
+def _plot(args: argparse.Namespace) -> int:
+    from analysis.runfile import load_run
+    from rig.cli._common import print_json, status
+    from rig.daq.plot import plot_run
+
+    run = load_run(args.file, args.start_s, args.stop_s)
+    png = plot_run(run, args.output)
+    status(f"data plot: wrote {png}")
+    if args.json:
+        print_json({"file": args.file, "plot": str(png), "samples": len(run.time_s)})
+    else:
+        print(png)
+    return 0
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
+    p = sub.add_parser("data", help="inspect and plot recorded run files")
+    psub = p.add_subparsers(dest="data_command", metavar="DATA_COMMAND")
+    psub.required = True
+    i = psub.add_parser("info", help="channels, rate, duration, samples, events and gaps of a run")
+    i.add_argument("file", help="run file (.h5)")
+    i.add_argument("--json", action="store_true", help="JSON on stdout")
+    i.set_defaults(func=_info)
+    g = psub.add_parser("plot", help="force traces of a run as a PNG")
+    g.add_argument("file", help="run file (.h5)")
+    g.add_argument("-o", "--output", default="forces.png", help="PNG to write")
+    g.add_argument("--start-s", type=float, default=None, help="s after the first sample")
+    g.add_argument("--stop-s", type=float, default=None, help="s after the first sample")
+    g.add_argument("--json", action="store_true", help="JSON on stdout")
+    g.set_defaults(func=_plot)

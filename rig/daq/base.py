@@ -112,6 +112,7 @@ class Daq(ABC):
         self._done = threading.Event()
         self.error: BaseException | None = None
         self.samples_delivered = 0  # per channel, handed to the sink
+        self.samples_acquired = 0  # per channel, on the device clock (delivered + lost)
 
     @abstractmethod
     def start(self, sink: DaqSink) -> None:

@@ -195,7 +195,6 @@ class SimDaq(Daq):
         self._codes = np.empty((c, block), np.int16) if coeff is not None else None
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-        self.samples_acquired = 0  # device clock, including lost samples
 
     def start(self, sink: DaqSink) -> None:
         if self._thread is not None:
