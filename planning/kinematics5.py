@@ -182,7 +182,7 @@ def inverse(
 
 
 def write_cl_csv(path: str | Path, result) -> None:
-    """CL data: one row per CC point (feasible ones), cutter tip, centre and axis, angles, mm/deg."""
+    """CL data CSV: one row per feasible CC point: tip, centre, axis, angles (mm, deg)."""
     import pandas as pd
 
     ok = result.feasible

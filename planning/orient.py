@@ -157,7 +157,7 @@ def build_context(cfg: OrientConfig, tool_cfg: EndMill, surfaces: list[NurbsSurf
         charges,
         mesh,
         bounds,
-        pl.gouge_tolerance_mm,
+        0.5 * pl.gouge_tolerance_mm,  # half: the rest covers sampling between mesh vertices
         pl.clearance_mm,
         pl.smoothness_weight,
         pl.curvature_margin_per_mm,
@@ -304,12 +304,12 @@ def _grid(ctx: _Context, na: int, nb: int) -> np.ndarray:
     return np.stack([A.ravel(), B.ravel()], 1)
 
 
-def descend(ctx: _Context, site: Site, th: np.ndarray, iters: int = 12):
+def descend(ctx: _Context, site: Site, th: np.ndarray, iters: int = 12, path=None):
     """Seed 002's collision escape: move down grad U in (alpha, beta) until U = 0.
 
     U of eq 7 is a sum of 1/d over the charges inside the tool, so it changes in steps as charges
     leave; each iteration therefore tries steps of 0.5 .. 16 deg along -grad U and keeps the
-    lowest U. Returns (theta, U).
+    lowest U. Returns (theta, U); appends each accepted theta to ``path`` if given.
     """
     lo, hi = ctx.bounds[:, 0], ctx.bounds[:, 1]
     U, g = ctx.U(site, th, grad=True)
@@ -329,6 +329,8 @@ def descend(ctx: _Context, site: Site, th: np.ndarray, iters: int = 12):
         if best is None:
             break
         th = best[0]
+        if path is not None:
+            path.append(th)
         U, g = ctx.U(site, th, grad=True)
     return th, U
 
@@ -357,7 +359,7 @@ def solve_point(ctx: _Context, site: Site, kappa: float, prev: np.ndarray):
     th = _towards(ctx, site, kappa, th_f, th_c)
     # Local improvement: a few grid orientations of lower objective than the answer so far.
     J = _objective(ctx, kappa, prev)
-    better = _best_first(ctx, site, kappa, prev, budget=8, below=J(th), gate=False)
+    better = _best_first(ctx, site, kappa, prev, budget=30, below=J(th), gate=False)
     if better is not None:
         th2 = _towards(ctx, site, kappa, better, th_c)
         if J(th2) < J(th):
@@ -436,3 +438,49 @@ def require_feasible(res: OrientResult) -> None:
             + "\n".join(bad[:10])
             + more
         )
+
+
+@dataclass(frozen=True)
+class EnergyMap:
+    """U over the (alpha, beta) limits at one CC point (seed 002 Fig. 8).
+
+    alpha_deg (na,), beta_deg (nb,), energy (na, nb); descent (k, 2) deg: the path of the
+    gradient descent from the curvature optimum; chosen (2,) deg: the planner's answer.
+    """
+
+    index: int
+    alpha_deg: np.ndarray
+    beta_deg: np.ndarray
+    energy: np.ndarray
+    descent_deg: np.ndarray
+    chosen_deg: np.ndarray
+
+
+def energy_map(
+    cfg: OrientConfig,
+    tool_cfg: EndMill,
+    index: int,
+    result: OrientResult | None = None,
+    n_alpha: int = 31,
+    n_beta: int = 91,
+) -> EnergyMap:
+    """Evaluate eq 7 on an n_alpha x n_beta grid of the limits at CC point ``index``."""
+    surfaces = [s.build() for s in cfg.surfaces]
+    machined = surfaces[[s.role for s in cfg.surfaces].index("machined")]
+    cc = cc_points(machined, cfg)
+    if not 0 <= index < len(cc.u):
+        raise PlanningError(f"energy map point {index} is outside 0..{len(cc.u) - 1}")
+    ctx = build_context(cfg, tool_cfg, surfaces)
+    site = Site(cc.point[index], cc.normal[index], cc.binormal[index], cc.feed[index])
+    a = np.linspace(*ctx.bounds[0], n_alpha)
+    b = np.linspace(*ctx.bounds[1], n_beta)
+    E = np.array([[ctx.U(site, np.array([x, y]))[0] for y in b] for x in a])
+    th_c = curvature_optimum(ctx, float(cc.kappa_per_mm[index]), np.array([a[0], 0.0]))
+    path = [th_c]
+    descend(ctx, site, th_c, path=path)
+    chosen = (
+        np.array([result.alpha_deg[index], result.beta_deg[index]])
+        if result is not None
+        else np.full(2, np.nan)
+    )
+    return EnergyMap(index, np.degrees(a), np.degrees(b), E, np.degrees(np.asarray(path)), chosen)

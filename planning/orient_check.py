@@ -91,3 +91,43 @@ def check(
         mesh.names[int(mesh.surface[j])],
         mesh.vertices[j],
     )
+
+
+@dataclass(frozen=True)
+class Verification:
+    """Every output orientation checked on a fresh mesh: counts and the smallest clearance.
+
+    collisions : number of orientations with a vertex inside holder/nose or deeper than the
+    tolerance inside the cutter; worst : (index, Clearance) of the smallest excess, or None.
+    """
+
+    checked: int
+    collisions: int
+    spacing_mm: float
+    tolerance_mm: float
+    min_clearance_mm: np.ndarray
+    worst: tuple[int, Clearance] | None
+
+
+def verify(
+    surfaces: Sequence[NurbsSurface],
+    tool: ToolSystem,
+    tip_mm: np.ndarray,
+    axis: np.ndarray,
+    spacing_mm: float,
+    tol_mm: float,
+) -> Verification:
+    """Check each placement (tip (m, 3), axis (m, 3); NaN rows skipped) on a new mesh."""
+    mesh = CheckMesh.build(surfaces, spacing_mm)
+    mins = np.full(len(tip_mm), np.nan)
+    bad, worst = 0, None
+    for i, (t, u) in enumerate(zip(tip_mm, axis)):
+        if not np.all(np.isfinite(t)):
+            continue
+        c = check(mesh, tool, t, u, tol_mm)
+        mins[i] = c.min_mm
+        bad += not c.ok
+        if not c.ok and (worst is None or c.min_mm < worst[1].min_mm):
+            worst = (i, c)
+    n = int(np.isfinite(mins).sum())
+    return Verification(n, bad, spacing_mm, tol_mm, mins, worst)
