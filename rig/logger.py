@@ -134,6 +134,8 @@ class RunWriter:
         self._free: queue.SimpleQueue[np.ndarray] = queue.SimpleQueue()
         for _ in range(queue_blocks):
             self._free.put(np.empty((self._c, info.block_samples), self._dtype))
+        self._pool_size = queue_blocks
+        self._idle = threading.Condition()
         self._filled: queue.SimpleQueue[Any] = queue.SimpleQueue()
         self._control: collections.deque[tuple[str, Any]] = collections.deque()
         self._expect = 0
@@ -421,6 +423,14 @@ class RunWriter:
         finally:
             self._held.set()
 
+    def wait_idle(self, timeout_s: float = 10.0) -> bool:
+        """Wait until the writer thread has taken every queued block (False on timeout)."""
+        with self._idle:
+            return self._idle.wait_for(
+                lambda: self._free.qsize() >= self._pool_size or self.error is not None,
+                timeout_s,
+            )
+
     @property
     def t0_s(self) -> float:
         return self._t0_s
@@ -480,11 +490,13 @@ class RunWriter:
         last_flush = time.monotonic()
         try:
             while True:
-                self._held.wait()
                 try:
                     item = self._filled.get(timeout=min(0.05, self.flush_interval_s))
                 except queue.Empty:
                     item = None
+                # Held: the taken buffer is not returned to the pool until released, so the pool
+                # (= queue capacity) stays exact.
+                self._held.wait()
                 if item is _STOP:
                     break
                 if item is not None:
@@ -494,6 +506,8 @@ class RunWriter:
                     self._append(buf, n)
                     self._blocks_written += 1
                     self._free.put(buf)
+                    with self._idle:
+                        self._idle.notify_all()
                 self._drain_control()
                 if time.monotonic() - last_flush >= self.flush_interval_s:
                     self._flush()

@@ -107,6 +107,8 @@ def record(
     except BaseException as exc:
         daq.close()
         writer.close(rf.STATUS_FAIL, f"{type(exc).__name__}: {exc}"[:500])
+        if daq.samples_acquired == 0:
+            Path(path).unlink(missing_ok=True)  # the DAQ never started: no run to keep
         raise
     daq.close()
     stats = writer.close(status, reason)
