@@ -23,7 +23,8 @@ from dataclasses import dataclass
 
 from planning.nc.errors import NCError
 
-NUMBER = r"[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)"
+MAX_INT_DIGITS = 12  # keeps every number finite and every G/M/T integer exact
+NUMBER = r"[-+]?(?:[0-9]{1,12}(?:\.[0-9]*)?|\.[0-9]+)"
 WS = "[ \t\r\n\f\v]"
 _WS_CHARS = " \t\r\n\f\v"
 _WORD_RE = re.compile(r"([A-Z])" + WS + "*(" + NUMBER + ")")
@@ -117,6 +118,7 @@ def word_tokens(raw: str) -> list[Token]:
 def line_error(raw: str, file: str, line: int) -> NCError:
     """The NCError describing why ``raw`` is not a valid block (first problem found)."""
     seen = ""  # "" nothing yet, "code" words or "/", "%" the tape mark
+    prev = None
     for t in tokenize(raw):
         where = {"file": file, "line": line, "column": t.column}
         if t.kind == "bad":
@@ -129,6 +131,12 @@ def line_error(raw: str, file: str, line: int) -> NCError:
                 return NCError("')' without an opening '('", word=")", **where)
             if ch.isascii() and ch.isalpha():
                 return NCError(f"letter '{ch}' is not followed by a number", word=ch, **where)
+            if ch in "0123456789" and prev is not None and prev.kind == "word":
+                return NCError(
+                    f"number has more than {MAX_INT_DIGITS} digits before the decimal point",
+                    word=prev.text.strip() + ch,
+                    **{**where, "column": prev.column},
+                )
             if ch in "0123456789.+-":
                 return NCError("number without an address letter", word=ch, **where)
             return NCError(f"character {ch!r} is not allowed in a block", word=ch, **where)
@@ -138,6 +146,7 @@ def line_error(raw: str, file: str, line: int) -> NCError:
             return NCError("'%' must stand alone on its line", word=t.text, **where)
         if t.kind in ("word", "percent", "delete"):
             seen = "%" if t.kind == "percent" else "code"
+        prev = t
     return NCError("unreadable block", file=file, line=line, column=1)
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from planning.nc.motion import DWELL, LINE, RAPID
 
+MAX_PECKS = 10_000  # a guard against Q typos (Q0.0001) that would expand to millions of moves
 Point = tuple[float, float, float]
 Move = tuple[int, Point, Point, float]  # kind, start, end, dwell_s
 
@@ -44,6 +45,11 @@ def drill_hole(
         raise ValueError(f"hole bottom Z {z_mm:.6g} mm is above the R plane {r_mm:.6g} mm")
     if cycle == 83 and not q_mm > 0.0:
         raise ValueError(f"G83 needs a peck depth Q > 0 mm, got {q_mm:.6g}")
+    if cycle == 83 and (r_mm - z_mm) / q_mm > MAX_PECKS:
+        raise ValueError(
+            f"G83 peck depth Q {q_mm:.6g} mm would need more than {MAX_PECKS} pecks for "
+            f"{r_mm - z_mm:.6g} mm"
+        )
     moves: list[Move] = []
     p = start
 

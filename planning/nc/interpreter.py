@@ -241,14 +241,23 @@ class Interpreter:
         v: dict[str, str] = {}
         for k, (letter, num) in enumerate(words):
             if letter == "G":
-                if gcodes is None:
-                    gcodes = [(_gkey(num), k)]
+                key = _gkey(num)
+                if key not in _G_GROUP:
+                    self._problem(raw, k, f"unknown G-code {_gname(key)}", line)
+                elif gcodes is None:
+                    gcodes = [(key, k)]
                 else:
-                    gcodes.append((_gkey(num), k))
+                    gcodes.append((key, k))
             elif letter == "M":
-                if mcodes is None:
-                    mcodes = []
-                mcodes.append((round(float(num) * 10.0), k))
+                key = round(float(num) * 10.0)
+                if key % 10 or key // 10 not in _KNOWN_M:
+                    self._problem(raw, k, f"unknown M-code M{key / 10:g}", line)
+                elif mcodes is None:
+                    mcodes = [(key, k)]
+                else:
+                    mcodes.append((key, k))
+            elif letter not in _LETTERS:
+                self._problem(raw, k, f"unknown address letter {letter}", line)
             elif letter in v:
                 raise _lexer.word_error(
                     raw, k, f"address {letter} appears twice in the block", self.file, line
@@ -263,10 +272,7 @@ class Interpreter:
             prev_motion = st.motion
             groups: dict[int, int] = {}
             for key, k in gcodes:
-                grp = _G_GROUP.get(key)
-                if grp is None:
-                    self._problem(raw, k, f"unknown G-code {_gname(key)}", line)
-                    continue
+                grp = _G_GROUP[key]
                 if grp in groups:
                     other = groups[grp]
                     raise _lexer.word_error(
@@ -328,11 +334,9 @@ class Interpreter:
         # ---- M codes before motion (tool change, spindle, coolant)
         end = False
         if mcodes is not None:
-            for key, k in mcodes:
+            for key, _k in mcodes:
                 m = key // 10
-                if key % 10 or m not in _KNOWN_M:
-                    self._problem(raw, k, f"unknown M-code M{key / 10:g}", line)
-                elif m == 6:
+                if m == 6:
                     st.tool = st.tool_selected
                 elif m == 3:
                     st.spindle_dir = 1
@@ -380,11 +384,6 @@ class Interpreter:
     ) -> None:
         """F S T D H O N P Q L R I J K and A B C: checks and recording."""
         st = self.state
-        for letter in v:
-            if letter not in _LETTERS:
-                self._problem(
-                    raw, _lexer.find_word(raw, letter), f"unknown address letter {letter}", line
-                )
         if "F" in v:
             f = float(v["F"]) * scale
             if not f > 0.0:
@@ -398,9 +397,12 @@ class Interpreter:
         for letter in ("T", "D", "H", "O", "N"):
             if letter in v:
                 n = float(v[letter])
-                if n < 0 or n != int(n):
+                if n < 0 or n != int(n) or n > 999_999_999:
                     raise self._fail(
-                        raw, letter, f"{letter} must be a whole number >= 0, got {v[letter]}", line
+                        raw,
+                        letter,
+                        f"{letter} must be a whole number in 0..999999999, got {v[letter]}",
+                        line,
                     )
                 n = int(n)
                 if letter == "T":
@@ -587,8 +589,8 @@ class Interpreter:
             repeats = 1
             if "L" in v:
                 repeats = float(v["L"])
-                if repeats < 0 or repeats != int(repeats):
-                    raise ValueError(f"repeat count L must be a whole number >= 0, got {v['L']}")
+                if repeats < 0 or repeats != int(repeats) or repeats > 9999:
+                    raise ValueError(f"repeat count L must be a whole number 0..9999, got {v['L']}")
                 repeats = int(repeats)
             feed = self._need_feed(raw, line)
             vxy = {k: v[k] for k in ("X", "Y") if k in v}

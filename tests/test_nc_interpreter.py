@@ -1,0 +1,224 @@
+"""Interpreter semantics: words and layout, modal state, units, offsets, M codes, dwell, canned
+cycles, strict/lenient modes, the incremental Interpreter and restart from block N."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from analysis.config import load_machine
+from planning.nc import (
+    DWELL,
+    LINE,
+    RAPID,
+    Interpreter,
+    NCError,
+    Program,
+    interpret,
+    interpret_file,
+    motion_stats,
+    restart_preamble,
+    state_at_block,
+)
+
+SAMPLE = "data/programs/demo-part.nc"
+
+
+def test_spaceless_lowercase_equals_spaced_uppercase():
+    a = interpret("g0x0y0z5\ng1z-1f300\ng1x10y-2.5\ng2x20y-2.5r5")
+    b = interpret("G00 X0. Y0. Z5.\nG01 Z-1. F300.\nG01 X10. Y-2.5\nG02 X20 Y-2.5 R5")
+    assert a.equals(b) and len(a) == 4
+
+
+def test_comments_block_delete_percent_o_n():
+    text = "\n".join(
+        [
+            "%",
+            "O0042 (NAME ; ok)",
+            "N10 G0 X1 Y1 ; move (with parens) inside",
+            "/N20 G0 X5 Y5",
+            "  (only a comment)",
+            "",
+            "N30 G0 X2 (mid) Y2",
+            "%",
+        ]
+    )
+    it = Interpreter()
+    m = it.run(text.splitlines())
+    assert len(m) == 2
+    np.testing.assert_array_equal(m.end, [[1, 1, 0], [2, 2, 0]])
+    np.testing.assert_array_equal(m.line, [3, 7])
+    np.testing.assert_array_equal(m.block, [2, 6])
+    assert it.state.program_number == 42 and it.state.sequence_number == 30
+    # block delete switch off: the deleted block runs
+    assert len(interpret(text, block_delete=False)) == 3
+
+
+def test_units_distance_and_work_offsets():
+    m = interpret(
+        "G20 G90 G0 X1 Y2 Z0.5\nG91 G0 X1\nG21 G0 Y-10\nG90 G55 G0 X0 Y0\nG53 G0 Z0",
+        work_offsets_mm={55: (100.0, 50.0, -20.0)},
+    )
+    np.testing.assert_allclose(
+        m.end,
+        [[25.4, 50.8, 12.7], [50.8, 50.8, 12.7], [50.8, 40.8, 12.7], [100, 50, 12.7], [100, 50, 0]],
+    )
+
+
+def test_feed_spindle_tool_coolant_recorded_per_segment():
+    m = interpret("T3 M6\nS1200 M4\nM8\nG1 X1 F150\nM3 S900\nM9\nX2\nM5\nG0 X3\nG20 G1 X0.2 F10")
+    assert list(m.tool) == [3, 3, 3, 3]
+    assert list(m.spindle_rpm) == [-1200, 900, 0, 0]
+    assert list(m.coolant) == [True, False, False, False]
+    np.testing.assert_allclose(m.feed_mm_min, [150, 150, np.nan, 254], equal_nan=True)
+
+
+def test_tool_needs_m6_to_change():
+    it = Interpreter()
+    it.execute("T7")
+    assert it.state.tool == 0 and it.state.tool_selected == 7
+    it.execute("M6")
+    assert it.state.tool == 7
+
+
+@pytest.mark.parametrize("dialect, words, seconds", [
+    ("fanuc", "G4 P1500", 1.5), ("fanuc", "G4 X2.5", 2.5), ("grbl", "G4 P1.5", 1.5),
+])  # fmt: skip
+def test_dwell_units_by_dialect(dialect, words, seconds):
+    m = interpret(f"G0 X1\n{words}", dialect=dialect)
+    assert m.kind[-1] == DWELL and m.dwell_s[-1] == pytest.approx(seconds)
+    np.testing.assert_array_equal(m.start[-1], m.end[-1])
+
+
+def test_recorded_modes():
+    it = Interpreter()
+    it.run(["G18 G41 D7 G43 H3 G56 G99 G90.1 G20"])
+    s = it.state
+    assert (s.plane, s.cutter_comp, s.cutter_comp_d, s.tool_length, s.tool_length_h) == (
+        18, 41, 7, 43, 3,
+    )  # fmt: skip
+    assert (s.work_offset, s.retract_initial, s.arc_absolute, s.inch) == (56, False, True, True)
+
+
+def _moves(m):
+    return [(int(k), tuple(np.round(e, 6))) for k, e in zip(m.kind, m.end)]
+
+
+def test_g81_g98_g99_closed_form():
+    m = interpret("G0 X0 Y0 Z20\nG1 F100\nG99 G81 X10 Y0 Z-5 R2\nG98 X20\nG80\nG0 X0")
+    assert _moves(m) == [
+        (RAPID, (0, 0, 20)),
+        (RAPID, (10, 0, 20)), (RAPID, (10, 0, 2)), (LINE, (10, 0, -5)), (RAPID, (10, 0, 2)),
+        (RAPID, (20, 0, 2)), (LINE, (20, 0, -5)), (RAPID, (20, 0, 20)),  # G98: initial level
+        (RAPID, (0, 0, 20)),
+    ]  # fmt: skip
+    assert np.all(np.isnan(m.feed_mm_min[m.kind == RAPID]))
+    assert np.all(m.feed_mm_min[m.kind == LINE] == 100)
+
+
+def test_g82_dwell_and_g83_pecks():
+    m = interpret("G0 X0 Y0 Z10\nG1 F60\nG98 G82 X5 Z-2 R1 P250\nG80")
+    assert [int(k) for k in m.kind] == [RAPID, RAPID, RAPID, LINE, DWELL, RAPID]
+    assert m.dwell_s[4] == pytest.approx(0.25)
+    m = interpret("G0 X0 Y0 Z10\nG1 F60\nG99 G83 X5 Z-7 R1 Q3\nG80", peck_clearance_mm=0.5)
+    depths = m.end[m.kind == LINE][:, 2]
+    np.testing.assert_allclose(depths, [-2, -5, -7])  # pecks of Q=3 from R=1, last one short
+    reentries = m.end[(m.kind == RAPID)][:, 2]
+    assert -1.5 in reentries and -4.5 in reentries  # 0.5 mm above the previous peck
+    assert m.end[-1, 2] == 1  # G99: back to R
+
+
+def test_canned_incremental_with_repeats():
+    m = interpret("G0 X0 Y0 Z10\nG1 F60\nG91 G99 G81 X10 Z-5 R-8 L3\nG80")
+    holes = m.end[m.kind == LINE]
+    np.testing.assert_allclose(holes, [[10, 0, -3], [20, 0, -3], [30, 0, -3]])
+
+
+def test_strict_and_lenient():
+    text = "G0 X1\nG5.1 X2\nM99\nE5 X3\nG1 I3 X4 F10"
+    with pytest.raises(NCError, match="unknown G-code G5.1") as e:
+        interpret(text, file="p.nc")
+    assert (e.value.line, e.value.column, e.value.word) == (2, 1, "G5.1")
+    it = Interpreter(strict=False, file="p.nc")
+    m = it.run(text.splitlines())
+    assert len(m) == 4
+    assert [w.line for w in it.warnings] == [2, 3, 4, 5]
+    assert "unknown M-code M99" in str(it.warnings[1]) and "p.nc:3:1" in str(it.warnings[1])
+
+
+def test_feed_move_without_feed_is_an_error():
+    with pytest.raises(NCError, match="no feed rate") as e:
+        interpret("G0 X1\nG1 X2")
+    assert e.value.line == 2
+
+
+def test_after_program_end_is_ignored_with_warning():
+    it = Interpreter()
+    m = it.run(["G0 X1", "M30", "G0 X5", "%"])
+    assert len(m) == 1 and it.state.ended
+    assert len(it.warnings) == 1 and it.warnings[0].line == 3
+
+
+def test_incremental_execute_matches_batch_and_keeps_state_on_error():
+    text = Program.read(SAMPLE).lines
+    whole = interpret(text)
+    it = Interpreter()
+    parts = [it.execute(raw, line=i + 1, block=i) for i, raw in enumerate(text)]
+    from planning.nc import Motion
+
+    assert Motion.concatenate(parts).equals(whole)
+    it = Interpreter()
+    it.execute("G0 X5 Y5")
+    before = it.state.copy()
+    with pytest.raises(NCError):
+        it.execute("G20 G2 X0 Y0 R0.01")
+    assert it.state == before  # the failed block changed nothing (not even G20)
+
+
+def test_state_copy_is_independent():
+    it = Interpreter()
+    it.execute("G81 X1 Z-1 R1 F10")
+    snap = it.state.copy()
+    it.execute("G98 X2 Z-3")
+    assert snap.canned.z_mm == -1 and it.state.canned.z_mm == -3
+
+
+@pytest.mark.parametrize("n", [0, 9, 20, 37, 56, 57])
+def test_restart_from_block_n_reproduces_the_rest(n):
+    prog = Program.read(SAMPLE)
+    whole = interpret(prog)
+    st = state_at_block(prog, n)
+    pre = restart_preamble(st)
+    resumed = Interpreter().run(pre + prog.lines[n:], first_line=1 - len(pre))
+    rest = resumed[resumed.line >= 1]
+    expect = whole[whole.block >= n]
+    assert rest.same_path(expect, atol_mm=1e-9)
+
+
+def test_machine_config_sets_tolerance_dialect_and_rapid_time(tmp_path):
+    machine = load_machine("lab-grbl")
+    m = interpret("G0 X0 Y0\nG1 F100\nG2 X20.001 Y0 I10 J0\nG4 P2", machine)
+    assert m.dwell_s[-1] == 2.0  # GRBL: seconds
+    with pytest.raises(NCError):
+        interpret("G0 X0 Y0\nG1 F100\nG2 X20.01 Y0 I10 J0", machine)
+    st = motion_stats(interpret("G0 X30 Y40 Z0"), machine)
+    assert st.rapid_time_s == pytest.approx(40 / machine.rapid_mm_min * 60)
+
+
+def test_stats_closed_form():
+    m = interpret("G0 X0 Y0 Z5\nG1 Z0 F60\nG1 X60 F600\nG2 X60 Y0 I-10 J0\nG4 P1000\nG0 Z5")
+    st = motion_stats(m, rapid_mm_min=6000)
+    circle = 2 * math.pi * 10
+    assert st.cutting_length_mm == pytest.approx(5 + 60 + circle)
+    assert st.rapid_length_mm == pytest.approx(10)
+    assert st.time_s == pytest.approx(5 + 6 + circle / 10 + 1 + 0.1)
+    np.testing.assert_allclose(st.bbox_min_mm, (0, -10, 0), atol=1e-3)
+    np.testing.assert_allclose(st.bbox_max_mm, (60, 10, 5), atol=1e-3)
+
+
+def test_interpret_file_streams_same_as_text(tmp_path):
+    p = tmp_path / "crlf.nc"
+    p.write_bytes(Program.read(SAMPLE).text().replace("\n", "\r\n").encode())
+    assert interpret_file(p).equals(interpret(Program.read(SAMPLE)))
