@@ -66,6 +66,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -308,9 +309,12 @@ def _open(path: str | Path) -> h5py.File:
                 return h5py.File(p, "r", libver="latest", swmr=True)
             except OSError as exc2:
                 raise RunFileError(f"{p}: cannot open the run file: {exc2}") from None
-        if "truncated" in msg or "eof" in msg.lower():
+        if "truncated" in msg:
+            m = re.search(r"stored_eof = (\d+)", msg)
+            want = f" of the {m.group(1)} it should have" if m else ""
             raise RunFileError(
-                f"{p}: truncated HDF5 file ({p.stat().st_size} bytes on disk): {msg}"
+                f"{p}: truncated HDF5 file: {p.stat().st_size} bytes{want} (an interrupted "
+                "copy or download?)"
             ) from None
         raise RunFileError(f"{p}: cannot open as HDF5: {msg}") from None
     _check_format(f, p)

@@ -317,6 +317,16 @@ class RunWriter:
         self._control.append(("event", DaqEvent(rf.EV_QUEUE_FULL, first, msg, lost=n)))
 
     def on_event(self, event: DaqEvent) -> None:
+        if event.kind == rf.EV_STOP:
+            with self._lock:
+                if event.sample > self._expect:  # blocks missing at the very end
+                    lost = event.sample - self._expect
+                    self._samples_missing += lost
+                    self._control.append(
+                        ("event", DaqEvent(rf.EV_GAP, self._expect, f"{lost} samples missing "
+                                           "before stop", lost=lost))
+                    )  # fmt: skip
+                    self._expect = event.sample
         self._control.append(("event", event))
 
     # ------------------------------------------------------------------------------------------
