@@ -108,16 +108,27 @@ class SimSection(Model):
     protocol: Literal["fanuc", "grbl"] | None = Field(
         None, description="simulated controller (default: the machine's dialect)"
     )
-    sim_controller_stall_at_s: float | None = Field(
-        None, gt=0, description="s into a run: the controller stops answering"
+    link_timeout_s: float = Field(
+        3.0, gt=0, le=600, description="s, DNC link timeout on the simulated rig (wall s)"
+    )
+    sim_controller_stall_after_block: int | None = Field(
+        None, ge=0, description="blocks received, then the controller stops answering"
+    )
+    sim_alarm_at_block: int | None = Field(
+        None, ge=0, description="the controller raises an alarm when this block starts"
     )
     sim_daq_overflow_at_s: float | None = Field(
-        None, gt=0, description="s into a run: the DAQ buffer overflows"
+        None, gt=0, description="s after the DAQ starts: its buffer overflows"
     )
     sim_interlock_at_s: float | None = Field(
-        None, gt=0, description="s into a run: the door interlock trips"
+        None, gt=0, description="s after streaming starts: the door interlock trips"
     )
     sim_fault_run: int = Field(0, ge=0, description="index of the run the sim_ faults hit")
+    chatter_fz_mm: float | None = Field(
+        None, gt=0, le=10, description="mm/tooth above which the simulated cut chatters"
+    )
+    chatter_gain: float = Field(3.0, ge=0, le=100, description="force rise per unit fz excess")
+    chatter_hz: float = Field(900.0, gt=0, le=20_000, description="Hz, chatter frequency")
 
 
 class SuspenderSection(Model):
@@ -130,6 +141,20 @@ class SuspenderSection(Model):
     hold_timeout_s: float = Field(0.0, ge=0, le=3600, description="s held before aborting")
     on_overflow: Literal["fail", "continue"] = Field("fail", description="DAQ overflow")
     stop_campaign_on_fail: bool = Field(False, description="stop the campaign after a failed run")
+
+
+class FeedRuleSection(Model):
+    """A feed rule derived for the campaign (seed 001 4.2 step 3), used by post-processed tests
+    with ``rule = "campaign"``. The reference load is a slot of ``reference_depth_mm`` with the
+    campaign's tool: the cut known safe at the base feed."""
+
+    min_feed_mm_min: float = Field(100.0, gt=0, description="mm/min")
+    base_feed_mm_min: float = Field(1000.0, gt=0, description="mm/min")
+    max_feed_mm_min: float = Field(3500.0, gt=0, description="mm/min")
+    reference_depth_mm: float = Field(gt=0, description="mm, slot depth loaded at base feed")
+    exponent: float = Field(1.0, gt=0, le=5, description="feed ~ load^-exponent")
+    n_bins: int = Field(20, ge=2, le=100, description="count")
+    min_piece_mm: float = Field(2.0, gt=0, le=100, description="mm, shortest split piece")
 
 
 class AnalysisSection(Model):
@@ -150,7 +175,9 @@ class MatrixEntry(Model):
     width_mm: FloatOrList | None = Field(None, description="mm, radial width of cut")
     spindle_rpm: FloatOrList = Field(description="rpm")
     feed_mode: FeedMode | list[FeedMode] = "constant"
-    rule: str | None = Field(None, description="feed rule file for post-processed tests")
+    rule: str | None = Field(
+        None, description='feed rule for post-processed tests: a rule TOML, or "campaign"'
+    )
     repeat: int = Field(1, ge=1, le=100, description="count")
 
     @model_validator(mode="after")
@@ -175,6 +202,7 @@ class CampaignFile(Model):
     sim: SimSection = SimSection()
     suspenders: SuspenderSection = SuspenderSection()
     analysis: AnalysisSection = AnalysisSection()
+    feed_rule: FeedRuleSection | None = None
     matrix: tuple[MatrixEntry, ...] = ()
     tests: tuple[MatrixEntry, ...] = ()
 
@@ -246,18 +274,22 @@ def _fmt(x: float) -> str:
 
 
 def expand_matrix(
-    entries: tuple[MatrixEntry, ...], tool: EndMill | FaceMill, lines: list[int] | None = None
+    entries: tuple[MatrixEntry, ...],
+    tool: EndMill | FaceMill,
+    lines: list[int] | None = None,
+    block_width_mm: float | None = None,
 ) -> list[RunConditions]:
     """Expand matrix groups into tests (product of list-valued fields, in file order).
 
-    Width defaults to the tool diameter for end mills (a slot); depth must be given.
+    Width defaults to the tool diameter for end mills (a slot) and to the block width for face
+    mills (the cutter spans the block); depth must be given.
     """
     out: list[RunConditions] = []
     teeth = _teeth(tool)
     for k, e in enumerate(entries):
         line = lines[k] if lines and k < len(lines) else None
         feeds = _as_list(e.fz_mm if e.fz_mm is not None else e.feed_mm_min)
-        width_default = tool.diameter_mm if isinstance(tool, EndMill) else None
+        width_default = tool.diameter_mm if isinstance(tool, EndMill) else block_width_mm
         widths = _as_list(e.width_mm if e.width_mm is not None else width_default)
         depths = _as_list(e.depth_mm)
         for rpm, feed, depth, width, mode, rep in itertools.product(
@@ -299,7 +331,7 @@ def check_tests(
     program: ProgramSection,
     where: str,
 ) -> None:
-    """Raise :class:`ConfigError` listing every impossible test (all of them, not just the first)."""
+    """Raise :class:`ConfigError` listing every impossible test (all, not just the first)."""
     problems: list[str] = []
     depth_limit = tool.depth_limit_mm if isinstance(tool, FaceMill) else tool.flute_length_mm
     for t in tests:
@@ -399,6 +431,6 @@ def load_campaign(path: str | Path) -> Campaign:
                 f"simulated rig needs them as its truth for tool {c.tool!r}"
             )
     lines = _table_lines(text, "matrix") + _table_lines(text, "tests")
-    tests = expand_matrix(spec.matrix + spec.tests, tool, lines)
+    tests = expand_matrix(spec.matrix + spec.tests, tool, lines, spec.program.block_width_mm)
     check_tests(tests, machine, tool, spec.program, str(p))
     return Campaign(p, text, spec, machine, tool, material, rig, tuple(tests))

@@ -156,3 +156,56 @@ def generate_program(
     w.add("M5")
     w.add("M30")
     return CutProgram(w.text(), block, z_cut, x_start, x_end, y_path, feed)
+
+
+ZMAP_SPACING_MM = 0.25
+
+
+def block_zmap(block: CutBlock, tool: EndMill, spacing_mm: float = ZMAP_SPACING_MM):  # noqa: ANN201
+    """The test block as a ``planning.zmap.ZMap`` (one tool radius of margin around it; the
+    material outside the block sits a flute length below its lowest step)."""
+    from planning.zmap import ZMap
+
+    r = tool.radius_mm
+    s = spacing_mm
+    x = np.arange(block.x_min_mm - r, block.x_max_mm + r, s) + s / 2
+    y = np.arange(block.y_min_mm - r, block.y_max_mm + r, s) + s / 2
+    xx, yy = np.meshgrid(x, y)
+    top = block.top_z(xx, yy)
+    bottom = min(block.step_top_mm) - tool.flute_length_mm
+    heights = np.where(np.isfinite(top), top, bottom)
+    return ZMap.from_heights(heights, x[0] - s / 2, y[0] - s / 2, s, bottom)
+
+
+def campaign_rule(spec: object, tool: EndMill, name: str = "campaign"):  # noqa: ANN201
+    """The campaign's ``[feed_rule]`` as an ``analysis.rules.FeedRule`` (reference load: a slot of
+    ``reference_depth_mm`` with the campaign's tool, seed 001's load definition)."""
+    from analysis.load import slot_load_percent
+    from analysis.rules import derive_rule
+
+    fr = spec.feed_rule  # type: ignore[attr-defined]
+    ref = slot_load_percent(
+        tool.kind, tool.diameter_mm, fr.reference_depth_mm, tool.flute_length_mm,
+        tool.corner_radius_mm,
+    )  # fmt: skip
+    return derive_rule(
+        name, fr.min_feed_mm_min, fr.base_feed_mm_min, fr.max_feed_mm_min, ref, fr.exponent,
+        fr.n_bins, description=f"reference: {fr.reference_depth_mm} mm slot",
+    )  # fmt: skip
+
+
+def post_process_program(
+    cut: CutProgram, tool: EndMill, rule: object, machine: object, min_piece_mm: float
+) -> tuple[str, dict]:
+    """The load-based feed post-processor (``planning.feedpost``, seed 001) over a test program,
+    on the Z-map of its block. Returns (program text, the post-processor's summary)."""
+    from planning.feedpost import FeedPostOptions, post_process
+    from planning.nc import Program, interpret
+
+    program = Program.parse(cut.text, "<test program>")
+    motion = interpret(cut.text, machine)
+    res = post_process(
+        program, motion, tool, rule, block_zmap(cut.block, tool), machine,
+        FeedPostOptions(min_piece_mm=min_piece_mm, check_holder=False),
+    )  # fmt: skip
+    return res.program.text(), res.summary()

@@ -173,7 +173,7 @@ def test_chain_round_trips_through_the_daq_calibration() -> None:
 
 
 def test_mode_has_unit_dc_gain_and_resonant_peak() -> None:
-    fn, zeta, rate = 2050.0, 0.02742, 50_000.0
+    fn, zeta, rate = 2050.0, 0.02742, 50_000.0  # the filter starts at rest
     dyno = _dyno((Mode(axis="x", frequency_hz=fn, damping_ratio=zeta),))
     chain = DynoChain(dyno, rate)
     n = 50_000
@@ -210,3 +210,76 @@ def test_noise_drift_and_hum_are_as_configured() -> None:
     assert slope == pytest.approx(0.5, rel=0.05)
     resid = f[:, 0] - np.polyval(np.polyfit(t, f[:, 0], 1), t)
     assert resid.std() == pytest.approx(2.0, rel=0.05)
+
+
+def _facemill_machine(width: float, depth: float, rate_hz: float = 20_000.0):
+    from analysis.config import get_material
+    from rig.sim.machine import SignalSettings, SimMachine
+
+    quiet = SignalSettings(noise_n=0.0, drift_n_s=0.0, hum_n=0.0, modes=False)
+    stock = BlockStock(CutBlock(-width / 2, width / 2, (0.0, 80.0), (0.0,)))
+    return SimMachine(FACEMILL, get_material("al6061-t6"), _dyno(), stock, rate_hz, quiet)
+
+
+@pytest.mark.parametrize("depth", [0.5, 2.0, 3.0])
+def test_facemill_pass_force_equals_the_model_over_a_revolution(depth: float) -> None:
+    # The machine decides engagement from geometry; the model from the width. In steady cutting
+    # both give the same force at every angle (feed along +X, dynamometer = machine axes).
+    from analysis import facemill
+    from analysis.config import get_material
+
+    rpm, fz, width = 600.0, 0.236, 50.0
+    m = _facemill_machine(width, depth)
+    feed = fz * rpm
+    m.on_segment(_line(-70, 100, 0.0, -depth, feed, rpm))
+    t = _one_rev_times(50.0 / (feed / 60.0), rpm, 4000)
+    f_machine = m.cutting_force(t)
+    theta = -m.timeline.state(t).spindle_angle_rad + math.pi / 2  # insert angle from +Y, clockwise
+    cut = facemill.FaceMillCut(fz_mm=fz, depth_mm=depth, width_mm=width)
+    f_model = facemill.facemill_forces(theta, FACEMILL, get_material("al6061-t6").facemill, cut)
+    assert np.allclose(f_machine.mean(axis=0), f_model.mean(axis=0), rtol=2e-3, atol=0.5)
+    assert np.abs(f_machine - f_model).max() < 0.02 * np.abs(f_model).max() + 1.0
+
+
+def test_feed_hold_leaves_only_ploughing() -> None:
+    # With the feed stopped and the spindle turning, chip thickness is zero: what remains on the
+    # dynamometer is the ploughing P * l of the engaged edge, and it does not depend on the feed.
+    rpm, fz, depth = 600.0, 0.236, 2.0
+    m = _facemill_machine(50.0, depth)
+    feed = fz * rpm
+    seg = _line(-70, -20, 0.0, -depth, feed, rpm)
+    m.on_segment(seg)
+    m.on_segment(ExecutedSegment(seg.t_end_s, seg.t_end_s + 5.0, seg.end_mm, seg.end_mm, rpm, 1))
+    t_hold = _one_rev_times(seg.t_end_s + 1.0, rpm, 4000)
+    t_cut = _one_rev_times(seg.t_end_s - 2.0, rpm, 4000)
+    hold = np.linalg.norm(m.cutting_force(t_hold), axis=1).mean()
+    cut = np.linalg.norm(m.cutting_force(t_cut), axis=1).mean()
+    assert 0 < hold < 0.6 * cut
+
+
+@pytest.mark.parametrize(("tool", "depth", "width"), [(FLAT, 3.0, 10.0), (FLAT, 2.0, 4.0),
+                                                      (BALL, 0.7, 30.0)])  # fmt: skip
+def test_endmill_mean_force_equals_the_model(tool: EndMill, depth: float, width: float) -> None:
+    # The machine's slices and engagement vs analysis.endmill's own discs and immersion: the
+    # per-revolution mean force agrees (both integrate the same edge-force model).
+    from analysis import endmill
+    from analysis.config import get_material
+    from rig.sim.machine import SignalSettings, SimMachine
+
+    mat = get_material("al6061-t6")
+    rpm, fz = 2000.0, 0.08
+    feed = fz * tool.flutes * rpm
+    half = 40.0
+    r = tool.radius_mm
+    y_path = 0.0 if width >= tool.diameter_mm else half + r - width
+    stock = BlockStock(CutBlock(-half, half, (0.0, 120.0), (0.0,)))
+    quiet = SignalSettings(noise_n=0.0, drift_n_s=0.0, hum_n=0.0, modes=False)
+    m = SimMachine(tool, mat, _dyno(), stock, 20_000.0, quiet, n_slices=48)
+    m.on_segment(_line(-30, 150, y_path, -depth, feed, rpm))
+    t = _one_rev_times(70.0 / (feed / 60.0), rpm, 6000)
+    f_machine = m.cutting_force(t).mean(axis=0)
+    mode = "slot" if width >= tool.diameter_mm else "down"
+    cut = endmill.EndMillCut.from_width(tool, fz, depth, width, mode)
+    phi = np.linspace(0, 2 * np.pi, 6000, endpoint=False)
+    f_model = endmill.endmill_forces(phi, tool, mat.endmill, cut, n_discs=48).mean(axis=0)
+    assert np.allclose(f_machine, f_model, rtol=0.02, atol=0.02 * np.abs(f_model).max())

@@ -1,9 +1,131 @@
-"""`cutlab campaign` commands (placeholder: registers nothing until its issue lands)."""
+"""`cutlab campaign run|status|report` — run a campaign of test cuts, see where it is, report it.
+
+cutlab campaign run facemill-ploughing            # a name in configs/campaigns, or a path
+cutlab campaign run my.toml --dry-run             # check config, hardware, programs; no cut
+cutlab campaign status facemill-ploughing --json  # every run's status and reason
+cutlab campaign report facemill-ploughing         # (re)write the report folder
+"""
 
 from __future__ import annotations
 
 import argparse
 
+from rig.cli._common import print_json, print_table, status
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
+    p = sub.add_parser("campaign", help="run a campaign of test cuts (simulated or real rig)")
+    csub = p.add_subparsers(dest="campaign_command", metavar="CAMPAIGN_COMMAND")
+    csub.required = True
+
+    r = csub.add_parser("run", help="run (or resume) a campaign; --dry-run checks without cutting")
+    r.add_argument("config", help="campaign TOML, or a name in configs/campaigns/")
+    r.add_argument("--dry-run", action="store_true", help="check config, hardware and programs")
+    r.add_argument("--out", help="folder of campaign folders (default: campaign.output_dir)")
+    r.add_argument("--no-report", action="store_true", help="skip the analysis and report")
+    r.add_argument("--json", action="store_true", help="machine-readable summary on stdout")
+    r.add_argument("--quiet", action="store_true", help="no progress display")
+    r.set_defaults(func=_run)
+
+    s = csub.add_parser("status", help="each run's status and reason")
+    s.add_argument("config")
+    s.add_argument("--out")
+    s.add_argument("--json", action="store_true")
+    s.set_defaults(func=_status)
+
+    rep = csub.add_parser("report", help="analyse a campaign's runs and write its report folder")
+    rep.add_argument("config")
+    rep.add_argument("--out")
+    rep.add_argument("--json", action="store_true")
+    rep.set_defaults(func=_report)
+
+
+def _run(args: argparse.Namespace) -> int:
+    from rig.campaign import dry_run, load_campaign, run_campaign
+
+    campaign = load_campaign(args.config)
+    if args.dry_run:
+        d = dry_run(campaign)
+        out = {
+            "campaign": d.campaign,
+            "rig": d.rig,
+            "tests": d.tests,
+            "programs_checked": d.programs_checked,
+            "expected_machine_s": round(d.expected_machine_s, 1),
+            "hardware": d.hardware,
+            "problems": d.problems,
+            "ok": d.ok,
+        }
+        if args.json:
+            print_json(out)
+        else:
+            print(f"campaign {d.campaign}: {d.tests} tests, programs checked, rig = {d.rig}")
+            print(f"expected machine time: {d.expected_machine_s / 60:.1f} min")
+            for h in d.hardware:
+                print(f"  ok: {h}")
+            for p in d.problems:
+                print(f"  PROBLEM: {p}")
+        return 0 if d.ok else 2
+    result = run_campaign(campaign, out_root=args.out, progress=not args.quiet)
+    report = None
+    if not args.no_report and not result.stopped:
+        from rig.report import write_report
+
+        report = write_report(result.folder)
+    summary = {
+        "campaign": result.name,
+        "folder": str(result.folder),
+        "ok": result.ok,
+        "stopped": result.stopped,
+        "counts": result.counts,
+        "wall_s": round(result.wall_s, 2),
+        "runs": [r.__dict__ for r in result.runs],
+        "report": report.summary if report is not None else None,
+    }
+    if args.json:
+        print_json(summary)
+    else:
+        print_table(
+            [
+                {"run": r.index, "name": r.name, "status": r.status,
+                 "peak_N": r.peak_force_n, "reason": r.reason[:60]}
+                for r in result.runs
+            ]
+        )  # fmt: skip
+        if report is not None:
+            print(f"report: {report.folder}")
+    if result.stopped:
+        status(f"cutlab: campaign stopped; run the same command again to resume ({result.folder})")
+        return 130
+    return 0 if result.ok else 1
+
+
+def _status(args: argparse.Namespace) -> int:
+    from rig.campaign import campaign_folder, load_campaign, plan_campaign, run_status
+
+    campaign = load_campaign(args.config)
+    folder = campaign_folder(campaign, args.out)
+    rows = []
+    for p in plan_campaign(campaign):
+        st, reason = run_status(folder / "runs" / f"{p.file_stem}.h5")
+        rows.append({"run": p.test.index, "name": p.test.name, "status": st, "reason": reason})
+    if args.json:
+        print_json({"campaign": campaign.name, "folder": str(folder), "runs": rows})
+    else:
+        print_table(rows)
+    return 0
+
+
+def _report(args: argparse.Namespace) -> int:
+    from rig.campaign import campaign_folder, load_campaign
+    from rig.report import write_report
+
+    campaign = load_campaign(args.config)
+    rep = write_report(campaign_folder(campaign, args.out))
+    if args.json:
+        print_json(rep.summary)
+    else:
+        print(rep.markdown)
+        print(f"report: {rep.folder}")
+    return 0

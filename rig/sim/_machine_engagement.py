@@ -108,8 +108,9 @@ def facemill_engagement(
 def slice_profile(tool: EndMill, depth_mm: float, n_slices: int) -> tuple[np.ndarray, ...]:
     """Axial slices of an end mill from its tip to ``depth_mm``.
 
-    Returns z_mm (s,) slice centres above the tip, dz_mm (s,), radius_mm (s,) edge radius at z,
-    kappa_rad (s,) angle between the tool axis and the edge normal (pi/2 on the flank).
+    Returns z_mm (s,) slice centres above the tip, dz_mm (s,) slice heights (on a corner: the
+    exact edge length in the slice times sin kappa), radius_mm (s,) edge radius at z, kappa_rad
+    (s,) angle between the tool axis and the edge normal (pi/2 on the flank).
     """
     depth = min(depth_mm, tool.flute_length_mm)
     edges = np.linspace(0.0, depth, n_slices + 1)
@@ -119,12 +120,18 @@ def slice_profile(tool: EndMill, depth_mm: float, n_slices: int) -> tuple[np.nda
     radius = np.full_like(z, r)
     kappa = np.full_like(z, np.pi / 2)
     if rc > 0:
-        low = z < rc
         # Corner (torus) part: a circle of radius rc centred at (r - rc, rc) in (rho, z).
+        low = z < rc
         dzc = rc - z[low]
         rho = np.sqrt(np.maximum(rc**2 - dzc**2, 0.0))
         radius[low] = (r - rc) + rho
         kappa[low] = np.arctan2(rho, dzc)
+        # Slice height as the force model sees it (dz = db sin kappa) from the exact edge arc
+        # length db in the slice, so the slices near the tip (kappa -> 0) are not mis-weighted.
+        k_lo = np.arccos(np.clip((rc - np.minimum(edges[:-1], rc)) / rc, -1, 1))
+        k_hi = np.arccos(np.clip((rc - np.minimum(edges[1:], rc)) / rc, -1, 1))
+        db = rc * (k_hi - k_lo) + np.maximum(edges[1:] - np.maximum(edges[:-1], rc), 0.0)
+        dz = db * np.sin(kappa)
     return z, dz, radius, kappa
 
 

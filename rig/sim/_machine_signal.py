@@ -1,9 +1,8 @@
 """From true cutting forces to the volts the DAQ reads: dynamometer modes, cross-talk, charge
 amplifier scaling, and the amplifier's noise, drift and mains hum.
 
-Each configured mode of an axis is a unit-DC-gain second-order system
-``H(s) = wn^2 / (s^2 + 2 zeta wn s + wn^2)`` (several modes of one axis in series), discretised
-by zero-order hold at the DAQ rate; the filter state carries across blocks so consecutive reads
+The modes are :class:`analysis.dynamics.DynamometerFilter` (one unit-DC-gain second-order mode
+per axis, zero-order hold at the DAQ rate); its state carries across blocks so consecutive reads
 form one continuous signal. Then ``measured = crosstalk @ filtered`` (rows: channel), each channel
 takes its axis with its sign, and ``volts = newtons / range_n_v`` (the amplifier is set to the
 sensor's sensitivity, so pC cancel): :class:`rig.calibration.Calibration` run forwards.
@@ -12,9 +11,9 @@ sensor's sensitivity, so pC cancel): :class:`rig.calibration.Calibration` run fo
 from __future__ import annotations
 
 import numpy as np
-from scipy import signal
 
 from analysis.config import Dynamometer
+from analysis.dynamics import DynamometerFilter
 from rig.calibration import Calibration
 
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -47,15 +46,11 @@ class DynoChain:
         self.hum_hz = hum_hz
         self._rng = np.random.default_rng(seed)
         self._hum_phase = self._rng.uniform(0, 2 * np.pi, len(dyno.channels))
-        dt = 1.0 / self.rate_hz
-        self._filters: list[list[tuple[np.ndarray, np.ndarray]]] = [[], [], []]
-        if modes:
-            for m in dyno.modes:
-                wn = 2 * np.pi * m.frequency_hz
-                num, den = [wn**2], [1.0, 2 * m.damping_ratio * wn, wn**2]
-                bd, ad, _ = signal.cont2discrete((num, den), dt, method="zoh")
-                self._filters[_AXES[m.axis]].append((np.ravel(bd), np.ravel(ad)))
-        self._zi: list[list[np.ndarray | None]] = [[None] * len(f) for f in self._filters]
+        # The modes are analysis.dynamics' filter; cross-talk is left to the calibration below.
+        self._modes = (
+            DynamometerFilter.from_config(dyno, rate_hz, crosstalk=False) if modes else None
+        )
+        self._state = self._modes.stream() if self._modes is not None else None
         # The amplifier chain (sign, cross-talk, sensitivity, range) is the DAQ's calibration run
         # forwards, so the logger's inverse recovers the filtered force exactly.
         self.calibration = Calibration.from_dynamometer(dyno)
@@ -67,21 +62,16 @@ class DynoChain:
         return [ch.name for ch in self.dyno.channels]
 
     def filtered(self, force_n: np.ndarray, t0_s: float) -> np.ndarray:
-        """Pass forces (n, 3) N through the modes; state continues if ``t0_s`` follows the last
-        block, otherwise it restarts from rest at the first sample's value."""
+        """Pass forces (n, 3) N through the modes; the state continues if ``t0_s`` follows the
+        last block, otherwise the filter restarts from rest (a gap in the samples)."""
         n = force_n.shape[0]
         contiguous = self._t_next is not None and abs(t0_s - self._t_next) < 0.5 / self.rate_hz
-        if not contiguous:
-            self._zi = [[None] * len(f) for f in self._filters]
-        out = np.array(force_n, dtype=float, copy=True)
-        for ax in range(3):
-            for k, (b, a) in enumerate(self._filters[ax]):
-                zi = self._zi[ax][k]
-                if zi is None:
-                    zi = signal.lfilter_zi(b, a) * (out[0, ax] if n else 0.0)
-                out[:, ax], self._zi[ax][k] = signal.lfilter(b, a, out[:, ax], zi=zi)
         self._t_next = t0_s + n / self.rate_hz
-        return out
+        if self._modes is None:
+            return np.array(force_n, dtype=float)
+        if not contiguous:
+            self._state = self._modes.stream()
+        return self._state.process(force_n)
 
     def volts(self, force_n: np.ndarray, t0_s: float) -> np.ndarray:
         """Volts (channels, n) for true forces (n, 3) N sampled from ``t0_s`` at the rate."""

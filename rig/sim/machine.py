@@ -19,8 +19,10 @@ How the twin differs from a real machine and dynamometer:
 
 - Engagement is the leading half of the cutter in uncut stock; a reversing path inside one DAQ
   read (0.1 s) sees the stock as it was at the start of that read.
-- Forces are quasi-static (no tool deflection or chatter, no regeneration); only the
-  dynamometer's modes add dynamics. Runout, tool wear and built-up edge are not modelled.
+- Forces are quasi-static (no tool deflection, no regeneration); only the dynamometer's modes
+  add dynamics. Chatter, where a campaign asks for it, is a phenomenological rise and
+  oscillation above a feed per tooth (:class:`Chatter`), not a stability model. Runout, tool
+  wear and built-up edge are not modelled.
 - Noise is white and Gaussian, drift linear, hum one sinusoid; the amplifier never saturates here
   (the simulated DAQ's ``sim_`` knobs do that).
 """
@@ -54,6 +56,25 @@ class SignalSettings:
     hum_hz: float = 50.0
     seed: int = 2003
     modes: bool = True
+
+
+@dataclass(frozen=True)
+class Chatter:
+    """A stand-in for the stability limit: above ``fz_onset_mm`` per tooth the force grows by
+    ``gain`` x the relative excess and oscillates at ``frequency_hz`` (seed 001 4.2 saw the force
+    rise sharply, with vibration, above the base feed; the linear force models have no such
+    limit, so the twin adds one where a campaign asks for it)."""
+
+    fz_onset_mm: float
+    gain: float = 3.0
+    frequency_hz: float = 900.0
+
+    def apply(self, f: np.ndarray, fz_mm: np.ndarray, t_s: np.ndarray) -> np.ndarray:
+        excess = np.maximum(fz_mm / self.fz_onset_mm - 1.0, 0.0)
+        if not excess.any():
+            return f
+        wobble = 1.0 + np.sin(2 * np.pi * self.frequency_hz * t_s)
+        return f * (1.0 + self.gain * excess * wobble)[:, None]
 
 
 class BlockStock:
@@ -120,12 +141,19 @@ def facemill_forces(eng: FaceMillEngagement, tool: FaceMill, material: Material)
     f = np.zeros((n, 3))
     idx = np.nonzero(eng.engaged)
     if idx[0].size:
-        fz = eng.fz_mm[idx[0]]
-        per = facemill.insert_forces_xyz(
-            eng.theta_rad[idx], eng.depth_mm[idx], fz, tool, coef
-        )  # (m, 3)
+        # Engagement is decided here per insert, so the model sees one insert at a time over
+        # the whole half turn (its own width-based engagement is switched off).
+        one = _single_insert(tool)
+        cut = facemill.FaceMillCut(
+            fz_mm=eng.fz_mm[idx[0]], depth_mm=eng.depth_mm[idx], entry_deg=0.0, exit_deg=180.0
+        )
+        per = facemill.facemill_forces(eng.theta_rad[idx], one, coef, cut)  # (m, 3)
         np.add.at(f, idx[0], per)
     return _rotate_xy(f, eng.feed_angle_rad)
+
+
+def _single_insert(tool: FaceMill) -> FaceMill:
+    return tool.model_copy(update={"inserts": 1, "insert_angles_deg": None, "runout_mm": 0.0})
 
 
 def endmill_forces(eng: EndMillEngagement, tool: EndMill, material: Material) -> np.ndarray:
@@ -139,7 +167,7 @@ def endmill_forces(eng: EndMillEngagement, tool: EndMill, material: Material) ->
     f = np.zeros((n, 3))
     idx = np.nonzero(eng.engaged)
     if idx[0].size:
-        per = endmill.element_forces_xyz(
+        per = endmill.element_forces(
             eng.theta_rad[idx], eng.h_mm[idx], eng.dz_mm[idx[2]], eng.kappa_rad[idx[2]], coef
         )
         np.add.at(f, idx[0], per)
@@ -167,6 +195,7 @@ class SimMachine:
         rate_hz: float,
         signal: SignalSettings = SignalSettings(),
         n_slices: int = 16,
+        chatter: Chatter | None = None,
     ) -> None:
         self.tool = tool
         self.material = material
@@ -178,6 +207,7 @@ class SimMachine:
             signal.seed, signal.modes,
         )  # fmt: skip
         self.n_slices = n_slices
+        self.chatter = chatter
         self._lock = threading.Lock()
         self.peak_force_n = 0.0
 
@@ -205,12 +235,16 @@ class SimMachine:
         st = self.timeline.state(t)
         if isinstance(self.tool, FaceMill):
             eng = facemill_engagement(st, self.tool, self.stock)
-            return facemill_forces(eng, self.tool, self.material)
-        depth = self.stock.z_max_mm - float(np.min(st.position_mm[:, 2])) if t.size else 0.0
-        if depth <= 0:
-            return np.zeros((t.size, 3))
-        eng = endmill_engagement(st, self.tool, self.stock, depth, self.n_slices)
-        return endmill_forces(eng, self.tool, self.material)
+            f = facemill_forces(eng, self.tool, self.material)
+        else:
+            depth = self.stock.z_max_mm - float(np.min(st.position_mm[:, 2])) if t.size else 0.0
+            if depth <= 0:
+                return np.zeros((t.size, 3))
+            eng = endmill_engagement(st, self.tool, self.stock, depth, self.n_slices)
+            f = endmill_forces(eng, self.tool, self.material)
+        if self.chatter is not None:
+            f = self.chatter.apply(f, eng.fz_mm, t)
+        return f
 
     def source(self, t0_s: float, n: int, rate_hz: float) -> np.ndarray:
         """Volts (channels, n) for the DAQ: samples at ``t0_s + k / rate_hz``, k = 0..n-1."""

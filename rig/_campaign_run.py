@@ -1,0 +1,299 @@
+"""One run of a campaign: arm the DAQ, zero, stream, watch the suspenders, stop, store.
+
+The run talks to the rig only through a :class:`RigSession` (simulated: :mod:`rig.sim.rig`, real:
+:mod:`rig._campaign_real`), so the same sequence runs on both::
+
+    daq.start(tap)            tap = the run writer behind a sink that watches forces and events
+    zero                      mean of the first ``zero_s`` of samples (spindle off, no load)
+    session.start(program)    the streamer runs in its own thread; blocks go to the run record
+    wait                      until the control has executed the program, watching suspenders:
+                              force above the limit -> feed hold (then abort), DAQ overflow ->
+                              stop, controller fault or alarm -> stop, operator Ctrl-C -> feed
+                              hold, then resume or abort
+    tail                      ``zero_s`` more of samples at rest; drift fitted on both rests
+    daq.stop, writer.close    with the exit status (success, abort, fail) and the reason
+
+Pause is a feed hold: the program is never rewound, the spindle keeps turning, and resuming
+continues the same cut.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from analysis import runfile as rf
+from rig.calibration import Calibration, CalibrationError, compensate, fit_drift
+from rig.daq.base import SAMPLE_FORMAT_RAW, Daq, DaqEvent, DaqInfo
+from rig.dnc.program import Program
+
+STATUS_SUCCESS, STATUS_ABORT, STATUS_FAIL = rf.STATUS_SUCCESS, rf.STATUS_ABORT, rf.STATUS_FAIL
+
+
+class RigSession(Protocol):
+    """What a run needs from a rig (simulated or real), for one program."""
+
+    daq: Daq
+    clock: Callable[[], float]
+
+    def start(self, program: Program, writer: object) -> None:
+        """Begin streaming ``program`` in the background; blocks are recorded in ``writer``."""
+
+    def finished(self) -> bool:
+        """The control has executed the whole program (or the stream has stopped)."""
+
+    def fault(self) -> str | None:
+        """Why the control or the link failed (stream fault, alarm, interlock), else None."""
+
+    def progress(self) -> tuple[int, int]:
+        """(blocks executed, blocks in the program)."""
+
+    def feed_hold(self) -> None: ...
+
+    def cycle_start(self) -> None: ...
+
+    def stop(self) -> None:
+        """Stop safely: feed hold, then end the program (reset), spindle off."""
+
+    def close(self) -> None: ...
+
+
+@dataclass(frozen=True)
+class RunOutcome:
+    status: str
+    reason: str
+    peak_force_n: float
+    samples: int
+    wall_s: float
+
+
+class _Tap:
+    """DAQ sink in front of the run writer: forwards everything; keeps the rest windows for the
+    zero and the drift fit; computes forces to watch the force limit; notes DAQ faults."""
+
+    def __init__(self, writer: object, cal: Calibration, force_limit_n: float | None) -> None:
+        self.writer = writer
+        self.cal = cal
+        self.force_limit_n = force_limit_n
+        self.monitor = False
+        self.info: DaqInfo | None = None
+        self.t0_s = math.nan
+        self.samples = 0
+        self.peak_force_n = 0.0
+        self.over_limit: str | None = None
+        self.daq_fault: str | None = None
+        self._capture: list[tuple[np.ndarray, np.ndarray]] | None = None
+        self._capture_n = 0
+        self._captured = threading.Event()
+        self._lock = threading.Lock()
+
+    # -- DaqSink ---------------------------------------------------------------------------------
+    def on_start(self, info: DaqInfo, t0_s: float) -> None:
+        self.info = info
+        self.t0_s = t0_s
+        self.writer.on_start(info, t0_s)
+
+    def on_block(self, first_sample: int, data: np.ndarray) -> None:
+        self.writer.on_block(first_sample, data)
+        info = self.info
+        n = data.shape[1]
+        self.samples = first_sample + n
+        if info.sample_format == SAMPLE_FORMAT_RAW:
+            volts = rf.raw_to_volts(data.T, info.scaling_coeff)
+        else:
+            volts = np.array(data.T, dtype=float)
+        t = self.t0_s + (first_sample + np.arange(n)) / info.rate_hz
+        with self._lock:
+            if self._capture is not None:
+                self._capture.append((t, volts))
+                if sum(len(c[0]) for c in self._capture) >= self._capture_n:
+                    self._captured.set()
+            if self.monitor:
+                f = self.cal.force_from_volts(volts, t)
+                peak = float(np.max(np.linalg.norm(f, axis=1))) if n else 0.0
+                self.peak_force_n = max(self.peak_force_n, peak)
+                if self.force_limit_n is not None and peak > self.force_limit_n:
+                    if self.over_limit is None:
+                        k = int(np.argmax(np.linalg.norm(f, axis=1)))
+                        self.over_limit = (
+                            f"force {peak:.0f} N above the limit {self.force_limit_n:.0f} N at "
+                            f"t = {t[k]:.3f} s"
+                        )
+
+    def on_event(self, event: DaqEvent) -> None:
+        self.writer.on_event(event)
+        if event.kind in (rf.EV_OVERFLOW, rf.EV_FAULT) and self.daq_fault is None:
+            self.daq_fault = f"DAQ {event.kind} at sample {event.sample}: {event.message}"
+
+    # -- rest windows ----------------------------------------------------------------------------
+    def capture(self, n: int, timeout_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """The next ``n`` samples per channel: (time_s (n,), volts (n, c)); waits for them."""
+        with self._lock:
+            self._capture, self._capture_n = [], n
+            self._captured.clear()
+        ok = self._captured.wait(timeout_s)
+        with self._lock:
+            parts, self._capture = self._capture or [], None
+        if not ok or not parts:
+            raise TimeoutError(f"no samples from the DAQ within {timeout_s:.1f} s")
+        t = np.concatenate([p[0] for p in parts])[:n]
+        v = np.concatenate([p[1] for p in parts])[:n]
+        return t, v
+
+
+class StopRequest:
+    """Set by the Ctrl-C handler (and by tests): the operator wants to pause or stop."""
+
+    def __init__(self) -> None:
+        self.event = threading.Event()
+        self.kill = False  # True: stop without asking (SIGTERM, second Ctrl-C)
+
+    def request(self, kill: bool = False) -> None:
+        self.kill = self.kill or kill
+        self.event.set()
+
+
+def _ask_resume(prompt: str) -> bool:
+    """Ask the operator (only on a terminal); anything but 'r' aborts."""
+    if not sys.stdin or not sys.stdin.isatty():
+        return False
+    try:
+        return input(prompt).strip().lower().startswith("r")
+    except (EOFError, KeyboardInterrupt):
+        return False
+
+
+def execute_run(
+    session: RigSession,
+    program: Program,
+    writer: object,
+    cal: Calibration,
+    *,
+    force_limit_n: float | None,
+    on_force: str,
+    hold_timeout_s: float,
+    on_overflow: str,
+    stop: StopRequest,
+    zero_s: float = 0.2,
+    expected_s: float = 60.0,
+    progress: Callable[[int, int], None] | None = None,
+    sim_speed: float = 1.0,
+) -> RunOutcome:
+    """Run ``program`` on ``session`` into ``writer`` (already holding conditions and program)."""
+    wall0 = time.monotonic()
+    tap = _Tap(writer, cal, force_limit_n)
+    status, reason = STATUS_SUCCESS, "program completed"
+    daq = session.daq
+    rate = daq.info.rate_hz
+    n_rest = max(2, int(round(zero_s * rate)))
+    wait_rest_s = 10.0 + 3 * zero_s / sim_speed
+    daq.start(tap)
+    try:
+        t_zero, v_zero = tap.capture(n_rest, wait_rest_s)
+        cal0 = cal.zeroed(v_zero, float(t_zero.mean()))
+        tap.cal = cal0
+        writer.set_calibration(cal0, "zeroed at rest before the cut (reset/operate)")
+        tap.monitor = True
+        writer.event(rf.EV_START, f"streaming {program.name}")
+        session.start(program, writer)
+        held_since: float | None = None
+        while not session.finished():
+            time.sleep(0.02)
+            if progress is not None:
+                progress(*session.progress())
+            if stop.event.is_set():
+                session.feed_hold()
+                writer.event(rf.EV_PAUSE, "operator: feed hold")
+                if not stop.kill and _ask_resume(
+                    "\ncutlab: paused (feed hold). [r]esume or [a]bort? "
+                ):
+                    stop.event.clear()
+                    session.cycle_start()
+                    writer.event(rf.EV_RESUME, "operator: cycle start")
+                    continue
+                status, reason = STATUS_ABORT, "operator stopped the run (Ctrl-C): feed hold, stop"
+                break
+            if tap.daq_fault is not None and on_overflow == "fail":
+                status, reason = STATUS_FAIL, tap.daq_fault
+                break
+            fault = session.fault()
+            if fault is not None:
+                status, reason = STATUS_FAIL, fault
+                if "interlock" in fault:
+                    status = STATUS_ABORT
+                    writer.event(rf.EV_INTERLOCK, fault)
+                break
+            if tap.over_limit is not None:
+                if held_since is None:
+                    session.feed_hold()
+                    writer.event(rf.EV_PAUSE, f"suspender: {tap.over_limit}: feed hold")
+                    held_since = time.monotonic()
+                if on_force == "abort" or time.monotonic() - held_since >= hold_timeout_s:
+                    status, reason = STATUS_ABORT, f"suspender: {tap.over_limit}"
+                    break
+        if status != STATUS_SUCCESS:
+            session.stop()
+        elif session.fault() is not None:
+            status, reason = STATUS_FAIL, session.fault() or ""
+        if progress is not None:
+            progress(*session.progress())
+        # Rest after the cut: zero and drift from both rests (not after a failure: the rig may
+        # not be at rest, so the zero taken before the cut stays).
+        if status == STATUS_SUCCESS:
+            try:
+                t_tail, v_tail = tap.capture(n_rest, wait_rest_s)
+                fit = fit_drift(
+                    np.concatenate([t_zero, t_tail]),
+                    np.vstack([v_zero, v_tail]),
+                    np.ones(len(t_zero) + len(t_tail), bool),
+                    t_ref_s=float(t_zero.mean()),
+                )
+                writer.set_calibration(compensate(cal0, fit), "drift fitted on the rests")
+            except (TimeoutError, CalibrationError) as exc:
+                writer.event(rf.EV_NOTE, f"no drift fit: {exc}")
+    except TimeoutError as exc:
+        status, reason = STATUS_FAIL, f"DAQ: {exc}"
+        session.stop()
+    finally:
+        daq.stop()
+        session.close()
+    if tap.daq_fault is not None and status == STATUS_SUCCESS and on_overflow == "continue":
+        reason = f"program completed; {tap.daq_fault}"
+    return RunOutcome(status, reason, tap.peak_force_n, tap.samples, time.monotonic() - wall0)
+
+
+class WriterBlockSink:
+    """The DNC streamer's block record (``rig.dnc.record.BlockSink``) written into the run file.
+
+    Streamer events become run-file events (``fault:*`` as ``fault``, the rest as ``note``);
+    ``close`` does not close the run file (the run does that with its exit status).
+    """
+
+    def __init__(self, writer: object) -> None:
+        self.writer = writer
+
+    def append_blocks(self, rows: object) -> None:
+        rows = list(rows)  # type: ignore[call-overload]
+        if not rows:
+            return
+        self.writer.append_blocks(
+            [r.block for r in rows],
+            [r.line for r in rows],
+            [r.text for r in rows],
+            [r.send_time_s for r in rows],
+            [r.ack_time_s for r in rows],
+        )
+
+    def event(self, kind: str, time_s: float, detail: str = "") -> None:
+        ev = rf.EV_FAULT if kind.startswith("fault") else rf.EV_NOTE
+        self.writer.event(ev, f"dnc {kind}: {detail}"[: rf.EVENT_MESSAGE_BYTES], time_s=time_s)
+
+    def close(self) -> None:
+        """The run closes the file; nothing to do here."""

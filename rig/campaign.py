@@ -1,0 +1,520 @@
+"""The campaign runner: a campaign TOML -> one NC program and one HDF5 run file per test.
+
+A campaign (see :mod:`rig._campaign_config` for the file) names the machine, tool, material, rig
+(``sim`` or ``real``), DAQ and dynamometer settings and a test matrix. :func:`run_campaign` plans
+every test (program generated and checked by the NC parser before anything runs), then runs them
+in order on the rig, each through :func:`rig._campaign_run.execute_run`, and keeps a manifest::
+
+    <output_dir>/<campaign name>/
+        campaign.json           manifest: config hash, software version, every run's status
+        campaign.toml           the campaign file as run
+        runs/NNN-<test name>.h5 one run file per test (layout: analysis.runfile)
+        programs/NNN-<test name>.nc
+        report/                 written by rig.report after the campaign
+
+Resume: running a campaign again skips every test whose run file closed with status
+``success``; a run that ended in abort or fail, or whose process was killed (the file still says
+``running``), is run again and its earlier file is kept beside it as ``.attempt-K.h5``. A lock
+file stops two runners from writing one campaign.
+
+Each run file records the conditions, tool, material, machine, calibration identity, the NC
+program and its SHA-256, the software version, every block with its send time, events (zero,
+pause, overflow, interlock, ...) and the exit status with its reason.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+import hashlib
+import json
+import os
+import signal
+import sys
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+from analysis import __version__
+from analysis import runfile as rf
+from analysis.config import REPO_ROOT, FaceMill
+from analysis.errors import ConfigError
+from rig._campaign_config import Campaign, RunConditions, load_campaign
+from rig._campaign_nc import CutProgram, generate_program
+from rig._campaign_run import RigSession, StopRequest, execute_run
+from rig.calibration import Calibration
+from rig.errors import RigError
+
+__all__ = [
+    "Campaign",
+    "CampaignResult",
+    "PlannedRun",
+    "RunRecord",
+    "campaign_folder",
+    "dry_run",
+    "load_campaign",
+    "plan_campaign",
+    "run_campaign",
+]
+
+
+@dataclass(frozen=True)
+class PlannedRun:
+    """A test with its program, ready to run. ``expected_s``: machine time of the program, s."""
+
+    test: RunConditions
+    cut: CutProgram
+    program_text: str
+    file_stem: str
+    expected_s: float
+    sha256: str
+
+
+@dataclass(frozen=True)
+class RunRecord:
+    index: int
+    name: str
+    group: str
+    file: str
+    status: str
+    reason: str
+    skipped: bool = False
+    peak_force_n: float = float("nan")
+    wall_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class CampaignResult:
+    name: str
+    folder: Path
+    runs: tuple[RunRecord, ...]
+    stopped: bool = False
+    wall_s: float = 0.0
+    counts: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return not self.stopped and all(r.status == rf.STATUS_SUCCESS for r in self.runs)
+
+
+def campaign_folder(campaign: Campaign, out_root: str | Path | None = None) -> Path:
+    root = Path(out_root) if out_root is not None else Path(campaign.spec.campaign.output_dir)
+    if not root.is_absolute() and out_root is None:
+        root = Path.cwd() / root
+    return root / campaign.name
+
+
+def _dialect(campaign: Campaign) -> str:
+    if campaign.spec.campaign.rig == "sim" and campaign.spec.sim.protocol:
+        return campaign.spec.sim.protocol
+    return campaign.machine.dialect
+
+
+def _post_process(text: str, campaign: Campaign, test: RunConditions, cut: CutProgram) -> str:
+    """The feed post-processor (planning.feedpost, seed 001) over a generated program."""
+    from analysis.config import EndMill
+    from analysis.rules import load_rule
+    from rig._campaign_nc import campaign_rule, post_process_program
+
+    tool = campaign.tool
+    if not isinstance(tool, EndMill):
+        raise ConfigError(f"{campaign.path}: post-processed feeds need an end mill")
+    if test.rule == "campaign":
+        if campaign.spec.feed_rule is None:
+            raise ConfigError(
+                f"{campaign.path}: test {test.index}: rule = 'campaign' needs a [feed_rule] table"
+            )
+        rule = campaign_rule(campaign.spec, tool, f"{campaign.name}-rule")
+        piece = campaign.spec.feed_rule.min_piece_mm
+    else:
+        p = Path(test.rule or "")
+        rule = load_rule(p if p.is_absolute() else campaign.path.parent / p)
+        piece = 2.0
+    out, _ = post_process_program(cut, tool, rule, campaign.machine, piece)
+    return out
+
+
+def plan_campaign(campaign: Campaign) -> list[PlannedRun]:
+    """Generate and check every test's program (an NC error is raised before anything runs)."""
+    from rig.dnc.program import program_from_text
+
+    out = []
+    dialect = _dialect(campaign)
+    for t in campaign.tests:
+        cut = generate_program(campaign.spec.program, t, campaign.tool, dialect, t.name)
+        text = cut.text
+        if t.feed_mode == "post-processed":
+            text = _post_process(text, campaign, t, cut)
+        stem = f"{t.index:03d}-{t.name}"
+        try:
+            program_from_text(text, f"{stem}.nc")
+        except RigError as exc:
+            raise ConfigError(f"{campaign.path}: test {t.index} ({t.name}): {exc}") from None
+        expected = _expected_seconds(cut, campaign)
+        sha = hashlib.sha256(text.encode()).hexdigest()
+        out.append(PlannedRun(t, cut, text, stem, expected, sha))
+    return out
+
+
+def _expected_seconds(cut: CutProgram, campaign: Campaign) -> float:
+    plunge = (campaign.spec.program.safe_z_mm - cut.z_cut_mm) / min(cut.cut_feed_mm_min, 500.0)
+    return 60.0 * (plunge + abs(cut.x_end_mm - cut.x_start_mm) / cut.cut_feed_mm_min) + 1.0
+
+
+# ----------------------------------------------------------------------------------------------
+# Manifest and lock
+# ----------------------------------------------------------------------------------------------
+
+
+def _utc() -> str:
+    return dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
+
+
+class _Manifest:
+    def __init__(self, folder: Path, campaign: Campaign) -> None:
+        self.path = folder / "campaign.json"
+        self.data: dict[str, Any] = {}
+        if self.path.exists():
+            try:
+                self.data = json.loads(self.path.read_text())
+            except (OSError, json.JSONDecodeError) as exc:
+                raise RigError(f"{self.path}: campaign manifest unreadable: {exc}") from None
+        self.data.setdefault("campaign", campaign.name)
+        self.data.setdefault("created_utc", _utc())
+        self.data["config_sha256"] = hashlib.sha256(campaign.text.encode()).hexdigest()
+        self.data["software_version"] = __version__
+        self.data.setdefault("runs", {})
+
+    def entry(self, name: str) -> dict[str, Any] | None:
+        return self.data["runs"].get(name)
+
+    def set(self, name: str, **kw: Any) -> None:
+        self.data["runs"].setdefault(name, {}).update(kw)
+        self.save()
+
+    def save(self) -> None:
+        tmp = self.path.with_suffix(".json.tmp")
+        tmp.write_text(json.dumps(self.data, indent=2, default=str))
+        os.replace(tmp, self.path)
+
+
+@contextlib.contextmanager
+def _lock(folder: Path) -> Iterator[None]:
+    lock = folder / "campaign.lock"
+    if lock.exists():
+        try:
+            pid = int(lock.read_text().strip() or 0)
+        except (OSError, ValueError):
+            pid = 0
+        alive = False
+        if pid > 0:
+            try:
+                os.kill(pid, 0)
+                alive = pid != os.getpid()
+            except (ProcessLookupError, PermissionError):
+                alive = False
+        if alive:
+            raise RigError(f"{folder}: campaign already running in process {pid} ({lock})")
+    lock.write_text(str(os.getpid()))
+    try:
+        yield
+    finally:
+        with contextlib.suppress(OSError):
+            lock.unlink()
+
+
+def run_status(path: Path) -> tuple[str, str]:
+    """(status, reason) stored in a run file; ("missing", ...) or ("unreadable", ...) otherwise."""
+    if not path.exists():
+        return "missing", "no run file"
+    try:
+        run = rf.load_run(path, 0.0, 0.0)
+    except Exception as exc:  # noqa: BLE001 - any unreadable file is re-run, and kept
+        return "unreadable", str(exc)
+    return run.status, run.reason
+
+
+def _finished(folder: Path, entry: dict[str, Any] | None, stem: str) -> bool:
+    path = folder / "runs" / f"{stem}.h5"
+    if entry is None or entry.get("status") != rf.STATUS_SUCCESS:
+        return False
+    return run_status(path)[0] == rf.STATUS_SUCCESS
+
+
+def _set_aside(path: Path) -> Path | None:
+    """Keep an earlier attempt's file (never delete recorded data)."""
+    if not path.exists():
+        return None
+    k = 1
+    while (dest := path.with_name(f"{path.stem}.attempt-{k}.h5")).exists():
+        k += 1
+    os.replace(path, dest)
+    return dest
+
+
+# ----------------------------------------------------------------------------------------------
+# Running
+# ----------------------------------------------------------------------------------------------
+
+SessionFactory = Callable[[Campaign, PlannedRun, int], RigSession]
+
+
+def default_session_factory(campaign: Campaign) -> SessionFactory:
+    if campaign.spec.campaign.rig == "sim":
+        from rig.sim.rig import sim_session
+
+        return sim_session
+    from rig._campaign_real import real_session
+
+    return real_session
+
+
+def _conditions(campaign: Campaign, plan: PlannedRun) -> dict[str, Any]:
+    t = plan.test
+    c = campaign.spec.campaign
+    return {
+        **t.as_dict(),
+        "campaign": campaign.name,
+        "program_kind": campaign.spec.program.kind,
+        "tool": c.tool,
+        "tool_spec": campaign.tool.model_dump(),
+        "tool_kind": "facemill" if isinstance(campaign.tool, FaceMill) else campaign.tool.kind,
+        "teeth": campaign.teeth,
+        "material": c.material,
+        "machine": campaign.machine.name,
+        "block": asdict(plan.cut.block),
+        "z_cut_mm": plan.cut.z_cut_mm,
+        "y_path_mm": plan.cut.y_path_mm,
+        "program_sha256": plan.sha256,
+        "software_version": __version__,
+        "operator": c.operator,
+    }
+
+
+def _rig_meta(campaign: Campaign, session: RigSession) -> dict[str, Any]:
+    dyno = campaign.rig.dynamometer
+    meta: dict[str, Any] = {
+        "rig": campaign.spec.campaign.rig,
+        "machine": campaign.machine.name,
+        "controller": _dialect(campaign),
+        "dynamometer": dyno.model,
+        "calibration_id": dyno.calibration_id,
+        "channels": [ch.name for ch in dyno.channels],
+        "daq_device": session.daq.info.device,
+        "daq_rate_hz": session.daq.info.rate_hz,
+        "modes": [m.model_dump() for m in dyno.modes],
+    }
+    if campaign.spec.campaign.rig == "sim":
+        meta["sim"] = campaign.spec.sim.model_dump()
+        m = campaign.material
+        meta["sim_truth"] = {
+            "facemill": m.facemill.model_dump() if m.facemill else None,
+            "endmill": m.endmill.model_dump() if m.endmill else None,
+        }
+    return meta
+
+
+@contextlib.contextmanager
+def _sigint_to(stop: StopRequest) -> Iterator[None]:
+    """Ctrl-C asks for a safe stop (feed hold, then resume or abort) instead of a traceback;
+    SIGTERM and a second Ctrl-C stop without asking."""
+    if threading_main() is False:
+        yield
+        return
+
+    def on_int(signum: int, frame: object) -> None:
+        stop.request(kill=stop.event.is_set())
+        print("\ncutlab: stopping safely (feed hold) ...", file=sys.stderr, flush=True)
+
+    def on_term(signum: int, frame: object) -> None:
+        stop.request(kill=True)
+
+    old_int = signal.signal(signal.SIGINT, on_int)
+    old_term = signal.signal(signal.SIGTERM, on_term)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old_int)
+        signal.signal(signal.SIGTERM, old_term)
+
+
+def threading_main() -> bool:
+    import threading
+
+    return threading.current_thread() is threading.main_thread()
+
+
+def run_campaign(
+    campaign: Campaign,
+    *,
+    out_root: str | Path | None = None,
+    session_factory: SessionFactory | None = None,
+    progress: bool = True,
+    stop: StopRequest | None = None,
+    only: Callable[[RunConditions], bool] | None = None,
+) -> CampaignResult:
+    """Run (or resume) a campaign; returns every run's status. See the module docstring."""
+    from rig.logger import RunWriter
+
+    plans = plan_campaign(campaign)
+    folder = campaign_folder(campaign, out_root)
+    (folder / "runs").mkdir(parents=True, exist_ok=True)
+    (folder / "programs").mkdir(exist_ok=True)
+    factory = session_factory or default_session_factory(campaign)
+    stop = stop or StopRequest()
+    records: list[RunRecord] = []
+    wall0 = time.monotonic()
+    stopped = False
+    cal_sheet = Calibration.from_dynamometer(campaign.rig.dynamometer)
+    sus = campaign.spec.suspenders
+    bar = _campaign_bar(len(plans), progress, campaign.name)
+    with _lock(folder), _sigint_to(stop):
+        (folder / "campaign.toml").write_text(campaign.text)
+        manifest = _Manifest(folder, campaign)
+        for k, plan in enumerate(plans):
+            t = plan.test
+            if only is not None and not only(t):
+                continue
+            path = folder / "runs" / f"{plan.file_stem}.h5"
+            if _finished(folder, manifest.entry(t.name), plan.file_stem):
+                records.append(
+                    RunRecord(t.index, t.name, t.group, str(path), rf.STATUS_SUCCESS,
+                              "finished earlier (resume)", skipped=True)
+                )  # fmt: skip
+                bar.update(1)
+                continue
+            if stopped or stop.event.is_set():
+                break
+            earlier = _set_aside(path)
+            (folder / "programs" / f"{plan.file_stem}.nc").write_text(plan.program_text)
+            session = factory(campaign, plan, k)
+            from rig.dnc.program import program_from_text
+
+            program = program_from_text(plan.program_text, f"{plan.file_stem}.nc", check_nc=False)
+            manifest.set(
+                t.name, index=t.index, group=t.group, file=str(path.relative_to(folder)),
+                status=rf.STATUS_RUNNING, reason="", started_utc=_utc(),
+                earlier_attempt=str(earlier.name) if earlier else None,
+                conditions=t.as_dict(), program_sha256=plan.sha256,
+            )  # fmt: skip
+            writer = RunWriter(path, session.daq.info, cal_sheet, clock=session.clock)
+            try:
+                writer.set_conditions(_conditions(campaign, plan))
+                writer.set_rig(_rig_meta(campaign, session))
+                writer.set_program(plan.program_text, f"{plan.file_stem}.nc")
+                bar.set_postfix_str(t.name[:40])
+                outcome = execute_run(
+                    session, program, writer, cal_sheet,
+                    force_limit_n=sus.force_limit_n, on_force=sus.on_force,
+                    hold_timeout_s=sus.hold_timeout_s, on_overflow=sus.on_overflow, stop=stop,
+                    expected_s=plan.expected_s,
+                    sim_speed=campaign.spec.sim.speed if campaign.spec.campaign.rig == "sim"
+                    else 1.0,
+                    progress=_within_run(bar, t.name),
+                )  # fmt: skip
+                status, reason = outcome.status, outcome.reason
+            except BaseException as exc:
+                status, reason = rf.STATUS_FAIL, f"{type(exc).__name__}: {exc}"[:400]
+                writer.close(status, reason)
+                manifest.set(t.name, status=status, reason=reason, ended_utc=_utc())
+                raise
+            writer.close(status, reason)
+            manifest.set(
+                t.name, status=status, reason=reason, ended_utc=_utc(),
+                peak_force_n=outcome.peak_force_n, wall_s=round(outcome.wall_s, 3),
+            )  # fmt: skip
+            records.append(
+                RunRecord(t.index, t.name, t.group, str(path), status, reason, False,
+                          outcome.peak_force_n, outcome.wall_s)
+            )  # fmt: skip
+            bar.update(1)
+            if status != rf.STATUS_SUCCESS:
+                bar.write(f"cutlab: run {t.index} {t.name}: {status}: {reason}")
+            if stop.event.is_set() or (status == rf.STATUS_FAIL and sus.stop_campaign_on_fail):
+                stopped = True
+        manifest.data["last_ended_utc"] = _utc()
+        manifest.save()
+    bar.close()
+    counts: dict[str, int] = {}
+    for r in records:
+        counts[r.status] = counts.get(r.status, 0) + 1
+    stopped = stopped or len(records) < sum(1 for p in plans if only is None or only(p.test))
+    return CampaignResult(
+        campaign.name, folder, tuple(records), stopped, time.monotonic() - wall0, counts
+    )
+
+
+class _NoBar:
+    def update(self, n: int) -> None: ...
+
+    def set_postfix_str(self, s: str) -> None: ...
+
+    def write(self, s: str) -> None:
+        print(s, file=sys.stderr)
+
+    def close(self) -> None: ...
+
+
+def _campaign_bar(n: int, show: bool, name: str):  # noqa: ANN202 - tqdm or a stand-in
+    if not show:
+        return _NoBar()
+    from tqdm import tqdm
+
+    return tqdm(total=n, desc=f"campaign {name}", unit="run", file=sys.stderr, leave=True)
+
+
+def _within_run(bar: object, name: str) -> Callable[[int, int], None]:
+    last = [-1.0]
+
+    def show(done: int, total: int) -> None:
+        now = time.monotonic()
+        if now - last[0] < 0.5:
+            return
+        last[0] = now
+        bar.set_postfix_str(f"{name[:32]} block {done}/{total}")  # type: ignore[attr-defined]
+
+    return show
+
+
+# ----------------------------------------------------------------------------------------------
+# Dry run
+# ----------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class DryRun:
+    campaign: str
+    rig: str
+    tests: int
+    programs_checked: int
+    expected_machine_s: float
+    hardware: list[str]
+    problems: list[str]
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems
+
+
+def dry_run(campaign: Campaign) -> DryRun:
+    """Check config, programs and (for ``rig = "real"``) that the hardware is present, without
+    cutting. Problems are listed, not raised, so all of them are seen at once."""
+    plans = plan_campaign(campaign)
+    hardware: list[str] = []
+    problems: list[str] = []
+    if campaign.spec.campaign.rig == "real":
+        from rig._campaign_real import check_hardware
+
+        hardware, problems = check_hardware(campaign)
+    else:
+        hardware = ["simulated rig: controller on a pseudo-terminal, simulated DAQ"]
+    return DryRun(
+        campaign.name, campaign.spec.campaign.rig, len(plans), len(plans),
+        sum(p.expected_s for p in plans), hardware, problems,
+    )  # fmt: skip
+
+
+def default_output_root() -> Path:
+    return REPO_ROOT / "data" / "campaigns"

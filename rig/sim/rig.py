@@ -1,0 +1,195 @@
+"""The simulated rig: a simulated controller on a pseudo-terminal, the simulated machine and the
+simulated DAQ, all on one :class:`SimClock`, behind the campaign's :class:`RigSession` interface.
+
+For each run: a new clock (``[sim] speed`` times real time), a new stock (the test block; a
+``planning.zmap.ZMap`` for end mills), the machine listening to the controller's executed
+segments, a :class:`rig.daq.SimDaq` reading the machine's volts, and the real DNC streamer
+(``rig.dnc``) opening the controller's tty through pyserial, exactly as on the lab's RS-232 link.
+
+Notes
+-----
+How the simulated rig differs from the lab (beyond :mod:`rig.sim.machine`'s list):
+
+- The serial link is a pty; its timeout is ``[sim] link_timeout_s`` instead of the machine's, so
+  a hung controller is noticed within seconds of wall time.
+- The door interlock exists only as the ``sim_interlock_at_s`` knob: at that simulated time the
+  controller is held and reset (door opened: feed hold, spindle stop).
+- Feed hold and cycle start go straight to the simulated controller (the operator's buttons);
+  on a real Fanuc drip feed they are the operator's.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Any
+
+from analysis.config import EndMill
+from rig._campaign_nc import block_zmap
+from rig._campaign_run import WriterBlockSink
+from rig.daq.sim import SimDaq
+from rig.dnc.errors import DncError, StreamFault
+from rig.dnc.program import Program
+from rig.errors import RigError
+from rig.sim.clock import SimClock
+from rig.sim.machine import BlockStock, Chatter, SignalSettings, SimMachine, ZMapStock
+
+
+def _make_stock(campaign: Any, plan: Any) -> BlockStock | ZMapStock:
+    tool = campaign.tool
+    if not isinstance(tool, EndMill):
+        return BlockStock(plan.cut.block)
+    return ZMapStock(block_zmap(plan.cut.block, tool), tool)
+
+
+class SimSession:
+    """One run on the simulated rig (see the module docstring)."""
+
+    def __init__(self, campaign: Any, plan: Any, run_index: int) -> None:
+        sim = campaign.spec.sim
+        rig = campaign.rig
+        self.protocol = sim.protocol or campaign.machine.dialect
+        self.sim_clock = SimClock(sim.speed)
+        self.clock = self.sim_clock.now
+        rate = campaign.spec.daq.rate_hz or rig.daq.rate_hz
+        read_s = campaign.spec.daq.read_interval_s or rig.daq.read_interval_s
+        faults = run_index == sim.sim_fault_run
+        self.machine = SimMachine(
+            campaign.tool,
+            campaign.material,
+            rig.dynamometer,
+            _make_stock(campaign, plan),
+            rate,
+            SignalSettings(sim.noise_n, sim.drift_n_s, sim.hum_n, sim.hum_hz,
+                           sim.seed + run_index),
+            chatter=Chatter(sim.chatter_fz_mm, sim.chatter_gain, sim.chatter_hz)
+            if sim.chatter_fz_mm is not None else None,
+        )  # fmt: skip
+        self.controller = self._make_controller(campaign, faults)
+        self.controller.add_listener(
+            on_segment=self.machine.on_segment,
+            on_spindle=self.machine.on_spindle,
+            on_event=self._on_event,
+        )
+        overflow = []
+        if faults and sim.sim_daq_overflow_at_s is not None:
+            overflow = [int(sim.sim_daq_overflow_at_s * rate)]
+        dyno = rig.dynamometer
+        self.daq = SimDaq(
+            self.machine.source,
+            rate_hz=rate,
+            channels=tuple(f"sim/ai{i}" for i in range(len(dyno.channels))),
+            channel_names=tuple(ch.name for ch in dyno.channels),
+            clock=self.sim_clock,
+            read_interval_s=read_s,
+            input_range_v=rig.daq.input_range_v,
+            sim_overflow_at=overflow,
+        )
+        self.interlock_at_s = sim.sim_interlock_at_s if faults else None
+        self.link_timeout_s = sim.link_timeout_s
+        self._serial = campaign.machine.serial
+        self._fault: str | None = None
+        self._ended = threading.Event()
+        self._stream_done = threading.Event()
+        self._program: Program | None = None
+        self._thread: threading.Thread | None = None
+        self._timer: threading.Thread | None = None
+        self._stop = threading.Event()
+        self.port = self.controller.start()
+
+    def _make_controller(self, campaign: Any, faults: bool) -> Any:
+        sim = campaign.spec.sim
+        kw: dict[str, Any] = {}
+        if faults and sim.sim_controller_stall_after_block is not None:
+            kw["sim_stop_answering_after_block"] = sim.sim_controller_stall_after_block
+        if faults and sim.sim_alarm_at_block is not None:
+            kw["sim_alarm_at_block"] = (sim.sim_alarm_at_block, 1)
+        if self.protocol == "grbl":
+            from rig.sim.grbl import SimGrbl as Ctrl
+        else:
+            from rig.sim.fanuc import SimFanuc as Ctrl
+        baud = campaign.machine.serial.baudrate
+        return Ctrl(campaign.machine, clock=self.sim_clock, baudrate=baud, **kw)
+
+    # -- controller events -----------------------------------------------------------------------
+    def _on_event(self, ev: Any) -> None:
+        if ev.kind == "program_end":
+            self._ended.set()
+        elif ev.kind == "alarm" and self._fault is None:
+            self._fault = f"controller alarm {ev.detail} at t = {ev.t_s:.3f} s"
+        elif ev.kind in ("overrun", "port_dropped", "error") and self._fault is None:
+            self._fault = f"controller {ev.kind}: {ev.detail}"
+
+    # -- RigSession ------------------------------------------------------------------------------
+    def start(self, program: Program, writer: object) -> None:
+        from rig.dnc.fanuc import FanucStreamer
+        from rig.dnc.grbl import GrblStreamer
+
+        self._program = program
+        cfg = self._serial.model_copy(update={"port": self.port, "timeout_s": self.link_timeout_s})
+        cls = GrblStreamer if self.protocol == "grbl" else FanucStreamer
+        self.streamer = cls(cfg, sink=WriterBlockSink(writer), clock=self.clock)
+
+        def stream() -> None:
+            try:
+                self.streamer.send(program)
+            except StreamFault as exc:
+                if self._fault is None:
+                    self._fault = f"DNC stream fault ({exc.kind}): {exc}"
+            except (DncError, RigError, OSError) as exc:
+                if self._fault is None:
+                    self._fault = f"DNC: {exc}"
+            finally:
+                self._stream_done.set()
+
+        self._thread = threading.Thread(target=stream, name="sim-stream", daemon=True)
+        self._thread.start()
+        if self.interlock_at_s is not None:
+            t_trip = self.clock() + self.interlock_at_s
+
+            def trip() -> None:
+                if self.sim_clock.sleep_until(t_trip, self._stop) and not self._ended.is_set():
+                    self.controller.feed_hold()
+                    self.controller.reset()
+                    if self._fault is None:
+                        self._fault = f"interlock: door opened at t = {t_trip:.3f} s (sim)"
+
+            self._timer = threading.Thread(target=trip, name="sim-interlock", daemon=True)
+            self._timer.start()
+
+    def finished(self) -> bool:
+        return self._ended.is_set() or self._fault is not None
+
+    def fault(self) -> str | None:
+        return self._fault
+
+    def progress(self) -> tuple[int, int]:
+        n = len(self._program.blocks) if self._program is not None else 0
+        return min(self.controller.last_completed_block + 1, n), n
+
+    def feed_hold(self) -> None:
+        self.controller.feed_hold()
+
+    def cycle_start(self) -> None:
+        self.controller.cycle_start()
+
+    def stop(self) -> None:
+        """Feed hold, then reset (ends the program, spindle off); the streamer stops too."""
+        self.controller.feed_hold()
+        self.controller.reset()
+        stop = getattr(getattr(self, "streamer", None), "stop", None)
+        if stop is not None:
+            stop()
+
+    def close(self) -> None:
+        self._stop.set()
+        stop = getattr(getattr(self, "streamer", None), "stop", None)
+        if stop is not None and not self._stream_done.is_set():
+            stop()
+        if self._thread is not None:
+            self._thread.join(timeout=self.link_timeout_s + 5)
+        self.controller.stop()
+
+
+def sim_session(campaign: Any, plan: Any, run_index: int) -> SimSession:
+    """The campaign runner's session factory for ``rig = "sim"``."""
+    return SimSession(campaign, plan, run_index)

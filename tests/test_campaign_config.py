@@ -1,0 +1,136 @@
+"""Campaign files: matrix expansion, shipped campaigns, bad input refused before anything runs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from analysis.config import get_tool
+from analysis.errors import ConfigError
+from rig._campaign_config import MatrixEntry, expand_matrix, load_campaign
+from rig._campaign_nc import generate_program
+from rig.campaign import plan_campaign
+
+BASE = """
+[campaign]
+name = "t"
+machine = "ace-h63"
+tool = "{tool}"
+material = "al6061-t6"
+rig = "{rig}"
+
+[program]
+kind = "{kind}"
+{program_extra}
+
+[[matrix]]
+group = "g"
+spindle_rpm = {rpm}
+{feed}
+depth_mm = {depth}
+"""
+
+
+def _write(tmp_path: Path, **kw: object) -> Path:
+    args = dict(tool="seed003-facemill", rig="sim", kind="facemill-pass", program_extra="",
+                rpm=600, feed="fz_mm = 0.236", depth="[0.5, 1.0]")  # fmt: skip
+    args.update(kw)
+    p = tmp_path / "c.toml"
+    p.write_text(BASE.format(**args))
+    return p
+
+
+def test_matrix_is_the_product_of_lists() -> None:
+    tool = get_tool("phi10-flat")
+    e = MatrixEntry(group="a", spindle_rpm=[1000, 2000], fz_mm=[0.05, 0.1, 0.15], depth_mm=2.0,
+                    width_mm=[5.0, 10.0])  # fmt: skip
+    tests = expand_matrix((e,), tool)
+    assert len(tests) == 2 * 3 * 2
+    assert len({t.name for t in tests}) == len(tests)
+    t = tests[0]
+    assert t.feed_mm_min == pytest.approx(t.fz_mm * tool.flutes * t.spindle_rpm)
+    # Feed given in mm/min gives the feed per tooth back.
+    e2 = MatrixEntry(group="b", spindle_rpm=2000, feed_mm_min=[400, 600], depth_mm=0.3)
+    t2 = expand_matrix((e2,), get_tool("phi30-ball"))
+    assert [t.fz_mm for t in t2] == pytest.approx([400 / 4000, 600 / 4000])
+    assert t2[0].width_mm == 30.0  # a slot by default
+
+
+@pytest.mark.parametrize("name", ["facemill-ploughing", "feed-sweep", "afc-step-depth"])
+def test_shipped_campaigns_load_and_plan(name: str) -> None:
+    c = load_campaign(name)
+    plans = plan_campaign(c)
+    assert len(plans) == len(c.tests) >= 2
+    for p in plans:
+        assert p.program_text.strip().endswith("M30")
+        assert p.expected_s > 0
+
+
+def test_seed003_matrix() -> None:
+    c = load_campaign("facemill-ploughing")
+    ident = [t for t in c.tests if t.group == "identify"]
+    assert [t.depth_mm for t in ident] == [0.5, 1.0, 1.5, 2.0, 2.5, 3.0]
+    assert {t.fz_mm for t in ident} == {0.236}
+    assert {t.fz_mm for t in c.tests if t.group.startswith("validate-0")} == {0.246, 0.345}
+
+
+def test_feed_above_machine_max_is_refused_with_file_and_line(tmp_path: Path) -> None:
+    p = _write(tmp_path, rpm=8000, feed="fz_mm = 2.0", depth="1.0")
+    with pytest.raises(ConfigError) as e:
+        load_campaign(p)
+    msg = str(e.value)
+    assert f"{p}:" in msg and "16000 mm/min" in msg and "feed_max_mm_min = 10000" in msg
+    assert f"{p}:13:" in msg  # the [[matrix]] line
+
+
+def test_depth_beyond_flute_length_is_refused(tmp_path: Path) -> None:
+    p = _write(tmp_path, tool="phi10-flat", kind="slot", feed="fz_mm = 0.05", depth="30",
+               rpm=3000)  # fmt: skip
+    with pytest.raises(ConfigError, match=r"depth_mm = 30 is beyond the flute length .*22 mm"):
+        load_campaign(p)
+    p = _write(tmp_path, depth="[1.0, 15.0]")
+    with pytest.raises(ConfigError, match=r"depth_mm = 15 is beyond the usable insert edge"):
+        load_campaign(p)
+
+
+def test_unknown_tool_and_material_are_named(tmp_path: Path) -> None:
+    p = _write(tmp_path, tool="phi99-unicorn")
+    with pytest.raises(ConfigError, match=r"campaign.tool = 'phi99-unicorn'.*known tools"):
+        load_campaign(p)
+
+
+def test_unknown_key_and_bad_value_are_named(tmp_path: Path) -> None:
+    p = _write(tmp_path, program_extra="block_lenght_mm = 20")
+    with pytest.raises(ConfigError, match=r"program.block_lenght_mm.*unknown key"):
+        load_campaign(p)
+    p = _write(tmp_path, feed="fz_mm = -0.1")
+    with pytest.raises(ConfigError, match=r"fz_mm = -0.1: must be > 0"):
+        load_campaign(p)
+    p = _write(tmp_path, rig="simulated")
+    with pytest.raises(ConfigError, match=r"campaign.rig = 'simulated'"):
+        load_campaign(p)
+
+
+def test_wrong_tool_for_program_is_refused(tmp_path: Path) -> None:
+    p = _write(tmp_path, kind="slot")
+    with pytest.raises(ConfigError, match="needs an end mill"):
+        load_campaign(p)
+
+
+def test_generated_programs_parse_and_cut_where_intended() -> None:
+    from planning.nc import interpret
+
+    c = load_campaign("facemill-ploughing")
+    t = c.tests[0]
+    cut = generate_program(c.spec.program, t, c.tool, "fanuc")
+    m = interpret(cut.text, c.machine)
+    feed_moves = np.isclose(m.end[:, 2], -t.depth_mm)
+    assert feed_moves.any()
+    # The cutter reaches depth in the air, before the block (x < -R).
+    first = int(feed_moves.argmax())
+    assert m.end[first, 0] < -c.tool.radius_mm
+    grbl = generate_program(c.spec.program, t, c.tool, "grbl")
+    assert "N10" not in grbl.text and "O1001" not in grbl.text
+    interpret(grbl.text, c.machine, dialect="grbl")
