@@ -190,6 +190,7 @@ class ZMap:
         self.x_mm = self.x0_mm + (np.arange(nx) + 0.5) * self.spacing_mm
         self.y_mm = self.y0_mm + (np.arange(ny) + 0.5) * self.spacing_mm
         self._ycol = self.y_mm[:, None]
+        self._last_drop_mm = 0.0  # deepest height drop of the last cut, mm
 
     # ------------------------------------------------------------------ construction
 
@@ -377,17 +378,37 @@ class ZMap:
             np.asarray(starts_mm, float), np.asarray(ends_mm, float), piece_mm
         )
         n = len(np.asarray(starts_mm).reshape(-1, 3))
-        removed = np.zeros(len(move))
+        removed = self.cut_pieces(cutter, p0, p1, progress)
+        per_move = np.bincount(move, weights=removed, minlength=n)
+        return PathCut(move, p0, p1, removed, per_move)
+
+    def cut_pieces(
+        self,
+        cutter: Cutter,
+        starts_mm: NDArray[np.float64],
+        ends_mm: NDArray[np.float64],
+        progress: Callable[[int], None] | None = None,
+        depth_mm: NDArray[np.float64] | None = None,
+    ) -> NDArray[np.float64]:
+        """Cut linear moves in order as given (no splitting); removed volume per move, mm^3.
+
+        ``depth_mm``, if given (shape (k,)), receives the deepest height drop of each move, mm
+        (the axial depth of cut the move met).
+        """
+        p0 = np.asarray(starts_mm, dtype=float).reshape(-1, 3)
+        p1 = np.asarray(ends_mm, dtype=float).reshape(-1, 3)
+        removed = np.zeros(len(p0))
         kind = _KIND_CODES[cutter.kind]
         r, rc = cutter.radius_mm, cutter.corner_radius_mm
         cut_one = self._cut_one
         rows = np.concatenate([p0, p1], axis=1).tolist()  # python floats: cheaper per piece
         for k, (x0, y0, z0, x1, y1, z1) in enumerate(rows):
             removed[k] = cut_one(kind, r, rc, x0, y0, z0, x1, y1, z1)
+            if depth_mm is not None:
+                depth_mm[k] = self._last_drop_mm
             if progress is not None and k % 4096 == 4095:
                 progress(k + 1)
-        per_move = np.bincount(move, weights=removed, minlength=n)
-        return PathCut(move, p0, p1, removed, per_move)
+        return removed
 
     def _cut_one(
         self,
@@ -406,10 +427,12 @@ class ZMap:
             min(x0, x1) - r, max(x0, x1) + r, min(y0, y1) - r, max(y0, y1) + r
         )
         if i0 >= i1 or j0 >= j1:
+            self._last_drop_mm = 0.0
             return 0.0
         h = self.heights_mm[j0:j1, i0:i1]
         zlow = max(z0 if z0 < z1 else z1, self.bottom_mm)
         if h.max() <= zlow:  # the cutter passes above everything here (air move)
+            self._last_drop_mm = 0.0
             return 0.0
         qx = self.x_mm[i0:i1] - x0
         qy = self._ycol[j0:j1] - y0
@@ -438,6 +461,9 @@ class ZMap:
         removed = float(diff.sum())
         if removed > 0.0:
             h -= diff
+            self._last_drop_mm = float(diff.max())
+        else:
+            self._last_drop_mm = 0.0
         return removed * self.spacing_mm * self.spacing_mm
 
     # ------------------------------------------------------------------ output

@@ -1,0 +1,608 @@
+"""The feed post-processor (seed 001, CAMplus/AFC): feeds set from the predicted cutting load.
+
+For a program, its tool, a machine and a feed rule:
+
+1. virtual machining on a Z-map (:mod:`planning.opplan`) gives the volume each piece of each
+   block removes (pieces no longer than half the minimum piece length);
+2. the cutting load of each piece is seed 001's relative removal rate
+   (:func:`analysis.load.cutting_load_percent`: plunge formula for Z-only moves);
+3. the rule gives each piece a feed, clamped to the rule's and the machine's [min, max] and,
+   optionally, to the feed at which the predicted peak force reaches a limit;
+4. a straight feed block whose feed changes along it is split at the changes into blocks no
+   shorter than ``min_piece_mm`` (a piece too short to stand alone joins its neighbour and the
+   slower feed wins); any other block (arc, plunge, canned cycle, a block whose coordinates are
+   not plain absolute millimetres) keeps one feed, that of its most loaded piece;
+5. the program is written back with only F words changed and split blocks replaced, comments,
+   numbering and every other word as they were. The result is re-interpreted and its motion
+   compared with the original's (splits re-joined) before anything is returned: the geometry
+   never changes.
+
+The report (:func:`write_report`): machining time before and after, the load histogram over the
+rule's bins, load and feed along the path (PNG), the final stock (PNG) and a per-block CSV.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from analysis.config import EndMill, EndMillCoefficients, MachineConfig
+from analysis.load import cutting_load_percent
+from analysis.rules import FeedRule
+from planning.errors import PlanningError
+from planning.nc import Program, interpret
+from planning.nc.arcs import segment_length_mm
+from planning.nc.motion import LINE, Motion
+from planning.opplan import (
+    DEFAULT_CHORD_TOL_MM,
+    Simulation,
+    check_motion,
+    machining_time_s,
+    plunge_mask,
+    simulate_motion,
+)
+from planning.zmap import Cutter, ZMap
+
+_INCH_RE = re.compile(r"G\s*0*20(?![\d.])", re.IGNORECASE)
+_COMMENT_RE = re.compile(r"\([^)]*\)|;.*")
+_GEOMETRY_TOL_MM = 1e-3  # written coordinates are rounded to the program's decimals (>= 3)
+
+
+@dataclass(frozen=True)
+class FeedPostOptions:
+    """Settings of the post-processor.
+
+    min_piece_mm : shortest block a split may create, mm
+    split : split blocks where the load changes (else one feed per block)
+    chord_tol_mm : chordal tolerance of arc linearisation in the simulation, mm
+    check_holder : check holder and spindle nose against the stock
+    force_limit_n : optional largest predicted peak force, N (needs ``coefficients``)
+    coefficients : end-mill force coefficients (analysis.config.EndMillCoefficients)
+    spindle_rpm : spindle speed for the force prediction when the program has none, rpm
+    feed_step_mm_min : written feeds are floored to a multiple of this, mm/min
+    """
+
+    min_piece_mm: float = 5.0
+    split: bool = True
+    chord_tol_mm: float = DEFAULT_CHORD_TOL_MM
+    check_holder: bool = True
+    force_limit_n: float | None = None
+    coefficients: EndMillCoefficients | None = None
+    spindle_rpm: float | None = None
+    feed_step_mm_min: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.min_piece_mm) and self.min_piece_mm > 0):
+            raise PlanningError(f"min_piece_mm = {self.min_piece_mm}: must be > 0 (mm)")
+        if not self.feed_step_mm_min > 0:
+            raise PlanningError(f"feed_step_mm_min = {self.feed_step_mm_min}: must be > 0")
+        if self.force_limit_n is not None:
+            if not self.force_limit_n > 0:
+                raise PlanningError(f"force_limit_n = {self.force_limit_n}: must be > 0 (N)")
+            if self.coefficients is None:
+                raise PlanningError(
+                    "force_limit_n needs end-mill force coefficients (material [endmill] table)"
+                )
+
+
+@dataclass(frozen=True)
+class BlockTable:
+    """One row per block that has feed moves (arrays of equal length)."""
+
+    block: NDArray[np.int64]
+    line: NDArray[np.int64]
+    length_mm: NDArray[np.float64]
+    removed_mm3: NDArray[np.float64]
+    load_pct: NDArray[np.float64]  # seed 001: over the whole block
+    load_max_pct: NDArray[np.float64]  # most loaded piece
+    feed_before_mm_min: NDArray[np.float64]
+    feed_after_mm_min: NDArray[np.float64]  # slowest of the block's new feeds
+    pieces: NDArray[np.int64]  # blocks it became (1 = not split)
+    time_before_s: NDArray[np.float64]
+    time_after_s: NDArray[np.float64]
+
+    def to_dataframe(self) -> Any:
+        import pandas as pd
+
+        return pd.DataFrame({k: getattr(self, k) for k in self.__dataclass_fields__})
+
+
+@dataclass(frozen=True)
+class FeedPostResult:
+    """What the post-processor did; ``program`` is the adjusted program (not yet written)."""
+
+    program: Program
+    motion_before: Motion
+    motion_after: Motion
+    simulation: Simulation
+    piece_load_pct: NDArray[np.float64]
+    piece_feed_mm_min: NDArray[np.float64]
+    blocks: BlockTable
+    time_before_s: float
+    time_after_s: float
+    split_blocks: int
+    rule: FeedRule
+    stock: ZMap
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def time_saved_pct(self) -> float:
+        return 100.0 * (1.0 - self.time_after_s / self.time_before_s) if self.time_before_s else 0.0
+
+    def load_rate_max(self) -> tuple[float, float]:
+        """Highest cutting load per unit time (load % x feed, %.mm/min) before and after."""
+        seg_feed = self.motion_before.feed_mm_min[self.simulation.piece_segment]
+        before = np.nan_to_num(self.piece_load_pct * seg_feed)
+        after = np.nan_to_num(self.piece_load_pct * self.piece_feed_mm_min)
+        return float(before.max(initial=0.0)), float(after.max(initial=0.0))
+
+    def summary(self) -> dict[str, Any]:
+        before, after = self.load_rate_max()
+        bins = np.bincount(
+            self.rule.bin_of(self.blocks.load_pct[self.blocks.removed_mm3 > 0]),
+            minlength=self.rule.n_bins,
+        )
+        return {
+            "blocks": int(len(self.program)),
+            "feed_blocks": int(len(self.blocks.block)),
+            "split_blocks": self.split_blocks,
+            "time_before_s": self.time_before_s,
+            "time_after_s": self.time_after_s,
+            "time_saved_pct": self.time_saved_pct,
+            "removed_mm3": self.simulation.removed_total_mm3,
+            "load_rate_max_before": before,
+            "load_rate_max_after": after,
+            "load_histogram": bins.tolist(),
+            "holder_contacts": [
+                {"block": c.block, "line": c.line, "part": c.part, "overlap_mm": c.overlap_mm}
+                for c in self.simulation.contacts
+            ],
+            "rapid_cut_blocks": [
+                int(self.motion_before.block[i]) for i in self.simulation.rapid_cut_segments
+            ],
+            "notes": list(self.notes),
+        }
+
+
+def _feed_limits(rule: FeedRule, machine: MachineConfig | None) -> tuple[float, float]:
+    lo, hi = rule.min_feed_mm_min, rule.max_feed_mm_min
+    if machine is not None:
+        lo, hi = max(lo, machine.feed_min_mm_min), min(hi, machine.feed_max_mm_min)
+    if lo > hi:
+        raise PlanningError(
+            f"rule '{rule.name}' feeds [{rule.min_feed_mm_min}, {rule.max_feed_mm_min}] mm/min "
+            f"do not overlap machine '{machine.name if machine else ''}' feeds "
+            f"[{machine.feed_min_mm_min if machine else ''}, "
+            f"{machine.feed_max_mm_min if machine else ''}] mm/min"
+        )
+    return lo, hi
+
+
+def _force_feed_cap(
+    tool: EndMill,
+    sim: Simulation,
+    opts: FeedPostOptions,
+    rpm: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Feed per piece at which the predicted peak force reaches the limit, mm/min (inf if none).
+
+    Engagement from the Z-map: axial depth = the deepest height drop of the piece, radial width =
+    removed cross-section / depth (capped at the diameter). Force is affine in the feed per tooth
+    for the linear edge-force model, so two evaluations give the feed at the limit.
+    """
+    from analysis.endmill import EndMillCut, peak_force
+
+    n = len(sim.piece_removed_mm3)
+    cap = np.full(n, np.inf)
+    length = sim.piece_length_mm
+    cutting = (sim.piece_removed_mm3 > 1e-9) & (length > 0) & (rpm > 0)
+    if not cutting.any():
+        return cap
+    depth = np.clip(sim.piece_depth_mm[cutting], 1e-3, None)
+    area = sim.piece_removed_mm3[cutting] / length[cutting]
+    ae = np.clip(area / depth, 1e-3, tool.diameter_mm)
+    f = []
+    for fz in (0.01, 0.02):
+        cut = EndMillCut.from_width(tool, fz, depth, ae, mode="down")
+        f.append(peak_force(tool, opts.coefficients, cut, n_phi=90))
+    slope = (f[1] - f[0]) / 0.01
+    fz_lim = np.where(slope > 0, (opts.force_limit_n - (f[0] - slope * 0.01)) / slope, np.inf)
+    fz_lim = np.maximum(fz_lim, 0.0)
+    cap[cutting] = fz_lim * tool.flutes * rpm[cutting]
+    return cap
+
+
+def _runs(
+    feeds: NDArray[np.float64], lengths: NDArray[np.float64], min_piece_mm: float
+) -> list[tuple[int, float]]:
+    """Group pieces into runs of equal feed, each >= min_piece_mm long (the short ones join the
+    neighbour with the lower feed, which then applies to both); returns (end piece, feed) pairs.
+    """
+    runs: list[list[float]] = []  # [end index (exclusive), feed, length]
+    for i, (f, ln) in enumerate(zip(feeds.tolist(), lengths.tolist())):
+        if runs and runs[-1][1] == f:
+            runs[-1][0], runs[-1][2] = i + 1, runs[-1][2] + ln
+        else:
+            runs.append([i + 1, f, ln])
+    while len(runs) > 1:
+        short = [k for k, r in enumerate(runs) if r[2] < min_piece_mm - 1e-9]
+        if not short:
+            break
+        k = min(short, key=lambda j: runs[j][2])
+        # join the neighbour with the lower feed (the slower feed is the safe one)
+        if k == 0:
+            j = 1
+        elif k == len(runs) - 1:
+            j = k - 1
+        else:
+            j = k - 1 if runs[k - 1][1] <= runs[k + 1][1] else k + 1
+        a, b = sorted((k, j))
+        merged = [runs[b][0], min(runs[a][1], runs[b][1]), runs[a][2] + runs[b][2]]
+        runs[a : b + 1] = [merged]
+        # neighbours that now share a feed become one run
+        out: list[list[float]] = []
+        for r in runs:
+            if out and out[-1][1] == r[1]:
+                out[-1][0], out[-1][2] = r[0], out[-1][2] + r[2]
+            else:
+                out.append(r)
+        runs = out
+    return [(int(r[0]), float(r[1])) for r in runs]
+
+
+def _plain_absolute(program: Program, block: int, end_mm: NDArray[np.float64]) -> bool:
+    """True when the block's X/Y/Z words are the motion's end point (absolute mm, no offsets),
+    so new blocks can be written in the same coordinates."""
+    for axis, letter in enumerate("XYZ"):
+        txt = program.get_word(block, letter)
+        if txt is not None and abs(float(txt) - float(end_mm[axis])) > 1e-6:
+            return False
+    return True
+
+
+def post_process(
+    program: Program,
+    motion: Motion,
+    tool: EndMill,
+    rule: FeedRule,
+    stock: ZMap,
+    machine: MachineConfig | None = None,
+    options: FeedPostOptions | None = None,
+    progress: Any = None,
+) -> FeedPostResult:
+    """Adjust the feeds of ``program`` (interpreted as ``motion``) by predicted load.
+
+    ``stock`` is lowered in place (it ends as the machined part). Raises :class:`PlanningError`
+    (before anything is written) for a program the machine cannot run, that leaves the stock,
+    that is in inches, or a tool the Z-map cannot model.
+    """
+    opts = options or FeedPostOptions()
+    file = program.file
+    cutter = Cutter.from_tool(tool)
+    for i, raw in enumerate(program.lines):
+        if "20" in raw and _INCH_RE.search(_COMMENT_RE.sub("", raw)):
+            raise PlanningError(
+                f"{file}:{i + 1}: G20 (inch) program: the feed post-processor writes mm/min; "
+                "convert the program to G21"
+            )
+    check_motion(motion, machine, stock, cutter, file, opts.chord_tol_mm)
+    lo, hi = _feed_limits(rule, machine)
+    piece_mm = opts.min_piece_mm / 2 if opts.split else math.inf
+    sim = simulate_motion(
+        stock, tool, motion, chord_tol_mm=opts.chord_tol_mm, piece_mm=piece_mm,
+        check_holder=opts.check_holder, progress=progress,
+    )  # fmt: skip
+    seg = sim.piece_segment
+    plen = sim.piece_length_mm
+    plunge = plunge_mask(sim.piece_start_mm, sim.piece_end_mm)
+    load = cutting_load_percent(
+        sim.piece_removed_mm3, plen, plunge, tool.diameter_mm, tool.flute_length_mm
+    )
+    feed = np.clip(rule.feed_for(load), lo, hi)
+    notes: list[str] = []
+    if opts.force_limit_n is not None:
+        rpm = np.abs(motion.spindle_rpm[seg])
+        if opts.spindle_rpm:
+            rpm = np.where(rpm > 0, rpm, opts.spindle_rpm)
+        feed = np.clip(np.minimum(feed, _force_feed_cap(tool, sim, opts, rpm)), lo, hi)
+    step = opts.feed_step_mm_min
+    feed = np.maximum(np.floor(feed / step + 1e-9) * step, lo)
+    is_feed_piece = motion.is_feed[seg]
+    feed = np.where(is_feed_piece, feed, np.nan)
+
+    # Per segment: feed of its most loaded piece (the slowest), pieces kept for splitting.
+    n = len(motion)
+    seg_feed = np.full(n, np.inf)
+    np.minimum.at(seg_feed, seg[is_feed_piece], feed[is_feed_piece])
+    seg_feed[~motion.is_feed] = np.nan
+    seg_feed[np.isinf(seg_feed)] = np.nan  # feed segments with no piece (zero length)
+    seg_feed = np.where(motion.is_feed & np.isnan(seg_feed), hi, seg_feed)
+    first_piece = np.searchsorted(seg, np.arange(n), side="left")
+    last_piece = np.searchsorted(seg, np.arange(n), side="right")
+
+    # Blocks: one feed each (the slowest of its feed segments) unless it is split.
+    blocks_with_feed = motion.block[motion.is_feed]
+    block_feed: dict[int, float] = {}
+    for b, f in zip(blocks_with_feed.tolist(), seg_feed[motion.is_feed].tolist()):
+        block_feed[b] = min(block_feed.get(b, math.inf), f)
+    seg_count = np.bincount(motion.block, minlength=len(program))
+    split: dict[int, tuple[NDArray[np.bool_], list[tuple[NDArray[np.float64], float]]]] = {}
+    if opts.split:
+        multi = np.nonzero(
+            (motion.kind == LINE) & (last_piece - first_piece > 1) & ~plunge_mask(
+                motion.start, motion.end)
+        )[0]  # fmt: skip
+        for s in multi.tolist():
+            a, b = first_piece[s], last_piece[s]
+            f = feed[a:b]
+            if np.all(f == f[0]):
+                continue
+            blk = int(motion.block[s])
+            if seg_count[blk] != 1 or not _plain_absolute(program, blk, motion.end[s]):
+                continue
+            runs = _runs(f, plen[a:b], opts.min_piece_mm)
+            if len(runs) > 1:
+                ends = [(sim.piece_end_mm[a + e - 1], fr) for e, fr in runs]
+                ends[-1] = (motion.end[s], runs[-1][1])  # the exact original end point
+                split[blk] = (np.abs(motion.end[s] - motion.start[s]) > 0, ends)
+                for e0, (e, fr) in zip([0] + [e for e, _ in runs[:-1]], runs):
+                    feed[a + e0 : a + e] = fr
+            else:
+                feed[a:b] = runs[0][1]
+                block_feed[blk] = runs[0][1]
+    # Unsplit blocks: every piece of the block runs at the block's feed.
+    piece_block = motion.block[seg]
+    unsplit = is_feed_piece & ~np.isin(piece_block, np.fromiter(split, int, len(split)))
+    if unsplit.any():
+        bf = np.array([block_feed[b] for b in piece_block[unsplit].tolist()])
+        feed[unsplit] = bf
+
+    new_program, new_index = _write(program, motion, block_feed, split)
+    motion_after = interpret(new_program, machine, file=file)
+    _verify_geometry(motion, motion_after, new_index, set(split), file)
+    rapid = machine.rapid_mm_min if machine is not None else 10_000.0
+    t_before = machining_time_s(motion, rapid)
+    t_after = machining_time_s(motion_after, rapid)
+    if sim.contacts:
+        notes.append(f"{len(sim.contacts)} holder/spindle contacts with the stock (see report)")
+    if len(sim.rapid_cut_segments):
+        notes.append(f"{len(sim.rapid_cut_segments)} rapid moves cut material (crash on a machine)")
+    blocks = _block_table(motion, motion_after, sim, load, feed, new_index, t_before, t_after, tool)
+    return FeedPostResult(
+        program=new_program,
+        motion_before=motion,
+        motion_after=motion_after,
+        simulation=sim,
+        piece_load_pct=load,
+        piece_feed_mm_min=feed,
+        blocks=blocks,
+        time_before_s=float(t_before.sum()),
+        time_after_s=float(t_after.sum()),
+        split_blocks=len(split),
+        rule=rule,
+        stock=stock,
+        notes=tuple(notes),
+    )
+
+
+def _write(
+    program: Program,
+    motion: Motion,
+    block_feed: dict[int, float],
+    split: dict[int, tuple[NDArray[np.bool_], list[tuple[NDArray[np.float64], float]]]],
+) -> tuple[Program, list[int]]:
+    """The adjusted program: F words where the modal feed must change, split blocks replaced."""
+    out = Program(list(program.lines), program.file, program.newline, program.final_newline)
+    out._style = program.style  # noqa: SLF001 - same number style as the source
+    lines = program.lines
+    with_f = {i for i, raw in enumerate(lines) if "F" in raw or "f" in raw}
+    touched = sorted(with_f | set(block_feed))
+    fmt = out.style.format
+    modal = math.nan
+    for b in touched:
+        if b in split:
+            modal = split[b][1][-1][1]  # each run writes its own F; the last one stays modal
+            continue
+        want = block_feed.get(b)
+        txt = out.get_word(b, "F") if b in with_f else None
+        if want is None:  # an F word on a block without feed moves sets the modal feed
+            if txt is not None:
+                modal = float(txt)
+            continue
+        if txt is not None or want != modal:
+            if txt is None or float(txt) != want:
+                out.set_word(b, "F", fmt(want, "F"))
+            modal = want
+    if not split:
+        return out, list(range(len(lines)))
+    new_lines: list[str] = []
+    new_index: list[int] = []
+    for b, raw in enumerate(out.lines):
+        new_index.append(len(new_lines))
+        if b not in split:
+            new_lines.append(raw)
+            continue
+        moving, runs = split[b]
+        end0, f0 = runs[0]
+        scratch = Program([raw], program.file, _style=out.style)
+        for axis, letter in enumerate("XYZ"):
+            if moving[axis]:
+                scratch.set_word(0, letter, fmt(float(end0[axis]), letter))
+        scratch.set_word(0, "F", fmt(f0, "F"))
+        new_lines.append(scratch.lines[0])
+        for end, f in runs[1:]:
+            words: dict[str, Any] = {
+                letter: float(end[axis]) for axis, letter in enumerate("XYZ") if moving[axis]
+            }
+            words["F"] = f
+            # the new blocks take the layout of the original but not its N number
+            new_lines.append(out.format_block(words, like=b).replace(_n_word(raw), "", 1))
+    result = Program(new_lines, program.file, program.newline, program.final_newline)
+    result._style = out.style  # noqa: SLF001 - same number style as the source
+    return result, new_index
+
+
+def _n_word(raw: str) -> str:
+    """The block's leading N word as written (e.g. ``N120 ``), or '' if none."""
+    m = re.match(r"\s*/?\s*(N\d+\s*)", raw, re.IGNORECASE)
+    return m.group(1) if m else "\x00"  # a marker that never matches
+
+
+def rejoin(motion_after: Motion, new_index: list[int], split_blocks: set[int]) -> Motion:
+    """Undo the splits: consecutive segments from one split source block become one segment.
+
+    ``new_index[i]`` is the first output block of source block ``i``; the returned motion has
+    the source block numbers, and feeds of the first piece.
+    """
+    starts = np.asarray(new_index)
+    src = np.searchsorted(starts, motion_after.block, side="right") - 1
+    is_split = np.isin(src, np.fromiter(split_blocks, int, len(split_blocks)))
+    # a segment continues the previous one when both come from the same split block
+    cont = np.zeros(len(motion_after), bool)
+    cont[1:] = is_split[1:] & (src[1:] == src[:-1])
+    keep = ~cont
+    groups = np.cumsum(keep) - 1
+    last = np.zeros(keep.sum(), np.int64)
+    last[groups] = np.arange(len(motion_after))
+    m = motion_after[keep]
+    end = m.end.copy()
+    end[:] = motion_after.end[last]
+    from dataclasses import replace
+
+    return replace(m, end=end, block=src[keep].astype(np.int32))
+
+
+def _verify_geometry(
+    before: Motion, after: Motion, new_index: list[int], split: set[int], file: str
+) -> None:
+    """The adjusted program must move exactly like the original but for feed."""
+    joined = rejoin(after, new_index, split)
+    ok = len(joined) == len(before)
+    if ok:
+        ok = (
+            np.array_equal(joined.kind, before.kind)
+            and np.array_equal(joined.block, before.block)
+            and np.allclose(joined.start, before.start, atol=_GEOMETRY_TOL_MM, rtol=0)
+            and np.allclose(joined.end, before.end, atol=_GEOMETRY_TOL_MM, rtol=0)
+            and np.allclose(
+                joined.center, before.center, atol=_GEOMETRY_TOL_MM, rtol=0, equal_nan=True
+            )
+        )
+    if not ok:
+        raise PlanningError(
+            f"{file}: the adjusted program would not move like the original (internal check "
+            "failed); nothing written"
+        )
+
+
+def _block_table(
+    motion: Motion,
+    motion_after: Motion,
+    sim: Simulation,
+    load: NDArray[np.float64],
+    feed: NDArray[np.float64],
+    new_index: list[int],
+    t_before: NDArray[np.float64],
+    t_after: NDArray[np.float64],
+    tool: EndMill,
+) -> BlockTable:
+    fm = motion.is_feed
+    blocks = np.unique(motion.block[fm])
+    n_blocks = int(motion.block.max()) + 1 if len(motion) else 0
+    length = np.bincount(motion.block[fm], segment_length_mm(motion)[fm], n_blocks)
+    removed = np.bincount(motion.block, sim.removed_mm3, n_blocks)
+    plunge_blk = np.zeros(n_blocks, bool)
+    plunge_blk[motion.block[plunge_mask(motion.start, motion.end) & fm]] = True
+    load_blk = cutting_load_percent(
+        removed, length, plunge_blk, tool.diameter_mm, tool.flute_length_mm
+    )
+    pb = motion.block[sim.piece_segment]
+    load_max = np.zeros(n_blocks)
+    np.maximum.at(load_max, pb, load)
+    fb = np.full(n_blocks, np.inf)
+    np.minimum.at(fb, motion.block[fm], motion.feed_mm_min[fm])
+    fa = np.full(n_blocks, np.inf)
+    ok = ~np.isnan(feed)
+    np.minimum.at(fa, pb[ok], feed[ok])
+    tb = np.bincount(motion.block, t_before, n_blocks)
+    starts = np.asarray(new_index)
+    src_after = np.searchsorted(starts, motion_after.block, side="right") - 1
+    ta = np.bincount(src_after, t_after, n_blocks)
+    nxt = np.append(starts[1:], np.iinfo(np.int64).max)
+    pieces = np.minimum(nxt, int(motion_after.block.max()) + 1 if len(motion_after) else 0)
+    pieces = pieces - starts
+    return BlockTable(
+        block=blocks.astype(np.int64),
+        line=blocks.astype(np.int64) + 1,
+        length_mm=length[blocks],
+        removed_mm3=removed[blocks],
+        load_pct=load_blk[blocks],
+        load_max_pct=load_max[blocks],
+        feed_before_mm_min=fb[blocks],
+        feed_after_mm_min=fa[blocks],
+        pieces=np.maximum(pieces[blocks], 1).astype(np.int64),
+        time_before_s=tb[blocks],
+        time_after_s=ta[blocks],
+    )
+
+
+# ------------------------------------------------------------------------------------- report
+
+
+def write_report(result: FeedPostResult, folder: str | Path, stem: str = "feedpost") -> dict:
+    """Write ``stem``-blocks.csv, -load-feed.png, -histogram.png, -stock.png; return the paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {}
+    csv = out / f"{stem}-blocks.csv"
+    result.blocks.to_dataframe().to_csv(csv, index=False, float_format="%.6g")
+    paths["csv"] = csv
+
+    sim = result.simulation
+    feed_piece = result.motion_before.is_feed[sim.piece_segment]
+    dist = np.cumsum(np.where(feed_piece, sim.piece_length_mm, 0.0))
+    before = result.motion_before.feed_mm_min[sim.piece_segment]
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6), sharex=True, dpi=110)
+    ax1.plot(dist[feed_piece], result.piece_load_pct[feed_piece], lw=0.8, color="tab:red")
+    ax1.set_ylabel("cutting load (%)")
+    ax1.set_title(f"load and feed along the path ({result.rule.name})")
+    ax2.plot(dist[feed_piece], before[feed_piece], lw=0.8, color="0.5", label="programmed")
+    ax2.plot(
+        dist[feed_piece], result.piece_feed_mm_min[feed_piece], lw=0.8, color="tab:blue",
+        label="adjusted",
+    )  # fmt: skip
+    ax2.set_ylabel("feed (mm/min)")
+    ax2.set_xlabel("feed path length (mm)")
+    ax2.legend(loc="upper right")
+    fig.tight_layout()
+    paths["load_feed_png"] = out / f"{stem}-load-feed.png"
+    fig.savefig(paths["load_feed_png"])
+    plt.close(fig)
+
+    rule = result.rule
+    counts = result.summary()["load_histogram"]
+    fig, ax = plt.subplots(figsize=(8, 4), dpi=110)
+    ax.bar(np.arange(rule.n_bins), counts, color="tab:red")
+    ax.set_xticks(np.arange(rule.n_bins))
+    ax.set_xticklabels([f"{e:.3g}" for e in rule.load_edges_pct[1:]], rotation=60, fontsize=7)
+    ax.set_xlabel("load bin upper edge (%)")
+    ax.set_ylabel("cutting blocks")
+    ax.set_title("cutting load per block (rule bins)")
+    fig.tight_layout()
+    paths["histogram_png"] = out / f"{stem}-histogram.png"
+    fig.savefig(paths["histogram_png"])
+    plt.close(fig)
+
+    paths["stock_png"] = result.stock.save_png(out / f"{stem}-stock.png", "final stock")
+    return paths

@@ -1,0 +1,579 @@
+"""Virtual machining of NC programs on a Z-map, and operation plans (seed 001 2.1 and 3).
+
+Seed 001 manages one die as an operation plan: an ordered list of NC programs, each with its tool
+and holder, machined on the same stock, so that the pencil or rest-roughing program meets what the
+roughing left. :func:`simulate_motion` runs one program's canonical motion on a :class:`ZMap`
+(arcs linearised within a chordal tolerance, long moves cut in pieces), returns the volume removed
+per piece and per segment, and checks the holder and the spindle nose against the stock after
+every move (any contact is reported with its block). :class:`OperationPlan` runs several in order.
+
+Before anything is cut, :func:`check_motion` refuses a program the machine cannot run or that
+leaves the stock: a point outside the machine's travel, a feed move below the stock's underside,
+an arc smaller than the control's smallest radius or whose end radius differs from its start radius
+by more than the machine's tolerance, a feed move with no feed.
+
+Stock spec (:func:`load_stock`): ``box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP`` (mm), an ``.stl`` /
+``.obj`` / ``.ply`` mesh, a ``.npy`` height field with its corner and spacing in a TOML, or a TOML
+file with a ``[stock]`` table::
+
+    [stock]
+    kind = "box"                   # box | mesh | heights
+    xmin_mm = 0.0                  # box: xmin/xmax/ymin/ymax/bottom/top _mm
+    spacing_mm = 0.25              # optional; --spacing overrides
+    # mesh: path = "part.stl", margin_mm = 5, bottom_mm (optional)
+    # heights: path = "top.npy" (ny x nx, mm), x0_mm, y0_mm, bottom_mm (optional)
+
+Plan file (TOML, :func:`load_plan`): the stock table above plus::
+
+    [plan]
+    machine = "ace-h63"            # name in configs/machines or a path (optional)
+    [[operations]]
+    name = "roughing"
+    program = "rough.nc"           # relative to the plan file
+    tool = "phi50-bull"            # name in configs/tools.toml
+    rule = "rules/rough.toml"      # optional: the feed rule of this operation
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import Field
+
+from analysis.config import (
+    EndMill,
+    MachineConfig,
+    Model,
+    get_tool,
+    load_machine,
+    read_toml,
+    validate,
+)
+from planning import _zmap_kernels as _k
+from planning.errors import PlanningError
+from planning.nc.arcs import PLANE_AXES, arc_radius_mm, linearize, segment_length_mm
+from planning.nc.motion import DWELL, LINE, RAPID, Motion
+from planning.zmap import Cutter, ZMap, split_moves
+
+#: chordal tolerance for arcs, mm (the Z-map's own resolution is far coarser)
+DEFAULT_CHORD_TOL_MM = 0.001
+_CONTACT_TOL_MM = 1e-6
+
+
+@dataclass(frozen=True)
+class HolderContact:
+    """The holder (or the spindle nose) touching the stock during one block."""
+
+    block: int
+    line: int
+    part: str  # "holder" or "spindle nose"
+    overlap_mm: float  # how far the stock reaches above the part's underside, mm
+    position_mm: tuple[float, float, float]  # tool tip at the end of the touching move, mm
+
+    def message(self, file: str = "<program>") -> str:
+        x, y, z = self.position_mm
+        return (
+            f"{file}:{self.line}: block {self.block}: {self.part} touches the stock by "
+            f"{self.overlap_mm:.3f} mm (tip at X{x:.3f} Y{y:.3f} Z{z:.3f})"
+        )
+
+
+@dataclass(frozen=True)
+class Simulation:
+    """Virtual machining of one program: what each piece of each segment removed.
+
+    Attributes
+    ----------
+    motion : Motion, n segments
+    piece_segment : ndarray (k,), int — the motion segment of each piece
+    piece_start_mm, piece_end_mm : ndarray (k, 3), mm
+    piece_removed_mm3 : ndarray (k,), mm^3
+    removed_mm3 : ndarray (n,), mm^3 — per segment
+    piece_depth_mm : ndarray (k,), mm — deepest height drop of each piece (axial depth met)
+    contacts : tuple of HolderContact
+    rapid_cut_segments : ndarray, int — rapid moves that removed material (a crash on a machine)
+    """
+
+    motion: Motion
+    piece_segment: NDArray[np.int64]
+    piece_start_mm: NDArray[np.float64]
+    piece_end_mm: NDArray[np.float64]
+    piece_removed_mm3: NDArray[np.float64]
+    removed_mm3: NDArray[np.float64]
+    piece_depth_mm: NDArray[np.float64]
+    contacts: tuple[HolderContact, ...] = ()
+    rapid_cut_segments: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+
+    @property
+    def piece_length_mm(self) -> NDArray[np.float64]:
+        return np.linalg.norm(self.piece_end_mm - self.piece_start_mm, axis=1)
+
+    @property
+    def removed_total_mm3(self) -> float:
+        return float(self.removed_mm3.sum())
+
+
+def machining_time_s(
+    motion: Motion,
+    rapid_mm_min: float,
+    feed_mm_min: NDArray[np.float64] | None = None,
+) -> NDArray[np.float64]:
+    """Time of each segment, s, with :func:`planning.nc.motion_stats`' model: feed moves
+    length / feed (``feed_mm_min`` overrides the programmed feeds), rapids their longest axis
+    travel at ``rapid_mm_min``, dwells their time. Acceleration is not modelled.
+    """
+    length = segment_length_mm(motion)
+    feed = motion.feed_mm_min if feed_mm_min is None else np.asarray(feed_mm_min, float)
+    axis = np.abs(motion.end - motion.start).max(axis=1) if len(motion) else np.zeros(0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(motion.kind == RAPID, axis / rapid_mm_min, length / feed) * 60.0
+    t = np.where(motion.kind == DWELL, motion.dwell_s, t)
+    return np.where(np.isfinite(t), t, 0.0)
+
+
+def plunge_mask(start_mm: NDArray, end_mm: NDArray, tol_mm: float = 1e-9) -> NDArray[np.bool_]:
+    """True for Z-only moves (seed 001's plunge formula applies to them)."""
+    d = end_mm - start_mm
+    return (np.hypot(d[:, 0], d[:, 1]) <= tol_mm) & (np.abs(d[:, 2]) > tol_mm)
+
+
+def check_motion(
+    motion: Motion,
+    machine: MachineConfig | None,
+    stock: ZMap | None = None,
+    cutter: Cutter | None = None,
+    file: str = "<program>",
+    chord_tol_mm: float = DEFAULT_CHORD_TOL_MM,
+) -> None:
+    """Raise :class:`PlanningError` naming file, line, block, field, value and range if the
+    program cannot run on ``machine`` or leaves ``stock``; return None when it can.
+    """
+    if len(motion) == 0:
+        raise PlanningError(f"{file}: the program has no motion")
+    lin = linearize(motion, chord_tol_mm)
+    pts = np.concatenate([lin.start, lin.end])
+    src = np.concatenate([lin.source, lin.source])
+
+    def where(seg: int) -> str:
+        return f"{file}:{int(motion.line[seg])}: block {int(motion.block[seg])}"
+
+    feed_seg = motion.is_feed
+    bad_feed = feed_seg & ~(motion.feed_mm_min > 0)
+    if bad_feed.any():
+        i = int(np.argmax(bad_feed))
+        raise PlanningError(
+            f"{where(i)}: feed move with F = {motion.feed_mm_min[i]}: needs a feed > 0 mm/min"
+        )
+    if machine is not None:
+        for axis, name in enumerate("xyz"):
+            travel = getattr(machine, name)
+            out = (pts[:, axis] < travel.min_mm - 1e-9) | (pts[:, axis] > travel.max_mm + 1e-9)
+            if out.any():
+                i = int(np.argmax(out))
+                raise PlanningError(
+                    f"{where(int(src[i]))}: {name.upper()} = {pts[i, axis]:.4f} mm is outside "
+                    f"machine '{machine.name}' travel [{travel.min_mm}, {travel.max_mm}] mm"
+                )
+        arcs = np.nonzero(motion.is_arc)[0]
+        if len(arcs):
+            r0 = arc_radius_mm(motion)[arcs]
+            ax = np.array([PLANE_AXES[int(p)] for p in motion.plane[arcs]])
+            ea = motion.end[arcs, ax[:, 0]] - motion.center[arcs, ax[:, 0]]
+            eb = motion.end[arcs, ax[:, 1]] - motion.center[arcs, ax[:, 1]]
+            r1 = np.hypot(ea, eb)
+            small = r0 < machine.min_arc_radius_mm
+            if small.any():
+                i = int(arcs[np.argmax(small)])
+                raise PlanningError(
+                    f"{where(i)}: arc radius {r0[np.argmax(small)]:.4f} mm is below machine "
+                    f"'{machine.name}' min_arc_radius_mm = {machine.min_arc_radius_mm} mm"
+                )
+            mismatch = np.abs(r1 - r0) > machine.arc_radius_tolerance_mm
+            if mismatch.any():
+                j = int(np.argmax(mismatch))
+                raise PlanningError(
+                    f"{where(int(arcs[j]))}: arc end radius {r1[j]:.4f} mm differs from its start "
+                    f"radius {r0[j]:.4f} mm by more than machine '{machine.name}' "
+                    f"arc_radius_tolerance_mm = {machine.arc_radius_tolerance_mm} mm"
+                )
+    if stock is not None:
+        xmin, xmax, ymin, ymax = stock.extent_mm
+        r = cutter.radius_mm if cutter is not None else 0.0
+        p0, p1 = lin.start, lin.end
+        # Part of each feed move over the stock (plus the cutter radius), Liang-Barsky clipping.
+        t0, t1 = np.zeros(len(p0)), np.ones(len(p0))
+        over = feed_seg[lin.source].copy()
+        for axis, lo, hi in ((0, xmin - r, xmax + r), (1, ymin - r, ymax + r)):
+            d = p1[:, axis] - p0[:, axis]
+            still = d == 0
+            over &= ~still | ((p0[:, axis] >= lo) & (p0[:, axis] <= hi))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ta = np.where(still, -np.inf, (lo - p0[:, axis]) / d)
+                tb = np.where(still, np.inf, (hi - p0[:, axis]) / d)
+            t0 = np.maximum(t0, np.minimum(ta, tb))
+            t1 = np.minimum(t1, np.maximum(ta, tb))
+        over &= t0 <= t1
+        dz = p1[:, 2] - p0[:, 2]
+        zlow = np.minimum(p0[:, 2] + t0 * dz, p0[:, 2] + t1 * dz)
+        below = over & (zlow < stock.bottom_mm - 1e-6)
+        if below.any():
+            i = int(np.argmax(below))
+            raise PlanningError(
+                f"{where(int(lin.source[i]))}: Z = {zlow[i]:.4f} mm leaves the stock: below "
+                f"its underside at {stock.bottom_mm} mm (the tool would cut the fixture)"
+            )
+
+
+def _holder_contacts(
+    stock: ZMap,
+    tool: EndMill,
+    p0: Sequence[float],
+    p1: Sequence[float],
+) -> list[tuple[str, float]]:
+    """Parts of the tool assembly above the flutes whose underside the stock reaches."""
+    out = []
+    holder = tool.holder
+    parts = (
+        ("holder", holder.diameter_mm / 2, tool.length_mm),
+        ("spindle nose", holder.spindle_nose_diameter_mm / 2, tool.length_mm + holder.length_mm),
+    )
+    for name, radius, lift in parts:
+        h = stock.max_height_near(p0, p1, radius)
+        if h.size == 0:
+            continue
+        x0, y0, z0 = p0
+        x1, y1, z1 = p1
+        i0, i1, j0, j1 = stock._patch(  # noqa: SLF001 - same module family
+            min(x0, x1) - radius, max(x0, x1) + radius, min(y0, y1) - radius, max(y0, y1) + radius
+        )
+        env = _k.envelope(
+            _k.FLAT, radius, 0.0, stock.x_mm[i0:i1] - x0, stock.y_mm[j0:j1, None] - y0,
+            x1 - x0, y1 - y0, z1 - z0, z0 + lift,
+        )  # fmt: skip
+        over = float(np.max(h - env))
+        if over > _CONTACT_TOL_MM:
+            out.append((name, over))
+    return out
+
+
+def simulate_motion(
+    stock: ZMap,
+    tool: EndMill,
+    motion: Motion,
+    *,
+    chord_tol_mm: float = DEFAULT_CHORD_TOL_MM,
+    piece_mm: float = math.inf,
+    check_holder: bool = True,
+    progress: Callable[[int, int], None] | None = None,
+) -> Simulation:
+    """Machine ``motion`` with ``tool`` on ``stock`` (lowered in place).
+
+    Parameters
+    ----------
+    piece_mm : float, mm
+        Longest piece a linear move (or an arc chord) is cut in; the removed volume is reported per
+        piece, so a long block's load is known along it.
+    check_holder : bool
+        Check the holder and spindle nose against the stock after each move that could reach it.
+    progress : callable(done, total), optional
+    """
+    cutter = Cutter.from_tool(tool)
+    lin = linearize(motion, chord_tol_mm)
+    keep = lin.kind != DWELL
+    src = lin.source[keep]
+    move, p0, p1 = split_moves(lin.start[keep], lin.end[keep], piece_mm)
+    seg = src[move]
+    removed = np.zeros(len(move))
+    depth = np.zeros(len(move))
+    contacts: dict[tuple[int, str], HolderContact] = {}
+    # The stock never rises, so its highest point now bounds it for the whole program: pieces
+    # whose holder underside stays above it need no check.
+    if check_holder and len(move):
+        lowest_holder = np.minimum(p0[:, 2], p1[:, 2]) + tool.length_mm
+        check = np.nonzero(lowest_holder < float(stock.heights_mm.max()) - _CONTACT_TOL_MM)[0]
+    else:
+        check = np.zeros(0, np.int64)
+    done = 0
+    total = len(move)
+
+    def report(k: int) -> None:
+        if progress is not None:
+            progress(done + k, total)
+
+    for k in [*check.tolist(), None]:
+        stop = total if k is None else k + 1
+        if stop > done:
+            removed[done:stop] = stock.cut_pieces(
+                cutter, p0[done:stop], p1[done:stop], report, depth[done:stop]
+            )
+            done = stop
+            if progress is not None:
+                progress(done, total)
+        if k is None:
+            break
+        for name, over in _holder_contacts(stock, tool, p0[k].tolist(), p1[k].tolist()):
+            s = int(seg[k])
+            key = (int(motion.block[s]), name)
+            prev = contacts.get(key)
+            if prev is None or over > prev.overlap_mm:
+                contacts[key] = HolderContact(
+                    block=int(motion.block[s]),
+                    line=int(motion.line[s]),
+                    part=name,
+                    overlap_mm=over,
+                    position_mm=tuple(float(v) for v in p1[k]),  # type: ignore[arg-type]
+                )
+    per_seg = np.bincount(seg, weights=removed, minlength=len(motion))
+    rapid_cut = np.nonzero((motion.kind == RAPID) & (per_seg > 1e-9))[0]
+    ordered = tuple(sorted(contacts.values(), key=lambda c: (c.block, c.part)))
+    return Simulation(motion, seg, p0, p1, removed, per_seg, depth, ordered, rapid_cut)
+
+
+# ---------------------------------------------------------------------------------- plans
+
+
+@dataclass(frozen=True)
+class Operation:
+    """One program of a plan: its motion, tool (with holder) and optional feed rule path."""
+
+    name: str
+    motion: Motion
+    tool: EndMill
+    tool_name: str = ""
+    file: str = "<program>"
+    rule_path: str | None = None
+
+
+@dataclass(frozen=True)
+class OperationResult:
+    operation: Operation
+    simulation: Simulation
+    time_s: float
+    removed_mm3: float
+    stock_volume_after_mm3: float
+
+
+@dataclass
+class OperationPlan:
+    """Ordered programs machined on one stock (seed 001's operation plan).
+
+    ``run`` lowers ``stock`` in place; keep ``stock.copy()`` if the start is needed again.
+    """
+
+    stock: ZMap
+    operations: list[Operation]
+    machine: MachineConfig | None = None
+
+    def check(self) -> None:
+        """Refuse the whole plan before anything is cut if one program cannot run."""
+        for op in self.operations:
+            check_motion(op.motion, self.machine, self.stock, Cutter.from_tool(op.tool), op.file)
+
+    def run(
+        self,
+        piece_mm: float = math.inf,
+        check_holder: bool = True,
+        progress: Callable[[str, int, int], None] | None = None,
+    ) -> list[OperationResult]:
+        self.check()
+        rapid = self.machine.rapid_mm_min if self.machine is not None else 10_000.0
+        out = []
+        for op in self.operations:
+            cb = None if progress is None else (lambda d, t, n=op.name: progress(n, d, t))
+            sim = simulate_motion(
+                self.stock, op.tool, op.motion, piece_mm=piece_mm, check_holder=check_holder,
+                progress=cb,
+            )  # fmt: skip
+            out.append(
+                OperationResult(
+                    operation=op,
+                    simulation=sim,
+                    time_s=float(machining_time_s(op.motion, rapid).sum()),
+                    removed_mm3=sim.removed_total_mm3,
+                    stock_volume_after_mm3=self.stock.volume_mm3(),
+                )
+            )
+        return out
+
+
+def summary(result: OperationResult) -> dict[str, Any]:
+    """Plain-data summary of one operation's virtual machining (for JSON and tables)."""
+    sim = result.simulation
+    m = sim.motion
+    length = segment_length_mm(m)
+    return {
+        "operation": result.operation.name,
+        "file": result.operation.file,
+        "tool": result.operation.tool_name,
+        "segments": len(m),
+        "feed_path_mm": float(length[m.is_feed].sum()),
+        "cutting_path_mm": float(length[m.is_feed & (sim.removed_mm3 > 1e-9)].sum()),
+        "removed_mm3": result.removed_mm3,
+        "time_s": result.time_s,
+        "stock_volume_after_mm3": result.stock_volume_after_mm3,
+        "holder_contacts": [
+            {"block": c.block, "line": c.line, "part": c.part, "overlap_mm": c.overlap_mm}
+            for c in sim.contacts
+        ],
+        "rapid_cut_blocks": [int(m.block[i]) for i in sim.rapid_cut_segments],
+    }
+
+
+# ---------------------------------------------------------------------------------- files
+
+
+class _StockModel(Model):
+    kind: Literal["box", "mesh", "heights"]
+    spacing_mm: float | None = Field(None, gt=0, le=100, description="mm")
+    xmin_mm: float | None = Field(None, description="mm")
+    xmax_mm: float | None = Field(None, description="mm")
+    ymin_mm: float | None = Field(None, description="mm")
+    ymax_mm: float | None = Field(None, description="mm")
+    bottom_mm: float | None = Field(None, description="mm")
+    top_mm: float | None = Field(None, description="mm")
+    path: str | None = Field(None, description="mesh or .npy height field, relative to the file")
+    margin_mm: float = Field(0.0, ge=0, description="mm")
+    x0_mm: float = Field(0.0, description="mm")
+    y0_mm: float = Field(0.0, description="mm")
+
+
+class _OperationModel(Model):
+    name: str = Field(min_length=1)
+    program: str = Field(min_length=1, description="NC file, relative to the plan file")
+    tool: str = Field(min_length=1, description="tool name in configs/tools.toml")
+    rule: str | None = Field(None, description="feed rule file or rule-base name")
+
+
+class _PlanHeader(Model):
+    machine: str | None = None
+    description: str = ""
+
+
+class _PlanModel(Model):
+    plan: _PlanHeader = _PlanHeader()
+    stock: _StockModel
+    operations: tuple[_OperationModel, ...] = Field(min_length=1)
+
+
+DEFAULT_SPACING_MM = 0.25
+
+
+def _stock_from_model(st: _StockModel, where: str, base: Path, spacing_mm: float | None) -> ZMap:
+    s = spacing_mm or st.spacing_mm or DEFAULT_SPACING_MM
+    if st.kind == "box":
+        need = ("xmin_mm", "xmax_mm", "ymin_mm", "ymax_mm", "bottom_mm", "top_mm")
+        missing = [k for k in need if getattr(st, k) is None]
+        if missing:
+            raise PlanningError(f"{where}: stock kind 'box' needs {', '.join(missing)} (mm)")
+        return ZMap.box(st.xmin_mm, st.xmax_mm, st.ymin_mm, st.ymax_mm, st.bottom_mm, st.top_mm, s)  # type: ignore[arg-type]
+    if st.path is None:
+        raise PlanningError(f"{where}: stock kind '{st.kind}' needs path")
+    p = Path(st.path) if Path(st.path).is_absolute() else base / st.path
+    if not p.exists():
+        raise PlanningError(f"{where}: stock path = {st.path!r}: file {p} not found")
+    if st.kind == "mesh":
+        return ZMap.from_mesh(p, s, st.margin_mm, st.bottom_mm)
+    try:
+        h = np.load(p)
+    except Exception as exc:  # numpy raises several types for a bad file
+        raise PlanningError(f"{where}: {p}: not a .npy height field: {exc}") from None
+    return ZMap.from_heights(h, st.x0_mm, st.y0_mm, s, st.bottom_mm)
+
+
+def load_stock(
+    spec: str | Path,
+    spacing_mm: float | None = None,
+) -> ZMap:
+    """The starting stock from a spec (see the module docstring)."""
+    text = str(spec)
+    if text.startswith("box:"):
+        try:
+            vals = [float(v) for v in text[4:].split(",")]
+        except ValueError:
+            vals = []
+        if len(vals) != 6:
+            raise PlanningError(
+                f"stock {text!r}: expected box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP (six numbers, mm)"
+            )
+        return ZMap.box(*vals, spacing_mm or DEFAULT_SPACING_MM)
+    p = Path(text)
+    if not p.exists():
+        raise PlanningError(
+            f"stock {text!r}: no such file (or use box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP)"
+        )
+    if p.suffix.lower() in (".stl", ".obj", ".ply", ".off"):
+        return ZMap.from_mesh(p, spacing_mm or DEFAULT_SPACING_MM)
+    data, raw = read_toml(p)
+    if "stock" not in data:
+        raise PlanningError(f"{p}: no [stock] table")
+    st = validate(_StockModel, data["stock"], str(p), raw)
+    return _stock_from_model(st, str(p), p.parent, spacing_mm)
+
+
+def default_stock(motion: Motion, cutter: Cutter, spacing_mm: float | None = None) -> ZMap:
+    """A box over the program's feed moves (XY extent plus the cutter radius), top at Z = 0
+    (work zero on the stock top, the usual convention), bottom 1 mm below the deepest feed move.
+    """
+    feed = motion.is_feed
+    if not feed.any():
+        raise PlanningError("the program has no feed moves: give the stock (--stock)")
+    pts = np.concatenate([motion.start[feed], motion.end[feed]])
+    r = cutter.radius_mm
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    bottom = min(float(lo[2]) - 1.0, -1.0)
+    return ZMap.box(
+        float(lo[0]) - r, float(hi[0]) + r, float(lo[1]) - r, float(hi[1]) + r, bottom, 0.0,
+        spacing_mm or DEFAULT_SPACING_MM,
+    )  # fmt: skip
+
+
+def load_plan(
+    path: str | Path, spacing_mm: float | None = None, strict: bool = True
+) -> tuple[OperationPlan, list[str | None]]:
+    """An operation plan from its TOML file; returns the plan and each operation's rule spec.
+
+    Every program is read and interpreted now, so a bad program or tool is reported before
+    anything is cut.
+    """
+    from planning.nc import interpret_file
+
+    p = Path(path)
+    data, raw = read_toml(p)
+    model = validate(_PlanModel, data, str(p), raw)
+    machine = load_machine(model.plan.machine) if model.plan.machine else None
+    stock = _stock_from_model(model.stock, str(p), p.parent, spacing_mm)
+    ops = []
+    for i, o in enumerate(model.operations):
+        prog = Path(o.program) if Path(o.program).is_absolute() else p.parent / o.program
+        tool = get_tool(o.tool)
+        if not isinstance(tool, EndMill):
+            raise PlanningError(
+                f"{p}: operations[{i}].tool = {o.tool!r}: a face mill; the Z-map models end mills"
+            )
+        motion = interpret_file(prog, machine, strict=strict)
+        ops.append(Operation(o.name, motion, tool, o.tool, str(prog), o.rule))
+    return OperationPlan(stock, ops, machine), [o.rule for o in model.operations]
+
+
+__all__ = [
+    "HolderContact",
+    "LINE",
+    "Operation",
+    "OperationPlan",
+    "OperationResult",
+    "Simulation",
+    "check_motion",
+    "default_stock",
+    "load_plan",
+    "load_stock",
+    "machining_time_s",
+    "plunge_mask",
+    "simulate_motion",
+    "summary",
+]

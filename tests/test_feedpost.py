@@ -1,0 +1,365 @@
+"""Feed post-processor (seed 001): load -> feed, splits, geometry preserved, bad input."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from analysis.config import get_tool, load_machine
+from analysis.errors import CutlabError
+from analysis.load import slot_load_percent
+from analysis.rules import derive_rule, save_rule
+from planning.errors import PlanningError
+from planning.feedpost import FeedPostOptions, post_process, rejoin, write_report
+from planning.nc import Program, interpret
+from planning.nc.motion import LINE
+from planning.zmap import ZMap
+
+DATA = Path(__file__).parent / "data" / "zmap"
+F_WORD = re.compile(r"\s?F[-+]?[\d.]+", re.IGNORECASE)
+
+
+def seed001_rule():
+    """Seed 001 4.2 step 3: min 100, base 1000, max 3500 mm/min, 20 bins; the base feed is the
+    one known safe for the heaviest cut of the test (the 0.7 mm step, see analysis.rules)."""
+    return derive_rule("seed001-4.3", 100, 1000, 3500, slot_load_percent("ball", 30, 0.7, 30))
+
+
+def step_stock(spacing: float = 0.1) -> ZMap:
+    """A block whose depth of cut under Z-0.7 steps 0.1 -> 0.7 mm in 5 steps of 30 mm."""
+    x = np.arange(0, 200, spacing) + spacing / 2
+    top = np.full(x.shape, -0.7)
+    for k, d in enumerate(np.linspace(0.1, 0.7, 5)):
+        top[(x >= 25 + 30 * k) & (x < 55 + 30 * k)] = -0.7 + d
+    return ZMap.from_heights(np.tile(top, (round(60 / spacing), 1)), 0, 0, spacing, -10)
+
+
+def run(text: str, tool: str, stock: ZMap, rule=None, machine="ace-h63", **opts):
+    prog = Program.parse(text, "test.nc")
+    m = load_machine(machine)
+    motion = interpret(prog, m, file="test.nc")
+    return post_process(
+        prog, motion, get_tool(tool), rule or seed001_rule(), stock, m, FeedPostOptions(**opts)
+    )
+
+
+def assert_same_geometry(result) -> None:
+    """Independent of the module's own check: every unsplit block is the original text but for
+    its F word; split blocks' pieces lie on the original segment, in order, end to end."""
+    before, after = result.motion_before, result.motion_after
+    src_lines = Program.parse(
+        "\n".join(result.program.lines), "x"
+    ).lines  # round trip of the writer
+    assert len(src_lines) == len(result.program.lines)
+    joined = rejoin(after, _new_index(result), _split_blocks(result))
+    assert len(joined) == len(before)
+    np.testing.assert_array_equal(joined.kind, before.kind)
+    np.testing.assert_allclose(joined.start, before.start, atol=1e-3)
+    np.testing.assert_allclose(joined.end, before.end, atol=1e-3)
+    np.testing.assert_allclose(joined.center, before.center, atol=1e-3)
+    # pieces of split blocks: on the original line, consecutive
+    for seg in np.nonzero(before.kind == LINE)[0]:
+        pieces = after[np.nonzero(_src_block(after, result) == before.block[seg])[0]]
+        if len(pieces) < 2:
+            continue
+        a, b = before.start[seg], before.end[seg]
+        u = (b - a) / np.linalg.norm(b - a)
+        for p in np.concatenate([pieces.start, pieces.end]):
+            off = (p - a) - np.dot(p - a, u) * u
+            assert np.linalg.norm(off) < 1e-3
+        np.testing.assert_allclose(pieces.start[1:], pieces.end[:-1], atol=1e-9)
+
+
+def _new_index(result) -> list[int]:
+    counts = result.blocks.pieces
+    n = len(result.motion_before.block) and int(result.motion_before.block.max()) + 1
+    idx, k = [], 0
+    per = dict(zip(result.blocks.block.tolist(), counts.tolist()))
+    total_src = max(n, len(result.program.lines) - sum(c - 1 for c in counts))
+    for b in range(total_src):
+        idx.append(k)
+        k += per.get(b, 1)
+    return idx
+
+
+def _split_blocks(result) -> set[int]:
+    return {int(b) for b, c in zip(result.blocks.block, result.blocks.pieces) if c > 1}
+
+
+def _src_block(after, result):
+    starts = np.asarray(_new_index(result))
+    return np.searchsorted(starts, after.block, side="right") - 1
+
+
+STEP = """%
+O0431 (seed 001 4.3: depth of cut 0.1 -> 0.7 mm in 5 steps)
+N10 G21 G90 G17
+N20 G0 X-20. Y30. Z5.
+N30 G1 Z-0.7 F1000
+N40 G1 X215. (across the steps)
+N50 G0 Z50.
+N60 M30
+%
+"""
+
+
+def test_seed001_step_depth_test_is_40_percent_faster_at_no_higher_load_rate() -> None:
+    r = run(STEP, "phi30-ball", step_stock())
+    assert r.time_saved_pct >= 40.0
+    before, after = r.load_rate_max()
+    assert after <= before
+    # The heaviest step runs at (or below) the base feed, the lightest faster than it.
+    fb = r.piece_feed_mm_min
+    seg_x = 0.5 * (r.simulation.piece_start_mm[:, 0] + r.simulation.piece_end_mm[:, 0])
+    assert np.nanmax(fb[(seg_x > 150) & (seg_x < 170)]) <= 1000
+    assert np.nanmin(fb[(seg_x > 30) & (seg_x < 50)]) > 1000
+    assert_same_geometry(r)
+    # only F words and splits changed: untouched blocks are byte-identical
+    out = r.program.lines
+    assert out[:4] == STEP.splitlines()[:4]
+    assert "(across the steps)" in out[5]
+    assert out[5].startswith("N40 G1 X")
+
+
+ROUGH = """%
+O2000 (roughing of my own making: zigzag levels with an arc and a ramp)
+N1 G21 G90 G17 G94
+N2 T2 M6
+N3 S8000 M3
+N4 G0 X-8 Y5 Z5
+N5 G1 Z-2 F600 M8
+N6 X108
+N7 Y12
+N8 X-8
+N9 Y19
+N10 X108
+N11 G1 X108 Y30 Z-4
+N12 X-8
+N13 G2 X-8 Y50 I0 J10
+N14 G1 X40 F400
+N15 G1 Z-6
+N16 X108 (full slot)
+N17 G0 Z20
+N18 X50 Y12
+N19 G1 Z-8 F150
+N20 G0 Z20
+N21 M30
+%
+"""
+
+
+def test_roughing_program_geometry_and_limits(tmp_path: Path) -> None:
+    stock = ZMap.box(0, 100, 0, 60, bottom_mm=-20, top_mm=0, spacing_mm=0.25)
+    rule = derive_rule("rough", 100, 600, 2000, slot_load_percent("flat", 10, 2, 22))
+    r = run(ROUGH, "phi10-flat", stock, rule=rule)
+    assert_same_geometry(r)
+    m = load_machine("ace-h63")
+    feeds = r.motion_after.feed_mm_min[r.motion_after.is_feed]
+    assert np.all(feeds >= max(rule.min_feed_mm_min, m.feed_min_mm_min))
+    assert np.all(feeds <= min(rule.max_feed_mm_min, m.feed_max_mm_min))
+    # the plunge N19 (block 20) from Z20 to Z-8 into the -2 mm level is judged by the plunge
+    # formula: pi r^2 x 6 mm removed over a 28 mm path -> 100 x 6 / 28 %
+    blk = list(r.blocks.block).index(20)
+    assert r.blocks.removed_mm3[blk] == pytest.approx(math.pi * 25 * 6, rel=0.02)
+    assert r.blocks.load_pct[blk] == pytest.approx(100 * 6 / 28, rel=0.02)
+    # words other than F are untouched, comments too
+    for i, (a, b) in enumerate(zip(ROUGH.splitlines(), r.program.lines)):
+        if i in _split_blocks(r):
+            break
+        assert F_WORD.sub("", a) == F_WORD.sub("", b)
+    paths = write_report(r, tmp_path, "rough")
+    for p in paths.values():
+        assert Path(p).stat().st_size > 0
+    csv = (tmp_path / "rough-blocks.csv").read_text().splitlines()
+    assert csv[0].startswith("block,line,length_mm")
+    assert len(csv) == len(r.blocks.block) + 1
+
+
+def test_modal_feed_is_restated_after_a_split() -> None:
+    # Block N5 is split with several feeds; N6 (no F word) must keep its own computed feed,
+    # not inherit the last piece's.
+    text = "G21 G90\nG0 X-10 Y30 Z5\nG1 Z-0.7 F1000\nX215\nX230 Y30\nG0 Z20\n"
+    r = run(text, "phi30-ball", step_stock(0.2))
+    assert r.split_blocks == 1
+    after = r.motion_after
+    last = after.is_feed & (after.end[:, 0] == 230)
+    assert after.feed_mm_min[last][0] == pytest.approx(3500)  # air: the rule's fastest
+
+
+def test_arc_pocket_through_nc_matches_annulus() -> None:
+    from planning.opplan import simulate_motion
+
+    text = "G21 G90 G17\nG0 X25 Y0 Z5\nG1 Z-1.5 F300\nG3 X25 Y0 I-25 J0\nG0 Z5\n"
+    stock = ZMap.box(-40, 40, -40, 40, bottom_mm=-20, top_mm=0, spacing_mm=0.1)
+    motion = interpret(text)
+    sim = simulate_motion(stock, get_tool("phi10-flat"), motion)
+    # plunge (pi r^2 d) then a ring whose start disk was already cut: 4 pi Rp r d in total
+    assert sim.removed_total_mm3 == pytest.approx(4 * math.pi * 25 * 5 * 1.5, rel=0.01)
+
+
+moves = st.lists(
+    st.tuples(st.floats(-5, 105), st.floats(5, 55), st.floats(-3, 0.5)), min_size=2, max_size=6
+)
+
+
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(pts=moves, piece=st.floats(1.0, 15.0))
+def test_adjusted_program_moves_like_the_original(pts: list, piece: float) -> None:
+    lines = ["%", "G21 G90 G17", "G0 X-10 Y30 Z5", "G1 Z-1 F700"]
+    lines += [f"N{10 * i} G1 X{x:.3f} Y{y:.3f} Z{z:.3f}" for i, (x, y, z) in enumerate(pts)]
+    lines += ["G0 Z30", "M30", "%"]
+    stock = ZMap.box(0, 100, 0, 60, bottom_mm=-20, top_mm=0, spacing_mm=0.5)
+    rule = derive_rule("h", 100, 700, 2500, slot_load_percent("flat", 10, 1, 22))
+    r = run("\n".join(lines), "phi10-flat", stock, rule=rule, min_piece_mm=piece)
+    assert_same_geometry(r)
+    feeds = r.motion_after.feed_mm_min[r.motion_after.is_feed]
+    assert np.all((feeds >= 100) & (feeds <= 2500))
+    # split pieces are never shorter than the minimum piece length (but for tiny blocks)
+    lengths = np.linalg.norm(r.motion_after.end - r.motion_after.start, axis=1)
+    src = _src_block(r.motion_after, r)
+    for b in _split_blocks(r):
+        assert np.all(lengths[src == b] >= piece - 1e-3)
+
+
+def test_holder_contact_is_reported_with_its_block() -> None:
+    from planning.opplan import simulate_motion
+
+    text = "G21 G90\nG0 X50 Y25 Z5\nG1 Z-50 F100\nG1 X60\nG0 Z80\n"
+    stock = ZMap.box(0, 100, 0, 50, bottom_mm=-80, top_mm=0, spacing_mm=0.5)
+    tool = get_tool("phi10-ball")  # stickout 45 mm
+    sim = simulate_motion(stock, tool, interpret(text))
+    blocks = {c.block for c in sim.contacts if c.part == "holder"}
+    assert 2 in blocks and 3 in blocks
+    assert max(c.overlap_mm for c in sim.contacts) == pytest.approx(5.0, abs=0.01)
+    shallow = simulate_motion(
+        ZMap.box(0, 100, 0, 50, bottom_mm=-80, top_mm=0, spacing_mm=0.5),
+        tool,
+        interpret(text.replace("Z-50", "Z-30")),
+    )
+    assert shallow.contacts == ()
+
+
+def test_operation_plan_rest_machining_sees_the_roughing(tmp_path: Path) -> None:
+    from planning.opplan import load_plan
+
+    (tmp_path / "rough.nc").write_text("G21 G90\nG0 X-10 Y20 Z5\nG1 Z-3 F500\nX90\nG0 Z20\n")
+    (tmp_path / "rest.nc").write_text("G21 G90\nG0 X-10 Y20 Z5\nG1 Z-3 F500\nX90\nG0 Z20\n")
+    (tmp_path / "plan.toml").write_text(
+        '[plan]\nmachine = "ace-h63"\n[stock]\nkind = "box"\nxmin_mm = 0\nxmax_mm = 80\n'
+        "ymin_mm = 0\nymax_mm = 40\nbottom_mm = -10\ntop_mm = 0\nspacing_mm = 0.2\n"
+        '[[operations]]\nname = "rough"\nprogram = "rough.nc"\ntool = "phi20-flat"\n'
+        '[[operations]]\nname = "rest"\nprogram = "rest.nc"\ntool = "phi16-ball"\n'
+    )
+    plan, rules = load_plan(tmp_path / "plan.toml")
+    assert rules == [None, None]
+    res = plan.run()
+    assert res[0].removed_mm3 == pytest.approx(80 * 20 * 3, rel=0.01)
+    # the ball path lies inside what the flat cutter left: nothing more to remove
+    assert res[1].removed_mm3 < 1e-6
+    assert res[1].stock_volume_after_mm3 == pytest.approx(80 * 40 * 10 - 80 * 20 * 3, rel=0.01)
+
+
+# ------------------------------------------------------------------------------- bad input
+
+
+def cli(argv: list[str], capsys) -> tuple[int, str, str]:
+    from rig.cli import main
+
+    rc = main(argv)
+    out = capsys.readouterr()
+    return rc, out.out, out.err
+
+
+@pytest.fixture()
+def files(tmp_path: Path):
+    (tmp_path / "step.nc").write_text(STEP)
+    save_rule(seed001_rule(), tmp_path / "rule.toml")
+    return tmp_path
+
+
+def test_cli_feed_and_simulate(files: Path, capsys) -> None:
+    out = files / "out" / "step-adj.nc"
+    rc, so, _ = cli(
+        ["plan", "feed", str(files / "step.nc"), "--rules", str(files / "rule.toml"),
+         "--tool", "phi30-ball", "--stock", "box:0,200,0,60,-10,0", "--spacing", "0.5",
+         "-o", str(out), "--json"],
+        capsys,
+    )  # fmt: skip
+    assert rc == 0
+    summary = json.loads(so)
+    assert summary["output"] == str(out) and out.exists()
+    assert Path(summary["report"]["stock_png"]).exists()
+    png = files / "s.png"
+    rc, so, _ = cli(
+        ["plan", "simulate", str(files / "step.nc"), "--tool", "phi30-ball", "--stock",
+         "box:0,200,0,60,-10,0", "--spacing", "0.5", "--png", str(png), "--json"],
+        capsys,
+    )  # fmt: skip
+    assert rc == 0 and png.exists()
+    sim = json.loads(so)
+    assert sim["removed_mm3"] == pytest.approx(summary["removed_mm3"], rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    "case,expect",
+    [
+        ("tool", "tool 'no-such-tool' not found"),
+        ("gap", "bins[2].load_min_pct = 99.0: gap after bins[1]"),
+        ("below", "leaves the stock"),
+        ("travel", "outside machine 'ace-h63' travel"),
+        ("arc", "below machine 'tiny-arcs' min_arc_radius_mm"),
+        ("inch", "G20 (inch) program"),
+    ],
+)
+def test_bad_input_is_refused_before_anything_is_written(
+    files: Path, capsys, case: str, expect: str
+) -> None:
+    prog, rule, tool, machine = files / "step.nc", files / "rule.toml", "phi30-ball", "ace-h63"
+    if case == "tool":
+        tool = "no-such-tool"
+    elif case == "gap":
+        text = rule.read_text()
+        # widen the gap between bins 1 and 2: bins[2].load_min_pct no longer meets bins[1]
+        parts = text.split("[[bins]]")
+        parts[3] = re.sub(r"load_min_pct = [\d.e-]+", "load_min_pct = 99.0", parts[3], count=1)
+        parts[3] = re.sub(r"load_max_pct = [\d.e-]+", "load_max_pct = 100.0", parts[3], count=1)
+        rule = files / "gap.toml"
+        rule.write_text("[[bins]]".join(parts))
+    elif case == "below":
+        prog.write_text(STEP.replace("Z-0.7", "Z-12"))
+    elif case == "travel":
+        prog.write_text(STEP.replace("X215.", "X700."))
+    elif case == "arc":
+        prog.write_text(STEP.replace("N40 G1 X215.", "N40 G2 X-19. Y30. I0.5 J0"))
+        machine = str(files / "tiny.toml")
+        text = (Path(__file__).parents[1] / "configs" / "machines" / "ace-h63.toml").read_text()
+        text = text.replace('name = "ace-h63"', 'name = "tiny-arcs"\nmin_arc_radius_mm = 1.0')
+        Path(machine).write_text(text)
+    elif case == "inch":
+        prog.write_text(STEP.replace("G21", "G20"))
+    out = files / "never.nc"
+    rc, _, err = cli(
+        ["plan", "feed", str(prog), "--rules", str(rule), "--tool", tool, "--machine", machine,
+         "--stock", "box:0,200,0,60,-10,0", "--spacing", "0.5", "-o", str(out)],
+        capsys,
+    )  # fmt: skip
+    assert rc == 2, err
+    assert expect in err
+    assert "Traceback" not in err
+    assert len([ln for ln in err.splitlines() if "error" in ln]) == 1
+    assert not out.exists() and not list(files.glob("never*"))
+
+
+def test_library_errors_are_cutlab_errors() -> None:
+    with pytest.raises(PlanningError, match="min_piece_mm"):
+        FeedPostOptions(min_piece_mm=0)
+    with pytest.raises(PlanningError, match="coefficients"):
+        FeedPostOptions(force_limit_n=500)
+    assert issubclass(PlanningError, CutlabError)
