@@ -1,0 +1,265 @@
+"""Shared pieces of the force-coefficient identification: runs, their conditions, revolution
+averages and a linear least-squares fit with its statistics.
+
+Private to ``analysis.identify_facemill`` / ``analysis.identify_endmill`` / ``analysis.validate``
+(the public names are re-exported there).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import linalg, stats
+
+from analysis.errors import AnalysisError
+from analysis.steady import SyncAverager, find_steady, tooth_peaks
+
+#: Condition keys whose unit cutlab does not use; a run giving them is refused (mixed units).
+_FOREIGN_UNITS = ("_in", "_inch", "_ipm", "_ipt", "_m", "_cm", "_um", "_sfm", "_m_min")
+
+
+@dataclass(frozen=True)
+class RunConditions:
+    """Cutting conditions of one run (mm, rpm, deg).
+
+    ``width_mm``: face mill — workpiece width across the feed; end mill — radial width of cut
+    ae. ``mode``: end mill only, 'up', 'down' or 'slot'. ``center_offset_mm``: face mill only,
+    workpiece centre line from the cutter axis along +Y.
+    """
+
+    spindle_rpm: float
+    fz_mm: float
+    depth_mm: float
+    width_mm: float = math.nan
+    tool: str = ""
+    material: str = ""
+    center_offset_mm: float = 0.0
+    mode: str = "down"
+    feed_angle_deg: float = 0.0
+
+    @classmethod
+    def from_mapping(cls, d: Mapping[str, Any], where: str = "<conditions>") -> RunConditions:
+        """From a run file's conditions (JSON) or a table row; refuses foreign units.
+
+        ``fz_mm`` may be replaced by ``feed_mm_min`` together with ``teeth`` (or ``flutes``).
+        """
+        for k, v in d.items():
+            if any(str(k).endswith(s) for s in _FOREIGN_UNITS):
+                raise AnalysisError(
+                    f"{where}: {k} = {v!r}: cutlab works in mm, rpm and deg (mixed units); give "
+                    f"{str(k).rsplit('_', 1)[0]}_mm"
+                )
+        units = str(d.get("units", "mm")).strip().lower()
+        if units not in ("mm", "metric", ""):
+            raise AnalysisError(f"{where}: units = {units!r}: only mm is understood (mixed units)")
+
+        def num(key: str, default: float | None = None) -> float:
+            if key not in d or d[key] is None or d[key] == "":
+                if default is None:
+                    raise AnalysisError(f"{where}: missing condition {key!r}")
+                return default
+            try:
+                return float(d[key])
+            except (TypeError, ValueError):
+                raise AnalysisError(f"{where}: {key} = {d[key]!r}: not a number") from None
+
+        rpm = num("spindle_rpm")
+        if "fz_mm" in d:
+            fz = num("fz_mm")
+        elif "feed_mm_min" in d and ("teeth" in d or "flutes" in d):
+            teeth = num("teeth") if "teeth" in d else num("flutes")
+            fz = num("feed_mm_min") / (abs(rpm) * teeth)
+        else:
+            raise AnalysisError(
+                f"{where}: missing condition 'fz_mm' (or feed_mm_min with teeth), mm/tooth"
+            )
+        c = cls(
+            spindle_rpm=rpm,
+            fz_mm=fz,
+            depth_mm=num("depth_mm"),
+            width_mm=num("width_mm", math.nan),
+            tool=str(d.get("tool", "")),
+            material=str(d.get("material", "")),
+            center_offset_mm=num("center_offset_mm", 0.0),
+            mode=str(d.get("mode", "down")),
+            feed_angle_deg=num("feed_angle_deg", 0.0),
+        )
+        c.check(where)
+        return c
+
+    def check(self, where: str = "<conditions>") -> None:
+        for name, lo, hi, unit in (
+            ("spindle_rpm", 1.0, 200_000.0, "rpm"),
+            ("fz_mm", 1e-4, 5.0, "mm/tooth"),
+            ("depth_mm", 1e-3, 100.0, "mm"),
+        ):
+            v = abs(getattr(self, name)) if name == "spindle_rpm" else getattr(self, name)
+            if not lo <= v <= hi:
+                hint = " (a feed in mm/min given as mm/tooth?)" if name == "fz_mm" else ""
+                raise AnalysisError(
+                    f"{where}: {name} = {getattr(self, name)!r}: expected {lo}..{hi} {unit}{hint}"
+                )
+
+
+@dataclass(frozen=True)
+class ForceRun:
+    """A force record in dynamometer axes: ``force_n`` (n, 3) X, Y, Z in ``force_unit`` (N)."""
+
+    name: str
+    force_n: np.ndarray
+    rate_hz: float
+    conditions: RunConditions
+    force_unit: str = "N"
+
+
+@dataclass(frozen=True)
+class RunAverage:
+    """A run reduced to its steady part: what the fits use.
+
+    ``waveform_n`` (n_bins, 3) synchronous average over ``revolutions`` revolutions (offset
+    removed; bin 0 is centred on the steady window's first sample, phase unknown); ``mean_n`` (3,)
+    mean force over those revolutions; ``period_s`` revolution period; ``window`` the steady part
+    in samples; ``tooth_peak_n`` (teeth,) mean per-tooth peak resultant and ``runout_ratio``.
+    """
+
+    name: str
+    conditions: RunConditions
+    rate_hz: float
+    waveform_n: np.ndarray
+    mean_n: np.ndarray
+    period_s: float
+    revolutions: int
+    window: tuple[int, int]
+    offset_n: np.ndarray
+    tooth_peak_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    runout_ratio: float = 0.0
+    force_unit: str = "N"
+
+
+def default_bins(rate_hz: float, period_s: float) -> int:
+    """One bin per sample of a revolution (at most 4096): fewer bins would alias the modes'
+    ringing, whose frequencies lie far above the revolution's low harmonics."""
+    return int(min(4096, max(16, round(rate_hz * period_s))))
+
+
+def reduce_run(run: ForceRun, teeth: int, n_bins: int | None = None) -> RunAverage:
+    """Steady part, offset removal, synchronous average and tooth peaks of an in-memory run."""
+    x = np.asarray(run.force_n, float)
+    if x.ndim != 2 or x.shape[1] != 3:
+        raise AnalysisError(f"run {run.name}: forces have shape {x.shape}: expected (n, 3) N")
+    if not np.all(np.isfinite(x)):
+        raise AnalysisError(f"run {run.name}: forces hold NaN or inf samples")
+    c = run.conditions
+    try:
+        part = find_steady(x, run.rate_hz, c.spindle_rpm)
+    except AnalysisError as exc:
+        raise AnalysisError(f"run {run.name}: {exc}") from None
+    seg = part.corrected(x[part.window], part.window.start, run.rate_hz)
+    nb = n_bins or default_bins(run.rate_hz, part.period_s)
+    avg = SyncAverager(run.rate_hz, part.period_s, nb)
+    avg.add(seg, 0)
+    wave = avg.mean()
+    low = float(np.argmin(np.linalg.norm(wave, axis=1)) + 0.5) / nb * 2 * np.pi
+    peaks = tooth_peaks(seg, run.rate_hz, part.period_s, teeth, phase_rad=low)
+    return RunAverage(
+        name=run.name,
+        conditions=c,
+        rate_hz=run.rate_hz,
+        waveform_n=wave,
+        mean_n=wave.mean(axis=0),
+        period_s=part.period_s,
+        revolutions=part.steady_revs,
+        window=(part.window.start, part.window.stop),
+        offset_n=part.offset_n,
+        tooth_peak_n=peaks.mean_peak_n,
+        runout_ratio=peaks.runout_ratio,
+        force_unit=run.force_unit,
+    )
+
+
+def check_units(items: Sequence[ForceRun | RunAverage]) -> None:
+    units = {r.force_unit for r in items}
+    if len(units) > 1 or (units and units != {"N"}):
+        listing = ", ".join(f"{r.name} in {r.force_unit}" for r in items)
+        raise AnalysisError(
+            f"runs mix force units or are not in newtons ({listing}): convert all to N first"
+        )
+
+
+@dataclass(frozen=True)
+class LinearFit:
+    """Least-squares estimates with standard errors and confidence intervals.
+
+    ``values``/``std_errors``/``ci_low``/``ci_high`` shape (p,) in the order of ``names``;
+    ``r_squared``; ``residual_rms`` (same unit as the data); ``dof`` degrees of freedom;
+    ``covariance`` (p, p); ``condition_number`` of the design.
+    """
+
+    names: tuple[str, ...]
+    values: np.ndarray
+    std_errors: np.ndarray
+    ci_low: np.ndarray
+    ci_high: np.ndarray
+    covariance: np.ndarray
+    r_squared: float
+    residual_rms: float
+    dof: int
+    confidence: float
+    condition_number: float
+
+    def as_dict(self) -> dict[str, dict[str, float]]:
+        return {
+            n: {
+                "value": float(v),
+                "std_error": float(s),
+                "ci_low": float(lo),
+                "ci_high": float(hi),
+            }
+            for n, v, s, lo, hi in zip(
+                self.names, self.values, self.std_errors, self.ci_low, self.ci_high
+            )
+        }
+
+
+def linear_fit(
+    X: np.ndarray, y: np.ndarray, names: Sequence[str], confidence: float = 0.95
+) -> tuple[LinearFit, np.ndarray]:
+    """Ordinary least squares y ~ X p with statistics; returns (fit, residuals)."""
+    n, p = X.shape
+    dof = n - p
+    if dof <= 0:
+        raise AnalysisError(f"{n} equations for {p} unknowns: need more data than unknowns")
+    sol, _, rank, sv = linalg.lstsq(X, y)
+    if rank < p:
+        raise AnalysisError(
+            f"the runs do not determine all {p} unknowns (rank {rank}): vary the conditions"
+        )
+    resid = y - X @ sol
+    rss = float(resid @ resid)
+    sigma2 = rss / dof
+    xtx_inv = linalg.pinvh(X.T @ X)
+    cov = sigma2 * xtx_inv
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    tq = stats.t.ppf(0.5 + confidence / 2, dof)
+    tss = float(((y - y.mean()) ** 2).sum())
+    r2 = 1.0 - rss / tss if tss > 0 else math.nan
+    fit = LinearFit(
+        tuple(names), sol, se, sol - tq * se, sol + tq * se, cov, r2,
+        math.sqrt(rss / n), dof, confidence, float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf,
+    )  # fmt: skip
+    return fit, resid
+
+
+def ratio_with_error(fit: LinearFit, num: int, den: int) -> tuple[float, float, float, float]:
+    """a/b with its delta-method standard error and confidence interval (value, se, lo, hi)."""
+    a, b = fit.values[num], fit.values[den]
+    r = a / b
+    g = np.zeros(len(fit.values))
+    g[num], g[den] = 1 / b, -a / b**2
+    se = float(math.sqrt(max(g @ fit.covariance @ g, 0.0)))
+    tq = stats.t.ppf(0.5 + fit.confidence / 2, fit.dof)
+    return float(r), se, float(r - tq * se), float(r + tq * se)

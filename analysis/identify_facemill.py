@@ -1,0 +1,319 @@
+"""Identify the seed 003 face-milling coefficients (P_T, K_T, P_R, K_R, P_A, K_A) from runs.
+
+Seed 003's method: one feed per tooth, the axial depth of cut varied (0.5 -> 3 mm); ploughing
+grows with the engaged edge length l, chip removal with the chip area S, and a least-squares fit
+over the runs separates them. Here each run is first reduced (``analysis.steady``) to its
+synchronous revolution average with the dynamometer offset removed; the model's regressors
+(``analysis.facemill.facemill_design``: force per unit coefficient over a revolution) are passed
+through the dynamometer's modes (``analysis.dynamics``) so the ringing after each insert entry
+does not bias the fit; the unknown angular phase of each run is found by a circular
+cross-correlation search refined to a fraction of a bin; then one linear least-squares fit over
+all runs, channels and angle bins gives the six parameters with standard errors, confidence
+intervals, R^2 and residuals. K_R and K_A are ratios (seed 003 prints K_R in N/mm^2; eq 4 makes
+it a ratio) whose errors follow by the delta method.
+
+Entry points: ``fit_facemill(averages, tool, dynamometer)`` on reduced runs, ``fit_facemill_runs``
+on in-memory ``ForceRun`` records, ``synthetic_facemill_run`` to make records from known
+coefficients (tests, bench, demos).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from analysis._identify import (
+    ForceRun,
+    LinearFit,
+    RunAverage,
+    RunConditions,
+    check_units,
+    linear_fit,
+    ratio_with_error,
+    reduce_run,
+)
+from analysis.config import Dynamometer, FaceMill, FaceMillCoefficients
+from analysis.dynamics import DynamometerFilter
+from analysis.errors import AnalysisError
+from analysis.facemill import (
+    PARAMETERS,
+    FaceMillCut,
+    coefficients_from_vector,
+    facemill_design,
+    facemill_forces,
+)
+
+__all__ = [
+    "FaceMillFit",
+    "ForceRun",
+    "RunAverage",
+    "RunConditions",
+    "fit_facemill",
+    "fit_facemill_runs",
+    "predicted_waveform",
+    "synthetic_facemill_run",
+]
+
+
+def _sub(avg: RunAverage) -> int:
+    """Regressor points per angle bin: 1 when a bin holds about one sample per revolution (a
+    sample is a point value), more when the bins average over their width."""
+    spr = avg.rate_hz * avg.period_s
+    return 1 if len(avg.waveform_n) >= 0.9 * spr else 4
+
+
+@dataclass(frozen=True)
+class FaceMillFit:
+    """Result of :func:`fit_facemill`.
+
+    ``success``/``message``: False with the reason when the runs cannot determine the model.
+    ``coefficients``: the identified FaceMillCoefficients (K_R, K_A ratios). ``fit``: the linear
+    fit of :data:`analysis.facemill.PARAMETERS` (values, std_errors, ci, r_squared, ...).
+    ``summary``: per coefficient name (K_T_n_mm2, K_R, P_T_n_mm, P_R_n_mm, K_A, P_A_n_mm) its
+    value, std_error, ci_low, ci_high. ``phases_rad`` (runs,) angle of bin 0 of each run;
+    ``residuals_n`` per run (n_bins, 3) N; ``runs`` names used; ``rejected`` (name, reason).
+    """
+
+    success: bool
+    message: str
+    coefficients: FaceMillCoefficients | None = None
+    fit: LinearFit | None = None
+    summary: dict | None = None
+    phases_rad: tuple[float, ...] = ()
+    residuals_n: tuple[np.ndarray, ...] = ()
+    runs: tuple[str, ...] = ()
+    rejected: tuple[tuple[str, str], ...] = ()
+
+
+def _cut(c: RunConditions) -> FaceMillCut:
+    if not math.isfinite(c.width_mm) or c.width_mm <= 0:
+        raise AnalysisError(
+            f"width_mm = {c.width_mm}: face-mill runs need the workpiece width (mm)"
+        )
+    return FaceMillCut(
+        fz_mm=c.fz_mm, depth_mm=c.depth_mm, width_mm=c.width_mm, center_offset_mm=c.center_offset_mm
+    )
+
+
+def _filter_for(dynamometer, rate_hz: float) -> DynamometerFilter | None:
+    if dynamometer is None:
+        return None
+    if isinstance(dynamometer, DynamometerFilter):
+        if abs(dynamometer.rate_hz - rate_hz) > 1e-9 * rate_hz:
+            return DynamometerFilter(dynamometer.modes, rate_hz, dynamometer.crosstalk)
+        return dynamometer
+    if isinstance(dynamometer, Dynamometer):
+        # Run files hold forces with the cross-talk already inverted by the calibration.
+        return DynamometerFilter.from_config(dynamometer, rate_hz, crosstalk=False)
+    raise AnalysisError(
+        f"dynamometer: expected a Dynamometer config or filter, got {dynamometer!r}"
+    )
+
+
+def _regressors(
+    avg: RunAverage, tool: FaceMill, filt: DynamometerFilter | None, phase: float
+) -> np.ndarray:
+    """Bin-averaged, mode-filtered regressors (n_bins, 3, 6), bin 0 centred on ``phase``."""
+    n, sub = len(avg.waveform_n), _sub(avg)
+    # Bin k is centred on phase + 2 pi k / n; its sub-points spread over the bin's width.
+    theta = phase + 2 * np.pi * ((np.arange(n * sub) + 0.5) / sub - 0.5) / n
+    d = facemill_design(theta, tool, _cut(avg.conditions))
+    d = d.reshape(n, sub, 3, 6).mean(axis=1)
+    if filt is not None:
+        d = np.moveaxis(filt.periodic_response(np.moveaxis(d, 1, 2), avg.period_s), 2, 1)
+    return d
+
+
+def _phase(avg: RunAverage, tool: FaceMill, filt: DynamometerFilter | None) -> float:
+    """Angle of bin 0 that best explains the run's waveform (least-squares residual)."""
+    y = avg.waveform_n
+    n = len(y)
+    X = _regressors(avg, tool, filt, 0.0)  # (n, 3, 6)
+    xtx = np.einsum("bck,bcl->kl", X, X)
+    if np.linalg.matrix_rank(xtx) < 1:
+        raise AnalysisError(f"run {avg.name}: the model predicts no cutting for its conditions")
+    inv = np.linalg.pinv(xtx)
+    # r[s, k] = sum_b,c X[b + s, c, k] y[b, c]: model shifted by s bins against the data.
+    fx = np.fft.rfft(X, axis=0)
+    fy = np.fft.rfft(y, axis=0)
+    r = np.fft.irfft(np.einsum("fck,fc->fk", fx, np.conj(fy)), n=n, axis=0)
+    gain = np.einsum("sk,kl,sl->s", r, inv, r)
+    s = int(np.argmax(gain))
+    # Data bin b matches model bin b + s, i.e. bin 0 of the data is centred on 2 pi s / n.
+    base = 2 * np.pi * s / n
+
+    yy = y.reshape(-1)
+
+    def rss(delta: float) -> float:
+        # Normal equations: the 6 x 6 system is well conditioned here and far cheaper than SVD.
+        Xd = _regressors(avg, tool, filt, base + delta).reshape(-1, 6)
+        xty = Xd.T @ yy
+        p = np.linalg.lstsq(Xd.T @ Xd, xty, rcond=None)[0]
+        return float(yy @ yy - p @ xty)
+
+    # Point samples make the residual step-wise in the phase (an entry jump moves from one sample
+    # to the next), so a derivative-free bracket search can stall on a step: use nested grids.
+    step = 2 * np.pi / n
+    best = 0.0
+    for width in (step, step / 8, step / 64):
+        grid = best + np.linspace(-width, width, 17)
+        best = float(grid[int(np.argmin([rss(d) for d in grid]))])
+    return float(base + best)
+
+
+def fit_facemill(
+    averages: Sequence[RunAverage],
+    tool: FaceMill,
+    dynamometer: Dynamometer | DynamometerFilter | None = None,
+    confidence: float = 0.95,
+) -> FaceMillFit:
+    """Fit the face-mill model to reduced runs (see module docstring).
+
+    Needs at least 3 runs at 2 or more depths of cut (ploughing scales with l, chip removal with
+    S; one depth cannot tell them apart well). Returns ``success=False`` with the reason when
+    the runs cannot determine the model; raises :class:`AnalysisError` for input that is wrong
+    (mixed units, a tool the model cannot describe).
+    """
+    if not isinstance(tool, FaceMill):
+        raise AnalysisError(
+            f"tool of kind {getattr(tool, 'kind', type(tool).__name__)!r}: the seed 003 model "
+            "describes face mills only (use analysis.identify_endmill for end mills)"
+        )
+    check_units(averages)
+    depths = {round(a.conditions.depth_mm, 6) for a in averages}
+    if len(averages) < 3 or len(depths) < 2:
+        return FaceMillFit(
+            False,
+            f"too few runs for the unknowns: {len(averages)} run(s) at {len(depths)} depth(s); "
+            "the face-mill fit needs >= 3 runs at >= 2 depths of cut to separate ploughing "
+            "(~ l) from chip removal (~ S)",
+            runs=tuple(a.name for a in averages),
+        )
+    Xs, ys, phases = [], [], []
+    filters: dict[float, DynamometerFilter | None] = {}
+    for a in averages:
+        if a.rate_hz not in filters:
+            filters[a.rate_hz] = _filter_for(dynamometer, a.rate_hz)
+        filt = filters[a.rate_hz]
+        ph = _phase(a, tool, filt)
+        phases.append(ph)
+        Xs.append(_regressors(a, tool, filt, ph).reshape(-1, 6))
+        ys.append(a.waveform_n.reshape(-1))
+    X, y = np.vstack(Xs), np.concatenate(ys)
+    try:
+        fit, resid = linear_fit(X, y, PARAMETERS, confidence)
+    except AnalysisError as exc:
+        return FaceMillFit(False, str(exc), runs=tuple(a.name for a in averages))
+    p = fit.values
+    if p[1] <= 0:
+        return FaceMillFit(
+            False, f"fitted K_T = {p[1]:.4g} N/mm^2 is not positive: the runs do not show chip "
+            "removal growing with the chip area", fit=fit, runs=tuple(a.name for a in averages),
+        )  # fmt: skip
+    summary = {
+        "K_T_n_mm2": _row(fit, 1),
+        "K_R": _ratio_row(fit, 3, 1),
+        "P_T_n_mm": _row(fit, 0),
+        "P_R_n_mm": _row(fit, 2),
+        "K_A": _ratio_row(fit, 5, 1),
+        "P_A_n_mm": _row(fit, 4),
+    }
+    try:
+        coef = coefficients_from_vector(p)
+    except Exception as exc:  # pydantic range check: report, do not crash
+        return FaceMillFit(False, f"fitted coefficients out of range: {exc}", fit=fit,
+                           summary=summary, runs=tuple(a.name for a in averages))  # fmt: skip
+    n_per = [len(a.waveform_n) * 3 for a in averages]
+    res_runs = tuple(r.reshape(-1, 3) for r in np.split(resid, np.cumsum(n_per)[:-1]))
+    return FaceMillFit(
+        True,
+        f"fitted {len(averages)} runs ({len(y)} points), R^2 = {fit.r_squared:.5f}",
+        coef, fit, summary, tuple(phases), res_runs, tuple(a.name for a in averages),
+    )  # fmt: skip
+
+
+def _row(fit: LinearFit, i: int) -> dict[str, float]:
+    return {
+        "value": float(fit.values[i]),
+        "std_error": float(fit.std_errors[i]),
+        "ci_low": float(fit.ci_low[i]),
+        "ci_high": float(fit.ci_high[i]),
+    }
+
+
+def _ratio_row(fit: LinearFit, num: int, den: int) -> dict[str, float]:
+    v, se, lo, hi = ratio_with_error(fit, num, den)
+    return {"value": v, "std_error": se, "ci_low": lo, "ci_high": hi}
+
+
+def fit_facemill_runs(
+    runs: Sequence[ForceRun],
+    tool: FaceMill,
+    dynamometer: Dynamometer | DynamometerFilter | None = None,
+    n_bins: int | None = None,
+) -> FaceMillFit:
+    """Reduce in-memory runs (steady part, offset, averaging) and fit. Runs that cannot be
+    reduced (no cutting, too short) are listed in ``rejected`` with the reason."""
+    check_units(runs)
+    avgs, rejected = [], []
+    for r in runs:
+        try:
+            avgs.append(reduce_run(r, tool.inserts, n_bins))
+        except AnalysisError as exc:
+            rejected.append((r.name, str(exc)))
+    out = fit_facemill(avgs, tool, dynamometer)
+    if rejected:
+        why = "; ".join(f"{n}: {m}" for n, m in rejected)
+        msg = f"{out.message} (rejected {len(rejected)} run(s): {why})"
+        out = FaceMillFit(**{**out.__dict__, "message": msg, "rejected": tuple(rejected)})
+    return out
+
+
+def predicted_waveform(
+    avg: RunAverage, tool: FaceMill, coef: FaceMillCoefficients,
+    dynamometer: Dynamometer | DynamometerFilter | None = None, phase_rad: float = 0.0,
+) -> np.ndarray:  # fmt: skip
+    """The model's revolution waveform (n_bins, 3) N for a reduced run's conditions."""
+    from analysis.facemill import coefficient_vector
+
+    X = _regressors(avg, tool, _filter_for(dynamometer, avg.rate_hz), phase_rad)
+    return X @ coefficient_vector(coef)
+
+
+def synthetic_facemill_run(
+    name: str,
+    tool: FaceMill,
+    coef: FaceMillCoefficients,
+    conditions: RunConditions,
+    rate_hz: float = 20_000.0,
+    cut_s: float = 3.0,
+    air_s: float = 0.5,
+    noise_frac: float = 0.02,
+    dynamometer: DynamometerFilter | None = None,
+    rng: np.random.Generator | None = None,
+    offset_n: Sequence[float] = (0.0, 0.0, 0.0),
+    drift_n_s: Sequence[float] = (0.0, 0.0, 0.0),
+    phase_rad: float = 0.0,
+) -> ForceRun:
+    """A force record made from the model: air, ``cut_s`` of steady cutting, air.
+
+    The true force passes through ``dynamometer`` (modes), then a dynamometer offset with linear
+    drift and white noise of ``noise_frac`` x the peak resultant force are added.
+    """
+    rng = rng or np.random.default_rng(0)
+    n_air, n_cut = int(air_s * rate_hz), int(cut_s * rate_hz)
+    n = 2 * n_air + n_cut
+    t = np.arange(n) / rate_hz
+    theta = phase_rad + 2 * np.pi * conditions.spindle_rpm / 60.0 * t
+    f = np.zeros((n, 3))
+    cut = slice(n_air, n_air + n_cut)
+    f[cut] = facemill_forces(theta[cut], tool, coef, _cut(conditions))
+    if dynamometer is not None:
+        f = dynamometer.apply(f)
+    peak = float(np.linalg.norm(f, axis=1).max())
+    f += np.asarray(offset_n) + t[:, None] * np.asarray(drift_n_s)
+    f += rng.normal(scale=noise_frac * peak, size=f.shape)
+    return ForceRun(name, f, rate_hz, conditions)

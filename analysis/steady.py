@@ -1,0 +1,333 @@
+"""The steady cutting part of a force record, offset removal, per-revolution statistics.
+
+A run is a force record (n, c) at ``rate_hz`` taken while the spindle turns at ``spindle_rpm``:
+usually some air before and after the cut, the cutter entering and leaving, and a steady part in
+between. Everything here works on whole spindle revolutions:
+
+- ``per_revolution(signal, rate_hz, spindle_rpm) -> (means, peaks)``: statistics of whole
+  revolutions (a trailing partial revolution is left out);
+- ``steady_window(signal, rate_hz, spindle_rpm) -> slice``: the steady cutting part of a 1-D
+  signal (e.g. the resultant force) — the longest stretch of revolutions whose mean stays within
+  ``tolerance`` of its median, one revolution trimmed at each end;
+- ``find_steady(force_n, rate_hz, spindle_rpm) -> SteadyPart``: the same on a multi-channel record,
+  with the dynamometer offset estimated from the air revolutions (linear in time when there is air
+  on both sides, so slow charge-amplifier drift goes too) and the refined revolution period;
+- ``SyncAverager``: synchronous (per-revolution) averaging into angle bins, fed chunk by chunk
+  so a long record streams from HDF5 with memory bounded by the chunk size;
+- ``tooth_peaks``: per-tooth peak forces and the runout they show.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from analysis.errors import AnalysisError
+
+__all__ = [
+    "SteadyPart",
+    "SyncAverager",
+    "ToothPeaks",
+    "find_steady",
+    "per_revolution",
+    "refine_period",
+    "steady_window",
+    "tooth_peaks",
+]
+
+
+def _samples_per_rev(rate_hz: float, spindle_rpm: float) -> float:
+    if not rate_hz > 0:
+        raise AnalysisError(f"rate_hz = {rate_hz}: must be > 0 (Hz)")
+    if not abs(spindle_rpm) > 0:
+        raise AnalysisError(f"spindle_rpm = {spindle_rpm}: the spindle must turn (rpm)")
+    spr = rate_hz * 60.0 / abs(spindle_rpm)
+    if spr < 8:
+        raise AnalysisError(
+            f"{spr:.3g} samples per revolution at rate_hz = {rate_hz} and spindle_rpm = "
+            f"{spindle_rpm}: too few to resolve a revolution (need >= 8)"
+        )
+    return spr
+
+
+def per_revolution(
+    signal: ArrayLike, rate_hz: float, spindle_rpm: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and peak of each whole revolution.
+
+    ``signal`` shape (n,) or (n, c). Returns (means, peaks), shape (n_rev,) or (n_rev, c); the
+    revolution boundaries are at round(k * samples_per_rev) from the first sample.
+    """
+    x = np.asarray(signal, float)
+    spr = _samples_per_rev(rate_hz, spindle_rpm)
+    n_rev = int(len(x) // spr)
+    if n_rev == 0:
+        return np.zeros((0,) + x.shape[1:]), np.zeros((0,) + x.shape[1:])
+    edges = np.round(np.arange(n_rev + 1) * spr).astype(np.int64)
+    means = np.add.reduceat(x[: edges[-1]], edges[:-1], axis=0) / np.diff(edges).reshape(
+        (-1,) + (1,) * (x.ndim - 1)
+    )
+    peaks = np.maximum.reduceat(x[: edges[-1]], edges[:-1], axis=0)
+    return means, peaks
+
+
+def _longest_steady(level: np.ndarray, cutting: np.ndarray, tolerance: float) -> tuple[int, int]:
+    """Longest run of cutting revolutions within ``tolerance`` of the cutting median."""
+    if not cutting.any():
+        return 0, 0
+    med = np.median(level[cutting])
+    ok = cutting & (np.abs(level - med) <= tolerance * abs(med))
+    best, start, run_start = (0, 0), None, 0
+    for i, good in enumerate(np.append(ok, False)):
+        if good and start is None:
+            run_start, start = i, i
+        elif not good and start is not None:
+            if i - run_start > best[1] - best[0]:
+                best = (run_start, i)
+            start = None
+    return best
+
+
+def steady_window(
+    signal: ArrayLike, rate_hz: float, spindle_rpm: float, tolerance: float = 0.05
+) -> slice:
+    """Sample slice of the steady cutting part of a 1-D signal (e.g. resultant force, N).
+
+    Raises :class:`AnalysisError` when the record holds no cutting or fewer than 3 steady
+    revolutions.
+    """
+    x = np.asarray(signal, float)
+    if x.ndim != 1:
+        raise AnalysisError(f"signal has shape {x.shape}: expected (n,)")
+    part = find_steady(x[:, None], rate_hz, spindle_rpm, tolerance=tolerance, refine=False)
+    return part.window
+
+
+@dataclass(frozen=True)
+class SteadyPart:
+    """Where a run cuts steadily and what to subtract.
+
+    ``window`` sample slice of the steady part (whole revolutions); ``offset_n`` (c,) offset at
+    the window's start and ``drift_n_s`` (c,) its change per second (0 without air on both sides);
+    ``period_s`` the revolution period (refined from the data when asked); ``cutting_revs`` and
+    ``steady_revs`` counts; ``air_revs`` how many revolutions the offset came from.
+    """
+
+    window: slice
+    offset_n: np.ndarray
+    drift_n_s: np.ndarray
+    period_s: float
+    cutting_revs: int
+    steady_revs: int
+    air_revs: int
+
+    def corrected(self, force_n: np.ndarray, first_sample: int, rate_hz: float) -> np.ndarray:
+        """Subtract offset and drift from samples starting at absolute index ``first_sample``."""
+        t = (first_sample + np.arange(len(force_n)) - self.window.start) / rate_hz
+        return force_n - self.offset_n - t[:, None] * self.drift_n_s
+
+
+def find_steady(
+    force_n: ArrayLike, rate_hz: float, spindle_rpm: float, tolerance: float = 0.05,
+    refine: bool = True, offset_n: ArrayLike | None = None,
+) -> SteadyPart:  # fmt: skip
+    """Locate the steady cutting part of a record (n, c) and estimate its offset.
+
+    Air revolutions are those whose mean and spread match the quietest revolution's; the offset
+    is their mean (a straight line in time if there is air before and after the cut). Give
+    ``offset_n`` to skip the estimate (a record with no air in it).
+    """
+    x = np.asarray(force_n, float)
+    if x.ndim != 2 or len(x) == 0:
+        raise AnalysisError(f"force record has shape {x.shape}: expected (n, channels) N")
+    spr = _samples_per_rev(rate_hz, spindle_rpm)
+    means, _ = per_revolution(x, rate_hz, spindle_rpm)
+    n_rev = len(means)
+    if n_rev < 3:
+        raise AnalysisError(
+            f"record of {len(x)} samples holds {n_rev} whole revolutions at {spindle_rpm} rpm: "
+            "need at least 3"
+        )
+    edges = np.round(np.arange(n_rev + 1) * spr).astype(np.int64)
+    sq, _ = per_revolution(x**2, rate_hz, spindle_rpm)
+    spread = np.sqrt(np.maximum(sq - means**2, 0.0))  # (n_rev, c) per-revolution std
+    quiet = int(np.argmin(spread.sum(axis=1)))
+    noise = np.linalg.norm(spread[quiet]) + 1e-12
+    dist = np.linalg.norm(means - means[quiet], axis=1) + np.linalg.norm(
+        spread - spread[quiet], axis=1
+    )
+    # A revolution cuts when it differs from the quietest one by far more than the noise can.
+    floor = 8 * noise / np.sqrt(spr) + 0.5 * noise
+    cutting = dist > max(floor, 0.2 * np.percentile(dist, 95))
+    if not cutting.any() or np.percentile(dist, 95) <= floor:
+        raise AnalysisError(
+            f"no cutting found: all {n_rev} revolutions look alike (spread {noise:.3g} N, "
+            f"largest change {dist.max():.3g} N); is this an air run?"
+        )
+    air = ~cutting
+    if offset_n is not None:
+        off0 = np.broadcast_to(np.asarray(offset_n, float), (x.shape[1],))
+        drift = np.zeros(x.shape[1])
+        n_air = 0
+    else:
+        n_air = int(air.sum())
+        if n_air == 0:
+            raise AnalysisError(
+                "no air revolutions to take the dynamometer offset from (the record cuts from "
+                "start to end); record some air before the cut or give offset_n"
+            )
+        first_cut, last_cut = np.flatnonzero(cutting)[[0, -1]]
+        before = air & (np.arange(n_rev) < first_cut)
+        after = air & (np.arange(n_rev) > last_cut)
+        t_rev = 0.5 * (edges[:-1] + edges[1:]) / rate_hz
+        if before.any() and after.any():
+            tt = t_rev[before | after]
+            A = np.column_stack([np.ones_like(tt), tt])
+            coef, *_ = np.linalg.lstsq(A, means[before | after], rcond=None)
+            off_at0, drift = coef[0], coef[1]
+        else:
+            off_at0, drift = means[air].mean(axis=0), np.zeros(x.shape[1])
+    level_vec = means - (off0 if offset_n is not None else 0.0)
+    if offset_n is None:
+        t_rev = 0.5 * (edges[:-1] + edges[1:]) / rate_hz
+        level_vec = means - off_at0 - t_rev[:, None] * drift
+    level = np.linalg.norm(level_vec, axis=1)
+    lo, hi = _longest_steady(level, cutting, tolerance)
+    lo, hi = lo + 1, hi - 1  # the first and last steady revolutions may hold the transition
+    if hi - lo < 3:
+        raise AnalysisError(
+            f"only {max(hi - lo, 0)} steady cutting revolutions (of {int(cutting.sum())} cutting): "
+            f"need at least 3 whose mean stays within {tolerance:.0%} of the median"
+        )
+    start, stop = int(edges[lo]), int(edges[hi])
+    if offset_n is None:
+        off0 = off_at0 + drift * start / rate_hz
+    period = 60.0 / abs(spindle_rpm)
+    if refine:
+        seg = x[start:stop]
+        period = refine_period(np.linalg.norm(seg - seg.mean(axis=0), axis=1), rate_hz, period)
+        n_whole = int((stop - start) / (period * rate_hz))
+        stop = start + int(round(n_whole * period * rate_hz))
+    return SteadyPart(
+        slice(start, stop), np.asarray(off0, float), np.asarray(drift, float), period,
+        int(cutting.sum()), hi - lo, n_air,
+    )  # fmt: skip
+
+
+def refine_period(
+    signal: ArrayLike, rate_hz: float, nominal_period_s: float, tolerance: float = 0.02
+) -> float:
+    """Revolution period (s) from the autocorrelation of a 1-D signal, near the nominal one.
+
+    First the autocorrelation peak at one revolution (within ``tolerance``) over the first few
+    revolutions (FFT), then the peak at k revolutions with k as large as half the record allows,
+    searched by direct products over the few lags the first estimate leaves open, each with
+    parabolic interpolation; the error shrinks like 1/k. Returns the nominal period if the record
+    is shorter than two revolutions.
+    """
+    x = np.asarray(signal, float)
+    x = x - x.mean()
+    spr = nominal_period_s * rate_hz
+    if len(x) < 2 * spr + 2:
+        return nominal_period_s
+    head = x[: int(min(len(x), 8 * spr))]
+    nfft = 1 << int(np.ceil(np.log2(2 * len(head))))
+    spec = np.fft.rfft(head, nfft)
+    ac = np.fft.irfft(spec * np.conj(spec), nfft)[: len(head)]
+    lo = max(1, int(np.floor(spr * (1 - tolerance))))
+    hi = min(len(head) - 2, int(np.ceil(spr * (1 + tolerance))))
+    if hi <= lo:
+        return nominal_period_s
+    lags = np.arange(lo, hi + 1)
+    lag1 = _parabolic_peak(lags, ac[lo : hi + 1] / (len(head) - lags))
+    k = int(len(x) / lag1 / 2)
+    if k < 2:
+        return float(lag1 / rate_hz)
+    centre = k * lag1
+    half = int(np.ceil(0.1 * k)) + 3  # lag1 is good to a small fraction of a sample
+    lags = np.arange(max(1, int(centre) - half), min(len(x) - 1, int(centre) + half + 1))
+    vals = np.array([x[: len(x) - L] @ x[L:] / (len(x) - L) for L in lags])
+    return float(_parabolic_peak(lags, vals) / k / rate_hz)
+
+
+def _parabolic_peak(lags: np.ndarray, vals: np.ndarray) -> float:
+    i = int(np.argmax(vals))
+    j = float(lags[i])
+    if 0 < i < len(vals) - 1:
+        y0, y1, y2 = vals[i - 1], vals[i], vals[i + 1]
+        den = y0 - 2 * y1 + y2
+        if den != 0:
+            j += 0.5 * (y0 - y2) / den
+    return j
+
+
+class SyncAverager:
+    """Synchronous average over revolutions into ``n_bins`` angle bins, fed in chunks.
+
+    ``add(chunk, first_sample)`` takes samples (m, c) whose first has index ``first_sample``
+    counted from the window start (angle 0); memory is O(n_bins x c) plus the chunk.
+    """
+
+    def __init__(self, rate_hz: float, period_s: float, n_bins: int, channels: int = 3) -> None:
+        self.rate_hz, self.period_s, self.n_bins = float(rate_hz), float(period_s), int(n_bins)
+        self.sums = np.zeros((self.n_bins, channels))
+        self.counts = np.zeros(self.n_bins)
+        self.samples = 0
+
+    def add(self, chunk: ArrayLike, first_sample: int) -> None:
+        x = np.asarray(chunk, float)
+        idx = first_sample + np.arange(len(x))
+        # Nearest bin (bin k is centred on angle 2 pi k / n_bins): with one bin per sample a
+        # floor would put samples that sit on a bin edge into either neighbour by rounding.
+        frac = (idx / (self.rate_hz * self.period_s)) % 1.0
+        b = np.rint(frac * self.n_bins).astype(np.int64) % self.n_bins
+        for c in range(x.shape[1]):
+            self.sums[:, c] += np.bincount(b, weights=x[:, c], minlength=self.n_bins)
+        self.counts += np.bincount(b, minlength=self.n_bins)
+        self.samples += len(x)
+
+    def mean(self) -> np.ndarray:
+        """Averaged waveform (n_bins, c); bin k is centred on angle 2 pi k / n_bins."""
+        if np.any(self.counts == 0):
+            raise AnalysisError(
+                f"{int((self.counts == 0).sum())} of {self.n_bins} angle bins are empty: use fewer "
+                f"bins (at most about {int(self.rate_hz * self.period_s)} samples per revolution)"
+            )
+        return self.sums / self.counts[:, None]
+
+
+@dataclass(frozen=True)
+class ToothPeaks:
+    """Per-tooth peak resultant force: ``peaks_n`` (n_rev, teeth) N, their mean per tooth
+    ``mean_peak_n`` (teeth,), and ``runout_ratio`` = (max - min) / mean of the per-tooth means."""
+
+    peaks_n: np.ndarray
+    mean_peak_n: np.ndarray
+    runout_ratio: float
+
+
+def tooth_peaks(
+    force_n: ArrayLike, rate_hz: float, period_s: float, teeth: int, phase_rad: float = 0.0
+) -> ToothPeaks:
+    """Peak resultant force of each tooth in each whole revolution of a steady record (n, c).
+
+    Revolution k spans samples [k, k + 1) * period; tooth j owns the angle sector
+    [j, j + 1) * 2 pi / teeth shifted by ``phase_rad`` (put the sector edges between teeth: pass
+    the angle where the averaged force is lowest).
+    """
+    x = np.linalg.norm(np.asarray(force_n, float), axis=1)
+    spr = rate_hz * period_s
+    n_rev = int(len(x) // spr)
+    if n_rev < 1 or teeth < 1:
+        raise AnalysisError(f"tooth peaks need >= 1 revolution and tooth (got {n_rev}, {teeth})")
+    idx = np.arange(int(n_rev * spr))
+    ang = (idx / spr * 2 * np.pi - phase_rad) % (2 * np.pi)
+    sector = np.minimum((ang / (2 * np.pi) * teeth).astype(np.int64), teeth - 1)
+    rev = np.minimum((idx / spr).astype(np.int64), n_rev - 1)
+    peaks = np.full((n_rev, teeth), -np.inf)
+    np.maximum.at(peaks, (rev, sector), x[idx])
+    mean_peak = peaks.mean(axis=0)
+    ratio = float((mean_peak.max() - mean_peak.min()) / mean_peak.mean()) if teeth > 1 else 0.0
+    return ToothPeaks(peaks, mean_peak, ratio)
