@@ -101,7 +101,10 @@ def steady_window(
     x = np.asarray(signal, float)
     if x.ndim != 1:
         raise AnalysisError(f"signal has shape {x.shape}: expected (n,)")
-    part = find_steady(x[:, None], rate_hz, spindle_rpm, tolerance=tolerance, refine=False)
+    # A 1-D level such as the resultant has no offset to find; its air is near 0.
+    part = find_steady(
+        x[:, None], rate_hz, spindle_rpm, tolerance=tolerance, refine=False, offset_n=0.0
+    )
     return part.window
 
 
@@ -160,8 +163,13 @@ def find_steady(
     )
     # A revolution cuts when it differs from the quietest one by far more than the noise can.
     floor = 8 * noise / np.sqrt(spr) + 0.5 * noise
-    cutting = dist > max(floor, 0.2 * np.percentile(dist, 95))
-    if not cutting.any() or np.percentile(dist, 95) <= floor:
+    if offset_n is not None:
+        # Offset known: a revolution cuts when its mean force stands out from it (works for
+        # records that cut from start to end).
+        dist = np.linalg.norm(means - np.asarray(offset_n, float), axis=1)
+        floor = 8 * noise / np.sqrt(spr)
+    cutting = dist > max(floor, 0.2 * dist.max())
+    if dist.max() <= floor:
         raise AnalysisError(
             f"no cutting found: all {n_rev} revolutions look alike (spread {noise:.3g} N, "
             f"largest change {dist.max():.3g} N); is this an air run?"
