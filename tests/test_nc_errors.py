@@ -32,8 +32,11 @@ def test_bad_program_gives_one_clear_error(name):
         interpret_file(path)
     err = info.value
     assert (err.file, err.line, err.column, err.word) == (
-        str(path), exp["line"], exp["column"], exp["word"],
-    )  # fmt: skip
+        str(path),
+        exp["line"],
+        exp["column"],
+        exp["word"],
+    )
     assert exp["reason"] in err.reason
     assert str(err).startswith(f"{path}:{exp['line']}:{exp['column']}: ")
     assert "\n" not in str(err)
@@ -57,8 +60,10 @@ def test_console_script_exit_code_and_message():
     path = BAD / "arc_r_too_small.nc"
     proc = subprocess.run(
         [sys.executable, "-m", "rig.cli", "nc", "check", str(path), "--json"],
-        capture_output=True, text=True, timeout=60,
-    )  # fmt: skip
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr
     assert proc.stderr.strip() == (

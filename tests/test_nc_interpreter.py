@@ -83,9 +83,14 @@ def test_tool_needs_m6_to_change():
     assert it.state.tool == 7
 
 
-@pytest.mark.parametrize("dialect, words, seconds", [
-    ("fanuc", "G4 P1500", 1.5), ("fanuc", "G4 X2.5", 2.5), ("grbl", "G4 P1.5", 1.5),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "dialect, words, seconds",
+    [
+        ("fanuc", "G4 P1500", 1.5),
+        ("fanuc", "G4 X2.5", 2.5),
+        ("grbl", "G4 P1.5", 1.5),
+    ],
+)
 def test_dwell_units_by_dialect(dialect, words, seconds):
     m = interpret(f"G0 X1\n{words}", dialect=dialect)
     assert m.kind[-1] == DWELL and m.dwell_s[-1] == pytest.approx(seconds)
@@ -97,8 +102,12 @@ def test_recorded_modes():
     it.run(["G18 G41 D7 G43 H3 G56 G99 G90.1 G20"])
     s = it.state
     assert (s.plane, s.cutter_comp, s.cutter_comp_d, s.tool_length, s.tool_length_h) == (
-        18, 41, 7, 43, 3,
-    )  # fmt: skip
+        18,
+        41,
+        7,
+        43,
+        3,
+    )
     assert (s.work_offset, s.retract_initial, s.arc_absolute, s.inch) == (56, False, True, True)
 
 
@@ -110,10 +119,15 @@ def test_g81_g98_g99_closed_form():
     m = interpret("G0 X0 Y0 Z20\nG1 F100\nG99 G81 X10 Y0 Z-5 R2\nG98 X20\nG80\nG0 X0")
     assert _moves(m) == [
         (RAPID, (0, 0, 20)),
-        (RAPID, (10, 0, 20)), (RAPID, (10, 0, 2)), (LINE, (10, 0, -5)), (RAPID, (10, 0, 2)),
-        (RAPID, (20, 0, 2)), (LINE, (20, 0, -5)), (RAPID, (20, 0, 20)),  # G98: initial level
+        (RAPID, (10, 0, 20)),
+        (RAPID, (10, 0, 2)),
+        (LINE, (10, 0, -5)),
+        (RAPID, (10, 0, 2)),
+        (RAPID, (20, 0, 2)),
+        (LINE, (20, 0, -5)),
+        (RAPID, (20, 0, 20)),  # G98: initial level
         (RAPID, (0, 0, 20)),
-    ]  # fmt: skip
+    ]
     assert np.all(np.isnan(m.feed_mm_min[m.kind == RAPID]))
     assert np.all(m.feed_mm_min[m.kind == LINE] == 100)
 

@@ -254,8 +254,9 @@ class Program:
 
     def replace_blocks(self, edits: Mapping[int, Sequence[str | Mapping[str, Value]]]) -> list[int]:
         """Replace each block ``i`` in ``edits`` by the given blocks (texts or word mappings
-        formatted with :meth:`format_block` like block ``i``; the first new block also keeps
-        block ``i``'s comments). Untouched blocks stay as they are.
+        formatted with :meth:`format_block` like block ``i``; a first new block given as a
+        mapping also gets block ``i``'s comments, texts are used verbatim). Untouched blocks stay
+        as they are.
 
         Returns ``new_index`` with ``new_index[i]`` = index of the first block that block ``i``
         became (the others follow it), so callers can map old blocks to new ones.
@@ -272,7 +273,7 @@ class Program:
             comments = "".join(t.text for t in _lexer.tokenize(raw) if t.kind == "comment")
             for j, b in enumerate(edits[i]):
                 text = b if isinstance(b, str) else self.format_block(b, like=i)
-                if j == 0 and comments:
+                if j == 0 and comments and not isinstance(b, str):
                     text = f"{text} {comments}" if text.strip() else text + comments
                 out.append(text)
         self.lines = out
