@@ -1,0 +1,165 @@
+"""Identify end-mill cutting and edge coefficients by the average-force method (Altintas).
+
+The mean force over whole revolutions is linear in the feed per tooth: F_mean = F_c f_z + F_e.
+For a flat end mill the closed forms (``analysis.endmill.mean_force_design``, valid for slotting
+and any immersion, up or down milling, any helix) give the mean X, Y, Z force per unit value of
+each of K_tc, K_rc, K_ac, K_te, K_re, K_ae; ball and bull-nose end mills use the same relation
+with the model averaged numerically over a revolution. Stacking every run's three mean forces
+gives one linear least-squares problem for the six coefficients, with standard errors,
+confidence intervals, R^2 and residuals. The mean is untouched by the dynamometer's modes (their
+static gain is one), so no modal correction is needed.
+
+Runs at two or more feeds per tooth are needed (cutting vs edge); at least three runs so that
+the fit has degrees of freedom left (3 equations per run, 6 unknowns).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from analysis._identify import (
+    ForceRun,
+    LinearFit,
+    RunAverage,
+    RunConditions,
+    check_units,
+    linear_fit,
+    reduce_run,
+)
+from analysis.config import EndMill, EndMillCoefficients
+from analysis.dynamics import DynamometerFilter
+from analysis.endmill import (
+    PARAMETERS,
+    EndMillCut,
+    coefficients_from_vector,
+    endmill_forces,
+    mean_force_design,
+)
+from analysis.errors import AnalysisError
+
+__all__ = ["EndMillFit", "fit_endmill", "fit_endmill_runs", "synthetic_endmill_run"]
+
+
+def _cut(tool: EndMill, c: RunConditions) -> EndMillCut:
+    mode = c.mode if c.mode in ("up", "down", "slot") else None
+    if mode is None:
+        raise AnalysisError(f"mode = {c.mode!r}: expected 'up', 'down' or 'slot'")
+    ae = tool.diameter_mm if (mode == "slot" or not math.isfinite(c.width_mm)) else c.width_mm
+    if mode != "slot" and not math.isfinite(c.width_mm):
+        raise AnalysisError(
+            f"width_mm missing: an end-mill {mode}-milling run needs the radial width of cut (mm)"
+        )
+    return EndMillCut.from_width(tool, c.fz_mm, c.depth_mm, ae, mode,
+                                 feed_angle_deg=c.feed_angle_deg)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class EndMillFit:
+    """Result of :func:`fit_endmill`: ``success``/``message``; ``coefficients``
+    (EndMillCoefficients); ``fit`` (LinearFit over :data:`analysis.endmill.PARAMETERS`);
+    ``residuals_n`` (runs, 3) N mean-force residuals; ``runs``; ``rejected`` (name, reason)."""
+
+    success: bool
+    message: str
+    coefficients: EndMillCoefficients | None = None
+    fit: LinearFit | None = None
+    residuals_n: np.ndarray | None = None
+    runs: tuple[str, ...] = ()
+    rejected: tuple[tuple[str, str], ...] = ()
+
+
+def fit_endmill(
+    averages: Sequence[RunAverage], tool: EndMill, confidence: float = 0.95
+) -> EndMillFit:
+    """Average-force fit over reduced runs (see module docstring)."""
+    if not isinstance(tool, EndMill):
+        raise AnalysisError(
+            f"tool of kind {getattr(tool, 'kind', type(tool).__name__)!r}: the average-force "
+            "method here describes flat, ball and bull end mills (face mills: identify_facemill)"
+        )
+    check_units(averages)
+    names = tuple(a.name for a in averages)
+    feeds = {round(a.conditions.fz_mm, 9) for a in averages}
+    if len(averages) < 3 or len(feeds) < 2:
+        return EndMillFit(
+            False,
+            f"too few runs for the unknowns: {len(averages)} run(s) at {len(feeds)} feed(s) per "
+            "tooth; the average-force method needs >= 3 runs at >= 2 feeds per tooth (3 mean "
+            "forces per run, 6 coefficients; cutting and edge parts separate by feed)",
+            runs=names,
+        )
+    X = np.concatenate([mean_force_design(tool, _cut(tool, a.conditions)) for a in averages])
+    y = np.concatenate([a.mean_n for a in averages])
+    try:
+        fit, resid = linear_fit(X, y, PARAMETERS, confidence)
+    except AnalysisError as exc:
+        return EndMillFit(False, str(exc), runs=names)
+    try:
+        coef = coefficients_from_vector(fit.values)
+    except Exception as exc:  # pydantic range check (e.g. a negative K_tc): report it
+        return EndMillFit(False, f"fitted coefficients out of range: {exc}", fit=fit, runs=names)
+    return EndMillFit(
+        True,
+        f"fitted {len(averages)} runs ({len(y)} mean forces), R^2 = {fit.r_squared:.5f}",
+        coef, fit, resid.reshape(-1, 3), names,
+    )  # fmt: skip
+
+
+def fit_endmill_runs(
+    runs: Sequence[ForceRun], tool: EndMill, n_bins: int | None = None
+) -> EndMillFit:
+    """Reduce in-memory runs and fit; runs without steady cutting go to ``rejected``."""
+    check_units(runs)
+    if not isinstance(tool, EndMill):
+        return fit_endmill([], tool)
+    avgs, rejected = [], []
+    for r in runs:
+        try:
+            avgs.append(reduce_run(r, tool.flutes, n_bins))
+        except AnalysisError as exc:
+            rejected.append((r.name, str(exc)))
+    out = fit_endmill(avgs, tool)
+    if rejected:
+        why = "; ".join(f"{n}: {m}" for n, m in rejected)
+        out = EndMillFit(**{**out.__dict__, "message": f"{out.message} (rejected: {why})",
+                            "rejected": tuple(rejected)})  # fmt: skip
+    return out
+
+
+def synthetic_endmill_run(
+    name: str,
+    tool: EndMill,
+    coef: EndMillCoefficients,
+    conditions: RunConditions,
+    rate_hz: float = 20_000.0,
+    cut_s: float = 2.0,
+    air_s: float = 0.5,
+    noise_frac: float = 0.02,
+    dynamometer: DynamometerFilter | None = None,
+    rng: np.random.Generator | None = None,
+    offset_n: Sequence[float] = (0.0, 0.0, 0.0),
+    phase_rad: float = 0.0,
+    n_discs: int = 16,
+) -> ForceRun:
+    """A record made from the end-mill model (air, steady cut, air) with modes, offset, noise."""
+    rng = rng or np.random.default_rng(0)
+    n_air, n_cut = int(air_s * rate_hz), int(cut_s * rate_hz)
+    n = 2 * n_air + n_cut
+    t = np.arange(n) / rate_hz
+    phi = phase_rad + 2 * np.pi * abs(conditions.spindle_rpm) / 60.0 * t
+    f = np.zeros((n, 3))
+    cut = _cut(tool, conditions)
+    sl = slice(n_air, n_air + n_cut)
+    for i in range(sl.start, sl.stop, 20_000):  # bounded memory: teeth x discs per sample
+        j = min(i + 20_000, sl.stop)
+        f[i:j] = endmill_forces(phi[i:j], tool, coef, cut, n_discs)
+    if dynamometer is not None:
+        f = dynamometer.apply(f)
+    peak = float(np.linalg.norm(f, axis=1).max())
+    f += np.asarray(offset_n, float)
+    f += rng.normal(scale=noise_frac * peak, size=f.shape)
+    return ForceRun(name, f, rate_hz, conditions)

@@ -1,0 +1,145 @@
+"""Validation: predict other runs with identified coefficients and compare with what was measured.
+
+Seed 003 Figs 5-14 compare predicted and measured T and R forces against depth of cut at other
+feeds per tooth. Here each reduced run (``RunAverage``) is predicted with the model and compared
+on the mean force per revolution in the dynamometer axes (which the dynamometer's modes and the
+unknown angular phase do not change) and on the peak of the revolution-averaged resultant (which
+the modes do change: the prediction is passed through them when a dynamometer is given).
+
+``compare_runs(averages, tool, coefficients, dynamometer=None) -> Comparison`` gives a table
+(one row per run: conditions, measured and predicted mean X, Y, Z and resultant, errors in % of
+the measured mean resultant); ``Comparison.to_frame()`` is the pandas view; ``plot_comparison``
+writes PNGs: mean forces against depth of cut per feed (like seed 003 Figs 7-12) and the
+averaged waveforms measured vs predicted.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from analysis._identify import RunAverage
+from analysis.config import EndMill, EndMillCoefficients, FaceMill, FaceMillCoefficients
+from analysis.errors import AnalysisError
+
+__all__ = ["Comparison", "compare_runs", "plot_comparison", "predicted_mean"]
+
+
+def predicted_mean(
+    avg: RunAverage, tool: FaceMill | EndMill, coef: FaceMillCoefficients | EndMillCoefficients
+) -> np.ndarray:
+    """Mean force per revolution (3,) N predicted for a run's conditions."""
+    c = avg.conditions
+    if isinstance(tool, FaceMill):
+        from analysis.facemill import coefficient_vector, facemill_design
+        from analysis.identify_facemill import _cut
+
+        theta = 2 * np.pi * (np.arange(4096) + 0.5) / 4096
+        return facemill_design(theta, tool, _cut(c)).mean(axis=0) @ coefficient_vector(coef)
+    if isinstance(tool, EndMill):
+        from analysis.endmill import coefficient_vector, mean_force_design
+        from analysis.identify_endmill import _cut as em_cut
+
+        return mean_force_design(tool, em_cut(tool, c)) @ coefficient_vector(coef)
+    raise AnalysisError(f"tool of kind {getattr(tool, 'kind', '?')!r} cannot be predicted")
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Predicted vs measured per run. ``rows``: one dict per run with name, fz_mm, depth_mm,
+    measured/predicted mean X, Y, Z and resultant (N), ``error_pct`` (3,) per axis in % of the
+    measured mean resultant, ``resultant_error_pct``, peak resultant measured/predicted (N).
+    ``max_error_pct``: largest per-axis error over the runs."""
+
+    rows: tuple[dict, ...]
+    max_error_pct: float
+
+    def to_frame(self):
+        import pandas as pd
+
+        flat = []
+        for r in self.rows:
+            d = {k: v for k, v in r.items() if not isinstance(v, np.ndarray)}
+            for i, ax in enumerate("xyz"):
+                d[f"measured_{ax}_n"] = float(r["measured_mean_n"][i])
+                d[f"predicted_{ax}_n"] = float(r["predicted_mean_n"][i])
+                d[f"error_{ax}_pct"] = float(r["error_pct"][i])
+            flat.append(d)
+        return pd.DataFrame(flat)
+
+
+def compare_runs(
+    averages: Sequence[RunAverage],
+    tool: FaceMill | EndMill,
+    coef: FaceMillCoefficients | EndMillCoefficients,
+    dynamometer=None,
+) -> Comparison:
+    """Predict each run and compare with its measurement (see module docstring)."""
+    rows = []
+    for a in averages:
+        pred = predicted_mean(a, tool, coef)
+        meas = a.mean_n
+        scale = max(float(np.linalg.norm(meas)), 1e-9)
+        err = (pred - meas) / scale * 100
+        peak_meas = float(np.linalg.norm(a.waveform_n, axis=1).max())
+        peak_pred = float("nan")
+        if isinstance(tool, FaceMill):
+            from analysis.identify_facemill import _filter_for, _phase, predicted_waveform
+
+            filt = _filter_for(dynamometer, a.rate_hz)
+            wave = predicted_waveform(a, tool, coef, filt, _phase(a, tool, filt))
+            peak_pred = float(np.linalg.norm(wave, axis=1).max())
+        rows.append(
+            {
+                "run": a.name,
+                "fz_mm": a.conditions.fz_mm,
+                "depth_mm": a.conditions.depth_mm,
+                "measured_mean_n": meas,
+                "predicted_mean_n": pred,
+                "measured_resultant_n": float(np.linalg.norm(meas)),
+                "predicted_resultant_n": float(np.linalg.norm(pred)),
+                "error_pct": err,
+                "resultant_error_pct": float(
+                    (np.linalg.norm(pred) - np.linalg.norm(meas)) / scale * 100
+                ),
+                "measured_peak_n": peak_meas,
+                "predicted_peak_n": peak_pred,
+            }
+        )
+    worst = max((float(np.abs(r["error_pct"]).max()) for r in rows), default=0.0)
+    return Comparison(tuple(rows), worst)
+
+
+def plot_comparison(cmp: Comparison, out_dir: str | Path, stem: str = "validation") -> list[Path]:
+    """PNG plots: mean X, Y, Z force vs depth of cut per feed per tooth, measured (markers) and
+    predicted (lines). Returns the files written."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    feeds = sorted({r["fz_mm"] for r in cmp.rows})
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4), constrained_layout=True)
+    for i, ax in enumerate(axes):
+        for j, fz in enumerate(feeds):
+            rs = sorted((r for r in cmp.rows if r["fz_mm"] == fz), key=lambda r: r["depth_mm"])
+            d = [r["depth_mm"] for r in rs]
+            col = f"C{j}"
+            ax.plot(d, [r["measured_mean_n"][i] for r in rs], "o", color=col,
+                    label=f"measured {fz:g} mm/tooth")  # fmt: skip
+            ax.plot(d, [r["predicted_mean_n"][i] for r in rs], "-", color=col,
+                    label=f"predicted {fz:g} mm/tooth")  # fmt: skip
+        ax.set_xlabel("axial depth of cut, mm")
+        ax.set_ylabel(f"mean F{'xyz'[i]} per revolution, N")
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.suptitle(f"predicted vs measured (largest error {cmp.max_error_pct:.2f} % of resultant)")
+    path = out / f"{stem}_mean_forces.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return [path]
