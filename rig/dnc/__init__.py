@@ -1,0 +1,52 @@
+"""DNC streaming: NC programs to a controller over RS-232 (Fanuc drip feed, GRBL).
+
+Quick tour::
+
+    from analysis.config import load_machine
+    from rig.dnc import FanucStreamer, GrblStreamer, load_program, restart_blocks, CsvSink
+
+    machine = load_machine("ace-h63")
+    program = load_program("part.nc")              # NC errors raise here, before sending
+    st = FanucStreamer(machine.serial, sink=CsvSink("blocks.csv"))
+    result = st.send(program)                      # StreamResult; StreamFault on a fault
+    pre = restart_blocks(program, 120, "fanuc", machine)
+    st.send(program, start_block=120, preamble=pre)
+
+Modules: :mod:`~rig.dnc.port` (settings per protocol, opening), :mod:`~rig.dnc.link` (reader
+thread, DC1/DC3 gate, pacing), :mod:`~rig.dnc.fanuc`, :mod:`~rig.dnc.grbl`,
+:mod:`~rig.dnc.restart`, :mod:`~rig.dnc.remote` (remote program request),
+:mod:`~rig.dnc.record` (the block record and its sinks), :mod:`~rig.dnc.progress`,
+:mod:`~rig.dnc.program`, :mod:`~rig.dnc.errors`. The simulated controllers that speak these
+protocols on a pseudo-terminal are :mod:`rig.sim.fanuc` and :mod:`rig.sim.grbl`.
+"""
+
+from rig.dnc.errors import DncError, StreamFault
+from rig.dnc.fanuc import FanucStreamer
+from rig.dnc.grbl import GrblStatus, GrblStreamer, parse_status
+from rig.dnc.program import Block, Program, load_program, program_from_text
+from rig.dnc.record import BlockRow, BlockSink, CsvSink, MemorySink, read_csv_record
+from rig.dnc.remote import RemoteServer, parse_request
+from rig.dnc.restart import restart_blocks
+from rig.dnc.result import StreamResult
+
+__all__ = [
+    "Block",
+    "BlockRow",
+    "BlockSink",
+    "CsvSink",
+    "DncError",
+    "FanucStreamer",
+    "GrblStatus",
+    "GrblStreamer",
+    "MemorySink",
+    "Program",
+    "RemoteServer",
+    "StreamFault",
+    "StreamResult",
+    "load_program",
+    "parse_request",
+    "parse_status",
+    "program_from_text",
+    "read_csv_record",
+    "restart_blocks",
+]

@@ -1,0 +1,155 @@
+"""Fanuc/ISO drip feed (DNC tape mode) over RS-232.
+
+What goes on the wire, in order::
+
+    NUL x leader_nuls, "%", EOB, block, EOB, block, EOB, ..., "%", NUL x leader_nuls
+
+with EOB = LF, CR LF or CR per ``serial.end_of_block``. The control reads tape code ISO (7-bit
+ASCII; with 7E2 the UART adds the even parity bit ISO asks for).
+
+Flow control, per ``serial.flow_control``:
+
+- ``xonxoff``: the control sends DC3 when its buffer is nearly full and DC1 when it wants more.
+  With ``serial.xonxoff_in_streamer`` (default) a reader thread gates the writer's small chunks
+  (:mod:`rig.dnc.link`); otherwise the kernel's IXON does it.
+- ``rtscts``: the UART stops on CTS off; the writer also checks CTS before each chunk where the
+  port reports modem lines (a pty has none).
+- ``none``: nothing stops the sender; only safe when the control executes faster than the line.
+
+``wait_for_dc1`` (default True): nothing is sent until the control sends DC1, as a control does
+when the operator starts DNC/tape operation. DC2/DC4 (the control starting/ending punch output)
+are honoured: while the control punches, the streamer does not send; what is punched is collected
+(:attr:`FanucStreamer.punched`) and a remote request in it is answered by :mod:`rig.dnc.remote`.
+
+Drip feed has no acknowledgement: each block's record row has its send time, ``ack_time_s`` NaN
+and status ``"sent"``. A timeout (XOFF held, write blocked, no DC1) or a lost port stops the stream
+with a :class:`~rig.dnc.errors.StreamFault` naming the last fully sent block.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+
+from analysis.config import SerialConfig
+from rig.dnc._stream import Fault, Item, StreamerBase
+from rig.dnc.link import DC2, DC4, LinkLost, LinkTimeout, SerialLink
+from rig.dnc.port import EOB_BYTES
+from rig.dnc.record import BlockRow, BlockSink
+
+
+class FanucStreamer(StreamerBase):
+    """Drip-feed a program to a Fanuc-style control (see the module docstring)."""
+
+    protocol = "fanuc"
+
+    def __init__(
+        self,
+        cfg: SerialConfig,
+        *,
+        sink: BlockSink | None = None,
+        clock: Callable[[], float] | None = None,
+        pace_bytes_per_s: float | str | None = "auto",
+        progress: bool = False,
+        wait_for_dc1: bool = True,
+        record_batch: int = 32,
+    ) -> None:
+        kw = {} if clock is None else {"clock": clock}
+        super().__init__(cfg, sink=sink, pace_bytes_per_s=pace_bytes_per_s, progress=progress, **kw)
+        self.eob = EOB_BYTES[cfg.end_of_block]
+        self.wait_for_dc1 = wait_for_dc1
+        self.record_batch = record_batch
+        self.punched = bytearray()
+        self.punching = threading.Event()
+        self._stop = threading.Event()
+
+    def stop(self) -> None:
+        """Ask a running stream to stop before its next block (it ends with fault ``stopped``)."""
+        self._stop.set()
+
+    def _make_link(self) -> SerialLink:
+        soft = self.cfg.flow_control == "xonxoff" and self.cfg.xonxoff_in_streamer
+        link = SerialLink(
+            self._serial(),
+            soft_flow=soft,
+            cts_flow=self.cfg.flow_control == "rtscts",
+            pace_bytes_per_s=self.pace,
+            on_data=self._on_data,
+            on_control=self._on_control,
+        )
+        return link
+
+    def attach(self, link: SerialLink) -> None:
+        """Take the callbacks of an already open link (remote request server)."""
+        link.on_data = self._on_data
+        link.on_control = self._on_control
+
+    def _on_data(self, data: bytes) -> None:
+        if self.punching.is_set():
+            self.punched.extend(data)
+
+    def _on_control(self, b: int) -> None:
+        if b == DC2:
+            self.punching.set()
+        elif b == DC4:
+            self.punching.clear()
+
+    def _write(self, link: SerialLink, data: bytes) -> None:
+        timeout = self.cfg.timeout_s
+        try:
+            if self.punching.is_set() and not _wait_clear(self.punching, timeout):
+                raise Fault("timeout", f"control kept punching (DC2 without DC4) for {timeout:g} s")
+            link.write(data, timeout)
+        except LinkTimeout as exc:
+            why = f"{exc} (alarm on the control? e.g. 087 buffer overflow)"
+            raise Fault("timeout", why) from None
+        except LinkLost as exc:
+            raise Fault("port-lost", str(exc)) from None
+
+    def _run(self, link: SerialLink, items: list[Item]) -> None:
+        timeout = self.cfg.timeout_s
+        if self.wait_for_dc1 and link.soft_flow:
+            # Before the control asks (DC1), the gate is shut.
+            if not link.dc1_seen.is_set():
+                link.xon.clear()
+            if not link.dc1_seen.wait(timeout):
+                if link.lost.is_set():
+                    raise Fault("port-lost", link.lost_reason)
+                raise Fault(
+                    "timeout",
+                    f"the control sent no DC1 within {timeout:g} s (put it in DNC/tape mode and "
+                    "start the cycle)",
+                )
+        lead = b"\0" * self.cfg.leader_nuls
+        self._write(link, lead + b"%" + self.eob)
+        pending: list[BlockRow] = []
+        try:
+            for it in items:
+                if self._stop.is_set():
+                    raise Fault("stopped", "stopped by the operator")
+                data = it.text.encode("ascii") + self.eob
+                t_send = self.clock()
+                self._write(link, data)
+                pending.append(BlockRow(it.block, it.line, it.text, len(data), t_send))
+                self.blocks_sent += 1
+                if it.block >= 0:
+                    self.last_sent_block = self.last_ack_block = it.block
+                if len(pending) >= self.record_batch:
+                    self._record(pending)
+                    pending = []
+            self._write(link, b"%" + lead)
+        finally:
+            if pending:
+                self._record(pending)
+
+
+def _wait_clear(ev: threading.Event, timeout_s: float) -> bool:
+    """Wait until ``ev`` is cleared (bounded polling: Event has no wait-for-clear)."""
+    done = threading.Event()
+    t = 0.0
+    while ev.is_set():
+        if t >= timeout_s:
+            return False
+        done.wait(0.01)
+        t += 0.01
+    return True

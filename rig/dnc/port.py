@@ -1,0 +1,105 @@
+"""Serial settings per protocol, checked before opening, and opening the port with pyserial.
+
+The port is a device name (``/dev/ttyUSB0``, the slave side of a pseudo-terminal such as
+``/dev/pts/3``) or any pyserial URL (``loop://``, ``socket://host:port``, ``rfc2217://...``);
+:func:`serial.serial_for_url` gives the same object for all of them, so a test swaps the machine
+for a simulated controller by changing one string.
+
+What each protocol accepts (anything else is a :class:`~rig.dnc.errors.DncError` naming the field):
+
+- ``fanuc``: 7 or 8 data bits, any parity, 1 or 2 stop bits, a Fanuc baud rate
+  (:data:`FANUC_BAUDS`), flow control ``xonxoff`` (DC1/DC3), ``rtscts`` or ``none``; ISO tape
+  code (EIA is not implemented: set the control to ISO, which every RS-232 Fanuc accepts).
+- ``grbl``: 8N1 only, flow control ``none`` (GRBL answers ``ok``; it sends no DC1/DC3 and an
+  Arduino has no RTS/CTS lines).
+
+All settings are passed to the constructor: on a pseudo-terminal, Linux keeps the data bits at 8 and
+clears parity, and re-configuring an open pty port fails, so nothing is changed after opening.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import serial
+
+from analysis.config import SerialConfig
+from rig.dnc.errors import DncError
+
+PROTOCOLS = ("fanuc", "grbl")
+
+#: Baud rates a Fanuc reader/punch interface can be set to (parameter I/O channel baud codes).
+FANUC_BAUDS = (50, 100, 110, 150, 200, 300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 76800,
+               86400, 115200)  # fmt: skip
+
+#: End-of-block bytes per config value.
+EOB_BYTES = {"LF": b"\n", "CRLF": b"\r\n", "CR": b"\r"}
+
+
+def check_protocol(protocol: str) -> str:
+    if protocol not in PROTOCOLS:
+        raise DncError(f"protocol = {protocol!r}: unknown; expected one of {', '.join(PROTOCOLS)}")
+    return protocol
+
+
+def bits_per_char(cfg: SerialConfig) -> int:
+    """Bits on the wire per character: start + data + parity + stop."""
+    return 1 + cfg.bytesize + (cfg.parity != "N") + cfg.stopbits
+
+
+def line_bytes_per_s(cfg: SerialConfig) -> float:
+    """Characters per second the line carries at ``cfg.baudrate``."""
+    return cfg.baudrate / bits_per_char(cfg)
+
+
+def check_settings(cfg: SerialConfig, protocol: str, where: str = "serial") -> None:
+    """Raise :class:`DncError` if ``protocol``'s controller cannot take these settings."""
+    check_protocol(protocol)
+    bad: list[str] = []
+    if protocol == "grbl":
+        if cfg.bytesize != 8:
+            bad.append(f"{where}.bytesize = {cfg.bytesize}: GRBL talks 8N1 only (expected 8)")
+        if cfg.parity != "N":
+            bad.append(f"{where}.parity = {cfg.parity!r}: GRBL talks 8N1 only (expected 'N')")
+        if cfg.stopbits != 1:
+            bad.append(f"{where}.stopbits = {cfg.stopbits}: GRBL talks 8N1 only (expected 1)")
+        if cfg.flow_control != "none":
+            bad.append(
+                f"{where}.flow_control = {cfg.flow_control!r}: GRBL paces the sender with 'ok' "
+                "answers and has no DC1/DC3 or RTS/CTS (expected 'none')"
+            )
+    else:
+        if cfg.baudrate not in FANUC_BAUDS:
+            bad.append(
+                f"{where}.baudrate = {cfg.baudrate}: not a Fanuc reader/punch baud rate "
+                f"(expected one of {', '.join(map(str, FANUC_BAUDS))} baud)"
+            )
+        if cfg.code != "ISO":
+            bad.append(
+                f"{where}.code = {cfg.code!r}: EIA tape code is not implemented; set the control "
+                "and the config to ISO (expected 'ISO')"
+            )
+    if bad:
+        raise DncError("; ".join(bad))
+
+
+def open_port(cfg: SerialConfig, protocol: str, read_timeout_s: float = 0.02) -> serial.SerialBase:
+    """Check the settings and open the port; a port that cannot be opened is a clear DncError."""
+    check_settings(cfg, protocol)
+    kw: dict[str, Any] = dict(
+        baudrate=cfg.baudrate,
+        bytesize=cfg.bytesize,
+        parity=cfg.parity,
+        stopbits=cfg.stopbits,
+        timeout=read_timeout_s,
+        write_timeout=cfg.timeout_s,
+        xonxoff=cfg.flow_control == "xonxoff" and not cfg.xonxoff_in_streamer,
+        rtscts=cfg.flow_control == "rtscts",
+    )
+    try:
+        return serial.serial_for_url(cfg.port, **kw)
+    except (serial.SerialException, OSError, ValueError) as exc:
+        raise DncError(
+            f"serial.port = {cfg.port!r}: cannot open ({exc}); check the port name in the machine "
+            "config or --port, or start a simulated controller with `cutlab dnc sim-controller`"
+        ) from None

@@ -1,0 +1,46 @@
+"""The summary a stream ends with (also the ``--json`` output of ``cutlab dnc send``)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+
+@dataclass(frozen=True)
+class StreamResult:
+    """What was streamed.
+
+    blocks_total : blocks meant to be sent (preamble + program from ``start_block``)
+    blocks_sent : blocks fully written to the port
+    bytes_sent : bytes written (framing, leader and trailer included)
+    last_sent_block : program index of the last block fully written (-1: none)
+    last_acknowledged_block : program index of the last block the controller acknowledged; for
+        Fanuc drip feed, which has no acknowledgement, the last block fully written before the
+        stream stopped (-1: none). Resume with ``start_block`` = the block after the last one the
+        control *executed* (its screen, or the simulated controller's ``last_completed_block``).
+    seconds : wall s from opening the port to the end
+    bytes_per_s, line_bytes_per_s : achieved rate and what the line carries at its baud rate
+    xoff_count : DC3 stops received (Fanuc with flow control in the streamer)
+    starved_fraction : fraction of GRBL status reports, while streaming, in which the controller
+        was idle waiting for blocks (None where the controller does not report it)
+    fault : ``""`` or the :class:`~rig.dnc.errors.StreamFault` kind; ``reason`` says why
+    """
+
+    protocol: str
+    ok: bool
+    start_block: int
+    blocks_total: int
+    blocks_sent: int
+    bytes_sent: int
+    last_sent_block: int
+    last_acknowledged_block: int
+    seconds: float
+    bytes_per_s: float
+    line_bytes_per_s: float
+    xoff_count: int
+    starved_fraction: float | None
+    fault: str = ""
+    reason: str = ""
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
