@@ -21,12 +21,14 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from analysis.errors import AnalysisError
+from analysis.steady import per_revolution
 
 
 @dataclass(frozen=True)
@@ -103,29 +105,6 @@ class BaseFeedResult:
 
     def table(self) -> list[dict[str, float | bool]]:
         return [vars(iv).copy() for iv in self.intervals]
-
-
-def per_revolution(
-    signal: NDArray[np.float64], rate_hz: float, spindle_rpm: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Mean and peak of ``signal`` (n,) over each whole spindle revolution.
-
-    Revolution k spans samples [round(k T fs), round((k+1) T fs)); a trailing partial revolution
-    is left out of the statistics (it is not dropped from the data, only from the averages).
-    """
-    spr = rate_hz * 60.0 / spindle_rpm  # samples per revolution (not necessarily whole)
-    n_rev = int(len(signal) // spr)
-    if n_rev < 1:
-        raise AnalysisError(
-            f"{len(signal)} samples at {rate_hz} Hz hold no whole revolution at {spindle_rpm} rpm "
-            f"(needs {math.ceil(spr)} samples)"
-        )
-    starts = np.round(np.arange(n_rev + 1) * spr).astype(np.int64)
-    seg = signal[: starts[-1]]
-    counts = np.diff(starts)
-    means = np.add.reduceat(seg, starts[:-1]) / counts
-    peaks = np.maximum.reduceat(seg, starts[:-1])
-    return means, peaks
 
 
 def vibration_rms(
@@ -256,3 +235,71 @@ def find_base_feed(
         f"{iv.feed_hi_mm_min:g} mm/min the " + " and ".join(why)
     )
     return BaseFeedResult(True, iv.feed_lo_mm_min, msg, summ, tuple(intervals), st)
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """Feed-sweep runs read from run files, and the load of their (common) test cut."""
+
+    runs: tuple[SweepRun, ...]
+    reference_load_pct: float | None  # seed 001 load of the sweep's slot, None if not derivable
+
+
+def sweep_runs_from_files(paths: Sequence[str | Path]) -> Sweep:
+    """Read feed-sweep runs (``analysis.runfile``) into :class:`SweepRun` s, steady part only.
+
+    Each run's conditions must give ``feed_mm_min`` and ``spindle_rpm``, and ``flutes`` or a
+    ``tool`` name from the tool library. The force channels used are Fx and Fy (else the first two).
+    The reference load is the seed 001 load of a full slot at the runs' ``depth_mm`` with their
+    tool, when every run names the same tool and depth.
+    """
+    from analysis.config import EndMill, get_tool
+    from analysis.load import slot_load_percent
+    from analysis.runfile import load_run
+    from analysis.steady import steady_window
+
+    runs, cuts = [], set()
+    for path in paths:
+        run = load_run(path)
+        c = run.conditions
+        where = f"{path}: conditions"
+        for k in ("feed_mm_min", "spindle_rpm"):
+            if not isinstance(c.get(k), int | float) or not c[k] > 0:
+                raise AnalysisError(f"{where}.{k} = {c.get(k)!r}: expected a number > 0")
+        tool = get_tool(c["tool"]) if isinstance(c.get("tool"), str) else None
+        flutes = c.get("flutes") or (getattr(tool, "flutes", None) if tool else None)
+        if not isinstance(flutes, int) or flutes < 1:
+            raise AnalysisError(f"{where}: neither flutes nor a known end-mill tool name given")
+        if run.force_n is None:
+            raise AnalysisError(f"{path}: the run has no calibration, so no forces in N")
+        names = list(run.channel_names)
+        cols = [names.index(n) for n in ("Fx", "Fy")] if {"Fx", "Fy"} <= set(names) else [0, 1]
+        forces = run.force_n[:, cols]
+        sl = steady_window(
+            np.hypot(forces[:, 0], forces[:, 1]), run.rate_hz, float(c["spindle_rpm"])
+        )
+        runs.append(
+            SweepRun(
+                float(c["feed_mm_min"]),
+                forces[sl],
+                run.rate_hz,
+                float(c["spindle_rpm"]),
+                int(flutes),
+                Path(path).name,
+            )
+        )
+        if isinstance(tool, EndMill) and isinstance(c.get("depth_mm"), int | float):
+            cuts.add(
+                (
+                    tool.kind,
+                    tool.diameter_mm,
+                    tool.corner_radius_mm,
+                    tool.flute_length_mm,
+                    float(c["depth_mm"]),
+                )
+            )
+    ref = None
+    if len(cuts) == 1:
+        kind, dia, rc, flute, depth = cuts.pop()
+        ref = slot_load_percent(kind, dia, depth, flute, rc)
+    return Sweep(tuple(runs), ref)
