@@ -1,0 +1,50 @@
+"""The block record into a run file: :class:`LoggerSink` adapts ``rig.logger.RunWriter``.
+
+Rows go to ``RunWriter.append_blocks`` (block, line, text, send time, ack time; both on the clock
+the writer and the streamer share), stream events to ``RunWriter.event`` (``fault`` for a fault,
+``note`` otherwise). ``close()`` waits until the writer has taken what was queued; with
+``close_writer=True`` it also closes the run file, status ``fail`` with the reason after a fault,
+``success`` otherwise, so the file is closed and valid after every fault.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+from rig.dnc.record import BlockRow
+
+
+class LoggerSink:
+    """A :class:`~rig.dnc.record.BlockSink` writing into a ``rig.logger.RunWriter``."""
+
+    def __init__(self, writer: Any, close_writer: bool = False) -> None:
+        self.writer = writer
+        self.close_writer = close_writer
+        self.fault = ""
+        self.closed = False
+
+    def append_blocks(self, rows: Sequence[BlockRow]) -> None:
+        if not rows:
+            return
+        self.writer.append_blocks(
+            [r.block for r in rows],
+            [r.line for r in rows],
+            [r.text for r in rows],
+            [r.send_time_s for r in rows],
+            [r.ack_time_s for r in rows],
+        )
+
+    def event(self, kind: str, time_s: float, detail: str = "") -> None:
+        if kind.startswith("fault"):
+            self.fault = f"{kind}: {detail}"
+            self.writer.event("fault", f"dnc {kind}: {detail}", time_s=time_s)
+        else:
+            self.writer.event("note", f"dnc {kind}: {detail}", time_s=time_s)
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        if self.close_writer:
+            self.writer.close("fail" if self.fault else "success", self.fault)
