@@ -4,6 +4,7 @@ cycles, strict/lenient modes, the incremental Interpreter and restart from block
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,7 +24,7 @@ from planning.nc import (
     state_at_block,
 )
 
-SAMPLE = "data/programs/demo-part.nc"
+SAMPLE = str(Path(__file__).resolve().parents[1] / "data" / "programs" / "demo-part.nc")
 
 
 def test_spaceless_lowercase_equals_spaced_uppercase():

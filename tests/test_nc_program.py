@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,7 +26,7 @@ from planning.nc import (
 from planning.nc._lexer import tokenize
 from planning.nc.edit import set_feed, split_moves
 
-SAMPLE = "data/programs/demo-part.nc"
+SAMPLE = str(Path(__file__).resolve().parents[1] / "data" / "programs" / "demo-part.nc")
 HYP = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 

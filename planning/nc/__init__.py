@@ -23,11 +23,12 @@ Quick tour::
     lin = linearize(motion, chord_tol_mm=0.005)          # arcs -> chords, lin.source maps back
     motion_to_program(motion).write("path.nc")           # motion -> NC
 
-Modules: :mod:`~planning.nc.motion` (Motion, kinds), :mod:`~planning.nc.interpreter`,
+Modules: :mod:`~planning.nc.motion` (Motion, kinds), :mod:`~planning.nc.interpreter`
+(Interpreter), :mod:`~planning.nc.run` (whole programs, state at block N),
 :mod:`~planning.nc.state` (ModalState), :mod:`~planning.nc.program` (Program, editing),
-:mod:`~planning.nc.writer`, :mod:`~planning.nc.arcs`, :mod:`~planning.nc.canned`,
-:mod:`~planning.nc.stats`, :mod:`~planning.nc.restart`, :mod:`~planning.nc.plot`,
-:mod:`~planning.nc.errors`.
+:mod:`~planning.nc.edit` (feed edits, split moves), :mod:`~planning.nc.writer`,
+:mod:`~planning.nc.arcs`, :mod:`~planning.nc.canned`, :mod:`~planning.nc.stats`,
+:mod:`~planning.nc.restart`, :mod:`~planning.nc.plot`, :mod:`~planning.nc.errors`.
 """
 
 from planning.nc.arcs import (
@@ -38,7 +39,7 @@ from planning.nc.arcs import (
     segment_length_mm,
 )
 from planning.nc.errors import NCError, NCWarning
-from planning.nc.interpreter import Interpreter, interpret, interpret_file, state_at_block
+from planning.nc.interpreter import Interpreter
 from planning.nc.motion import (
     ARC_CCW,
     ARC_CW,
@@ -52,8 +53,9 @@ from planning.nc.motion import (
 )
 from planning.nc.program import NumberStyle, Program
 from planning.nc.restart import restart_preamble
+from planning.nc.run import interpret, interpret_file, state_at_block
 from planning.nc.state import CannedCycle, ModalState
-from planning.nc.stats import MotionStats, motion_stats
+from planning.nc.stats import MotionStats, motion_stats, segment_time_s
 from planning.nc.writer import motion_to_program
 
 __all__ = [
@@ -84,5 +86,6 @@ __all__ = [
     "motion_to_program",
     "restart_preamble",
     "segment_length_mm",
+    "segment_time_s",
     "state_at_block",
 ]

@@ -35,6 +35,7 @@ from planning.nc.errors import NCError
 from planning.nc.interpreter import Interpreter
 from planning.nc.motion import ARC_CCW, ARC_CW, LINE
 from planning.nc.program import NumberStyle, Program
+from planning.nc.run import interpret
 from planning.nc.state import ModalState
 
 if TYPE_CHECKING:
@@ -90,8 +91,6 @@ def split_moves(
     ``plan`` keys are indices into ``interpret(program, machine, strict=strict, **options)``.
     The input program is not modified.
     """
-    from planning.nc.interpreter import interpret
-
     motion = interpret(program, machine, strict=strict, **options)
     n = len(motion)
     by_block: dict[int, int] = {}

@@ -32,57 +32,31 @@ seconds on GRBL):
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Iterator, Sequence
-from pathlib import Path
+from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING
 
 from planning.nc import _lexer
+from planning.nc._codes import (
+    FAST_LETTERS,
+    G_GROUP,
+    KNOWN_M,
+    LETTERS,
+    MOTION_MODE,
+    gkey,
+    gname,
+)
 from planning.nc.arcs import PLANE_AXES, center_from_r, check_radius
-from planning.nc.canned import drill_hole
+from planning.nc.canned import execute_canned
 from planning.nc.errors import NCError, NCWarning
 from planning.nc.motion import ARC_CCW, ARC_CW, DWELL, LINE, RAPID, Motion, MotionBuilder
 from planning.nc.state import CannedCycle, ModalState
 
 if TYPE_CHECKING:
     from analysis.config import MachineConfig
-    from planning.nc.program import Program
 
 INCH_MM = 25.4
 DEFAULT_ARC_TOLERANCE_MM = 0.002  # MachineConfig's default
 NAN = math.nan
-
-# G-code (times 10, so G90.1 is 901) -> modal group (RS-274 numbering; 0 = non-modal)
-_G_GROUP = {
-    0: 1, 10: 1, 20: 1, 30: 1, 800: 1, 810: 1, 820: 1, 830: 1,
-    40: 0, 530: 0,
-    170: 2, 180: 2, 190: 2,
-    900: 3, 910: 3,
-    901: 4, 911: 4,
-    930: 5, 940: 5,
-    200: 6, 210: 6,
-    400: 7, 410: 7, 420: 7,
-    430: 8, 490: 8,
-    980: 10, 990: 10,
-    540: 12, 550: 12, 560: 12, 570: 12, 580: 12, 590: 12,
-}  # fmt: skip
-_MOTION = {0: 0, 10: 1, 20: 2, 30: 3, 800: 80, 810: 81, 820: 82, 830: 83}
-_KNOWN_M = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 30}
-_LETTERS = frozenset("ABCDFHIJKLNOPQRSTXYZ")
-_FAST_LETTERS = frozenset("XYZF")
-_GKEY: dict[str, int] = {}  # number text -> G key cache (programs repeat the same few)
-
-
-def _gkey(num: str) -> int:
-    k = _GKEY.get(num)
-    if k is None:
-        k = round(float(num) * 10.0)
-        if len(_GKEY) < 4096:
-            _GKEY[num] = k
-    return k
-
-
-def _gname(key: int) -> str:
-    return f"G{key // 10}" if key % 10 == 0 else f"G{key / 10:g}"
 
 
 class _NullSink:
@@ -241,22 +215,22 @@ class Interpreter:
         v: dict[str, str] = {}
         for k, (letter, num) in enumerate(words):
             if letter == "G":
-                key = _gkey(num)
-                if key not in _G_GROUP:
-                    self._problem(raw, k, f"unknown G-code {_gname(key)}", line)
+                key = gkey(num)
+                if key not in G_GROUP:
+                    self._problem(raw, k, f"unknown G-code {gname(key)}", line)
                 elif gcodes is None:
                     gcodes = [(key, k)]
                 else:
                     gcodes.append((key, k))
             elif letter == "M":
                 key = round(float(num) * 10.0)
-                if key % 10 or key // 10 not in _KNOWN_M:
+                if key % 10 or key // 10 not in KNOWN_M:
                     self._problem(raw, k, f"unknown M-code M{key / 10:g}", line)
                 elif mcodes is None:
                     mcodes = [(key, k)]
                 else:
                     mcodes.append((key, k))
-            elif letter not in _LETTERS:
+            elif letter not in LETTERS:
                 self._problem(raw, k, f"unknown address letter {letter}", line)
             elif letter in v:
                 raise _lexer.word_error(
@@ -272,20 +246,20 @@ class Interpreter:
             prev_motion = st.motion
             groups: dict[int, int] = {}
             for key, k in gcodes:
-                grp = _G_GROUP[key]
+                grp = G_GROUP[key]
                 if grp in groups:
                     other = groups[grp]
                     raise _lexer.word_error(
                         raw,
                         k,
-                        f"{_gname(key)} and {_gname(other)} are in the same modal group "
+                        f"{gname(key)} and {gname(other)} are in the same modal group "
                         f"(group {grp}) and cannot share a block",
                         self.file,
                         line,
                     )
                 groups[grp] = key
                 if grp == 1:
-                    st.motion = _MOTION[key]
+                    st.motion = MOTION_MODE[key]
                     explicit_motion = True
                 elif grp == 0:
                     if key == 40:
@@ -317,13 +291,13 @@ class Interpreter:
                     st.retract_initial = key == 980
                 else:  # 12, work offsets
                     st.work_offset = key // 10
-            if explicit_motion and (st.motion < 81 or prev_motion < 81):
+            if explicit_motion and (st.motion >= 81) != (prev_motion >= 81):
                 # leaving a cycle, or starting one: its initial level is the Z here
                 st.canned = CannedCycle(initial_z_mm=st.position_mm[2])
 
         scale = INCH_MM if st.inch else 1.0
         # ---- other words
-        if not v.keys() <= _FAST_LETTERS:
+        if not v.keys() <= FAST_LETTERS:
             self._words(raw, v, scale, line, dwell, explicit_motion)
         elif "F" in v:
             f = float(v["F"]) * scale
@@ -371,7 +345,7 @@ class Interpreter:
                     line,
                 )
             if mode >= 81:
-                self._canned(raw, v, scale, line, block, out)
+                execute_canned(self, raw, v, scale, line, block, out)
             else:
                 self._move(raw, v, scale, line, block, out, mode, g53)
         elif g53:
@@ -506,12 +480,16 @@ class Interpreter:
         p1 = self._target(v, scale, g53)
         if g53 and mode not in (0, 1):
             raise self._fail(raw, 0, "G53 needs G0 or G1 in force", line)
-        if mode == 0:
-            self._seg(out, RAPID, p0, p1, (NAN, NAN, NAN), NAN, 0.0, line, block)
-        elif mode == 1:
-            self._seg(
-                out, LINE, p0, p1, (NAN, NAN, NAN), self._need_feed(raw, line), 0.0, line, block
-            )
+        if mode <= 1:  # inlined _seg: this is the hot path of big programs
+            if mode == 0:
+                kind, feed = RAPID, NAN
+            else:
+                kind, feed = LINE, st.feed_mm_min
+                if feed != feed:
+                    self._need_feed(raw, line)
+            out.fbuf.extend((p0[0], p0[1], p0[2], p1[0], p1[1], p1[2], NAN, NAN, NAN, feed,
+                             st.spindle_dir * st.spindle_speed_rpm, 0.0))  # fmt: skip
+            out.ibuf.extend((kind, st.plane, st.tool, st.coolant, line, block))
         else:
             feed = self._need_feed(raw, line)
             c = self._arc_center(raw, v, scale, line, p0, p1, mode == 2)
@@ -559,141 +537,3 @@ class Interpreter:
         c = [0.0, 0.0, 0.0]
         c[ia], c[ib], c[ic] = ca, cb, p0[ic]
         return c[0], c[1], c[2]
-
-    def _canned(self, raw, v, scale, line, block, out) -> None:
-        st = self.state
-        cy = st.canned
-        x0, y0, z0 = st.position_mm
-        oz = self.work_offsets_mm.get(st.work_offset, (0.0, 0.0, 0.0))[2]
-        if cy.initial_z_mm != cy.initial_z_mm:
-            cy.initial_z_mm = z0
-        try:
-            if "R" in v:
-                r = float(v["R"]) * scale
-                cy.r_mm = r + oz if st.absolute else cy.initial_z_mm + r
-            if "Z" in v:
-                z = float(v["Z"]) * scale
-                if st.absolute:
-                    cy.z_mm = z + oz
-                elif cy.r_mm == cy.r_mm:
-                    cy.z_mm = cy.r_mm + z
-            if "Q" in v:
-                cy.q_mm = abs(float(v["Q"]) * scale)
-            if "P" in v:
-                p = float(v["P"])
-                cy.dwell_s = p / 1000.0 if self.dialect == "fanuc" else p
-            if cy.r_mm != cy.r_mm:
-                raise ValueError("canned cycle needs the R plane (R word)")
-            if cy.z_mm != cy.z_mm:
-                raise ValueError("canned cycle needs the hole bottom (Z word)")
-            repeats = 1
-            if "L" in v:
-                repeats = float(v["L"])
-                if repeats < 0 or repeats != int(repeats) or repeats > 9999:
-                    raise ValueError(f"repeat count L must be a whole number 0..9999, got {v['L']}")
-                repeats = int(repeats)
-            feed = self._need_feed(raw, line)
-            vxy = {k: v[k] for k in ("X", "Y") if k in v}
-            for _ in range(repeats):
-                x, y, _z = self._target(vxy, scale, False)
-                moves = drill_hole(
-                    st.motion,
-                    st.position_mm,
-                    x,
-                    y,
-                    cy.r_mm,
-                    cy.z_mm,
-                    cy.initial_z_mm,
-                    retract_initial=st.retract_initial,
-                    q_mm=cy.q_mm,
-                    dwell_s=cy.dwell_s,
-                    peck_clearance_mm=self.peck_clearance_mm,
-                )
-                for kind, p0, p1, dwell_s in moves:
-                    f = feed if kind == LINE else NAN
-                    self._seg(out, kind, p0, p1, (NAN, NAN, NAN), f, dwell_s, line, block)
-                    st.position_mm = p1
-        except ValueError as exc:
-            which = next((L for L in "ZRQL" if L in v), 0)
-            raise self._fail(raw, which, str(exc), line) from None
-
-
-def _lines_of(source: str | Program | Iterable[str]) -> Iterable[str]:
-    if isinstance(source, str):
-        return _lexer.split_lines(source)
-    lines = getattr(source, "lines", None)
-    return lines if lines is not None else source
-
-
-def interpret(
-    source: str | Program | Iterable[str],
-    machine: MachineConfig | None = None,
-    *,
-    strict: bool = True,
-    file: str | None = None,
-    **options,
-) -> Motion:
-    """Interpret a whole program (text, Program, or iterable of lines) to Motion.
-
-    ``options`` go to :class:`Interpreter` (dialect, block_delete, arc_tolerance_mm,
-    work_offsets_mm, peck_clearance_mm, state). Use :class:`Interpreter` directly to get the
-    warnings of lenient mode and the final state.
-    """
-    name = file or getattr(source, "file", None) or "<program>"
-    it = Interpreter(machine, strict=strict, file=name, **options)
-    return it.run(_lines_of(source))
-
-
-def _file_lines(path: Path) -> Iterator[str]:
-    try:
-        with open(path, encoding="utf-8", errors="strict", newline=None) as fh:
-            yield from fh
-    except UnicodeDecodeError as exc:
-        raise NCError(
-            f"not a text file (UTF-8 / ASCII): {exc.reason} at byte {exc.start}", file=str(path)
-        ) from None
-    except OSError as exc:
-        raise NCError(f"cannot read the program: {exc.strerror}", file=str(path)) from None
-
-
-def interpret_file(
-    path: str | Path, machine: MachineConfig | None = None, *, strict: bool = True, **options
-) -> Motion:
-    """Interpret a program file, streaming it line by line (memory: the segment arrays only)."""
-    it = Interpreter(machine, strict=strict, file=str(path), **options)
-    return it.run(_file_lines(Path(path)))
-
-
-def state_at_block(
-    source: str | Program | Iterable[str],
-    block: int,
-    machine: MachineConfig | None = None,
-    *,
-    strict: bool = True,
-    file: str | None = None,
-    **options,
-) -> ModalState:
-    """The modal state in force just before block ``block`` (0-based) executes.
-
-    This is what a restart from block N must re-establish (units, plane, distance mode, work
-    offset, tool, spindle, coolant, feed, position); see
-    :func:`planning.nc.restart.restart_preamble`.
-    """
-    if block < 0:
-        raise NCError(f"block index must be >= 0, got {block}", file=file or "<program>")
-    name = file or getattr(source, "file", None) or "<program>"
-    it = Interpreter(machine, strict=strict, file=name, **options)
-    lines = _lines_of(source)
-
-    def head() -> Iterator[str]:
-        for i, raw in enumerate(lines):
-            if i >= block:
-                return
-            yield raw
-
-    it.skip(head())
-    if it.blocks_seen < block:
-        raise NCError(
-            f"block {block} is past the end of the program ({it.blocks_seen} blocks)", file=name
-        )
-    return it.state

@@ -58,6 +58,32 @@ def _bbox(lin_start: np.ndarray, lin_end: np.ndarray) -> tuple[tuple, tuple]:
     return tuple(map(float, pts.min(axis=0))), tuple(map(float, pts.max(axis=0)))
 
 
+def _rapid_rate(machine: MachineConfig | None, rapid_mm_min: float | None) -> float:
+    if rapid_mm_min is not None:
+        if not rapid_mm_min > 0:
+            raise ValueError(f"rapid rate must be > 0 mm/min, got {rapid_mm_min}")
+        return float(rapid_mm_min)
+    return float(machine.rapid_mm_min) if machine is not None else DEFAULT_RAPID_MM_MIN
+
+
+def segment_time_s(
+    motion: Motion, machine: MachineConfig | None = None, *, rapid_mm_min: float | None = None
+) -> np.ndarray:
+    """Duration of each segment (n,), s, by the time model of this module (vectorised)."""
+    rapid = _rapid_rate(machine, rapid_mm_min)
+    length = segment_length_mm(motion)
+    t = np.zeros(len(motion))
+    feed = motion.is_feed
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t[feed] = length[feed] / motion.feed_mm_min[feed] * 60.0
+    rap = motion.kind == RAPID
+    if rap.any():
+        t[rap] = np.abs(motion.end[rap] - motion.start[rap]).max(axis=1) / rapid * 60.0
+    dw = motion.kind == DWELL
+    t[dw] = motion.dwell_s[dw]
+    return t
+
+
 def motion_stats(
     motion: Motion, machine: MachineConfig | None = None, *, rapid_mm_min: float | None = None
 ) -> MotionStats:
@@ -65,15 +91,14 @@ def motion_stats(
 
     ``rapid_mm_min`` overrides the machine's rapid rate.
     """
-    rapid = rapid_mm_min or (machine.rapid_mm_min if machine is not None else DEFAULT_RAPID_MM_MIN)
+    rapid = _rapid_rate(machine, rapid_mm_min)
     length = segment_length_mm(motion)
     feed = motion.is_feed
     rap = motion.kind == RAPID
-    with np.errstate(invalid="ignore", divide="ignore"):
-        feed_time = float(np.sum(length[feed] / motion.feed_mm_min[feed])) * 60.0
-    axis_travel = np.abs(motion.end - motion.start).max(axis=1) if len(motion) else np.zeros(0)
-    rapid_time = float(np.sum(axis_travel[rap])) / rapid * 60.0
-    dwell = float(np.sum(motion.dwell_s[motion.kind == DWELL]))
+    t = segment_time_s(motion, rapid_mm_min=rapid)
+    feed_time = float(t[feed].sum())
+    rapid_time = float(t[rap].sum())
+    dwell = float(t[motion.kind == DWELL].sum())
     # bbox: tolerance small relative to any sensible arc; only arcs are subdivided
     lin = linearize(motion, chord_tol_mm=0.001)
     lo, hi = _bbox(lin.start, lin.end)

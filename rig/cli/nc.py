@@ -23,10 +23,10 @@ def _machine(name: str | None):
 
 def _interpret(args: argparse.Namespace):
     from planning.nc import Interpreter
-    from planning.nc.interpreter import _file_lines
+    from planning.nc.run import file_lines
 
     it = Interpreter(_machine(args.machine), strict=not args.lenient, file=args.file)
-    motion = it.run(_file_lines(args.file))
+    motion = it.run(file_lines(args.file))
     return it, motion
 
 

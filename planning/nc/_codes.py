@@ -1,0 +1,40 @@
+"""G- and M-code tables of the interpreter (private).
+
+G-codes are keyed by ten times their number so ``G90.1`` (901) and ``G91.1`` (911) are distinct
+integers; groups follow RS-274 numbering (0 = non-modal).
+"""
+
+from __future__ import annotations
+
+# G-code (times 10, so G90.1 is 901) -> modal group (RS-274 numbering; 0 = non-modal)
+G_GROUP = {
+    0: 1, 10: 1, 20: 1, 30: 1, 800: 1, 810: 1, 820: 1, 830: 1,
+    40: 0, 530: 0,
+    170: 2, 180: 2, 190: 2,
+    900: 3, 910: 3,
+    901: 4, 911: 4,
+    930: 5, 940: 5,
+    200: 6, 210: 6,
+    400: 7, 410: 7, 420: 7,
+    430: 8, 490: 8,
+    980: 10, 990: 10,
+    540: 12, 550: 12, 560: 12, 570: 12, 580: 12, 590: 12,
+}  # fmt: skip
+MOTION_MODE = {0: 0, 10: 1, 20: 2, 30: 3, 800: 80, 810: 81, 820: 82, 830: 83}
+KNOWN_M = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 30}
+LETTERS = frozenset("ABCDFHIJKLNOPQRSTXYZ")
+FAST_LETTERS = frozenset("XYZF")
+_GKEY: dict[str, int] = {}  # number text -> G key cache (programs repeat the same few)
+
+
+def gkey(num: str) -> int:
+    k = _GKEY.get(num)
+    if k is None:
+        k = round(float(num) * 10.0)
+        if len(_GKEY) < 4096:
+            _GKEY[num] = k
+    return k
+
+
+def gname(key: int) -> str:
+    return f"G{key // 10}" if key % 10 == 0 else f"G{key / 10:g}"

@@ -1,0 +1,101 @@
+"""Whole programs in, Motion out: text, Program, lines or a file (streamed), and the modal state
+at block N for restarts. All build on :class:`~planning.nc.interpreter.Interpreter`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from planning.nc import _lexer
+from planning.nc.errors import NCError
+from planning.nc.interpreter import Interpreter
+from planning.nc.motion import Motion
+from planning.nc.state import ModalState
+
+if TYPE_CHECKING:
+    from analysis.config import MachineConfig
+    from planning.nc.program import Program
+
+
+def _lines_of(source: str | Program | Iterable[str]) -> Iterable[str]:
+    if isinstance(source, str):
+        return _lexer.split_lines(source)
+    lines = getattr(source, "lines", None)
+    return lines if lines is not None else source
+
+
+def interpret(
+    source: str | Program | Iterable[str],
+    machine: MachineConfig | None = None,
+    *,
+    strict: bool = True,
+    file: str | None = None,
+    **options,
+) -> Motion:
+    """Interpret a whole program (text, Program, or iterable of lines) to Motion.
+
+    ``options`` go to :class:`Interpreter` (dialect, block_delete, arc_tolerance_mm,
+    work_offsets_mm, peck_clearance_mm, state). Use :class:`Interpreter` directly to get the
+    warnings of lenient mode and the final state.
+    """
+    name = file or getattr(source, "file", None) or "<program>"
+    it = Interpreter(machine, strict=strict, file=name, **options)
+    return it.run(_lines_of(source))
+
+
+def file_lines(path: str | Path) -> Iterator[str]:
+    """Lines of a program file, read lazily; NCError if unreadable or not UTF-8/ASCII text."""
+    try:
+        with open(path, encoding="utf-8", errors="strict", newline=None) as fh:
+            yield from fh
+    except UnicodeDecodeError as exc:
+        raise NCError(
+            f"not a text file (UTF-8 / ASCII): {exc.reason} at byte {exc.start}", file=str(path)
+        ) from None
+    except OSError as exc:
+        raise NCError(f"cannot read the program: {exc.strerror}", file=str(path)) from None
+
+
+def interpret_file(
+    path: str | Path, machine: MachineConfig | None = None, *, strict: bool = True, **options
+) -> Motion:
+    """Interpret a program file, streaming it line by line (memory: the segment arrays only)."""
+    it = Interpreter(machine, strict=strict, file=str(path), **options)
+    return it.run(file_lines(Path(path)))
+
+
+def state_at_block(
+    source: str | Program | Iterable[str],
+    block: int,
+    machine: MachineConfig | None = None,
+    *,
+    strict: bool = True,
+    file: str | None = None,
+    **options,
+) -> ModalState:
+    """The modal state in force just before block ``block`` (0-based) executes.
+
+    This is what a restart from block N must re-establish (units, plane, distance mode, work
+    offset, tool, spindle, coolant, feed, position); see
+    :func:`planning.nc.restart.restart_preamble`.
+    """
+    if block < 0:
+        raise NCError(f"block index must be >= 0, got {block}", file=file or "<program>")
+    name = file or getattr(source, "file", None) or "<program>"
+    it = Interpreter(machine, strict=strict, file=name, **options)
+    lines = _lines_of(source)
+
+    def head() -> Iterator[str]:
+        for i, raw in enumerate(lines):
+            if i >= block:
+                return
+            yield raw
+
+    it.skip(head())
+    if it.blocks_seen < block:
+        raise NCError(
+            f"block {block} is past the end of the program ({it.blocks_seen} blocks)", file=name
+        )
+    return it.state
