@@ -200,7 +200,33 @@ def test_state_copy_is_independent():
     assert snap.canned.z_mm == -1 and it.state.canned.z_mm == -3
 
 
-@pytest.mark.parametrize("n", [0, 9, 20, 37, 56, 57])
+def test_restart_inside_canned_cycle_is_refused():
+    st = state_at_block(Program.read(SAMPLE), 60)  # N540 X20.: second hole of the G83 cycle
+    assert st.motion == 83
+    with pytest.raises(NCError, match="inside a canned cycle"):
+        restart_preamble(st)
+
+
+def test_restart_preamble_inch_offsets_and_compensation():
+    it = Interpreter(work_offsets_mm={55: (100.0, 0.0, -50.0)})
+    it.run(["G20 G55 G91.1 T4 M6", "T5", "S2000 M4 M8", "G43 H4 G0 X1 Y2 Z0.5", "G41 D4 G1 X2 F20"])
+    pre = restart_preamble(it.state, work_offsets_mm={55: (100.0, 0.0, -50.0)})
+    assert pre == [
+        "G20 G17 G91.1 G94 G55 G40 G49 G98 G80", "T4 M6", "T5", "S2000 M4", "M8",
+        "G90 G0 G43 H4 Z0.5", "X2 Y2", "Z0.5", "F20", "G41 D4", "G90 G1",
+    ]  # fmt: skip
+    again = Interpreter(work_offsets_mm={55: (100.0, 0.0, -50.0)})
+    again.run(pre)
+    s1, s2 = it.state, again.state
+    assert s2.position_mm == pytest.approx(s1.position_mm)
+    names = "inch plane work_offset tool tool_selected spindle_rpm coolant cutter_comp"
+    names += " cutter_comp_d tool_length tool_length_h motion"
+    for name in names.split():
+        assert getattr(s2, name) == getattr(s1, name), name
+    assert s2.feed_mm_min == pytest.approx(s1.feed_mm_min)
+
+
+@pytest.mark.parametrize("n", [0, 9, 20, 37, 56, 57, 59, 65])
 def test_restart_from_block_n_reproduces_the_rest(n):
     prog = Program.read(SAMPLE)
     whole = interpret(prog)

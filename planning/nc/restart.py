@@ -1,14 +1,23 @@
 """Restarting a program at block N: the preamble that re-creates the modal state there.
 
-A DNC streamer resuming at block N sends :func:`restart_preamble` of
-:func:`~planning.nc.state_at_block` (N), then blocks N, N+1, ... The preamble sets units, plane,
-distance modes, feed mode, work offset, compensation records, tool, spindle, coolant and feed, then
-moves to the position: first X Y at a safe Z (rapid), then down to Z (rapid, or at feed when
-``plunge_feed`` is set).
+A DNC streamer resuming at block N sends ``restart_preamble(state_at_block(program, N))`` and then
+blocks N, N+1, ... The preamble
+
+1. sets units, plane, arc-centre mode, feed mode, work offset and G98/G99, cancelling cutter and
+   length compensation and any canned cycle;
+2. changes to the tool in the spindle (``T M6``) and preselects the next tool;
+3. starts the spindle (``S M3/M4``) and sets the coolant;
+4. rapids up to the safe Z (with ``G43 H`` when length compensation was on), then to X Y, then down
+   to Z (rapid, or ``G1`` at the feed with ``plunge_feed``);
+5. re-establishes the feed, cutter compensation, distance mode (G90/G91) and motion mode.
+
+A restart inside a run of canned-cycle blocks is refused: re-establishing the cycle would drill a
+hole where the tool stands. Restart at the block that starts the cycle instead.
 """
 
 from __future__ import annotations
 
+from planning.nc.errors import NCError
 from planning.nc.program import NumberStyle
 from planning.nc.state import ModalState
 
@@ -23,12 +32,17 @@ def restart_preamble(
     work_offsets_mm: dict[int, tuple[float, float, float]] | None = None,
     plunge_feed: bool = False,
 ) -> list[str]:
-    """NC blocks (texts) that bring a controller from power-on into ``state``.
+    """NC blocks (texts, no line ends) that bring a controller into ``state``.
 
-    ``safe_z_mm`` (machine frame, mm) is where X/Y are approached from; default the state's own Z
-    when it is higher than 0, else 0... i.e. ``max(z, 0)``. Positions are written in the state's
-    units and work frame (``work_offsets_mm`` subtracted, default zero).
+    ``safe_z_mm`` is the machine-frame Z from which X/Y are approached, default
+    ``max(state Z, 0)``. Positions are written in the state's units and work frame
+    (``work_offsets_mm`` subtracted, default zero), with ``style`` (default 4 decimals).
     """
+    if state.motion >= 81:
+        raise NCError(
+            f"cannot restart inside a canned cycle (G{state.motion} in force): restart at the "
+            "block that starts the cycle"
+        )
     fmt = (style or NumberStyle()).format
     scale = 1.0 / INCH_MM if state.inch else 1.0
     off = (work_offsets_mm or {}).get(state.work_offset, (0.0, 0.0, 0.0))
@@ -54,12 +68,10 @@ def restart_preamble(
         m = {1: " M3", -1: " M4", 0: " M5"}[state.spindle_dir]
         out.append(f"S{fmt(state.spindle_speed_rpm)}{m}")
     out.append("M8" if state.coolant else "M9")
-    out.append(f"G90 G0 Z{fmt(safe * scale)}")
+    length = f" G43 H{state.tool_length_h}" if state.tool_length == 43 else ""
+    out.append(f"G90 G0{length} Z{fmt(safe * scale)}")
     out.append(f"X{fmt(x * scale)} Y{fmt(y * scale)}")
-    if state.feed_mm_min == state.feed_mm_min:
-        feed = f"F{fmt(state.feed_mm_min * scale)}"
-    else:
-        feed = ""
+    feed = f"F{fmt(state.feed_mm_min * scale)}" if state.feed_mm_min == state.feed_mm_min else ""
     if plunge_feed and feed:
         out.append(f"G1 Z{fmt(z * scale)} {feed}")
     else:
@@ -68,9 +80,8 @@ def restart_preamble(
             out.append(feed)
     if state.cutter_comp != 40:
         out.append(f"G{state.cutter_comp} D{state.cutter_comp_d}")
-    if state.tool_length == 43:
-        out.append(f"G43 H{state.tool_length_h}")
-    out.append("G90" if state.absolute else "G91")
-    if state.motion in (1, 2, 3):
-        out.append(f"G{state.motion}" if state.motion != 1 or feed else "G1")
+    last = ["G90" if state.absolute else "G91"]
+    if state.motion != 0:
+        last.append(f"G{state.motion}" if state.motion != 80 else "G80")
+    out.append(" ".join(last))
     return out

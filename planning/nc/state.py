@@ -65,5 +65,8 @@ class ModalState:
         return self.spindle_dir * self.spindle_speed_rpm
 
     def copy(self) -> ModalState:
-        """An independent snapshot."""
-        return copy.deepcopy(self)
+        """An independent snapshot (cheap: the mutable parts are copied, the rest is immutable)."""
+        new = copy.copy(self)
+        new.canned = copy.copy(self.canned)
+        new.rotary_deg = dict(self.rotary_deg)
+        return new
