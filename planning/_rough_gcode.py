@@ -1,0 +1,124 @@
+"""A roughing plan as canonical motion and as an NC program (through planning.nc's writer).
+
+Moves, per pass of each level (levels in cutting order, passes outside in):
+
+* rapid up to the safe height (stock top + clearance), rapid over the pass start, rapid down to
+  ``hi + clearance`` (hi: the top of the material the level cuts; nothing of the part stands above
+  the pass start, since passes keep at least r from the section at the level and higher
+  sections nest inside it);
+* an open pass (one that starts where the tool's reach leaves the material, so in air): plunge at
+  the plunge feed to the level, then cut;
+* a closed pass (a full loop in material): ramp down along the loop itself at ``ramp_angle_deg``,
+  wrapping round it as often as the depth needs (a helix following the contour), then one full
+  loop at the level from where the ramp ended;
+* retract to the safe height.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from planning.nc import LINE, RAPID, Motion, MotionBuilder, NumberStyle, Program
+from planning.nc import motion_to_program as _write
+from planning.part_config import Part
+from planning.roughing import RoughPlan
+
+
+@dataclass(frozen=True)
+class MoveSettings:
+    feed_mm_min: float
+    plunge_mm_min: float
+    spindle_rpm: float
+    safe_z_mm: float
+    clearance_mm: float
+    ramp_angle_deg: float
+
+    @classmethod
+    def of(cls, part: Part) -> MoveSettings:
+        c, r = part.config.cutting, part.config.rough
+        return cls(
+            c.feed_mm_min,
+            c.plunge_feed_mm_min or c.feed_mm_min / 2,
+            c.spindle_rpm,
+            part.config.stock.z_max_mm + r.clearance_mm,
+            r.clearance_mm,
+            r.ramp_angle_deg,
+        )
+
+
+def _walk(ring: np.ndarray, s0: float, length: float) -> tuple[np.ndarray, np.ndarray]:
+    """Points along a closed ring (first == last, (n, 2)) from arc length s0 over ``length``.
+
+    Returns (xy (m, 2), arc length from the walk start (m,)), wrapping round as often as needed.
+    """
+    seg = np.linalg.norm(np.diff(ring, axis=0), axis=1)
+    per = float(seg.sum())
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    laps = int(math.ceil((s0 % per + length) / per)) + 1
+    # Vertices of `laps` copies of the ring, as arc length from the ring start.
+    s_all = np.concatenate([cum[:-1] + k * per for k in range(laps)] + [[laps * per]])
+    xy_all = np.concatenate([ring[:-1]] * laps + [ring[:1]])
+    a, b = s0 % per, s0 % per + length
+    inner = (s_all > a) & (s_all < b)
+    s_pts = np.concatenate([[a], s_all[inner], [b]])
+    x = np.interp(s_pts, s_all, xy_all[:, 0])
+    y = np.interp(s_pts, s_all, xy_all[:, 1])
+    return np.stack([x, y], 1), s_pts - a
+
+
+def plan_motion(plan: RoughPlan, part: Part, tool_numbers: tuple[int, int] = (1, 2)) -> Motion:
+    """Canonical motion of a plan (starts at the origin like planning.nc's interpreter)."""
+    ms = MoveSettings.of(part)
+    mb = MotionBuilder()
+    pos = [0.0, 0.0, 0.0]
+    tan_a = math.tan(math.radians(ms.ramp_angle_deg))
+    same_tool = part.lee_tool is part.tool
+    level_idx = 0  # stored in Motion.block so a plot can colour moves by level
+
+    def add(kind: int, end, feed: float = np.nan, tool: int = 1) -> None:
+        nonlocal pos
+        end = [float(end[0]), float(end[1]), float(end[2])]
+        if end == pos:
+            return
+        mb.add(kind, pos, end, feed_mm_min=feed, spindle_rpm=ms.spindle_rpm, tool=tool,
+               block=level_idx)  # fmt: skip
+        pos = end
+
+    for level_idx, lv in enumerate(plan.levels):  # noqa: B007 (read by add())
+        tool = tool_numbers[0] if (lv.tool == 1 or same_tool) else tool_numbers[1]
+        z, top = lv.z_mm, lv.hi_mm + ms.clearance_mm
+        for p in lv.paths.passes:
+            xy = p.xy_mm
+            add(RAPID, (pos[0], pos[1], ms.safe_z_mm), tool=tool)
+            add(RAPID, (xy[0, 0], xy[0, 1], ms.safe_z_mm), tool=tool)
+            add(RAPID, (xy[0, 0], xy[0, 1], top), tool=tool)
+            if p.closed:
+                ramp_len = (top - z) / tan_a
+                rxy, rs = _walk(xy, 0.0, ramp_len)
+                rz = top - rs * tan_a
+                for (x, y), zz in zip(rxy[1:], rz[1:]):
+                    add(LINE, (x, y, zz), ms.feed_mm_min, tool)
+                per = float(np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1)))
+                loop, _ = _walk(xy, ramp_len, per)
+                for x, y in loop[1:]:
+                    add(LINE, (x, y, z), ms.feed_mm_min, tool)
+            else:
+                add(LINE, (xy[0, 0], xy[0, 1], z), ms.plunge_mm_min, tool)
+                for x, y in xy[1:]:
+                    add(LINE, (x, y, z), ms.feed_mm_min, tool)
+            add(RAPID, (pos[0], pos[1], ms.safe_z_mm), tool=tool)
+    return mb.build()
+
+
+def plan_program(plan: RoughPlan, part: Part, motion: Motion | None = None) -> Program:
+    """The NC program of a plan, written by :func:`planning.nc.motion_to_program`."""
+    m = plan_motion(plan, part) if motion is None else motion
+    heights = " ".join(f"{lv.z_mm:.2f}" for lv in plan.levels)
+    comment = (
+        f"cutlab plan rough {part.config.name} method {plan.method}: {len(plan.levels)} levels "
+        f"{heights} tool {part.config.tool.name}"
+    )
+    return _write(m, style=NumberStyle(decimals=3), program_number=1, comment=comment)
