@@ -85,12 +85,19 @@ def envelope(
     if l2 <= 1e-18:  # plunge or retract: the cutter's own shape at the lower end
         return min(za, za + dz) + profile_mm(kind, r_mm, rc_mm, qx * qx + qy * qy)
     inv_l2 = 1.0 / l2
-    tp = qx * (dx * inv_l2) + qy * (dy * inv_l2)  # projection parameter on the horizontal path
-    cross = qx * dy - qy * dx
+    # Projection parameter on the horizontal path and the cross product giving the distance to
+    # it; axis-parallel moves keep them 1-D (broadcasting does the rest), a large saving.
+    if dy == 0.0:
+        tp, cross = qx * (dx * inv_l2), qy * -dx
+    elif dx == 0.0:
+        tp, cross = qy * (dy * inv_l2), qx * dy
+    else:
+        tp = qx * (dx * inv_l2) + qy * (dy * inv_l2)
+        cross = qx * dy - qy * dx
     w2 = cross * cross * inv_l2  # squared perpendicular distance to the path line
     k2 = r2 - w2
     reach = k2 >= -1e-12 * r2  # points exactly on the rim count, despite rounding
-    k2 = np.maximum(k2, 0.0, out=k2)
+    k2 = np.maximum(k2, 0.0)
     hw = np.sqrt(k2 * inv_l2)  # half-width in t of the interval where rho <= R
     lo = np.maximum(tp - hw, 0.0)
     hi = np.minimum(tp + hw, 1.0)

@@ -296,7 +296,8 @@ def post_process(
     piece_mm = opts.min_piece_mm / 2 if opts.split else math.inf
     sim = simulate_motion(
         stock, tool, motion, chord_tol_mm=opts.chord_tol_mm, piece_mm=piece_mm,
-        check_holder=opts.check_holder, progress=progress,
+        check_holder=opts.check_holder, track_depth=opts.force_limit_n is not None,
+        progress=progress,
     )  # fmt: skip
     seg = sim.piece_segment
     plen = sim.piece_length_mm

@@ -270,6 +270,7 @@ def simulate_motion(
     chord_tol_mm: float = DEFAULT_CHORD_TOL_MM,
     piece_mm: float = math.inf,
     check_holder: bool = True,
+    track_depth: bool = False,
     progress: Callable[[int, int], None] | None = None,
 ) -> Simulation:
     """Machine ``motion`` with ``tool`` on ``stock`` (lowered in place).
@@ -281,6 +282,8 @@ def simulate_motion(
         piece, so a long block's load is known along it.
     check_holder : bool
         Check the holder and spindle nose against the stock after each move that could reach it.
+    track_depth : bool
+        Record each piece's deepest height drop (``piece_depth_mm``; zeros otherwise).
     progress : callable(done, total), optional
     """
     cutter = Cutter.from_tool(tool)
@@ -310,8 +313,9 @@ def simulate_motion(
         stop = total if k is None else k + 1
         if stop > done:
             removed[done:stop] = stock.cut_pieces(
-                cutter, p0[done:stop], p1[done:stop], report, depth[done:stop]
-            )
+                cutter, p0[done:stop], p1[done:stop], report,
+                depth[done:stop] if track_depth else None,
+            )  # fmt: skip
             done = stop
             if progress is not None:
                 progress(done, total)

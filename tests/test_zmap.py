@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planning import _zmap_kernels as K
+from planning import _zmap_numba
 from planning.errors import PlanningError
 from planning.zmap import Cutter, ZMap, split_moves
 
@@ -279,3 +280,35 @@ def test_result_does_not_depend_on_how_a_move_is_split(
     np.testing.assert_allclose(parts.heights_mm, whole.heights_mm, atol=1e-9)
     assert cut.removed_per_move_mm3[0] == pytest.approx(v, rel=1e-9, abs=1e-9)
     assert cut.removed_mm3.sum() == pytest.approx(v, rel=1e-9, abs=1e-9)
+
+
+@pytest.mark.skipif(not _zmap_numba.AVAILABLE, reason="numba not installed")
+@pytest.mark.parametrize("cutter", [Cutter("flat", 3.0), Cutter("ball", 3.0), Cutter("bull", 3, 1)])
+def test_compiled_kernel_equals_numpy_kernel(cutter: Cutter) -> None:
+    rng = np.random.default_rng(3)
+    pts = rng.uniform([-5, -5, -3], [35, 35, 1], size=(40, 3))
+    pts[::4, 2] = pts[::4, 2].round()  # some level moves
+    pts[1::5, :2] = pts[0::5, :2][: len(pts[1::5])]  # some plunges
+    a, b = rough_stock(), rough_stock()
+    b.compiled = False
+    ra = a.cut_path(cutter, pts[:-1], pts[1:], piece_mm=2.0)
+    rb = b.cut_path(cutter, pts[:-1], pts[1:], piece_mm=2.0)
+    np.testing.assert_allclose(a.heights_mm, b.heights_mm, atol=1e-9)
+    np.testing.assert_allclose(ra.removed_mm3, rb.removed_mm3, rtol=1e-9, atol=1e-9)
+    # the depth each piece met agrees too
+    da, db = np.zeros(len(ra.move)), np.zeros(len(rb.move))
+    a2, b2 = rough_stock(), rough_stock()
+    b2.compiled = False
+    a2.cut_pieces(cutter, ra.start_mm, ra.end_mm, depth_mm=da)
+    b2.cut_pieces(cutter, rb.start_mm, rb.end_mm, depth_mm=db)
+    np.testing.assert_allclose(da, db, atol=1e-9)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_both_kernels_match_the_slot_closed_form(compiled: bool) -> None:
+    for cutter, area in ((Cutter("flat", 6.0), 12.0), (Cutter("ball", 6.0), segment_area(6, 1))):
+        z = box()
+        z.compiled = compiled
+        removed = z.cut(cutter, (20, 20.03, -1), (80, 20.03, -1))
+        ends = math.pi * 36 if cutter.kind == "flat" else cap_volume(6, 1)
+        assert removed == pytest.approx(area * 60 + ends, rel=0.01)
