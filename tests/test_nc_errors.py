@@ -100,3 +100,46 @@ def test_fuzz_any_unicode_raises_only_nc_error(text):
         Program.parse(text)
     except NCError:
         pass
+
+
+G_CODES = "0 1 2 3 4 17 18 19 20 21 40 41 43 49 53 54 80 81 82 83 90 91 90.1 91.1 93 94 98 99 7"
+G_CODES = G_CODES.split()
+M_CODES = ["0", "1", "2", "3", "4", "5", "6", "8", "9", "30", "98"]
+NUMBERS = st.one_of(
+    st.sampled_from(["0", "-0", ".5", "1.", "-1", "10", "1e", "0.0001", "999999999999"]),
+    st.floats(-200, 200, allow_nan=False).map(lambda v: f"{v:.4f}"),
+)
+
+
+@st.composite
+def near_valid_blocks(draw):
+    words = []
+    for _ in range(draw(st.integers(1, 6))):
+        letter = draw(st.sampled_from("GGGMXYZXYZIJKRFFSTPQLDHA"))
+        if letter == "G":
+            words.append("G" + draw(st.sampled_from(G_CODES)))
+        elif letter == "M":
+            words.append("M" + draw(st.sampled_from(M_CODES)))
+        else:
+            words.append(letter + draw(NUMBERS))
+    return " ".join(words)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(near_valid_blocks(), min_size=1, max_size=12), st.booleans())
+def test_fuzz_near_valid_programs_raise_only_nc_error(blocks, strict):
+    """Deep paths (arcs, canned cycles, dwell, G53, units) with odd values: NCError or motion."""
+    from planning.nc import motion_stats, restart_preamble
+
+    it = Interpreter(strict=strict)
+    try:
+        m = it.run(blocks)
+    except NCError as err:
+        assert err.line >= 1 and err.reason
+        return
+    st_ = motion_stats(m)  # stats and linearisation must cope with whatever came out
+    assert st_.time_s >= 0 or st_.time_s != st_.time_s
+    try:
+        restart_preamble(it.state)
+    except NCError:
+        pass
