@@ -6,11 +6,16 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.config import MachineConfig
-from planning.nc.arcs import segment_length_mm
-from planning.nc.errors import NCError
-from planning.nc.interpreter import interpret, state_at_block
-from planning.nc.motion import DWELL, RAPID, Motion
-from planning.nc.state import ModalState
+from planning.nc import (
+    DWELL,
+    RAPID,
+    ModalState,
+    Motion,
+    NCError,
+    interpret,
+    segment_length_mm,
+    state_at_block,
+)
 from rig.dnc.errors import DncError
 
 

@@ -150,6 +150,8 @@ class SimControllerBase:
         self._event_listeners: list[Callable[[ControllerEvent], None]] = []
         self._lock = threading.RLock()
         self._stop = threading.Event()
+        #: set while nothing can run: no block to execute, or halted (alarm, silent, hold)
+        self.quiet = threading.Event()
         self._thread: threading.Thread | None = None
         self._master = -1
         self._slave = -1
@@ -313,6 +315,11 @@ class SimControllerBase:
                 self._advance(now)
                 self._periodic(now)
                 self._flush_out()
+                halted = self.alarm or self.silent or self.held
+                if halted or (self._cur is None and not self._plan and not self._wire):
+                    self.quiet.set()
+                else:
+                    self.quiet.clear()
                 wake = self._next_wake(now)
                 fd = self._master
             delay = min(self.clock.wall_delay(wake), 0.01)
@@ -411,14 +418,14 @@ class SimControllerBase:
         """Count a received block; apply the drop/silence knobs. False: stop taking bytes."""
         self.blocks_received += 1
         k = self.blocks_received
-        if (
-            self.sim_stop_answering_after_block is not None
-            and k >= self.sim_stop_answering_after_block
-        ):
+        stop_after = self.sim_stop_answering_after_block
+        if stop_after is not None and k >= stop_after:
+            self.sim_stop_answering_after_block = None  # one-shot: a reset brings it back
             self.silent = True
             self._event("silent", f"stopped answering after {k} blocks")
             return False
-        if self.sim_drop_port_after_block is not None and k == self.sim_drop_port_after_block:
+        if self.sim_drop_port_after_block is not None and k >= self.sim_drop_port_after_block:
+            self.sim_drop_port_after_block = None
             self._close_pty()
             self._wire.clear()
             self._event("port_dropped", f"port dropped after {k} blocks")

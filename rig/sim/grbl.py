@@ -129,6 +129,8 @@ class SimGrbl(SimControllerBase):
         self.lines_received = 0
         self.oks = 0
         self.errors: list[tuple[int, str]] = []
+        self.planner_waits = 0  # times a line had to wait for a free planner slot
+        self._waiting_planner = False
 
     def start(self) -> str:
         path = super().start()
@@ -183,7 +185,11 @@ class SimGrbl(SimControllerBase):
         """Take lines out of the receive buffer while the planner has room."""
         while self._rx_lines and not self.silent:
             if self._planner_used() >= self.planner_blocks:
+                if not self._waiting_planner:
+                    self._waiting_planner = True
+                    self.planner_waits += 1
                 return
+            self._waiting_planner = False
             raw, t_arr = self._rx_lines.popleft()
             self.fill -= len(raw) + 1
             text = raw.decode("ascii", "replace").strip()

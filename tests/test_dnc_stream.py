@@ -1,0 +1,148 @@
+"""Streaming over real pseudo-terminals to the simulated controllers: byte-exact delivery with
+flow control exercised, the block record, execution at the programmed feeds."""
+
+from __future__ import annotations
+
+import hashlib
+import math
+
+import numpy as np
+import pytest
+from _dnc_helpers import (
+    FANUC_LINE_B_S,
+    GRBL_LINE_B_S,
+    EventWaiter,
+    fanuc_bytes,
+    fanuc_cfg,
+    grbl_bytes,
+    grbl_cfg,
+    line_program,
+)
+
+from rig.dnc import CsvSink, FanucStreamer, GrblStreamer, MemorySink, read_csv_record
+from rig.sim.clock import SimClock
+from rig.sim.fanuc import SimFanuc
+from rig.sim.grbl import SimGrbl
+
+
+def _fanuc_run(n_blocks: int, speed: float, tmp_path, **cfg_kw):
+    prog = line_program(n_blocks)
+    ctl = SimFanuc(clock=SimClock(speed), baudrate=115200)
+    done = EventWaiter(ctl, "program_end")
+    with ctl:
+        cfg = fanuc_cfg(ctl.path, **cfg_kw)
+        sink = CsvSink(tmp_path / "fanuc.csv")
+        st = FanucStreamer(cfg, sink=sink, clock=ctl.clock.now,
+                           pace_bytes_per_s=FANUC_LINE_B_S * speed)  # fmt: skip
+        res = st.send(prog)
+        assert done.wait(120), "the controller never reached the closing %"
+    return prog, ctl, cfg, res, tmp_path / "fanuc.csv"
+
+
+def _check_fanuc(prog, ctl, cfg, res, rec_path) -> None:
+    want = fanuc_bytes(prog, cfg)
+    got = bytes(ctl.received)
+    assert hashlib.sha256(got).hexdigest() == hashlib.sha256(want).hexdigest()
+    assert res.bytes_sent == len(want) and res.blocks_sent == len(prog)
+    # flow control exercised: the buffer filled to the DC3 mark and drained many times
+    assert ctl.xoff_count >= 10 and res.xoff_count >= 10
+    assert ctl.overruns == 0 and ctl.alarm == ""
+    assert ctl.executed_texts() == [b.text for b in prog.blocks]
+    rows = read_csv_record(rec_path)
+    assert [r.block for r in rows] == [b.index for b in prog.blocks]
+    assert [r.line for r in rows] == [b.line for b in prog.blocks]
+    assert all(math.isnan(r.ack_time_s) and r.status == "sent" for r in rows)
+    send = np.array([r.send_time_s for r in rows])
+    assert np.all(np.diff(send) >= 0)
+
+
+def test_fanuc_drip_feed_is_byte_exact_with_xon_xoff(tmp_path) -> None:
+    _check_fanuc(*_fanuc_run(2000, 4.0, tmp_path))
+
+
+@pytest.mark.slow
+def test_fanuc_drip_feed_12000_blocks_byte_exact(tmp_path) -> None:
+    _check_fanuc(*_fanuc_run(12000, 4.0, tmp_path))
+
+
+def test_fanuc_crlf_and_kernel_xonxoff(tmp_path) -> None:
+    """End of block CR LF, DC1/DC3 left to the kernel's IXON (works on a Linux pty)."""
+    prog, ctl, cfg, res, rec = _fanuc_run(
+        400, 4.0, tmp_path, end_of_block="CRLF", xonxoff_in_streamer=False
+    )
+    assert bytes(ctl.received) == fanuc_bytes(prog, cfg)
+    assert ctl.xoff_count >= 1 and ctl.overruns == 0
+    assert ctl.executed_texts() == [b.text for b in prog.blocks]
+
+
+def _grbl_run(n_blocks: int, speed: float, mode: str = "char-counting"):
+    prog = line_program(n_blocks, grbl=True)
+    ctl = SimGrbl(clock=SimClock(speed))
+    with ctl:
+        sink = MemorySink()
+        st = GrblStreamer(grbl_cfg(ctl.path), sink=sink, clock=ctl.clock.now, mode=mode,
+                          pace_bytes_per_s=GRBL_LINE_B_S * speed)  # fmt: skip
+        res = st.send(prog)
+    return prog, ctl, res, sink
+
+
+def _check_grbl(prog, ctl, res, sink) -> None:
+    want = grbl_bytes(prog)
+    assert hashlib.sha256(bytes(ctl.received)).hexdigest() == hashlib.sha256(want).hexdigest()
+    assert ctl.overruns == 0 and ctl.errors == []
+    assert ctl.executed_texts() == [b.text for b in prog.blocks]
+    # flow control exercised: the planner was full and lines waited many times
+    assert ctl.planner_waits >= 10
+    assert res.last_acknowledged_block == prog.blocks[-1].index
+    rows = sink.rows
+    assert sink.closed and [r.block for r in rows] == [b.index for b in prog.blocks]
+    assert all(r.status == "ok" and r.ack_time_s >= r.send_time_s for r in rows)
+
+
+def test_grbl_char_counting_is_byte_exact(tmp_path) -> None:
+    prog, ctl, res, sink = _grbl_run(2000, 10.0)
+    _check_grbl(prog, ctl, res, sink)
+    # never more in GRBL's receive buffer than it holds
+    assert ctl.max_fill <= 127
+
+
+@pytest.mark.slow
+def test_grbl_char_counting_12000_blocks_byte_exact() -> None:
+    _check_grbl(*_grbl_run(12000, 10.0))
+
+
+def test_grbl_send_response(tmp_path) -> None:
+    prog, ctl, res, sink = _grbl_run(300, 10.0, mode="send-response")
+    assert bytes(ctl.received) == grbl_bytes(prog)
+    assert ctl.executed_texts() == [b.text for b in prog.blocks]
+    # one line at a time: the receive buffer never held more than the longest line
+    assert ctl.max_fill <= max(len(b.text) for b in prog.blocks) + 1
+
+
+def test_controller_runs_blocks_at_programmed_feed() -> None:
+    """Segments reach the listener with durations = length / feed on the SimClock."""
+    prog = line_program(50, feed_mm_min=3000.0, grbl=True)
+    ctl = SimGrbl(clock=SimClock(20.0))
+    segs = []
+    ctl.add_listener(on_segment=segs.append)
+    with ctl:
+        GrblStreamer(grbl_cfg(ctl.path), pace_bytes_per_s=GRBL_LINE_B_S * 20).send(prog)
+    body = [s for s in segs if s.feed_mm_min == 3000.0 and s.t_end_s > s.t_start_s]
+    assert len(body) == 50
+    length = np.array([np.linalg.norm(np.subtract(s.end_mm, s.start_mm)) for s in body])
+    dur = np.array([s.t_end_s - s.t_start_s for s in body])
+    np.testing.assert_allclose(dur, length / 3000.0 * 60.0, rtol=1e-9)
+    # back to back: each starts when the previous ended, unless the controller was starved
+    starts = np.array([s.t_start_s for s in body])
+    ends = np.array([s.t_end_s for s in body])
+    assert np.all(starts[1:] >= ends[:-1] - 1e-9)
+    assert ctl.starved_fraction < 1.0
+
+
+def test_starvation_is_measured_when_the_line_is_too_slow() -> None:
+    """Paced at a tenth of what execution needs, the controller waits most of the time."""
+    prog = line_program(30, grbl=True)  # 100 blocks/s of ~25 bytes at speed 4: 10 kB/s needed
+    ctl = SimGrbl(clock=SimClock(4.0))
+    with ctl:
+        GrblStreamer(grbl_cfg(ctl.path), pace_bytes_per_s=1000.0).send(prog)
+    assert ctl.starved_fraction > 0.5
