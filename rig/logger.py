@@ -1,10 +1,12 @@
 """Crash-safe HDF5 run writer: a bounded queue and one writer thread, SWMR, periodic flush.
 
-The acquisition thread calls :meth:`RunWriter.on_block`, which copies the block into a free buffer
-of a fixed pool and returns at once; the writer thread moves filled buffers into chunk-aligned
-HDF5 writes. When the pool is empty (disk too slow) the block is dropped and recorded as a
-``queue_full`` event with its exact device sample index and length, so the acquisition never waits
-on the disk and nothing is lost silently. Every dataset is created before SWMR is switched on, so
+The acquisition thread calls :meth:`RunWriter.on_block`, which copies the block (transposed to the
+file's (samples, channels) rows) into a free buffer of a fixed pool and returns at once; the writer
+thread appends filled buffers to the chunked dataset (the chunk cache holds a partly filled chunk
+until the next block completes it, so no chunk is read back) and returns them to the pool. When
+the pool is empty (disk too slow) the block is dropped and recorded as a ``queue_full`` event with
+its exact device sample index and length, so the acquisition never waits on the disk and nothing
+is lost silently. Every dataset is created before SWMR is switched on, so
 ``analysis.runfile.RunFollower`` can read the file while it grows, and a writer killed at any moment
 leaves a file that opens and holds everything up to its last flush (default every 1 s).
 
@@ -126,6 +128,7 @@ class RunWriter:
         self._c = info.n_channels
         self._dtype = info.dtype
         self._chunk = max(1024, _CHUNK_BYTES // (self._dtype.itemsize * self._c))
+        self._block_bytes = info.block_samples * self._c * self._dtype.itemsize
         if compression == "auto":
             compression = "gzip" if info.sample_format == SAMPLE_FORMAT_RAW else None
         self._f = self._create(calibration, compression, overwrite)
@@ -133,7 +136,9 @@ class RunWriter:
         # Producer side (acquisition thread): a pool of free buffers is the bounded queue.
         self._free: queue.SimpleQueue[np.ndarray] = queue.SimpleQueue()
         for _ in range(queue_blocks):
-            self._free.put(np.empty((self._c, info.block_samples), self._dtype))
+            buf = np.empty((info.block_samples, self._c), self._dtype)
+            buf.fill(0)  # touch the pages now, not on the acquisition thread's first copy
+            self._free.put(buf)
         self._pool_size = queue_blocks
         self._idle = threading.Condition()
         self._filled: queue.SimpleQueue[Any] = queue.SimpleQueue()
@@ -146,9 +151,7 @@ class RunWriter:
         self._held.set()
 
         # Writer side.
-        self._acc = np.empty((self._chunk, self._c), self._dtype)
-        self._acc_fill = 0
-        self._committed = 0  # rows in complete chunks on disk
+        self._committed = 0  # rows written to the dataset
         self._block_rows: dict[int, int] = {}
         self._n_events = 0
         self._n_blocks = 0
@@ -181,7 +184,9 @@ class RunWriter:
                 self.path,
                 "w",
                 libver="latest",
-                rdcc_nbytes=8 * _CHUNK_BYTES,
+                # Room for the chunks a block spans, so a block ending mid-chunk leaves that
+                # chunk in the cache until the next block completes it (no read-back).
+                rdcc_nbytes=max(16 * _CHUNK_BYTES, 3 * self._block_bytes),
                 rdcc_nslots=1009,
             )
         except OSError as exc:
@@ -268,7 +273,16 @@ class RunWriter:
         self._control.append(("event", DaqEvent(rf.EV_START, 0, "acquisition started")))
 
     def on_block(self, first_sample: int, data: np.ndarray) -> None:
-        """Queue a copy of ``data`` (c, n) starting at device sample ``first_sample``."""
+        """Queue a copy of ``data`` (c, n) starting at device sample ``first_sample``; if the
+        queue is full the block is dropped and recorded (``queue_full``). Never waits."""
+        self._enqueue(first_sample, data, None)
+
+    def put_block(self, first_sample: int, data: np.ndarray, timeout_s: float = 60.0) -> None:
+        """Like :meth:`on_block` but waits up to ``timeout_s`` for room in the queue (for
+        offline writers such as converters and benchmarks, where waiting beats dropping)."""
+        self._enqueue(first_sample, data, timeout_s)
+
+    def _enqueue(self, first_sample: int, data: np.ndarray, wait_s: float | None) -> None:
         n = int(data.shape[1])
         with self._lock:
             if first_sample != self._expect:
@@ -288,15 +302,16 @@ class RunWriter:
                 self._control.append(("event", ev))
             self._expect = first_sample + n
             try:
-                buf = self._free.get_nowait()
+                buf = self._free.get(timeout=wait_s) if wait_s else self._free.get_nowait()
             except queue.Empty:
                 self._record_drop(first_sample, n)
                 return
             if self._drop is not None:
                 self._flush_drop()
-        if buf.shape[1] < n:
-            buf = np.empty((self._c, n), self._dtype)  # a longer last block (rare)
-        np.copyto(buf[:, :n], data)
+        if buf.shape[0] < n:
+            buf = np.empty((n, self._c), self._dtype)  # a longer block than announced (rare)
+        # The one copy: (c, n) from the DAQ into (n, c) rows, the file's layout.
+        np.copyto(buf[:n], data.T)
         self._depth += 1
         self._filled.put((first_sample, n, buf))
 
@@ -447,7 +462,7 @@ class RunWriter:
 
     def stats(self) -> WriterStats:
         return WriterStats(
-            samples_written=self._committed + self._acc_fill,
+            samples_written=self._committed,
             blocks_written=self._blocks_written,
             blocks_dropped=self._blocks_dropped,
             samples_dropped=self._samples_dropped,
@@ -538,28 +553,14 @@ class RunWriter:
             self.error = exc
 
     def _append(self, buf: np.ndarray, n: int) -> None:
-        """Copy (c, n) into the chunk accumulator (transposing to rows), writing full chunks."""
-        done = 0
-        while done < n:
-            k = min(n - done, self._chunk - self._acc_fill)
-            self._acc[self._acc_fill : self._acc_fill + k] = buf[:, done : done + k].T
-            self._acc_fill += k
-            done += k
-            if self._acc_fill == self._chunk:
-                end = self._committed + self._chunk
-                if self._ds.shape[0] < end:
-                    self._ds.resize((end, self._c))
-                self._ds[self._committed : end] = self._acc
-                self._committed = end
-                self._acc_fill = 0
+        """Append the first n rows of a pool buffer (n, c) to the samples dataset."""
+        end = self._committed + n
+        self._ds.resize((end, self._c))
+        self._ds[self._committed : end] = buf[:n]
+        self._committed = end
 
     def _flush(self) -> None:
-        """Write the partial chunk (rewritten when it completes) and flush for SWMR readers."""
-        if self._acc_fill:
-            end = self._committed + self._acc_fill
-            if self._ds.shape[0] != end:
-                self._ds.resize((end, self._c))
-            self._ds[self._committed : end] = self._acc[: self._acc_fill]
+        """Flush everything written so far to the file, for SWMR readers and crash safety."""
         self._f.flush()
         self._flushes += 1
 

@@ -1,0 +1,215 @@
+"""Benchmark of the HDF5 run logger (issue 3): sustained zero-loss rate and overhead.
+
+Prints two figures:
+
+1. Overhead: the same float64 blocks written (a) by a bare h5py append loop (resize + write per
+   block, same chunk shape, same file format) and (b) through ``RunWriter`` (copy into its pool,
+   writer thread, chunk accumulator, SWMR flushes), interleaved in one process; the ratio (b)/(a)
+   per repetition and its median. Target: <= 1.25.
+2. Sustained rate: the simulated DAQ, paced by a SimClock running faster than real time, feeds a
+   RunWriter exactly as in a recording (non-blocking ``on_block``; a full queue drops and records
+   the block). Speeds are tried upwards for ``--probe-seconds`` each; the highest with zero loss is
+   then held for ``--seconds`` (>= 60) of wall time. Prints channels x samples/s (float64) per wall
+   second and the samples lost. Target: >= 10 MS/s with zero loss.
+
+Usage: .venv/bin/python bench/bench_logger.py [--seconds 60] [--dir /tmp] [--json]
+Needs about rate x 8 bytes x seconds of free disk (10 MS/s for 60 s: 4.8 GB); files are deleted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from analysis import runfile as rf
+from rig.daq.base import DaqInfo
+from rig.daq.sim import SimDaq
+from rig.logger import RunWriter
+from rig.sim.clock import SimClock
+
+
+def _info(c: int, rate_hz: float, block: int) -> DaqInfo:
+    names = tuple(f"sim/ai{i}" for i in range(c))
+    return DaqInfo("bench", names, names, rate_hz, "volts_float64", 10.0, block)
+
+
+def bare_loop(path: Path, blocks: np.ndarray, n_blocks: int, chunk_rows: int) -> float:
+    """Seconds for the plain h5py append loop of ``n_blocks`` copies of ``blocks`` (c, n)."""
+    c, n = blocks.shape
+    t = time.perf_counter()
+    with h5py.File(path, "w", libver="latest") as f:
+        ds = f.create_dataset(
+            "x", shape=(0, c), maxshape=(None, c), chunks=(chunk_rows, c), dtype="f8"
+        )
+        for k in range(n_blocks):
+            ds.resize(((k + 1) * n, c))
+            ds[k * n : (k + 1) * n] = blocks.T
+    dt = time.perf_counter() - t
+    path.unlink()
+    return dt
+
+
+def logger_loop(path: Path, blocks: np.ndarray, n_blocks: int) -> tuple[float, int]:
+    """Seconds for the same blocks through RunWriter (waiting for room, never dropping)."""
+    c, n = blocks.shape
+    info = _info(c, 1e6, n)
+    t = time.perf_counter()
+    w = RunWriter(path, info, queue_blocks=16, overwrite=True)
+    w.on_start(info, 0.0)
+    for k in range(n_blocks):
+        w.put_block(k * n, blocks)
+    stats = w.close()
+    dt = time.perf_counter() - t
+    path.unlink()
+    return dt, stats.samples_written
+
+
+def overhead(folder: Path, channels: int, reps: int, total_mb: float) -> dict:
+    n = 100_000
+    blocks = np.random.default_rng(0).normal(size=(channels, n))
+    n_blocks = max(1, int(total_mb * 1e6 / blocks.nbytes))
+    probe = RunWriter(folder / "probe.h5", _info(channels, 1e6, n), overwrite=True)
+    chunk_rows = probe._chunk  # the same chunk shape as the logger's  # noqa: SLF001
+    probe.close()
+    (folder / "probe.h5").unlink()
+    ratios, bare_s, log_s = [], [], []
+    for r in range(reps):
+        b = bare_loop(folder / "bare.h5", blocks, n_blocks, chunk_rows)
+        lg, written = logger_loop(folder / "log.h5", blocks, n_blocks)
+        assert written == n_blocks * n
+        bare_s.append(b)
+        log_s.append(lg)
+        ratios.append(lg / b)
+        mb = blocks.nbytes * n_blocks / 1e6
+        print(
+            f"  overhead rep {r + 1}: {mb:.0f} MB, bare h5py {b:.2f} s ({mb / b:.0f} MB/s), "
+            f"RunWriter {lg:.2f} s ({mb / lg:.0f} MB/s), ratio {lg / b:.2f}",
+            file=sys.stderr,
+            flush=True,
+        )
+    return {
+        "megabytes_per_rep": blocks.nbytes * n_blocks / 1e6,
+        "bare_s": bare_s,
+        "logger_s": log_s,
+        "ratios": ratios,
+        "median_ratio": statistics.median(ratios),
+        "ratio_of_totals": sum(log_s) / sum(bare_s),
+    }
+
+
+def sustained(
+    folder: Path, channels: int, rate_hz: float, speed: float, wall_s: float, queue_blocks: int
+) -> dict:
+    """One paced recording: the sim DAQ at ``speed`` x real time for ``wall_s`` wall seconds."""
+    block = int(rate_hz * 0.1)
+    pattern = np.random.default_rng(1).normal(0, 1.0, (channels, block))
+
+    def source(t0_s: float, n: int, r: float) -> np.ndarray:
+        return pattern[:, :n]
+
+    clock = SimClock(speed)
+    daq = SimDaq(
+        source,
+        rate_hz=rate_hz,
+        channels=tuple(f"sim/ai{i}" for i in range(channels)),
+        clock=clock,
+        read_interval_s=0.1,
+        seconds=wall_s * speed,
+        sim_saturate=False,
+    )
+    path = folder / "sustained.h5"
+    w = RunWriter(path, daq.info, clock=clock.now, queue_blocks=queue_blocks, overwrite=True)
+    t = time.perf_counter()
+    daq.run(w)
+    stats = w.close()
+    wall = time.perf_counter() - t
+    run = rf.load_run(path, samples=False)
+    path.unlink()
+    acquired = daq.samples_acquired
+    lost = stats.samples_dropped + stats.samples_missing
+    assert run.samples_stored == stats.samples_written
+    return {
+        "channels": channels,
+        "rate_hz": rate_hz,
+        "speed": speed,
+        "wall_s": wall,
+        "samples_per_channel": acquired,
+        "aggregate_ms_per_s": channels * acquired / wall / 1e6,
+        "faster_than_real_time": acquired / rate_hz / wall,
+        "samples_lost": lost,
+        "queue_full_events": int((run.events["kind"] == "queue_full").sum()),
+        "max_queue_depth": stats.max_queue_depth,
+        "gigabytes": channels * acquired * 8 / 1e9,
+    }
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=60.0, help="wall s of the sustained run")
+    ap.add_argument("--probe-seconds", type=float, default=12.0, help="wall s per probe")
+    ap.add_argument("--channels", type=int, default=8)
+    ap.add_argument("--rate-hz", type=float, default=250_000.0, help="per channel, Hz")
+    ap.add_argument("--speeds", default="5,7.5,10,15,20", help="x real time, tried upwards")
+    ap.add_argument("--queue-blocks", type=int, default=64)
+    ap.add_argument("--reps", type=int, default=5, help="overhead repetitions")
+    ap.add_argument("--overhead-mb", type=float, default=640.0)
+    ap.add_argument("--dir", default=None, help="folder for the files (default: a temp dir)")
+    ap.add_argument("--json", action="store_true")
+    args = ap.parse_args()
+    base = Path(args.dir) if args.dir else None
+    with tempfile.TemporaryDirectory(dir=base, prefix="cutlab-bench-") as tmp:
+        folder = Path(tmp)
+        print("overhead: bare h5py append loop vs RunWriter, same blocks", file=sys.stderr)
+        ov = overhead(folder, args.channels, args.reps, args.overhead_mb)
+        probes = []
+        best = None
+        for speed in (float(s) for s in args.speeds.split(",")):
+            r = sustained(
+                folder, args.channels, args.rate_hz, speed, args.probe_seconds, args.queue_blocks
+            )
+            probes.append(r)
+            print(
+                f"  probe x{speed:g}: {r['aggregate_ms_per_s']:.1f} MS/s for {r['wall_s']:.1f} s,"
+                f" lost {r['samples_lost']}, max queue {r['max_queue_depth']}",
+                file=sys.stderr,
+                flush=True,
+            )
+            if r["samples_lost"]:
+                break
+            best = speed
+        final = None
+        if best is not None:
+            print(f"sustained: x{best:g} for {args.seconds:g} s", file=sys.stderr, flush=True)
+            final = sustained(
+                folder, args.channels, args.rate_hz, best, args.seconds, args.queue_blocks
+            )
+    out = {"overhead": ov, "probes": probes, "sustained": final, "cpus": os.cpu_count()}
+    if args.json:
+        json.dump(out, sys.stdout, indent=2)
+        print()
+        return 0
+    print(f"logger overhead vs bare h5py loop: median ratio {ov['median_ratio']:.2f}x "
+          f"(per rep {', '.join(f'{x:.2f}' for x in ov['ratios'])}; ratio of totals "
+          f"{ov['ratio_of_totals']:.2f}x; target <= 1.25x)")  # fmt: skip
+    if final is None:
+        print("sustained: no probed speed ran without loss")
+    else:
+        print(f"sustained zero-loss logging: {final['aggregate_ms_per_s']:.1f} MS/s float64 "
+              f"({final['channels']} channels x {final['rate_hz']:.0f} Hz x "
+              f"{final['faster_than_real_time']:.2f} real time) for {final['wall_s']:.1f} s, "
+              f"{final['gigabytes']:.1f} GB, samples lost {final['samples_lost']} "
+              f"(target >= 10 MS/s, 0 lost)")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
