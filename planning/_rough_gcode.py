@@ -113,6 +113,24 @@ def plan_motion(plan: RoughPlan, part: Part, tool_numbers: tuple[int, int] = (1,
     return mb.build()
 
 
+def plan_totals(plan: RoughPlan, part: Part, motion: Motion | None = None) -> dict:
+    """Totals of a plan: levels, cutting path (the paper's measure), feed and rapid, time."""
+    from planning.nc import motion_stats
+
+    m = plan_motion(plan, part) if motion is None else motion
+    st = motion_stats(m, rapid_mm_min=part.config.cutting.rapid_mm_min)
+    return {
+        "levels": len(plan.levels),
+        "cutting_path_mm": round(plan.path_mm, 2),
+        "feed_length_mm": round(st.cutting_length_mm, 2),
+        "entry_length_mm": round(st.cutting_length_mm - plan.path_mm, 2),
+        "rapid_length_mm": round(st.rapid_length_mm, 2),
+        "time_min": round(st.time_s / 60.0, 3),
+        "max_cusp_mm": round(plan.max_cusp_mm, 3),
+        "heights_mm": [round(lv.z_mm, 3) for lv in plan.levels],
+    }
+
+
 def plan_program(plan: RoughPlan, part: Part, motion: Motion | None = None) -> Program:
     """The NC program of a plan, written by :func:`planning.nc.motion_to_program`."""
     m = plan_motion(plan, part) if motion is None else motion

@@ -89,22 +89,33 @@ class SurfaceHeights:
 def simulate(
     motion: Motion,
     stock: tuple[float, float, float, float, float, float],
-    radius_mm: float,
+    radius_mm: float | dict[int, float],
     spacing_mm: float,
     safe_z_mm: float,
 ) -> tuple[ZMap, float, float]:
     """Cut ``motion`` on a Z-map of the stock box (x0, x1, y0, y1, z0, z1).
 
+    ``radius_mm``: the flat end mill's radius, or one per tool number (T word).
     Returns (zmap, removed by feed moves mm^3, removed by rapids mm^3).
     """
     x0, x1, y0, y1, z0, z1 = stock
     zm = ZMap.box(x0, x1, y0, y1, z0, z1, spacing_mm)
-    cutter = Cutter("flat", radius_mm)
     reached = np.flatnonzero(motion.end[:, 2] >= safe_z_mm - 1e-6)
     if reached.size == 0:
         raise PlanningError("program never reaches the safe height: nothing to check")
     m = motion[np.arange(reached[0] + 1, len(motion))]
-    removed = zm.cut_pieces(cutter, m.start, m.end)
+    removed = np.zeros(len(m))
+    # Runs of one tool, in program order.
+    cuts = np.flatnonzero(np.diff(m.tool)) + 1
+    for a, b in zip(np.r_[0, cuts], np.r_[cuts, len(m)]):
+        t = int(m.tool[a])
+        if isinstance(radius_mm, dict):
+            if t not in radius_mm:
+                raise PlanningError(f"program uses tool T{t}: no radius given for it (mm)")
+            r = radius_mm[t]
+        else:
+            r = radius_mm
+        removed[a:b] = zm.cut_pieces(Cutter("flat", r), m.start[a:b], m.end[a:b])
     rapid = float(removed[m.kind == RAPID].sum())
     return zm, float(removed.sum()) - rapid, rapid
 
@@ -113,7 +124,7 @@ def check_program(
     program: Program | str,
     offset_surface: FergusonSurface,
     stock: tuple[float, float, float, float, float, float],
-    radius_mm: float,
+    radius_mm: float | dict[int, float],
     cusp_limit_mm: float,
     safe_z_mm: float,
     spacing_mm: float = 0.5,

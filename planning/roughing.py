@@ -225,6 +225,15 @@ class RoughPlanner:
         edges = [self.bottom, *sorted(heights), self.top]
         return max(self.cusps.cusp(a, b) for a, b in zip(edges[:-1], edges[1:]))
 
+    def plan_all(self) -> dict[str, RoughPlan]:
+        """Every method on this part; optimal gets the others' heights as extra candidates."""
+        out = {m: self.plan(m) for m in ("bisection", "equal", "lee")}
+        extra = [h for m in ("bisection", "equal") for h in out[m].heights_mm]
+        if self.geom2 is self.geom:
+            extra += out["lee"].heights_mm
+        out["optimal"] = self.plan_optimal(extra)
+        return out
+
     def plan(self, method: str) -> RoughPlan:
         if method not in METHODS:
             raise PlanningError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
