@@ -1,4 +1,4 @@
-"""`cutlab nc check|motions|plot` and the interim `cutlab demo`, run in-process through the CLI."""
+"""`cutlab nc check|motions|plot`, run in-process through the CLI."""
 
 from __future__ import annotations
 
@@ -62,9 +62,3 @@ def test_plot_png(tmp_path, capsys):
     assert main(["nc", "plot", str(SAMPLE), "-o", str(out)]) == 0
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 20_000
     assert "wrote" in capsys.readouterr().err
-
-
-def test_demo_runs_the_nc_pipeline(tmp_path, capsys):
-    assert main(["demo", "--out", str(tmp_path), "--json"]) == 0
-    out = json.loads(capsys.readouterr().out)
-    assert Path(out["plot"]).exists() and out["motions"] > 50 and out["time_s"] > 0

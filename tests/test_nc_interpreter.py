@@ -263,3 +263,15 @@ def test_interpret_file_streams_same_as_text(tmp_path):
     p = tmp_path / "crlf.nc"
     p.write_bytes(Program.read(SAMPLE).text().replace("\n", "\r\n").encode())
     assert interpret_file(p).equals(interpret(Program.read(SAMPLE)))
+
+
+def test_machine_limits_warn_and_block_rules():
+    machine = load_machine("lab-grbl")
+    it = Interpreter(machine)
+    it.run(["S30000 M3", "G1 X1 F9000"])
+    assert ["spindle_max_rpm" in str(w) for w in it.warnings] == [True, False]
+    assert "feed_max_mm_min" in str(it.warnings[1])
+    with pytest.raises(NCError, match="both spindle codes"):
+        interpret("M3 M4")
+    with pytest.raises(NCError, match="cannot share its block with a move"):
+        interpret("G4 P100 Y5")

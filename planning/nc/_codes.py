@@ -21,7 +21,9 @@ G_GROUP = {
     540: 12, 550: 12, 560: 12, 570: 12, 580: 12, 590: 12,
 }  # fmt: skip
 MOTION_MODE = {0: 0, 10: 1, 20: 2, 30: 3, 800: 80, 810: 81, 820: 82, 830: 83}
-KNOWN_M = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 30}
+M_GROUP = {0: "stop", 1: "stop", 2: "stop", 30: "stop", 3: "spindle", 4: "spindle",
+           5: "spindle", 6: "tool change", 7: "coolant", 8: "coolant", 9: "coolant"}  # fmt: skip
+KNOWN_M = set(M_GROUP)
 LETTERS = frozenset("ABCDFHIJKLNOPQRSTXYZ")
 FAST_LETTERS = frozenset("XYZF")
 _GKEY: dict[str, int] = {}  # number text -> G key cache (programs repeat the same few)

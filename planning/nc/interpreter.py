@@ -41,6 +41,7 @@ from planning.nc._codes import (
     G_GROUP,
     KNOWN_M,
     LETTERS,
+    M_GROUP,
     MOTION_MODE,
     gkey,
     gname,
@@ -130,6 +131,9 @@ class Interpreter:
             k: tuple(float(c) for c in v) for k, v in (work_offsets_mm or {}).items()
         }
         self.peck_clearance_mm = float(peck_clearance_mm)
+        inf = math.inf
+        self._feed_max_mm_min = machine.feed_max_mm_min if machine is not None else inf
+        self._spindle_max_rpm = machine.spindle_max_rpm if machine is not None else inf
         self.state = state.copy() if state is not None else ModalState()
         self.warnings: list[NCWarning] = []
         self.blocks_seen = 0
@@ -300,14 +304,13 @@ class Interpreter:
         if not v.keys() <= FAST_LETTERS:
             self._words(raw, v, scale, line, dwell, explicit_motion)
         elif "F" in v:
-            f = float(v["F"]) * scale
-            if not f > 0.0:
-                raise self._fail(raw, "F", "feed F must be > 0 (mm/min, or in/min under G20)", line)
-            st.feed_mm_min = f
+            self._feed(raw, v, scale, line)
 
         # ---- M codes before motion (tool change, spindle, coolant)
         end = False
         if mcodes is not None:
+            if len(mcodes) > 1:
+                self._check_m_groups(raw, mcodes, line)
             for key, _k in mcodes:
                 m = key // 10
                 if m == 6:
@@ -329,6 +332,13 @@ class Interpreter:
 
         # ---- dwell
         if dwell:
+            if "Y" in v or "Z" in v or ("X" in v and "P" in v):
+                raise self._fail(
+                    raw,
+                    next(L for L in "YZX" if L in v),
+                    "G4 dwell cannot share its block with a move",
+                    line,
+                )
             self._dwell(raw, v, line, block, out)
 
         # ---- motion
@@ -359,14 +369,18 @@ class Interpreter:
         """F S T D H O N P Q L R I J K and A B C: checks and recording."""
         st = self.state
         if "F" in v:
-            f = float(v["F"]) * scale
-            if not f > 0.0:
-                raise self._fail(raw, "F", "feed F must be > 0 (mm/min, or in/min under G20)", line)
-            st.feed_mm_min = f
+            self._feed(raw, v, scale, line)
         if "S" in v:
             s = float(v["S"])
             if s < 0.0:
                 raise self._fail(raw, "S", "spindle speed S must be >= 0 rpm", line)
+            if s > self._spindle_max_rpm:
+                self._note(
+                    raw,
+                    "S",
+                    f"S {s:g} rpm exceeds the machine's spindle_max_rpm {self._spindle_max_rpm:g}",
+                    line,
+                )
             st.spindle_speed_rpm = s
         for letter in ("T", "D", "H", "O", "N"):
             if letter in v:
@@ -408,6 +422,39 @@ class Interpreter:
                     f"word {letter} is not used by any code in force (motion G{mode})",
                     line,
                 )
+
+    def _feed(self, raw: str, v: dict[str, str], scale: float, line: int) -> None:
+        f = float(v["F"]) * scale
+        if not f > 0.0:
+            raise self._fail(raw, "F", "feed F must be > 0 (mm/min, or in/min under G20)", line)
+        if f > self._feed_max_mm_min:
+            self._note(
+                raw,
+                "F",
+                f"feed {f:g} mm/min exceeds the machine's feed_max_mm_min "
+                f"{self._feed_max_mm_min:g}",
+                line,
+            )
+        self.state.feed_mm_min = f
+
+    def _note(self, raw: str, letter: str, reason: str, line: int) -> None:
+        """A warning in both modes (the block is still executed as written)."""
+        err = self._fail(raw, letter, reason, line)
+        self.warnings.append(NCWarning(err.reason, err.file, err.line, err.column, err.word))
+
+    def _check_m_groups(self, raw: str, mcodes: list[tuple[int, int]], line: int) -> None:
+        seen: dict[str, int] = {}
+        for key, k in mcodes:
+            grp = M_GROUP[key // 10]
+            if grp in seen:
+                raise _lexer.word_error(
+                    raw,
+                    k,
+                    f"M{key // 10} and M{seen[grp]} are both {grp} codes and cannot share a block",
+                    self.file,
+                    line,
+                )
+            seen[grp] = key // 10
 
     def _seg(
         self, out, kind: int, p0, p1, c, feed: float, dwell_s: float, line: int, block: int
@@ -487,8 +534,22 @@ class Interpreter:
                 kind, feed = LINE, st.feed_mm_min
                 if feed != feed:
                     self._need_feed(raw, line)
-            out.fbuf.extend((p0[0], p0[1], p0[2], p1[0], p1[1], p1[2], NAN, NAN, NAN, feed,
-                             st.spindle_dir * st.spindle_speed_rpm, 0.0))  # fmt: skip
+            out.fbuf.extend(
+                (
+                    p0[0],
+                    p0[1],
+                    p0[2],
+                    p1[0],
+                    p1[1],
+                    p1[2],
+                    NAN,
+                    NAN,
+                    NAN,
+                    feed,
+                    st.spindle_dir * st.spindle_speed_rpm,
+                    0.0,
+                )
+            )
             out.ibuf.extend((kind, st.plane, st.tool, st.coolant, line, block))
         else:
             feed = self._need_feed(raw, line)
