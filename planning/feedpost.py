@@ -8,10 +8,10 @@ For a program, its tool, a machine and a feed rule:
    (:func:`analysis.load.cutting_load_percent`: plunge formula for Z-only moves);
 3. the rule gives each piece a feed, clamped to the rule's and the machine's [min, max] and,
    optionally, to the feed at which the predicted peak force reaches a limit;
-4. a straight feed block whose feed changes along it is split at the changes into blocks no
+4. a line or arc block whose feed changes along it is split at the changes into blocks no
    shorter than ``min_piece_mm`` (a piece too short to stand alone joins its neighbour and the
-   slower feed wins); any other block (arc, plunge, canned cycle, a block whose coordinates are
-   not plain absolute millimetres) keeps one feed, that of its most loaded piece;
+   slower feed wins) by :func:`planning.nc.edit.split_moves`; any other block (plunge, canned
+   cycle, G53, a block that stops the program) keeps one feed, that of its most loaded piece;
 5. the program is written back with only F words changed and split blocks replaced, comments,
    numbering and every other word as they were. The result is re-interpreted and its motion
    compared with the original's (splits re-joined) before anything is returned: the geometry
@@ -38,7 +38,7 @@ from analysis.rules import FeedRule
 from planning.errors import PlanningError
 from planning.nc import Program, interpret
 from planning.nc.arcs import segment_length_mm
-from planning.nc.motion import LINE, Motion
+from planning.nc.motion import DWELL, Motion
 from planning.opplan import (
     DEFAULT_CHORD_TOL_MM,
     Simulation,
@@ -256,12 +256,12 @@ def _runs(
     return [(int(r[0]), float(r[1])) for r in runs]
 
 
-def _plain_absolute(program: Program, block: int, end_mm: NDArray[np.float64]) -> bool:
-    """True when the block's X/Y/Z words are the motion's end point (absolute mm, no offsets),
-    so new blocks can be written in the same coordinates."""
-    for axis, letter in enumerate("XYZ"):
-        txt = program.get_word(block, letter)
-        if txt is not None and abs(float(txt) - float(end_mm[axis])) > 1e-6:
+def _splittable(program: Program, block: int) -> bool:
+    """Whether planning.nc.edit can split the block (no G53, no program stop or end)."""
+    for t in program.words(block):
+        if t.letter == "G" and float(t.number) == 53:
+            return False
+        if t.letter == "M" and float(t.number) in (0, 1, 2, 30):
             return False
     return True
 
@@ -333,11 +333,11 @@ def post_process(
     for b, f in zip(blocks_with_feed.tolist(), seg_feed[motion.is_feed].tolist()):
         block_feed[b] = min(block_feed.get(b, math.inf), f)
     seg_count = np.bincount(motion.block, minlength=len(program))
-    split: dict[int, tuple[NDArray[np.bool_], list[tuple[NDArray[np.float64], float]]]] = {}
+    split: dict[int, tuple[int, list[tuple[float, float]]]] = {}
     if opts.split:
         multi = np.nonzero(
-            (motion.kind == LINE) & (last_piece - first_piece > 1) & ~plunge_mask(
-                motion.start, motion.end)
+            motion.is_feed & (motion.kind != DWELL) & (last_piece - first_piece > 1)
+            & ~plunge_mask(motion.start, motion.end)
         )[0]  # fmt: skip
         for s in multi.tolist():
             a, b = first_piece[s], last_piece[s]
@@ -345,13 +345,13 @@ def post_process(
             if np.all(f == f[0]):
                 continue
             blk = int(motion.block[s])
-            if seg_count[blk] != 1 or not _plain_absolute(program, blk, motion.end[s]):
+            if seg_count[blk] != 1 or not _splittable(program, blk):
                 continue
             runs = _runs(f, plen[a:b], opts.min_piece_mm)
             if len(runs) > 1:
-                ends = [(sim.piece_end_mm[a + e - 1], fr) for e, fr in runs]
-                ends[-1] = (motion.end[s], runs[-1][1])  # the exact original end point
-                split[blk] = (np.abs(motion.end[s] - motion.start[s]) > 0, ends)
+                # pieces of a segment are equal in length (arcs: in sweep), so run ends are
+                # path fractions
+                split[blk] = (s, [(1.0 if e == b - a else e / (b - a), fr) for e, fr in runs])
                 for e0, (e, fr) in zip([0] + [e for e, _ in runs[:-1]], runs):
                     feed[a + e0 : a + e] = fr
             else:
@@ -364,7 +364,7 @@ def post_process(
         bf = np.array([block_feed[b] for b in piece_block[unsplit].tolist()])
         feed[unsplit] = bf
 
-    new_program, new_index = _write(program, motion, block_feed, split)
+    new_program, new_index = _write(program, machine, block_feed, split)
     motion_after = interpret(new_program, machine, file=file)
     _verify_geometry(motion, motion_after, new_index, set(split), file)
     rapid = machine.rapid_mm_min if machine is not None else 10_000.0
@@ -394,65 +394,51 @@ def post_process(
 
 def _write(
     program: Program,
-    motion: Motion,
+    machine: MachineConfig | None,
     block_feed: dict[int, float],
-    split: dict[int, tuple[NDArray[np.bool_], list[tuple[NDArray[np.float64], float]]]],
+    split: dict[int, tuple[int, list[tuple[float, float]]]],
 ) -> tuple[Program, list[int]]:
-    """The adjusted program: F words where the modal feed must change, split blocks replaced."""
+    """The adjusted program and, per source block, the index of its first output block.
+
+    F words are written only where the modal feed must change (every F word of the source is
+    kept or rewritten, none is left stale); split blocks are cut by
+    :func:`planning.nc.edit.split_moves`, each piece with its F, the last piece's feed staying
+    modal (the following blocks are written knowing that).
+    """
     out = Program(list(program.lines), program.file, program.newline, program.final_newline)
     out._style = program.style  # noqa: SLF001 - same number style as the source
     lines = program.lines
     with_f = {i for i, raw in enumerate(lines) if "F" in raw or "f" in raw}
-    touched = sorted(with_f | set(block_feed))
     fmt = out.style.format
     modal = math.nan
-    for b in touched:
-        if b in split:
-            modal = split[b][1][-1][1]  # each run writes its own F; the last one stays modal
-            continue
+    for b in sorted(with_f | set(block_feed)):
         want = block_feed.get(b)
+        if b in split:
+            want = split[b][1][-1][1]  # split_moves writes each piece's F; the last stays modal
         txt = out.get_word(b, "F") if b in with_f else None
         if want is None:  # an F word on a block without feed moves sets the modal feed
             if txt is not None:
                 modal = float(txt)
             continue
-        if txt is not None or want != modal:
+        if txt is not None or want != modal or b in split:
             if txt is None or float(txt) != want:
                 out.set_word(b, "F", fmt(want, "F"))
             modal = want
     if not split:
         return out, list(range(len(lines)))
-    new_lines: list[str] = []
-    new_index: list[int] = []
-    for b, raw in enumerate(out.lines):
-        new_index.append(len(new_lines))
-        if b not in split:
-            new_lines.append(raw)
-            continue
-        moving, runs = split[b]
-        end0, f0 = runs[0]
-        scratch = Program([raw], program.file, _style=out.style)
-        for axis, letter in enumerate("XYZ"):
-            if moving[axis]:
-                scratch.set_word(0, letter, fmt(float(end0[axis]), letter))
-        scratch.set_word(0, "F", fmt(f0, "F"))
-        new_lines.append(scratch.lines[0])
-        for end, f in runs[1:]:
-            words: dict[str, Any] = {
-                letter: float(end[axis]) for axis, letter in enumerate("XYZ") if moving[axis]
-            }
-            words["F"] = f
-            # the new blocks take the layout of the original but not its N number
-            new_lines.append(out.format_block(words, like=b).replace(_n_word(raw), "", 1))
-    result = Program(new_lines, program.file, program.newline, program.final_newline)
-    result._style = out.style  # noqa: SLF001 - same number style as the source
+    from planning.nc.edit import split_moves
+
+    plan = {seg: runs for seg, runs in split.values()}
+    result = split_moves(out, plan, machine, restore_feed=False)
+    new_index, k = [], 0
+    for b in range(len(lines)):
+        new_index.append(k)
+        k += len(split[b][1]) if b in split else 1
+    if k != len(result.lines):
+        raise PlanningError(
+            f"{program.file}: splitting gave {len(result.lines)} blocks, expected {k} (internal)"
+        )
     return result, new_index
-
-
-def _n_word(raw: str) -> str:
-    """The block's leading N word as written (e.g. ``N120 ``), or '' if none."""
-    m = re.match(r"\s*/?\s*(N\d+\s*)", raw, re.IGNORECASE)
-    return m.group(1) if m else "\x00"  # a marker that never matches
 
 
 def rejoin(motion_after: Motion, new_index: list[int], split_blocks: set[int]) -> Motion:

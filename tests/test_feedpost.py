@@ -363,3 +363,18 @@ def test_library_errors_are_cutlab_errors() -> None:
     with pytest.raises(PlanningError, match="coefficients"):
         FeedPostOptions(force_limit_n=500)
     assert issubclass(PlanningError, CutlabError)
+
+
+def test_arc_block_is_split_into_arcs_on_the_same_circle() -> None:
+    text = (
+        "G21 G90 G17\nG0 X20 Y-30 Z5\nG1 Z-0.7 F1000\n"
+        "G2 X180 Y-30 I80 J0 (over the steps)\nG0 Z20\n"
+    )
+    r = run(text, "phi30-ball", step_stock(0.2))
+    assert r.split_blocks == 1
+    assert_same_geometry(r)
+    after = r.motion_after
+    arcs = after[after.is_arc]
+    assert len(arcs) == r.blocks.pieces[list(r.blocks.block).index(3)] > 2
+    np.testing.assert_allclose(arcs.center[:, :2], [[100, -30]] * len(arcs), atol=1e-3)
+    assert "(over the steps)" in r.program.lines[3]
