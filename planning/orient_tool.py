@@ -77,8 +77,9 @@ def szende_K(alpha, beta, R_mm: float, r_mm: float) -> np.ndarray:
     den = (R_mm - r_mm) * s2 + r_mm * X
     with np.errstate(divide="ignore", invalid="ignore"):
         K = X / den
-    # 0/0 limits: the flat (or flat part of a fillet) bottom parallel to the surface.
-    K = np.where((den <= 0) & (X <= 1e-300), 0.0, K)
+    # 0/0 at alpha = beta = 0: a ball is still a ball (1/R); a flat or fillet bottom lies
+    # parallel to the surface and sweeps a plane (0).
+    K = np.where((den <= 0) & (X <= 1e-300), 1.0 / R_mm if r_mm == R_mm else 0.0, K)
     K = np.where((den <= 0) & (X > 1e-300), np.inf, K)
     return K
 
