@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from analysis.config import SerialConfig
 from rig.dnc.errors import StreamFault
 from rig.dnc.link import SerialLink
-from rig.dnc.port import check_settings, line_bytes_per_s, open_port
+from rig.dnc.port import check_settings, is_pty, line_bytes_per_s, open_port
 from rig.dnc.program import Program
 from rig.dnc.progress import Progress
 from rig.dnc.record import BlockRow, BlockSink, MemorySink
@@ -69,7 +69,7 @@ class StreamerBase:
         self.sink: BlockSink = sink if sink is not None else MemorySink()
         self.clock = clock
         if pace_bytes_per_s == "auto":
-            pace_bytes_per_s = line_bytes_per_s(cfg) if cfg.port.startswith("/dev/pts/") else None
+            pace_bytes_per_s = line_bytes_per_s(cfg) if is_pty(cfg.port) else None
         self.pace = pace_bytes_per_s
         self.show_progress = progress
         self.link: SerialLink | None = None

@@ -6,16 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.config import MachineConfig
-from planning.nc import (
-    DWELL,
-    RAPID,
-    ModalState,
-    Motion,
-    NCError,
-    interpret,
-    segment_length_mm,
-    state_at_block,
-)
+from planning.nc import ModalState, Motion, NCError, interpret, segment_time_s, state_at_block
 from rig.dnc.errors import DncError
 
 
@@ -38,15 +29,7 @@ def modal_state_at(
 
 
 def segment_durations_s(motion: Motion, rapid_mm_min: float) -> np.ndarray:
-    """Time (n,) each segment takes at its programmed feed, s.
-
-    Feed moves: path length / feed. Rapids: the longest axis travel at ``rapid_mm_min`` (each axis
-    at full rapid, as a control moves them). Dwells: their dwell time. Acceleration is ignored.
-    """
-    length = segment_length_mm(motion)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t = np.where(motion.kind == RAPID, 0.0, length / motion.feed_mm_min * 60.0)
-    travel = np.abs(motion.end - motion.start).max(axis=1) if len(motion) else np.zeros(0)
-    t = np.where(motion.kind == RAPID, travel / rapid_mm_min * 60.0, t)
-    t = np.where(motion.kind == DWELL, motion.dwell_s, t)
-    return np.nan_to_num(t, nan=0.0)
+    """Time (n,) each segment takes at its programmed feed, s: planning.nc's time model (feed
+    moves length / feed, rapids the longest axis travel at ``rapid_mm_min``, dwells their time;
+    no acceleration), so the simulated controllers run programs as ``cutlab nc`` times them."""
+    return np.nan_to_num(segment_time_s(motion, rapid_mm_min=rapid_mm_min), nan=0.0)

@@ -13,12 +13,17 @@ What each protocol accepts (anything else is a :class:`~rig.dnc.errors.DncError`
 - ``grbl``: 8N1 only, flow control ``none`` (GRBL answers ``ok``; it sends no DC1/DC3 and an
   Arduino has no RTS/CTS lines).
 
-All settings are passed to the constructor: on a pseudo-terminal, Linux keeps the data bits at 8 and
-clears parity, and re-configuring an open pty port fails, so nothing is changed after opening.
+All settings are passed to the constructor and nothing is changed after opening. A Linux
+pseudo-terminal keeps 8 data bits and no parity whatever is asked, and refuses (EINVAL) a request
+for 7 bits or parity once it holds those; a pty (``/dev/pts/*``, the simulated controllers) is
+therefore opened as 8 bits, no parity, with the configured stop bits — it carries the same 7-bit
+ISO characters either way.
 """
 
 from __future__ import annotations
 
+import os
+import termios
 from typing import Any
 
 import serial
@@ -83,13 +88,24 @@ def check_settings(cfg: SerialConfig, protocol: str, where: str = "serial") -> N
         raise DncError("; ".join(bad))
 
 
+def is_pty(port: str) -> bool:
+    """True for the slave side of a Unix98 pseudo-terminal (device majors 136-143)."""
+    if port.startswith("/dev/pts/"):
+        return True
+    try:
+        return 136 <= os.major(os.stat(port).st_rdev) <= 143
+    except (OSError, ValueError):
+        return False
+
+
 def open_port(cfg: SerialConfig, protocol: str, read_timeout_s: float = 0.02) -> serial.SerialBase:
     """Check the settings and open the port; a port that cannot be opened is a clear DncError."""
     check_settings(cfg, protocol)
+    pty = is_pty(cfg.port)
     kw: dict[str, Any] = dict(
         baudrate=cfg.baudrate,
-        bytesize=cfg.bytesize,
-        parity=cfg.parity,
+        bytesize=8 if pty else cfg.bytesize,
+        parity="N" if pty else cfg.parity,
         stopbits=cfg.stopbits,
         timeout=read_timeout_s,
         write_timeout=cfg.timeout_s,
@@ -98,7 +114,7 @@ def open_port(cfg: SerialConfig, protocol: str, read_timeout_s: float = 0.02) ->
     )
     try:
         return serial.serial_for_url(cfg.port, **kw)
-    except (serial.SerialException, OSError, ValueError) as exc:
+    except (serial.SerialException, OSError, ValueError, termios.error) as exc:
         raise DncError(
             f"serial.port = {cfg.port!r}: cannot open ({exc}); check the port name in the machine "
             "config or --port, or start a simulated controller with `cutlab dnc sim-controller`"

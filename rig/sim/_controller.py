@@ -261,7 +261,11 @@ class SimControllerBase:
             self._open_pty()
             self._wire.clear()
             self._outbox.clear()
+            self._after_reopen()
         return self.path
+
+    def _after_reopen(self) -> None:
+        """Protocol hook: what a re-plugged port clears (a partial line)."""
 
     def __enter__(self) -> SimControllerBase:
         self.start()
@@ -425,11 +429,11 @@ class SimControllerBase:
             self._event("silent", f"stopped answering after {k} blocks")
             return False
         if self.sim_drop_port_after_block is not None and k >= self.sim_drop_port_after_block:
+            # The block that arrived is kept (and runs); nothing more comes in.
             self.sim_drop_port_after_block = None
             self._close_pty()
             self._wire.clear()
             self._event("port_dropped", f"port dropped after {k} blocks")
-            return False
         return True
 
     # -- planning ------------------------------------------------------------------------------

@@ -344,6 +344,11 @@ class SimGrbl(SimControllerBase):
     def _after_reset(self) -> None:
         self._grbl_state()
 
+    def _after_reopen(self) -> None:
+        # the bytes of a line cut by the unplug would otherwise prefix the next stream's line
+        self.fill -= len(self._partial)
+        self._partial.clear()
+
 
 def _error_code(reason: str) -> int:
     r = reason.lower()
