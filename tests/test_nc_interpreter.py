@@ -17,6 +17,7 @@ from planning.nc import (
     Interpreter,
     NCError,
     Program,
+    arc_sweep_rad,
     interpret,
     interpret_file,
     motion_stats,
@@ -275,3 +276,38 @@ def test_machine_limits_warn_and_block_rules():
         interpret("M3 M4")
     with pytest.raises(NCError, match="cannot share its block with a move"):
         interpret("G4 P100 Y5")
+
+
+INCH_SAMPLE = Path(SAMPLE).with_name("inch-features.nc")
+
+
+def test_inch_sample_closed_form():
+    it = Interpreter(strict=False, file=str(INCH_SAMPLE))
+    m = it.run(Program.read(INCH_SAMPLE).lines)
+    assert [str(w).split(": ", 1)[1] for w in it.warnings] == ["'G28': unknown G-code G28"]
+    arcs = m[m.is_arc]
+    np.testing.assert_array_equal(arcs.plane, [18, 18, 19])
+    np.testing.assert_allclose(arcs.center, [[12.7, 0, 0], [38.1, 0, 0], [50.8, 12.7, 0]])
+    np.testing.assert_allclose(np.degrees(arc_sweep_rad(arcs)), [180, 180, 180])
+    # G18 G2 from X0 to X1": clockwise seen from +Y, where Z points right and X up (Z x X = Y),
+    # runs from below the centre through -Z: a groove 0.5" deep
+    from planning.nc import linearize
+
+    lin = linearize(arcs[:1], 1e-3)
+    assert lin.end[:, 2].min() == pytest.approx(-12.7, abs=1e-3)
+    # incremental spaceless block, inch feed, block delete skipped (no Z2" rapid)
+    line_110 = m[m.line == 16]
+    np.testing.assert_allclose(line_110.end, [[38.1, 19.05, 0]])
+    assert line_110.feed_mm_min[0] == pytest.approx(8 * 25.4)
+    assert m.end[:, 2].max() == pytest.approx(25.4)
+    holes = m[(m.kind == LINE) & (m.tool == 4)]
+    np.testing.assert_allclose(holes.end, [[12.7, 12.7, -7.62], [25.4, 12.7, -5.08],
+                                           [38.1, 12.7, -5.08]])  # fmt: skip
+    assert m.dwell_s.sum() == pytest.approx(0.5)  # G82 P250 ms, twice (modal)
+
+
+def test_g80_with_motion_code_in_one_block():
+    m = interpret("G1 F10\nG81 X1 Z-1 R1\nG80 G1 X5")
+    assert m.kind[-1] == LINE and tuple(m.end[-1]) == (5, 0, 1)
+    with pytest.raises(NCError, match="cannot share a block"):
+        interpret("G80 G81 X1 Z-1 R1 F1")

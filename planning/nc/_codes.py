@@ -1,14 +1,16 @@
 """G- and M-code tables of the interpreter (private).
 
 G-codes are keyed by ten times their number so ``G90.1`` (901) and ``G91.1`` (911) are distinct
-integers; groups follow RS-274 numbering (0 = non-modal).
+integers; groups follow RS-274 numbering (0 = non-modal), except that G80 has a group of its own
+(9, as on Fanuc) so the common ``G80 G0 Z..`` is legal: it cancels the cycle, then G0 applies.
 """
 
 from __future__ import annotations
 
 # G-code (times 10, so G90.1 is 901) -> modal group (RS-274 numbering; 0 = non-modal)
 G_GROUP = {
-    0: 1, 10: 1, 20: 1, 30: 1, 800: 1, 810: 1, 820: 1, 830: 1,
+    0: 1, 10: 1, 20: 1, 30: 1, 810: 1, 820: 1, 830: 1,
+    800: 9,
     40: 0, 530: 0,
     170: 2, 180: 2, 190: 2,
     900: 3, 910: 3,

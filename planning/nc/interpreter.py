@@ -262,7 +262,20 @@ class Interpreter:
                         line,
                     )
                 groups[grp] = key
-                if grp == 1:
+                if grp == 9:  # G80; a G0..G3 in the same block then sets the motion mode
+                    g1 = groups.get(1)
+                    if g1 is not None and g1 >= 810:
+                        raise _lexer.word_error(
+                            raw, k, f"G80 and {gname(g1)} cannot share a block", self.file, line
+                        )
+                    if g1 is None:
+                        st.motion = 80
+                        explicit_motion = True
+                elif grp == 1:
+                    if 9 in groups and key >= 810:
+                        raise _lexer.word_error(
+                            raw, k, f"{gname(key)} and G80 cannot share a block", self.file, line
+                        )
                     st.motion = MOTION_MODE[key]
                     explicit_motion = True
                 elif grp == 0:
