@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -106,11 +106,15 @@ class BlockTable:
     pieces: NDArray[np.int64]  # blocks it became (1 = not split)
     time_before_s: NDArray[np.float64]
     time_after_s: NDArray[np.float64]
+    force_max_n: NDArray[np.float64] | None = None  # predicted peak force at the new feed, N
 
     def to_dataframe(self) -> Any:
         import pandas as pd
 
-        return pd.DataFrame({k: getattr(self, k) for k in self.__dataclass_fields__})
+        cols = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        if cols["force_max_n"] is None:
+            del cols["force_max_n"]
+        return pd.DataFrame(cols)
 
 
 @dataclass(frozen=True)
@@ -123,6 +127,7 @@ class FeedPostResult:
     simulation: Simulation
     piece_load_pct: NDArray[np.float64]
     piece_feed_mm_min: NDArray[np.float64]
+    piece_force_n: NDArray[np.float64]  # predicted peak force, N (NaN without coefficients)
     blocks: BlockTable
     time_before_s: float
     time_after_s: float
@@ -184,38 +189,64 @@ def _feed_limits(rule: FeedRule, machine: MachineConfig | None) -> tuple[float, 
     return lo, hi
 
 
-def _force_feed_cap(
-    tool: EndMill,
-    sim: Simulation,
-    opts: FeedPostOptions,
-    rpm: NDArray[np.float64],
-) -> NDArray[np.float64]:
-    """Feed per piece at which the predicted peak force reaches the limit, mm/min (inf if none).
+class _ForceModel:
+    """Predicted peak force of each piece as a function of its feed (analysis.endmill).
 
-    Engagement from the Z-map: axial depth = the deepest height drop of the piece, radial width =
-    removed cross-section / depth (capped at the diameter). Force is affine in the feed per tooth
-    for the linear edge-force model, so two evaluations give the feed at the limit.
+    Engagement from the Z-map: axial depth = the piece's deepest height drop, radial width =
+    removed cross-section / depth (capped at the diameter), down milling. Pieces that remove
+    nothing, or run with the spindle stopped, have no force (NaN).
     """
-    from analysis.endmill import EndMillCut, peak_force
 
-    n = len(sim.piece_removed_mm3)
-    cap = np.full(n, np.inf)
-    length = sim.piece_length_mm
-    cutting = (sim.piece_removed_mm3 > 1e-9) & (length > 0) & (rpm > 0)
-    if not cutting.any():
+    def __init__(
+        self, tool: EndMill, coef: EndMillCoefficients, sim: Simulation, rpm: NDArray
+    ) -> None:
+        self.tool, self.coef, self.rpm = tool, coef, rpm
+        length = sim.piece_length_mm
+        self.cutting = (sim.piece_removed_mm3 > 1e-9) & (length > 0) & (rpm > 0)
+        c = self.cutting
+        self.depth = np.clip(sim.piece_depth_mm[c], 1e-3, None)
+        area = sim.piece_removed_mm3[c] / length[c]
+        self.ae = np.clip(area / self.depth, 1e-3, tool.diameter_mm)
+
+    def _peak(self, fz: NDArray) -> NDArray:
+        from analysis.endmill import EndMillCut, peak_force
+
+        cut = EndMillCut.from_width(self.tool, fz, self.depth, self.ae, mode="down")
+        return peak_force(self.tool, self.coef, cut, n_phi=90)
+
+    def force_n(self, feed_mm_min: NDArray) -> NDArray:
+        """Peak force per piece at the given feeds, N (NaN where not cutting)."""
+        out = np.full(len(self.cutting), np.nan)
+        c = self.cutting
+        if c.any():
+            fz = feed_mm_min[c] / (self.tool.flutes * self.rpm[c])
+            out[c] = self._peak(np.maximum(fz, 1e-6))
+        return out
+
+    def feed_cap(self, limit_n: float) -> NDArray:
+        """Feed per piece at which the peak force reaches ``limit_n``, mm/min (inf if none).
+
+        The peak force grows with the feed per tooth (affine per edge, convex as a maximum), so
+        a few secant steps from a small feed converge from below.
+        """
+        cap = np.full(len(self.cutting), np.inf)
+        c = self.cutting
+        if not c.any():
+            return cap
+        f0 = self._peak(np.full(c.sum(), 1e-4))
+        lo = np.full(c.sum(), 1e-4)
+        hi = np.full(c.sum(), 0.05)
+        fh = self._peak(hi)
+        for _ in range(6):
+            slope = np.maximum((fh - f0) / (hi - lo), 1e-9)
+            nxt = np.clip(lo + (limit_n - f0) / slope, 1e-6, 10.0)
+            fn = self._peak(nxt)
+            below = fn <= limit_n
+            lo, f0 = np.where(below, nxt, lo), np.where(below, fn, f0)
+            hi, fh = np.where(below, hi, nxt), np.where(below, fh, fn)
+        fz = np.where(f0 <= limit_n, lo, 0.0)  # already above the limit at the smallest feed
+        cap[c] = fz * self.tool.flutes * self.rpm[c]
         return cap
-    depth = np.clip(sim.piece_depth_mm[cutting], 1e-3, None)
-    area = sim.piece_removed_mm3[cutting] / length[cutting]
-    ae = np.clip(area / depth, 1e-3, tool.diameter_mm)
-    f = []
-    for fz in (0.01, 0.02):
-        cut = EndMillCut.from_width(tool, fz, depth, ae, mode="down")
-        f.append(peak_force(tool, opts.coefficients, cut, n_phi=90))
-    slope = (f[1] - f[0]) / 0.01
-    fz_lim = np.where(slope > 0, (opts.force_limit_n - (f[0] - slope * 0.01)) / slope, np.inf)
-    fz_lim = np.maximum(fz_lim, 0.0)
-    cap[cutting] = fz_lim * tool.flutes * rpm[cutting]
-    return cap
 
 
 def _runs(
@@ -296,7 +327,7 @@ def post_process(
     piece_mm = opts.min_piece_mm / 2 if opts.split else math.inf
     sim = simulate_motion(
         stock, tool, motion, chord_tol_mm=opts.chord_tol_mm, piece_mm=piece_mm,
-        check_holder=opts.check_holder, track_depth=opts.force_limit_n is not None,
+        check_holder=opts.check_holder, track_depth=opts.coefficients is not None,
         progress=progress,
     )  # fmt: skip
     seg = sim.piece_segment
@@ -307,11 +338,19 @@ def post_process(
     )
     feed = np.clip(rule.feed_for(load), lo, hi)
     notes: list[str] = []
-    if opts.force_limit_n is not None:
+    force = None
+    if opts.coefficients is not None:
         rpm = np.abs(motion.spindle_rpm[seg])
         if opts.spindle_rpm:
             rpm = np.where(rpm > 0, rpm, opts.spindle_rpm)
-        feed = np.clip(np.minimum(feed, _force_feed_cap(tool, sim, opts, rpm)), lo, hi)
+        if not np.any(rpm[sim.piece_removed_mm3 > 0] > 0):
+            raise PlanningError(
+                f"{file}: the force prediction needs the spindle speed: the program cuts with "
+                "the spindle stopped (no S/M3); give spindle_rpm"
+            )
+        force = _ForceModel(tool, opts.coefficients, sim, rpm)
+        if opts.force_limit_n is not None:
+            feed = np.clip(np.minimum(feed, force.feed_cap(opts.force_limit_n)), lo, hi)
     step = opts.feed_step_mm_min
     feed = np.maximum(np.floor(feed / step + 1e-9) * step, lo)
     is_feed_piece = motion.is_feed[seg]
@@ -374,7 +413,18 @@ def post_process(
         notes.append(f"{len(sim.contacts)} holder/spindle contacts with the stock (see report)")
     if len(sim.rapid_cut_segments):
         notes.append(f"{len(sim.rapid_cut_segments)} rapid moves cut material (crash on a machine)")
+    piece_force = np.full(len(feed), np.nan)
+    if force is not None:
+        piece_force = force.force_n(np.nan_to_num(feed, nan=lo))
+        if opts.force_limit_n is not None:
+            over = np.nan_to_num(piece_force) > opts.force_limit_n * (1 + 1e-6)
+            if over.any():
+                notes.append(
+                    f"{int(over.sum())} pieces exceed force_limit_n = {opts.force_limit_n} N "
+                    f"even at the lowest allowed feed {lo} mm/min"
+                )
     blocks = _block_table(motion, motion_after, sim, load, feed, new_index, t_before, t_after, tool)
+    blocks = replace(blocks, force_max_n=_block_max(motion.block[seg], piece_force, blocks.block))
     return FeedPostResult(
         program=new_program,
         motion_before=motion,
@@ -382,6 +432,7 @@ def post_process(
         simulation=sim,
         piece_load_pct=load,
         piece_feed_mm_min=feed,
+        piece_force_n=piece_force,
         blocks=blocks,
         time_before_s=float(t_before.sum()),
         time_after_s=float(t_after.sum()),
@@ -460,8 +511,6 @@ def rejoin(motion_after: Motion, new_index: list[int], split_blocks: set[int]) -
     m = motion_after[keep]
     end = m.end.copy()
     end[:] = motion_after.end[last]
-    from dataclasses import replace
-
     return replace(m, end=end, block=src[keep].astype(np.int32))
 
 
@@ -486,6 +535,15 @@ def _verify_geometry(
             f"{file}: the adjusted program would not move like the original (internal check "
             "failed); nothing written"
         )
+
+
+def _block_max(piece_block: NDArray, values: NDArray, blocks: NDArray) -> NDArray | None:
+    """Largest value per block (NaN where none), or None when every value is NaN."""
+    if np.all(np.isnan(values)):
+        return None
+    out = np.full(int(max(piece_block.max(), blocks.max())) + 1, np.nan)
+    np.fmax.at(out, piece_block, values)
+    return out[blocks]
 
 
 def _block_table(

@@ -378,3 +378,29 @@ def test_arc_block_is_split_into_arcs_on_the_same_circle() -> None:
     assert len(arcs) == r.blocks.pieces[list(r.blocks.block).index(3)] > 2
     np.testing.assert_allclose(arcs.center[:, :2], [[100, -30]] * len(arcs), atol=1e-3)
     assert "(over the steps)" in r.program.lines[3]
+
+
+def test_force_limit_caps_the_predicted_peak_force() -> None:
+    from analysis.config import get_material
+    from analysis.endmill import EndMillCut, peak_force
+
+    coef = get_material("gm241").endmill
+    text = "G21 G90 G17\nS2000 M3\nG0 X-20 Y30 Z5\nG1 Z-0.7 F1000\nX215\nG0 Z20\n"
+    free = run(text, "phi30-ball", step_stock(0.2), coefficients=coef)
+    worst = float(np.nanmax(free.piece_force_n))
+    assert worst > 0 and free.blocks.force_max_n is not None
+    limit = 0.6 * worst
+    capped = run(text, "phi30-ball", step_stock(0.2), coefficients=coef, force_limit_n=limit)
+    f = capped.piece_force_n
+    assert np.nanmax(f) <= limit * 1.001
+    assert np.nansum(capped.piece_feed_mm_min) < np.nansum(free.piece_feed_mm_min)
+    # independent check of one heavy piece: the model at the written feed
+    tool = get_tool("phi30-ball")
+    k = int(np.nanargmax(f))
+    sim = capped.simulation
+    area = sim.piece_removed_mm3[k] / sim.piece_length_mm[k]
+    depth = sim.piece_depth_mm[k]
+    fz = capped.piece_feed_mm_min[k] / (tool.flutes * 2000)
+    cut = EndMillCut.from_width(tool, fz, depth, min(area / depth, 30.0), mode="down")
+    assert float(peak_force(tool, coef, cut, n_phi=90)) == pytest.approx(f[k], rel=1e-6)
+    assert_same_geometry(capped)
