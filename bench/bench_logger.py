@@ -78,7 +78,7 @@ def overhead(folder: Path, channels: int, reps: int, total_mb: float) -> dict:
     blocks = np.random.default_rng(0).normal(size=(channels, n))
     n_blocks = max(1, int(total_mb * 1e6 / blocks.nbytes))
     probe = RunWriter(folder / "probe.h5", _info(channels, 1e6, n), overwrite=True)
-    chunk_rows = probe._chunk  # the same chunk shape as the logger's  # noqa: SLF001
+    chunk_rows = probe.chunk_rows  # the same chunk shape as the logger's
     probe.close()
     (folder / "probe.h5").unlink()
     ratios, bare_s, log_s = [], [], []

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import datetime as dt
 import hashlib
 import json
 import math
@@ -30,47 +29,20 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import asdict, dataclass, is_dataclass
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import h5py
 import numpy as np
 
-from analysis import __version__
 from analysis import runfile as rf
+from rig._logger_file import RunWriterError, create_run_file, jsonable, utc_now, write_text
 from rig.calibration import Calibration
-from rig.daq.base import SAMPLE_FORMAT_RAW, DaqEvent, DaqInfo
-from rig.errors import RigError
+from rig.daq.base import DaqEvent, DaqInfo
+
+__all__ = ["RunWriter", "RunWriterError", "WriterStats"]
 
 _STOP = object()
-_CHUNK_BYTES = 1 << 20  # 1 MiB chunks: large sequential writes, cheap SWMR tail reads
-
-
-class RunWriterError(RigError):
-    """The run file cannot be created or written."""
-
-
-def _utc() -> str:
-    return dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds")
-
-
-def _jsonable(obj: Any) -> Any:
-    if is_dataclass(obj) and not isinstance(obj, type):
-        return _jsonable(asdict(obj))
-    if hasattr(obj, "model_dump"):
-        return _jsonable(obj.model_dump())
-    if isinstance(obj, Mapping):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, list | tuple):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, Path):
-        return str(obj)
-    return obj
 
 
 @dataclass(frozen=True)
@@ -127,11 +99,9 @@ class RunWriter:
         self.flush_interval_s = float(flush_interval_s)
         self._c = info.n_channels
         self._dtype = info.dtype
-        self._chunk = max(1024, _CHUNK_BYTES // (self._dtype.itemsize * self._c))
-        self._block_bytes = info.block_samples * self._c * self._dtype.itemsize
-        if compression == "auto":
-            compression = "gzip" if info.sample_format == SAMPLE_FORMAT_RAW else None
-        self._f = self._create(calibration, compression, overwrite)
+        self._f, self._ds = create_run_file(
+            self.path, info, calibration, compression=compression, overwrite=overwrite
+        )
 
         # Producer side (acquisition thread): a pool of free buffers is the bounded queue.
         self._free: queue.SimpleQueue[np.ndarray] = queue.SimpleQueue()
@@ -173,90 +143,6 @@ class RunWriter:
     # File creation: every object exists before SWMR is switched on.
     # ------------------------------------------------------------------------------------------
 
-    def _create(
-        self, cal: Calibration | None, compression: str | None, overwrite: bool
-    ) -> h5py.File:
-        if self.path.exists() and not overwrite:
-            raise RunWriterError(f"{self.path}: file exists (pass overwrite / --force)")
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        try:
-            f = h5py.File(
-                self.path,
-                "w",
-                libver="latest",
-                # Room for the chunks a block spans, so a block ending mid-chunk leaves that
-                # chunk in the cache until the next block completes it (no read-back).
-                rdcc_nbytes=max(16 * _CHUNK_BYTES, 3 * self._block_bytes),
-                rdcc_nslots=1009,
-            )
-        except OSError as exc:
-            raise RunWriterError(f"{self.path}: cannot create the run file: {exc}") from None
-        info = self.info
-        f.attrs[rf.ATTR_FORMAT] = rf.FORMAT_NAME
-        f.attrs[rf.ATTR_FORMAT_VERSION] = rf.FORMAT_VERSION
-        f.attrs[rf.ATTR_SOFTWARE_VERSION] = __version__
-        f.attrs[rf.ATTR_CREATED_UTC] = _utc()
-        g = f.create_group(rf.FORCES)
-        g.attrs.update(
-            rate_hz=float(info.rate_hz),
-            sample_format=info.sample_format,
-            channel_names=list(cal.channel_names if cal else info.channel_names),
-            physical_channels=list(info.physical_channels),
-            device=info.device,
-            input_range_v=float(info.input_range_v),
-            units_force="N",
-            units_volts="V",
-            units_raw="ADC code",
-        )
-        kw: dict[str, Any] = {}
-        if compression:
-            kw = {"compression": compression, "shuffle": True}
-            if compression == "gzip":
-                kw["compression_opts"] = 1
-        name = rf.RAW if info.sample_format == SAMPLE_FORMAT_RAW else rf.VOLTS
-        self._ds = f.create_dataset(
-            name,
-            shape=(0, self._c),
-            maxshape=(None, self._c),
-            chunks=(self._chunk, self._c),
-            dtype=self._dtype,
-            **kw,
-        )
-        if info.sample_format == SAMPLE_FORMAT_RAW:
-            f.create_dataset(rf.SCALING_COEFF, data=np.asarray(info.scaling_coeff, np.float64))
-        if cal is not None:
-            cg = f.create_group(rf.CALIBRATION)
-            for k, v in cal.as_attrs().items():
-                cg.attrs[k] = v
-            f.create_dataset(rf.CAL_VOLTS_TO_N, data=cal.volts_to_n)
-            f.create_dataset(rf.CAL_ZERO_V, data=cal.zero_v)
-            f.create_dataset(rf.CAL_ZERO_TIME_S, data=float(cal.zero_time_s))
-            f.create_dataset(rf.CAL_DRIFT_V_S, data=cal.drift_v_s)
-        for path, dtype, chunk in (
-            (rf.EVENTS, rf.EVENT_DTYPE, 256),
-            (rf.BLOCKS, rf.BLOCK_DTYPE, 512),
-        ):
-            f.create_dataset(
-                path, shape=(0,), maxshape=(None,), chunks=(chunk,), dtype=dtype,
-                compression="gzip", compression_opts=1, shuffle=True,
-            )  # fmt: skip
-        for name in rf.META_NAMES:
-            f.create_dataset(
-                rf.meta_path(name), shape=(0,), maxshape=(None,), chunks=(4096,), dtype=np.uint8
-            )
-        self._write_text(f, rf.META_STATUS, json.dumps({"status": rf.STATUS_RUNNING}))
-        f.swmr_mode = True
-        f.flush()
-        return f
-
-    @staticmethod
-    def _write_text(f: h5py.File, name: str, text: str) -> None:
-        data = np.frombuffer(text.encode("utf-8"), dtype=np.uint8)
-        ds = f[rf.meta_path(name)]
-        ds.resize((len(data),))
-        if len(data):
-            ds[:] = data
-
     # ------------------------------------------------------------------------------------------
     # DaqSink: called from the acquisition thread. Never blocks on the disk.
     # ------------------------------------------------------------------------------------------
@@ -268,7 +154,7 @@ class RunWriter:
                 f"created for {self._c} channels of {self._dtype}"
             )
         self._t0_s = float(t0_s)
-        acq = {"t0_s": self._t0_s, "started_utc": _utc(), "block_samples": info.block_samples}
+        acq = {"t0_s": self._t0_s, "started_utc": utc_now(), "block_samples": info.block_samples}
         self._control.append(("text", (rf.META_ACQUISITION, json.dumps(acq))))
         self._control.append(("event", DaqEvent(rf.EV_START, 0, "acquisition started")))
 
@@ -413,11 +299,11 @@ class RunWriter:
 
     def set_conditions(self, conditions: Mapping[str, Any]) -> None:
         """Cutting conditions (tool, material, spindle_rpm, feed_mm_min, fz_mm, depth_mm, ...)."""
-        self._control.append(("text", (rf.META_CONDITIONS, json.dumps(_jsonable(conditions)))))
+        self._control.append(("text", (rf.META_CONDITIONS, json.dumps(jsonable(conditions)))))
 
     def set_rig(self, rig: Mapping[str, Any]) -> None:
         """Rig description (device, dynamometer, amplifier, calibration id, machine ...)."""
-        self._control.append(("text", (rf.META_RIG, json.dumps(_jsonable(rig)))))
+        self._control.append(("text", (rf.META_RIG, json.dumps(jsonable(rig)))))
 
     def set_program(self, text: str, name: str = "") -> None:
         """The NC program sent in this run; its SHA-256 and line count go to program_info."""
@@ -457,6 +343,11 @@ class RunWriter:
             )
 
     @property
+    def chunk_rows(self) -> int:
+        """Samples per chunk of the samples dataset."""
+        return int(self._ds.chunks[0])
+
+    @property
     def t0_s(self) -> float:
         return self._t0_s
 
@@ -484,7 +375,9 @@ class RunWriter:
                 self._flush_drop()
         # Written by the writer thread after the last sample is flushed, so a follower that sees
         # a closed status has every sample.
-        self._final_status = json.dumps({"status": status, "reason": reason, "closed_utc": _utc()})
+        self._final_status = json.dumps(
+            {"status": status, "reason": reason, "closed_utc": utc_now()}
+        )
         self._filled.put(_STOP)
         self._thread.join()
         err = self.error
@@ -547,7 +440,7 @@ class RunWriter:
                 self._blocks_written += 1
             self._drain_control()
             self._flush()
-            self._write_text(self._f, rf.META_STATUS, self._final_status)
+            write_text(self._f, rf.META_STATUS, self._final_status)
             self._f.flush()
         except BaseException as exc:  # noqa: BLE001 - surfaced by close()
             self.error = exc
@@ -575,7 +468,7 @@ class RunWriter:
                 self._write_events(events)
                 events = []
             if kind == "text":
-                self._write_text(self._f, *payload)
+                write_text(self._f, *payload)
             elif kind == "blocks":
                 self._write_blocks(payload)
             elif kind == "ack":

@@ -1,0 +1,150 @@
+"""Creating a run file for :class:`rig.logger.RunWriter`: every object before SWMR is switched on.
+
+The layout itself is documented in :mod:`analysis.runfile`; this module only builds it.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+from collections.abc import Mapping
+from dataclasses import asdict, is_dataclass
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from analysis import __version__
+from analysis import runfile as rf
+from rig.calibration import Calibration
+from rig.daq.base import SAMPLE_FORMAT_RAW, DaqInfo
+from rig.errors import RigError
+
+CHUNK_BYTES = 1 << 20  # 1 MiB chunks: large sequential writes, cheap SWMR tail reads
+
+
+class RunWriterError(RigError):
+    """The run file cannot be created or written."""
+
+
+def utc_now() -> str:
+    return dt.datetime.now(dt.UTC).isoformat(timespec="milliseconds")
+
+
+def jsonable(obj: Any) -> Any:
+    """Plain JSON types from dataclasses, pydantic models, numpy values and paths."""
+    if is_dataclass(obj) and not isinstance(obj, type):
+        return jsonable(asdict(obj))
+    if hasattr(obj, "model_dump"):
+        return jsonable(obj.model_dump())
+    if isinstance(obj, Mapping):
+        return {str(k): jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if isinstance(obj, list | tuple):
+        return [jsonable(v) for v in obj]
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+def chunk_rows(info: DaqInfo) -> int:
+    """Samples per chunk of the samples dataset (about CHUNK_BYTES)."""
+    return max(1024, CHUNK_BYTES // (info.dtype.itemsize * info.n_channels))
+
+
+def write_text(f: h5py.File, name: str, text: str) -> None:
+    """Replace the UTF-8 text of ``/meta/<name>`` (resizing its byte dataset)."""
+    data = np.frombuffer(text.encode("utf-8"), dtype=np.uint8)
+    ds = f[rf.meta_path(name)]
+    ds.resize((len(data),))
+    if len(data):
+        ds[:] = data
+
+
+def create_run_file(
+    path: Path,
+    info: DaqInfo,
+    cal: Calibration | None,
+    *,
+    compression: str | None,
+    overwrite: bool,
+) -> tuple[h5py.File, h5py.Dataset]:
+    """Create the file with every group, dataset and attribute, switch SWMR on; return the file
+    and its samples dataset. ``compression``: "auto" (gzip 1 + shuffle for int16 codes, none for
+    float64), "gzip" or None."""
+    if path.exists() and not overwrite:
+        raise RunWriterError(f"{path}: file exists (pass overwrite / --force)")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    c = info.n_channels
+    block_bytes = info.block_samples * c * info.dtype.itemsize
+    try:
+        f = h5py.File(
+            path,
+            "w",
+            libver="latest",
+            # Room for the chunks a block spans, so a block ending mid-chunk leaves that chunk
+            # in the cache until the next block completes it (no read-back).
+            rdcc_nbytes=max(16 * CHUNK_BYTES, 3 * block_bytes),
+            rdcc_nslots=1009,
+        )
+    except OSError as exc:
+        raise RunWriterError(f"{path}: cannot create the run file: {exc}") from None
+    f.attrs[rf.ATTR_FORMAT] = rf.FORMAT_NAME
+    f.attrs[rf.ATTR_FORMAT_VERSION] = rf.FORMAT_VERSION
+    f.attrs[rf.ATTR_SOFTWARE_VERSION] = __version__
+    f.attrs[rf.ATTR_CREATED_UTC] = utc_now()
+    g = f.create_group(rf.FORCES)
+    g.attrs.update(
+        rate_hz=float(info.rate_hz),
+        sample_format=info.sample_format,
+        channel_names=list(cal.channel_names if cal else info.channel_names),
+        physical_channels=list(info.physical_channels),
+        device=info.device,
+        input_range_v=float(info.input_range_v),
+        units_force="N",
+        units_volts="V",
+        units_raw="ADC code",
+    )
+    if compression == "auto":
+        compression = "gzip" if info.sample_format == SAMPLE_FORMAT_RAW else None
+    kw: dict[str, Any] = {}
+    if compression:
+        kw = {"compression": compression, "shuffle": True}
+        if compression == "gzip":
+            kw["compression_opts"] = 1
+    name = rf.RAW if info.sample_format == SAMPLE_FORMAT_RAW else rf.VOLTS
+    ds = f.create_dataset(
+        name,
+        shape=(0, c),
+        maxshape=(None, c),
+        chunks=(chunk_rows(info), c),
+        dtype=info.dtype,
+        **kw,
+    )
+    if info.sample_format == SAMPLE_FORMAT_RAW:
+        f.create_dataset(rf.SCALING_COEFF, data=np.asarray(info.scaling_coeff, np.float64))
+    if cal is not None:
+        cg = f.create_group(rf.CALIBRATION)
+        for k, v in cal.as_attrs().items():
+            cg.attrs[k] = v
+        f.create_dataset(rf.CAL_VOLTS_TO_N, data=cal.volts_to_n)
+        f.create_dataset(rf.CAL_ZERO_V, data=cal.zero_v)
+        f.create_dataset(rf.CAL_ZERO_TIME_S, data=float(cal.zero_time_s))
+        f.create_dataset(rf.CAL_DRIFT_V_S, data=cal.drift_v_s)
+    for table, dtype, chunk in ((rf.EVENTS, rf.EVENT_DTYPE, 256), (rf.BLOCKS, rf.BLOCK_DTYPE, 512)):
+        f.create_dataset(
+            table, shape=(0,), maxshape=(None,), chunks=(chunk,), dtype=dtype,
+            compression="gzip", compression_opts=1, shuffle=True,
+        )  # fmt: skip
+    for meta in rf.META_NAMES:
+        f.create_dataset(
+            rf.meta_path(meta), shape=(0,), maxshape=(None,), chunks=(4096,), dtype=np.uint8
+        )
+    write_text(f, rf.META_STATUS, json.dumps({"status": rf.STATUS_RUNNING}))
+    f.swmr_mode = True
+    f.flush()
+    return f, ds
