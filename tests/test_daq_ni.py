@@ -218,6 +218,30 @@ def test_continuous_blocks_overflow_and_stop_into_a_run_file(tmp_path: Path) -> 
     assert last == call(1000, None)
 
 
+def test_codes_at_the_adc_limits_are_a_saturation_event(tmp_path: Path) -> None:
+    cfg = _rig()
+    daq, task, dev, unscaled, _ = _daq(cfg)
+    w = RunWriter(tmp_path / "s.h5", _raw_info(daq))
+    daq.start(w)
+    read = dev.read
+
+    def clipped(data, number_of_samples_per_channel, timeout):
+        got = read(data, number_of_samples_per_channel, timeout)
+        data[1, 417:420] = 32767
+        return got
+
+    unscaled.return_value.read_int16.side_effect = clipped
+    dev.acquire(2000)
+    cb = _callback(task)
+    cb(0, 1, 1000, None)
+    cb(0, 1, 1000, None)
+    daq.close()
+    w.close()
+    run = rf.load_run(tmp_path / "s.h5")
+    sat = run.events[run.events["kind"] == "saturation"]
+    assert sat["sample"].tolist() == [417, 1417]
+
+
 def test_volts_mode_uses_the_multichannel_reader(tmp_path: Path) -> None:
     cfg = _rig(raw=False, channels=("Dev1/ai0", "Dev1/ai1"))
     daq, task, dev, unscaled, scaled = _daq(cfg, names=None)

@@ -268,7 +268,10 @@ class NiDaq(Daq):
                 raise
             got = self._recover(exc, n)
         if got > 0:
-            sink.on_block(self.samples_read, self._view(n)[:, :got])  # type: ignore[union-attr]
+            data = self._view(n)[:, :got]
+            if data.dtype == np.int16:
+                self._check_saturation(data)
+            sink.on_block(self.samples_read, data)  # type: ignore[union-attr]
             self.samples_read += got
             self.samples_delivered += got
             self.samples_acquired = self.samples_read
@@ -278,6 +281,16 @@ class NiDaq(Daq):
             raise DaqError(
                 f"device reports {acquired} samples acquired but {self.samples_read} were read"
             )
+
+    def _check_saturation(self, codes: np.ndarray) -> None:
+        """A code at the ends of the int16 range means the input was at or beyond the range."""
+        at_limit = (codes == np.iinfo(np.int16).max) | (codes == np.iinfo(np.int16).min)
+        if at_limit.any():
+            first = int(np.argmax(at_limit.any(axis=0)))
+            self._sink.on_event(  # type: ignore[union-attr]
+                DaqEvent(rf.EV_SATURATION, self.samples_read + first,
+                         f"{int(at_limit.sum())} codes at the ADC limits in this block")
+            )  # fmt: skip
 
     def _recover(self, exc: nidaqmx.errors.DaqError, n: int) -> int:
         """After an overflow: record it, jump to the oldest sample still buffered, read there."""
