@@ -148,6 +148,7 @@ class GrblStreamer(StreamerBase):
         self._streaming = threading.Event()
         self._reports = 0
         self._starved_reports = 0
+        self._heard_any = False
 
     # -- real-time commands (any thread) ---------------------------------------------------------
     def _rt(self, cmd: bytes) -> None:
@@ -200,11 +201,12 @@ class GrblStreamer(StreamerBase):
                 item = self._lines.get(timeout=0.05)
             except queue.Empty:
                 if time.perf_counter() - heard[0] > self.cfg.timeout_s:
-                    raise Fault(
-                        "timeout", f"no answer from GRBL for {self.cfg.timeout_s:g} s"
-                    ) from None
+                    hint = "" if self._heard_any else " (wrong port or baud rate?)"
+                    why = f"no answer from GRBL for {self.cfg.timeout_s:g} s{hint}"
+                    raise Fault("timeout", why) from None
                 continue
             heard[0] = time.perf_counter()
+            self._heard_any = True
             if item[1].startswith("<"):
                 st = parse_status(item[1])
                 self.last_status = st

@@ -85,6 +85,8 @@ class RemoteServer:
         self.streamer = FanucStreamer(cfg, sink=sink, pace_bytes_per_s=pace_bytes_per_s)
         self.request: Request | None = None
         self.program: Program | None = None
+        #: set once the port is open and a request can be received
+        self.listening = threading.Event()
 
     def serve_one(self, wait_s: float | None = None) -> StreamResult:
         """Wait for a request (``wait_s`` None: forever), then send what it names."""
@@ -103,6 +105,7 @@ class RemoteServer:
 
             link.on_data = st._on_data
             link.on_control = on_control
+            self.listening.set()
             while not done.wait(0.05):
                 if link.lost.is_set():
                     raise DncError(f"remote request: port lost ({link.lost_reason})")
@@ -117,4 +120,5 @@ class RemoteServer:
             link.dc1_seen.clear()  # wait for the control to start reading again
             return st.send(self.program, self.request.start_block, pre, link=link)
         finally:
+            self.listening.clear()
             link.close()
