@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import time
 from pathlib import Path
 
 
@@ -83,8 +84,6 @@ def _record(args: argparse.Namespace) -> int:
             cfg = cfg.model_copy(update={"channels": cfg.channels[: args.channels]})
         cal = Calibration.from_dynamometer(rig.dynamometer, len(cfg.channels), where)
         daq = NiDaq(cfg, cal.channel_names)
-        import time
-
         run_clock = time.monotonic
         rig_meta = {"daq": cfg.model_dump(), "dynamometer": rig.dynamometer.model}
     if cal is not None:
@@ -125,7 +124,7 @@ def _record(args: argparse.Namespace) -> int:
         "samples_missing": res.writer.samples_missing,
         "duration_s": res.samples_acquired / daq.info.rate_hz,
     }
-    status(f"daq record: wrote {out} ({res.status})")
+    status(f"daq record: wrote {out} ({res.status}{': ' + res.reason if res.reason else ''})")
     if args.json:
         print_json(summary)
     else:
