@@ -271,6 +271,7 @@ def simulate_motion(
     piece_mm: float = math.inf,
     check_holder: bool = True,
     track_depth: bool = False,
+    until_block: int | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> Simulation:
     """Machine ``motion`` with ``tool`` on ``stock`` (lowered in place).
@@ -284,9 +285,14 @@ def simulate_motion(
         Check the holder and spindle nose against the stock after each move that could reach it.
     track_depth : bool
         Record each piece's deepest height drop (``piece_depth_mm``; zeros otherwise).
+    until_block : int, optional
+        Stop after this block (0-based): ``stock`` is then the stock at that moment, and the
+        result covers the segments up to it.
     progress : callable(done, total), optional
     """
     cutter = Cutter.from_tool(tool)
+    if until_block is not None:
+        motion = motion[motion.block <= until_block]
     lin = linearize(motion, chord_tol_mm)
     keep = lin.kind != DWELL
     src = lin.source[keep]

@@ -404,3 +404,48 @@ def test_force_limit_caps_the_predicted_peak_force() -> None:
     cut = EndMillCut.from_width(tool, fz, depth, min(area / depth, 30.0), mode="down")
     assert float(peak_force(tool, coef, cut, n_phi=90)) == pytest.approx(f[k], rel=1e-6)
     assert_same_geometry(capped)
+
+
+def test_cli_simulate_on_a_mesh_stock_and_a_plan(tmp_path: Path, capsys) -> None:
+    prog = tmp_path / "slot.nc"
+    prog.write_text("G21 G90\nS6000 M3\nG0 X-10 Y20 Z5\nG1 Z-3 F500\nX90\nG0 Z30\nM30\n")
+    stl = DATA / "stepped-block.stl"  # 80 x 40 block, top at -2 for x < 40 and 0 beyond
+    rc, so, _ = cli(
+        ["plan", "simulate", str(prog), "--tool", "phi10-flat", "--stock", str(stl),
+         "--spacing", "0.2", "--json"],
+        capsys,
+    )  # fmt: skip
+    assert rc == 0
+    out = json.loads(so)
+    assert out["removed_mm3"] == pytest.approx(10 * 1 * 40 + 10 * 3 * 40, rel=0.01)
+    (tmp_path / "plan.toml").write_text(
+        f'[plan]\nmachine = "ace-h63"\n[stock]\nkind = "mesh"\npath = "{stl}"\nspacing_mm = 0.2\n'
+        '[[operations]]\nname = "slot"\nprogram = "slot.nc"\ntool = "phi10-flat"\n'
+        '[[operations]]\nname = "again"\nprogram = "slot.nc"\ntool = "phi10-flat"\n'
+    )
+    png = tmp_path / "plan.png"
+    rc, so, _ = cli(["plan", "simulate", str(tmp_path / "plan.toml"), "--png", str(png),
+                     "--json"], capsys)  # fmt: skip
+    assert rc == 0 and png.exists()
+    plan = json.loads(so)
+    removed = [op["removed_mm3"] for op in plan["operations"]]
+    assert removed[0] == pytest.approx(out["removed_mm3"], rel=1e-9)
+    assert removed[1] == 0.0  # the same path again: the stock is already cut there
+
+
+def test_stock_at_any_moment() -> None:
+    from planning.opplan import simulate_motion
+
+    text = (DATA / "step-depth.nc").read_text()
+    motion = interpret(text)
+    tool = get_tool("phi30-ball")
+    whole = step_stock(0.2)
+    simulate_motion(whole, tool, motion)
+    part = step_stock(0.2)
+    sim = simulate_motion(part, tool, motion, until_block=5)  # after the plunge (N40) only
+    assert sim.removed_total_mm3 == 0.0  # the plunge at X-20 is outside the block
+    assert np.array_equal(part.heights_mm, step_stock(0.2).heights_mm)
+    cut = step_stock(0.2)
+    sim = simulate_motion(cut, tool, motion, until_block=6)  # after the cut (N50)
+    assert sim.removed_total_mm3 > 0
+    np.testing.assert_allclose(cut.heights_mm, whole.heights_mm)
