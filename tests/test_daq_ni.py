@@ -187,8 +187,10 @@ def test_continuous_blocks_overflow_and_stop_into_a_run_file(tmp_path: Path) -> 
         assert cb(0, 1, 1000, None) == 0
     dev.acquire(12_500)  # the host stalls for 1.25 s: the 1 s buffer overwrote 2 500 samples
     assert cb(0, 1, 1000, None) == 0
+    assert daq.samples_read == 17_500  # the late callback read every whole block waiting
     for _ in range(3):
-        cb(0, 1, 1000, None)  # catching up
+        cb(0, 1, 1000, None)  # queued callbacks find nothing new: no read, no error
+    assert daq.samples_read == 17_500
     dev.acquire(700)
     daq.stop()
     daq.close()

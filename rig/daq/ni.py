@@ -215,8 +215,11 @@ class NiDaq(Daq):
             self.info = self._configure(task)
             self._sink = sink
             t0 = self.clock()
+            sink.on_start(self.info, t0)  # before the first every-N callback can fire
+            self._running = True
             task.start()
         except nidaqmx.errors.DaqError as exc:
+            self._running = False
             self._close_task()
             if exc.error_code in DEVICE_MISSING_CODES:
                 raise DaqNotAvailableError(
@@ -225,8 +228,6 @@ class NiDaq(Daq):
                     f"{HOW_TO_CONFIGURE}"
                 ) from None
             raise DaqError(f"cannot start the DAQ task: {exc}") from None
-        self._running = True
-        sink.on_start(self.info, t0)
 
     # -- acquisition (DAQmx callback thread) ---------------------------------------------------
 
@@ -236,7 +237,15 @@ class NiDaq(Daq):
         """DAQmx callback: read one block. Must return 0 and must not raise (ctypes drops it)."""
         try:
             with self._lock:
-                if self._running:
+                # Read every whole block waiting (more than one after a late callback), so a
+                # hiccup does not leave a permanent backlog.
+                stream = self._task.in_stream
+                for _ in range(self.buffer_samples // self.block_samples + 2):
+                    if not self._running:
+                        break
+                    waiting = int(stream.total_samp_per_chan_acquired) - self.samples_read
+                    if waiting < self.block_samples:
+                        break
                     self._read(self.block_samples)
         except BaseException as exc:  # noqa: BLE001 - a callback cannot raise into DAQmx
             self._fail(exc)
