@@ -78,17 +78,23 @@ def main() -> None:
         size_mb = path.stat().st_size / 1e6
         rss0 = rss_mb()
         t0 = time.perf_counter()
+        c0 = time.process_time()
         if args.profile:
             prof = cProfile.Profile()
             motion = prof.runcall(interpret_file, path)
         else:
             motion = interpret_file(path)
         dt = time.perf_counter() - t0
+        cpu = time.process_time() - c0
         rss1 = rss_mb()
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3
     arrays_mb = sum(getattr(motion, f).nbytes for f in motion.__dataclass_fields__) / 1e6
     print(f"program: {n_lines} blocks, {size_mb:.1f} MB (generated in {t_gen:.1f} s)")
     print(f"parse + interpret: {dt:.2f} s, {n_lines / dt:,.0f} blocks/s, {len(motion)} segments")
+    print(
+        f"CPU time {cpu:.2f} s ({n_lines / cpu:,.0f} blocks/s of CPU; wall > CPU means the "
+        f"machine was shared), load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores"
+    )
     print(
         f"memory: RSS grew {rss1 - rss0:.0f} MB during interpretation; segment arrays "
         f"{arrays_mb:.0f} MB; peak RSS {peak:.0f} MB"

@@ -27,6 +27,7 @@ M_GROUP = {0: "stop", 1: "stop", 2: "stop", 30: "stop", 3: "spindle", 4: "spindl
            5: "spindle", 6: "tool change", 7: "coolant", 8: "coolant", 9: "coolant"}  # fmt: skip
 KNOWN_M = set(M_GROUP)
 LETTERS = frozenset("ABCDFHIJKLNOPQRSTXYZ")
+LETTERS_GM = LETTERS | {"G", "M"}
 FAST_LETTERS = frozenset("XYZF")
 _GKEY: dict[str, int] = {}  # number text -> G key cache (programs repeat the same few)
 

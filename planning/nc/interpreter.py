@@ -41,6 +41,7 @@ from planning.nc._codes import (
     G_GROUP,
     KNOWN_M,
     LETTERS,
+    LETTERS_GM,
     M_GROUP,
     MOTION_MODE,
     gkey,
@@ -216,32 +217,27 @@ class Interpreter:
         st.stopped = False
         gcodes: list[tuple[int, int]] | None = None
         mcodes: list[tuple[int, int]] | None = None
-        v: dict[str, str] = {}
-        for k, (letter, num) in enumerate(words):
-            if letter == "G":
-                key = gkey(num)
+        v = dict(words)
+        if len(v) == len(words) and v.keys() <= LETTERS_GM:
+            # fast path (most blocks): no letter twice, at most one G and one M, all known
+            g = v.pop("G", None)
+            if g is not None:
+                key = gkey(g)
                 if key not in G_GROUP:
-                    self._problem(raw, k, f"unknown G-code {gname(key)}", line)
-                elif gcodes is None:
-                    gcodes = [(key, k)]
+                    v = None  # let the slow path report it
                 else:
-                    gcodes.append((key, k))
-            elif letter == "M":
-                key = round(float(num) * 10.0)
+                    gcodes = [(key, words.index(("G", g)))]
+            m = v.pop("M", None) if v is not None else None
+            if m is not None:
+                key = round(float(m) * 10.0)
                 if key % 10 or key // 10 not in KNOWN_M:
-                    self._problem(raw, k, f"unknown M-code M{key / 10:g}", line)
-                elif mcodes is None:
-                    mcodes = [(key, k)]
+                    v = None
                 else:
-                    mcodes.append((key, k))
-            elif letter not in LETTERS:
-                self._problem(raw, k, f"unknown address letter {letter}", line)
-            elif letter in v:
-                raise _lexer.word_error(
-                    raw, k, f"address {letter} appears twice in the block", self.file, line
-                )
-            else:
-                v[letter] = num
+                    mcodes = [(key, words.index(("M", m)))]
+        else:
+            v = None
+        if v is None:
+            gcodes, mcodes, v = self._sort_words(raw, words, line)
 
         # ---- G codes: modes first so this block's words use them
         explicit_motion = False
@@ -375,6 +371,39 @@ class Interpreter:
             raise self._fail(raw, 0, "G53 needs an axis word (X, Y or Z)", line)
         if end:
             st.ended = True
+
+    def _sort_words(self, raw: str, words, line: int):
+        """G codes, M codes (with their word index) and the other words; reports unknown codes,
+        unknown letters and repeated addresses."""
+        gcodes: list[tuple[int, int]] | None = None
+        mcodes: list[tuple[int, int]] | None = None
+        v: dict[str, str] = {}
+        for k, (letter, num) in enumerate(words):
+            if letter == "G":
+                key = gkey(num)
+                if key not in G_GROUP:
+                    self._problem(raw, k, f"unknown G-code {gname(key)}", line)
+                elif gcodes is None:
+                    gcodes = [(key, k)]
+                else:
+                    gcodes.append((key, k))
+            elif letter == "M":
+                key = round(float(num) * 10.0)
+                if key % 10 or key // 10 not in KNOWN_M:
+                    self._problem(raw, k, f"unknown M-code M{key / 10:g}", line)
+                elif mcodes is None:
+                    mcodes = [(key, k)]
+                else:
+                    mcodes.append((key, k))
+            elif letter not in LETTERS:
+                self._problem(raw, k, f"unknown address letter {letter}", line)
+            elif letter in v:
+                raise _lexer.word_error(
+                    raw, k, f"address {letter} appears twice in the block", self.file, line
+                )
+            else:
+                v[letter] = num
+        return gcodes, mcodes, v
 
     def _words(
         self, raw: str, v: dict[str, str], scale: float, line: int, dwell: bool, motion: bool
