@@ -66,7 +66,8 @@ class SerialLink:
         self.lost = threading.Event()
         self.lost_reason = ""
         self.xoff_count = 0
-        self.bytes_written = 0
+        self.bytes_written = 0  # program data (gated, paced)
+        self.realtime_bytes = 0  # real-time commands (GRBL ? ! ~ 0x18)
         self._stop = threading.Event()
         self._next_t = 0.0
         self._wlock = threading.Lock()
@@ -150,7 +151,7 @@ class SerialLink:
                 raise LinkTimeout(f"CTS stayed off for {timeout_s:g} s")
             self._stop.wait(0.001)
 
-    def _raw_write(self, data: bytes) -> None:
+    def _raw_write(self, data: bytes, realtime: bool = False) -> None:
         try:
             self.ser.write(data)
         except serial.SerialTimeoutException:
@@ -160,13 +161,16 @@ class SerialLink:
         except (serial.SerialException, OSError, TypeError, AttributeError) as exc:
             self._mark_lost(f"port write failed: {exc}")
             raise LinkLost(self.lost_reason) from None
-        self.bytes_written += len(data)
+        if realtime:
+            self.realtime_bytes += len(data)
+        else:
+            self.bytes_written += len(data)
 
     def write_now(self, data: bytes) -> None:
-        """Write bypassing gate and pacing (GRBL real-time commands)."""
+        """Write bypassing gate and pacing (GRBL real-time commands; counted apart)."""
         if self.lost.is_set():
             raise LinkLost(self.lost_reason)
-        self._raw_write(data)
+        self._raw_write(data, realtime=True)
 
     def close(self) -> None:
         self._stop.set()

@@ -12,7 +12,8 @@ class StreamResult:
 
     blocks_total : blocks meant to be sent (preamble + program from ``start_block``)
     blocks_sent : blocks fully written to the port
-    bytes_sent : bytes written (framing, leader and trailer included)
+    bytes_sent : bytes written (framing, leader and trailer included; GRBL real-time commands
+        such as the ``?`` status polls are not counted)
     last_sent_block : program index of the last block fully written (-1: none)
     last_acknowledged_block : program index of the last block the controller acknowledged; for
         Fanuc drip feed, which has no acknowledgement, the last block fully written before the

@@ -1,0 +1,109 @@
+"""`cutlab dnc sim-controller` in a subprocess, `cutlab dnc send` against it; bad input exits 2
+with a one-line message."""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import signal
+import subprocess
+import sys
+
+import pytest
+from _dnc_helpers import grbl_bytes, line_program
+
+from rig.cli import main
+from rig.dnc import read_csv_record, restart_blocks
+
+
+def _start_sim(*args: str) -> tuple[subprocess.Popen, str]:
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "rig.cli", "dnc", "sim-controller", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    ready, _, _ = select.select([proc.stdout], [], [], 30)
+    if not ready:
+        proc.kill()
+        pytest.fail("sim-controller printed no path within 30 s")
+    path = proc.stdout.readline().strip()
+    assert path.startswith("/dev/"), path
+    return proc, path
+
+
+def _stop_sim(proc: subprocess.Popen) -> dict:
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 0, err
+    return json.loads(out)
+
+
+def test_send_to_sim_controller_with_restart_and_record(tmp_path, capsys) -> None:
+    prog = line_program(80, grbl=True)  # 0.7 s of motion: a few 5 Hz status reports
+    nc = tmp_path / "part.nc"
+    nc.write_text(prog.text)
+    proc, path = _start_sim("--protocol", "grbl", "--speed", "1", "--json")
+    try:
+        start = prog.blocks[10].index
+        rec = tmp_path / "blocks.csv"
+        args = ["dnc", "send", str(nc), "--port", path, "--protocol", "grbl", "--json"]
+        rc = main([*args, "--start-block", str(start), "--record", str(rec), "--no-progress"])
+        summary = json.loads(capsys.readouterr().out)
+    finally:
+        sim = _stop_sim(proc)
+    assert rc == 0
+    pre = restart_blocks(prog, start, "grbl")
+    n = len(pre) + len(prog.blocks) - 10
+    assert summary["blocks_sent"] == n and summary["ok"]
+    assert summary["last_acknowledged_block"] == prog.blocks[-1].index
+    assert summary["bytes_sent"] == len(grbl_bytes(prog, pre, start))
+    assert 0.0 <= summary["starved_fraction"] <= 1.0 and summary["seconds"] > 0
+    # what the controller received, byte for byte
+    import hashlib
+
+    assert sim["sha256"] == hashlib.sha256(grbl_bytes(prog, pre, start)).hexdigest()
+    assert sim["blocks_executed"] == n
+    rows = read_csv_record(rec)
+    assert [r.text for r in rows] == pre + [b.text for b in prog.blocks[10:]]
+
+
+@pytest.mark.parametrize(
+    "argv,match",
+    [
+        (["--protocol", "hpgl", "--port", "loop://"], "protocol = 'hpgl': unknown"),
+        (["--protocol", "grbl", "--port", "/dev/ttyNOPE-cutlab"], "cannot open"),
+        (["--protocol", "grbl", "--port", "loop://", "--machine", "ace-h63"], "dialect"),
+        (["--protocol", "fanuc", "--port", "loop://", "--baud", "250000"], "not a Fanuc"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(argv, match, tmp_path, capsys) -> None:
+    nc = tmp_path / "p.nc"
+    nc.write_text(line_program(3).text)
+    rc = main(["dnc", "send", str(nc), *argv])
+    err = capsys.readouterr().err
+    assert rc == 2 and match in err
+    assert "Traceback" not in err and err.count("cutlab: error:") == 1
+    assert err.splitlines()[-1].startswith("cutlab: error:")
+
+
+def test_nc_error_exits_2_before_opening_the_port(tmp_path, capsys) -> None:
+    nc = tmp_path / "bad.nc"
+    nc.write_text("G21\nG1 X10 F100\nG7 X1\n")
+    # the port does not exist: the NC error must be what is reported, i.e. found first
+    rc = main(["dnc", "send", str(nc), "--protocol", "grbl", "--port", "/dev/ttyNOPE"])
+    err = capsys.readouterr().err
+    assert rc == 2 and f"{nc}:3:" in err and "nothing was sent" in err
+
+
+def test_sim_controller_rejects_unknown_knob(capsys) -> None:
+    rc = main(["dnc", "sim-controller", "--protocol", "grbl", "--sim", "explode_at=3"])
+    assert rc == 2 and "unknown knob" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/ptmx"), reason="needs pseudo-terminals")
+def test_sim_controller_fanuc_prints_a_tty() -> None:
+    proc, path = _start_sim("--protocol", "fanuc", "--json")
+    sim = _stop_sim(proc)
+    assert sim["path"] == path and sim["bytes_received"] == 0
