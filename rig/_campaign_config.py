@@ -128,7 +128,7 @@ class SimSection(Model):
         None, gt=0, le=10, description="mm/tooth above which the simulated cut chatters"
     )
     chatter_gain: float = Field(3.0, ge=0, le=100, description="force rise per unit fz excess")
-    chatter_hz: float = Field(900.0, gt=0, le=20_000, description="Hz, chatter frequency")
+    chatter_hz: float = Field(913.0, gt=0, le=20_000, description="Hz, chatter frequency")
 
 
 class SuspenderSection(Model):

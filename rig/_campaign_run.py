@@ -91,8 +91,11 @@ class _Tap:
         self.daq_fault: str | None = None
         self._capture: list[tuple[np.ndarray, np.ndarray]] | None = None
         self._capture_n = 0
+        self._capture_from = -math.inf
         self._captured = threading.Event()
         self._lock = threading.Lock()
+        self._progress = threading.Condition()
+        self.t_last_s = -math.inf  # run-clock time of the last sample delivered
 
     # -- DaqSink ---------------------------------------------------------------------------------
     def on_start(self, info: DaqInfo, t0_s: float) -> None:
@@ -112,7 +115,9 @@ class _Tap:
         t = self.t0_s + (first_sample + np.arange(n)) / info.rate_hz
         with self._lock:
             if self._capture is not None:
-                self._capture.append((t, volts))
+                keep = t >= self._capture_from
+                if keep.any():
+                    self._capture.append((t[keep], volts[keep]))
                 if sum(len(c[0]) for c in self._capture) >= self._capture_n:
                     self._captured.set()
             if self.monitor:
@@ -126,6 +131,9 @@ class _Tap:
                             f"force {peak:.0f} N above the limit {self.force_limit_n:.0f} N at "
                             f"t = {t[k]:.3f} s"
                         )
+        with self._progress:
+            self.t_last_s = float(t[-1]) if n else self.t_last_s
+            self._progress.notify_all()
 
     def on_event(self, event: DaqEvent) -> None:
         self.writer.on_event(event)
@@ -133,10 +141,20 @@ class _Tap:
             self.daq_fault = f"DAQ {event.kind} at sample {event.sample}: {event.message}"
 
     # -- rest windows ----------------------------------------------------------------------------
-    def capture(self, n: int, timeout_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """The next ``n`` samples per channel: (time_s (n,), volts (n, c)); waits for them."""
+    def wait_until(self, t_s: float, timeout_s: float) -> bool:
+        """Wait until the DAQ has delivered the samples up to run-clock time ``t_s`` (a
+        simulated DAQ may lag the clock when the CPU is busy; its samples still come in order)."""
+        with self._progress:
+            return self._progress.wait_for(lambda: self.t_last_s >= t_s, timeout_s)
+
+    def capture(
+        self, n: int, timeout_s: float, from_s: float = -math.inf
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The next ``n`` samples per channel taken at or after run-clock time ``from_s``:
+        (time_s (n,), volts (n, c)); waits for them."""
         with self._lock:
             self._capture, self._capture_n = [], n
+            self._capture_from = from_s
             self._captured.clear()
         ok = self._captured.wait(timeout_s)
         with self._lock:
@@ -194,6 +212,7 @@ def execute_run(
     rate = daq.info.rate_hz
     n_rest = max(2, int(round(zero_s * rate)))
     wait_rest_s = 10.0 + 3 * zero_s / sim_speed
+    catch_up_s = 60.0  # wall s a lagging simulated DAQ may take to deliver what it owes
     daq.start(tap)
     try:
         t_zero, v_zero = tap.capture(n_rest, wait_rest_s)
@@ -246,9 +265,10 @@ def execute_run(
             progress(*session.progress())
         # Rest after the cut: zero and drift from both rests (not after a failure: the rig may
         # not be at rest, so the zero taken before the cut stays).
+        t_end = session.clock()
         if status == STATUS_SUCCESS:
             try:
-                t_tail, v_tail = tap.capture(n_rest, wait_rest_s)
+                t_tail, v_tail = tap.capture(n_rest, wait_rest_s + catch_up_s, from_s=t_end)
                 fit = fit_drift(
                     np.concatenate([t_zero, t_tail]),
                     np.vstack([v_zero, v_tail]),
@@ -258,6 +278,10 @@ def execute_run(
                 writer.set_calibration(compensate(cal0, fit), "drift fitted on the rests")
             except (TimeoutError, CalibrationError) as exc:
                 writer.event(rf.EV_NOTE, f"no drift fit: {exc}")
+        else:
+            # Keep what was acquired up to the stop, even if the DAQ lags the clock (briefly
+            # when the DAQ itself failed: it may never deliver again).
+            tap.wait_until(t_end, 5.0 if tap.daq_fault else catch_up_s)
     except TimeoutError as exc:
         status, reason = STATUS_FAIL, f"DAQ: {exc}"
         session.stop()

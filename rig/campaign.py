@@ -287,6 +287,10 @@ def _conditions(campaign: Campaign, plan: PlannedRun) -> dict[str, Any]:
         "block": asdict(plan.cut.block),
         "z_cut_mm": plan.cut.z_cut_mm,
         "y_path_mm": plan.cut.y_path_mm,
+        # For the identification: the block's centre line seen from the cutter axis (face
+        # mill), and the milling mode of an end mill (a full slot, or down milling a width).
+        "center_offset_mm": -plan.cut.y_path_mm,
+        "mode": "slot" if t.width_mm >= campaign.tool.diameter_mm - 1e-9 else "down",
         "program_sha256": plan.sha256,
         "software_version": __version__,
         "operator": c.operator,
@@ -359,6 +363,15 @@ def run_campaign(
     from rig.logger import RunWriter
 
     plans = plan_campaign(campaign)
+    if campaign.spec.campaign.rig == "real" and session_factory is None:
+        from rig._campaign_real import check_hardware
+
+        _, problems = check_hardware(campaign)
+        if problems:
+            raise RigError(
+                f"{campaign.path}: rig = 'real' but the hardware is not ready:\n  "
+                + "\n  ".join(problems)
+            )
     folder = campaign_folder(campaign, out_root)
     (folder / "runs").mkdir(parents=True, exist_ok=True)
     (folder / "programs").mkdir(exist_ok=True)

@@ -1,0 +1,152 @@
+"""Report section for seed 001 4.3: the stepped-depth cut at constant feed against the same cut
+with the post-processor's feeds.
+
+Figures per run: the per-revolution mean resultant force in the feed plane (Fx, Fy) over the
+revolutions that cut, its coefficient of variation (std / mean), and the cutting time (first to
+last cutting revolution); the program's feed-move time from ``planning.nc``. The comparison:
+``cv_ratio`` = CV(adjusted) / CV(constant) (seed 001: force nearly uniform; target <= 1/3) and
+``time_saving_pct`` = 1 - t(adjusted) / t(constant) (seed 001: about 40 %; target >= 30 %).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from rig.report import LoadedRun, Section, md_table
+
+#: A revolution cuts when its mean resultant exceeds this fraction of the run's 95th percentile
+#: (and the air level by 6 sigma): entry and exit ramps of a few revolutions are left out.
+CUT_FRACTION = 0.15
+
+
+def cutting_revolutions(lr: LoadedRun) -> dict[str, Any]:
+    """Per-revolution feed-plane force of the cutting part of a run and its statistics."""
+    from analysis.steady import per_revolution
+
+    run = lr.run
+    rpm = float(lr.conditions["spindle_rpm"])
+    f = run.force_n
+    fxy = np.hypot(f[:, 0], f[:, 1])
+    means, _ = per_revolution(fxy, run.rate_hz, rpm)
+    period = 60.0 / abs(rpm)
+    air = means[: max(3, int(0.2 / period))]
+    thresh = max(CUT_FRACTION * float(np.percentile(means, 95)), air.mean() + 6 * air.std())
+    cut = np.flatnonzero(means > thresh)
+    if cut.size < 3:
+        return {"run": lr.name, "revolutions": int(cut.size), "cv": math.nan,
+                "cut_time_s": math.nan, "mean_N": math.nan, "means": means, "cut": cut}  # fmt: skip
+    first, last = int(cut[0]), int(cut[-1])
+    inner = means[first + 1 : last]  # entry and exit revolutions are partial
+    return {
+        "run": lr.name,
+        "revolutions": int(last - first + 1),
+        "mean_N": float(inner.mean()),
+        "std_N": float(inner.std()),
+        "cv": float(inner.std() / inner.mean()),
+        "max_N": float(inner.max()),
+        "cut_time_s": (last - first + 1) * period,
+        "means": means,
+        "cut": cut,
+        "period_s": period,
+    }
+
+
+def program_feed_time_s(text: str, machine: Any) -> float:
+    from planning.nc import interpret, motion_stats
+
+    m = interpret(text, machine)
+    return float(motion_stats(m, machine).feed_time_s)
+
+
+def afc_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section:
+    groups = campaign.spec.analysis.compare_groups or ("constant", "adjusted")
+    const = [lr for lr in runs if lr.group == groups[0]]
+    adj = [lr for lr in runs if lr.group == groups[1]]
+    if not const or not adj:
+        msg = f"needs a finished run in each of {groups}: have {len(const)} and {len(adj)}"
+        return Section("afc-compare", msg + "\n", {"success": False, "message": msg})
+    stats = {}
+    rows = []
+    for label, lr in (("constant", const[0]), ("adjusted", adj[0])):
+        s = cutting_revolutions(lr)
+        s["program_feed_time_s"] = program_feed_time_s(lr.run.program_text, campaign.machine)
+        stats[label] = s
+        rows.append({"run": lr.name, "feeds": label, "cutting_revs": s["revolutions"],
+                     "cut_time_s": s["cut_time_s"],
+                     "program_feed_time_s": s["program_feed_time_s"],
+                     "mean_force_N": s["mean_N"], "max_force_N": s.get("max_N", math.nan),
+                     "cv": s["cv"]})  # fmt: skip
+    c, a = stats["constant"], stats["adjusted"]
+    summary = {
+        "success": True,
+        "cv_constant": c["cv"],
+        "cv_adjusted": a["cv"],
+        "cv_ratio": a["cv"] / c["cv"] if c["cv"] else math.nan,
+        "cut_time_constant_s": c["cut_time_s"],
+        "cut_time_adjusted_s": a["cut_time_s"],
+        "time_saving_pct": 100.0 * (1.0 - a["cut_time_s"] / c["cut_time_s"]),
+        "program_time_saving_pct": 100.0
+        * (1.0 - a["program_feed_time_s"] / c["program_feed_time_s"]),
+        "max_force_constant_N": c.get("max_N"),
+        "max_force_adjusted_N": a.get("max_N"),
+    }
+    summary["meets_cv_target"] = bool(summary["cv_ratio"] <= 1 / 3)
+    summary["meets_time_target"] = bool(summary["time_saving_pct"] >= 30.0)
+    pd.DataFrame(rows).to_csv(out / "afc_compare.csv", index=False)
+    (out / "afc_compare.json").write_text(json.dumps(summary, indent=2, default=float))
+    _plot(campaign, const[0], adj[0], stats, out / "force_and_feed.png")
+    md = (
+        f"Per-revolution feed-plane force: CV {c['cv']:.3f} at constant feed, {a['cv']:.3f} with "
+        f"post-processed feeds (ratio {summary['cv_ratio']:.3f}, target <= 0.333). Cutting time "
+        f"{c['cut_time_s']:.2f} s -> {a['cut_time_s']:.2f} s "
+        f"({summary['time_saving_pct']:.1f} % shorter, target >= 30 %; seed 001: about 40 %).\n\n"
+        + md_table(rows)
+        + "\n![force and feed along the cut](force_and_feed.png)\n"
+    )
+    return Section("afc-compare", md, summary, ("afc_compare.csv", "afc_compare.json"))
+
+
+def _feed_along_x(text: str, machine: Any) -> tuple[np.ndarray, np.ndarray]:
+    from planning.nc import LINE, interpret
+
+    m = interpret(text, machine)
+    keep = (m.kind == LINE) & (np.abs(m.end[:, 0] - m.start[:, 0]) > 1e-9)
+    xs = np.column_stack([m.start[keep, 0], m.end[keep, 0]]).ravel()
+    fs = np.repeat(m.feed_mm_min[keep], 2)
+    return xs, fs
+
+
+def _plot(campaign: Any, const: LoadedRun, adj: LoadedRun, stats: dict, path: Path) -> None:
+    from rig._report_plots import _plt
+
+    plt = _plt()
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7, 5.5))
+    for label, lr in (("constant", const), ("adjusted", adj)):
+        s = stats[label]
+        if "period_s" not in s:
+            continue
+        cut = s["cut"]
+        t = (np.arange(len(s["means"])) - cut[0]) * s["period_s"]
+        sl = slice(max(cut[0] - 5, 0), cut[-1] + 5)
+        ax1.plot(t[sl], s["means"][sl], lw=1, label=f"{label} feed (CV {s['cv']:.3f})")
+        x, f = _feed_along_x(lr.run.program_text, campaign.machine)
+        ax2.plot(x, f, lw=1.2, label=f"{label} feed")
+    blk = const.conditions.get("block", {})
+    for e in blk.get("step_x_mm", [])[1:-1]:
+        ax2.axvline(e, color="0.7", lw=0.6)
+    ax1.set_xlabel("time from first cutting revolution, s")
+    ax1.set_ylabel("mean |Fxy| per revolution, N")
+    ax1.legend(fontsize=7)
+    ax2.set_xlabel("X, mm (grey: depth steps)")
+    ax2.set_ylabel("programmed feed, mm/min")
+    ax2.legend(fontsize=7)
+    fig.suptitle(f"{campaign.name}: force and feed", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,189 @@
+"""Report section for seed 003's campaign: identify the face-mill coefficients from the runs of the
+identification groups, compare them with the simulator's truth (simulated rig), and predict the
+mean forces of the validation runs (seed 003 Figs 7-14 as a table and plots)."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from analysis.errors import AnalysisError
+from rig.report import LoadedRun, Section, md_table, steady_means
+
+#: The coefficients seed 003 reports, then the axial pair cutlab adds.
+COEFFS = ("K_T_n_mm2", "K_R", "P_T_n_mm", "P_R_n_mm", "K_A", "P_A_n_mm")
+
+
+def xyz_forces(lr: LoadedRun) -> np.ndarray:
+    """Forces (n, 3) N in X, Y, Z order from the run's named channels."""
+    run = lr.run
+    if run.force_n is None:
+        raise AnalysisError(f"{lr.path}: the run has no calibration, so no forces in N")
+    names = [n.lower() for n in run.channel_names]
+    idx = [names.index(f"f{a}") if f"f{a}" in names else k for k, a in enumerate("xyz")]
+    return run.force_n[:, idx]
+
+
+#: A face mill enters and leaves a block over many revolutions; revolutions within this fraction
+#: of the steady level count as steady (a looser window lets partial engagement bias the fit).
+STEADY_TOLERANCE = 0.02
+
+
+def force_run(lr: LoadedRun) -> Any:
+    """The run as an identification record: the air before the cut (for the offset) followed by
+    the steady part found with :data:`STEADY_TOLERANCE`."""
+    from analysis.identify_facemill import ForceRun, RunConditions
+    from analysis.steady import find_steady
+
+    cond = RunConditions.from_mapping(lr.conditions, f"{lr.path}: conditions")
+    f = xyz_forces(lr)
+    rate = lr.run.rate_hz
+    try:
+        w = find_steady(f, rate, cond.spindle_rpm, tolerance=STEADY_TOLERANCE).window
+    except AnalysisError:
+        return ForceRun(lr.name, f, rate, cond)  # the fit reports why it cannot use it
+    air = f[: min(w.start, int(rate * 60.0 / abs(cond.spindle_rpm) * 4))]
+    return ForceRun(lr.name, np.vstack([air, f[w]]), rate, cond)
+
+
+def mean_prediction(tool: Any, coef: Any, c: dict[str, Any], n: int = 3600) -> np.ndarray:
+    """Model mean force (3,) N over one revolution for a run's conditions (the dynamometer's modes
+    have unit static gain, so they do not change the mean)."""
+    from analysis.facemill import FaceMillCut, facemill_forces
+
+    cut = FaceMillCut(
+        fz_mm=float(c["fz_mm"]), depth_mm=float(c["depth_mm"]), width_mm=float(c["width_mm"]),
+        center_offset_mm=float(c.get("center_offset_mm", 0.0)),
+    )  # fmt: skip
+    theta = 2 * np.pi * np.arange(n) / n
+    return facemill_forces(theta, tool, coef, cut).mean(axis=0)
+
+
+def _truth(runs: list[LoadedRun]) -> dict[str, float] | None:
+    for lr in runs:
+        t = (lr.run.rig.get("sim_truth") or {}).get("facemill")
+        if t:
+            return t
+    return None
+
+
+def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section:
+    from analysis.identify_facemill import fit_facemill_runs
+
+    spec = campaign.spec.analysis
+    ident = [lr for lr in runs if lr.group in spec.identify_groups]
+    valid = [lr for lr in runs if lr.group in spec.validate_groups]
+    fit = fit_facemill_runs([force_run(lr) for lr in ident], campaign.tool,
+                            campaign.rig.dynamometer)  # fmt: skip
+    truth = _truth(runs)
+    summary: dict[str, Any] = {
+        "success": fit.success,
+        "message": fit.message,
+        "identify_runs": len(ident),
+        "validate_runs": len(valid),
+    }
+    md = [f"Identification over {len(ident)} runs ({', '.join(spec.identify_groups)}): "
+          f"{fit.message}\n"]  # fmt: skip
+    if not fit.success:
+        (out / "coefficients.json").write_text(json.dumps(summary, indent=2))
+        return Section("facemill-coefficients", "\n".join(md), summary)
+    rows = []
+    for name in COEFFS:
+        s = fit.summary[name]
+        row = {"coefficient": name, "identified": s["value"], "std_error": s["std_error"],
+               "ci_low": s["ci_low"], "ci_high": s["ci_high"]}  # fmt: skip
+        if truth is not None:
+            tv = float(truth[name])
+            row["truth"] = tv
+            row["error_pct"] = 100.0 * (s["value"] - tv) / tv if tv else math.nan
+        rows.append(row)
+    pd.DataFrame(rows).to_csv(out / "coefficients.csv", index=False)
+    summary["coefficients"] = rows
+    summary["r_squared"] = fit.fit.r_squared
+    if truth is not None:
+        summary["max_error_pct_seed003"] = max(abs(r["error_pct"]) for r in rows[:4])
+    md += ["", md_table(rows)]
+    # Validation: predicted vs measured mean forces of every run (identification runs too).
+    vrows = []
+    for lr in ident + valid:
+        meas = steady_means(lr)
+        if not meas["revs"]:
+            continue
+        pred = mean_prediction(campaign.tool, fit.coefficients, lr.conditions)
+        row = {"run": lr.name, "group": lr.group, "fz_mm": lr.conditions["fz_mm"],
+               "depth_mm": lr.conditions["depth_mm"]}  # fmt: skip
+        for k, a in enumerate("xyz"):
+            m = meas[f"F{a}_mean_N"]
+            row[f"F{a}_measured_N"] = m
+            row[f"F{a}_predicted_N"] = float(pred[k])
+        res_m = math.hypot(meas["Fx_mean_N"], meas["Fy_mean_N"])
+        res_p = math.hypot(float(pred[0]), float(pred[1]))
+        row["Fxy_error_pct"] = 100.0 * (res_p - res_m) / res_m if res_m else math.nan
+        vrows.append(row)
+    pd.DataFrame(vrows).to_csv(out / "validation.csv", index=False)
+    v_only = [r for r in vrows if r["group"] in spec.validate_groups]
+    if v_only:
+        summary["validation_max_abs_error_pct"] = max(abs(r["Fxy_error_pct"]) for r in v_only)
+    from rig._report_plots import plot_pred_vs_meas
+
+    plot_pred_vs_meas(vrows, out / "predicted_vs_measured.png",
+                      f"{campaign.name}: mean force per run")  # fmt: skip
+    _plot_fit(campaign, fit.coefficients, ident, out / "fit_vs_depth.png")
+    (out / "coefficients.json").write_text(json.dumps(summary, indent=2, default=float))
+    md += [
+        "\nPredicted (identified model) against measured mean forces, validation groups "
+        f"({', '.join(spec.validate_groups)}): largest error of the feed-plane resultant "
+        f"{summary.get('validation_max_abs_error_pct', math.nan):.2f} %.\n",
+        "![fit](fit_vs_depth.png) ![predicted vs measured](predicted_vs_measured.png)\n",
+        md_table(
+            [
+                {
+                    k: r[k]
+                    for k in (
+                        "run",
+                        "fz_mm",
+                        "depth_mm",
+                        "Fx_measured_N",
+                        "Fx_predicted_N",
+                        "Fy_measured_N",
+                        "Fy_predicted_N",
+                        "Fxy_error_pct",
+                    )
+                }
+                for r in v_only
+            ]
+        ),  # fmt: skip
+    ]
+    return Section("facemill-coefficients", "\n".join(md), summary,
+                   ("coefficients.csv", "validation.csv", "coefficients.json"))  # fmt: skip
+
+
+def _plot_fit(campaign: Any, coef: Any, ident: list[LoadedRun], path: Path) -> None:
+    from rig._report_plots import _plt
+
+    plt = _plt()
+    if not ident:
+        return
+    fig, ax = plt.subplots(figsize=(5.5, 3.8))
+    d = np.array([lr.conditions["depth_mm"] for lr in ident])
+    meas = np.array([[steady_means(lr)[f"F{a}_mean_N"] for a in "xyz"] for lr in ident])
+    c0 = dict(ident[0].conditions)
+    dd = np.linspace(max(0.05, d.min() * 0.5), d.max() * 1.05, 40)
+    pred = np.array([mean_prediction(campaign.tool, coef, {**c0, "depth_mm": x}, 720)
+                     for x in dd])  # fmt: skip
+    for k, a in enumerate("xyz"):
+        ax.plot(d, meas[:, k], "o", ms=4, label=f"F{a} measured")
+        ax.plot(dd, pred[:, k], "-", lw=1, color=ax.lines[-1].get_color())
+    ax.set_xlabel("axial depth of cut, mm")
+    ax.set_ylabel("mean force per revolution, N")
+    ax.set_title(f"fz = {c0['fz_mm']} mm/tooth: measured (points), identified model (lines)",
+                 fontsize=8)  # fmt: skip
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,71 @@
+"""PNG plots of the campaign report (matplotlib, Agg)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def _plt():  # noqa: ANN202 - the pyplot module
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_traces(runs: Sequence[Any], path: Path, title: str, max_runs: int = 12) -> Path:
+    """Resultant force against time of up to ``max_runs`` runs, one panel each (decimated)."""
+    plt = _plt()
+    shown = list(runs)[:max_runs]
+    n = max(1, len(shown))
+    cols = 3 if n > 4 else 1
+    rows = int(np.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 2.0 * rows + 0.6), squeeze=False)
+    for ax, lr in zip(axes.flat, shown):
+        run = lr.run
+        if run.force_n is None or not len(run.force_n):
+            continue
+        step = max(1, len(run.time_s) // 4000)
+        t = run.time_s[::step]
+        f = run.force_n[::step]
+        for k, name in enumerate(run.channel_names[: f.shape[1]]):
+            ax.plot(t - t[0], f[:, k], lw=0.4, label=name)
+        ax.set_title(lr.name, fontsize=7)
+        ax.tick_params(labelsize=6)
+    for ax in list(axes.flat)[len(shown) :]:
+        ax.axis("off")
+    axes.flat[0].legend(fontsize=6, loc="upper left")
+    fig.supxlabel("time in run, s", fontsize=8)
+    fig.supylabel("force, N", fontsize=8)
+    fig.suptitle(f"{title}: force traces", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_pred_vs_meas(rows: Sequence[dict], path: Path, title: str) -> Path:
+    """Predicted against measured mean forces, one point per run and axis, with the 1:1 line."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(4.5, 4.5))
+    lim = 0.0
+    for axis, mk in (("x", "o"), ("y", "s"), ("z", "^")):
+        m = np.array([r[f"F{axis}_measured_N"] for r in rows])
+        p = np.array([r[f"F{axis}_predicted_N"] for r in rows])
+        ax.plot(m, p, mk, ms=4, label=f"F{axis}")
+        lim = max(lim, float(np.nanmax(np.abs(np.r_[m, p]))) if len(m) else 0.0)
+    ax.plot([-lim, lim], [-lim, lim], "k-", lw=0.6)
+    ax.set_xlabel("measured mean force, N")
+    ax.set_ylabel("predicted mean force, N")
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=7)
+    ax.set_aspect("equal")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
