@@ -20,6 +20,7 @@ import math
 import resource
 import sys
 import time
+import tracemalloc
 
 import numpy as np
 
@@ -103,8 +104,11 @@ def main() -> int:
     motion = interpret(prog, machine, file="bench.nc")
     t1 = time.perf_counter()
     stock = ZMap.box(0, 200, 0, 200, -25, 0, args.spacing)
+    tracemalloc.start()
     sim = simulate_motion(stock, tool, motion)
     t2 = time.perf_counter()
+    sim_peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
     stock2 = ZMap.box(0, 200, 0, 200, -25, 0, args.spacing)
     t3 = time.perf_counter()
     res = post_process(prog, motion, tool, rule, stock2, machine, FeedPostOptions(min_piece_mm=5))
@@ -133,7 +137,20 @@ def main() -> int:
     )
     total = (t1 - t0) + (t4 - t3)
     print(f"parse + interpret + post-process: {total:7.3f} s  {nblk / total:10.0f} blocks/s")
-    print(f"peak RSS growth during the run: {(rss1 - rss0) / 1024:.0f} MB (ru_maxrss)")
+    per_piece = sum(
+        a.nbytes for a in (sim.piece_start_mm, sim.piece_end_mm, sim.piece_removed_mm3,
+                           sim.piece_depth_mm, sim.piece_segment)
+    )  # fmt: skip
+    print(
+        f"simulation peak allocation {sim_peak / 1e6:.1f} MB (tracemalloc; time above includes "
+        f"its overhead): grid {stock.heights_mm.nbytes / 1e6:.1f} MB untouched in size, results "
+        f"{per_piece / 1e6:.1f} MB ({per_piece / len(sim.piece_segment):.0f} B per piece); "
+        "no per-cell-per-move storage"
+    )
+    print(
+        f"peak RSS growth, whole run (program text, blocks, motion, output program): "
+        f"{(rss1 - rss0) / 1024:.0f} MB"
+    )
     print(
         f"removed {sim.removed_total_mm3 / 1e3:.1f} cm^3; stock left "
         f"{stock.volume_mm3() / 1e3:.1f} cm^3; holder contacts {len(sim.contacts)}"

@@ -153,6 +153,12 @@ class FeedPostResult:
             self.rule.bin_of(self.blocks.load_pct[self.blocks.removed_mm3 > 0]),
             minlength=self.rule.n_bins,
         )
+        cutting = self.motion_before.is_feed[self.simulation.piece_segment]
+        path = np.bincount(
+            self.rule.bin_of(self.piece_load_pct[cutting]),
+            weights=self.simulation.piece_length_mm[cutting],
+            minlength=self.rule.n_bins,
+        )
         return {
             "blocks": int(len(self.program)),
             "feed_blocks": int(len(self.blocks.block)),
@@ -163,7 +169,8 @@ class FeedPostResult:
             "removed_mm3": self.simulation.removed_total_mm3,
             "load_rate_max_before": before,
             "load_rate_max_after": after,
-            "load_histogram": bins.tolist(),
+            "load_histogram": bins.tolist(),  # cutting blocks per rule bin (block loads)
+            "load_histogram_path_mm": path.tolist(),  # feed path per rule bin (piece loads)
             "holder_contacts": [
                 {"block": c.block, "line": c.line, "part": c.part, "overlap_mm": c.overlap_mm}
                 for c in self.simulation.contacts
@@ -636,14 +643,18 @@ def write_report(result: FeedPostResult, folder: str | Path, stem: str = "feedpo
     plt.close(fig)
 
     rule = result.rule
-    counts = result.summary()["load_histogram"]
+    summ = result.summary()
+    counts = summ["load_histogram_path_mm"]
     fig, ax = plt.subplots(figsize=(8, 4), dpi=110)
     ax.bar(np.arange(rule.n_bins), counts, color="tab:red")
+    for i, nb in enumerate(summ["load_histogram"]):
+        if nb:
+            ax.annotate(f"{nb}", (i, counts[i]), ha="center", va="bottom", fontsize=7)
     ax.set_xticks(np.arange(rule.n_bins))
     ax.set_xticklabels([f"{e:.3g}" for e in rule.load_edges_pct[1:]], rotation=60, fontsize=7)
     ax.set_xlabel("load bin upper edge (%)")
-    ax.set_ylabel("cutting blocks")
-    ax.set_title("cutting load per block (rule bins)")
+    ax.set_ylabel("feed path (mm)")
+    ax.set_title("cutting load histogram over the rule's bins (numbers: blocks by block load)")
     fig.tight_layout()
     paths["histogram_png"] = out / f"{stem}-histogram.png"
     fig.savefig(paths["histogram_png"])

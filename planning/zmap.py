@@ -6,6 +6,8 @@ with a vertical shank cannot leave either). A move of the cutter lowers every po
 envelope (see :mod:`planning._zmap_kernels` for the flat, ball and bull geometry, including Choi's
 formulas); the volume removed is the sum of the height drops times the cell area. Each move touches
 only the patch of grid covering its footprint, so the cost of a move is its footprint in cells.
+Moves run through a compiled kernel (:mod:`planning._zmap_numba`) when numba is installed, else
+through the numpy kernel here; both compute the same geometry (tests compare them).
 
 Starting shapes: a box (:meth:`ZMap.box`), a height field (:meth:`ZMap.from_heights`), or a mesh /
 STL part (:meth:`ZMap.from_mesh`, top-most surface per point).
