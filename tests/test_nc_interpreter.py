@@ -293,8 +293,10 @@ def test_inch_sample_closed_form():
     # runs from below the centre through -Z: a groove 0.5" deep
     from planning.nc import linearize
 
-    lin = linearize(arcs[:1], 1e-3)
-    assert lin.end[:, 2].min() == pytest.approx(-12.7, abs=1e-3)
+    lin = linearize(arcs, 1e-3)
+    for k in range(3):  # all three arcs are grooves (G18 G2, G18 G2, G19 G3)
+        assert lin.end[lin.source == k, 2].min() == pytest.approx(-12.7, abs=1e-3)
+        assert lin.end[lin.source == k, 2].max() == pytest.approx(0, abs=1e-9)
     # incremental spaceless block, inch feed, block delete skipped (no Z2" rapid)
     line_110 = m[m.line == 16]
     np.testing.assert_allclose(line_110.end, [[38.1, 19.05, 0]])

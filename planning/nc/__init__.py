@@ -4,7 +4,7 @@ Quick tour::
 
     from planning.nc import Program, interpret, interpret_file, motion_stats, Interpreter
 
-    prog = Program.read("data/programs/pocket.nc")      # layout-keeping text (editable)
+    prog = Program.read("data/programs/demo-part.nc")   # layout-keeping text (editable)
     motion = interpret(prog)                             # -> Motion (struct of numpy arrays)
     stats = motion_stats(motion, machine)                # time, lengths, bbox
 
@@ -19,6 +19,12 @@ Quick tour::
     prog.set_word(12, "F", 250)                          # edits touch only those words
     prog.replace_blocks({40: [{"X": 5, "F": 200}, {"X": 10, "F": 300}]})
     prog.write("out.nc")
+
+    from planning.nc.edit import split_moves             # feed post-processing
+    new = split_moves(prog, {7: [(0.5, 400.0), (1.0, 650.0)]})   # segment 7: two feeds
+
+    Conventions: block i is line i + 1 of the text (blank, comment and % lines are empty
+    blocks); the interpreter starts at X0 Y0 Z0 unless given a state; Motion is in mm, mm/min.
 
     lin = linearize(motion, chord_tol_mm=0.005)          # arcs -> chords, lin.source maps back
     motion_to_program(motion).write("path.nc")           # motion -> NC

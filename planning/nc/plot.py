@@ -22,6 +22,7 @@ def plot_motion(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.collections import LineCollection
+    from matplotlib.lines import Line2D
     from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
     path = Path(path)
@@ -70,7 +71,11 @@ def plot_motion(
     ax2.set_xlabel("X, mm")
     ax2.set_ylabel("Y, mm")
     ax2.set_title("top view (XY)")
-    ax2.legend(loc="upper right", fontsize=8)
+    handles = [
+        Line2D([], [], color="0.5", linestyle="--", linewidth=0.8, label="rapid"),
+        Line2D([], [], color=plt.get_cmap("viridis")(0.6), linewidth=1.2, label="feed"),
+    ]
+    ax2.legend(handles=handles, loc="upper right", fontsize=8)
     if title:
         fig.suptitle(title)
     fig.tight_layout()
