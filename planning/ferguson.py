@@ -132,41 +132,40 @@ class FergusonSurface:
         return cls.from_points(np.stack([gx, gy, z], axis=2), where=where)
 
     @classmethod
-    def from_stl(
-        cls,
-        path: str | Path,
-        spacing_mm: float,
-        *,
-        bounds_xy: tuple[float, float, float, float] | None = None,
-    ) -> FergusonSurface:
-        """Sample the top of an STL part by vertical rays (trimesh) on a grid and fit a surface.
+    def from_stl(cls, path: str | Path, spacing_mm: float) -> FergusonSurface:
+        """Sample the top of an STL part on a grid about ``spacing_mm`` apart and fit a surface.
 
-        Where a ray misses the mesh the height is the mesh's lowest z (the part stands on that
-        plane). ``bounds_xy`` = (x_min, x_max, y_min, y_max) mm, default the mesh bounds.
+        The top-most triangle over each grid point is found by planning.zmap's mesh rasteriser
+        (trimesh loads the file; its own ray queries would need rtree or embree). The grid spans
+        the mesh's xy bounds exactly; where no triangle covers a point the height is the mesh's
+        lowest z (the part stands on that plane).
         """
         import trimesh
 
+        from planning.zmap import ZMap
+
+        if not np.isfinite(spacing_mm) or not spacing_mm > 0:
+            raise PlanningError(f"{path}: spacing_mm = {spacing_mm}: must be > 0 (mm)")
         try:
             mesh = trimesh.load_mesh(str(path), force="mesh")
         except Exception as exc:  # trimesh raises many kinds for unreadable files
             raise PlanningError(f"{path}: cannot read STL part: {exc}") from None
-        if len(mesh.faces) == 0:
+        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
             raise PlanningError(f"{path}: STL part has no triangles")
-        if not spacing_mm > 0:
-            raise PlanningError(f"{path}: spacing_mm = {spacing_mm}: must be > 0 (mm)")
-        (x0, y0, z0), (x1, y1, z1) = mesh.bounds
-        if bounds_xy is not None:
-            x0, x1, y0, y1 = bounds_xy
-        nx = max(int(np.ceil((x1 - x0) / spacing_mm)) + 1, 2)
-        ny = max(int(np.ceil((y1 - y0) / spacing_mm)) + 1, 2)
-        x, y = np.linspace(x0, x1, nx), np.linspace(y0, y1, ny)
-        gx, gy = np.meshgrid(x, y, indexing="ij")
-        origins = np.stack([gx.ravel(), gy.ravel(), np.full(gx.size, z1 + 1.0)], axis=1)
-        dirs = np.tile([0.0, 0.0, -1.0], (gx.size, 1))
-        locs, ray_idx, _ = mesh.ray.intersects_location(origins, dirs, multiple_hits=False)
-        z = np.full(gx.size, z0)
-        np.maximum.at(z, ray_idx, locs[:, 2])
-        return cls.from_height_field(x, y, z.reshape(nx, ny), where=str(path))
+        (x0, y0, _), (x1, y1, _) = mesh.bounds
+        # One spacing per axis that divides the extent, so the grid reaches both edges.
+        nx = max(int(round((x1 - x0) / spacing_mm)), 1)
+        ny = max(int(round((y1 - y0) / spacing_mm)), 1)
+        sx, sy = (x1 - x0) / nx, (y1 - y0) / ny
+        s = min(sx, sy)
+        zm = ZMap.from_mesh(mesh, s, margin_mm=s / 2)
+        x = np.linspace(x0, x1, nx + 1)
+        y = np.linspace(y0, y1, ny + 1)
+        # Heights at the grid nodes from the Z-map cells (nearest cell centre).
+        z = zm.height_at(*np.meshgrid(x, y, indexing="ij"))
+        if not np.all(np.isfinite(z)):
+            raise PlanningError(f"{path}: could not sample the STL top on a {s:.3g} mm grid")
+        return cls.from_height_field(x, y, z, where=str(path))
 
     def _check_folds(self, where: str) -> float:
         """+1/-1 orientation of the xy projection; PlanningError where it folds or degenerates."""
@@ -282,6 +281,44 @@ class FergusonSurface:
         n = np.cross(rs, rt) * self.up
         n /= np.linalg.norm(n, axis=1, keepdims=True)
         return r.reshape(*s.shape, 3), n.reshape(*s.shape, 3)
+
+    def locate(self, x_mm: np.ndarray, y_mm: np.ndarray, iterations: int = 10) -> np.ndarray:
+        """Global parameters (n, 2) of the surface points above (x, y); NaN off the surface.
+
+        Newton steps on the xy map from the nearest point of a dense net (a KD-tree); the xy map
+        is one-to-one because folds are refused at construction.
+        """
+        from scipy.spatial import cKDTree
+
+        if not hasattr(self, "_net"):
+            s, t = self.param_grid(4)
+            p = self.evaluate(s.ravel(), t.ravel())
+            object.__setattr__(self, "_net", (cKDTree(p[:, :2]), s.ravel(), t.ravel()))
+        tree, ns, nt = self._net  # type: ignore[attr-defined]
+        q = np.stack([np.ravel(x_mm), np.ravel(y_mm)], 1).astype(float)
+        _, i = tree.query(q)
+        s, t = ns[i].copy(), nt[i].copy()
+        for _ in range(iterations):
+            r, rs, rt = self.derivatives(s, t)
+            fx, fy = r[:, 0] - q[:, 0], r[:, 1] - q[:, 1]
+            det = rs[:, 0] * rt[:, 1] - rs[:, 1] * rt[:, 0]
+            ds = (fx * rt[:, 1] - fy * rt[:, 0]) / det
+            dt = (fy * rs[:, 0] - fx * rs[:, 1]) / det
+            s = np.clip(s - ds, 0.0, self.s_max)
+            t = np.clip(t - dt, 0.0, self.t_max)
+        r = self.evaluate(s, t)
+        off = np.hypot(r[:, 0] - q[:, 0], r[:, 1] - q[:, 1]) > 1e-6
+        st = np.stack([s, t], 1)
+        st[off] = np.nan
+        return st
+
+    def height_at(self, x_mm: np.ndarray, y_mm: np.ndarray) -> np.ndarray:
+        """z of the surface above each (x, y), mm, same shape as x; NaN off the surface."""
+        st = self.locate(x_mm, y_mm)
+        ok = np.isfinite(st[:, 0])
+        z = np.full(len(st), np.nan)
+        z[ok] = self.evaluate(st[ok, 0], st[ok, 1])[:, 2]
+        return z.reshape(np.shape(x_mm))
 
     def z_range(self, per_patch: int = 8) -> tuple[float, float]:
         """Lowest and highest z of the surface (dense sampling), mm."""

@@ -164,12 +164,7 @@ class Part:
             return FergusonSurface.from_points(pts, where=where)
         file = self._lib(spec.file)
         assert file is not None
-        st = self.config.stock
-        return FergusonSurface.from_stl(
-            file,
-            spec.spacing_mm,
-            bounds_xy=(st.x_min_mm, st.x_max_mm, st.y_min_mm, st.y_max_mm),
-        )
+        return FergusonSurface.from_stl(file, spec.spacing_mm)
 
     @property
     def max_depth_mm(self) -> float:

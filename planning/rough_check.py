@@ -19,7 +19,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import LinearNDInterpolator
 from scipy.spatial import cKDTree
 
 from planning.errors import PlanningError
@@ -72,13 +71,14 @@ class SurfaceHeights:
 
     def __init__(self, surface: FergusonSurface, per_patch: int = 16):
         p, n = surface.sample(per_patch)
+        self.surface = surface
         self.points = p.reshape(-1, 3)
         self.normals = n.reshape(-1, 3)
-        self._interp = LinearNDInterpolator(self.points[:, :2], self.points[:, 2])
         self._tree = cKDTree(self.points)
 
     def height(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        return self._interp(np.stack([np.ravel(x), np.ravel(y)], 1)).reshape(np.shape(x))
+        """Exact surface height above (x, y) (Newton on the xy map), mm."""
+        return self.surface.height_at(np.asarray(x, float), np.asarray(y, float))
 
     def distance_above(self, pts: np.ndarray) -> np.ndarray:
         """Normal distance of points (n, 3) above the surface (tangent plane at nearest sample)."""

@@ -345,14 +345,19 @@ class RoughPlanner:
         )
 
     # -------------------------------------------------------------------------------- optimal
-    def plan_optimal(self, extra_heights: list[float] | None = None) -> RoughPlan:
+    def plan_optimal(
+        self, extra_heights: list[float] | None = None, candidates_mm: list[float] | None = None
+    ) -> RoughPlan:
         """Interval dynamic programme over candidate heights (see the module docstring).
 
         Candidates: every ``optimal_dh_mm`` above the bottom, plus ``extra_heights`` (default: the
-        levels bisection, equal and Lee choose, so the optimum is never worse than theirs).
+        levels bisection, equal and Lee choose, so the optimum is never worse than theirs); or
+        exactly ``candidates_mm`` when given.
         """
         r = self.rough
-        if extra_heights is None:
+        if candidates_mm is not None:
+            extra_heights = list(candidates_mm)
+        elif extra_heights is None:
             extra_heights = []
             for m in ("bisection", "equal"):
                 extra_heights += self.plan(m).heights_mm
@@ -361,6 +366,8 @@ class RoughPlanner:
         grid = self.bottom + r.optimal_dh_mm * np.arange(
             1, int((self.top - self.bottom) / r.optimal_dh_mm) + 1
         )
+        if candidates_mm is not None:
+            grid = np.zeros(0)
         cands = np.unique(np.round(np.concatenate([grid, extra_heights]), 9))
         cands = cands[(cands > self.bottom + _EPS) & (cands < self.top - _EPS)]
         P = np.concatenate([[self.bottom], cands, [self.top]])
