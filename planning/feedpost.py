@@ -26,7 +26,6 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -35,6 +34,8 @@ from numpy.typing import NDArray
 from analysis.config import EndMill, EndMillCoefficients, MachineConfig
 from analysis.load import cutting_load_percent
 from analysis.rules import FeedRule
+from planning._feedpost_report import write_report
+from planning._zmap_engagement import ForceModel
 from planning.errors import PlanningError
 from planning.nc import Program, interpret
 from planning.nc.arcs import segment_length_mm
@@ -196,66 +197,6 @@ def _feed_limits(rule: FeedRule, machine: MachineConfig | None) -> tuple[float, 
     return lo, hi
 
 
-class _ForceModel:
-    """Predicted peak force of each piece as a function of its feed (analysis.endmill).
-
-    Engagement from the Z-map: axial depth = the piece's deepest height drop, radial width =
-    removed cross-section / depth (capped at the diameter), down milling. Pieces that remove
-    nothing, or run with the spindle stopped, have no force (NaN).
-    """
-
-    def __init__(
-        self, tool: EndMill, coef: EndMillCoefficients, sim: Simulation, rpm: NDArray
-    ) -> None:
-        self.tool, self.coef, self.rpm = tool, coef, rpm
-        length = sim.piece_length_mm
-        self.cutting = (sim.piece_removed_mm3 > 1e-9) & (length > 0) & (rpm > 0)
-        c = self.cutting
-        self.depth = np.clip(sim.piece_depth_mm[c], 1e-3, None)
-        area = sim.piece_removed_mm3[c] / length[c]
-        self.ae = np.clip(area / self.depth, 1e-3, tool.diameter_mm)
-
-    def _peak(self, fz: NDArray) -> NDArray:
-        from analysis.endmill import EndMillCut, peak_force
-
-        cut = EndMillCut.from_width(self.tool, fz, self.depth, self.ae, mode="down")
-        return peak_force(self.tool, self.coef, cut, n_phi=90)
-
-    def force_n(self, feed_mm_min: NDArray) -> NDArray:
-        """Peak force per piece at the given feeds, N (NaN where not cutting)."""
-        out = np.full(len(self.cutting), np.nan)
-        c = self.cutting
-        if c.any():
-            fz = feed_mm_min[c] / (self.tool.flutes * self.rpm[c])
-            out[c] = self._peak(np.maximum(fz, 1e-6))
-        return out
-
-    def feed_cap(self, limit_n: float) -> NDArray:
-        """Feed per piece at which the peak force reaches ``limit_n``, mm/min (inf if none).
-
-        The peak force grows with the feed per tooth (affine per edge, convex as a maximum), so
-        a few secant steps from a small feed converge from below.
-        """
-        cap = np.full(len(self.cutting), np.inf)
-        c = self.cutting
-        if not c.any():
-            return cap
-        f0 = self._peak(np.full(c.sum(), 1e-4))
-        lo = np.full(c.sum(), 1e-4)
-        hi = np.full(c.sum(), 0.05)
-        fh = self._peak(hi)
-        for _ in range(6):
-            slope = np.maximum((fh - f0) / (hi - lo), 1e-9)
-            nxt = np.clip(lo + (limit_n - f0) / slope, 1e-6, 10.0)
-            fn = self._peak(nxt)
-            below = fn <= limit_n
-            lo, f0 = np.where(below, nxt, lo), np.where(below, fn, f0)
-            hi, fh = np.where(below, hi, nxt), np.where(below, fh, fn)
-        fz = np.where(f0 <= limit_n, lo, 0.0)  # already above the limit at the smallest feed
-        cap[c] = fz * self.tool.flutes * self.rpm[c]
-        return cap
-
-
 def _runs(
     feeds: NDArray[np.float64], lengths: NDArray[np.float64], min_piece_mm: float
 ) -> list[tuple[int, float]]:
@@ -355,7 +296,7 @@ def post_process(
                 f"{file}: the force prediction needs the spindle speed: the program cuts with "
                 "the spindle stopped (no S/M3); give spindle_rpm"
             )
-        force = _ForceModel(tool, opts.coefficients, sim, rpm)
+        force = ForceModel(tool, opts.coefficients, sim, rpm)
         if opts.force_limit_n is not None:
             feed = np.clip(np.minimum(feed, force.feed_cap(opts.force_limit_n)), lo, hi)
     step = opts.feed_step_mm_min
@@ -604,61 +545,11 @@ def _block_table(
     )
 
 
-# ------------------------------------------------------------------------------------- report
-
-
-def write_report(result: FeedPostResult, folder: str | Path, stem: str = "feedpost") -> dict:
-    """Write ``stem``-blocks.csv, -load-feed.png, -histogram.png, -stock.png; return the paths."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    out = Path(folder)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = {}
-    csv = out / f"{stem}-blocks.csv"
-    result.blocks.to_dataframe().to_csv(csv, index=False, float_format="%.6g")
-    paths["csv"] = csv
-
-    sim = result.simulation
-    feed_piece = result.motion_before.is_feed[sim.piece_segment]
-    dist = np.cumsum(np.where(feed_piece, sim.piece_length_mm, 0.0))
-    before = result.motion_before.feed_mm_min[sim.piece_segment]
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6), sharex=True, dpi=110)
-    ax1.plot(dist[feed_piece], result.piece_load_pct[feed_piece], lw=0.8, color="tab:red")
-    ax1.set_ylabel("cutting load (%)")
-    ax1.set_title(f"load and feed along the path ({result.rule.name})")
-    ax2.plot(dist[feed_piece], before[feed_piece], lw=0.8, color="0.5", label="programmed")
-    ax2.plot(
-        dist[feed_piece], result.piece_feed_mm_min[feed_piece], lw=0.8, color="tab:blue",
-        label="adjusted",
-    )  # fmt: skip
-    ax2.set_ylabel("feed (mm/min)")
-    ax2.set_xlabel("feed path length (mm)")
-    ax2.legend(loc="upper right")
-    fig.tight_layout()
-    paths["load_feed_png"] = out / f"{stem}-load-feed.png"
-    fig.savefig(paths["load_feed_png"])
-    plt.close(fig)
-
-    rule = result.rule
-    summ = result.summary()
-    counts = summ["load_histogram_path_mm"]
-    fig, ax = plt.subplots(figsize=(8, 4), dpi=110)
-    ax.bar(np.arange(rule.n_bins), counts, color="tab:red")
-    for i, nb in enumerate(summ["load_histogram"]):
-        if nb:
-            ax.annotate(f"{nb}", (i, counts[i]), ha="center", va="bottom", fontsize=7)
-    ax.set_xticks(np.arange(rule.n_bins))
-    ax.set_xticklabels([f"{e:.3g}" for e in rule.load_edges_pct[1:]], rotation=60, fontsize=7)
-    ax.set_xlabel("load bin upper edge (%)")
-    ax.set_ylabel("feed path (mm)")
-    ax.set_title("cutting load histogram over the rule's bins (numbers: blocks by block load)")
-    fig.tight_layout()
-    paths["histogram_png"] = out / f"{stem}-histogram.png"
-    fig.savefig(paths["histogram_png"])
-    plt.close(fig)
-
-    paths["stock_png"] = result.stock.save_png(out / f"{stem}-stock.png", "final stock")
-    return paths
+__all__ = [
+    "BlockTable",
+    "FeedPostOptions",
+    "FeedPostResult",
+    "post_process",
+    "rejoin",
+    "write_report",
+]
