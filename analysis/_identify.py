@@ -10,13 +10,21 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 from scipy import linalg, stats
 
 from analysis.errors import AnalysisError
-from analysis.steady import SyncAverager, find_steady, tooth_peaks
+from analysis.steady import (
+    RevolutionStats,
+    SyncAverager,
+    find_steady,
+    refine_period,
+    steady_from_stats,
+    tooth_peaks,
+)
 
 #: Condition keys whose unit cutlab does not use; a run giving them is refused (mixed units).
 _FOREIGN_UNITS = ("_in", "_inch", "_ipm", "_ipt", "_m", "_cm", "_um", "_sfm", "_m_min")
@@ -263,3 +271,90 @@ def ratio_with_error(fit: LinearFit, num: int, den: int) -> tuple[float, float, 
     se = float(math.sqrt(max(g @ fit.covariance @ g, 0.0)))
     tq = stats.t.ppf(0.5 + fit.confidence / 2, fit.dof)
     return float(r), se, float(r - tq * se), float(r + tq * se)
+
+
+def _axis_order(channel_names: Sequence[str], dynamometer=None) -> list[int]:
+    """Column of X, Y, Z among a run's channels (names from the rig config, else Fx, Fy, Fz)."""
+    names = [n.lower() for n in channel_names]
+    order = [-1, -1, -1]
+    if dynamometer is not None:
+        for ch in dynamometer.channels:
+            if ch.name.lower() in names:
+                order["xyz".index(ch.axis)] = names.index(ch.name.lower())
+    for ax, default in enumerate(("fx", "fy", "fz")):
+        if order[ax] < 0 and default in names:
+            order[ax] = names.index(default)
+    if min(order) < 0:
+        if len(names) == 3:
+            return [0, 1, 2]
+        raise AnalysisError(f"cannot tell X, Y, Z among channels {list(channel_names)}")
+    return order
+
+
+def iter_run_chunks(path, chunk_samples: int = 1 << 20, start: int = 0, stop: int | None = None):
+    """Yield (device sample indices (m,), force (m, 3) N in X, Y, Z) of a run file in chunks.
+
+    Reads through :func:`analysis.runfile.load_run` time windows, so memory is bounded by the
+    chunk (plus the loader's index bookkeeping).
+    """
+    from analysis.runfile import load_run
+
+    meta = load_run(path, samples=False)
+    rate = meta.rate_hz
+    end = meta.samples_acquired if stop is None else min(stop, meta.samples_acquired)
+    order = None
+    for a in range(start, end, chunk_samples):
+        b = min(a + chunk_samples, end)
+        # Half-sample offsets keep ceil(t * rate) exact on the window edges.
+        run = load_run(path, (a - 0.5) / rate, (b - 0.5) / rate)
+        if run.force_n is None:
+            raise AnalysisError(f"{path}: the run has no calibration: forces in N are unknown")
+        if order is None:
+            order = _axis_order(run.channel_names)
+        yield run.sample_index, run.force_n[:, order]
+
+
+def reduce_run_file(
+    path, teeth: int, conditions: RunConditions | None = None, n_bins: int | None = None,
+    chunk_samples: int = 1 << 20, progress=None,
+) -> RunAverage:  # fmt: skip
+    """:func:`reduce_run` streamed from an HDF5 run file in two passes over chunks.
+
+    Pass 1 gathers per-revolution statistics (steady part, offset, drift); the revolution period
+    is refined on at most 2^20 samples of the steady part; pass 2 averages the steady part
+    synchronously. Memory: the chunk plus O(revolutions + bins).
+    """
+    from analysis.runfile import load_run
+
+    meta = load_run(path, samples=False)
+    name = Path(str(path)).stem
+    c = conditions or RunConditions.from_mapping(meta.conditions, str(path))
+    rate, n = meta.rate_hz, meta.samples_acquired
+    stats = RevolutionStats(rate, c.spindle_rpm, n, 3)
+    for idx, f in iter_run_chunks(path, chunk_samples):
+        stats.add(f, idx)
+        if progress:
+            progress(len(idx))
+    try:
+        part = steady_from_stats(stats, rate, c.spindle_rpm)
+    except AnalysisError as exc:
+        raise AnalysisError(f"run {name}: {exc}") from None
+    lo = part.window.start
+    probe = next(iter_run_chunks(path, min(1 << 20, part.window.stop - lo), lo, part.window.stop))
+    seg = probe[1]
+    part = part.with_period(
+        refine_period(np.linalg.norm(seg - seg.mean(axis=0), axis=1), rate, part.period_s), rate
+    )
+    nb = n_bins or default_bins(rate, part.period_s)
+    avg = SyncAverager(rate, part.period_s, nb)
+    for idx, f in iter_run_chunks(path, chunk_samples, part.window.start, part.window.stop):
+        t = (idx - lo) / rate
+        avg.add(f - part.offset_n - t[:, None] * part.drift_n_s, idx - lo)
+        if progress:
+            progress(len(idx))
+    wave = avg.mean()
+    return RunAverage(
+        name=name, conditions=c, rate_hz=rate, waveform_n=wave, mean_n=wave.mean(axis=0),
+        period_s=part.period_s, revolutions=part.steady_revs,
+        window=(part.window.start, part.window.stop), offset_n=part.offset_n,
+    )  # fmt: skip

@@ -27,12 +27,14 @@ from numpy.typing import ArrayLike
 from analysis.errors import AnalysisError
 
 __all__ = [
+    "RevolutionStats",
     "SteadyPart",
     "SyncAverager",
     "ToothPeaks",
     "find_steady",
     "per_revolution",
     "refine_period",
+    "steady_from_stats",
     "steady_window",
     "tooth_peaks",
 ]
@@ -126,10 +128,57 @@ class SteadyPart:
     steady_revs: int
     air_revs: int
 
+    def with_period(self, period_s: float, rate_hz: float) -> SteadyPart:
+        """The same part with a refined period, cut to whole revolutions of it."""
+        n_whole = int((self.window.stop - self.window.start) / (period_s * rate_hz))
+        stop = self.window.start + int(round(n_whole * period_s * rate_hz))
+        return SteadyPart(
+            slice(self.window.start, stop), self.offset_n, self.drift_n_s, period_s,
+            self.cutting_revs, self.steady_revs, self.air_revs,
+        )  # fmt: skip
+
     def corrected(self, force_n: np.ndarray, first_sample: int, rate_hz: float) -> np.ndarray:
         """Subtract offset and drift from samples starting at absolute index ``first_sample``."""
         t = (first_sample + np.arange(len(force_n)) - self.window.start) / rate_hz
         return force_n - self.offset_n - t[:, None] * self.drift_n_s
+
+
+def _indices(first_sample: int | np.ndarray, n: int) -> np.ndarray:
+    if np.ndim(first_sample) == 0:
+        return int(first_sample) + np.arange(n)
+    idx = np.asarray(first_sample)
+    if len(idx) != n:
+        raise AnalysisError(f"{len(idx)} sample indices for {n} samples")
+    return idx
+
+
+class RevolutionStats:
+    """Per-revolution sums of a record fed in chunks (for streaming a long run from disk).
+
+    Revolution k spans samples [round(k spr), round((k + 1) spr)) from sample 0; ``add(chunk,
+    first_sample)`` accumulates sums and sums of squares per revolution and channel.
+    """
+
+    def __init__(self, rate_hz: float, spindle_rpm: float, n_samples: int, channels: int) -> None:
+        self.spr = _samples_per_rev(rate_hz, spindle_rpm)
+        self.n_rev = int(n_samples // self.spr)
+        self.edges = np.round(np.arange(self.n_rev + 1) * self.spr).astype(np.int64)
+        self.sums = np.zeros((self.n_rev, channels))
+        self.sumsq = np.zeros((self.n_rev, channels))
+        self.counts = np.zeros(self.n_rev)
+
+    def add(self, chunk: ArrayLike, first_sample: int | np.ndarray) -> None:
+        """``first_sample``: index of the chunk's first sample, or every sample's index (n,)
+        when the record has holes."""
+        x = np.asarray(chunk, float)
+        idx = _indices(first_sample, len(x))
+        rev = np.searchsorted(self.edges, idx, side="right") - 1
+        ok = (rev >= 0) & (rev < self.n_rev)
+        rev, x = rev[ok], x[ok]
+        for c in range(x.shape[1]):
+            self.sums[:, c] += np.bincount(rev, weights=x[:, c], minlength=self.n_rev)
+            self.sumsq[:, c] += np.bincount(rev, weights=x[:, c] ** 2, minlength=self.n_rev)
+        self.counts += np.bincount(rev, minlength=self.n_rev)
 
 
 def find_steady(
@@ -145,17 +194,33 @@ def find_steady(
     x = np.asarray(force_n, float)
     if x.ndim != 2 or len(x) == 0:
         raise AnalysisError(f"force record has shape {x.shape}: expected (n, channels) N")
-    spr = _samples_per_rev(rate_hz, spindle_rpm)
-    means, _ = per_revolution(x, rate_hz, spindle_rpm)
-    n_rev = len(means)
+    stats = RevolutionStats(rate_hz, spindle_rpm, len(x), x.shape[1])
+    stats.add(x, 0)
+    part = steady_from_stats(stats, rate_hz, spindle_rpm, tolerance, offset_n)
+    if refine:
+        seg = x[part.window]
+        period = refine_period(
+            np.linalg.norm(seg - seg.mean(axis=0), axis=1), rate_hz, part.period_s
+        )
+        part = part.with_period(period, rate_hz)
+    return part
+
+
+def steady_from_stats(
+    stats: RevolutionStats, rate_hz: float, spindle_rpm: float, tolerance: float = 0.05,
+    offset_n: ArrayLike | None = None,
+) -> SteadyPart:  # fmt: skip
+    """:func:`find_steady` from per-revolution statistics (the period is the nominal one)."""
+    n_rev, spr, edges = stats.n_rev, stats.spr, stats.edges
     if n_rev < 3:
         raise AnalysisError(
-            f"record of {len(x)} samples holds {n_rev} whole revolutions at {spindle_rpm} rpm: "
-            "need at least 3"
+            f"record of {int(stats.edges[-1])} samples holds {n_rev} whole revolutions at "
+            f"{spindle_rpm} rpm: need at least 3"
         )
-    edges = np.round(np.arange(n_rev + 1) * spr).astype(np.int64)
-    sq, _ = per_revolution(x**2, rate_hz, spindle_rpm)
-    spread = np.sqrt(np.maximum(sq - means**2, 0.0))  # (n_rev, c) per-revolution std
+    cnt = np.maximum(stats.counts, 1)[:, None]
+    means = stats.sums / cnt
+    spread = np.sqrt(np.maximum(stats.sumsq / cnt - means**2, 0.0))  # per-revolution std
+    channels = means.shape[1]
     quiet = int(np.argmin(spread.sum(axis=1)))
     noise = np.linalg.norm(spread[quiet]) + 1e-12
     dist = np.linalg.norm(means - means[quiet], axis=1) + np.linalg.norm(
@@ -175,9 +240,10 @@ def find_steady(
             f"largest change {dist.max():.3g} N); is this an air run?"
         )
     air = ~cutting
+    t_rev = 0.5 * (edges[:-1] + edges[1:]) / rate_hz
     if offset_n is not None:
-        off0 = np.broadcast_to(np.asarray(offset_n, float), (x.shape[1],))
-        drift = np.zeros(x.shape[1])
+        off_at0 = np.broadcast_to(np.asarray(offset_n, float), (channels,)).copy()
+        drift = np.zeros(channels)
         n_air = 0
     else:
         n_air = int(air.sum())
@@ -189,19 +255,15 @@ def find_steady(
         first_cut, last_cut = np.flatnonzero(cutting)[[0, -1]]
         before = air & (np.arange(n_rev) < first_cut)
         after = air & (np.arange(n_rev) > last_cut)
-        t_rev = 0.5 * (edges[:-1] + edges[1:]) / rate_hz
         if before.any() and after.any():
+            # Air on both sides: a straight line through them removes slow amplifier drift.
             tt = t_rev[before | after]
             A = np.column_stack([np.ones_like(tt), tt])
             coef, *_ = np.linalg.lstsq(A, means[before | after], rcond=None)
             off_at0, drift = coef[0], coef[1]
         else:
-            off_at0, drift = means[air].mean(axis=0), np.zeros(x.shape[1])
-    level_vec = means - (off0 if offset_n is not None else 0.0)
-    if offset_n is None:
-        t_rev = 0.5 * (edges[:-1] + edges[1:]) / rate_hz
-        level_vec = means - off_at0 - t_rev[:, None] * drift
-    level = np.linalg.norm(level_vec, axis=1)
+            off_at0, drift = means[air].mean(axis=0), np.zeros(channels)
+    level = np.linalg.norm(means - off_at0 - t_rev[:, None] * drift, axis=1)
     lo, hi = _longest_steady(level, cutting, tolerance)
     lo, hi = lo + 1, hi - 1  # the first and last steady revolutions may hold the transition
     if hi - lo < 3:
@@ -210,17 +272,10 @@ def find_steady(
             f"need at least 3 whose mean stays within {tolerance:.0%} of the median"
         )
     start, stop = int(edges[lo]), int(edges[hi])
-    if offset_n is None:
-        off0 = off_at0 + drift * start / rate_hz
-    period = 60.0 / abs(spindle_rpm)
-    if refine:
-        seg = x[start:stop]
-        period = refine_period(np.linalg.norm(seg - seg.mean(axis=0), axis=1), rate_hz, period)
-        n_whole = int((stop - start) / (period * rate_hz))
-        stop = start + int(round(n_whole * period * rate_hz))
+    off0 = off_at0 + drift * start / rate_hz
     return SteadyPart(
-        slice(start, stop), np.asarray(off0, float), np.asarray(drift, float), period,
-        int(cutting.sum()), hi - lo, n_air,
+        slice(start, stop), np.asarray(off0, float), np.asarray(drift, float),
+        60.0 / abs(spindle_rpm), int(cutting.sum()), hi - lo, n_air,
     )  # fmt: skip
 
 
@@ -284,9 +339,9 @@ class SyncAverager:
         self.counts = np.zeros(self.n_bins)
         self.samples = 0
 
-    def add(self, chunk: ArrayLike, first_sample: int) -> None:
+    def add(self, chunk: ArrayLike, first_sample: int | np.ndarray) -> None:
         x = np.asarray(chunk, float)
-        idx = first_sample + np.arange(len(x))
+        idx = _indices(first_sample, len(x))
         # Nearest bin (bin k is centred on angle 2 pi k / n_bins): with one bin per sample a
         # floor would put samples that sit on a bin edge into either neighbour by rounding.
         frac = (idx / (self.rate_hz * self.period_s)) % 1.0
