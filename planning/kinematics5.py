@@ -127,7 +127,7 @@ def inverse(
             # Rz(C) (ux, uy) = (0, -sin A); cos A = uz.
             a0 = np.degrees(np.arccos(np.clip(uz, -1, 1)))
             sols = [(a0, np.degrees(np.arctan2(-ux, -uy))), (-a0, np.degrees(np.arctan2(ux, uy)))]
-        if rho < 1e-9:  # axis along the C axis: C is free, keep it
+        if rho < 1e-12:  # axis along the C axis: C is free, keep it
             sols = [(s[0], prev_c) for s in sols]
         inside = [s for s in sols if a_lo - 1e-9 <= s[0] <= a_hi + 1e-9]
         if not inside:
