@@ -313,3 +313,14 @@ def test_g80_with_motion_code_in_one_block():
     assert m.kind[-1] == LINE and tuple(m.end[-1]) == (5, 0, 1)
     with pytest.raises(NCError, match="cannot share a block"):
         interpret("G80 G81 X1 Z-1 R1 F1")
+
+
+@pytest.mark.parametrize("ending", ["\n", "\r\n", "\r"])
+def test_line_endings_and_bom_stream_like_text(tmp_path, ending):
+    text = Program.read(SAMPLE).text()
+    p = tmp_path / "p.nc"
+    p.write_bytes(b"\xef\xbb\xbf" + text.replace("\n", ending).encode())
+    want = interpret(text)
+    assert interpret(p).equals(want)  # a Path is streamed
+    assert interpret(Program.read(p)).equals(want)
+    assert Program.read(p).text() == text.replace("\n", ending)  # BOM dropped, ends kept

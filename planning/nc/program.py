@@ -114,10 +114,13 @@ class Program:
         p = Path(path)
         try:
             data = p.read_bytes()
-            text = data.decode("utf-8")
+            text = data.decode("utf-8-sig")  # a BOM is dropped (and not written back)
         except UnicodeDecodeError as exc:
+            line = data[: exc.start].count(b"\n") + 1
             raise NCError(
-                f"not a text file (UTF-8 / ASCII): {exc.reason} at byte {exc.start}", file=str(p)
+                f"not a text file (UTF-8 / ASCII): {exc.reason} at byte {exc.start}",
+                file=str(p),
+                line=line,
             ) from None
         except OSError as exc:
             raise NCError(f"cannot read the program: {exc.strerror}", file=str(p)) from None

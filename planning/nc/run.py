@@ -4,6 +4,7 @@ at block N for restarts. All build on :class:`~planning.nc.interpreter.Interpret
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -19,7 +20,9 @@ if TYPE_CHECKING:
     from planning.nc.program import Program
 
 
-def _lines_of(source: str | Program | Iterable[str]) -> Iterable[str]:
+def _lines_of(source: str | os.PathLike | Program | Iterable[str]) -> Iterable[str]:
+    if isinstance(source, os.PathLike):
+        return file_lines(source)
     if isinstance(source, str):
         return _lexer.split_lines(source)
     lines = getattr(source, "lines", None)
@@ -27,33 +30,53 @@ def _lines_of(source: str | Program | Iterable[str]) -> Iterable[str]:
 
 
 def interpret(
-    source: str | Program | Iterable[str],
+    source: str | os.PathLike | Program | Iterable[str],
     machine: MachineConfig | None = None,
     *,
     strict: bool = True,
     file: str | None = None,
     **options,
 ) -> Motion:
-    """Interpret a whole program (text, Program, or iterable of lines) to Motion.
+    """Interpret a whole program to Motion: program text (a ``str`` is text, not a file name), a
+    ``pathlib.Path`` (streamed), a :class:`~planning.nc.Program`, or an iterable of lines.
 
     ``options`` go to :class:`Interpreter` (dialect, block_delete, arc_tolerance_mm,
     work_offsets_mm, peck_clearance_mm, state). Use :class:`Interpreter` directly to get the
     warnings of lenient mode and the final state.
     """
-    name = file or getattr(source, "file", None) or "<program>"
+    name = file or getattr(source, "file", None) or _path_name(source) or "<program>"
     it = Interpreter(machine, strict=strict, file=name, **options)
     return it.run(_lines_of(source))
 
 
+def _path_name(source: object) -> str | None:
+    return os.fspath(source) if isinstance(source, os.PathLike) else None
+
+
 def file_lines(path: str | Path) -> Iterator[str]:
-    """Lines of a program file, read lazily; NCError if unreadable or not UTF-8/ASCII text."""
+    """Lines of a program file, read lazily (LF, CR LF or CR line ends; a UTF-8 BOM is dropped).
+
+    NCError names the line and column of bytes that are not UTF-8/ASCII text, or why the file
+    cannot be read.
+    """
     try:
-        with open(path, encoding="utf-8", errors="strict", newline=None) as fh:
-            yield from fh
-    except UnicodeDecodeError as exc:
-        raise NCError(
-            f"not a text file (UTF-8 / ASCII): {exc.reason} at byte {exc.start}", file=str(path)
-        ) from None
+        with open(path, "rb") as fh:
+            for n, data in enumerate(fh, 1):
+                try:
+                    raw = data.decode("utf-8")
+                except UnicodeDecodeError as exc:
+                    raise NCError(
+                        f"not a text file (UTF-8 / ASCII): {exc.reason}",
+                        file=str(path),
+                        line=n,
+                        column=exc.start + 1,
+                    ) from None
+                if n == 1 and raw.startswith("\ufeff"):
+                    raw = raw[1:]
+                if "\r" in raw and "\r" in raw.rstrip("\r\n"):  # CR-only line ends
+                    yield from _lexer.split_lines(raw)
+                else:
+                    yield raw
     except OSError as exc:
         raise NCError(f"cannot read the program: {exc.strerror}", file=str(path)) from None
 
@@ -83,7 +106,7 @@ def state_at_block(
     """
     if block < 0:
         raise NCError(f"block index must be >= 0, got {block}", file=file or "<program>")
-    name = file or getattr(source, "file", None) or "<program>"
+    name = file or getattr(source, "file", None) or _path_name(source) or "<program>"
     it = Interpreter(machine, strict=strict, file=name, **options)
     lines = _lines_of(source)
 
