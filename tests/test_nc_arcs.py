@@ -185,3 +185,15 @@ def test_linearize_within_chord_tolerance(case, tol):
     # ends on the arc
     np.testing.assert_allclose(np.linalg.norm(lin.end[k][:, [ia, ib]] - c, axis=1), r, atol=1e-6)
     np.testing.assert_array_equal(lin.end[-1], m.end[-1])
+
+
+def test_linearize_maps_non_arcs_one_to_one_and_motion_indexing():
+    m = interpret("G0 X1\nG1 Y2 F10\nG4 P100\nG2 X3 Y4 R1.5\nG0 Z3")
+    lin = linearize(m, 0.01)
+    assert list(lin.source[lin.source != 3]) == [0, 1, 2, 4]
+    assert (lin.source == 3).sum() >= 2
+    assert len(m[1]) == 1 and m[-1].end[0, 2] == 3 and len(m[m.is_feed]) == 2
+    from planning.nc import Motion
+
+    both = Motion.concatenate([m[:2], m[2:]])
+    assert both.equals(m) and not both.equals(m[1:])
