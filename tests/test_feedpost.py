@@ -449,3 +449,65 @@ def test_stock_at_any_moment() -> None:
     sim = simulate_motion(cut, tool, motion, until_block=6)  # after the cut (N50)
     assert sim.removed_total_mm3 > 0
     np.testing.assert_allclose(cut.heights_mm, whole.heights_mm)
+
+
+def test_cli_feed_with_a_rule_from_the_rule_base(files: Path, capsys) -> None:
+    from analysis.rulebase import GroupKey, RuleBase
+
+    db = files / "rules.sqlite"
+    key = GroupKey("test/step", "finishing", 30.0, 30.0, "gm241", 2000.0, 0.3, 0.05)
+    with RuleBase(db) as base:
+        base.add(key, seed001_rule())
+    out = files / "rb.nc"
+    rc, so, err = cli(
+        ["plan", "feed", str(files / "step.nc"), "--rules", "seed001-4.3", "--db", str(db),
+         "--tool", "phi30-ball", "--stock", "box:0,200,0,60,-10,0", "--spacing", "0.5",
+         "-o", str(out), "--json"],
+        capsys,
+    )  # fmt: skip
+    assert rc == 0, err
+    via_file = files / "file.nc"
+    rc, _, err = cli(
+        ["plan", "feed", str(files / "step.nc"), "--rules", str(files / "rule.toml"),
+         "--tool", "phi30-ball", "--stock", "box:0,200,0,60,-10,0", "--spacing", "0.5",
+         "-o", str(via_file)],
+        capsys,
+    )  # fmt: skip
+    assert rc == 0, err
+    assert out.read_text() == via_file.read_text()  # the same rule, from the base or its file
+    rc, _, err = cli(
+        ["plan", "feed", str(files / "step.nc"), "--rules", "no-such-rule", "--db", str(db),
+         "--tool", "phi30-ball", "-o", str(files / "never.nc")],
+        capsys,
+    )  # fmt: skip
+    assert rc == 2 and "no rule named 'no-such-rule'" in err
+    assert not (files / "never.nc").exists()
+
+
+def test_adjusted_feeds_even_out_the_predicted_force_across_the_steps() -> None:
+    # Seed 001 Fig. 11: with the adjusted feeds the force is nearly uniform across the steps.
+    from analysis.config import get_material
+    from planning._zmap_engagement import ForceModel
+
+    coef = get_material("gm241").endmill
+    text = STEP.replace("N10 G21 G90 G17", "N10 G21 G90 G17 S2000 M3")
+    r = run(text, "phi30-ball", step_stock(0.2), coefficients=coef)
+    sim = r.simulation
+    mid = 0.5 * (sim.piece_start_mm[:, 0] + sim.piece_end_mm[:, 0])
+    # steady middle of each step (away from the step faces)
+    steady = np.zeros(len(mid), bool)
+    for k in range(5):
+        steady |= (mid > 30 + 30 * k) & (mid < 50 + 30 * k)
+    model = ForceModel(get_tool("phi30-ball"), coef, sim, np.full(len(mid), 2000.0))
+    constant = model.force_n(np.full(len(mid), 1000.0))[steady]
+    adjusted = r.piece_force_n[steady]
+    spread = lambda f: (np.nanmax(f) - np.nanmin(f)) / np.nanmax(f)  # noqa: E731
+    # The two lightest steps are held at the rule's max feed (3500 mm/min) so the force cannot be
+    # made fully uniform; the spread shrinks (about 0.73 -> 0.61 here). A constant-removal-rate
+    # rule does not bound the force itself: the 0.4 mm step at 2250 mm/min is predicted ~4 %
+    # above the constant-feed peak (edge forces and the ball's chip shape), which is what the
+    # force_limit_n option is for.
+    assert spread(adjusted) < spread(constant) - 0.05
+    # Where the rule is not saturated (0.4 .. 0.7 mm steps) the force is nearly uniform.
+    heavy = mid[steady] > 90
+    assert spread(adjusted[heavy]) < 0.5 * spread(constant[heavy])

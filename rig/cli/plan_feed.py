@@ -77,7 +77,7 @@ def _rule(spec: str, db: Path | None):
     from analysis.rulebase import RuleBase
 
     with RuleBase(db) as base:
-        return base.find(spec).rule()
+        return base.find(spec).rule
 
 
 class _Progress:
