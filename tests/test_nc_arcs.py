@@ -197,3 +197,18 @@ def test_linearize_maps_non_arcs_one_to_one_and_motion_indexing():
 
     both = Motion.concatenate([m[:2], m[2:]])
     assert both.equals(m) and not both.equals(m[1:])
+
+
+@settings(max_examples=100, deadline=None)
+@given(arcs())
+def test_exact_bounding_box_matches_fine_linearisation(case):
+    from planning.nc import bounding_box
+
+    text, _, _ = _program(*case)
+    m = interpret(text)
+    lo, hi = bounding_box(m)
+    lin = linearize(m, 1e-5)
+    pts = np.concatenate([lin.start, lin.end])
+    np.testing.assert_allclose(lo, pts.min(axis=0), atol=2e-5)
+    np.testing.assert_allclose(hi, pts.max(axis=0), atol=2e-5)
+    assert np.all(lo <= pts.min(axis=0) + 1e-9) and np.all(hi >= pts.max(axis=0) - 1e-9)

@@ -41,6 +41,7 @@ from planning.nc.arcs import (
     Linearized,
     arc_radius_mm,
     arc_sweep_rad,
+    bounding_box,
     linearize,
     segment_length_mm,
 )
@@ -85,6 +86,7 @@ __all__ = [
     "Program",
     "arc_radius_mm",
     "arc_sweep_rad",
+    "bounding_box",
     "interpret",
     "interpret_file",
     "linearize",

@@ -122,6 +122,41 @@ def segment_length_mm(motion: Motion) -> np.ndarray:
     return np.where(motion.is_arc, arc, np.where(motion.kind == DWELL, 0.0, chord))
 
 
+def bounding_box(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """Exact axis-aligned bounding box ``(lo (3,), hi (3,))`` of the path, mm (NaN if empty).
+
+    Arcs contribute their end points and the quadrant points (0, 90, 180, 270 degrees in their
+    plane) that lie inside their sweep; vectorised, no linearisation.
+    """
+    if len(motion) == 0:
+        nan = np.full(3, np.nan)
+        return nan, nan.copy()
+    lo = np.minimum(motion.start, motion.end).min(axis=0)
+    hi = np.maximum(motion.start, motion.end).max(axis=0)
+    arcs = motion[motion.is_arc]
+    if len(arcs):
+        a0, b0, _, _, ca, cb, n0, _, idx = _plane_coords(arcs)
+        r = np.hypot(a0 - ca, b0 - cb)
+        t0 = np.arctan2(b0 - cb, a0 - ca)
+        sweep = arc_sweep_rad(arcs)
+        ccw = arcs.kind == ARC_CCW
+        rows = np.arange(len(arcs))
+        for q in range(4):
+            ang = q * 0.5 * math.pi
+            delta = np.where(ccw, np.mod(ang - t0, TWO_PI), np.mod(t0 - ang, TWO_PI))
+            inside = delta <= sweep
+            if not inside.any():
+                continue
+            p = np.empty((int(inside.sum()), 3))
+            k = rows[inside]
+            p[np.arange(k.size), idx[k, 0]] = ca[k] + r[k] * math.cos(ang)
+            p[np.arange(k.size), idx[k, 1]] = cb[k] + r[k] * math.sin(ang)
+            p[np.arange(k.size), idx[k, 2]] = n0[k]  # the normal axis peaks at the ends
+            lo = np.minimum(lo, p.min(axis=0))
+            hi = np.maximum(hi, p.max(axis=0))
+    return lo, hi
+
+
 @dataclass(frozen=True)
 class Linearized:
     """Straight pieces approximating a motion.
@@ -199,6 +234,7 @@ __all__ = [
     "Linearized",
     "arc_radius_mm",
     "arc_sweep_rad",
+    "bounding_box",
     "center_from_r",
     "check_radius",
     "linearize",

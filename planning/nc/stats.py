@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planning.nc.arcs import linearize, segment_length_mm
+from planning.nc.arcs import bounding_box, segment_length_mm
 from planning.nc.motion import DWELL, RAPID, Motion
 
 if TYPE_CHECKING:
@@ -28,9 +28,9 @@ class MotionStats:
 
     segments : number of segments; cutting_length_mm / rapid_length_mm : path lengths, mm;
     time_s : machining time, s (feed + rapid + dwell); feed_time_s, rapid_time_s, dwell_s : the
-    parts, s; bbox_min_mm / bbox_max_mm : (3,) extent of the whole path including arc bulges, mm
-    (NaN without motion); cutting_bbox_min_mm / cutting_bbox_max_mm : extent of feed moves only;
-    rapid_mm_min : rapid rate used, mm/min.
+    parts, s; bbox_min_mm / bbox_max_mm : (3,) exact extent of the whole path including arc
+    bulges, mm (NaN without motion); cutting_bbox_min_mm / cutting_bbox_max_mm : extent of feed
+    moves only; rapid_mm_min : rapid rate used, mm/min.
     """
 
     segments: int
@@ -48,14 +48,6 @@ class MotionStats:
 
     def to_dict(self) -> dict:
         return asdict(self)
-
-
-def _bbox(lin_start: np.ndarray, lin_end: np.ndarray) -> tuple[tuple, tuple]:
-    if lin_start.shape[0] == 0:
-        nan = (float("nan"),) * 3
-        return nan, nan
-    pts = np.concatenate([lin_start, lin_end])
-    return tuple(map(float, pts.min(axis=0))), tuple(map(float, pts.max(axis=0)))
 
 
 def _rapid_rate(machine: MachineConfig | None, rapid_mm_min: float | None) -> float:
@@ -99,11 +91,8 @@ def motion_stats(
     feed_time = float(t[feed].sum())
     rapid_time = float(t[rap].sum())
     dwell = float(t[motion.kind == DWELL].sum())
-    # bbox: tolerance small relative to any sensible arc; only arcs are subdivided
-    lin = linearize(motion, chord_tol_mm=0.001)
-    lo, hi = _bbox(lin.start, lin.end)
-    cut = motion.is_feed[lin.source]
-    clo, chi = _bbox(lin.start[cut], lin.end[cut])
+    lo, hi = bounding_box(motion)
+    clo, chi = bounding_box(motion[motion.is_feed])
     return MotionStats(
         segments=len(motion),
         cutting_length_mm=float(length[feed].sum()),
@@ -112,9 +101,9 @@ def motion_stats(
         feed_time_s=feed_time,
         rapid_time_s=rapid_time,
         dwell_s=dwell,
-        bbox_min_mm=lo,
-        bbox_max_mm=hi,
-        cutting_bbox_min_mm=clo,
-        cutting_bbox_max_mm=chi,
+        bbox_min_mm=tuple(map(float, lo)),
+        bbox_max_mm=tuple(map(float, hi)),
+        cutting_bbox_min_mm=tuple(map(float, clo)),
+        cutting_bbox_max_mm=tuple(map(float, chi)),
         rapid_mm_min=float(rapid),
     )
