@@ -32,7 +32,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--min-piece", type=float, default=5.0, help="shortest split block, mm")
     f.add_argument("--no-split", action="store_true", help="one feed per block, no splits")
     f.add_argument("--force-limit", type=float, help="largest predicted peak force, N")
-    f.add_argument("--material", help="material (configs/materials.toml) for --force-limit")
+    f.add_argument(
+        "--material",
+        help="material (configs/materials.toml): predicted peak force per block, and the "
+        "coefficients for --force-limit",
+    )
+    f.add_argument("--spindle", type=float, help="rpm for the force model if the program has no S")
     f.set_defaults(func=_feed)
 
     s = sub.add_parser("simulate", help="Z-map virtual machining of a program or a plan")
@@ -128,9 +133,9 @@ def _feed(args: argparse.Namespace) -> int:
     rule = _rule(args.rules, args.db)
     machine, tool, program, motion, stock = _load(args)
     coef = None
-    if args.force_limit is not None:
-        if not args.material:
-            raise PlanningError("--force-limit needs --material (its [endmill] coefficients)")
+    if args.force_limit is not None and not args.material:
+        raise PlanningError("--force-limit needs --material (its [endmill] coefficients)")
+    if args.material:
         coef = get_material(args.material).endmill
         if coef is None:
             raise PlanningError(f"material '{args.material}' has no [endmill] coefficients")
@@ -140,6 +145,7 @@ def _feed(args: argparse.Namespace) -> int:
         check_holder=not args.no_holder_check,
         force_limit_n=args.force_limit,
         coefficients=coef,
+        spindle_rpm=args.spindle,
     )
     bar = _Progress("simulate")
     try:
