@@ -73,10 +73,16 @@ class DynamometerFilter:
     @classmethod
     def from_config(
         cls, dyno: Dynamometer, rate_hz: float, with_workpiece: bool = True,
-        crosstalk: bool = True,
+        crosstalk: bool = True, drop_above_nyquist: bool = False,
     ) -> DynamometerFilter:  # fmt: skip
-        """From a rig's dynamometer config (modes with or without the workpiece)."""
+        """From a rig's dynamometer config (modes with or without the workpiece).
+
+        ``drop_above_nyquist``: leave out modes at or above rate/2 (a record sampled that slowly
+        cannot show them; its anti-alias filter removed them) instead of refusing.
+        """
         modes = dyno.modes if with_workpiece else dyno.modes_without_workpiece
+        if drop_above_nyquist:
+            modes = tuple(m for m in modes if m.frequency_hz < rate_hz / 2)
         ct = np.asarray(dyno.crosstalk, float) if (crosstalk and dyno.crosstalk) else None
         if ct is not None and ct.shape != (3, 3):
             ct = None

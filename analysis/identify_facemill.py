@@ -107,7 +107,9 @@ def _filter_for(dynamometer, rate_hz: float) -> DynamometerFilter | None:
         return dynamometer
     if isinstance(dynamometer, Dynamometer):
         # Run files hold forces with the cross-talk already inverted by the calibration.
-        return DynamometerFilter.from_config(dynamometer, rate_hz, crosstalk=False)
+        return DynamometerFilter.from_config(
+            dynamometer, rate_hz, crosstalk=False, drop_above_nyquist=True
+        )
     raise AnalysisError(
         f"dynamometer: expected a Dynamometer config or filter, got {dynamometer!r}"
     )
