@@ -159,6 +159,10 @@ def test_edit_api_on_sample():
         prog.set_word(b, "G", 1)
     with pytest.raises(NCError, match="out of range"):
         prog.set_word(len(prog), "F", 1)
+    with pytest.raises(NCError, match="tape mark"):
+        prog.set_word(0, "F", 1)
+    prog.set_word(1, "S", 100)  # a comment-only block takes the word before its comment
+    assert prog.lines[1].startswith("O1001 S100 (CUTLAB DEMO PART")
 
 
 def test_spaceless_block_gets_spaceless_words():

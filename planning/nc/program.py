@@ -30,7 +30,7 @@ from planning.nc import _lexer
 from planning.nc._lexer import _NEWLINE_RE, split_lines
 from planning.nc.errors import NCError
 
-INTEGER_LETTERS = frozenset("GMNOTDHL")
+INTEGER_LETTERS = frozenset("GMNOTDHLSP")  # written without a decimal point when integral
 Value = float | int | str
 
 
@@ -46,7 +46,7 @@ class NumberStyle:
         if letter in INTEGER_LETTERS:
             iv = round(float(value))
             if abs(iv - float(value)) > 1e-9:
-                return format_number(float(value), 1, False)  # G90.1, G91.1
+                return format_number(float(value), self.decimals, False)  # G90.1, S1.5
             return str(iv)
         return format_number(float(value), self.decimals, self.trailing_dot)
 
@@ -193,6 +193,10 @@ class Program:
                 toks[k] = _lexer.Token("word", t.text[0] + num, t.column, letter, num)
                 self.lines[block] = "".join(x.text for x in toks)
                 return
+        if any(t.kind == "percent" for t in toks):
+            raise NCError(
+                "the '%' tape mark line cannot take words", file=self.file, line=block + 1
+            )
         self.lines[block] = _insert_word(toks, letter + num)
 
     def replace_word(self, block: int, old: str, new: str | None) -> None:
