@@ -175,11 +175,11 @@ def _sim_controller(args: argparse.Namespace) -> int:
             ctl = SimGrbl(machine, clock=clock, baudrate=baud, **knobs)
     except TypeError as exc:
         raise DncError(f"--sim: unknown knob for the {protocol} controller ({exc})") from None
-    path = ctl.start()
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())  # before the path is out: a script
+    path = ctl.start()  # may stop us as soon as it has read it
     print(path, flush=True)
     status(f"simulated {protocol} controller on {path} ({baud} baud, speed x{args.speed:g})")
-    stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
     try:
         stop.wait(args.duration)
     except KeyboardInterrupt:

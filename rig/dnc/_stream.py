@@ -7,7 +7,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from analysis.config import SerialConfig
-from rig.dnc.errors import StreamFault
+from rig.dnc.errors import DncError, StreamFault
 from rig.dnc.link import SerialLink
 from rig.dnc.port import check_settings, is_pty, line_bytes_per_s, open_port
 from rig.dnc.program import Program
@@ -110,8 +110,6 @@ class StreamerBase:
         """
         n_lines = program.blocks[-1].index + 1 if program.blocks else 0
         if not 0 <= start_block < max(n_lines, 1):
-            from rig.dnc.errors import DncError
-
             raise DncError(
                 f"start block = {start_block}: out of range for {program.name} (0-based block "
                 f"index = source line - 1, expected 0..{n_lines - 1})"
@@ -134,11 +132,18 @@ class StreamerBase:
             self._run(self.link, items)
         except Fault as f:
             fault = f
+        except DncError as exc:  # the port could not be opened: nothing was sent
+            self.sink.event("not_started", self.clock(), str(exc))
+            self.sink.close()
+            self._progress.close()
+            raise
         finally:
             seconds = time.perf_counter() - t0
             result = self._result(seconds, fault)
             try:
-                if fault is not None:
+                if self.sink_closed():
+                    pass
+                elif fault is not None:
                     self.sink.event(f"fault:{fault.kind}", self.clock(), fault.reason)
                 else:
                     self.sink.event("stream_end", self.clock(), f"{self.blocks_sent} blocks")
@@ -157,6 +162,9 @@ class StreamerBase:
                 result,
             )
         return result
+
+    def sink_closed(self) -> bool:
+        return bool(getattr(self.sink, "closed", False))
 
     def _result(self, seconds: float, fault: Fault | None) -> StreamResult:
         nbytes = (self.link.bytes_written - self._bytes0) if self.link is not None else 0

@@ -56,8 +56,8 @@ class SerialLink:
         self.soft_flow = soft_flow
         self.cts_flow = cts_flow
         self.pace = pace_bytes_per_s
-        # About 1 ms of line per chunk, between 4 and 64 bytes: small enough for a quick stop.
-        self.chunk = chunk_bytes or int(min(64, max(4, (pace_bytes_per_s or 8000) * 1e-3)))
+        # About 2 ms of line per chunk, between 4 and 64 bytes: small enough for a quick stop.
+        self.chunk = chunk_bytes or int(min(64, max(4, (pace_bytes_per_s or 8000) * 2e-3)))
         self.on_data = on_data
         self.on_control = on_control
         self.xon = threading.Event()
@@ -132,10 +132,14 @@ class SerialLink:
         if self.cts_flow:
             self._wait_cts(timeout_s)
         if self.pace:
+            # Keep the average at the pace: a late wake-up is caught up, but by at most one
+            # chunk's worth (so a burst never exceeds two chunks on the wire).
             now = time.perf_counter()
             if self._next_t > now:
                 self._stop.wait(self._next_t - now)
-            self._next_t = max(self._next_t, now) + len(chunk) / self.pace
+            else:
+                self._next_t = max(self._next_t, now - self.chunk / self.pace)
+            self._next_t += len(chunk) / self.pace
         self._raw_write(chunk)
 
     def _wait_cts(self, timeout_s: float) -> None:

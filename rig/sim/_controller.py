@@ -11,6 +11,7 @@ import contextlib
 import errno
 import hashlib
 import os
+import re
 import select
 import termios
 import threading
@@ -90,7 +91,10 @@ class _Planned:
     durations_s: np.ndarray
     spindle_rpm: float
     t_ready: float
+    n_number: int = -1
 
+
+_N_WORD = re.compile(r"\s*/?\s*[Nn]\s*(\d+)")
 
 _BAUD_CONSTANTS = {
     b: getattr(termios, f"B{b}")
@@ -445,7 +449,8 @@ class SimControllerBase:
         st = self.interp.state
         rpm = float(st.spindle_speed_rpm * st.spindle_dir)
         dur = segment_durations_s(motion, self.rapid_mm_min)
-        return _Planned(seq, text, motion, dur, rpm, t_ready)
+        m = _N_WORD.match(text)
+        return _Planned(seq, text, motion, dur, rpm, t_ready, int(m.group(1)) if m else -1)
 
     # -- execution -----------------------------------------------------------------------------
     def _advance(self, now: float) -> None:
@@ -521,7 +526,7 @@ class SimControllerBase:
             feed_mm_min=float(m.feed_mm_min[i]),
             tool=int(m.tool[i]),
             coolant=bool(m.coolant[i]),
-            line=-1,
+            line=b.n_number,
             text=b.text,
         )
         for f in self._seg_listeners:
