@@ -64,7 +64,9 @@ def logger_loop(path: Path, blocks: np.ndarray, n_blocks: int) -> tuple[float, i
     c, n = blocks.shape
     info = _info(c, 1e6, n)
     t = time.perf_counter()
-    w = RunWriter(path, info, queue_blocks=16, overwrite=True)
+    # A short queue: with put_block nothing is dropped, and a deep pool would only add the
+    # one-off cost of allocating it to the timing.
+    w = RunWriter(path, info, queue_blocks=4, overwrite=True)
     w.on_start(info, 0.0)
     for k in range(n_blocks):
         w.put_block(k * n, blocks)
@@ -82,6 +84,8 @@ def overhead(folder: Path, channels: int, reps: int, total_mb: float) -> dict:
     chunk_rows = probe.chunk_rows  # the same chunk shape as the logger's
     probe.close()
     (folder / "probe.h5").unlink()
+    bare_loop(folder / "warm.h5", blocks, 2, chunk_rows)  # warm-up, untimed
+    logger_loop(folder / "warm.h5", blocks, 2)
     ratios, bare_s, log_s = [], [], []
     for r in range(reps):
         b = bare_loop(folder / "bare.h5", blocks, n_blocks, chunk_rows)
@@ -104,6 +108,7 @@ def overhead(folder: Path, channels: int, reps: int, total_mb: float) -> dict:
         "ratios": ratios,
         "median_ratio": statistics.median(ratios),
         "ratio_of_totals": sum(log_s) / sum(bare_s),
+        "ratio_of_best": min(log_s) / min(bare_s),
     }
 
 
@@ -149,8 +154,20 @@ def sustained(
         "samples_lost": lost,
         "queue_full_events": int((run.events["kind"] == "queue_full").sum()),
         "max_queue_depth": stats.max_queue_depth,
+        "queue_blocks": queue_blocks,
+        "max_write_s": stats.max_write_s,
+        "max_flush_s": stats.max_flush_s,
         "gigabytes": channels * acquired * 8 / 1e9,
     }
+
+
+def describe(r: dict) -> str:
+    """One line per paced run."""
+    return (
+        f"{r['aggregate_ms_per_s']:.1f} MS/s for {r['wall_s']:.1f} s, lost {r['samples_lost']}, "
+        f"max queue {r['max_queue_depth']}/{r['queue_blocks']} blocks, longest write "
+        f"{r['max_write_s']:.2f} s, longest flush {r['max_flush_s']:.2f} s"
+    )
 
 
 def main() -> int:
@@ -179,8 +196,7 @@ def main() -> int:
             )
             probes.append(r)
             print(
-                f"  probe x{speed:g}: {r['aggregate_ms_per_s']:.1f} MS/s for {r['wall_s']:.1f} s,"
-                f" lost {r['samples_lost']}, max queue {r['max_queue_depth']}",
+                f"  probe x{speed:g}: {describe(r)}",
                 file=sys.stderr,
                 flush=True,
             )
@@ -197,8 +213,7 @@ def main() -> int:
             )
             attempts.append(r)
             print(
-                f"  x{speed:g}: {r['aggregate_ms_per_s']:.1f} MS/s for {r['wall_s']:.1f} s, "
-                f"lost {r['samples_lost']}, max queue {r['max_queue_depth']}",
+                f"  x{speed:g}: {describe(r)}",
                 file=sys.stderr,
                 flush=True,
             )
@@ -218,7 +233,8 @@ def main() -> int:
         return 0
     print(f"logger overhead vs bare h5py loop: median ratio {ov['median_ratio']:.2f}x "
           f"(per rep {', '.join(f'{x:.2f}' for x in ov['ratios'])}; ratio of totals "
-          f"{ov['ratio_of_totals']:.2f}x; target <= 1.25x)")  # fmt: skip
+          f"{ov['ratio_of_totals']:.2f}x; best-of-{len(ov['ratios'])} ratio "
+          f"{ov['ratio_of_best']:.2f}x; target <= 1.25x)")  # fmt: skip
     if final is None:
         print("sustained: no speed ran without loss for the full time")
     else:

@@ -56,6 +56,8 @@ class WriterStats:
     samples_missing: int  # holes reported as gap events
     flushes: int
     max_queue_depth: int
+    max_write_s: float  # longest single append of a block (disk stalls show here)
+    max_flush_s: float  # longest flush
 
 
 class RunWriter:
@@ -131,6 +133,8 @@ class RunWriter:
         self._samples_missing = 0
         self._flushes = 0
         self._max_depth = 0
+        self._max_write_s = 0.0
+        self._max_flush_s = 0.0
         self._depth = 0
         self.error: BaseException | None = None
         self._closed = False
@@ -360,6 +364,8 @@ class RunWriter:
             samples_missing=self._samples_missing,
             flushes=self._flushes,
             max_queue_depth=self._max_depth,
+            max_write_s=self._max_write_s,
+            max_flush_s=self._max_flush_s,
         )
 
     def close(self, status: str = rf.STATUS_SUCCESS, reason: str = "") -> WriterStats:
@@ -447,15 +453,19 @@ class RunWriter:
 
     def _append(self, buf: np.ndarray, n: int) -> None:
         """Append the first n rows of a pool buffer (n, c) to the samples dataset."""
+        t = time.perf_counter()
         end = self._committed + n
         self._ds.resize((end, self._c))
         self._ds[self._committed : end] = buf[:n]
         self._committed = end
+        self._max_write_s = max(self._max_write_s, time.perf_counter() - t)
 
     def _flush(self) -> None:
         """Flush everything written so far to the file, for SWMR readers and crash safety."""
+        t = time.perf_counter()
         self._f.flush()
         self._flushes += 1
+        self._max_flush_s = max(self._max_flush_s, time.perf_counter() - t)
 
     def _drain_control(self) -> None:
         events: list[DaqEvent] = []
