@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import h5py
@@ -132,15 +130,12 @@ def test_truncated(good_run: Path, tmp_path: Path, frac: float) -> None:
         rf.load_run(p)
 
 
-def test_cli_reports_bad_files_in_one_line(tmp_path: Path) -> None:
+def test_cli_reports_bad_files_in_one_line(tmp_path: Path, capsys) -> None:
+    from rig.cli import main
+
     p = tmp_path / "x.h5"
     p.write_text("hello")
-    r = subprocess.run(
-        [sys.executable, "-m", "rig.cli", "data", "info", str(p)],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-    )
-    assert r.returncode == 2
-    assert r.stderr.strip().startswith("cutlab: error:") and "not an HDF5 file" in r.stderr
-    assert "Traceback" not in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    assert main(["data", "info", str(p)]) == 2
+    err = capsys.readouterr().err
+    assert err.strip().startswith("cutlab: error:") and "not an HDF5 file" in err
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
