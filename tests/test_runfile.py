@@ -14,8 +14,6 @@ from analysis import runfile as rf
 from rig.daq.base import DaqInfo
 from rig.logger import RunWriter
 
-ROOT = Path(__file__).resolve().parent.parent
-
 
 def _info(rate_hz: float = 1000.0, block: int = 250) -> DaqInfo:
     return DaqInfo(
