@@ -21,12 +21,36 @@ def _machine(name: str | None):
     return load_machine(name)
 
 
-def _interpret(args: argparse.Namespace):
-    from planning.nc import Interpreter
+def _progress_lines(path: str):
+    """The file's lines, with a tqdm bar on stderr (by bytes) for big files."""
+    import os
+
     from planning.nc.run import file_lines
 
+    try:
+        size = os.path.getsize(path)
+    except OSError:
+        size = 0
+    if size < 2_000_000:
+        yield from file_lines(path)
+        return
+    from tqdm import tqdm
+
+    with tqdm(total=size, unit="B", unit_scale=True, desc="interpreting", disable=None) as bar:
+        done = 0
+        for i, raw in enumerate(file_lines(path)):
+            done += len(raw)
+            if i % 20_000 == 0:  # update rarely: the loop does ~200k lines/s
+                bar.update(done - bar.n)
+            yield raw
+        bar.update(size - bar.n)
+
+
+def _interpret(args: argparse.Namespace):
+    from planning.nc import Interpreter
+
     it = Interpreter(_machine(args.machine), strict=not args.lenient, file=args.file)
-    motion = it.run(file_lines(args.file))
+    motion = it.run(_progress_lines(args.file))
     return it, motion
 
 
