@@ -306,9 +306,11 @@ def _open(path: str | Path) -> h5py.File:
         if "already open for write" in msg:
             # Killed writer (consistency flags left set) or a live one: SWMR read works for both.
             try:
-                return h5py.File(p, "r", libver="latest", swmr=True)
+                f = h5py.File(p, "r", libver="latest", swmr=True)
             except OSError as exc2:
                 raise RunFileError(f"{p}: cannot open the run file: {exc2}") from None
+            _check_format(f, p)
+            return f
         if "truncated" in msg:
             m = re.search(r"stored_eof = (\d+)", msg)
             want = f" of the {m.group(1)} it should have" if m else ""
