@@ -28,7 +28,7 @@ M_GROUP = {0: "stop", 1: "stop", 2: "stop", 30: "stop", 3: "spindle", 4: "spindl
 KNOWN_M = set(M_GROUP)
 LETTERS = frozenset("ABCDFHIJKLNOPQRSTXYZ")
 LETTERS_GM = LETTERS | {"G", "M"}
-FAST_LETTERS = frozenset("XYZF")
+FAST_LETTERS = frozenset("XYZFN")  # blocks with only these words skip the general word checks
 _GKEY: dict[str, int] = {}  # number text -> G key cache (programs repeat the same few)
 
 

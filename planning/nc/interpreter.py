@@ -312,8 +312,11 @@ class Interpreter:
         # ---- other words
         if not v.keys() <= FAST_LETTERS:
             self._words(raw, v, scale, line, dwell, explicit_motion)
-        elif "F" in v:
-            self._feed(raw, v, scale, line)
+        else:  # only X Y Z F N: the common block
+            if "F" in v:
+                self._feed(raw, v, scale, line)
+            if "N" in v:
+                st.sequence_number = self._whole(raw, v, "N", line)
 
         # ---- M codes before motion (tool change, spindle, coolant)
         end = False
@@ -426,15 +429,7 @@ class Interpreter:
             st.spindle_speed_rpm = s
         for letter in ("T", "D", "H", "O", "N"):
             if letter in v:
-                n = float(v[letter])
-                if n < 0 or n != int(n) or n > 999_999_999:
-                    raise self._fail(
-                        raw,
-                        letter,
-                        f"{letter} must be a whole number in 0..999999999, got {v[letter]}",
-                        line,
-                    )
-                n = int(n)
+                n = self._whole(raw, v, letter, line)
                 if letter == "T":
                     st.tool_selected = n
                 elif letter == "D":
@@ -464,6 +459,18 @@ class Interpreter:
                     f"word {letter} is not used by any code in force (motion G{mode})",
                     line,
                 )
+
+    def _whole(self, raw: str, v: dict[str, str], letter: str, line: int) -> int:
+        """The value of a T D H O N word: a whole number 0..999999999."""
+        n = float(v[letter])
+        if n < 0 or n != int(n) or n > 999_999_999:
+            raise self._fail(
+                raw,
+                letter,
+                f"{letter} must be a whole number in 0..999999999, got {v[letter]}",
+                line,
+            )
+        return int(n)
 
     def _feed(self, raw: str, v: dict[str, str], scale: float, line: int) -> None:
         f = float(v["F"]) * scale
