@@ -172,9 +172,11 @@ class RevolutionStats:
         when the record has holes."""
         x = np.asarray(chunk, float)
         idx = _indices(first_sample, len(x))
-        rev = np.searchsorted(self.edges, idx, side="right") - 1
+        # Sample i lies in revolution k iff round(k spr) <= i < round((k + 1) spr).
+        rev = np.floor((idx + 0.5) / self.spr).astype(np.int64)
         ok = (rev >= 0) & (rev < self.n_rev)
-        rev, x = rev[ok], x[ok]
+        if not ok.all():
+            rev, x = rev[ok], x[ok]
         for c in range(x.shape[1]):
             self.sums[:, c] += np.bincount(rev, weights=x[:, c], minlength=self.n_rev)
             self.sumsq[:, c] += np.bincount(rev, weights=x[:, c] ** 2, minlength=self.n_rev)
