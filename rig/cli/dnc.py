@@ -133,9 +133,10 @@ def _knobs(items: list[str]) -> dict[str, Any]:
         if not sep or not val:
             raise DncError(f"--sim {it!r}: expected KNOB=VALUE, e.g. alarm_at_block=50,2")
         try:
-            nums = tuple(int(v) for v in val.split(","))
+            nums = tuple(float(v) if key.endswith("_s") and i == 0 else int(v)
+                         for i, v in enumerate(val.split(",")))  # fmt: skip
         except ValueError:
-            raise DncError(f"--sim {it!r}: value must be an integer or two (k,code)") from None
+            raise DncError(f"--sim {it!r}: value must be a number or two (k,code)") from None
         out[f"sim_{key}"] = nums[0] if len(nums) == 1 else nums
     return out
 
@@ -194,8 +195,13 @@ def _sim_controller(args: argparse.Namespace) -> int:
         "last_completed_block": ctl.last_completed_block,
         "starved_fraction": ctl.starved_fraction,
         "overruns": ctl.overruns,
+        "framing_errors": ctl.framing_errors,
         "alarm": ctl.alarm,
     }
+    if protocol == "fanuc":
+        summary |= {"xoff_count": ctl.xoff_count, "max_chars_after_xoff": ctl.max_after_xoff}
+    else:
+        summary |= {"planner_full_waits": ctl.planner_waits, "errors": len(ctl.errors)}
     if args.json:
         print_json(summary)
     else:

@@ -60,8 +60,9 @@ class SerialLink:
         self.chunk = chunk_bytes or int(min(64, max(4, (pace_bytes_per_s or 8000) * 2e-3)))
         self.on_data = on_data
         self.on_control = on_control
-        self.xon = threading.Event()
+        self.xon = threading.Event()  # set: the controller lets us send
         self.xon.set()
+        self.xoff = threading.Event()  # set while stopped by DC3 (the complement, to wait on)
         self.dc1_seen = threading.Event()
         self.lost = threading.Event()
         self.lost_reason = ""
@@ -97,8 +98,10 @@ class SerialLink:
                 if self.xon.is_set():
                     self.xoff_count += 1
                 self.xon.clear()
+                self.xoff.set()
             elif self.soft_flow and b == DC1:
                 self.dc1_seen.set()
+                self.xoff.clear()
                 self.xon.set()
             elif b in (DC2, DC4) and self.on_control is not None:
                 if out and self.on_data is not None:

@@ -10,10 +10,18 @@ from planning.nc import ModalState, Motion, NCError, interpret, segment_time_s, 
 from rig.dnc.errors import DncError
 
 
+def nc_text(text: str) -> str:
+    """The program with GRBL ``$`` lines (settings, ``$H``, ``$X``) blanked: they are sent as
+    they are and are not NC, so the interpreter skips them; line numbers are kept."""
+    if "$" not in text:
+        return text
+    return "\n".join("" if ln.lstrip().startswith("$") else ln for ln in text.splitlines())
+
+
 def check_program(text: str, name: str, machine: MachineConfig | None = None) -> None:
     """Interpret the whole program; an NC error is a DncError naming file:line:column."""
     try:
-        interpret(text, machine, file=name)
+        interpret(nc_text(text), machine, file=name)
     except NCError as exc:
         raise DncError(f"{exc} (nothing was sent)") from None
 
@@ -23,7 +31,7 @@ def modal_state_at(
 ) -> ModalState:
     """The modal state in force just before ``block`` (0-based) executes."""
     try:
-        return state_at_block(text, block, machine, file=name)
+        return state_at_block(nc_text(text), block, machine, file=name)
     except NCError as exc:
         raise DncError(f"restart from block {block}: {exc} (nothing was sent)") from None
 

@@ -121,6 +121,8 @@ class SimControllerBase:
         disappears); :meth:`reopen` gives a new one.
     sim_overrun_at_byte : the receiver reports an overrun on this received byte (1-based).
     sim_alarm_at_block : ``(k, code)``: alarm ``code`` when block ``k`` (0-based order) starts.
+    sim_stop_answering_at_s : go silent at this simulated time, s.
+    sim_alarm_at_s : ``(t, code)``: alarm ``code`` at simulated time ``t``, s.
     """
 
     protocol = ""
@@ -138,8 +140,12 @@ class SimControllerBase:
         sim_drop_port_after_block: int | None = None,
         sim_overrun_at_byte: int | None = None,
         sim_alarm_at_block: tuple[int, int] | None = None,
+        sim_stop_answering_at_s: float | None = None,
+        sim_alarm_at_s: tuple[float, int] | None = None,
     ) -> None:
         self.machine = machine
+        self.sim_stop_answering_at_s = sim_stop_answering_at_s
+        self.sim_alarm_at_s = sim_alarm_at_s
         self.clock = clock if clock is not None else SimClock(speed)
         self.baudrate = int(baudrate)
         self.char_time_s = bits_per_char / float(baudrate)
@@ -320,6 +326,7 @@ class SimControllerBase:
             with self._lock:
                 now = self.clock.now()
                 self._deliver(now)
+                self._time_knobs(now)
                 self._advance(now)
                 self._periodic(now)
                 self._flush_out()
@@ -407,6 +414,22 @@ class SimControllerBase:
     def _periodic(self, now: float) -> None:
         """Protocol hook run every loop pass (e.g. Fanuc re-sending DC1 while it waits)."""
 
+    def _time_knobs(self, now: float) -> None:
+        if self.sim_alarm_at_s is not None and now >= self.sim_alarm_at_s[0]:
+            t, code = self.sim_alarm_at_s
+            self.sim_alarm_at_s = None
+            self._advance(t)
+            self._raise_alarm(int(code), f"injected at t = {t:g} s", t)
+        if self.sim_stop_answering_at_s is not None and now >= self.sim_stop_answering_at_s:
+            t = self.sim_stop_answering_at_s
+            self.sim_stop_answering_at_s = None
+            self._advance(t)
+            self._go_silent(f"stopped answering at t = {t:g} s")
+
+    def _go_silent(self, detail: str) -> None:
+        self.silent = True
+        self._event("silent", detail)
+
     # -- receiving (protocol) ------------------------------------------------------------------
     def _on_bytes(self, data: bytes, t: float) -> None:
         raise NotImplementedError
@@ -429,8 +452,7 @@ class SimControllerBase:
         stop_after = self.sim_stop_answering_after_block
         if stop_after is not None and k >= stop_after:
             self.sim_stop_answering_after_block = None  # one-shot: a reset brings it back
-            self.silent = True
-            self._event("silent", f"stopped answering after {k} blocks")
+            self._go_silent(f"stopped answering after {k} blocks")
             return False
         if self.sim_drop_port_after_block is not None and k >= self.sim_drop_port_after_block:
             # The block that arrived is kept (and runs); nothing more comes in.

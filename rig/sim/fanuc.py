@@ -30,7 +30,8 @@ Behaviour
 Fault knobs (``sim_``): ``sim_stop_answering_after_block=k`` (after k blocks: DC3, then silence),
 ``sim_drop_port_after_block=k`` (close the pty; :meth:`reopen` gives a new path),
 ``sim_overrun_at_byte=n`` (the UART reports an overrun on byte n: alarm SR0087),
-``sim_alarm_at_block=(k, code)`` (alarm when block k starts).
+``sim_alarm_at_block=(k, code)`` (alarm when block k starts), ``sim_stop_answering_at_s=t`` and
+``sim_alarm_at_s=(t, code)`` (the same at simulated time t).
 
 Notes
 -----
@@ -89,6 +90,8 @@ class SimFanuc(SimControllerBase):
         sim_drop_port_after_block: int | None = None,
         sim_overrun_at_byte: int | None = None,
         sim_alarm_at_block: tuple[int, int] | None = None,
+        sim_stop_answering_at_s: float | None = None,
+        sim_alarm_at_s: tuple[float, int] | None = None,
     ) -> None:
         if flow_control == "rtscts":
             raise SimControllerError(
@@ -114,6 +117,8 @@ class SimFanuc(SimControllerBase):
             sim_drop_port_after_block=sim_drop_port_after_block,
             sim_overrun_at_byte=sim_overrun_at_byte,
             sim_alarm_at_block=sim_alarm_at_block,
+            sim_stop_answering_at_s=sim_stop_answering_at_s,
+            sim_alarm_at_s=sim_alarm_at_s,
         )
         self.flow = flow_control == "xonxoff"
         self.xoff_at = rx_buffer_bytes - xoff_free_bytes
@@ -212,14 +217,12 @@ class SimFanuc(SimControllerBase):
             return None
         return b
 
-    def _block_received(self) -> bool:
-        ok = super()._block_received()
-        if self.silent and self.flow and not self.xoff_sent:
-            self.silent = False
+    def _go_silent(self, detail: str) -> None:
+        # a control that stops reading holds the line with DC3 (else the sender would go on)
+        if self.flow and not self.xoff_sent:
             self._send(DC3)
             self.xoff_sent = True
-            self.silent = True
-        return ok
+        super()._go_silent(detail)
 
     def request_program(self, name: str, start_block: int = 0) -> None:
         """Punch a remote request ``O9999 (PRG=name) (BLK=n)`` framed by DC2 ... DC4 (as the

@@ -31,7 +31,8 @@ Fault knobs (``sim_``): ``sim_stop_answering_after_block=k`` (after k lines: sil
 ``sim_drop_port_after_block=k`` (close the pty; :meth:`reopen` gives a new path),
 ``sim_overrun_at_byte=n`` (drop received byte n, as an overrun would), ``sim_error_at_block=(k,
 code)`` (answer line k with ``error:code`` once, not executing it), ``sim_alarm_at_block=(k,
-code)`` (``ALARM:code`` when line k starts; motion stops, buffers flushed, Alarm lock until ``$X``).
+code)`` (``ALARM:code`` when line k starts; motion stops, buffers flushed, Alarm lock until ``$X``),
+``sim_stop_answering_at_s=t``, ``sim_alarm_at_s=(t, code)`` (the same at simulated time t).
 
 Notes
 -----
@@ -104,6 +105,8 @@ class SimGrbl(SimControllerBase):
         sim_overrun_at_byte: int | None = None,
         sim_error_at_block: tuple[int, int] | None = None,
         sim_alarm_at_block: tuple[int, int] | None = None,
+        sim_stop_answering_at_s: float | None = None,
+        sim_alarm_at_s: tuple[float, int] | None = None,
     ) -> None:
         super().__init__(
             machine,
@@ -116,6 +119,8 @@ class SimGrbl(SimControllerBase):
             sim_drop_port_after_block=sim_drop_port_after_block,
             sim_overrun_at_byte=sim_overrun_at_byte,
             sim_alarm_at_block=sim_alarm_at_block,
+            sim_stop_answering_at_s=sim_stop_answering_at_s,
+            sim_alarm_at_s=sim_alarm_at_s,
         )
         self.planner_blocks = planner_blocks
         self.sim_error_at_block = sim_error_at_block
