@@ -69,9 +69,8 @@ def near(tree: cKDTree, tool: ToolSystem, tip, u, pad_mm: float) -> np.ndarray:
     z, rad = tool.stations()
     centres = tip + z[:, None] * u
     hits = tree.query_ball_point(centres, rad + pad_mm, return_sorted=False)
-    if not any(len(h) for h in hits):
-        return np.empty(0, dtype=np.intp)
-    return np.unique(np.concatenate([np.asarray(h, dtype=np.intp) for h in hits]))
+    # A set union is cheaper than np.unique for the few hundred indices involved.
+    return np.fromiter(set().union(*hits), dtype=np.intp)
 
 
 def inside_mask(tool: ToolSystem, sd: np.ndarray, which: np.ndarray, tol_mm, clearance_mm):

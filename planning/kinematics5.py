@@ -125,7 +125,7 @@ def inverse(
             sols.append((-sols[0][0], sols[0][1] + 180.0))
         else:
             # Rz(C) (ux, uy) = (0, -sin A); cos A = uz.
-            a0 = np.degrees(np.arccos(np.clip(uz, -1, 1)))
+            a0 = np.degrees(np.arctan2(rho, uz))  # = arccos(uz), without its loss near 0
             sols = [(a0, np.degrees(np.arctan2(-ux, -uy))), (-a0, np.degrees(np.arctan2(ux, uy)))]
         if rho < 1e-12:  # axis along the C axis: C is free, keep it
             sols = [(s[0], prev_c) for s in sols]

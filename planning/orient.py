@@ -38,7 +38,7 @@ from planning.errors import PlanningError
 from planning.nurbs import NurbsSurface
 from planning.orient_check import CheckMesh, check
 from planning.orient_config import OrientConfig
-from planning.orient_tool import ToolSystem, local_frame, szende_K
+from planning.orient_tool import ToolSystem, local_frame, szende_K, szende_K_grad
 
 K_CAP_PER_MM = 1e3  # stands in for the flat end mill's infinite K at alpha = 0, beta != 0
 
@@ -282,10 +282,22 @@ def curvature_optimum(ctx: _Context, kappa: float, prev: np.ndarray) -> np.ndarr
         return grid[int(np.argmax(gap))]
     x0 = grid[int(np.argmin(np.where(free, Jg, np.inf)))]
     J = _objective(ctx, kappa, prev)
-    cons = [{"type": "ineq", "fun": lambda th: _gap(ctx, kappa, th) - ctx.margin}]
+    r_mm = ctx.tool.r_mm
+
+    def dJ(th):
+        return R * szende_K_grad(th[0], th[1], R, r_mm) + 2 * w * (th - prev)
+
+    cons = [
+        {
+            "type": "ineq",
+            "fun": lambda th: _gap(ctx, kappa, th) - ctx.margin,
+            "jac": lambda th: szende_K_grad(th[0], th[1], R, r_mm),
+        }
+    ]
     res = minimize(
         J,
         x0,
+        jac=dJ,
         method="SLSQP",
         bounds=ctx.bounds,
         constraints=cons,
@@ -346,6 +358,16 @@ def solve_point(ctx: _Context, site: Site, kappa: float, prev: np.ndarray):
     p = np.clip(prev, ctx.bounds[:, 0], ctx.bounds[:, 1])
     th_f = p if _free(ctx, site, kappa, p) else None
     if th_f is None:
+        # The neighbour's answer sits on the edge of its free set; step back from the optimum.
+        away = p - th_c
+        if np.linalg.norm(away) > 1e-9:
+            away /= np.linalg.norm(away)
+            for d in np.radians([0.5, 1.5, 4.0]):
+                cand = np.clip(p + d * away, ctx.bounds[:, 0], ctx.bounds[:, 1])
+                if _free(ctx, site, kappa, cand):
+                    th_f = cand
+                    break
+    if th_f is None:
         th_f = _best_first(ctx, site, kappa, prev, budget=40)
     if th_f is None:
         # Seed 002's way out: down the energy gradient from the curvature optimum.
@@ -357,13 +379,7 @@ def solve_point(ctx: _Context, site: Site, kappa: float, prev: np.ndarray):
     if th_f is None:
         return None, _why_infeasible(ctx, site), np.nan, None
     th = _towards(ctx, site, kappa, th_f, th_c)
-    # Local improvement: a few grid orientations of lower objective than the answer so far.
-    J = _objective(ctx, kappa, prev)
-    better = _best_first(ctx, site, kappa, prev, budget=30, below=J(th), gate=False)
-    if better is not None:
-        th2 = _towards(ctx, site, kappa, better, th_c)
-        if J(th2) < J(th):
-            th = th2
+    th = _polish(ctx, site, kappa, prev, th)
     for cand in (th, th_f):
         gate = ctx.gate(site, cand)
         if gate.ok:
@@ -374,7 +390,7 @@ def solve_point(ctx: _Context, site: Site, kappa: float, prev: np.ndarray):
     return None, _why_infeasible(ctx, site), np.nan, None
 
 
-def _towards(ctx: _Context, site: Site, kappa: float, th_f, th_c, steps: int = 8):
+def _towards(ctx: _Context, site: Site, kappa: float, th_f, th_c, steps: int = 6):
     """Furthest point from the collision-free th_f towards th_c still free (bisection on U = 0)."""
     good, bad = 0.0, 1.0
     for _ in range(steps):
@@ -384,6 +400,38 @@ def _towards(ctx: _Context, site: Site, kappa: float, th_f, th_c, steps: int = 8
         else:
             bad = t
     return th_f + good * (th_c - th_f)
+
+
+_COMPASS = np.array([[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [1, -1], [-1, 1], [-1, -1]])
+
+
+def _polish(ctx: _Context, site: Site, kappa: float, prev, th, budget: int = 16):
+    """Compass search on the objective inside U = 0: from th, try steps of 4, 2, 1, 0.5 deg
+    along +-alpha, +-beta and the diagonals, best predicted first, taking the first that lowers
+    the objective and stays free.
+
+    The collision-free set is often a band (seed 002 Fig. 8); this walks along it towards
+    better curvature matching at a cost of at most ``budget`` energy evaluations.
+    """
+    J = _objective(ctx, kappa, prev)
+    lo, hi = ctx.bounds[:, 0], ctx.bounds[:, 1]
+    best = J(th)
+    step = np.radians(4.0)
+    used = 0
+    while step >= np.radians(0.5) and used < budget:
+        cands = [np.clip(th + d, lo, hi) for d in step * _COMPASS]
+        cands = sorted((J(c), i, c) for i, c in enumerate(cands) if J(c) < best - 1e-12)
+        moved = False
+        for jc, _, c in cands:
+            if used >= budget:
+                break
+            used += 1
+            if _free(ctx, site, kappa, c):
+                th, best, moved = c, jc, True
+                break
+        if not moved:
+            step /= 2
+    return th
 
 
 def _free(ctx: _Context, site: Site, kappa: float, th) -> bool:

@@ -119,7 +119,7 @@ class PlannerSettings(Model):
     gouge_tolerance_mm: float = Field(0.005, gt=0, le=1, description="mm, allowed overcut")
     clearance_mm: float = Field(1.0, ge=0, le=100, description="mm, holder and nose clearance")
     smoothness_weight: float = Field(
-        0.5, ge=0, le=1000, description="per rad^2 of angle change, against R (K - kappa)"
+        5.0, ge=0, le=1000, description="per rad^2 of angle change, against R (K - kappa)"
     )
     curvature_margin_per_mm: float = Field(0.0, ge=0, le=10, description="1/mm, K - kappa floor")
     feed_mm_min: float = Field(1000.0, gt=0, le=200_000, description="mm/min")

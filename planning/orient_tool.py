@@ -84,6 +84,22 @@ def szende_K(alpha, beta, R_mm: float, r_mm: float) -> np.ndarray:
     return K
 
 
+def szende_K_grad(alpha: float, beta: float, R_mm: float, r_mm: float) -> np.ndarray:
+    """(dK/dalpha, dK/dbeta) of :func:`szende_K` in 1/mm per rad, scalar angles (0 at the
+    singular 0/0 point)."""
+    c = np.cos(alpha) * np.cos(beta)
+    q = max(1.0 - c * c, 0.0)
+    X = q**1.5
+    s2 = np.sin(alpha) ** 2
+    D = (R_mm - r_mm) * s2 + r_mm * X
+    if D <= 0:
+        return np.zeros(2)
+    dc = np.array([-np.sin(alpha) * np.cos(beta), -np.cos(alpha) * np.sin(beta)])
+    dX = -3.0 * np.sqrt(q) * c * dc
+    dD = np.array([(R_mm - r_mm) * np.sin(2 * alpha), 0.0]) + r_mm * dX
+    return (dX * D - X * dD) / (D * D)
+
+
 def cutter_position(p: np.ndarray, n: np.ndarray, u: np.ndarray, R_mm: float, r_mm: float):
     """Tool tip (bottom centre on the axis) and cutter centre for contact at p, shape (..., 3).
 
