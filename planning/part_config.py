@@ -137,7 +137,7 @@ class Part:
         self.lee_tool: EndMill = tool if second is None else get_tool(second, lib)  # type: ignore[assignment]
         if not isinstance(self.lee_tool, EndMill) or self.lee_tool.kind != "flat":
             raise ConfigError(f"{where}: rough.lee_second_tool = {second!r}: needs a flat end mill")
-        self.surface = self._surface(config.surface, where)
+        self.surface = self._surface(config.surface, f"{where}: surface")
 
     def _lib(self, library: str | None) -> Path | None:
         if library is None:
