@@ -341,9 +341,11 @@ def reduce_run_file(
         raise AnalysisError(f"run {name}: {exc}") from None
     lo = part.window.start
     probe = next(iter_run_chunks(path, min(1 << 20, part.window.stop - lo), lo, part.window.stop))
-    seg = probe[1]
     part = part.with_period(
-        refine_period(np.linalg.norm(seg - seg.mean(axis=0), axis=1), rate, part.period_s), rate
+        refine_period(
+            np.linalg.norm(probe[1] - probe[1].mean(axis=0), axis=1), rate, part.period_s
+        ),
+        rate,
     )
     nb = n_bins or default_bins(rate, part.period_s)
     avg = SyncAverager(rate, part.period_s, nb)
@@ -353,8 +355,14 @@ def reduce_run_file(
         if progress:
             progress(len(idx))
     wave = avg.mean()
+    # Tooth peaks from the in-memory probe (up to 2^20 samples of the steady part).
+    low = float(np.argmin(np.linalg.norm(wave, axis=1))) / nb * 2 * np.pi
+    t = (probe[0] - lo) / rate
+    seg = probe[1] - part.offset_n - t[:, None] * part.drift_n_s
+    peaks = tooth_peaks(seg, rate, part.period_s, teeth, phase_rad=low)
     return RunAverage(
         name=name, conditions=c, rate_hz=rate, waveform_n=wave, mean_n=wave.mean(axis=0),
         period_s=part.period_s, revolutions=part.steady_revs,
         window=(part.window.start, part.window.stop), offset_n=part.offset_n,
+        tooth_peak_n=peaks.mean_peak_n, runout_ratio=peaks.runout_ratio,
     )  # fmt: skip

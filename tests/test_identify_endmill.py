@@ -79,3 +79,15 @@ def test_too_few_runs_one_feed_and_wrong_tool(modes):
         fit_endmill([], fm)
     with pytest.raises(AnalysisError, match="radial width"):
         fit_endmill_runs(_runs(FLAT, "down", np.nan, modes, feeds=(0.05,)) * 3, FLAT)
+
+
+def test_tooth_peaks_show_runout():
+    rng = np.random.default_rng(8)
+    c = RunConditions(spindle_rpm=3000, fz_mm=0.05, depth_mm=2.0, width_mm=10.0, mode="slot")
+    straight = FLAT.model_copy(update={"helix_deg": 0.0})
+    clean = reduce_run(synthetic_endmill_run("c", straight, TRUE, c, cut_s=1.0, rng=rng), 3)
+    wobbly_tool = straight.model_copy(update={"runout_mm": 0.01})
+    wobbly = reduce_run(synthetic_endmill_run("w", wobbly_tool, TRUE, c, cut_s=1.0, rng=rng), 3)
+    assert clean.tooth_peak_n.shape == (3,)
+    assert clean.runout_ratio < 0.05
+    assert wobbly.runout_ratio > 0.15

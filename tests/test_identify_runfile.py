@@ -66,6 +66,7 @@ def test_streamed_reduction_equals_in_memory(files):
     assert streamed.conditions.depth_mm == 1.5
     assert streamed.window == direct.window
     np.testing.assert_allclose(streamed.waveform_n, direct.waveform_n, atol=0.05)
+    np.testing.assert_allclose(streamed.tooth_peak_n, direct.tooth_peak_n, rtol=0.05)
 
 
 def test_fit_from_run_files(files):
