@@ -146,3 +146,17 @@ def test_starvation_is_measured_when_the_line_is_too_slow() -> None:
     with ctl:
         GrblStreamer(grbl_cfg(ctl.path), pace_bytes_per_s=1000.0).send(prog)
     assert ctl.starved_fraction > 0.5
+
+
+def test_grbl_program_end_and_next_program() -> None:
+    """M30 ends the program (event), resets the modal state; a second program runs after it."""
+    prog = line_program(20, grbl=True)
+    ctl = SimGrbl(clock=SimClock(10.0))
+    ends = []
+    ctl.add_listener(on_event=lambda ev: ev.kind == "program_end" and ends.append(ev))
+    with ctl:
+        for _ in range(2):
+            GrblStreamer(grbl_cfg(ctl.path), pace_bytes_per_s=GRBL_LINE_B_S * 10).send(prog)
+    assert len(ends) == 2
+    assert ctl.executed_texts() == 2 * [b.text for b in prog.blocks]
+    assert ctl.interp.state.spindle_dir == 0 and not ctl.interp.state.ended

@@ -92,6 +92,7 @@ class _Planned:
     spindle_rpm: float
     t_ready: float
     n_number: int = -1
+    ends_program: bool = False  # M2/M30 in this block
 
 
 _N_WORD = re.compile(r"\s*/?\s*[Nn]\s*(\d+)")
@@ -466,13 +467,15 @@ class SimControllerBase:
     def _interpret(self, text: str, t_ready: float) -> _Planned:
         """Interpret one block ready at ``t_ready``; raises NCError (state unchanged)."""
         seq = self._seq
+        ended = self.interp.state.ended
         motion = self.interp.execute(text, block=seq)
         self._seq += 1
         st = self.interp.state
         rpm = float(st.spindle_speed_rpm * st.spindle_dir)
         dur = segment_durations_s(motion, self.rapid_mm_min)
         m = _N_WORD.match(text)
-        return _Planned(seq, text, motion, dur, rpm, t_ready, int(m.group(1)) if m else -1)
+        n = int(m.group(1)) if m else -1
+        return _Planned(seq, text, motion, dur, rpm, t_ready, n, st.ended and not ended)
 
     # -- execution -----------------------------------------------------------------------------
     def _advance(self, now: float) -> None:

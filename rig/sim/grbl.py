@@ -24,6 +24,7 @@ Behaviour
   otherwise 20), any line while in Alarm (9). Empty lines are answered ``ok``.
 - ``$`` lines: ``$$`` (settings), ``$I``, ``$G``, ``$#``, ``$X`` (unlock), ``$H`` (homing: goes to
   0,0,0), ``$C``, ``$N``, ``$n=value`` are answered; others ``error:3``.
+- M2/M30 ends the program (event ``program_end`` when it has run) and resets the modal state.
 - Status report ``<State|MPos:x,y,z|Bf:planner_free,rx_free|FS:feed,rpm>`` (as with ``$10=2``
   plus buffer data); states Idle, Run, Hold:0, Alarm.
 
@@ -242,6 +243,10 @@ class SimGrbl(SimControllerBase):
             self._error(_error_code(exc.reason), text)
             return
         self._plan.append(planned)
+        if planned.ends_program:  # M2/M30: GRBL resets its modal state for the next program
+            pos = self.interp.state.position_mm  # where the planned motion ends
+            self._new_interpreter()
+            self.interp.state.position_mm = pos
         self._reply(b"ok")
 
     def _dollar(self, text: str) -> None:
@@ -282,6 +287,9 @@ class SimGrbl(SimControllerBase):
 
     # -- executor hooks ------------------------------------------------------------------------
     def _on_block_done(self, b: _Planned) -> None:
+        if b.ends_program:
+            self._event("program_end", f"{b.seq + 1} blocks", self._seg_t1)
+            self._started = False
         self._process_lines(self._seg_t1)
 
     def _next_block(self, now: float) -> _Planned | None:
