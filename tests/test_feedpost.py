@@ -514,9 +514,9 @@ def test_adjusted_feeds_even_out_the_predicted_force_across_the_steps() -> None:
 
 
 def test_rapid_through_the_stock_is_reported() -> None:
-    text = "G21 G90\nG0 X-10 Y30 Z-2\nG0 X90\nG1 X100 F500\nG0 Z20\n"
+    text = "G21 G90\nG0 Z5\nG0 X-10 Y30\nZ-2\nG0 X90 (through the block)\nG1 X100 F500\nG0 Z20\n"
     stock = ZMap.box(0, 80, 0, 60, bottom_mm=-10, top_mm=0, spacing_mm=0.5)
     rule = derive_rule("r", 100, 500, 2000, slot_load_percent("flat", 10, 2, 22))
     r = run(text, "phi10-flat", stock, rule=rule)
-    assert r.summary()["rapid_cut_blocks"] == [2]
+    assert r.summary()["rapid_cut_blocks"] == [4]
     assert any("rapid" in n for n in r.notes)
