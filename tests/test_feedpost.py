@@ -520,3 +520,30 @@ def test_rapid_through_the_stock_is_reported() -> None:
     r = run(text, "phi10-flat", stock, rule=rule)
     assert r.summary()["rapid_cut_blocks"] == [4]
     assert any("rapid" in n for n in r.notes)
+
+
+arcs = st.lists(
+    st.tuples(st.floats(5, 30), st.floats(0.3, 5.5), st.booleans(), st.floats(-2.0, 0.0)),
+    min_size=1,
+    max_size=3,
+)
+
+
+@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(spec=arcs, piece=st.floats(2.0, 10.0))
+def test_programs_with_arcs_move_like_the_original(spec: list, piece: float) -> None:
+    # Arcs about the stock centre: radius r, sweep up to ~315 deg, CW or CCW, at depth z.
+    lines = ["%", "G21 G90 G17", "G0 X50 Y30 Z5", "G1 Z-0.5 F700"]
+    for r, sweep, cw, z in spec:
+        a1 = sweep if not cw else -sweep
+        x0, y0 = 50 + r, 30.0
+        x1, y1 = 50 + r * math.cos(a1), 30 + r * math.sin(a1)
+        lines += [f"G1 X{x0:.4f} Y{y0:.4f} Z{z:.3f}"]
+        lines += [f"{'G2' if cw else 'G3'} X{x1:.4f} Y{y1:.4f} I{-r:.4f} J0"]
+    lines += ["G0 Z30", "M30", "%"]
+    stock = ZMap.box(0, 100, 0, 60, bottom_mm=-20, top_mm=0, spacing_mm=0.5)
+    rule = derive_rule("h", 100, 700, 2500, slot_load_percent("flat", 10, 0.5, 22))
+    r = run("\n".join(lines), "phi10-flat", stock, rule=rule, min_piece_mm=piece)
+    assert_same_geometry(r)
+    feeds = r.motion_after.feed_mm_min[r.motion_after.is_feed]
+    assert np.all((feeds >= 100) & (feeds <= 2500))
