@@ -388,8 +388,7 @@ class RoughPlanner:
                 n_closed[a, c] = lp.n_closed
                 n_pass[a, c] = len(lp.passes)
                 link[a, c] = lp.link_xy_mm
-            if c % 10 == 0:
-                self._tick(f"optimal: costs of {c}/{n - 2} candidate heights")
+            self._tick(f"optimal: costs at height {c}/{n - 2}")
         cost = self._cost_fn(P, path, n_closed, n_pass, link)
         f = np.zeros((n, n))
         choice = np.full((n, n), -1, dtype=int)

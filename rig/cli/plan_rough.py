@@ -12,6 +12,7 @@ roughed Z-map and the material left).
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -59,6 +60,8 @@ def _comparison(totals: dict) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
     from planning._rough_gcode import MoveSettings, plan_motion, plan_program, plan_totals
     from planning.errors import PlanningError
     from planning.part_config import Part, load_part
@@ -74,8 +77,14 @@ def run(args: argparse.Namespace) -> int:
         rough = cfg.rough.model_copy(update={"cusp_model": args.cusp_model})
         part = Part(cfg.model_copy(update={"rough": rough}), part.path)
     t0 = time.perf_counter()
-    planner = RoughPlanner(part, progress=status)
-    plans = planner.plan_all()
+    with tqdm(desc="plan rough", unit="step", file=sys.stderr, leave=False) as bar:
+
+        def progress(msg: str) -> None:
+            bar.set_postfix_str(msg, refresh=False)
+            bar.update()
+
+        planner = RoughPlanner(part, progress=progress)
+        plans = planner.plan_all()
     status(f"planned 4 methods in {time.perf_counter() - t0:.1f} s")
     motions = {m: plan_motion(p, part) for m, p in plans.items()}
     totals = {m: plan_totals(p, part, motions[m]) for m, p in plans.items()}
