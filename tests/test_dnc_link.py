@@ -8,7 +8,7 @@ import pytest
 import serial
 from _dnc_helpers import GRBL_LINE_B_S, grbl_cfg
 
-from rig.dnc import GrblStreamer, program_from_text
+from rig.dnc import GrblStreamer, MemorySink, program_from_text
 from rig.dnc.link import DC1, DC3, LinkLost, LinkTimeout, SerialLink
 from rig.sim.clock import SimClock
 from rig.sim.grbl import SimGrbl
@@ -77,9 +77,13 @@ def test_grbl_dollar_lines_are_left_alone() -> None:
     prog = program_from_text(text, "d.nc")
     ctl = SimGrbl(clock=SimClock(10.0))
     with ctl:
-        st = GrblStreamer(grbl_cfg(ctl.path), pace_bytes_per_s=GRBL_LINE_B_S * 10)
+        sink = MemorySink()
+        st = GrblStreamer(grbl_cfg(ctl.path), sink=sink, pace_bytes_per_s=GRBL_LINE_B_S * 10)
         res = st.send(prog)
     assert res.ok and res.blocks_sent == 6
+    # the $$ dump is not taken for answers: one ok per line, in order
+    assert [r.status for r in sink.rows] == ["ok"] * 6
+    assert "$110=500.000" in st.messages
     assert ctl.settings[110] == 800.0
     assert ctl.executed_texts() == ["G21 G90", "G1 X1 F600", "G1 X2"]
 

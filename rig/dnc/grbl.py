@@ -149,6 +149,7 @@ class GrblStreamer(StreamerBase):
         self._reports = 0
         self._starved_reports = 0
         self._heard_any = False
+        self._seen_run = False
 
     # -- real-time commands (any thread) ---------------------------------------------------------
     def _rt(self, cmd: bytes) -> None:
@@ -210,21 +211,22 @@ class GrblStreamer(StreamerBase):
             if item[1].startswith("<"):
                 st = parse_status(item[1])
                 self.last_status = st
-                if self._streaming.is_set():
+                self._seen_run = self._seen_run or st.state in ("Run", "Hold")
+                if self._streaming.is_set() and self._seen_run:
                     self._reports += 1
                     self._starved_reports += st.state == "Idle"
             return item
 
     def _next(self, heard: list[float]) -> tuple[float, str]:
-        """Next answer line (``ok``, ``error:N``, ``ALARM:N``, banner); reports are consumed."""
+        """Next answer line (``ok``, ``error:N``, ``ALARM:N``, the banner); status reports,
+        ``[...]`` messages, ``$n=v`` setting dumps and echoes are kept in ``messages``."""
         while True:
             t, line = self._get(heard)
             if line.startswith("<"):
                 continue
-            if line.startswith("[") or line.startswith(">"):
-                self.messages.append(line)
-                continue
-            return t, line
+            if line == "ok" or line.startswith(("error:", "ALARM:", "Grbl")):
+                return t, line
+            self.messages.append(line)
 
     def _wait_state(self, heard: list[float], ok: Callable[[GrblStatus], bool]) -> None:
         """Poll until a fresh status report satisfies ``ok``."""

@@ -22,8 +22,9 @@ class StreamResult:
     seconds : wall s from opening the port to the end
     bytes_per_s, line_bytes_per_s : achieved rate and what the line carries at its baud rate
     xoff_count : DC3 stops received (Fanuc with flow control in the streamer)
-    starved_fraction : fraction of GRBL status reports, while streaming, in which the controller
-        was idle waiting for blocks (None where the controller does not report it)
+    starved_fraction : fraction of GRBL status reports, from the first in state Run to the last
+        block sent, in which the controller was Idle waiting for blocks (None where the controller
+        does not report it: Fanuc, or no report in that span)
     fault : ``""`` or the :class:`~rig.dnc.errors.StreamFault` kind; ``reason`` says why
     """
 

@@ -252,7 +252,10 @@ class SimGrbl(SimControllerBase):
     def _dollar(self, text: str) -> None:
         cmd = text.upper().replace(" ", "")
         if cmd == "$$":
-            out = "".join(f"${k}={v}\r\n" for k, v in sorted(self.settings.items()))
+            out = "".join(
+                f"${k}={v:.3f}\r\n" if isinstance(v, float) else f"${k}={v}\r\n"
+                for k, v in sorted(self.settings.items())
+            )
             self._send(out.encode())
         elif cmd == "$X":
             if self.alarm:
