@@ -262,15 +262,14 @@ class ExecutorMixin:
         """Protocol hook: tell the streamer (GRBL) or hold the line (Fanuc)."""
 
     def reset(self) -> None:
-        """RESET: stop motion, clear buffers and the alarm (protocols refine this)."""
+        """RESET: stop motion, clear buffers and the alarm (protocols refine this). The machine
+        stays where it stopped: the next program starts from there."""
         with self._lock:
             now = self.clock.now()
             if self._cur is not None:
                 self._interrupt(now, "reset")
             else:
                 self._event("reset", "", now)
-            if self._cur is not None and len(self._cur.motion):
-                pass  # _interrupt left self._pos at the point reached
             self._cur = None
             self._plan.clear()
             self._wire.clear()
