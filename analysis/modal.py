@@ -41,6 +41,7 @@ __all__ = [
     "double_hit",
     "half_power",
     "modal_analysis",
+    "plot_frf",
     "split_hits",
     "tooth_passing_warnings",
 ]
@@ -293,4 +294,34 @@ def tooth_passing_warnings(
                         f"({k * ftp:.0f} Hz) is within {tol:.0f} Hz of the {axis} mode at "
                         f"{fn:.0f} Hz; measured forces will be amplified"
                     )
+    return out
+
+
+def plot_frf(result: ModalResult, path):
+    """PNG: |H1| and coherence per analysed channel, with the identified modes marked."""
+    from pathlib import Path
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(9, 6), sharex=True, constrained_layout=True)
+    f = result.freq_hz
+    for k, m in enumerate(result.modes):
+        c = ["x", "y", "z"].index(m.channel) if m.channel in ("x", "y", "z") else k
+        a1.semilogy(f, np.abs(result.frf[c]), color=f"C{k}", label=f"{m.channel}: "
+                    f"{m.frequency_hz:.0f} Hz, zeta {m.damping_ratio:.4f}")  # fmt: skip
+        a1.axvline(m.frequency_hz, color=f"C{k}", ls=":", lw=0.8)
+        a2.plot(f, result.coherence[c], color=f"C{k}")
+    a1.set_ylabel("|H1| (response / hammer)")
+    a1.legend(fontsize=8)
+    a1.grid(True, which="both", alpha=0.3)
+    a2.set_ylabel("coherence")
+    a2.set_xlabel("frequency, Hz")
+    a2.set_ylim(0, 1.05)
+    a2.grid(True, alpha=0.3)
+    out = Path(path)
+    fig.savefig(out, dpi=100)
+    plt.close(fig)
     return out

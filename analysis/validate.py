@@ -25,7 +25,7 @@ from analysis._identify import RunAverage
 from analysis.config import EndMill, EndMillCoefficients, FaceMill, FaceMillCoefficients
 from analysis.errors import AnalysisError
 
-__all__ = ["Comparison", "compare_runs", "plot_comparison", "predicted_mean"]
+__all__ = ["Comparison", "compare_runs", "plot_comparison", "plot_waveforms", "predicted_mean"]
 
 
 def predicted_mean(
@@ -141,5 +141,47 @@ def plot_comparison(cmp: Comparison, out_dir: str | Path, stem: str = "validatio
     fig.suptitle(f"predicted vs measured (largest error {cmp.max_error_pct:.2f} % of resultant)")
     path = out / f"{stem}_mean_forces.png"
     fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return [path]
+
+
+def plot_waveforms(
+    averages: Sequence[RunAverage], tool: FaceMill, coef: FaceMillCoefficients,
+    out_dir: str | Path, dynamometer=None, stem: str = "waveforms", max_runs: int = 6,
+) -> list[Path]:  # fmt: skip
+    """PNG: each run's revolution-averaged X, Y, Z force, measured vs predicted (face mills; the
+    prediction goes through the dynamometer's modes and is aligned to the run's phase)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from analysis.identify_facemill import _filter_for, _phase, predicted_waveform
+
+    if not isinstance(tool, FaceMill):
+        raise AnalysisError("waveform plots need the face-mill model (end mills: mean forces)")
+    runs = list(averages)[:max_runs]
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    fig, axes = plt.subplots(len(runs), 1, figsize=(10, 2.4 * len(runs)), squeeze=False,
+                             constrained_layout=True)  # fmt: skip
+    for ax, a in zip(axes[:, 0], runs):
+        filt = _filter_for(dynamometer, a.rate_hz)
+        phase = _phase(a, tool, filt)
+        pred = predicted_waveform(a, tool, coef, filt, phase)
+        ang = np.degrees(phase + 2 * np.pi * np.arange(len(a.waveform_n)) / len(a.waveform_n))
+        ang = ang % 360
+        order = np.argsort(ang)
+        for i, name in enumerate("XYZ"):
+            ax.plot(ang[order], a.waveform_n[order, i], color=f"C{i}", lw=1, label=f"F{name}")
+            ax.plot(ang[order], pred[order, i], color=f"C{i}", lw=1, ls="--")
+        ax.set_title(f"{a.name}: fz {a.conditions.fz_mm:g} mm, depth {a.conditions.depth_mm:g} "
+                     "mm (solid measured, dashed predicted)", fontsize=9)  # fmt: skip
+        ax.set_ylabel("N")
+        ax.grid(True, alpha=0.3)
+    axes[-1, 0].set_xlabel("insert angle, deg")
+    axes[0, 0].legend(fontsize=7, ncol=3)
+    path = out / f"{stem}.png"
+    fig.savefig(path, dpi=100)
     plt.close(fig)
     return [path]

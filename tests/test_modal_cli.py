@@ -27,7 +27,9 @@ def test_modal_command(tmp_path, capsys):
     path = tmp_path / "hammer_x.csv"
     np.savetxt(path, np.column_stack([t, ham, y]), delimiter=",", fmt="%.7g",
                header="time_s,hammer,Fx,Fy,Fz", comments="")  # fmt: skip
-    rc = main(["analyze", "modal", str(path), "--rpm", "600", "24600", "--teeth", "5", "--json"])
+    png = tmp_path / "frf.png"
+    rc = main(["analyze", "modal", str(path), "--rpm", "600", "24600", "--teeth", "5",
+               "--plot", str(png), "--json"])  # fmt: skip
     out = json.loads(capsys.readouterr().out)
     assert rc == 0
     (mode,) = out["modes"]
@@ -35,5 +37,6 @@ def test_modal_command(tmp_path, capsys):
     assert mode["frequency_hz"] == pytest.approx(2050, rel=0.01)
     assert mode["damping_ratio"] == pytest.approx(0.02742, rel=0.1)
     assert any("24600 rpm" in w for w in out["warnings"])
+    assert png.stat().st_size > 10_000
     rc = main(["analyze", "modal", str(path), "--hammer", "impact"])
     assert rc == 2 and "no hammer channel" in capsys.readouterr().err

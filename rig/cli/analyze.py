@@ -138,6 +138,10 @@ def _forces(args: argparse.Namespace) -> int:
         }
         if args.plot:
             pngs = plot_comparison(cmp, args.plot)
+            if model == "facemill":
+                from analysis.validate import plot_waveforms
+
+                pngs += plot_waveforms(targets, tool, fit.coefficients, args.plot, rig.dynamometer)
             out["plots"] = [str(p) for p in pngs]
             status(f"analyze forces: wrote {', '.join(map(str, pngs))}")
     if args.json:
@@ -225,6 +229,11 @@ def _modal(args: argparse.Namespace) -> int:
         "config_modes": [m.model_dump() for m in rig.dynamometer.modes],
         "warnings": warn,
     }
+    if args.plot:
+        from analysis.modal import plot_frf
+
+        out["plot"] = str(plot_frf(res, args.plot))
+        status(f"analyze modal: wrote {out['plot']}")
     for w in warn:
         status(f"analyze modal: warning: {w}")
     if args.json:
@@ -268,5 +277,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="planned spindle speeds to check against the modes")  # fmt: skip
     m.add_argument("--teeth", type=int, default=1, help="teeth of the planned cutter")
     m.add_argument("--rig", default=None, help="rig config (default configs/rig.toml)")
+    m.add_argument("--plot", default=None, metavar="PNG", help="write the FRF and coherence")
     m.add_argument("--json", action="store_true", help="JSON on stdout")
     m.set_defaults(func=_modal)
