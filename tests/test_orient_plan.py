@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parent.parent
 MODELS = ["impeller", "fan", "mask"]
 
 
-def tool_surface_points(tool: ToolSystem, tip, u, ds_cutter=0.15, ds_body=0.4):
+def tool_surface_points(tool: ToolSystem, tip, u, ds_tip=0.1, ds_side=0.3, ds_body=0.6):
     """Points on the tool system's surfaces of revolution, (k, 3) mm (independent of its SD)."""
     R, r, L = tool.R_mm, tool.r_mm, tool.cutter_length_mm
     Rh, Lh, Rn, Ln = (
@@ -40,11 +40,12 @@ def tool_surface_points(tool: ToolSystem, tip, u, ds_cutter=0.15, ds_body=0.4):
         n = max(2, int(np.ceil(np.hypot(*(np.subtract(b, a))) / ds)) + 1)
         return np.linspace(a, b, n)
 
-    prof = [line((0, 0), (R - r, 0), ds_cutter)]
+    # Finest where the cutter cuts (bottom and corner), coarser up the flank and the body.
+    prof = [line((0, 0), (R - r, 0), ds_tip)]
     if r > 0:
-        t = np.linspace(-np.pi / 2, 0, max(3, int(np.ceil(r * np.pi / 2 / ds_cutter)) + 1))
+        t = np.linspace(-np.pi / 2, 0, max(3, int(np.ceil(r * np.pi / 2 / ds_tip)) + 1))
         prof.append(np.stack([R - r + r * np.cos(t), r + r * np.sin(t)], 1))
-    prof.append(line((R, r), (R, L), ds_cutter))
+    side = [line((R, r), (R, min(L, r + 3.0)), ds_tip), line((R, min(L, r + 3.0)), (R, L), ds_side)]
     z1, z2 = L + Lh, L + Lh + Ln
     body = [
         line((R, L), (Rh, L), ds_body),
@@ -56,7 +57,8 @@ def tool_surface_points(tool: ToolSystem, tip, u, ds_cutter=0.15, ds_body=0.4):
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(u, e1)
     out = []
-    for pr, ds in [(p, ds_cutter) for p in prof] + [(p, ds_body) for p in body]:
+    parts = [(p, ds_tip) for p in prof] + list(zip(side, (ds_tip, ds_side)))
+    for pr, ds in parts + [(p, ds_body) for p in body]:
         for rho, z in pr:
             k = max(8, int(np.ceil(2 * np.pi * rho / ds)))
             th = np.linspace(0, 2 * np.pi, k, endpoint=False)
@@ -129,19 +131,23 @@ def trimesh_collisions(surfaces, tool, tips, axes, tol_mm, spacing_mm=0.3):
     fn /= np.linalg.norm(fn, axis=1)[:, None]
     # Faces around each vertex, padded; a point's candidates are the faces of its 4 nearest
     # vertices (the mesh is regular and fine, so the nearest face is among them).
-    inc = [[] for _ in range(len(V))]
-    for fi, tri in enumerate(Fc):
-        for vi in tri:
-            inc[vi].append(fi)
-    width = max(len(x) for x in inc)
-    inc_arr = np.array([x + [x[0]] * (width - len(x)) for x in inc])
+    fv = Fc.ravel()
+    fi = np.repeat(np.arange(len(Fc)), 3)
+    order = np.argsort(fv, kind="stable")
+    fv, fi = fv[order], fi[order]
+    counts = np.bincount(fv, minlength=len(V))
+    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    inc_arr = np.repeat(fi[start][:, None], counts.max(), axis=1)  # padded with a real face
+    inc_arr[fv, np.arange(len(fv)) - start[fv]] = fi
     tree = cKDTree(V)
     bad, worst = 0, 0.0
     for tip, u in zip(tips, axes):
         q = tool_surface_points(tool, tip, u)
-        d, nv = tree.query(q, k=4, distance_upper_bound=2.0)
-        keep = np.isfinite(d[:, 0])
-        q, nv = q[keep], nv[keep]
+        # Only tool points near the part can be behind it by a little; a deep collision still
+        # shows here, where the tool's surface crosses the part's (depth 0..0.3 mm there).
+        d1, _ = tree.query(q, k=1, distance_upper_bound=0.5)
+        q = q[np.isfinite(d1)]
+        d, nv = tree.query(q, k=4)
         if len(q) == 0:
             continue
         nv = np.where(nv < len(V), nv, nv[:, :1])
