@@ -34,6 +34,7 @@ from analysis._identify import (
     linear_fit,
     ratio_with_error,
     reduce_run,
+    reduce_run_file,
 )
 from analysis.config import Dynamometer, FaceMill, FaceMillCoefficients
 from analysis.dynamics import DynamometerFilter
@@ -49,11 +50,14 @@ from analysis.facemill import (
 __all__ = [
     "FaceMillFit",
     "ForceRun",
+    "LinearFit",
     "RunAverage",
     "RunConditions",
     "fit_facemill",
     "fit_facemill_runs",
     "predicted_waveform",
+    "reduce_run",
+    "reduce_run_file",
     "synthetic_facemill_run",
 ]
 

@@ -19,11 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis._identify import reduce_run_file
 from analysis.config import get_material, get_tool, load_rig
 from analysis.dynamics import DynamometerFilter
 from analysis.facemill import FaceMillCut, facemill_forces
-from analysis.identify_facemill import fit_facemill
+from analysis.identify_facemill import fit_facemill, reduce_run_file
 from analysis.runfile import SAMPLE_FORMAT_VOLTS, load_run
 from rig.calibration import Calibration
 from rig.daq.base import DaqInfo

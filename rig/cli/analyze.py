@@ -20,8 +20,8 @@ def _load_runs(paths, args, rig):
     """Reduce each RUN to its revolution average; returns (averages, rejected)."""
     from tqdm import tqdm
 
-    from analysis._identify import RunConditions, reduce_run, reduce_run_file
     from analysis.errors import AnalysisError
+    from analysis.identify_facemill import RunConditions, reduce_run, reduce_run_file
     from analysis.importers import import_run
     from analysis.runfile import RunFileError
 
