@@ -14,6 +14,10 @@ writes it back as NC. What the preamble restores, in this order:
 6. cutter compensation G41/G42 with D, tool length G43 with H, if they were on;
 7. distance mode G90/G91 and the motion mode G1/G2/G3, and the feed F.
 
+Positions and feeds are written with 4 decimals in the units in force: exact to 0.1 um in mm,
+to the control's 0.0001 in (at most 1.27 um off) in inch (tests/test_dnc_restart.py checks that
+the preamble plus the rest moves like the whole program from block N).
+
 ``safe_z_mm`` is in mm, machine frame (the program frame: the controllers here apply no work
 offsets); default the higher of the position's Z and 0.
 
