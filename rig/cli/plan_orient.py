@@ -2,9 +2,10 @@
 
 Writes to the folder OUT: ``cl.csv`` (CL data: tip, cutter centre, axis, angles per CC point),
 ``program.nc`` (G-code for the config's 5-axis machine by inverse kinematics),
-``energy_map.png`` (the eq 7 energy over (alpha, beta) at one CC point, as seed 002 Fig. 8) and
-``summary.json``. Every output orientation is re-checked on a fresh dense mesh before anything is
-written; a CC point without a collision-free orientation stops the command with its reason.
+``energy_map.png`` (the eq 7 energy over (alpha, beta) at one CC point, as seed 002 Fig. 8),
+``orientation.png`` (the surfaces with the chosen tool axes, as Figs. 9-11) and
+``summary.json``. Every output orientation is re-checked on a fresh dense mesh before anything
+is written; a CC point without a collision-free orientation stops the command with its reason.
 """
 
 from __future__ import annotations
@@ -90,7 +91,8 @@ def run(args: argparse.Namespace) -> int:
         status(f"energy map at CC point {idx} ...")
         emap = energy_map(cfg, tool_cfg, idx, res)
         _plot_map(emap, out / "energy_map.png", cfg.name)
-        files.append(str(out / "energy_map.png"))
+        _plot_axes(surfaces, res, out / "orientation.png", cfg.name)
+        files += [str(out / "energy_map.png"), str(out / "orientation.png")]
     jumps_ok = np.isfinite(res.max_jump_deg)
     summary = {
         "config": str(args.config),
@@ -148,6 +150,36 @@ def _plot_map(emap, path: Path, title: str) -> None:
     ax.set_ylabel("advance angle alpha (deg)")
     ax.set_title(f"{title}: potential energy at CC point {emap.index} (U = 0: collision-free)")
     ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _plot_axes(surfaces, res, path: Path, title: str) -> None:
+    """Surfaces as wireframes with the tool axis drawn from each tip (seed 002 Figs. 9-11)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    fig = plt.figure(figsize=(7, 6))
+    ax = fig.add_subplot(projection="3d")
+    for s in surfaces:
+        n = 24
+        P = s.points(*s.grid(n, n)).reshape(n, n, 3)
+        ax.plot_wireframe(P[..., 0], P[..., 1], P[..., 2], color="0.6", linewidth=0.4)
+    ok = res.feasible
+    tip, u = res.tip_mm[ok], res.axis[ok]
+    length = 0.25 * float(np.ptp(res.cc.point, axis=0).max())
+    for t, a in zip(tip, u):
+        ax.plot(*np.stack([t, t + length * a]).T, color="tab:red", linewidth=0.9)
+    ax.scatter(*res.cc.point[ok].T, s=4, color="k")
+    ax.set_xlabel("x (mm)")
+    ax.set_ylabel("y (mm)")
+    ax.set_zlabel("z (mm)")
+    ax.set_title(f"{title}: tool axes at {int(ok.sum())} CC points")
+    ax.set_aspect("equal")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
