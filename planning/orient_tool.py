@@ -92,7 +92,7 @@ def szende_K_grad(alpha: float, beta: float, R_mm: float, r_mm: float) -> np.nda
     X = q**1.5
     s2 = np.sin(alpha) ** 2
     D = (R_mm - r_mm) * s2 + r_mm * X
-    if D <= 0:
+    if D <= 1e-150:  # the singular 0/0 corner (or D^2 would underflow)
         return np.zeros(2)
     dc = np.array([-np.sin(alpha) * np.cos(beta), -np.cos(alpha) * np.sin(beta)])
     dX = -3.0 * np.sqrt(q) * c * dc

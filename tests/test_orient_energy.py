@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from planning._energy import Charges, Site, energy
 from planning.nurbs import NurbsSurface, clamped_uniform_knots
-from planning.orient import _Context, descend
+from planning.orient import _Context, descend, solve_point
 from planning.orient_check import CheckMesh, check
-from planning.orient_tool import ToolSystem, cutter_position, local_frame, tool_axis
+from planning.orient_tool import ToolSystem, cutter_position, local_frame, szende_K, tool_axis
 
 TOOL = ToolSystem(6.0, 2.0, 50.0, 12.0, 40.0, 40.0, 80.0, name="phi12-bull")
 
@@ -97,3 +99,27 @@ def test_descent_reaches_zero_energy_from_a_collision(scene):
     th, U = descend(ctx, site, start, path=path)
     assert U == 0.0
     assert th[1] < start[1] and len(path) >= 1
+
+
+@settings(max_examples=20, deadline=None)
+@given(
+    st.tuples(st.floats(0.0, 20.0), st.floats(0.0, 20.0)).map(sorted),
+    st.tuples(st.floats(-90.0, 90.0), st.floats(-90.0, 90.0)).map(sorted),
+    st.floats(-0.05, 0.05),
+)
+def test_planner_answer_is_unit_axis_inside_limits_and_free(scene, alpha_lim, beta_lim, kappa):
+    """Whatever the limits: a unit axis inside them with U = 0 that passes the check, or None
+    with a reason -- never an orientation outside the limits or colliding."""
+    ctx, site, _ = scene
+    box = np.radians([alpha_lim, beta_lim])
+    c = _Context(ctx.tool, ctx.charges, ctx.mesh, box, ctx.tol_mm, ctx.clearance_mm, 5.0, 0.0)
+    th, why, U, gate = solve_point(c, site, kappa, box.mean(axis=1))
+    if th is None:
+        assert why.startswith("no collision-free orientation within alpha") or "check" in why
+        return
+    assert np.all(th >= box[:, 0] - 1e-12) and np.all(th <= box[:, 1] + 1e-12)
+    u = tool_axis(np.asarray(th[0]), np.asarray(th[1]), site.b, site.f, site.n)
+    assert np.linalg.norm(u) == pytest.approx(1.0, abs=1e-12)
+    assert U == 0.0 and gate.ok
+    assert c.U(site, th)[0] == 0.0
+    assert float(szende_K(th[0], th[1], TOOL.R_mm, TOOL.r_mm)) >= kappa - 1e-9
