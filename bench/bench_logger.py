@@ -14,6 +14,7 @@ Prints two figures:
    second and the samples lost. Target: >= 10 MS/s with zero loss.
 
 Usage: .venv/bin/python bench/bench_logger.py [--seconds 60] [--dir /tmp] [--json]
+       .venv/bin/python bench/bench_logger.py --only-overhead --dir /dev/shm   # CPU cost only
 Needs about rate x 8 bytes x seconds of free disk (10 MS/s for 60 s: 4.8 GB); files are deleted.
 """
 
@@ -181,6 +182,9 @@ def main() -> int:
     ap.add_argument("--reps", type=int, default=5, help="overhead repetitions")
     ap.add_argument("--overhead-mb", type=float, default=640.0)
     ap.add_argument("--dir", default=None, help="folder for the files (default: a temp dir)")
+    ap.add_argument(
+        "--only-overhead", action="store_true", help="skip the sustained run (e.g. --dir /dev/shm)"
+    )
     ap.add_argument("--json", action="store_true")
     args = ap.parse_args()
     base = Path(args.dir) if args.dir else None
@@ -190,7 +194,8 @@ def main() -> int:
         ov = overhead(folder, args.channels, args.reps, args.overhead_mb)
         probes = []
         passed: list[float] = []
-        for speed in (float(s) for s in args.speeds.split(",")):
+        speeds = [] if args.only_overhead else [float(s) for s in args.speeds.split(",")]
+        for speed in speeds:
             r = sustained(
                 folder, args.channels, args.rate_hz, speed, args.probe_seconds, args.queue_blocks
             )

@@ -301,8 +301,9 @@ class RunWriter:
         a = np.broadcast_to(np.asarray(ack_s, dtype=np.float64), b.shape)
         self._control.append(("ack", (b.copy(), a.copy())))
 
-    def set_conditions(self, conditions: Mapping[str, Any]) -> None:
-        """Cutting conditions (tool, material, spindle_rpm, feed_mm_min, fz_mm, depth_mm, ...)."""
+    def set_conditions(self, conditions: Mapping[str, Any] | Any) -> None:
+        """Cutting conditions (tool, material, spindle_rpm, feed_mm_min, fz_mm, depth_mm, ...):
+        a mapping, a dataclass or a pydantic model; stored as JSON, the latest call wins."""
         self._control.append(("text", (rf.META_CONDITIONS, json.dumps(jsonable(conditions)))))
 
     def set_rig(self, rig: Mapping[str, Any]) -> None:
