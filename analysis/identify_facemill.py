@@ -152,22 +152,32 @@ def _phase(avg: RunAverage, tool: FaceMill, filt: DynamometerFilter | None) -> f
     base = 2 * np.pi * s / n
 
     yy = y.reshape(-1)
+    # The model on a grid 64 times finer than the bins, evaluated once; a phase candidate is then
+    # an index shift of it (averaged over each bin's sub-points, then through the modes).
+    sub, fine_per_bin = _sub(avg), 64
+    theta = 2 * np.pi * np.arange(n * fine_per_bin) / (n * fine_per_bin)
+    fine = facemill_design(theta, tool, _cut(avg.conditions))
+    offs = ((np.arange(sub) + 0.5) * fine_per_bin / sub - fine_per_bin / 2).astype(np.int64)
+    rows = np.arange(n)[:, None] * fine_per_bin + offs[None, :]
+    m0 = s * fine_per_bin
 
-    def rss(delta: float) -> float:
+    def rss(m: int) -> float:
+        d = fine[(m0 + m + rows) % len(fine)].mean(axis=1)
+        if filt is not None:
+            d = np.moveaxis(filt.periodic_response(np.moveaxis(d, 1, 2), avg.period_s), 2, 1)
+        Xd = d.reshape(-1, 6)
         # Normal equations: the 6 x 6 system is well conditioned here and far cheaper than SVD.
-        Xd = _regressors(avg, tool, filt, base + delta).reshape(-1, 6)
         xty = Xd.T @ yy
         p = np.linalg.lstsq(Xd.T @ Xd, xty, rcond=None)[0]
         return float(yy @ yy - p @ xty)
 
     # Point samples make the residual step-wise in the phase (an entry jump moves from one sample
     # to the next), so a derivative-free bracket search can stall on a step: use nested grids.
-    step = 2 * np.pi / n
-    best = 0.0
-    for width in (step, step / 8, step / 64):
-        grid = best + np.linspace(-width, width, 17)
-        best = float(grid[int(np.argmin([rss(d) for d in grid]))])
-    return float(base + best)
+    best = 0
+    for spacing in (fine_per_bin // 8, 1):
+        grid = best + spacing * np.arange(-8, 9)
+        best = int(grid[int(np.argmin([rss(int(g)) for g in grid]))])
+    return float(base + 2 * np.pi * best / (n * fine_per_bin))
 
 
 def fit_facemill(
