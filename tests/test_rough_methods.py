@@ -64,8 +64,9 @@ def test_time_objective_cost_matches_the_moves(tmp_path, bump_text):
 
 def test_time_objective_plan_is_no_slower_than_the_path_one(tmp_path, bump_text):
     x, y, z = bump_text
-    t = RoughPlanner(load_toml(tmp_path, part_toml(x, y, z, top=43.0, objective="time")))
-    p = RoughPlanner(load_toml(tmp_path, part_toml(x, y, z, top=43.0), "p.toml"))
+    kw = {"top": 43.0, "optimal_dh_mm": 2.0}
+    t = RoughPlanner(load_toml(tmp_path, part_toml(x, y, z, objective="time", **kw)))
+    p = RoughPlanner(load_toml(tmp_path, part_toml(x, y, z, **kw), "p.toml"))
     plan_t, plan_p = t.plan_optimal(), p.plan_optimal()
     rapid = t.part.config.cutting.rapid_mm_min
 
