@@ -127,3 +127,31 @@ def test_level_above_everything_is_empty_and_below_is_everything(sphere):
     m = SectionMaker(sphere)
     assert m.section(60.0).region.is_empty
     assert m.section(10.0).area_mm2 == pytest.approx(3600.0)
+
+
+@pytest.mark.parametrize("tol", [0.05, 0.005])
+def test_polygon_is_within_the_stated_tolerance_of_the_true_contour(tol):
+    # A wavy free-form surface: take every edge midpoint of the traced polygon, pull it onto the
+    # exact contour of the Ferguson surface (Newton), and measure its distance to the polygon.
+    from planning.contours import _project
+
+    def f(x, y):
+        return 5 * np.sin(x / 7) * np.cos(y / 9) + 0.02 * x * y
+
+    s = height_field(f, half=30, n=16)
+    z = 1.3
+    sec = SectionMaker(s, tolerance_mm=tol).section(z)
+    worst = 0.0
+    for loop in sec.loops:
+        mid = 0.5 * (loop[:-1] + loop[1:])
+        st_ = s.locate(mid[:, 0], mid[:, 1])
+        inner = np.all(np.abs(mid) < 30 - 1e-6, axis=1)  # the edge of the grid is exact anyway
+        ss, tt = st_[inner, 0], st_[inner, 1]
+        free = np.zeros(len(ss), bool)
+        ps, pt = _project(s, ss, tt, z, free, free)
+        exact = s.evaluate(ps, pt)
+        assert np.abs(exact[:, 2] - z).max() < 1e-6
+        d = shapely.distance(shapely.points(exact[:, :2]), sec.region.boundary)
+        worst = max(worst, float(d.max()))
+    assert worst <= tol * 1.05, worst
+    assert worst > tol / 20  # the measure sees the chords (it is not trivially 0)
