@@ -48,8 +48,11 @@ class Level:
 
     z_mm: level height; lo_mm: lower level of its shoulder (None: the stock bottom, nothing cut
     below); hi_mm: upper level (or the stock top); area_mm2: area cleared; path_mm: cutting path in
-    the area; mrr_mm3_min: Area x f x h / l; cusp_mm: largest cusp of the shoulder below this
-    level once cut; tool: 1 (first tool) or 2 (Lee's second tool); paths: the passes.
+    the area; mrr_mm3_min: Area x f x h / l; tool: 1 (first tool) or 2 (Lee's second tool);
+    paths: the passes. ``row()`` also gives Area x h / l (mm^2, "mrr_per_path_mm2"): the numbers
+    seed 000 Table 1 prints as "MMR/회 (mm^3)" are this, the MRR per unit feed (e.g. its level 1:
+    7039.85 x (82 - 56.5) / 632.99 = 283.6 vs 285.78 printed; every row fits a stock top near 82 mm
+    with h = the level above minus z).
     """
 
     order: int
