@@ -83,6 +83,9 @@ class StreamerBase:
         self._bytes0 = 0
 
     # -- to be provided by the protocols -----------------------------------------------------------
+    def _begin(self) -> None:
+        """Protocol hook: clear per-stream state (a streamer object may send many programs)."""
+
     def _make_link(self) -> SerialLink:
         raise NotImplementedError
 
@@ -116,6 +119,7 @@ class StreamerBase:
             )
         items = items_for(program, start_block, preamble)
         self._reset_counters()
+        self._begin()
         # Everything before the start block counts as done: resume maths stays "last + 1".
         self.last_sent_block = self.last_ack_block = start_block - 1
         self._start_block = start_block

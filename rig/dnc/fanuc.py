@@ -67,6 +67,10 @@ class FanucStreamer(StreamerBase):
         """Ask a running stream to stop before its next block (it ends with fault ``stopped``)."""
         self._stop.set()
 
+    def _begin(self) -> None:
+        self._stop.clear()
+        self.punched.clear()
+
     def _make_link(self) -> SerialLink:
         soft = self.cfg.flow_control == "xonxoff" and self.cfg.xonxoff_in_streamer
         link = SerialLink(

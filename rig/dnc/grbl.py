@@ -176,6 +176,15 @@ class GrblStreamer(StreamerBase):
         """Stop sending before the next line (ends with fault ``stopped``)."""
         self._stop.set()
 
+    def _begin(self) -> None:
+        self._stop.clear()
+        self._partial.clear()
+        while not self._lines.empty():
+            self._lines.get_nowait()
+        self._reports = self._starved_reports = 0
+        self._heard_any = self._seen_run = False
+        self.last_status = None
+
     # -- link --------------------------------------------------------------------------------------
     def _make_link(self) -> SerialLink:
         return SerialLink(self._serial(), pace_bytes_per_s=self.pace, on_data=self._on_data)
@@ -192,7 +201,7 @@ class GrblStreamer(StreamerBase):
                 self._lines.put((self.clock(), raw.decode("ascii", "replace")))
 
     def _get(self, heard: list[float]) -> tuple[float, str]:
-        """Next line from GRBL, whatever it is; faults on silence, a lost port or stop()."""
+        """Next line from GRBL, whatever it is; faults on silence or a lost port."""
         link = self.link
         assert link is not None
         while True:
