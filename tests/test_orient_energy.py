@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planning._energy import Charges, Site, energy
+from planning._orient_search import _Context, descend, solve_point
 from planning.nurbs import NurbsSurface, clamped_uniform_knots
-from planning.orient import _Context, descend, solve_point
 from planning.orient_check import CheckMesh, check
 from planning.orient_tool import ToolSystem, cutter_position, local_frame, szende_K, tool_axis
 
