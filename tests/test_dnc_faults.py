@@ -12,6 +12,7 @@ from _dnc_helpers import (
     GRBL_LINE_B_S,
     EventWaiter,
     fanuc_cfg,
+    fanuc_sim,
     grbl_cfg,
     line_program,
 )
@@ -25,7 +26,6 @@ from rig.dnc import (
     restart_blocks,
 )
 from rig.sim.clock import SimClock
-from rig.sim.fanuc import SimFanuc
 from rig.sim.grbl import SimGrbl
 
 N_BLOCKS = 250
@@ -72,7 +72,7 @@ def test_fault_then_resume_is_exact(protocol, knobs, kind, recovery, tmp_path) -
     if knobs == "overrun":  # the LF of a line lost: two lines merge, GRBL rejects the result
         knobs = {"sim_overrun_at_byte": _grbl_newline_byte(prog, K)}
     if protocol == "fanuc":
-        ctl = SimFanuc(clock=SimClock(FANUC_SPEED), baudrate=115200, **knobs)
+        ctl = fanuc_sim(FANUC_SPEED, **knobs)
     else:
         ctl = SimGrbl(clock=SimClock(GRBL_SPEED), **knobs)
     with ctl:
@@ -126,7 +126,7 @@ def test_fault_then_resume_is_exact(protocol, knobs, kind, recovery, tmp_path) -
 
 def test_fanuc_overrun_is_alarm_087() -> None:
     prog = line_program(60)
-    ctl = SimFanuc(clock=SimClock(4.0), baudrate=115200, sim_overrun_at_byte=400)
+    ctl = fanuc_sim(4.0, sim_overrun_at_byte=400)
     with ctl:
         with pytest.raises(StreamFault) as ei:
             _streamer("fanuc", ctl.path, None, ctl.clock.now).send(prog)

@@ -14,6 +14,7 @@ from _dnc_helpers import (
     EventWaiter,
     fanuc_bytes,
     fanuc_cfg,
+    fanuc_sim,
     grbl_cfg,
     line_program,
 )
@@ -206,7 +207,7 @@ def test_parse_request() -> None:
 def test_remote_request_serves_the_named_program_from_its_start_block(tmp_path) -> None:
     prog = line_program(40)
     (tmp_path / "O1234.nc").write_text(prog.text)
-    ctl = SimFanuc(clock=SimClock(4.0), baudrate=115200)
+    ctl = fanuc_sim(4.0)
     with ctl:
         srv = RemoteServer(fanuc_cfg(ctl.path, program_folder=str(tmp_path)),
                            pace_bytes_per_s=FANUC_LINE_B_S * 4)  # fmt: skip

@@ -14,6 +14,7 @@ from _dnc_helpers import (
     EventWaiter,
     fanuc_bytes,
     fanuc_cfg,
+    fanuc_sim,
     grbl_bytes,
     grbl_cfg,
     line_program,
@@ -21,13 +22,12 @@ from _dnc_helpers import (
 
 from rig.dnc import CsvSink, FanucStreamer, GrblStreamer, MemorySink, read_csv_record
 from rig.sim.clock import SimClock
-from rig.sim.fanuc import SimFanuc
 from rig.sim.grbl import SimGrbl
 
 
 def _fanuc_run(n_blocks: int, speed: float, tmp_path, **cfg_kw):
     prog = line_program(n_blocks)
-    ctl = SimFanuc(clock=SimClock(speed), baudrate=115200)
+    ctl = fanuc_sim(speed)
     done = EventWaiter(ctl, "program_end")
     with ctl:
         cfg = fanuc_cfg(ctl.path, **cfg_kw)
