@@ -35,6 +35,8 @@ from rig.daq.base import SAMPLE_FORMAT_RAW, Daq, DaqEvent, DaqInfo
 from rig.dnc.program import Program
 
 STATUS_SUCCESS, STATUS_ABORT, STATUS_FAIL = rf.STATUS_SUCCESS, rf.STATUS_ABORT, rf.STATUS_FAIL
+#: s of run clock added to twice the program's expected time before a run is declared hung.
+WATCHDOG_MARGIN_S = 30.0
 
 
 class RigSession(Protocol):
@@ -222,6 +224,9 @@ def execute_run(
         tap.monitor = True
         writer.event(rf.EV_START, f"streaming {program.name}")
         session.start(program, writer)
+        # Watchdog on the run clock: a control that stops answering after it has read the whole
+        # program (drip feed has no acknowledgement) would otherwise be waited for forever.
+        deadline = session.clock() + 2.0 * expected_s + WATCHDOG_MARGIN_S
         held_since: float | None = None
         while not session.finished():
             time.sleep(0.02)
@@ -242,6 +247,15 @@ def execute_run(
             if tap.daq_fault is not None and on_overflow == "fail":
                 status, reason = STATUS_FAIL, tap.daq_fault
                 break
+            if held_since is None and not stop.event.is_set() and session.clock() > deadline:
+                done, total = session.progress()
+                limit_s = 2.0 * expected_s + WATCHDOG_MARGIN_S
+                status = STATUS_FAIL
+                reason = (
+                    f"controller stopped answering: the program did not end within {limit_s:.0f}"
+                    f" s (expected {expected_s:.0f} s); {done} of {total} blocks executed"
+                )
+                break
             fault = session.fault()
             if fault is not None:
                 status, reason = STATUS_FAIL, fault
@@ -257,6 +271,8 @@ def execute_run(
                 if on_force == "abort" or time.monotonic() - held_since >= hold_timeout_s:
                     status, reason = STATUS_ABORT, f"suspender: {tap.over_limit}"
                     break
+        if status == STATUS_FAIL:
+            writer.event(rf.EV_FAULT, reason[: rf.EVENT_MESSAGE_BYTES])
         if status != STATUS_SUCCESS:
             session.stop()
         elif session.fault() is not None:

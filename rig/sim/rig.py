@@ -123,11 +123,17 @@ class SimSession:
     def start(self, program: Program, writer: object) -> None:
         from rig.dnc.fanuc import FanucStreamer
         from rig.dnc.grbl import GrblStreamer
+        from rig.dnc.port import line_bytes_per_s
 
         self._program = program
         cfg = self._serial.model_copy(update={"port": self.port, "timeout_s": self.link_timeout_s})
         cls = GrblStreamer if self.protocol == "grbl" else FanucStreamer
-        self.streamer = cls(cfg, sink=WriterBlockSink(writer), clock=self.clock)
+        # The controller receives at the baud rate in simulated time, so the streamer paces
+        # at the line rate times the clock's speed (on a pty it would pace in wall time and
+        # starve a controller that runs faster than real time).
+        pace = line_bytes_per_s(cfg) * self.sim_clock.speed
+        self.streamer = cls(cfg, sink=WriterBlockSink(writer), clock=self.clock,
+                            pace_bytes_per_s=pace)  # fmt: skip
 
         def stream() -> None:
             try:

@@ -1,0 +1,177 @@
+"""The campaign runner on the simulated rig: real ptys, the real streamer, real HDF5 run files.
+
+Faults end with valid files, the reason recorded and a resumable campaign; Ctrl-C and a killed
+process too; a real rig that is absent is refused before anything runs.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from analysis import runfile as rf
+from analysis.errors import CutlabError
+from rig.campaign import load_campaign, run_campaign
+
+DATA = Path(__file__).parent / "data" / "campaign"
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _config(tmp_path: Path, faults: str = "", name: str = "quick.toml") -> Path:
+    text = (DATA / "quick.toml").read_text()
+    text = text.replace('"OUT"', json.dumps(str(tmp_path / "out"))).replace("FAULTS", faults)
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def _runs(result):  # noqa: ANN001, ANN202
+    return {r.index: r for r in result.runs}
+
+
+def test_campaign_runs_records_everything_and_resumes(tmp_path: Path) -> None:
+    c = load_campaign(_config(tmp_path))
+    res = run_campaign(c, progress=False)
+    assert res.ok and [r.status for r in res.runs] == ["success", "success"]
+    run = rf.load_run(res.runs[1].file)
+    assert run.complete and run.status == "success" and run.samples_lost == 0
+    cond = run.conditions
+    assert cond["depth_mm"] == 2.0 and cond["fz_mm"] == 0.3 and cond["tool"] == "seed003-facemill"
+    assert cond["material"] == "al6061-t6" and cond["software_version"]
+    assert run.rig["calibration_id"] == c.rig.dynamometer.calibration_id
+    assert run.program_info["sha256"] == cond["program_sha256"]
+    assert "G1 X" in run.program_text and len(run.blocks) == run.program_text.count("\n")
+    assert run.blocks["send_s"].is_monotonic_increasing
+    kinds = list(run.events["kind"])
+    assert "zero" in kinds and kinds[-1] == "stop"
+    # The cut is in the record: forces of hundreds of newtons while the program ran.
+    assert run.force_n[:, 0].max() > 100
+    manifest = json.loads((res.folder / "campaign.json").read_text())
+    assert {e["status"] for e in manifest["runs"].values()} == {"success"}
+    # Running again skips what is finished.
+    again = run_campaign(load_campaign(_config(tmp_path)), progress=False)
+    assert all(r.skipped for r in again.runs) and again.ok
+
+
+def test_controller_that_stops_answering_fails_the_run_and_resume_reruns_it(
+    tmp_path: Path,
+) -> None:
+    cfg = _config(tmp_path, "sim_controller_stall_after_block = 5\nsim_fault_run = 0")
+    res = run_campaign(load_campaign(cfg), progress=False)
+    r = _runs(res)
+    assert r[0].status == "fail" and "stopped answering" in r[0].reason
+    assert r[1].status == "success"  # the campaign went on
+    run0 = rf.load_run(r[0].file)
+    assert run0.complete and run0.status == "fail" and run0.reason == r[0].reason
+    assert (run0.events["kind"] == "fault").any()
+    # The fault is cleared (the controller answers again): resume re-runs run 0 only and keeps
+    # the failed attempt's file.
+    res2 = run_campaign(load_campaign(_config(tmp_path)), progress=False)
+    r2 = _runs(res2)
+    assert r2[0].status == "success" and not r2[0].skipped and r2[1].skipped
+    kept = list((res.folder / "runs").glob("000-*.attempt-1.h5"))
+    assert len(kept) == 1 and rf.load_run(kept[0]).status == "fail"
+
+
+def test_daq_overflow_fails_the_run_with_the_sample_index(tmp_path: Path) -> None:
+    cfg = _config(tmp_path, "sim_daq_overflow_at_s = 1.0\nsim_fault_run = 1")
+    res = run_campaign(load_campaign(cfg), progress=False)
+    r = _runs(res)
+    assert r[0].status == "success"
+    assert r[1].status == "fail" and "overflow at sample 8000" in r[1].reason
+    run = rf.load_run(r[1].file)
+    assert run.status == "fail" and run.samples_lost > 0
+    ev = run.events[run.events["kind"] == "overflow"]
+    assert list(ev["sample"]) == [8000]
+
+
+def test_interlock_trip_aborts_with_the_reason(tmp_path: Path) -> None:
+    cfg = _config(tmp_path, "sim_interlock_at_s = 2.0\nsim_fault_run = 0")
+    res = run_campaign(load_campaign(cfg), progress=False)
+    r = _runs(res)
+    assert r[0].status == "abort" and "interlock" in r[0].reason
+    run = rf.load_run(r[0].file)
+    assert run.complete and (run.events["kind"] == "interlock").any()
+    assert r[1].status == "success"
+
+
+def _cli(args: list[str]) -> subprocess.Popen:
+    return subprocess.Popen(
+        [sys.executable, "-m", "rig.cli", *args], cwd=ROOT, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+
+
+def _wait_for(pred, timeout_s: float = 60.0) -> None:  # noqa: ANN001
+    t0 = time.monotonic()
+    while not pred():
+        if time.monotonic() - t0 > timeout_s:
+            raise AssertionError("timed out")
+        time.sleep(0.05)
+
+
+def _streaming(folder: Path) -> bool:
+    m = folder / "campaign.json"
+    try:
+        runs = json.loads(m.read_text())["runs"]
+    except (OSError, ValueError, KeyError):
+        return False
+    return any(e.get("status") == "running" for e in runs.values())
+
+
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT])
+def test_killed_or_interrupted_campaign_leaves_valid_files_and_resumes(
+    tmp_path: Path, sig: signal.Signals
+) -> None:
+    cfg = _config(tmp_path)
+    text = cfg.read_text().replace("speed = 50", "speed = 4")  # slow enough to be caught mid-run
+    cfg.write_text(text)
+    folder = tmp_path / "out" / "quick"
+    p = _cli(["campaign", "run", str(cfg), "--quiet", "--no-report"])
+    try:
+        _wait_for(lambda: _streaming(folder))
+        time.sleep(1.0)
+        p.send_signal(sig)
+        _, err = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    files = sorted((folder / "runs").glob("*.h5"))
+    assert files
+    run = rf.load_run(files[0])  # opens after SIGKILL too
+    if sig == signal.SIGKILL:
+        assert p.returncode == -signal.SIGKILL
+        assert run.status == "running" and not run.complete
+    else:
+        assert p.returncode == 130, err
+        assert run.complete and run.status == "abort" and "Ctrl-C" in run.reason
+        assert (run.events["kind"] == "pause").any()
+    # Resume: the interrupted run is cut again, the earlier file kept; the campaign completes.
+    cfg.write_text(text.replace("speed = 4", "speed = 50"))
+    res = run_campaign(load_campaign(cfg), progress=False)
+    assert res.ok
+    assert list((folder / "runs").glob("000-*.attempt-1.h5"))
+
+
+def test_missing_real_hardware_is_refused_before_anything_runs(tmp_path: Path) -> None:
+    cfg = _config(tmp_path)
+    cfg.write_text(cfg.read_text().replace('rig = "sim"', 'rig = "real"'))
+    with pytest.raises(CutlabError) as e:
+        run_campaign(load_campaign(cfg), progress=False)
+    msg = str(e.value)
+    assert "DAQ" in msg and "serial" in msg and "/dev/ttyUSB0" in msg
+    assert not (tmp_path / "out").exists()
+    p = _cli(["campaign", "run", str(cfg), "--dry-run", "--json"])
+    out, err = p.communicate(timeout=60)
+    assert p.returncode == 2
+    d = json.loads(out)
+    assert not d["ok"] and d["programs_checked"] == 2 and len(d["problems"]) == 2
+    p = _cli(["campaign", "run", str(cfg)])
+    out, err = p.communicate(timeout=60)
+    assert p.returncode == 2 and err.startswith("cutlab: error:") and "Traceback" not in err
