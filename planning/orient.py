@@ -61,6 +61,9 @@ class OrientResult:
     tip_mm is the tool tip (bottom centre on the axis), centre_mm the cutter centre (tip + r u),
     axis the unit tool axis; clearance_mm the check mesh's smallest signed distance to the tool
     (about 0 at the contact); energy the eq 7 value at the answer (0 when feasible).
+    max_jump_deg is the largest angle between the axes of neighbouring CC points on a line (it
+    includes the turn of the surface normal; max_jump_at is the later point's index);
+    max_angle_jump_deg the largest change of (alpha, beta), hypot of both, between them.
     """
 
     cc: CCPoints
@@ -79,6 +82,7 @@ class OrientResult:
     evaluations: np.ndarray
     max_jump_deg: float
     max_jump_at: int
+    max_angle_jump_deg: float
 
     @property
     def n_points(self) -> int:
@@ -184,6 +188,8 @@ def solve_all(ctx: _Context, cc: CCPoints, progress=None) -> OrientResult:
     K = szende_K(th_out[:, 0], th_out[:, 1], ctx.tool.R_mm, ctx.tool.r_mm)
     jumps = axis_jumps_deg(u, cc.line)
     j = int(np.nanargmax(jumps)) if np.isfinite(jumps).any() else -1
+    dth = np.degrees(np.hypot(*np.diff(th_out, axis=0).T))
+    dth[cc.line[1:] != cc.line[:-1]] = np.nan
     return OrientResult(
         cc,
         np.degrees(th_out[:, 0]),
@@ -201,6 +207,7 @@ def solve_all(ctx: _Context, cc: CCPoints, progress=None) -> OrientResult:
         nev,
         float(jumps[j]) if j >= 0 else float("nan"),
         j + 1 if j >= 0 else -1,
+        float(np.nanmax(dth)) if np.isfinite(dth).any() else float("nan"),
     )
 
 

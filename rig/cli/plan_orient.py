@@ -110,6 +110,7 @@ def run(args: argparse.Namespace) -> int:
         "max_gap_per_mm": float(np.max(res.gap_per_mm)),
         "max_axis_jump_deg": float(res.max_jump_deg) if jumps_ok else None,
         "max_axis_jump_at": res.max_jump_at,
+        "max_angle_jump_deg": float(res.max_angle_jump_deg) if jumps_ok else None,
         "check_spacing_mm": ver.spacing_mm,
         "checked": ver.checked,
         "collisions": ver.collisions,
