@@ -300,8 +300,9 @@ def iter_run_chunks(path, chunk_samples: int = 1 << 20, start: int = 0, stop: in
     from analysis.runfile import load_run
 
     meta = load_run(path, samples=False)
-    rate = meta.rate_hz
-    end = meta.samples_acquired if stop is None else min(stop, meta.samples_acquired)
+    rate, acquired = meta.rate_hz, meta.samples_acquired
+    del meta  # the loader's per-run arrays: do not keep them alive while streaming
+    end = acquired if stop is None else min(stop, acquired)
     order = None
     for a in range(start, end, chunk_samples):
         b = min(a + chunk_samples, end)
@@ -311,7 +312,10 @@ def iter_run_chunks(path, chunk_samples: int = 1 << 20, start: int = 0, stop: in
             raise AnalysisError(f"{path}: the run has no calibration: forces in N are unknown")
         if order is None:
             order = _axis_order(run.channel_names)
-        yield run.sample_index, run.force_n[:, order]
+        # A copy: sample_index is a view into the loader's index of the whole run.
+        idx, force = run.sample_index.copy(), run.force_n[:, order]
+        del run
+        yield idx, force
 
 
 def reduce_run_file(
@@ -321,8 +325,9 @@ def reduce_run_file(
     """:func:`reduce_run` streamed from an HDF5 run file in two passes over chunks.
 
     Pass 1 gathers per-revolution statistics (steady part, offset, drift); the revolution period
-    is refined on at most 2^20 samples of the steady part; pass 2 averages the steady part
-    synchronously. Memory: the chunk plus O(revolutions + bins).
+    is refined on the first chunk of the steady part (at least 4 revolutions); pass 2 averages
+    the steady part synchronously. Memory: the chunk plus O(revolutions + bins), plus what
+    ``load_run`` allocates per window.
     """
     from analysis.runfile import load_run
 
@@ -330,6 +335,7 @@ def reduce_run_file(
     name = Path(str(path)).stem
     c = conditions or RunConditions.from_mapping(meta.conditions, str(path))
     rate, n = meta.rate_hz, meta.samples_acquired
+    del meta
     stats = RevolutionStats(rate, c.spindle_rpm, n, 3)
     for idx, f in iter_run_chunks(path, chunk_samples):
         stats.add(f, idx)
@@ -340,7 +346,9 @@ def reduce_run_file(
     except AnalysisError as exc:
         raise AnalysisError(f"run {name}: {exc}") from None
     lo = part.window.start
-    probe = next(iter_run_chunks(path, min(1 << 20, part.window.stop - lo), lo, part.window.stop))
+    # The period refinement and the tooth peaks look at one chunk (at least 4 revolutions).
+    n_probe = min(part.window.stop - lo, max(chunk_samples, int(4 * stats.spr)))
+    probe = next(iter_run_chunks(path, n_probe, lo, lo + n_probe))
     part = part.with_period(
         refine_period(
             np.linalg.norm(probe[1] - probe[1].mean(axis=0), axis=1), rate, part.period_s
