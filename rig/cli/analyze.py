@@ -30,7 +30,9 @@ def _load_runs(paths, args, rig):
         kv = dict(item.split("=", 1) for item in args.conditions)
         override = RunConditions.from_mapping(kv, "--conditions")
     avgs, rejected, tool_names = [], [], set()
-    for p in tqdm(paths, desc="reducing runs", unit="run", disable=args.json or len(paths) < 2):
+    # disable=None: tqdm stays quiet when stderr is not a terminal (CI logs).
+    quiet = True if (args.json or len(paths) < 2) else None
+    for p in tqdm(paths, desc="reducing runs", unit="run", disable=quiet):
         teeth = None
         try:
             if str(p).lower().endswith((".h5", ".hdf5")):
