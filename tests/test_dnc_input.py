@@ -82,7 +82,7 @@ def test_unsendable_character_is_named() -> None:
         ("grbl", dict(bytesize=8, parity="N", stopbits=1, flow_control="xonxoff"),
          r"flow_control = 'xonxoff': GRBL paces the sender"),
         ("fanuc", dict(baudrate=250000), r"serial.baudrate = 250000: not a Fanuc"),
-        ("fanuc", dict(code="EIA"), r"serial.code = 'EIA': EIA tape code is not implemented"),
+        ("fanuc", dict(code="EIA"), r"serial.code = 'EIA' with bytesize = 7, parity = 'E': EIA"),
     ],
 )  # fmt: skip
 def test_settings_the_controller_cannot_take(protocol, kw, match) -> None:

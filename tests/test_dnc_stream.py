@@ -160,3 +160,49 @@ def test_grbl_program_end_and_next_program() -> None:
     assert len(ends) == 2
     assert ctl.executed_texts() == 2 * [b.text for b in prog.blocks]
     assert ctl.interp.state.spindle_dir == 0 and not ctl.interp.state.ended
+
+
+def test_fanuc_eia_tape_code_is_byte_exact(tmp_path) -> None:
+    """EIA RS-244 on the wire (ER, EOB 0x80, odd-parity codes); the control recognises the code
+    from the first tape mark and runs the same blocks."""
+    from rig.dnc import eia
+
+    prog = line_program(300)
+    ctl = fanuc_sim(4.0)
+    done = EventWaiter(ctl, "program_end")
+    with ctl:
+        cfg = fanuc_cfg(ctl.path, code="EIA", bytesize=8, parity="N")
+        FanucStreamer(cfg, pace_bytes_per_s=FANUC_LINE_B_S * 4).send(prog)
+        assert done.wait(60)
+    lead = b"\0" * cfg.leader_nuls
+    body = b"".join(eia.encode(b.text, "t") + bytes([eia.EOB]) for b in prog.blocks)
+    want = lead + bytes([eia.ER, eia.EOB]) + body + bytes([eia.ER]) + lead
+    assert bytes(ctl.received) == want
+    assert all(eia.has_odd_parity(c) for c in body)
+    assert ctl.code == "EIA" and ctl.alarm == "" and ctl.xoff_count >= 1
+    assert ctl.executed_texts() == [b.text for b in prog.blocks]
+
+
+def test_fanuc_eia_refuses_characters_eia_lacks() -> None:
+    from rig.dnc import DncError, program_from_text
+
+    prog = program_from_text("%\nG21 G90\n#1=5\n%\n", "m.nc", check_nc=False)
+    ctl = fanuc_sim(4.0)
+    with ctl:
+        cfg = fanuc_cfg(ctl.path, code="EIA", bytesize=8, parity="N")
+        with pytest.raises(DncError, match=r"block 2 \(line 3\):1: character '#' has no EIA code"):
+            FanucStreamer(cfg).send(prog)
+        assert ctl.received == b""
+
+
+def test_simulated_fanuc_alarms_on_eia_parity_error() -> None:
+    """A byte with even parity in EIA data is a TH alarm (as a bad hole on tape)."""
+    import serial
+
+    ctl = fanuc_sim(4.0, flow_control="none")
+    alarm = EventWaiter(ctl, "alarm")
+    with ctl:
+        with serial.serial_for_url(ctl.path, baudrate=115200, timeout=1) as ser:
+            ser.write(bytes([0x0B, 0x80, 0x67, 0x03, 0x80]))  # ER EOB G <0x03: even> EOB
+            assert alarm.wait(10)
+    assert ctl.alarm == "1" and any("TH PARITY" in e.detail for e in ctl.events)

@@ -136,7 +136,7 @@ class StreamerBase:
             self._run(self.link, items)
         except Fault as f:
             fault = f
-        except DncError as exc:  # the port could not be opened: nothing was sent
+        except DncError as exc:  # refused before anything was sent (port, settings, program)
             self.sink.event("not_started", self.clock(), str(exc))
             self.sink.close()
             self._progress.close()

@@ -4,8 +4,10 @@ What goes on the wire, in order::
 
     NUL x leader_nuls, "%", EOB, block, EOB, block, EOB, ..., "%", NUL x leader_nuls
 
-with EOB = LF, CR LF or CR per ``serial.end_of_block``. The control reads tape code ISO (7-bit
-ASCII; with 7E2 the UART adds the even parity bit ISO asks for).
+with EOB = LF, CR LF or CR per ``serial.end_of_block``, in tape code ISO (7-bit ASCII; with 7E2
+the UART adds the even parity bit ISO asks for). With ``serial.code = "EIA"`` every character is
+sent in EIA RS-244 (:mod:`rig.dnc.eia`): ER (0x0B) for ``%``, EOB 0x80; a character EIA lacks is
+reported (line and column) before anything is sent.
 
 Flow control, per ``serial.flow_control``:
 
@@ -32,6 +34,7 @@ import threading
 from collections.abc import Callable
 
 from analysis.config import SerialConfig
+from rig.dnc import eia
 from rig.dnc._stream import Fault, Item, StreamerBase
 from rig.dnc.link import DC2, DC4, LinkLost, LinkTimeout, SerialLink
 from rig.dnc.port import EOB_BYTES
@@ -110,8 +113,19 @@ class FanucStreamer(StreamerBase):
         except LinkLost as exc:
             raise Fault("port-lost", str(exc)) from None
 
+    def _encode(self, items: list[Item]) -> tuple[list[bytes], bytes, bytes]:
+        """Each block's bytes with its end of block, the opening and the closing tape marks."""
+        if self.cfg.code == "EIA":
+            out = []
+            for it in items:
+                where = f"block {it.block} (line {it.line})" if it.block >= 0 else "preamble"
+                out.append(eia.encode(it.text, where) + bytes([eia.EOB]))
+            return out, bytes([eia.ER, eia.EOB]), bytes([eia.ER])
+        return [it.text.encode("ascii") + self.eob for it in items], b"%" + self.eob, b"%"
+
     def _run(self, link: SerialLink, items: list[Item]) -> None:
         timeout = self.cfg.timeout_s
+        encoded, opening, closing = self._encode(items)  # errors here: nothing sent yet
         if self.wait_for_dc1 and link.soft_flow:
             # Before the control asks (DC1), the gate is shut.
             if not link.dc1_seen.is_set():
@@ -125,13 +139,12 @@ class FanucStreamer(StreamerBase):
                     "start the cycle)",
                 )
         lead = b"\0" * self.cfg.leader_nuls
-        self._write(link, lead + b"%" + self.eob)
+        self._write(link, lead + opening)
         pending: list[BlockRow] = []
         try:
-            for it in items:
+            for it, data in zip(items, encoded):
                 if self._stop.is_set():
                     raise Fault("stopped", "stopped by the operator")
-                data = it.text.encode("ascii") + self.eob
                 t_send = self.clock()
                 self._write(link, data)
                 pending.append(BlockRow(it.block, it.line, it.text, len(data), t_send))
@@ -141,7 +154,7 @@ class FanucStreamer(StreamerBase):
                 if len(pending) >= self.record_batch:
                     self._record(pending)
                     pending = []
-            self._write(link, b"%" + lead)
+            self._write(link, closing + lead)
         finally:
             if pending:
                 self._record(pending)

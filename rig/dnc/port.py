@@ -8,8 +8,8 @@ for a simulated controller by changing one string.
 What each protocol accepts (anything else is a :class:`~rig.dnc.errors.DncError` naming the field):
 
 - ``fanuc``: 7 or 8 data bits, any parity, 1 or 2 stop bits, a Fanuc baud rate
-  (:data:`FANUC_BAUDS`), flow control ``xonxoff`` (DC1/DC3), ``rtscts`` or ``none``; ISO tape
-  code (EIA is not implemented: set the control to ISO, which every RS-232 Fanuc accepts).
+  (:data:`FANUC_BAUDS`), flow control ``xonxoff`` (DC1/DC3), ``rtscts`` or ``none``; tape code
+  ISO, or EIA (:mod:`rig.dnc.eia`) which needs 8 data bits and no UART parity.
 - ``grbl``: 8N1 only, flow control ``none`` (GRBL answers ``ok``; it sends no DC1/DC3 and an
   Arduino has no RTS/CTS lines).
 
@@ -79,10 +79,11 @@ def check_settings(cfg: SerialConfig, protocol: str, where: str = "serial") -> N
                 f"{where}.baudrate = {cfg.baudrate}: not a Fanuc reader/punch baud rate "
                 f"(expected one of {', '.join(map(str, FANUC_BAUDS))} baud)"
             )
-        if cfg.code != "ISO":
+        if cfg.code == "EIA" and (cfg.bytesize != 8 or cfg.parity != "N"):
             bad.append(
-                f"{where}.code = {cfg.code!r}: EIA tape code is not implemented; set the control "
-                "and the config to ISO (expected 'ISO')"
+                f"{where}.code = 'EIA' with bytesize = {cfg.bytesize}, parity = {cfg.parity!r}: "
+                "EIA codes use all 8 tape channels with their own parity (expected bytesize = 8, "
+                "parity = 'N')"
             )
     if bad:
         raise DncError("; ".join(bad))

@@ -15,6 +15,9 @@ Behaviour
 - Waiting for a program it sends DC1 (start reader) every ``dc1_repeat_s`` wall seconds, as if the
   operator had started DNC operation; it ignores everything before ``%``, then skips to the first
   end of block (label skip), then reads blocks until the closing ``%``. NUL and CR are ignored.
+- Tape code is recognised from the first tape mark, as a Fanuc does: ``%`` ISO, ER (0x0B) EIA
+  (:mod:`rig.dnc.eia`; EOB 0x80, blank and delete ignored, a code with even parity or not in EIA
+  is alarm ``TH``).
 - Receive buffer of ``rx_buffer_bytes`` characters; DC3 when the free space drops to
   ``xoff_free_bytes``, DC1 when the fill drops to ``xon_fill_bytes``. A character arriving into a
   full buffer is an overrun: alarm ``SR0087 BUFFER OVERFLOW``.
@@ -58,6 +61,7 @@ from collections import deque
 
 from analysis.config import MachineConfig
 from planning.nc import NCError
+from rig.dnc import eia
 from rig.sim._controller import SimControllerBase, SimControllerError, _Planned
 from rig.sim.clock import SimClock
 
@@ -130,6 +134,7 @@ class SimFanuc(SimControllerBase):
 
     def _fanuc_state(self) -> None:
         self.reader = "waiting"  # waiting -> label -> reading -> ended
+        self.code = "ISO"  # set by the first tape mark: '%' ISO, ER (0x0B) EIA
         # complete blocks: text, arrival time of its end of block, characters it fills
         self._rx_blocks: deque[tuple[str, float, int]] = deque()
         self._partial = bytearray()
@@ -150,14 +155,19 @@ class SimFanuc(SimControllerBase):
                 self._raise_alarm(87, "SR0087 BUFFER OVERFLOW (receiver overrun)", t)
                 return
             self.received.append(b)
-            if b == 0 or b == 0x0D:  # NUL leader/trailer, CR of CR LF: ignored
-                continue
-            if self.reader == "waiting":
-                if b == 0x25:  # '%'
+            if self.reader == "waiting":  # the first tape mark sets the code: '%' ISO, ER EIA
+                if b in (0x25, eia.ER):
+                    self.code = "ISO" if b == 0x25 else "EIA"
                     self.reader = "label"
                     self._started = False
-                    self._event("program_start", "", t)
+                    self._event("program_start", f"tape code {self.code}", t)
                 continue
+            c = self._char(b, t)
+            if c is None:
+                if self.alarm:
+                    return
+                continue
+            b = c
             if self.reader == "label":
                 if b == 0x0A:
                     self.reader = "reading"
@@ -189,6 +199,26 @@ class SimFanuc(SimControllerBase):
                 self._after_xoff = 0
                 self.xoff_count += 1
                 self._send(DC3)
+
+    def _char(self, b: int, t: float) -> int | None:
+        """The ISO character a received byte stands for (EIA decoded: EOB -> LF, ER -> %);
+        None for what the reader ignores (NUL, CR, EIA blank/delete) or a parity alarm."""
+        if self.code == "ISO":
+            return None if b in (0x00, 0x0D) else b
+        if b in (eia.BLANK, eia.DELETE):
+            return None
+        if not eia.has_odd_parity(b):
+            self._raise_alarm(1, f"TH PARITY ALARM (EIA code 0x{b:02X} has even parity)", t)
+            return None
+        if b == eia.EOB:
+            return 0x0A
+        if b == eia.ER:
+            return 0x25
+        ch = eia.DECODE.get(b)
+        if ch is None:
+            self._raise_alarm(1, f"TH ALARM (0x{b:02X} is not an EIA character)", t)
+            return None
+        return ord(ch)
 
     def _next_block(self, now: float) -> _Planned | None:
         while len(self._plan) < self.lookahead + 1 and self._rx_blocks and not self.alarm:
