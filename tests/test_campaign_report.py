@@ -1,0 +1,68 @@
+"""Campaign analysis and report against the simulator's truth (seeded, simulated rig)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from analysis.config import get_material
+from rig.campaign import load_campaign, run_campaign
+from rig.report import write_report
+
+DATA = Path(__file__).parent / "data" / "campaign"
+
+
+def test_facemill_campaign_identifies_the_truth_and_writes_the_report(tmp_path: Path) -> None:
+    text = (DATA / "quick.toml").read_text().replace('"OUT"', f'"{tmp_path / "out"}"')
+    text = text.replace("FAULTS", "hum_n = 0.0").replace("block_length_mm = 10.0",
+                                                          "block_length_mm = 16.0")  # fmt: skip
+    text = text.replace("depth_mm = [1.0, 2.0]", "depth_mm = [0.5, 1.5, 3.0]")
+    text = text.replace('identify_groups = ["g"]', 'identify_groups = ["g"]\n'
+                        'validate_groups = ["v"]')  # fmt: skip
+    text += '\n[[matrix]]\ngroup = "v"\nspindle_rpm = 1200\nfz_mm = 0.4\ndepth_mm = 2.0\n'
+    cfg = tmp_path / "fm.toml"
+    cfg.write_text(text)
+    res = run_campaign(load_campaign(cfg), progress=False)
+    assert res.ok
+    rep = write_report(res.folder)
+    s = rep.summary["facemill-coefficients"]
+    assert s["success"], s["message"]
+    truth = get_material("al6061-t6").facemill
+    got = {r["coefficient"]: r["identified"] for r in s["coefficients"]}
+    for name in ("K_T_n_mm2", "K_R", "P_T_n_mm", "P_R_n_mm"):
+        assert got[name] == pytest.approx(getattr(truth, name), rel=0.02), name
+    assert s["max_error_pct_seed003"] < 2.0
+    assert s["validation_max_abs_error_pct"] < 3.0
+    for f in ("report.md", "summary.json", "runs.csv", "coefficients.csv", "validation.csv",
+              "force_traces.png", "fit_vs_depth.png", "predicted_vs_measured.png"):  # fmt: skip
+        assert (rep.folder / f).stat().st_size > 0, f
+    runs = pd.read_csv(rep.folder / "runs.csv")
+    assert list(runs["status"]) == ["success"] * 4
+    assert json.loads((rep.folder / "summary.json").read_text())["runs"] == 4
+    assert "| K_T_n_mm2 |" in rep.markdown
+
+
+@pytest.mark.slow
+def test_afc_post_processed_feeds_shorten_the_cut_and_even_the_force(tmp_path: Path) -> None:
+    c = load_campaign("afc-step-depth")
+    res = run_campaign(c, out_root=tmp_path, progress=False)
+    assert res.ok
+    s = write_report(res.folder).summary["afc-compare"]
+    assert s["time_saving_pct"] >= 30.0  # seed 001: about 40 %
+    assert s["program_time_saving_pct"] >= 40.0
+    assert s["cv_adjusted"] < 0.5 * s["cv_constant"]
+
+
+@pytest.mark.slow
+def test_feed_sweep_finds_seed001_base_feed_and_writes_a_rule(tmp_path: Path) -> None:
+    from analysis.rules import load_rule
+
+    res = run_campaign(load_campaign("feed-sweep"), out_root=tmp_path, progress=False)
+    assert res.ok
+    s = write_report(res.folder).summary["feed-rule"]
+    assert s["success"] and s["base_feed_mm_min"] == 1000.0
+    rule = load_rule(s["rule_file"])
+    assert rule.base_feed_mm_min == 1000.0 and len(rule.feeds_mm_min) == 20
