@@ -283,3 +283,34 @@ def test_endmill_mean_force_equals_the_model(tool: EndMill, depth: float, width:
     phi = np.linspace(0, 2 * np.pi, 6000, endpoint=False)
     f_model = endmill.endmill_forces(phi, tool, mat.endmill, cut, n_discs=48).mean(axis=0)
     assert np.allclose(f_machine, f_model, rtol=0.02, atol=0.02 * np.abs(f_model).max())
+
+
+def test_zmap_stock_remembers_earlier_passes() -> None:
+    # Two identical slots along the same line: the second finds the groove empty; a third pass
+    # half a diameter aside cuts again, less than a full slot.
+    from analysis.config import get_material
+    from rig._campaign_nc import block_zmap
+    from rig.sim.machine import SignalSettings, SimMachine, ZMapStock
+
+    block = CutBlock(-20, 20, (0.0, 40.0), (0.0,))
+    stock = ZMapStock(block_zmap(block, FLAT), FLAT)
+    quiet = SignalSettings(noise_n=0.0, drift_n_s=0.0, hum_n=0.0, modes=False)
+    m = SimMachine(FLAT, get_material("al6061-t6"), _dyno(), stock, 20_000.0, quiet)
+    rpm, feed, depth = 3000.0, 450.0, 2.0
+    t = 0.0
+    means = []
+    for y in (0.0, 0.0, 5.0):
+        seg = _line(-10, 50, y, -depth, feed, rpm, t0=t)
+        m.on_segment(seg)
+        tt = _one_rev_times(t + 30.0 / (feed / 60.0), rpm, 4000)
+        means.append(float(np.linalg.norm(m.cutting_force(tt), axis=1).mean()))
+        t = seg.t_end_s
+        m.cutting_force(np.array([t + 1e-6]))  # the clock passes the end: the pass is cut
+    full, again, aside = means
+    assert full > 50.0
+    assert again < 0.02 * full
+    assert 0.1 * full < aside < 0.9 * full
+    # The first pass removed a 10 mm wide, 2 mm deep slot through the 40 mm block; the second
+    # nothing.
+    assert stock.removed_mm3[0] == pytest.approx(10.0 * 2.0 * 40.0, rel=0.01)
+    assert stock.removed_mm3[1] == pytest.approx(0.0, abs=1.0)
