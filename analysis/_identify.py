@@ -27,7 +27,7 @@ from analysis.steady import (
 )
 
 #: Condition keys whose unit cutlab does not use; a run giving them is refused (mixed units).
-_FOREIGN_UNITS = ("_in", "_inch", "_ipm", "_ipt", "_m", "_cm", "_um", "_sfm", "_m_min")
+_FOREIGN_UNITS = ("_in", "_inch", "_ipm", "_ipt", "_m", "_cm", "_um", "_sfm")
 
 
 @dataclass(frozen=True)
