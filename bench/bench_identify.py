@@ -82,7 +82,7 @@ def write_runs(folder: Path) -> list[Path]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--dir", default="/tmp/cutlab_bench", help="folder for the run files")
-    ap.add_argument("--chunk", type=int, default=1 << 18, help="samples per chunk")
+    ap.add_argument("--chunk", type=int, default=1 << 19, help="samples per chunk")
     args = ap.parse_args()
     paths = write_runs(Path(args.dir))
     tool = get_tool("seed003-facemill")
