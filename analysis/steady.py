@@ -168,8 +168,8 @@ class RevolutionStats:
         self.counts = np.zeros(self.n_rev)
 
     def add(self, chunk: ArrayLike, first_sample: int | np.ndarray) -> None:
-        """``first_sample``: index of the chunk's first sample, or every sample's index (n,)
-        when the record has holes."""
+        """``first_sample``: index of the chunk's first sample, or every sample's index (n,),
+        increasing, when the record has holes."""
         x = np.asarray(chunk, float)
         idx = _indices(first_sample, len(x))
         # Sample i lies in revolution k iff round(k spr) <= i < round((k + 1) spr).
@@ -177,10 +177,14 @@ class RevolutionStats:
         ok = (rev >= 0) & (rev < self.n_rev)
         if not ok.all():
             rev, x = rev[ok], x[ok]
-        for c in range(x.shape[1]):
-            self.sums[:, c] += np.bincount(rev, weights=x[:, c], minlength=self.n_rev)
-            self.sumsq[:, c] += np.bincount(rev, weights=x[:, c] ** 2, minlength=self.n_rev)
-        self.counts += np.bincount(rev, minlength=self.n_rev)
+        if len(rev) == 0:
+            return
+        # rev is non-decreasing: sum each revolution's run of samples with reduceat.
+        starts = np.flatnonzero(np.diff(rev, prepend=rev[0] - 1))
+        k = rev[starts]
+        self.sums[k] += np.add.reduceat(x, starts, axis=0)
+        self.sumsq[k] += np.add.reduceat(x * x, starts, axis=0)
+        self.counts[k] += np.diff(np.append(starts, len(rev)))
 
 
 def find_steady(
