@@ -107,3 +107,33 @@ def test_sim_controller_fanuc_prints_a_tty() -> None:
     proc, path = _start_sim("--protocol", "fanuc", "--json")
     sim = _stop_sim(proc)
     assert sim["path"] == path and sim["bytes_received"] == 0
+
+
+def test_serve_answers_a_remote_request(tmp_path) -> None:
+    """`cutlab dnc serve --once` (subprocess) answers the simulated control's request."""
+    from _dnc_helpers import EventWaiter
+
+    from rig.sim.clock import SimClock
+    from rig.sim.fanuc import SimFanuc
+
+    prog = line_program(30)
+    (tmp_path / "O4321.nc").write_text(prog.text)
+    ctl = SimFanuc(clock=SimClock(1.0))  # 9600 baud 7E2 as ace-h63
+    done = EventWaiter(ctl, "program_end")
+    with ctl:
+        cmd = [sys.executable, "-m", "rig.cli", "dnc", "serve", "--once", "--json", "--port",
+               ctl.path, "--folder", str(tmp_path), "--machine", "ace-h63"]  # fmt: skip
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            if not select.select([proc.stderr], [], [], 30)[0]:
+                pytest.fail("serve printed nothing within 30 s")
+            assert "listening" in proc.stderr.readline()
+            ctl.request_program("4321")
+            out, err = proc.communicate(timeout=120)
+        finally:
+            proc.kill()
+        assert proc.returncode == 0, err
+        assert done.wait(60)
+    res = json.loads(out)
+    assert res["program"] == "4321" and res["ok"] and res["blocks_sent"] == len(prog)
+    assert ctl.executed_texts() == [b.text for b in prog.blocks]

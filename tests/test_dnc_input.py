@@ -110,6 +110,15 @@ def test_wrong_baud_rate_is_garbage_to_the_controller() -> None:
     assert ctl.framing_errors > 0 and ctl.received == b""
 
 
+def test_fanuc_at_the_wrong_baud_rate_is_alarm_085() -> None:
+    ctl = fanuc_sim(4.0)  # 115200 baud
+    with ctl:
+        st = FanucStreamer(fanuc_cfg(ctl.path, baudrate=9600, timeout_s=0.5))
+        with pytest.raises(StreamFault, match="held XOFF"):
+            st.send(line_program(100))
+    assert ctl.alarm == "85" and ctl.framing_errors > 0 and ctl.executed == []
+
+
 def test_grbl_line_too_long_is_refused_before_sending() -> None:
     long = "G1 " + " ".join(f"X{i}.12345" for i in range(12)) + " F100"
     prog = program_from_text(f"{long}\n", "long.nc", check_nc=False)

@@ -37,6 +37,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     s.add_argument("--json", action="store_true", help="end with a JSON summary on stdout")
     s.set_defaults(func=_send)
 
+    r = dsub.add_parser("serve", help="answer remote program requests from a Fanuc control")
+    r.add_argument("--port", help="port name or pyserial URL (default: the machine config's)")
+    r.add_argument("--machine", help="machine name or TOML (default ace-h63)")
+    r.add_argument("--folder", help="program folder (default: serial.program_folder)")
+    r.add_argument("--once", action="store_true", help="serve one request, then exit")
+    r.add_argument("--json", action="store_true", help="a JSON summary per request on stdout")
+    r.set_defaults(func=_serve)
+
     c = dsub.add_parser("sim-controller", help="run a simulated controller on a pseudo-terminal")
     c.add_argument("--protocol", required=True, help="fanuc or grbl")
     c.add_argument("--machine", help="machine name or TOML (default ace-h63 / lab-grbl)")
@@ -121,6 +129,25 @@ def _send(args: argparse.Namespace) -> int:
             f"block {res.last_acknowledged_block}"
         )
     return 0
+
+
+def _serve(args: argparse.Namespace) -> int:
+    from rig.dnc import RemoteServer
+
+    machine = _machine(args.machine, "fanuc")
+    cfg = _serial(machine, args.port, None, None)
+    srv = RemoteServer(cfg, args.folder, machine=machine, on_listening=lambda: status(
+        f"listening for a remote request on {cfg.port} (programs from {srv.folder})"
+    ))  # fmt: skip
+    while True:
+        res = srv.serve_one()
+        req = srv.request
+        if args.json:
+            print_json({"program": req.program, "start_block": req.start_block, **res.as_dict()})
+        else:
+            status(f"sent {req.program} from block {req.start_block}: {res.blocks_sent} blocks")
+        if args.once:
+            return 0
 
 
 def _knobs(items: list[str]) -> dict[str, Any]:

@@ -13,7 +13,8 @@ Quick tour::
     st.send(program, start_block=120, preamble=pre)
 
 Modules: :mod:`~rig.dnc.port` (settings per protocol, opening), :mod:`~rig.dnc.link` (reader
-thread, DC1/DC3 gate, pacing), :mod:`~rig.dnc.fanuc`, :mod:`~rig.dnc.grbl`,
+thread, DC1/DC3 gate, pacing), :mod:`~rig.dnc.fanuc`, :mod:`~rig.dnc.eia` (EIA tape code),
+:mod:`~rig.dnc.grbl`, :mod:`~rig.dnc.sinks` (the record into a run file),
 :mod:`~rig.dnc.restart`, :mod:`~rig.dnc.remote` (remote program request),
 :mod:`~rig.dnc.record` (the block record and its sinks), :mod:`~rig.dnc.progress`,
 :mod:`~rig.dnc.program`, :mod:`~rig.dnc.errors`. The simulated controllers that speak these

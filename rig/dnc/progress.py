@@ -22,7 +22,7 @@ class Progress:
             dynamic_ncols=True,
         )
         self._t0 = time.perf_counter()
-        self._last = 0.0
+        self._last = self._t0  # first rate after half a second, not from one block
 
     def update(self, n_blocks: int, bytes_sent: int) -> None:
         self._bar.update(n_blocks)

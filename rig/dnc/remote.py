@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import re
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -78,6 +79,7 @@ class RemoteServer:
         machine: MachineConfig | None = None,
         sink: BlockSink | None = None,
         pace_bytes_per_s: float | str | None = "auto",
+        on_listening: Callable[[], None] | None = None,
     ) -> None:
         self.cfg = cfg
         self.folder = Path(folder or cfg.program_folder or ".")
@@ -87,6 +89,7 @@ class RemoteServer:
         self.program: Program | None = None
         #: set once the port is open and a request can be received
         self.listening = threading.Event()
+        self.on_listening = on_listening
 
     def serve_one(self, wait_s: float | None = None) -> StreamResult:
         """Wait for a request (``wait_s`` None: forever), then send what it names."""
@@ -106,6 +109,8 @@ class RemoteServer:
             link.on_data = st._on_data
             link.on_control = on_control
             self.listening.set()
+            if self.on_listening is not None:
+                self.on_listening()
             while not done.wait(0.05):
                 if link.lost.is_set():
                     raise DncError(f"remote request: port lost ({link.lost_reason})")

@@ -334,8 +334,12 @@ class SimControllerBase(ExecutorMixin):
                 self._wire.popleft()
             if not self.line_ok:
                 self.framing_errors += len(part)
+                self._on_framing_error(t0)
                 continue
             self._on_bytes(part, t0 + (n - 1) * ct)
+
+    def _on_framing_error(self, t: float) -> None:
+        """Protocol hook: characters at the wrong baud rate arrived (garbage)."""
 
     def _next_wake(self, now: float) -> float:
         t = now + 0.05

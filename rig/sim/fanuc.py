@@ -24,6 +24,8 @@ Behaviour
 - The executor keeps ``lookahead_blocks`` interpreted blocks ahead of the one running, taking them
   out of the receive buffer, and runs each segment for its programmed time (feed, rapid rate,
   dwell) on the SimClock. Listeners get every segment as it starts.
+- Characters at a baud rate other than its own are framing errors: alarm 085 (communication
+  error), DC3 held.
 - An NC error in a block is a program alarm ``PS:<reason>``: motion stops, DC3, nothing more read.
   In alarm the control holds DC3 (the streamer times out); :meth:`reset` (the RESET key) clears
   buffers and the alarm and waits for a new program; the machine stays where it stopped.
@@ -246,6 +248,10 @@ class SimFanuc(SimControllerBase):
             self._started = False
             return None
         return b
+
+    def _on_framing_error(self, t: float) -> None:
+        if not self.alarm:
+            self._raise_alarm(85, "COMMUNICATION ERROR (framing: wrong baud rate?)", t)
 
     def _go_silent(self, detail: str) -> None:
         # a control that stops reading holds the line with DC3 (else the sender would go on)
