@@ -18,10 +18,13 @@ Flow control, per ``serial.flow_control``:
   port reports modem lines (a pty has none).
 - ``none``: nothing stops the sender; only safe when the control executes faster than the line.
 
-``wait_for_dc1`` (default True): nothing is sent until the control sends DC1, as a control does
-when the operator starts DNC/tape operation. DC2/DC4 (the control starting/ending punch output)
-are honoured: while the control punches, the streamer does not send; what is punched is collected
-(:attr:`FanucStreamer.punched`) and a remote request in it is answered by :mod:`rig.dnc.remote`.
+``wait_for_dc1`` (default True, with DC1/DC3 handled in the streamer): nothing is sent until the
+control sends DC1, as a control does when the operator starts DNC/tape operation (the kernel's
+IXON, the other option, swallows DC1 and starts un-stopped, so there it does not apply).
+
+DC2/DC4 (the control starting/ending punch output) are honoured: while the control punches, the
+streamer does not send; what is punched is collected (:attr:`FanucStreamer.punched`) and a remote
+request in it is answered by :mod:`rig.dnc.remote`.
 
 Drip feed has no acknowledgement: each block's record row has its send time, ``ack_time_s`` NaN
 and status ``"sent"``. A timeout (XOFF held, write blocked, no DC1) or a lost port stops the stream
