@@ -108,6 +108,7 @@ class _Progress:
 
 def _load(args: argparse.Namespace):
     from analysis.config import load_machine
+    from planning.errors import PlanningError
     from planning.nc import Program, interpret
     from planning.opplan import default_stock, load_stock
     from planning.zmap import Cutter
@@ -120,7 +121,10 @@ def _load(args: argparse.Namespace):
     if args.stock:
         stock = load_stock(args.stock, args.spacing)
     else:
-        stock = default_stock(motion, cutter, args.spacing)
+        try:
+            stock = default_stock(motion, cutter, args.spacing)
+        except PlanningError as exc:
+            raise PlanningError(f"{args.program}: {exc}") from None
     return machine, tool, program, motion, stock
 
 
