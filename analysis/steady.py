@@ -103,10 +103,15 @@ def steady_window(
     x = np.asarray(signal, float)
     if x.ndim != 1:
         raise AnalysisError(f"signal has shape {x.shape}: expected (n,)")
-    # A 1-D level such as the resultant has no offset to find; its air is near 0.
-    part = find_steady(
-        x[:, None], rate_hz, spindle_rpm, tolerance=tolerance, refine=False, offset_n=0.0
-    )
+    try:
+        part = find_steady(x[:, None], rate_hz, spindle_rpm, tolerance=tolerance, refine=False)
+    except AnalysisError as exc:
+        if "no air revolutions" not in str(exc):
+            raise
+        # A record that cuts throughout: a level such as the resultant stands out from 0.
+        part = find_steady(
+            x[:, None], rate_hz, spindle_rpm, tolerance=tolerance, refine=False, offset_n=0.0
+        )
     return part.window
 
 
@@ -291,8 +296,8 @@ def refine_period(
     """Revolution period (s) from the autocorrelation of a 1-D signal, near the nominal one.
 
     First the autocorrelation peak at one revolution (within ``tolerance``) over the first few
-    revolutions (FFT), then the peak at k revolutions with k as large as half the record allows,
-    searched by direct products over the few lags the first estimate leaves open, each with
+    revolutions (FFT), then the peaks at 2, 4, 8, ... revolutions (up to half the record),
+    each searched by direct products over the few lags the previous estimate leaves open, with
     parabolic interpolation; the error shrinks like 1/k. Returns the nominal period if the record
     is shorter than two revolutions.
     """
@@ -310,15 +315,18 @@ def refine_period(
     if hi <= lo:
         return nominal_period_s
     lags = np.arange(lo, hi + 1)
-    lag1 = _parabolic_peak(lags, ac[lo : hi + 1] / (len(head) - lags))
-    k = int(len(x) / lag1 / 2)
-    if k < 2:
-        return float(lag1 / rate_hz)
-    centre = k * lag1
-    half = int(np.ceil(0.1 * k)) + 3  # lag1 is good to a small fraction of a sample
-    lags = np.arange(max(1, int(centre) - half), min(len(x) - 1, int(centre) + half + 1))
-    vals = np.array([x[: len(x) - L] @ x[L:] / (len(x) - L) for L in lags])
-    return float(_parabolic_peak(lags, vals) / k / rate_hz)
+    lag = _parabolic_peak(lags, ac[lo : hi + 1] / (len(head) - lags))
+    # Double the number of revolutions spanned each step: the last estimate predicts the peak to
+    # a fraction of a sample times k, so a few lags around it are enough.
+    k = 1
+    while 2 * k * lag <= len(x) / 2:
+        k *= 2
+        centre = k * lag
+        half = int(np.ceil(0.05 * k)) + 3
+        lags = np.arange(max(1, int(centre) - half), min(len(x) - 1, int(centre) + half + 1))
+        vals = np.array([x[: len(x) - L] @ x[L:] / (len(x) - L) for L in lags])
+        lag = _parabolic_peak(lags, vals) / k
+    return float(lag / rate_hz)
 
 
 def _parabolic_peak(lags: np.ndarray, vals: np.ndarray) -> float:
