@@ -35,10 +35,11 @@ STEADY_TOLERANCE = 0.02
 
 
 def force_run(lr: LoadedRun) -> Any:
-    """The run as an identification record: the air before the cut (for the offset) followed by
-    the steady part found with :data:`STEADY_TOLERANCE`."""
+    """The run as an identification record: the air before the cut (for the offset; every
+    revolution before the cutter touches, so the offset's own noise stays far below the
+    smallest forces) followed by the steady part found with :data:`STEADY_TOLERANCE`."""
     from analysis.identify_facemill import ForceRun, RunConditions
-    from analysis.steady import find_steady
+    from analysis.steady import find_steady, per_revolution
 
     cond = RunConditions.from_mapping(lr.conditions, f"{lr.path}: conditions")
     f = xyz_forces(lr)
@@ -47,7 +48,12 @@ def force_run(lr: LoadedRun) -> Any:
         w = find_steady(f, rate, cond.spindle_rpm, tolerance=STEADY_TOLERANCE).window
     except AnalysisError:
         return ForceRun(lr.name, f, rate, cond)  # the fit reports why it cannot use it
-    air = f[: min(w.start, int(rate * 60.0 / abs(cond.spindle_rpm) * 4))]
+    spr = rate * 60.0 / abs(cond.spindle_rpm)
+    means, _ = per_revolution(np.linalg.norm(f[: w.start], axis=1), rate, cond.spindle_rpm)
+    head = means[:5]
+    touching = np.flatnonzero(means > head.mean() + 8 * head.std() + 1e-9)
+    n_air = int(touching[0]) if touching.size else len(means)
+    air = f[: max(int(spr), int((n_air - 1) * spr))]
     return ForceRun(lr.name, np.vstack([air, f[w]]), rate, cond)
 
 
