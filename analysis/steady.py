@@ -135,7 +135,9 @@ class SteadyPart:
 
     def with_period(self, period_s: float, rate_hz: float) -> SteadyPart:
         """The same part with a refined period, cut to whole revolutions of it."""
-        n_whole = int((self.window.stop - self.window.start) / (period_s * rate_hz))
+        # A period a hair longer than nominal must not cost a whole revolution (the window
+        # always has the trimmed revolution after it to spare the fraction of a sample).
+        n_whole = int((self.window.stop - self.window.start) / (period_s * rate_hz) + 0.01)
         stop = self.window.start + int(round(n_whole * period_s * rate_hz))
         return SteadyPart(
             slice(self.window.start, stop), self.offset_n, self.drift_n_s, period_s,
