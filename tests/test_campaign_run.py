@@ -175,3 +175,15 @@ def test_missing_real_hardware_is_refused_before_anything_runs(tmp_path: Path) -
     p = _cli(["campaign", "run", str(cfg)])
     out, err = p.communicate(timeout=60)
     assert p.returncode == 2 and err.startswith("cutlab: error:") and "Traceback" not in err
+
+
+def test_grbl_machine_streams_with_acknowledgements(tmp_path: Path) -> None:
+    cfg = _config(tmp_path)
+    cfg.write_text(cfg.read_text().replace('machine = "ace-h63"', 'machine = "lab-grbl"'))
+    res = run_campaign(load_campaign(cfg), progress=False)
+    assert res.ok
+    run = rf.load_run(res.runs[0].file)
+    assert "O1001" not in run.program_text and "N10" not in run.program_text
+    b = run.blocks
+    assert b["ack_s"].notna().all() and (b["ack_s"] >= b["send_s"]).all()
+    assert run.force_n[:, 0].max() > 100
