@@ -97,6 +97,19 @@ def afc_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section:
         "max_force_adjusted_N": a.get("max_N"),
     }
     summary["meets_cv_target"] = bool(summary["cv_ratio"] <= 1 / 3)
+    # Where the post-processor could not raise the feed any further, the force stays low.
+    fr = campaign.spec.feed_rule
+    if fr is not None:
+        x, f = _feed_along_x(adj[0].run.program_text, campaign.machine)
+        blk = adj[0].conditions.get("block", {})
+        edges = blk.get("step_x_mm", [])
+        at_max = []
+        for k in range(len(edges) - 1):
+            mid = 0.5 * (edges[k] + edges[k + 1])
+            seg = (x[0::2] <= mid) & (x[1::2] >= mid)
+            if seg.any() and f[0::2][seg][0] >= fr.max_feed_mm_min - 1e-6:
+                at_max.append(k)
+        summary["steps_at_max_feed"] = at_max
     summary["meets_time_target"] = bool(summary["time_saving_pct"] >= 30.0)
     pd.DataFrame(rows).to_csv(out / "afc_compare.csv", index=False)
     (out / "afc_compare.json").write_text(json.dumps(summary, indent=2, default=float))
@@ -109,6 +122,12 @@ def afc_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section:
         + md_table(rows)
         + "\n![force and feed along the cut](force_and_feed.png)\n"
     )
+    if summary.get("steps_at_max_feed"):
+        md += (
+            f"\nSteps {summary['steps_at_max_feed']} (0-based, in cutting order) run at the "
+            f"rule's maximum feed {fr.max_feed_mm_min:g} mm/min, where the post-processor cannot "
+            "raise the load any further.\n"
+        )
     return Section("afc-compare", md, summary, ("afc_compare.csv", "afc_compare.json"))
 
 
