@@ -86,4 +86,7 @@ def load_program(path: str | Path, check_nc: bool = True) -> Program:
         ) from None
     except OSError as exc:
         raise DncError(f"{p}: cannot read the program: {exc}") from None
-    return program_from_text(text, str(p), check_nc)
+    program = program_from_text(text, str(p), check_nc)
+    if len(program) == 0:
+        raise DncError(f"{p}: the program has no blocks to send")
+    return program
