@@ -483,7 +483,7 @@ def _within_run(bar: object, name: str) -> Callable[[int, int], None]:
 
     def show(done: int, total: int) -> None:
         now = time.monotonic()
-        if now - last[0] < 0.5:
+        if now - last[0] < 0.2 and done < total:
             return
         last[0] = now
         bar.set_postfix_str(f"{name[:32]} block {done}/{total}")  # type: ignore[attr-defined]
