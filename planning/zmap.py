@@ -193,8 +193,6 @@ class ZMap:
         self.x_mm = self.x0_mm + (np.arange(nx) + 0.5) * self.spacing_mm
         self.y_mm = self.y0_mm + (np.arange(ny) + 0.5) * self.spacing_mm
         self._ycol = self.y_mm[:, None]
-        self._last_drop_mm = 0.0  # deepest height drop of the last cut, mm
-        self._track_drop = False  # compute it (only when asked: it costs a pass)
         #: use the compiled kernel (planning._zmap_numba) when numba is installed
         self.compiled = True
 
@@ -420,17 +418,13 @@ class ZMap:
             return removed
         cut_one = self._cut_one
         rows = np.concatenate([p0, p1], axis=1).tolist()  # python floats: cheaper per piece
-        self._track_drop = depth_mm is not None
-        try:
-            for k, (x0, y0, z0, x1, y1, z1) in enumerate(rows):
-                self._last_drop_mm = 0.0
-                removed[k] = cut_one(kind, r, rc, x0, y0, z0, x1, y1, z1)
-                if depth_mm is not None:
-                    depth_mm[k] = self._last_drop_mm
-                if progress is not None and k % 4096 == 4095:
-                    progress(k + 1)
-        finally:
-            self._track_drop = False
+        track = depth_mm is not None
+        for k, (x0, y0, z0, x1, y1, z1) in enumerate(rows):
+            removed[k], drop = cut_one(kind, r, rc, x0, y0, z0, x1, y1, z1, track)
+            if track:
+                depth_mm[k] = drop
+            if progress is not None and k % 4096 == 4095:
+                progress(k + 1)
         return removed
 
     def _cut_one(
@@ -444,17 +438,23 @@ class ZMap:
         x1: float,
         y1: float,
         z1: float,
-    ) -> float:
-        """Lower the grid under one linear move; return the removed volume, mm^3."""
+        track_drop: bool = False,
+    ) -> tuple[float, float]:
+        """Lower the grid under one linear move; return (removed volume mm^3, deepest drop mm).
+
+        The deepest height drop (the axial depth of cut met) costs a pass over the patch, so it
+        is computed only with ``track_drop`` (else 0).
+        """
         i0, i1, j0, j1 = self._patch(
             min(x0, x1) - r, max(x0, x1) + r, min(y0, y1) - r, max(y0, y1) + r
         )
         if i0 >= i1 or j0 >= j1:
-            return 0.0
+            return 0.0, 0.0
         h = self.heights_mm[j0:j1, i0:i1]
         zlow = max(z0 if z0 < z1 else z1, self.bottom_mm)
         if h.max() <= zlow:  # the cutter passes above everything here (air move)
-            return 0.0
+            return 0.0, 0.0
+        drop = 0.0
         qx = self.x_mm[i0:i1] - x0
         qy = self._ycol[j0:j1] - y0
         dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
@@ -480,51 +480,24 @@ class ZMap:
                 d2 += ey * ey
             cut = d2 <= r * r
             cut &= h > zlow
-            if self._track_drop:
-                self._last_drop_mm = max(float(np.max(h, where=cut, initial=zlow)) - zlow, 0.0)
+            if track_drop:
+                drop = max(float(np.max(h, where=cut, initial=zlow)) - zlow, 0.0)
             np.putmask(h, cut, zlow)  # masked ufuncs (where=) are several times slower
         else:
             env = _k.envelope(kind, r, rc, qx, qy, dx, dy, dz, z0)
             np.maximum(env, self.bottom_mm, out=env)
-            if self._track_drop:
-                self._last_drop_mm = max(float(np.max(h - env)), 0.0)
+            if track_drop:
+                drop = max(float(np.max(h - env)), 0.0)
             np.minimum(h, env, out=h)
         # h only went down, so the sums' difference is the removed volume (cheaper than
         # summing a difference array; the rounding is ~1e-16 of the patch's sum)
         removed = max(before - float(h.sum()), 0.0)
-        return removed * self.spacing_mm * self.spacing_mm
+        return removed * self.spacing_mm * self.spacing_mm, drop
 
     # ------------------------------------------------------------------ output
 
     def save_png(self, path: str | Path, title: str = "stock") -> Path:
         """Shaded height map of the stock, PNG (matplotlib, Agg)."""
-        import matplotlib
+        from planning._zmap_plot import save_stock_png
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        from matplotlib.colors import LightSource
-
-        h = self.heights_mm
-        step = max(1, int(math.ceil(max(h.shape) / 1500)))  # keep the image a sane size
-        hs = h[::step, ::step]
-        xmin, xmax, ymin, ymax = self.extent_mm
-        fig, ax = plt.subplots(figsize=(7, 6), dpi=110)
-        ls = LightSource(azdeg=315, altdeg=45)
-        span = float(hs.max() - hs.min()) or 1.0
-        shaded = ls.shade(
-            hs, cmap=plt.get_cmap("viridis"), vert_exag=max(hs.shape) / span * 0.05,
-            blend_mode="soft", dx=self.spacing_mm * step, dy=self.spacing_mm * step,
-        )  # fmt: skip
-        ax.imshow(shaded, origin="lower", extent=(xmin, xmax, ymin, ymax))
-        sm = plt.cm.ScalarMappable(
-            cmap="viridis", norm=plt.Normalize(float(hs.min()), float(hs.max()))
-        )
-        fig.colorbar(sm, ax=ax, label="height (mm)")
-        ax.set_xlabel("x (mm)")
-        ax.set_ylabel("y (mm)")
-        ax.set_title(title)
-        fig.tight_layout()
-        out = Path(path)
-        fig.savefig(out)
-        plt.close(fig)
-        return out
+        return save_stock_png(self, path, title)
