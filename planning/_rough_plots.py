@@ -21,6 +21,15 @@ def _plt():
     return plt
 
 
+def _save(plt, fig, path: str | Path) -> Path:
+    """Lay out, write and close ``fig``; the PNG path."""
+    fig.tight_layout()
+    out = Path(path)
+    fig.savefig(out)
+    plt.close(fig)
+    return out
+
+
 def plot_levels(planner: RoughPlanner, plans: dict[str, RoughPlan], path: str | Path) -> Path:
     """Side view through the crest: the offset surface and, per method, each level's cut.
 
@@ -62,11 +71,7 @@ def plot_levels(planner: RoughPlanner, plans: dict[str, RoughPlan], path: str | 
         ax.set_ylabel("z (mm)")
         ax.set_ylim(planner.bottom - 3, planner.top + 2)
     axes[-1].set_xlabel(f"x (mm), section y = {y0:.1f} mm")
-    fig.tight_layout()
-    out = Path(path)
-    fig.savefig(out)
-    plt.close(fig)
-    return out
+    return _save(plt, fig, path)
 
 
 def plot_paths(planner: RoughPlanner, plan: RoughPlan, path: str | Path) -> Path:
@@ -96,11 +101,7 @@ def plot_paths(planner: RoughPlanner, plan: RoughPlan, path: str | Path) -> Path
         f"{plan.method}: passes (dots: starts; climb, outside in), {plan.path_mm:.0f} mm",
         fontsize=9,
     )
-    fig.tight_layout()
-    out = Path(path)
-    fig.savefig(out)
-    plt.close(fig)
-    return out
+    return _save(plt, fig, path)
 
 
 def plot_roughed(check: CheckResult, title: str, path: str | Path) -> Path:
@@ -126,8 +127,4 @@ def plot_roughed(check: CheckResult, title: str, path: str | Path) -> Path:
     for ax in axes:
         ax.set_xlabel("x (mm)")
         ax.set_ylabel("y (mm)")
-    fig.tight_layout()
-    out = Path(path)
-    fig.savefig(out)
-    plt.close(fig)
-    return out
+    return _save(plt, fig, path)
