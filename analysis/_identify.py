@@ -129,7 +129,7 @@ class RunAverage:
     """A run reduced to its steady part: what the fits use.
 
     ``waveform_n`` (n_bins, 3) synchronous average over ``revolutions`` revolutions (offset
-    removed; bin 0 is centred on the steady window's first sample, phase unknown); ``mean_n`` (3,)
+    removed; bin 0 starts at the steady window's first sample, phase unknown); ``mean_n`` (3,)
     mean force over those revolutions; ``period_s`` revolution period; ``window`` the steady part
     in samples; ``tooth_peak_n`` (teeth,) mean per-tooth peak resultant and ``runout_ratio``.
     """
@@ -149,9 +149,18 @@ class RunAverage:
 
 
 def default_bins(rate_hz: float, period_s: float) -> int:
-    """One bin per sample of a revolution (at most 4096): fewer bins would alias the modes'
-    ringing, whose frequencies lie far above the revolution's low harmonics."""
-    return int(min(4096, max(16, round(rate_hz * period_s))))
+    """Angle bins for a revolution average: one per sample, or (above 4096 samples per
+    revolution) a whole number of samples per bin when the revolution holds a whole number of
+    samples, so every bin sees the same sample positions. Fewer bins than that would alias the
+    modes' ringing, whose frequencies lie far above the revolution's low harmonics."""
+    spr = rate_hz * period_s
+    whole = round(spr)
+    if abs(spr - whole) < 1e-3 and whole >= 16:
+        r = max(1, math.ceil(whole / 4096))
+        while whole % r:
+            r += 1
+        return whole // r
+    return int(min(4096, max(16, round(spr))))
 
 
 def reduce_run(run: ForceRun, teeth: int, n_bins: int | None = None) -> RunAverage:
@@ -364,7 +373,7 @@ def reduce_run_file(
             progress(len(idx))
     wave = avg.mean()
     # Tooth peaks from the in-memory probe (up to 2^20 samples of the steady part).
-    low = float(np.argmin(np.linalg.norm(wave, axis=1))) / nb * 2 * np.pi
+    low = (float(np.argmin(np.linalg.norm(wave, axis=1))) + 0.5) / nb * 2 * np.pi
     t = (probe[0] - lo) / rate
     seg = probe[1] - part.offset_n - t[:, None] * part.drift_n_s
     peaks = tooth_peaks(seg, rate, part.period_s, teeth, phase_rad=low)

@@ -62,11 +62,18 @@ __all__ = [
 ]
 
 
-def _sub(avg: RunAverage) -> int:
-    """Regressor points per angle bin: 1 when a bin holds about one sample per revolution (a
-    sample is a point value), more when the bins average over their width."""
-    spr = avg.rate_hz * avg.period_s
-    return 1 if len(avg.waveform_n) >= 0.9 * spr else 4
+def _bin_offsets(avg: RunAverage) -> np.ndarray:
+    """Where a bin's samples sit, in bins from angle 2 pi k / n (see SyncAverager for the edges).
+
+    With a whole number r of samples per bin (and per revolution) every revolution puts its
+    samples at the same places, k + i / r; otherwise the samples drift through the bin over
+    the revolutions and it holds their average over its width.
+    """
+    r = avg.rate_hz * avg.period_s / len(avg.waveform_n)
+    if abs(r - round(r)) < 1e-3 and round(r) >= 1:
+        return np.arange(round(r)) / round(r)
+    # The bin's edges sit half a sample early (see analysis.steady.SyncAverager).
+    return (np.arange(4) + 0.5) / 4 - 0.5 / r
 
 
 @dataclass(frozen=True)
@@ -122,10 +129,10 @@ def _filter_for(dynamometer, rate_hz: float) -> DynamometerFilter | None:
 def _regressors(
     avg: RunAverage, tool: FaceMill, filt: DynamometerFilter | None, phase: float
 ) -> np.ndarray:
-    """Bin-averaged, mode-filtered regressors (n_bins, 3, 6), bin 0 centred on ``phase``."""
-    n, sub = len(avg.waveform_n), _sub(avg)
-    # Bin k is centred on phase + 2 pi k / n; its sub-points spread over the bin's width.
-    theta = phase + 2 * np.pi * ((np.arange(n * sub) + 0.5) / sub - 0.5) / n
+    """Bin-averaged, mode-filtered regressors (n_bins, 3, 6), bin 0 starting at ``phase``."""
+    n, offs = len(avg.waveform_n), _bin_offsets(avg)
+    sub = len(offs)
+    theta = phase + 2 * np.pi * (np.arange(n)[:, None] + offs[None, :]).ravel() / n
     d = facemill_design(theta, tool, _cut(avg.conditions))
     d = d.reshape(n, sub, 3, 6).mean(axis=1)
     if filt is not None:
@@ -148,16 +155,16 @@ def _phase(avg: RunAverage, tool: FaceMill, filt: DynamometerFilter | None) -> f
     r = np.fft.irfft(np.einsum("fck,fc->fk", fx, np.conj(fy)), n=n, axis=0)
     gain = np.einsum("sk,kl,sl->s", r, inv, r)
     s = int(np.argmax(gain))
-    # Data bin b matches model bin b + s, i.e. bin 0 of the data is centred on 2 pi s / n.
+    # Data bin b matches model bin b + s, i.e. bin 0 of the data starts at 2 pi s / n.
     base = 2 * np.pi * s / n
 
     yy = y.reshape(-1)
     # The model on a grid 64 times finer than the bins, evaluated once; a phase candidate is then
     # an index shift of it (averaged over each bin's sub-points, then through the modes).
-    sub, fine_per_bin = _sub(avg), 64
+    fine_per_bin = 64
     theta = 2 * np.pi * np.arange(n * fine_per_bin) / (n * fine_per_bin)
     fine = facemill_design(theta, tool, _cut(avg.conditions))
-    offs = ((np.arange(sub) + 0.5) * fine_per_bin / sub - fine_per_bin / 2).astype(np.int64)
+    offs = np.rint(_bin_offsets(avg) * fine_per_bin).astype(np.int64)
     rows = np.arange(n)[:, None] * fine_per_bin + offs[None, :]
     m0 = s * fine_per_bin
 

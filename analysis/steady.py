@@ -358,17 +358,21 @@ class SyncAverager:
     def add(self, chunk: ArrayLike, first_sample: int | np.ndarray) -> None:
         x = np.asarray(chunk, float)
         idx = _indices(first_sample, len(x))
-        # Nearest bin (bin k is centred on angle 2 pi k / n_bins): with one bin per sample a
-        # floor would put samples that sit on a bin edge into either neighbour by rounding.
-        frac = (idx / (self.rate_hz * self.period_s)) % 1.0
-        b = np.rint(frac * self.n_bins).astype(np.int64) % self.n_bins
+        # Bin k covers [k - h, k + 1 - h) * 2 pi / n_bins, h half a sample: with a whole number
+        # of samples per bin they sit half a sample inside its edges, where neither rounding nor
+        # a refined period's slow drift over the record moves them to a neighbour.
+        spr = self.rate_hz * self.period_s
+        frac = (idx / spr) % 1.0
+        h = 0.5 * self.n_bins / spr
+        b = np.floor(frac * self.n_bins + h).astype(np.int64) % self.n_bins
         for c in range(x.shape[1]):
             self.sums[:, c] += np.bincount(b, weights=x[:, c], minlength=self.n_bins)
         self.counts += np.bincount(b, minlength=self.n_bins)
         self.samples += len(x)
 
     def mean(self) -> np.ndarray:
-        """Averaged waveform (n_bins, c); bin k is centred on angle 2 pi k / n_bins."""
+        """Averaged waveform (n_bins, c); bin k covers angles [k - h, k + 1 - h) * 2 pi / n_bins
+        with h half a sample (so a sample at angle 2 pi k / n_bins lands in bin k)."""
         if np.any(self.counts == 0):
             raise AnalysisError(
                 f"{int((self.counts == 0).sum())} of {self.n_bins} angle bins are empty: use fewer "

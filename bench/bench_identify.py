@@ -32,7 +32,7 @@ RATE_HZ = 50_000.0
 RPM = 600.0
 SAMPLES = 3_340_000  # per channel and run: 10 runs x 3 channels x 3.34 M = 1.0e8
 DEPTHS = np.linspace(0.5, 3.0, 10)
-N_BINS = 2048
+N_BINS = None  # default: 2500 bins of 2 samples each at 5000 samples per revolution
 
 
 def write_runs(folder: Path) -> list[Path]:
