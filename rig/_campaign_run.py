@@ -80,8 +80,15 @@ class _Tap:
     """DAQ sink in front of the run writer: forwards everything; keeps the rest windows for the
     zero and the drift fit; computes forces to watch the force limit; notes DAQ faults."""
 
-    def __init__(self, writer: object, cal: Calibration, force_limit_n: float | None) -> None:
+    def __init__(
+        self,
+        writer: object,
+        cal: Calibration,
+        force_limit_n: float | None,
+        on_over_limit: Callable[[str], None] | None = None,
+    ) -> None:
         self.writer = writer
+        self.on_over_limit = on_over_limit
         self.cal = cal
         self.force_limit_n = force_limit_n
         self.monitor = False
@@ -133,6 +140,10 @@ class _Tap:
                             f"force {peak:.0f} N above the limit {self.force_limit_n:.0f} N at "
                             f"t = {t[k]:.3f} s"
                         )
+                        # Act from the acquisition thread: waiting for the runner's next look
+                        # would let the cut go on for its polling interval.
+                        if self.on_over_limit is not None:
+                            self.on_over_limit(self.over_limit)
         with self._progress:
             self.t_last_s = float(t[-1]) if n else self.t_last_s
             self._progress.notify_all()
@@ -208,7 +219,14 @@ def execute_run(
 ) -> RunOutcome:
     """Run ``program`` on ``session`` into ``writer`` (already holding conditions and program)."""
     wall0 = time.monotonic()
-    tap = _Tap(writer, cal, force_limit_n)
+    held_at: list[float] = []
+
+    def hold_now(why: str) -> None:
+        session.feed_hold()
+        held_at.append(time.monotonic())
+        writer.event(rf.EV_PAUSE, f"suspender: {why}: feed hold"[: rf.EVENT_MESSAGE_BYTES])
+
+    tap = _Tap(writer, cal, force_limit_n, hold_now)
     status, reason = STATUS_SUCCESS, "program completed"
     daq = session.daq
     rate = daq.info.rate_hz
@@ -263,11 +281,8 @@ def execute_run(
                     status = STATUS_ABORT
                     writer.event(rf.EV_INTERLOCK, fault)
                 break
-            if tap.over_limit is not None:
-                if held_since is None:
-                    session.feed_hold()
-                    writer.event(rf.EV_PAUSE, f"suspender: {tap.over_limit}: feed hold")
-                    held_since = time.monotonic()
+            if tap.over_limit is not None and held_at:
+                held_since = held_at[0]
                 if on_force == "abort" or time.monotonic() - held_since >= hold_timeout_s:
                     status, reason = STATUS_ABORT, f"suspender: {tap.over_limit}"
                     break

@@ -13,6 +13,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from analysis import runfile as rf
@@ -187,3 +188,20 @@ def test_grbl_machine_streams_with_acknowledgements(tmp_path: Path) -> None:
     b = run.blocks
     assert b["ack_s"].notna().all() and (b["ack_s"] >= b["send_s"]).all()
     assert run.force_n[:, 0].max() > 100
+
+
+def test_force_limit_suspender_holds_the_feed_and_aborts(tmp_path: Path) -> None:
+    cfg = _config(tmp_path)
+    cfg.write_text(cfg.read_text() + '\n[suspenders]\nforce_limit_n = 250\non_force = "hold"\n')
+    res = run_campaign(load_campaign(cfg), progress=False)
+    for r in res.runs:
+        assert r.status == "abort" and "above the limit 250 N" in r.reason
+        run = rf.load_run(r.file)
+        pauses = run.events[run.events["kind"] == "pause"]
+        assert len(pauses) == 1 and "feed hold" in pauses["message"].iloc[0]
+        # The hold came within a few revolutions of the first force above the limit, and the
+        # spindle stopped after the abort (no force at the end of the record).
+        resultant = np.linalg.norm(run.force_n, axis=1)
+        t_over = run.time_s[np.argmax(resultant > 250)]
+        assert 0 <= pauses["time_s"].iloc[0] - t_over < 0.5  # a DAQ read is 0.1 s
+        assert resultant[-int(0.05 * run.rate_hz) :].mean() < 20

@@ -156,6 +156,7 @@ class SimSession:
                 if self.sim_clock.sleep_until(t_trip, self._stop) and not self._ended.is_set():
                     self.controller.feed_hold()
                     self.controller.reset()
+                    self.machine.on_spindle(self.clock(), 0.0)  # door open: spindle stops
                     if self._fault is None:
                         self._fault = f"interlock: door opened at t = {t_trip:.3f} s (sim)"
 
@@ -182,6 +183,8 @@ class SimSession:
         """Feed hold, then reset (ends the program, spindle off); the streamer stops too."""
         self.controller.feed_hold()
         self.controller.reset()
+        # RESET stops the spindle: the machine must stop rubbing the stock.
+        self.machine.on_spindle(self.clock(), 0.0)
         stop = getattr(getattr(self, "streamer", None), "stop", None)
         if stop is not None:
             stop()
