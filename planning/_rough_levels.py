@@ -25,6 +25,7 @@ from shapely.geometry import LineString, MultiPolygon, Point, Polygon, box
 from shapely.geometry.polygon import orient
 
 from planning.contours import SectionMaker, _as_multipolygon
+from planning.errors import PlanningError
 from planning.ferguson import FergusonSurface
 
 _QUAD_SEGS = 16
@@ -306,7 +307,7 @@ class CuspTable:
         contour=None,
     ):
         if model not in ("paper", "exact"):
-            raise ValueError(f"cusp model {model!r}: expected 'paper' or 'exact'")
+            raise PlanningError(f"rough.cusp_model = {model!r}: expected 'paper' or 'exact'")
         p, n = surface.sample(per_patch)
         x0, x1, y0, y1 = stock_xy
         inside = (p[..., 0] >= x0) & (p[..., 0] <= x1) & (p[..., 1] >= y0) & (p[..., 1] <= y1)

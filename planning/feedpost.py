@@ -44,14 +44,13 @@ from planning._feedpost_write import (
 )
 from planning._zmap_engagement import ForceModel
 from planning.errors import PlanningError
-from planning.nc import Program, interpret
+from planning.nc import Program, interpret, segment_time_s
 from planning.nc.arcs import segment_length_mm
 from planning.nc.motion import DWELL, Motion
 from planning.opplan import (
     DEFAULT_CHORD_TOL_MM,
     Simulation,
     check_motion,
-    machining_time_s,
     plunge_mask,
     simulate_motion,
 )
@@ -312,9 +311,8 @@ def post_process(
     new_program, new_index = write_program(program, machine, block_feed, split)
     motion_after = interpret(new_program, machine, file=file)
     verify_geometry(motion, motion_after, new_index, set(split), file)
-    rapid = machine.rapid_mm_min if machine is not None else 10_000.0
-    t_before = machining_time_s(motion, rapid)
-    t_after = machining_time_s(motion_after, rapid)
+    t_before = segment_time_s(motion, machine)  # feeds > 0: check_motion passed
+    t_after = segment_time_s(motion_after, machine)
     if sim.contacts:
         notes.append(f"{len(sim.contacts)} holder/spindle contacts with the stock (see report)")
     if len(sim.rapid_cut_segments):

@@ -65,6 +65,7 @@ from planning._zmap_stock import (
 from planning.errors import PlanningError
 from planning.nc.arcs import PLANE_AXES, arc_radius_mm, linearize, segment_length_mm
 from planning.nc.motion import DWELL, LINE, RAPID, Motion
+from planning.nc.stats import segment_time_s
 from planning.zmap import Cutter, ZMap, split_moves
 
 #: chordal tolerance for arcs, mm (the Z-map's own resolution is far coarser)
@@ -123,24 +124,6 @@ class Simulation:
     @property
     def removed_total_mm3(self) -> float:
         return float(self.removed_mm3.sum())
-
-
-def machining_time_s(
-    motion: Motion,
-    rapid_mm_min: float,
-    feed_mm_min: NDArray[np.float64] | None = None,
-) -> NDArray[np.float64]:
-    """Time of each segment, s, with :func:`planning.nc.motion_stats`' model: feed moves
-    length / feed (``feed_mm_min`` overrides the programmed feeds), rapids their longest axis
-    travel at ``rapid_mm_min``, dwells their time. Acceleration is not modelled.
-    """
-    length = segment_length_mm(motion)
-    feed = motion.feed_mm_min if feed_mm_min is None else np.asarray(feed_mm_min, float)
-    axis = np.abs(motion.end - motion.start).max(axis=1) if len(motion) else np.zeros(0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = np.where(motion.kind == RAPID, axis / rapid_mm_min, length / feed) * 60.0
-    t = np.where(motion.kind == DWELL, motion.dwell_s, t)
-    return np.where(np.isfinite(t), t, 0.0)
 
 
 def plunge_mask(start_mm: NDArray, end_mm: NDArray, tol_mm: float = 1e-9) -> NDArray[np.bool_]:
@@ -398,7 +381,6 @@ class OperationPlan:
         progress: Callable[[str, int, int], None] | None = None,
     ) -> list[OperationResult]:
         self.check()
-        rapid = self.machine.rapid_mm_min if self.machine is not None else 10_000.0
         out = []
         for op in self.operations:
             cb = None if progress is None else (lambda d, t, n=op.name: progress(n, d, t))
@@ -410,7 +392,7 @@ class OperationPlan:
                 OperationResult(
                     operation=op,
                     simulation=sim,
-                    time_s=float(machining_time_s(op.motion, rapid).sum()),
+                    time_s=float(segment_time_s(op.motion, self.machine).sum()),
                     removed_mm3=sim.removed_total_mm3,
                     stock_volume_after_mm3=self.stock.volume_mm3(),
                 )
@@ -501,7 +483,6 @@ __all__ = [
     "default_stock",
     "load_plan",
     "load_stock",
-    "machining_time_s",
     "plunge_mask",
     "simulate_motion",
     "summary",
