@@ -133,6 +133,11 @@ class RealSession:
         sent = getattr(self.streamer, "blocks_sent", 0) if self.streamer is not None else 0
         return min(sent, n), n
 
+    def executed_blocks(self) -> list[tuple[int, float, float, str]]:
+        """A real control does not report when it executes a block (send and acknowledgement
+        times are in the block record)."""
+        return []
+
     def feed_hold(self) -> None:
         if self.protocol == "grbl" and self.streamer is not None:
             self.streamer.feed_hold()

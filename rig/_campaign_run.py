@@ -57,6 +57,9 @@ class RigSession(Protocol):
     def progress(self) -> tuple[int, int]:
         """(blocks executed, blocks in the program)."""
 
+    def executed_blocks(self) -> list[tuple[int, float, float, str]]:
+        """(order received, start s, end s, text) per executed block where the control tells."""
+
     def feed_hold(self) -> None: ...
 
     def cycle_start(self) -> None: ...
@@ -294,6 +297,10 @@ def execute_run(
             status, reason = STATUS_FAIL, session.fault() or ""
         if progress is not None:
             progress(*session.progress())
+        # When each block ran, on the run clock: ties every sample to the block cutting then.
+        for seq, t0, t1, text in session.executed_blocks():
+            msg = f"executed block {seq} {t0:.6f}..{t1:.6f} s: {text}"
+            writer.event(rf.EV_NOTE, msg[: rf.EVENT_MESSAGE_BYTES], time_s=t0)
         # Rest after the cut: zero and drift from both rests (not after a failure: the rig may
         # not be at rest, so the zero taken before the cut stays).
         t_end = session.clock()

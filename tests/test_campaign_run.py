@@ -205,3 +205,23 @@ def test_force_limit_suspender_holds_the_feed_and_aborts(tmp_path: Path) -> None
         t_over = run.time_s[np.argmax(resultant > 250)]
         assert 0 <= pauses["time_s"].iloc[0] - t_over < 0.5  # a DAQ read is 0.1 s
         assert resultant[-int(0.05 * run.rate_hz) :].mean() < 20
+
+
+def test_every_sample_can_be_tied_to_its_executed_block(tmp_path: Path) -> None:
+    import re
+
+    res = run_campaign(load_campaign(_config(tmp_path)), progress=False)
+    run = rf.load_run(res.runs[0].file)
+    notes = run.events[run.events["message"].str.startswith("executed block")]
+    spans = []
+    for m in notes["message"]:
+        g = re.match(r"executed block (\d+) ([\d.]+)\.\.([\d.]+) s: (.*)", m)
+        spans.append((float(g[2]), float(g[3]), g[4]))
+    cut = [s for s in spans if s[2].startswith("N70 G1 X")]
+    assert len(spans) == len(run.blocks) and len(cut) == 1
+    t0, t1, _ = cut[0]
+    # The forces are there while the cutting block runs, and not before it starts.
+    f = np.linalg.norm(run.force_n, axis=1)
+    during = (run.time_s > t0) & (run.time_s < t1)
+    before = run.time_s < t0 - 0.05
+    assert f[during].max() > 300 and f[before].max() < 20

@@ -173,6 +173,11 @@ class SimSession:
         n = len(self._program.blocks) if self._program is not None else 0
         return min(self.controller.last_completed_block + 1, n), n
 
+    def executed_blocks(self) -> list[tuple[int, float, float, str]]:
+        """(order received, start s, end s, text) of every block the controller executed, on
+        the run clock: the block clock the samples share."""
+        return [(b.seq, b.t_start_s, b.t_end_s, b.text) for b in self.controller.executed]
+
     def feed_hold(self) -> None:
         self.controller.feed_hold()
 
