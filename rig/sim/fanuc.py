@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
+from typing import Any
 
 from analysis.config import MachineConfig
 from planning.nc import NCError
@@ -72,7 +73,10 @@ _END = "%"
 
 
 class SimFanuc(SimControllerBase):
-    """Fanuc-like control reading a drip-fed program (see the module docstring)."""
+    """Fanuc-like control reading a drip-fed program (see the module docstring).
+
+    ``sim_knobs`` are the fault knobs of :class:`SimControllerBase` (a wrong name is a TypeError).
+    """
 
     protocol = "fanuc"
 
@@ -92,12 +96,7 @@ class SimFanuc(SimControllerBase):
         xon_fill_bytes: int = 1024,
         lookahead_blocks: int = 2,
         dc1_repeat_s: float = 0.2,
-        sim_stop_answering_after_block: int | None = None,
-        sim_drop_port_after_block: int | None = None,
-        sim_overrun_at_byte: int | None = None,
-        sim_alarm_at_block: tuple[int, int] | None = None,
-        sim_stop_answering_at_s: float | None = None,
-        sim_alarm_at_s: tuple[float, int] | None = None,
+        **sim_knobs: Any,
     ) -> None:
         if flow_control == "rtscts":
             raise SimControllerError(
@@ -119,12 +118,7 @@ class SimFanuc(SimControllerBase):
             baudrate=baudrate,
             bits_per_char=bits,
             rx_buffer_bytes=rx_buffer_bytes,
-            sim_stop_answering_after_block=sim_stop_answering_after_block,
-            sim_drop_port_after_block=sim_drop_port_after_block,
-            sim_overrun_at_byte=sim_overrun_at_byte,
-            sim_alarm_at_block=sim_alarm_at_block,
-            sim_stop_answering_at_s=sim_stop_answering_at_s,
-            sim_alarm_at_s=sim_alarm_at_s,
+            **sim_knobs,
         )
         self.flow = flow_control == "xonxoff"
         self.xoff_at = rx_buffer_bytes - xoff_free_bytes

@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import re
 from collections import deque
+from typing import Any
 
 import numpy as np
 
@@ -88,7 +89,10 @@ _SETTINGS = {0: 10, 1: 25, 2: 0, 3: 0, 4: 0, 5: 0, 6: 0, 10: 3, 11: 0.010, 12: 0
 
 
 class SimGrbl(SimControllerBase):
-    """GRBL-like controller (see the module docstring)."""
+    """GRBL-like controller (see the module docstring).
+
+    ``sim_knobs`` are the fault knobs of :class:`SimControllerBase` (a wrong name is a TypeError).
+    """
 
     protocol = "grbl"
 
@@ -101,13 +105,8 @@ class SimGrbl(SimControllerBase):
         baudrate: int = 115200,
         rx_buffer_bytes: int = 127,
         planner_blocks: int = 15,
-        sim_stop_answering_after_block: int | None = None,
-        sim_drop_port_after_block: int | None = None,
-        sim_overrun_at_byte: int | None = None,
         sim_error_at_block: tuple[int, int] | None = None,
-        sim_alarm_at_block: tuple[int, int] | None = None,
-        sim_stop_answering_at_s: float | None = None,
-        sim_alarm_at_s: tuple[float, int] | None = None,
+        **sim_knobs: Any,
     ) -> None:
         super().__init__(
             machine,
@@ -116,12 +115,7 @@ class SimGrbl(SimControllerBase):
             baudrate=baudrate,
             bits_per_char=10,  # 8N1
             rx_buffer_bytes=rx_buffer_bytes,
-            sim_stop_answering_after_block=sim_stop_answering_after_block,
-            sim_drop_port_after_block=sim_drop_port_after_block,
-            sim_overrun_at_byte=sim_overrun_at_byte,
-            sim_alarm_at_block=sim_alarm_at_block,
-            sim_stop_answering_at_s=sim_stop_answering_at_s,
-            sim_alarm_at_s=sim_alarm_at_s,
+            **sim_knobs,
         )
         self.planner_blocks = planner_blocks
         self.sim_error_at_block = sim_error_at_block
