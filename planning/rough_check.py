@@ -1,7 +1,8 @@
 """Independent check of a roughing program: cut it on a Z-map and measure what is left.
 
 The program *text* is interpreted by :mod:`planning.nc` (not the planner's own move list), every
-move - rapids included - is cut on a :class:`planning.zmap.ZMap` box of the stock, and the result
+move - rapids included, arcs as chords within 1 um (:func:`planning.nc.linearize`) - is cut on a
+:class:`planning.zmap.ZMap` box of the stock, and the result
 is compared with the offset surface (finish allowance applied):
 
 * material left: at every Z-map point above the offset surface, its distance to the surface
@@ -23,7 +24,7 @@ from scipy.spatial import cKDTree
 
 from planning.errors import PlanningError
 from planning.ferguson import FergusonSurface
-from planning.nc import RAPID, Motion, Program, interpret
+from planning.nc import DWELL, RAPID, Motion, Program, interpret, linearize
 from planning.zmap import Cutter, ZMap
 
 
@@ -104,19 +105,21 @@ def simulate(
     if reached.size == 0:
         raise PlanningError("program never reaches the safe height: nothing to check")
     m = motion[np.arange(reached[0] + 1, len(motion))]
-    removed = np.zeros(len(m))
+    lin = linearize(m[m.kind != DWELL])  # arcs as chords within 1 um
+    tool = m.tool[m.kind != DWELL][lin.source]
+    removed = np.zeros(len(lin.start))
     # Runs of one tool, in program order.
-    cuts = np.flatnonzero(np.diff(m.tool)) + 1
-    for a, b in zip(np.r_[0, cuts], np.r_[cuts, len(m)]):
-        t = int(m.tool[a])
+    cuts = np.flatnonzero(np.diff(tool)) + 1
+    for a, b in zip(np.r_[0, cuts], np.r_[cuts, len(tool)]):
+        t = int(tool[a])
         if isinstance(radius_mm, dict):
             if t not in radius_mm:
                 raise PlanningError(f"program uses tool T{t}: no radius given for it (mm)")
             r = radius_mm[t]
         else:
             r = radius_mm
-        removed[a:b] = zm.cut_pieces(Cutter("flat", r), m.start[a:b], m.end[a:b])
-    rapid = float(removed[m.kind == RAPID].sum())
+        removed[a:b] = zm.cut_pieces(Cutter("flat", r), lin.start[a:b], lin.end[a:b])
+    rapid = float(removed[lin.kind == RAPID].sum())
     return zm, float(removed.sum()) - rapid, rapid
 
 

@@ -153,3 +153,19 @@ def test_cusp_polygon_paths_stay_inside_the_stock_reach(cone):
         reach = cone.geom.above(lv.lo_mm).buffer(cone.geom.r + 1e-6)
         for p in lv.paths.passes:
             assert shapely.contains_xy(reach, p.xy_mm[:, 0], p.xy_mm[:, 1]).all()
+
+
+def test_check_cuts_arcs_along_the_arc_not_the_chord():
+    """The independent Z-map check follows G2/G3 (a half turn of radius 20 at 2 mm depth with a
+    phi 6 flat end mill removes the half annulus plus the two end half discs)."""
+    from planning.nc import interpret
+    from planning.rough_check import simulate
+
+    text = "G21 G90 G17\nG0 Z5\nG0 X70 Y50\nG1 Z-2 F200\nG2 X30 Y50 I-20 J0\nG0 Z5\nM30\n"
+    zm, removed, rapid = simulate(interpret(text), (0, 100, 0, 100, -10, 0), 3.0, 0.1, 5.0)
+    R, r, d = 20.0, 3.0, 2.0
+    closed = (0.5 * math.pi * ((R + r) ** 2 - (R - r) ** 2) + math.pi * r * r) * d
+    assert removed == pytest.approx(closed, rel=0.01)
+    assert rapid == 0.0
+    assert zm.height_at(50.0, 30.0) == pytest.approx(-2.0)  # on the arc, far from its chord
+    assert zm.height_at(50.0, 50.0) == pytest.approx(0.0)
