@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 from analysis.config import SerialConfig
 from rig.dnc.errors import DncError, StreamFault
-from rig.dnc.link import SerialLink
+from rig.dnc.link import LinkLost, LinkTimeout, SerialLink
 from rig.dnc.port import check_settings, is_pty, line_bytes_per_s, open_port
 from rig.dnc.program import Program
 from rig.dnc.progress import Progress
@@ -60,14 +60,14 @@ class StreamerBase:
         cfg: SerialConfig,
         *,
         sink: BlockSink | None = None,
-        clock: Callable[[], float] = time.time,
+        clock: Callable[[], float] | None = None,
         pace_bytes_per_s: float | str | None = "auto",
         progress: bool = False,
     ) -> None:
         check_settings(cfg, self.protocol)
         self.cfg = cfg
         self.sink: BlockSink = sink if sink is not None else MemorySink()
-        self.clock = clock
+        self.clock = clock if clock is not None else time.time
         if pace_bytes_per_s == "auto":
             pace_bytes_per_s = line_bytes_per_s(cfg) if is_pty(cfg.port) else None
         self.pace = pace_bytes_per_s
@@ -98,6 +98,18 @@ class StreamerBase:
 
     def _serial(self):  # noqa: ANN202 - pyserial object
         return open_port(self.cfg, self.protocol)
+
+    #: appended to a write timeout's reason (what may be holding the line)
+    timeout_hint = ""
+
+    def _write(self, data: bytes) -> None:
+        """Write through the open link; a timeout or a lost port ends the stream (Fault)."""
+        try:
+            self.link.write(data, self.cfg.timeout_s)  # type: ignore[union-attr]
+        except LinkTimeout as exc:
+            raise Fault("timeout", f"{exc}{self.timeout_hint}") from None
+        except LinkLost as exc:
+            raise Fault("port-lost", str(exc)) from None
 
     def send(
         self,

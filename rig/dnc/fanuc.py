@@ -39,7 +39,7 @@ from collections.abc import Callable
 from analysis.config import SerialConfig
 from rig.dnc import eia
 from rig.dnc._stream import Fault, Item, StreamerBase
-from rig.dnc.link import DC2, DC4, LinkLost, LinkTimeout, SerialLink
+from rig.dnc.link import DC2, DC4, SerialLink
 from rig.dnc.port import EOB_BYTES
 from rig.dnc.record import BlockRow, BlockSink
 
@@ -60,8 +60,9 @@ class FanucStreamer(StreamerBase):
         wait_for_dc1: bool = True,
         record_batch: int = 32,
     ) -> None:
-        kw = {} if clock is None else {"clock": clock}
-        super().__init__(cfg, sink=sink, pace_bytes_per_s=pace_bytes_per_s, progress=progress, **kw)
+        super().__init__(
+            cfg, sink=sink, clock=clock, pace_bytes_per_s=pace_bytes_per_s, progress=progress
+        )
         self.eob = EOB_BYTES[cfg.end_of_block]
         self.wait_for_dc1 = wait_for_dc1
         self.record_batch = record_batch
@@ -104,17 +105,13 @@ class FanucStreamer(StreamerBase):
         elif b == DC4:
             self.punching.clear()
 
-    def _write(self, link: SerialLink, data: bytes) -> None:
+    timeout_hint = " (alarm on the control? e.g. 087 buffer overflow)"
+
+    def _write(self, data: bytes) -> None:
         timeout = self.cfg.timeout_s
-        try:
-            if self.punching.is_set() and not _wait_clear(self.punching, timeout):
-                raise Fault("timeout", f"control kept punching (DC2 without DC4) for {timeout:g} s")
-            link.write(data, timeout)
-        except LinkTimeout as exc:
-            why = f"{exc} (alarm on the control? e.g. 087 buffer overflow)"
-            raise Fault("timeout", why) from None
-        except LinkLost as exc:
-            raise Fault("port-lost", str(exc)) from None
+        if self.punching.is_set() and not _wait_clear(self.punching, timeout):
+            raise Fault("timeout", f"control kept punching (DC2 without DC4) for {timeout:g} s")
+        super()._write(data)
 
     def _encode(self, items: list[Item]) -> tuple[list[bytes], bytes, bytes]:
         """Each block's bytes with its end of block, the opening and the closing tape marks."""
@@ -142,14 +139,14 @@ class FanucStreamer(StreamerBase):
                     "start the cycle)",
                 )
         lead = b"\0" * self.cfg.leader_nuls
-        self._write(link, lead + opening)
+        self._write(lead + opening)
         pending: list[BlockRow] = []
         try:
             for it, data in zip(items, encoded):
                 if self._stop.is_set():
                     raise Fault("stopped", "stopped by the operator")
                 t_send = self.clock()
-                self._write(link, data)
+                self._write(data)
                 pending.append(BlockRow(it.block, it.line, it.text, len(data), t_send))
                 self.blocks_sent += 1
                 if it.block >= 0:
@@ -157,7 +154,7 @@ class FanucStreamer(StreamerBase):
                 if len(pending) >= self.record_batch:
                     self._record(pending)
                     pending = []
-            self._write(link, closing + lead)
+            self._write(closing + lead)
         finally:
             if pending:
                 self._record(pending)

@@ -132,8 +132,9 @@ class GrblStreamer(StreamerBase):
             raise DncError(f"GRBL mode = {mode!r}: unknown; expected one of {', '.join(MODES)}")
         if not 16 <= rx_buffer_bytes <= 65536:
             raise DncError(f"rx_buffer_bytes = {rx_buffer_bytes}: expected 16..65536 bytes")
-        kw = {} if clock is None else {"clock": clock}
-        super().__init__(cfg, sink=sink, pace_bytes_per_s=pace_bytes_per_s, progress=progress, **kw)
+        super().__init__(
+            cfg, sink=sink, clock=clock, pace_bytes_per_s=pace_bytes_per_s, progress=progress
+        )
         self.mode = mode
         self.rx_buffer_bytes = rx_buffer_bytes
         self.status_hz = status_hz
@@ -260,14 +261,6 @@ class GrblStreamer(StreamerBase):
                 self.link.write_now(STATUS)  # type: ignore[union-attr]
             except (LinkLost, LinkTimeout):
                 return
-
-    def _write(self, data: bytes) -> None:
-        try:
-            self.link.write(data, self.cfg.timeout_s)  # type: ignore[union-attr]
-        except LinkTimeout as exc:
-            raise Fault("timeout", str(exc)) from None
-        except LinkLost as exc:
-            raise Fault("port-lost", str(exc)) from None
 
     # -- the stream --------------------------------------------------------------------------------
     def _run(self, link: SerialLink, items: list[Item]) -> None:
