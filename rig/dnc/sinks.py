@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
+from analysis import runfile as rf
 from rig.dnc.record import BlockRow
 
 
@@ -36,11 +37,11 @@ class LoggerSink:
         )
 
     def event(self, kind: str, time_s: float, detail: str = "") -> None:
+        # The writer cuts the message to the run file's field (rf.EVENT_MESSAGE_BYTES).
         if kind.startswith("fault"):
             self.fault = f"{kind}: {detail}"
-            self.writer.event("fault", f"dnc {kind}: {detail}", time_s=time_s)
-        else:
-            self.writer.event("note", f"dnc {kind}: {detail}", time_s=time_s)
+        ev = rf.EV_FAULT if kind.startswith("fault") else rf.EV_NOTE
+        self.writer.event(ev, f"dnc {kind}: {detail}", time_s=time_s)
 
     def close(self) -> None:
         if self.closed:
