@@ -28,6 +28,7 @@ import numpy as np
 
 from analysis.config import MachineConfig
 from planning.errors import PlanningError
+from planning.nc import NumberStyle, Program
 
 
 @dataclass(frozen=True)
@@ -224,34 +225,33 @@ def nc_program(
     safe_z_mm: float | None = None,
     title: str = "cutlab plan orient",
 ) -> str:
-    """Fanuc-style G-code: G90 G94 G21, G43, one G01 X Y Z A C per CL point, F in mm/min.
+    """Fanuc-style G-code (planning.nc's block formatting, 4 decimals): G90 G94 G21, G43, one
+    G01 X Y Z A C per CL point, F in mm/min.
 
     Each iso-parameter line starts with a rapid positioning of A and C and an approach; lines are
     separated by a retract to ``safe_z_mm`` (default: 20 mm above the highest Z).
     """
     P = moves.as_array()
     safe = float(np.max(P[:, 2]) + 20.0) if safe_z_mm is None else safe_z_mm
-    out = [
+    title = " ".join(title.replace("(", "[").replace(")", "]").split()).upper()[:40]
+    blocks: list[str | dict] = [
         "%",
-        f"O1000 ({title.upper()[:40]})",
-        "G90 G94 G21 G17",
-        f"T{tool_number} M06",
-        f"S{spindle_rpm:.0f} M03",
-        f"G43 H{tool_number} Z{safe:.4f}",
+        f"O1000 ({title})",
+        {"G": [90, 94, 21, 17]},
+        {"T": tool_number, "M": "06"},
+        {"S": spindle_rpm, "M": "03"},
+        {"G": 43, "H": tool_number, "Z": safe},
     ]
-
-    def w(v):
-        return f"{v:.4f}"
-
     for i, (x, y, z, a, c) in enumerate(P):
-        first = i == 0 or line[i] != line[i - 1]
-        if first:
+        if i == 0 or line[i] != line[i - 1]:  # a new iso-parameter line: position, then plunge
             if i:
-                out.append(f"G00 Z{w(safe)}")
-            out.append(f"G00 A{w(a)} C{w(c)}")
-            out.append(f"G00 X{w(x)} Y{w(y)}")
-            out.append(f"G01 Z{w(z)} F{feed_mm_min:.0f}")
+                blocks.append({"G": "00", "Z": safe})
+            blocks += [
+                {"G": "00", "A": a, "C": c},
+                {"G": "00", "X": x, "Y": y},
+                {"G": "01", "Z": z, "F": feed_mm_min},
+            ]
         else:
-            out.append(f"G01 X{w(x)} Y{w(y)} Z{w(z)} A{w(a)} C{w(c)}")
-    out += [f"G00 Z{w(safe)}", "M05", "M30", "%"]
-    return "\n".join(out) + "\n"
+            blocks.append({"G": "01", "X": x, "Y": y, "Z": z, "A": a, "C": c})
+    blocks += [{"G": "00", "Z": safe}, {"M": "05"}, {"M": 30}, "%"]
+    return Program.from_blocks(blocks, style=NumberStyle(decimals=4)).text()
