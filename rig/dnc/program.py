@@ -7,6 +7,7 @@ reported with file:line:column before anything is sent.
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,9 +36,7 @@ class Program:
 
     def position_of(self, block: int) -> int:
         """Position in :attr:`blocks` of the first block with index >= ``block``."""
-        import bisect
-
-        return bisect.bisect_left([b.index for b in self.blocks], block)
+        return bisect.bisect_left(self.blocks, block, key=lambda b: b.index)
 
 
 def _check_chars(text: str, name: str) -> None:

@@ -64,8 +64,7 @@ def restart_blocks(
             f"{where}: needs G{state.cutter_comp}/G{state.tool_length} compensation, which GRBL "
             "does not take"
         )
-    safe_mm = None if safe_z_mm is None else safe_z_mm
-    pre = restart_preamble(state, safe_z_mm=safe_mm, plunge_feed=True)
+    pre = restart_preamble(state, safe_z_mm=safe_z_mm, plunge_feed=True)
     out = [f"(RESTART AT BLOCK {block} LINE {block + 1})"]
     for text in pre:
         if protocol == "grbl":
