@@ -96,7 +96,10 @@ class _Progress:
         if self.bar is None:
             from tqdm import tqdm
 
-            self.bar = tqdm(total=total, unit="piece", desc=self.desc, file=sys.stderr, leave=False)
+            self.bar = tqdm(
+                total=total, unit="piece", desc=self.desc, file=sys.stderr, leave=False,
+                disable=None,  # no bar when stderr is not a terminal (CI logs)
+            )  # fmt: skip
         self.bar.total = total
         self.bar.n = done
         self.bar.refresh()

@@ -44,6 +44,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
     from tqdm import tqdm
 
+    from planning.errors import PlanningError
     from planning.kinematics5 import inverse, nc_program, write_cl_csv
     from planning.orient import energy_map, plan_orientation, require_feasible
     from planning.orient_check import verify
@@ -53,7 +54,9 @@ def run(args: argparse.Namespace) -> int:
 
     cfg, tool_cfg, machine = load_orient(args.config)
     t0 = time.perf_counter()
-    with tqdm(total=None, desc="orient", unit="pt", file=sys.stderr, leave=False) as bar:
+    with tqdm(
+        total=None, desc="orient", unit="pt", file=sys.stderr, leave=False, disable=None
+    ) as bar:
 
         def progress(i: int, n: int) -> None:
             bar.total = n
@@ -70,13 +73,10 @@ def run(args: argparse.Namespace) -> int:
     )
     if ver.collisions:
         i, c = ver.worst
-        raise_msg = (
+        raise PlanningError(
             f"{ver.collisions} orientations failed the independent check; worst CC point "
             f"{i}: {c.part} in {c.surface} by {-c.min_mm:.4f} mm"
         )
-        from planning.errors import PlanningError
-
-        raise PlanningError(raise_msg)
     moves = inverse(machine, res.tip_mm, res.axis, tool.gauge_length_mm)
     out = args.out
     out.mkdir(parents=True, exist_ok=True)

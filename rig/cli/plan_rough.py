@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
         rough = cfg.rough.model_copy(update={"cusp_model": args.cusp_model})
         part = Part(cfg.model_copy(update={"rough": rough}), part.path)
     t0 = time.perf_counter()
-    with tqdm(desc="plan rough", unit="step", file=sys.stderr, leave=False) as bar:
+    with tqdm(desc="plan rough", unit="step", file=sys.stderr, leave=False, disable=None) as bar:
 
         def progress(msg: str) -> None:
             bar.set_postfix_str(msg, refresh=False)
