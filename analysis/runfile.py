@@ -219,11 +219,15 @@ def volts_to_force(
 ) -> np.ndarray:
     """Apply the stored affine calibration (built by ``rig.calibration``).
 
-    volts : (n, c) V; time_s : (n,) run clock s. Returns force, (n, c) N:
-    ``force = volts_to_n @ (volts - zero_v - drift_v_s * (t - zero_time_s))`` per sample.
+    volts : (n, c) V; time_s : (n,) run clock s (only read when a drift is set). Returns force,
+    (n, c) N: ``force = volts_to_n @ (volts - zero_v - drift_v_s * (t - zero_time_s))`` per
+    sample. One (n, c) temporary besides the result: this runs over every sample loaded.
     """
-    dt = time_s - (zero_time_s if math.isfinite(zero_time_s) else 0.0)
-    corrected = volts - zero_v[None, :] - dt[:, None] * drift_v_s[None, :]
+    corrected = np.subtract(volts, zero_v, dtype=np.float64)
+    if np.any(drift_v_s):
+        dt = np.asarray(time_s, dtype=np.float64)
+        dt = dt - (zero_time_s if math.isfinite(zero_time_s) else 0.0)
+        corrected -= dt[:, None] * drift_v_s
     return corrected @ volts_to_n.T
 
 

@@ -18,11 +18,13 @@ run file (``analysis.runfile`` documents where) and the raw volts are kept besid
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from analysis import runfile as rf
 from analysis.config import Dynamometer, RigConfig
 from analysis.errors import ConfigError
 from rig.errors import RigError
@@ -158,11 +160,13 @@ class Calibration:
 
     # -- inverse: volts -> newtons -------------------------------------------------------------
 
-    @property
+    @functools.cached_property
     def volts_to_n(self) -> np.ndarray:
-        """(c, c) N/V: force = volts_to_n @ (corrected volts)."""
+        """(c, c) N/V: force = volts_to_n @ (corrected volts). Cached: the fields are frozen."""
         gain = self.range_n_v * self.amp_sensitivity_pc_n / self.sensitivity_pc_n
-        return (self.sign[:, None] * np.linalg.inv(self.crosstalk)) * gain[None, :]
+        m = (self.sign[:, None] * np.linalg.inv(self.crosstalk)) * gain[None, :]
+        m.flags.writeable = False  # shared by every call
+        return m
 
     def _dt(self, time_s: np.ndarray) -> np.ndarray:
         t0 = self.zero_time_s if math.isfinite(self.zero_time_s) else 0.0
@@ -179,12 +183,11 @@ class Calibration:
                 f"volts has shape {v.shape}: expected (n, {self.n_channels}) for channels "
                 f"{', '.join(self.channel_names)}"
             )
-        v = v - self.zero_v
-        if np.any(self.drift_v_s):
-            if time_s is None:
-                raise CalibrationError("a drift is set: force_from_volts needs time_s (s)")
-            v = v - self._dt(time_s)[:, None] * self.drift_v_s
-        return v @ self.volts_to_n.T
+        if np.any(self.drift_v_s) and time_s is None:
+            raise CalibrationError("a drift is set: force_from_volts needs time_s (s)")
+        return rf.volts_to_force(
+            v, time_s, self.volts_to_n, self.zero_v, self.zero_time_s, self.drift_v_s
+        )
 
     # -- zeroing and drift -------------------------------------------------------------------
 
