@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 from scipy.spatial import cKDTree
-from shapely.geometry import LineString, MultiPolygon, Point, Polygon, box
+from shapely.geometry import LineString, MultiPolygon, Polygon, box
 from shapely.geometry.polygon import orient
 
 from planning.contours import SectionMaker, _as_multipolygon
@@ -400,14 +400,3 @@ class CuspTable:
                 val = np.maximum(d.reshape(len(his), -1).max(axis=1), 0.0)
             out[a, a + 1 :] = np.maximum(out[a, a + 1 :], val)
         return out
-
-
-def section_polygons(geom) -> list[Polygon]:
-    """Polygon parts of a region (for plotting and checks)."""
-    if isinstance(geom, Polygon):
-        return [geom]
-    return list(getattr(geom, "geoms", []))
-
-
-def point_region(x: float, y: float, r: float) -> Polygon:
-    return Point(x, y).buffer(r)

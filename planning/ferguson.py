@@ -320,11 +320,6 @@ class FergusonSurface:
         z[ok] = self.evaluate(st[ok, 0], st[ok, 1])[:, 2]
         return z.reshape(np.shape(x_mm))
 
-    def z_range(self, per_patch: int = 8) -> tuple[float, float]:
-        """Lowest and highest z of the surface (dense sampling), mm."""
-        p, _ = self.sample(per_patch)
-        return float(p[..., 2].min()), float(p[..., 2].max())
-
     def bounds_xy(self, per_patch: int = 8) -> tuple[float, float, float, float]:
         """(x_min, x_max, y_min, y_max) of the surface, mm."""
         p, _ = self.sample(per_patch)
