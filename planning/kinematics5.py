@@ -48,33 +48,35 @@ class AxisMoves:
 
 
 def _rx(a):
+    """Rotation(s) about +X by ``a`` rad: (3, 3), or (m, 3, 3) for an array of angles."""
     c, s = np.cos(a), np.sin(a)
-    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    o, z = np.ones_like(c), np.zeros_like(c)
+    return np.moveaxis(np.array([[o, z, z], [z, c, -s], [z, s, c]]), (0, 1), (-2, -1))
 
 
 def _rz(a):
+    """Rotation(s) about +Z by ``a`` rad: (3, 3), or (m, 3, 3) for an array of angles."""
     c, s = np.cos(a), np.sin(a)
-    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    o, z = np.ones_like(c), np.zeros_like(c)
+    return np.moveaxis(np.array([[c, -s, z], [s, c, z], [z, z, o]]), (0, 1), (-2, -1))
 
 
 def forward(kind: str, machine: MachineConfig, moves: AxisMoves, gauge_length_mm: float):
     """Tool tip (m, 3) and unit axis (m, 3) in the workpiece frame from machine positions."""
     fa = _five(machine)
     pivot = np.asarray(fa.pivot_mm, float)
-    tips, axes = [], []
-    for x, y, z, a, c in moves.as_array():
-        A, C = np.radians(a), np.radians(c)
-        if kind == "table-table-AC":
-            Rm = _rx(A) @ _rz(C)
-            tip_m = np.array([x, y, z])
-            tips.append(Rm.T @ (tip_m - pivot) + pivot)
-            axes.append(Rm.T @ np.array([0.0, 0.0, 1.0]))
-        else:
-            t = _rx(A) @ np.array([0.0, 0.0, 1.0])
-            tip_m = np.array([x, y, z]) - (gauge_length_mm + fa.head_pivot_length_mm) * t
-            tips.append(_rz(C).T @ (tip_m - pivot) + pivot)
-            axes.append(_rz(C).T @ t)
-    return np.asarray(tips), np.asarray(axes)
+    P = np.stack([moves.x, moves.y, moves.z], 1).astype(float)
+    A, C = np.radians(moves.a_deg), np.radians(moves.c_deg)
+    z_hat = np.array([0.0, 0.0, 1.0])
+    if kind == "table-table-AC":
+        Rt = np.swapaxes(_rx(A) @ _rz(C), -1, -2)  # workpiece <- machine
+        tips = np.einsum("mij,mj->mi", Rt, P - pivot) + pivot
+        return tips, Rt @ z_hat
+    t = _rx(A) @ z_hat  # (m, 3) spindle direction
+    tip_m = P - (gauge_length_mm + fa.head_pivot_length_mm) * t
+    Rt = np.swapaxes(_rz(C), -1, -2)
+    tips = np.einsum("mij,mj->mi", Rt, tip_m - pivot) + pivot
+    return tips, np.einsum("mij,mj->mi", Rt, t)
 
 
 def _five(machine: MachineConfig):
