@@ -387,19 +387,38 @@ def blocks_frame(rows: np.ndarray) -> pd.DataFrame:
     return df
 
 
-def stored_to_device_index(n_stored: int, events: np.ndarray) -> np.ndarray:
-    """Device sample index of each stored sample, (n_stored,) int64, from the loss events."""
-    idx = np.arange(n_stored, dtype=np.int64)
+def _holes(events: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The sample holes of a run from its loss events: (stored_at (k,), cum_lost (k+1,)) int64.
+
+    Hole j sits before stored sample ``stored_at[j]``; ``cum_lost[j]`` samples were lost before it
+    (``cum_lost[0] = 0``, ``cum_lost[-1]`` the total).
+    """
     loss = events[np.isin(events["kind"], [k.encode() for k in LOSS_KINDS]) & (events["lost"] > 0)]
-    if len(loss) == 0:
-        return idx
     order = np.argsort(loss["sample"], kind="stable")
-    at, lost = loss["sample"][order], loss["lost"][order]
-    # A hole at device index s with L lost shifts every stored sample from (s - lost so far) on.
-    stored_at = at - np.concatenate([[0], np.cumsum(lost)[:-1]])
-    shift = np.searchsorted(stored_at, idx, side="right")
-    cum = np.concatenate([[0], np.cumsum(lost)])
-    return idx + cum[shift]
+    at = loss["sample"][order].astype(np.int64)
+    cum = np.concatenate([[0], np.cumsum(loss["lost"][order], dtype=np.int64)])
+    return at - cum[:-1], cum
+
+
+def stored_to_device_index(n_stored: int, events: np.ndarray, start: int = 0) -> np.ndarray:
+    """Device sample index of stored samples ``start..n_stored-1``, (n_stored - start,) int64."""
+    stored_at, cum = _holes(events)
+    idx = np.arange(start, n_stored, dtype=np.int64)
+    # Every hole at or before a stored sample shifts it by that hole's loss.
+    return idx + cum[np.searchsorted(stored_at, idx, side="right")]
+
+
+def device_to_stored_index(device: int, n_stored: int, events: np.ndarray) -> int:
+    """The first stored sample whose device index is >= ``device`` (``n_stored`` if none).
+
+    O(holes): a window of a long run costs no whole-run index.
+    """
+    stored_at, cum = _holes(events)
+    k = int(np.searchsorted(stored_at + cum[1:], device, side="right"))  # holes ending <= device
+    stored = device - int(cum[k])
+    if k < len(stored_at):  # inside hole k: the first sample after it
+        stored = min(stored, int(stored_at[k]))
+    return min(max(stored, 0), n_stored)
 
 
 def _read_samples(f: h5py.File, p: Path, sl: slice) -> tuple[np.ndarray | None, np.ndarray]:
@@ -450,16 +469,16 @@ def _load(f: h5py.File, p: Path, start_s: float | None, stop_s: float | None, sa
     ds = _samples_ds(f)
     n_stored = int(ds.shape[0])
     events = _table(f, EVENTS)
-    device_idx_all = stored_to_device_index(n_stored, events)
     lo, hi = 0, n_stored
     if start_s is not None:
-        lo = int(np.searchsorted(device_idx_all, math.ceil(start_s * rate_hz)))
+        lo = device_to_stored_index(math.ceil(start_s * rate_hz), n_stored, events)
     if stop_s is not None:
-        hi = int(np.searchsorted(device_idx_all, math.ceil(stop_s * rate_hz)))
+        hi = device_to_stored_index(math.ceil(stop_s * rate_hz), n_stored, events)
     if not samples:
         lo = hi = 0
-    raw, volts = _read_samples(f, p, slice(lo, max(lo, hi)))
-    sample_index = device_idx_all[lo : max(lo, hi)]
+    hi = max(lo, hi)
+    raw, volts = _read_samples(f, p, slice(lo, hi))
+    sample_index = stored_to_device_index(hi, events, start=lo)
     acq = _json(f, META_ACQUISITION)
     t0_s = float(acq.get("t0_s", math.nan))
     time_s = (0.0 if math.isnan(t0_s) else t0_s) + sample_index / rate_hz
@@ -478,7 +497,7 @@ def _load(f: h5py.File, p: Path, start_s: float | None, stop_s: float | None, sa
             volts, time_s, cal.volts_to_n, cal.zero_v, cal.zero_time_s, cal.drift_v_s
         )
     status = _json(f, META_STATUS)
-    lost = int(events["lost"][np.isin(events["kind"], [k.encode() for k in LOSS_KINDS])].sum())
+    lost = int(_holes(events)[1][-1])
     return Run(
         path=p,
         rate_hz=rate_hz,

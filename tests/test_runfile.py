@@ -85,6 +85,9 @@ def test_device_index_from_loss_events(pieces: list[tuple[int, int]]) -> None:
     rows.append((3, 0, 0.0, 0.0, b"overflow", b""))  # lost=0 events do not shift anything
     ev = np.array(rows, dtype=rf.EVENT_DTYPE)
     np.testing.assert_array_equal(rf.stored_to_device_index(len(truth), ev), truth)
+    np.testing.assert_array_equal(rf.stored_to_device_index(len(truth), ev, start=3), truth[3:])
+    for d in range(dev + 2):  # window bounds: first stored sample at device index >= d
+        assert rf.device_to_stored_index(d, len(truth), ev) == np.searchsorted(truth, d)
 
 
 def test_not_hdf5(tmp_path: Path) -> None:
