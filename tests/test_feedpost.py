@@ -204,6 +204,19 @@ def test_arc_pocket_through_nc_matches_annulus() -> None:
     assert sim.removed_total_mm3 == pytest.approx(4 * math.pi * 25 * 5 * 1.5, rel=0.01)
 
 
+def adjust_feeds_keeping_geometry(lines: list[str], slot_depth_mm: float, piece: float):
+    """Post-process ``lines`` (+ retract and end) on a 100 x 60 box with a phi 10 flat end mill
+    and a 100..2500 mm/min rule; the geometry must not change and feeds stay in the rule."""
+    lines = [*lines, "G0 Z30", "M30", "%"]
+    stock = ZMap.box(0, 100, 0, 60, bottom_mm=-20, top_mm=0, spacing_mm=0.5)
+    rule = derive_rule("h", 100, 700, 2500, slot_load_percent("flat", 10, slot_depth_mm, 22))
+    r = run("\n".join(lines), "phi10-flat", stock, rule=rule, min_piece_mm=piece)
+    assert_same_geometry(r)
+    feeds = r.motion_after.feed_mm_min[r.motion_after.is_feed]
+    assert np.all((feeds >= 100) & (feeds <= 2500))
+    return r
+
+
 moves = st.lists(
     st.tuples(st.floats(-5, 105), st.floats(5, 55), st.floats(-3, 0.5)), min_size=2, max_size=6
 )
@@ -214,13 +227,7 @@ moves = st.lists(
 def test_adjusted_program_moves_like_the_original(pts: list, piece: float) -> None:
     lines = ["%", "G21 G90 G17", "G0 X-10 Y30 Z5", "G1 Z-1 F700"]
     lines += [f"N{10 * i} G1 X{x:.3f} Y{y:.3f} Z{z:.3f}" for i, (x, y, z) in enumerate(pts)]
-    lines += ["G0 Z30", "M30", "%"]
-    stock = ZMap.box(0, 100, 0, 60, bottom_mm=-20, top_mm=0, spacing_mm=0.5)
-    rule = derive_rule("h", 100, 700, 2500, slot_load_percent("flat", 10, 1, 22))
-    r = run("\n".join(lines), "phi10-flat", stock, rule=rule, min_piece_mm=piece)
-    assert_same_geometry(r)
-    feeds = r.motion_after.feed_mm_min[r.motion_after.is_feed]
-    assert np.all((feeds >= 100) & (feeds <= 2500))
+    r = adjust_feeds_keeping_geometry(lines, 1.0, piece)
     # split pieces are never shorter than the minimum piece length (but for tiny blocks)
     lengths = np.linalg.norm(r.motion_after.end - r.motion_after.start, axis=1)
     src = _src_block(r.motion_after, r)
@@ -540,10 +547,4 @@ def test_programs_with_arcs_move_like_the_original(spec: list, piece: float) -> 
         x1, y1 = 50 + r * math.cos(a1), 30 + r * math.sin(a1)
         lines += [f"G1 X{x0:.4f} Y{y0:.4f} Z{z:.3f}"]
         lines += [f"{'G2' if cw else 'G3'} X{x1:.4f} Y{y1:.4f} I{-r:.4f} J0"]
-    lines += ["G0 Z30", "M30", "%"]
-    stock = ZMap.box(0, 100, 0, 60, bottom_mm=-20, top_mm=0, spacing_mm=0.5)
-    rule = derive_rule("h", 100, 700, 2500, slot_load_percent("flat", 10, 0.5, 22))
-    r = run("\n".join(lines), "phi10-flat", stock, rule=rule, min_piece_mm=piece)
-    assert_same_geometry(r)
-    feeds = r.motion_after.feed_mm_min[r.motion_after.is_feed]
-    assert np.all((feeds >= 100) & (feeds <= 2500))
+    adjust_feeds_keeping_geometry(lines, 0.5, piece)
