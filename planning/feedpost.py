@@ -24,7 +24,6 @@ rule's bins, load and feed along the path (PNG), the final stock (PNG) and a per
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -55,9 +54,6 @@ from planning.opplan import (
     simulate_motion,
 )
 from planning.zmap import Cutter, ZMap
-
-_INCH_RE = re.compile(r"G\s*0*20(?![\d.])", re.IGNORECASE)
-_COMMENT_RE = re.compile(r"\([^)]*\)|;.*")
 
 
 @dataclass(frozen=True)
@@ -222,7 +218,7 @@ def post_process(
     file = program.file
     cutter = Cutter.from_tool(tool)
     for i, raw in enumerate(program.lines):
-        if "20" in raw and _INCH_RE.search(_COMMENT_RE.sub("", raw)):
+        if "20" in raw and any(t.letter == "G" and float(t.number) == 20 for t in program.words(i)):
             raise PlanningError(
                 f"{file}:{i + 1}: G20 (inch) program: the feed post-processor writes mm/min; "
                 "convert the program to G21"
