@@ -1,8 +1,9 @@
 """The HDF5 run file: its layout (documented here and only here) and the loader.
 
 ``rig.logger.RunWriter`` writes run files using the constants below; everything else reads them
-through :func:`load_run` (whole run, or a time window) or :class:`RunFollower` (a run still being
-written). Nothing outside this module and ``rig.logger`` should name an HDF5 path of a run file.
+through :func:`load_run` (whole run, or a time window) or :mod:`analysis.runfollow` (a run still
+being written). Nothing outside these modules and ``rig.logger`` should name an HDF5 path of a run
+file.
 
 Layout (format ``cutlab-run``, version 1; HDF5 >= 1.10 "latest" format so that the file can be read
 while it is written, SWMR)::
@@ -67,8 +68,6 @@ from __future__ import annotations
 import json
 import math
 import re
-import time
-from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -291,7 +290,7 @@ class Run:
         return df
 
 
-def _open(path: str | Path) -> h5py.File:
+def open_run_file(path: str | Path) -> h5py.File:
     """Open a run file for reading with errors that say what is wrong with it."""
     p = Path(path)
     if not p.exists():
@@ -347,7 +346,7 @@ def _check_format(f: h5py.File, p: Path) -> None:
         )
 
 
-def _str_list(v: Any) -> tuple[str, ...]:
+def names_attr(v: Any) -> tuple[str, ...]:
     return tuple(x.decode() if isinstance(x, bytes) else str(x) for x in np.atleast_1d(v))
 
 
@@ -433,7 +432,7 @@ def _read_samples(f: h5py.File, p: Path, sl: slice) -> tuple[np.ndarray | None, 
         raise RunFileError(f"{p}: samples cannot be read (truncated or corrupt): {exc}") from None
 
 
-def _samples_ds(f: h5py.File) -> h5py.Dataset:
+def samples_dataset(f: h5py.File) -> h5py.Dataset:
     return f[RAW] if RAW in f else f[VOLTS]
 
 
@@ -454,7 +453,7 @@ def load_run(
     file, a newer format version, or a truncated file.
     """
     p = Path(path)
-    f = _open(p)
+    f = open_run_file(p)
     try:
         return _load(f, p, start_s, stop_s, samples)
     except (OSError, KeyError) as exc:
@@ -466,7 +465,7 @@ def load_run(
 def _load(f: h5py.File, p: Path, start_s: float | None, stop_s: float | None, samples: bool) -> Run:
     fa = f[FORCES].attrs
     rate_hz = float(fa["rate_hz"])
-    ds = _samples_ds(f)
+    ds = samples_dataset(f)
     n_stored = int(ds.shape[0])
     events = _table(f, EVENTS)
     lo, hi = 0, n_stored
@@ -501,8 +500,8 @@ def _load(f: h5py.File, p: Path, start_s: float | None, stop_s: float | None, sa
     return Run(
         path=p,
         rate_hz=rate_hz,
-        channel_names=_str_list(fa["channel_names"]),
-        physical_channels=_str_list(fa.get("physical_channels", [])),
+        channel_names=names_attr(fa["channel_names"]),
+        physical_channels=names_attr(fa.get("physical_channels", [])),
         device=str(_attr_value(fa.get("device", ""))),
         sample_format=str(_attr_value(fa["sample_format"])),
         raw=raw,
@@ -539,84 +538,3 @@ def _attr_value(v: Any) -> Any:
     if isinstance(v, np.generic):
         return v.item()
     return v
-
-
-class RunFollower:
-    """Read a run while it is being written (HDF5 SWMR read mode).
-
-    Each :meth:`poll` returns the samples and events that arrived since the previous call::
-
-        with RunFollower("run.h5") as fol:
-            while not fol.finished:
-                first, volts, events = fol.poll()   # first stored index, (k, c) V, DataFrame
-    """
-
-    def __init__(self, path: str | Path) -> None:
-        self.path = Path(path)
-        _open(self.path).close()  # format check with clear errors
-        self._f = h5py.File(self.path, "r", libver="latest", swmr=True)
-        self._n = 0
-        self._n_events = 0
-        fa = self._f[FORCES].attrs
-        self.rate_hz = float(fa["rate_hz"])
-        self.channel_names = _str_list(fa["channel_names"])
-        self._coeff = self._f[SCALING_COEFF][()] if SCALING_COEFF in self._f else None
-        self.status = STATUS_RUNNING
-
-    def poll(self) -> tuple[int, np.ndarray, pd.DataFrame]:
-        """New stored samples as (first stored index, volts (k, c), new events)."""
-        # Status first: a writer flushes every sample before it marks the run closed, so a
-        # "closed" status read here guarantees the reads below see the final samples.
-        st = self._f[meta_path(META_STATUS)]
-        st.refresh()
-        text = decode_text(st)
-        status = json.loads(text).get("status", STATUS_RUNNING) if text else STATUS_RUNNING
-        ds = _samples_ds(self._f)
-        ds.refresh()
-        n = int(ds.shape[0])
-        block = ds[self._n : n]
-        volts = raw_to_volts(block, self._coeff) if self._coeff is not None else block
-        first, self._n = self._n, n
-        ev = self._f[EVENTS]
-        ev.refresh()
-        m = int(ev.shape[0])
-        new_events = events_frame(ev[self._n_events : m])
-        self._n_events = m
-        self.status = status
-        return first, np.asarray(volts, dtype=np.float64), new_events
-
-    @property
-    def finished(self) -> bool:
-        """True once the writer has closed the run (status other than running)."""
-        return self.status != STATUS_RUNNING
-
-    def close(self) -> None:
-        self._f.close()
-
-    def __enter__(self) -> RunFollower:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-def follow(
-    path: str | Path, poll_s: float = 0.2, idle_timeout_s: float = 10.0
-) -> Iterator[tuple[int, np.ndarray, pd.DataFrame]]:
-    """Yield ``(first stored index, volts (k, c), new events)`` as a run grows.
-
-    Ends when the writer closes the run, or after ``idle_timeout_s`` without new samples (a
-    killed writer never closes its file).
-    """
-    with RunFollower(path) as fol:
-        idle_since = time.monotonic()
-        while True:
-            first, volts, ev = fol.poll()
-            if len(volts) or len(ev):
-                idle_since = time.monotonic()
-                yield first, volts, ev
-            if fol.finished:
-                return
-            if time.monotonic() - idle_since > idle_timeout_s:
-                return
-            time.sleep(poll_s)

@@ -7,8 +7,8 @@ until the next block completes it, so no chunk is read back) and returns them to
 the pool is empty (disk too slow) the block is dropped and recorded as a ``queue_full`` event with
 its exact device sample index and length, so the acquisition never waits on the disk and nothing
 is lost silently. Every dataset is created before SWMR is switched on, so
-``analysis.runfile.RunFollower`` can read the file while it grows, and a writer killed at any moment
-leaves a file that opens and holds everything up to its last flush (default every 1 s).
+``analysis.runfollow.RunFollower`` can read the file while it grows, and a writer killed at any
+moment leaves a file that opens and holds everything up to its last flush (default every 1 s).
 
 The layout is documented in :mod:`analysis.runfile` and written here only through its constants.
 

@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 
 from analysis import runfile as rf
 from analysis.config import load_rig
+from analysis.runfollow import RunFollower
 from rig.calibration import Calibration
 from rig.cli import main
 from rig.daq.base import DaqEvent, DaqInfo
@@ -230,7 +231,7 @@ def test_follower_reads_while_writing(tmp_path: Path) -> None:
     w = RunWriter(p, info, flush_interval_s=0.05)
     w.on_start(info, 0.0)
     got: list[np.ndarray] = []
-    with rf.RunFollower(p) as fol:
+    with RunFollower(p) as fol:
         for k in range(6):
             w.on_block(k * B, _block(k * B))
             deadline = time.monotonic() + 10.0
@@ -273,7 +274,7 @@ def test_sigkill_mid_recording_keeps_everything_flushed(tmp_path: Path, capsys) 
                 pytest.fail(f"recorder exited early: {proc.stderr.read().decode()}")
             if out.exists():
                 try:
-                    with rf.RunFollower(out) as fol:
+                    with RunFollower(out) as fol:
                         first, volts, _ = fol.poll()
                         seen = first + len(volts)
                 except (rf.RunFileError, OSError, KeyError):
