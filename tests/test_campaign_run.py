@@ -203,7 +203,8 @@ def test_force_limit_suspender_holds_the_feed_and_aborts(tmp_path: Path) -> None
         # spindle stopped after the abort (no force at the end of the record).
         resultant = np.linalg.norm(run.force_n, axis=1)
         t_over = run.time_s[np.argmax(resultant > 250)]
-        assert 0 <= pauses["time_s"].iloc[0] - t_over < 0.5  # a DAQ read is 0.1 s
+        # A DAQ read is 0.1 s; a busy CPU can delay the simulated DAQ a little more.
+        assert 0 <= pauses["time_s"].iloc[0] - t_over < 1.0
         assert resultant[-int(0.05 * run.rate_hz) :].mean() < 20
 
 
