@@ -103,7 +103,9 @@ def simulate(
     zm = ZMap.box(x0, x1, y0, y1, z0, z1, spacing_mm)
     reached = np.flatnonzero(motion.end[:, 2] >= safe_z_mm - 1e-6)
     if reached.size == 0:
-        raise PlanningError("program never reaches the safe height: nothing to check")
+        raise PlanningError(
+            f"the program never reaches the safe height z = {safe_z_mm} mm: nothing to check"
+        )
     m = motion[np.arange(reached[0] + 1, len(motion))]
     lin = linearize(m[m.kind != DWELL])  # arcs as chords within 1 um
     tool = m.tool[m.kind != DWELL][lin.source]

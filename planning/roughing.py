@@ -211,7 +211,8 @@ class RoughPlanner:
     def _level(self, order: int, z: float, lo: float | None, hi: float, tool: int = 1) -> Level:
         if hi - z > self.L + _EPS:
             raise PlanningError(
-                f"level z = {z:.3f} mm cuts {hi - z:.3f} mm deep: over L = {self.L}"
+                f"{self.part.where}: level z = {z:.3f} mm cuts {hi - z:.3f} mm deep: over the "
+                f"tool's maximum depth L = {self.L} mm"
             )
         if tool == 1:
             lp = self.geom.level(z, lo)
