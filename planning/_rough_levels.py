@@ -24,7 +24,7 @@ from scipy.spatial import cKDTree
 from shapely.geometry import LineString, MultiPolygon, Polygon, box
 from shapely.geometry.polygon import orient
 
-from planning.contours import SectionMaker, _as_multipolygon
+from planning.contours import SectionMaker, as_multipolygon
 from planning.errors import PlanningError
 from planning.ferguson import FergusonSurface
 
@@ -124,7 +124,7 @@ class LevelGeometry:
         """S(z) clipped to the stock."""
         if z not in self._sec:
             reg = self.maker.section(z).region.intersection(self.stock)
-            self._sec[z] = _as_multipolygon(reg)
+            self._sec[z] = as_multipolygon(reg)
         return self._sec[z]
 
     def closed(self, z: float) -> MultiPolygon:
@@ -132,7 +132,7 @@ class LevelGeometry:
         if z not in self._clo:
             s = self.section(z)
             c = s.buffer(self.r, quad_segs=_QUAD_SEGS).buffer(-self.r, quad_segs=_QUAD_SEGS)
-            self._clo[z] = _as_multipolygon(c.union(s).intersection(self.stock))
+            self._clo[z] = as_multipolygon(c.union(s).intersection(self.stock))
         return self._clo[z]
 
     def contour_points(self, z: float) -> np.ndarray:
@@ -209,7 +209,7 @@ class LevelGeometry:
             k = len(have)
             grown = ref.buffer(self.first + k * self.step, quad_segs=_QUAD_SEGS)
             lines = []
-            for poly in _as_multipolygon(grown).geoms:
+            for poly in as_multipolygon(grown).geoms:
                 # Part on the right of the tool: outer boundaries clockwise, holes anticlockwise.
                 p = orient(poly, sign=-1.0)
                 lines.append(LineString(p.exterior.coords))

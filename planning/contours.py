@@ -208,7 +208,7 @@ class SectionMaker:
                     poly = shapely.make_valid(poly)
                 polys.extend(_polygons(poly))
         region = shapely.union_all(polys) if polys else MultiPolygon()
-        return Section(level, _as_multipolygon(region, sign=1.0), self.tolerance_mm)
+        return Section(level, as_multipolygon(region, sign=1.0), self.tolerance_mm)
 
 
 def _polygons(geom) -> list[Polygon]:
@@ -220,7 +220,7 @@ def _polygons(geom) -> list[Polygon]:
     return []
 
 
-def _as_multipolygon(geom, sign: float = 1.0) -> MultiPolygon:
+def as_multipolygon(geom, sign: float = 1.0) -> MultiPolygon:
     """A MultiPolygon with every part oriented (sign +1: exterior CCW, holes CW)."""
     return MultiPolygon([orient(p, sign=sign) for p in _polygons(geom) if p.area > 0])
 
