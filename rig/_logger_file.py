@@ -65,6 +65,38 @@ def write_text(f: h5py.File, name: str, text: str) -> None:
         ds[:] = data
 
 
+def append_rows(ds: h5py.Dataset, rows: np.ndarray) -> int:
+    """Append ``rows`` to a resizable 1-D table (events, NC blocks); return the first new row."""
+    n = int(ds.shape[0])
+    ds.resize((n + len(rows),))
+    ds[n:] = rows
+    return n
+
+
+def write_acks(
+    ds: h5py.Dataset, block_rows: Mapping[int, int], blocks: np.ndarray, acks: np.ndarray
+) -> list[int]:
+    """Set ``ack_s`` of the NC-blocks table rows of ``blocks`` (``block_rows``: block -> row);
+    return the blocks that have no row."""
+    unknown = []
+    for b, a in zip(blocks.tolist(), acks.tolist()):
+        row = block_rows.get(b)
+        if row is None:
+            unknown.append(b)
+            continue
+        rec = ds[row]
+        rec["ack_s"] = a
+        ds[row] = rec
+    return unknown
+
+
+def write_zero_and_drift(f: h5py.File, cal: Calibration) -> None:
+    """Update the calibration's zero and drift in place (the sheet values are fixed at creation)."""
+    f[rf.CAL_ZERO_V][...] = cal.zero_v
+    f[rf.CAL_ZERO_TIME_S][()] = float(cal.zero_time_s)
+    f[rf.CAL_DRIFT_V_S][...] = cal.drift_v_s
+
+
 def create_run_file(
     path: Path,
     info: DaqInfo,

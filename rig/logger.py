@@ -36,7 +36,16 @@ from typing import Any
 import numpy as np
 
 from analysis import runfile as rf
-from rig._logger_file import RunWriterError, create_run_file, jsonable, utc_now, write_text
+from rig._logger_file import (
+    RunWriterError,
+    append_rows,
+    create_run_file,
+    jsonable,
+    utc_now,
+    write_acks,
+    write_text,
+    write_zero_and_drift,
+)
 from rig.calibration import Calibration
 from rig.daq.base import DaqEvent, DaqInfo
 
@@ -124,9 +133,7 @@ class RunWriter:
 
         # Writer side.
         self._committed = 0  # rows written to the dataset
-        self._block_rows: dict[int, int] = {}
-        self._n_events = 0
-        self._n_blocks = 0
+        self._block_rows: dict[int, int] = {}  # block index -> its latest row in the table
         self._blocks_written = 0
         self._blocks_dropped = 0
         self._samples_dropped = 0
@@ -135,17 +142,12 @@ class RunWriter:
         self._max_depth = 0
         self._max_write_s = 0.0
         self._max_flush_s = 0.0
-        self._depth = 0
         self.error: BaseException | None = None
         self._closed = False
         self._final_status = ""
         self._thread = threading.Thread(target=self._run, name=f"RunWriter({self.path.name})")
         self._thread.daemon = True
         self._thread.start()
-
-    # ------------------------------------------------------------------------------------------
-    # File creation: every object exists before SWMR is switched on.
-    # ------------------------------------------------------------------------------------------
 
     # ------------------------------------------------------------------------------------------
     # DaqSink: called from the acquisition thread. Never blocks on the disk.
@@ -202,7 +204,6 @@ class RunWriter:
             buf = np.empty((n, self._c), self._dtype)  # a longer block than announced (rare)
         # The one copy: (c, n) from the DAQ into (n, c) rows, the file's layout.
         np.copyto(buf[:n], data.T)
-        self._depth += 1
         self._filled.put((first_sample, n, buf))
 
     def _record_drop(self, first: int, n: int) -> None:
@@ -425,14 +426,10 @@ class RunWriter:
                 if item is _STOP:
                     break
                 if item is not None:
-                    self._depth -= 1
-                    self._max_depth = max(self._max_depth, self._depth + 1)
-                    first, n, buf = item
-                    self._append(buf, n)
-                    self._blocks_written += 1
-                    self._free.put(buf)
-                    with self._idle:
-                        self._idle.notify_all()
+                    # Blocks out of the pool (queued or this one): the queue depth.
+                    depth = self._pool_size - self._free.qsize()
+                    self._max_depth = max(self._max_depth, depth)
+                    self._take(item)
                 self._drain_control()
                 if time.monotonic() - last_flush >= self.flush_interval_s:
                     self._flush()
@@ -440,11 +437,9 @@ class RunWriter:
             # Closing: samples first, then control records (the status last), then flush.
             while True:
                 try:
-                    first, n, buf = self._filled.get_nowait()
+                    self._take(self._filled.get_nowait())
                 except queue.Empty:
                     break
-                self._append(buf, n)
-                self._blocks_written += 1
             self._drain_control()
             self._flush()
             write_text(self._f, rf.META_STATUS, self._final_status)
@@ -452,14 +447,20 @@ class RunWriter:
         except BaseException as exc:  # noqa: BLE001 - surfaced by close()
             self.error = exc
 
-    def _append(self, buf: np.ndarray, n: int) -> None:
-        """Append the first n rows of a pool buffer (n, c) to the samples dataset."""
+    def _take(self, item: tuple[int, int, np.ndarray]) -> None:
+        """Append the first n rows of a filled pool buffer (n, c) to the samples dataset and
+        return the buffer to the pool."""
+        _, n, buf = item
         t = time.perf_counter()
         end = self._committed + n
         self._ds.resize((end, self._c))
         self._ds[self._committed : end] = buf[:n]
         self._committed = end
         self._max_write_s = max(self._max_write_s, time.perf_counter() - t)
+        self._blocks_written += 1
+        self._free.put(buf)
+        with self._idle:
+            self._idle.notify_all()
 
     def _flush(self) -> None:
         """Flush everything written so far to the file, for SWMR readers and crash safety."""
@@ -485,9 +486,7 @@ class RunWriter:
             elif kind == "ack":
                 self._write_acks(*payload)
             elif kind == "cal":
-                self._f[rf.CAL_ZERO_V][...] = payload.zero_v
-                self._f[rf.CAL_ZERO_TIME_S][()] = float(payload.zero_time_s)
-                self._f[rf.CAL_DRIFT_V_S][...] = payload.drift_v_s
+                write_zero_and_drift(self._f, payload)
         if events:
             self._write_events(events)
 
@@ -503,30 +502,14 @@ class RunWriter:
                 t = t0 + sample / rate
             rows[i] = (sample, e.lost, t, now, e.kind.encode()[:16],
                        e.message.encode("utf-8")[: rf.EVENT_MESSAGE_BYTES])  # fmt: skip
-        ds = self._f[rf.EVENTS]
-        ds.resize((self._n_events + len(rows),))
-        ds[self._n_events :] = rows
-        self._n_events += len(rows)
+        append_rows(self._f[rf.EVENTS], rows)
 
     def _write_blocks(self, rows: np.ndarray) -> None:
-        ds = self._f[rf.BLOCKS]
-        ds.resize((self._n_blocks + len(rows),))
-        ds[self._n_blocks :] = rows
-        for i, b in enumerate(rows["block"]):
-            self._block_rows[int(b)] = self._n_blocks + i
-        self._n_blocks += len(rows)
+        first = append_rows(self._f[rf.BLOCKS], rows)
+        self._block_rows.update(zip(rows["block"].tolist(), range(first, first + len(rows))))
 
     def _write_acks(self, blocks: np.ndarray, acks: np.ndarray) -> None:
-        ds = self._f[rf.BLOCKS]
-        unknown = []
-        for b, a in zip(blocks.tolist(), acks.tolist()):
-            row = self._block_rows.get(b)
-            if row is None:
-                unknown.append(b)
-                continue
-            rec = ds[row]
-            rec["ack_s"] = a
-            ds[row] = rec
+        unknown = write_acks(self._f[rf.BLOCKS], self._block_rows, blocks, acks)
         if unknown:
             self._write_events(
                 [DaqEvent(rf.EV_NOTE, -1, f"ack for blocks never appended: {unknown[:10]}")]
