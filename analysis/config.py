@@ -134,6 +134,12 @@ class MachineConfig(Model):
         0.002, gt=0, le=1, description="mm, arc end radius mismatch"
     )
     min_arc_radius_mm: float = Field(0.0, ge=0, description="mm, smallest arc the control can cut")
+    reference_mm: tuple[float, float, float] | None = Field(
+        None, description="mm, machine X Y Z of the G28 reference point (default: travel max)"
+    )
+    second_reference_mm: tuple[float, float, float] | None = Field(
+        None, description="mm, machine X Y Z of the G30 second reference point (default: G28's)"
+    )
     serial: SerialConfig = SerialConfig()
     five_axis: FiveAxis | None = None
 
@@ -144,7 +150,29 @@ class MachineConfig(Model):
                 f"feed_max_mm_min ({self.feed_max_mm_min}) must exceed feed_min_mm_min "
                 f"({self.feed_min_mm_min})"
             )
+        for name in ("reference_mm", "second_reference_mm"):
+            point = getattr(self, name)
+            for axis, value in zip("xyz", point or ()):
+                travel = getattr(self, axis)
+                if not travel.min_mm <= value <= travel.max_mm:
+                    raise ValueError(
+                        f"{name} {axis.upper()} = {value} mm is outside the {axis} travel "
+                        f"{travel.min_mm}..{travel.max_mm} mm"
+                    )
         return self
+
+    @property
+    def reference_point_mm(self) -> tuple[float, float, float]:
+        """Machine X Y Z the axes return to on G28, mm (``reference_mm`` or the travel maxima,
+        where most machining centres home)."""
+        if self.reference_mm is not None:
+            return self.reference_mm
+        return (self.x.max_mm, self.y.max_mm, self.z.max_mm)
+
+    @property
+    def second_reference_point_mm(self) -> tuple[float, float, float]:
+        """Machine X Y Z the axes return to on G30 (P2), mm (default: the G28 point)."""
+        return self.second_reference_mm or self.reference_point_mm
 
 
 # ----------------------------------------------------------------------------------------------

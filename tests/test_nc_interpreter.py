@@ -282,9 +282,20 @@ INCH_SAMPLE = Path(SAMPLE).with_name("inch-features.nc")
 
 
 def test_inch_sample_closed_form():
-    it = Interpreter(strict=False, file=str(INCH_SAMPLE))
+    it = Interpreter(file=str(INCH_SAMPLE))
     m = it.run(Program.read(INCH_SAMPLE).lines)
-    assert [str(w).split(": ", 1)[1] for w in it.warnings] == ["'G28': unknown G-code G28"]
+    assert [str(w).split(": ", 1)[1] for w in it.warnings] == [
+        "'G28': no machine given: the G28 point is taken as machine zero = work zero (0, 0, 0) mm"
+        " (give a machine config with reference_mm)"
+    ]
+    # N230 G28 G91 Z0.: Z alone (intermediate point = here) to the reference point, which
+    # without a machine is machine zero; the machine's is 600 mm up
+    home = m[m.line == 28]
+    np.testing.assert_allclose(home.start, [[38.1, 12.7, 25.4]])
+    np.testing.assert_allclose(home.end, [[38.1, 12.7, 0.0]])
+    assert home.kind.tolist() == [RAPID]
+    m_ace = interpret(INCH_SAMPLE, load_machine("ace-h63"))
+    np.testing.assert_allclose(m_ace.end[-1], [38.1, 12.7, 600.0])
     arcs = m[m.is_arc]
     np.testing.assert_array_equal(arcs.plane, [18, 18, 19])
     np.testing.assert_allclose(arcs.center, [[12.7, 0, 0], [38.1, 0, 0], [50.8, 12.7, 0]])

@@ -42,3 +42,15 @@ def test_examples():
     assert block_words("/N10 G0 X.5 (c) ; d", "f", 1) == ([("N", "10"), ("G", "0"), ("X", ".5")], 1)
     assert block_words(" % (tape)", "f", 1) == ([], 2)
     assert block_words("X 10.", "f", 1) == ([("X", "10.")], 0)
+
+
+def test_a_comment_separates_words_not_a_letter_from_its_number():
+    assert block_words("X1(c)Y2", "f", 1) == ([("X", "1"), ("Y", "2")], 0)
+    for raw in ("F()0", "G1 X (c) 1", "X1(c)\x00"):
+        try:
+            block_words(raw, "f", 1)
+        except NCError as err:
+            bad = line_error(raw, "f", 1)
+            assert (err.column, err.word, err.reason) == (bad.column, bad.word, bad.reason)
+        else:
+            raise AssertionError(f"{raw!r} accepted")

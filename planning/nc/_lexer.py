@@ -29,6 +29,11 @@ WS = "[ \t\r\n\f\v]"
 _WS_CHARS = " \t\r\n\f\v"
 _WORD_RE = re.compile(r"([A-Z])" + WS + "*(" + NUMBER + ")")
 _BLOCK_OK = re.compile(WS + "*(?:[A-Z]" + WS + "*" + NUMBER + WS + "*)*")
+# comments become a NUL: it separates words but, unlike a space, not a letter from its number
+_CUT = "\x00"
+_BLOCK_OK_CUT = re.compile(
+    "[ \t\r\n\f\v\x00]*(?:[A-Z]" + WS + "*" + NUMBER + "[ \t\r\n\f\v\x00]*)*"
+)
 _COMMENT_RE = re.compile(r"\([^()]*\)|;.*")
 _TOKEN_RE = re.compile(
     r"(?P<space>" + WS + "+)"
@@ -86,11 +91,15 @@ def block_words(raw: str, file: str, line: int) -> tuple[Words, int]:
     Raises :class:`NCError` (with the column) if the line is not in the language.
     """
     s = raw
+    ok, blank = _BLOCK_OK, _WS_CHARS
     if "(" in s or ";" in s or ")" in s:
-        s = _COMMENT_RE.sub(" ", s)
+        if _CUT in s:
+            raise line_error(raw, file, line)
+        s = _COMMENT_RE.sub(_CUT, s)
         if "(" in s or ")" in s:
             raise line_error(raw, file, line)
-    s = s.strip(_WS_CHARS)
+        ok, blank = _BLOCK_OK_CUT, _WS_CHARS + _CUT
+    s = s.strip(blank)
     if not s:
         return _EMPTY, 0
     flag = 0
@@ -105,7 +114,7 @@ def block_words(raw: str, file: str, line: int) -> tuple[Words, int]:
     if not s.isascii():
         raise line_error(raw, file, line)
     s = s.upper()
-    if _BLOCK_OK.fullmatch(s) is None:
+    if ok.fullmatch(s) is None:
         raise line_error(raw, file, line)
     return _WORD_RE.findall(s), flag
 

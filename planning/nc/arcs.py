@@ -71,6 +71,25 @@ def check_radius(
     return r0
 
 
+def arc_length_mm(
+    p0: tuple[float, float, float],
+    p1: tuple[float, float, float],
+    center: tuple[float, float, float],
+    plane: int,
+    cw: bool,
+) -> float:
+    """Path length of one arc (helix included), mm; scalar twin of :func:`segment_length_mm`."""
+    ia, ib, ic = PLANE_AXES[plane]
+    a0, b0 = p0[ia] - center[ia], p0[ib] - center[ib]
+    a1, b1 = p1[ia] - center[ia], p1[ib] - center[ib]
+    if math.hypot(a1 - a0, b1 - b0) <= FULL_CIRCLE_TOL_MM:
+        sweep = TWO_PI
+    else:
+        ccw = (math.atan2(b1, a1) - math.atan2(b0, a0)) % TWO_PI
+        sweep = (-ccw) % TWO_PI if cw else ccw
+    return math.hypot(math.hypot(a0, b0) * sweep, p1[ic] - p0[ic])
+
+
 def _plane_coords(motion: Motion) -> tuple[np.ndarray, ...]:
     """Per segment in-plane coordinates (a0, b0, a1, b1, ca, cb) and normal start/end (n0, n1)."""
     axes = np.array([PLANE_AXES.get(int(p), (0, 1, 2)) for p in range(20)])
@@ -232,6 +251,7 @@ def linearize(motion: Motion, chord_tol_mm: float = 0.001) -> Linearized:
 __all__ = [
     "PLANE_AXES",
     "Linearized",
+    "arc_length_mm",
     "arc_radius_mm",
     "arc_sweep_rad",
     "bounding_box",

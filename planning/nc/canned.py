@@ -104,6 +104,7 @@ def execute_canned(
     oz = it.work_offsets_mm.get(st.work_offset, (0.0, 0.0, 0.0))[2]
     if cy.initial_z_mm != cy.initial_z_mm:
         cy.initial_z_mm = z0
+    feed = it._need_feed(raw, line)  # an NCError already (outside the ValueError handler)
     try:
         if "R" in v:
             r = float(v["R"]) * scale
@@ -129,7 +130,6 @@ def execute_canned(
             if repeats < 0 or repeats != int(repeats) or repeats > 9999:
                 raise ValueError(f"repeat count L must be a whole number 0..9999, got {v['L']}")
             repeats = int(repeats)
-        feed = it._need_feed(raw, line)
         vxy = {k: v[k] for k in ("X", "Y") if k in v}
         for _ in range(repeats):
             x, y, _z = it._target(vxy, scale, False)

@@ -19,7 +19,8 @@ fractions of the segment's path, the last one 1.0) and gets back a new
   keep their feed.
 
 Blocks that cannot be split faithfully raise :class:`~planning.nc.NCError`: canned cycles (many
-segments per block), G53 moves, and blocks that stop or end the program (M0/M1/M2/M30).
+segments per block), G28/G30 and G53 moves, blocks that stop or end the program (M0/M1/M2/M30),
+and feed moves under inverse-time feed G93.
 """
 
 from __future__ import annotations
@@ -130,6 +131,12 @@ def split_moves(
         before = it.state.copy()
         it.skip(program.lines[b : b + 1], first_line=b + 1)
         pos = b + 1
+        if it.state.feed_mode == 93:
+            raise NCError(
+                "blocks under inverse-time feed G93 are not split (their F is 1/min)",
+                file=program.file,
+                line=b + 1,
+            )
         seg = by_block[b]
         edits[b] = _pieces(out, b, before, it, motion, seg, float(sweeps[seg]), plan[seg])
         last_feed = float(plan[seg][-1][1])

@@ -21,6 +21,19 @@ seconds on GRBL):
   programmed tool-tip path (no cutter or length compensation applied).
 * A/B/C words are recorded in ``state.rotary_deg`` only.
 * G80..G83 with G98/G99 expand to rapid/feed/dwell moves (:mod:`planning.nc.canned`).
+* G28 / G30 (return to the reference / second reference point, P2 only), as on Fanuc: the axes
+  named rapid to the intermediate point their words give (program coordinates, G90 or G91; ``G91
+  G28 Z0`` goes straight up), then to the reference point, which is in machine coordinates (the
+  work offset does not apply, as with G53). Axes not named do not move. The points come from the
+  machine config (``reference_point_mm`` / ``second_reference_point_mm``) or the
+  ``reference_mm`` / ``second_reference_mm`` options; with neither, machine zero = work zero
+  (0, 0, 0) is used and a warning says so. GRBL dialect: a G28/G30 with no axis word moves all
+  axes straight to the point (Fanuc: an error). Tool length compensation is not applied, so the
+  point is where the programmed tool tip goes.
+* G93 inverse-time feed: every feed move (G1/G2/G3) needs its own F, and takes 1/F minutes; the
+  Motion gets ``feed_mm_min = path length * F``. F is not modal under G93, and switching between
+  G93 and G94 leaves no feed set (program F again), as in RS-274/NGC. Canned cycles and feed moves
+  with no X/Y/Z travel (rotary only) under G93 are errors.
 * After M2/M30 or the closing ``%`` nothing more is executed; blocks with words there give a
   warning.
 * Strict mode (default) raises :class:`~planning.nc.NCError` for unknown G/M codes, unknown
@@ -47,7 +60,7 @@ from planning.nc._codes import (
     gkey,
     gname,
 )
-from planning.nc.arcs import PLANE_AXES, center_from_r, check_radius
+from planning.nc.arcs import PLANE_AXES, arc_length_mm, center_from_r, check_radius
 from planning.nc.canned import execute_canned
 from planning.nc.errors import NCError, NCWarning
 from planning.nc.motion import ARC_CCW, ARC_CW, DWELL, LINE, RAPID, Motion, MotionBuilder
@@ -92,6 +105,8 @@ class Interpreter:
         Work offsets added to program coordinates; default all zero.
     peck_clearance_mm : float
         G83 re-entry clearance above the previous peck, mm.
+    reference_mm, second_reference_mm : (x, y, z), optional
+        Machine coordinates of the G28 / G30 points, mm; override the machine's.
     state : ModalState, optional
         Start from this state (copied), e.g. to resume a program at a block.
 
@@ -116,6 +131,8 @@ class Interpreter:
         arc_tolerance_mm: float | None = None,
         work_offsets_mm: dict[int, Sequence[float]] | None = None,
         peck_clearance_mm: float = 0.1,
+        reference_mm: Sequence[float] | None = None,
+        second_reference_mm: Sequence[float] | None = None,
         state: ModalState | None = None,
     ) -> None:
         self.strict = strict
@@ -132,6 +149,14 @@ class Interpreter:
             k: tuple(float(c) for c in v) for k, v in (work_offsets_mm or {}).items()
         }
         self.peck_clearance_mm = float(peck_clearance_mm)
+        if reference_mm is None and machine is not None:
+            reference_mm = machine.reference_point_mm
+        if second_reference_mm is None and machine is not None:
+            second_reference_mm = machine.second_reference_point_mm
+        # None: machine zero = work zero, said once in a warning when a G28/G30 needs it
+        self._reference_mm = {280: reference_mm, 300: second_reference_mm or reference_mm}
+        self._reference_warned = False
+        self._inverse_f = NAN  # this block's F under G93 (1/min)
         inf = math.inf
         self._feed_max_mm_min = machine.feed_max_mm_min if machine is not None else inf
         self._spindle_max_rpm = machine.spindle_max_rpm if machine is not None else inf
@@ -242,6 +267,8 @@ class Interpreter:
         # ---- G codes: modes first so this block's words use them
         explicit_motion = False
         dwell = g53 = False
+        home: tuple[int, int] | None = None  # (G28 or G30 key, word index)
+        self._inverse_f = NAN
         if gcodes is not None:
             prev_motion = st.motion
             groups: dict[int, int] = {}
@@ -277,8 +304,10 @@ class Interpreter:
                 elif grp == 0:
                     if key == 40:
                         dwell = True
-                    else:
+                    elif key == 530:
                         g53 = True
+                    else:
+                        home = (key, k)
                 elif grp == 2:
                     st.plane = key // 10
                 elif grp == 6:
@@ -288,14 +317,9 @@ class Interpreter:
                 elif grp == 4:
                     st.arc_absolute = key == 901
                 elif grp == 5:
-                    if key == 930:
-                        raise _lexer.word_error(
-                            raw,
-                            k,
-                            "inverse-time feed G93 is not supported; use G94 (mm/min)",
-                            self.file,
-                            line,
-                        )
+                    if key // 10 != st.feed_mode:  # F means something else now: set it again
+                        st.feed_mode = key // 10
+                        st.feed_mm_min = NAN
                 elif grp == 7:
                     st.cutter_comp = key // 10
                 elif grp == 8:
@@ -311,7 +335,7 @@ class Interpreter:
         scale = INCH_MM if st.inch else 1.0
         # ---- other words
         if not v.keys() <= FAST_LETTERS:
-            self._words(raw, v, scale, line, dwell, explicit_motion)
+            self._words(raw, v, scale, line, dwell or (home is not None and home[0] == 300))
         else:  # only X Y Z F N: the common block
             if "F" in v:
                 self._feed(raw, v, scale, line)
@@ -356,7 +380,17 @@ class Interpreter:
         # ---- motion
         has_axes = ("X" in v or "Y" in v or "Z" in v) and not dwell
         mode = st.motion
-        if has_axes or (
+        if home is not None:
+            if explicit_motion and mode >= 81:
+                raise _lexer.word_error(
+                    raw,
+                    home[1],
+                    f"{gname(home[0])} and G{mode} cannot share a block",
+                    self.file,
+                    line,
+                )
+            self._home(raw, v, scale, line, block, out, *home)
+        elif has_axes or (
             explicit_motion and mode >= 2 and mode <= 3 and ("I" in v or "J" in v or "K" in v)
         ):
             if mode == 80:
@@ -408,10 +442,9 @@ class Interpreter:
                 v[letter] = num
         return gcodes, mcodes, v
 
-    def _words(
-        self, raw: str, v: dict[str, str], scale: float, line: int, dwell: bool, motion: bool
-    ) -> None:
-        """F S T D H O N P Q L R I J K and A B C: checks and recording."""
+    def _words(self, raw: str, v: dict[str, str], scale: float, line: int, p_used: bool) -> None:
+        """F S T D H O N P Q L R I J K and A B C: checks and recording (``p_used``: G4 or G30 in
+        the block takes the P word)."""
         st = self.state
         if "F" in v:
             self._feed(raw, v, scale, line)
@@ -449,7 +482,7 @@ class Interpreter:
             used.update("IJKR")
         if mode >= 81:
             used.update("RLPQ")
-        if dwell:
+        if p_used:
             used.add("P")
         for letter in "IJKRPQL":
             if letter in v and letter not in used:
@@ -473,6 +506,17 @@ class Interpreter:
         return int(n)
 
     def _feed(self, raw: str, v: dict[str, str], scale: float, line: int) -> None:
+        if self.state.feed_mode == 93:
+            f = float(v["F"])
+            if not f > 0.0:
+                raise self._fail(
+                    raw,
+                    "F",
+                    "inverse-time feed F must be > 0 (1/min: the move takes 1/F min)",
+                    line,
+                )
+            self._inverse_f = f
+            return
         f = float(v["F"]) * scale
         if not f > 0.0:
             raise self._fail(raw, "F", "feed F must be > 0 (mm/min, or in/min under G20)", line)
@@ -486,9 +530,9 @@ class Interpreter:
             )
         self.state.feed_mm_min = f
 
-    def _note(self, raw: str, letter: str, reason: str, line: int) -> None:
+    def _note(self, raw: str, letter_or_index: str | int, reason: str, line: int) -> None:
         """A warning in both modes (the block is still executed as written)."""
-        err = self._fail(raw, letter, reason, line)
+        err = self._fail(raw, letter_or_index, reason, line)
         self.warnings.append(NCWarning(err.reason, err.file, err.line, err.column, err.word))
 
     def _check_m_groups(self, raw: str, mcodes: list[tuple[int, int]], line: int) -> None:
@@ -564,10 +608,37 @@ class Interpreter:
                 z += float(v["Z"]) * scale
         return x, y, z
 
-    def _need_feed(self, raw: str, line: int) -> float:
-        f = self.state.feed_mm_min
-        if f != f:
-            raise self._fail(raw, 0, "feed move with no feed rate set (program F first)", line)
+    def _need_feed(self, raw: str, line: int, length_mm: float | None = None) -> float:
+        """The feed of a feed move, mm/min; under G93 from the move's ``length_mm`` (None: a
+        canned cycle, which G93 does not allow)."""
+        if self.state.feed_mode != 93:
+            f = self.state.feed_mm_min
+            if f != f:
+                raise self._fail(raw, 0, "feed move with no feed rate set (program F first)", line)
+            return f
+        if length_mm is None:
+            raise self._fail(raw, 0, "canned cycles cannot run under inverse-time feed G93", line)
+        if self._inverse_f != self._inverse_f:
+            raise self._fail(
+                raw, 0, "under inverse-time feed G93 every feed move needs its own F (1/min)", line
+            )
+        if not length_mm > 0.0:
+            raise self._fail(
+                raw,
+                0,
+                "inverse-time (G93) feed move with no X/Y/Z travel: its time 1/F cannot be "
+                "represented (rotary-only moves are not modelled)",
+                line,
+            )
+        f = length_mm * self._inverse_f
+        if f > self._feed_max_mm_min:
+            self._note(
+                raw,
+                "F",
+                f"inverse-time feed gives {f:g} mm/min, above the machine's feed_max_mm_min "
+                f"{self._feed_max_mm_min:g}",
+                line,
+            )
         return f
 
     def _move(self, raw, v, scale, line, block, out, mode: int, g53: bool) -> None:
@@ -582,7 +653,7 @@ class Interpreter:
             else:
                 kind, feed = LINE, st.feed_mm_min
                 if feed != feed:
-                    self._need_feed(raw, line)
+                    feed = self._need_feed(raw, line, math.dist(p0, p1))
             out.fbuf.extend(
                 (
                     p0[0],
@@ -601,9 +672,50 @@ class Interpreter:
             )
             out.ibuf.extend((kind, st.plane, st.tool, st.coolant, line, block))
         else:
-            feed = self._need_feed(raw, line)
             c = self._arc_center(raw, v, scale, line, p0, p1, mode == 2)
+            length = arc_length_mm(p0, p1, c, st.plane, mode == 2) if st.feed_mode == 93 else None
+            feed = self._need_feed(raw, line, length)
             self._seg(out, ARC_CW if mode == 2 else ARC_CCW, p0, p1, c, feed, 0.0, line, block)
+        st.position_mm = p1
+
+    def _home(self, raw, v, scale, line, block, out, key: int, k: int) -> None:
+        """G28 / G30 (word ``k`` of the block): the named axes rapid to the intermediate point,
+        then to the reference point (machine coordinates); the others stay."""
+        st = self.state
+        code = gname(key)
+        if key == 300 and "P" in v and float(v["P"]) != 2.0:
+            raise self._fail(
+                raw, "P", "only the second reference point (G30 P2) is configured", line
+            )
+        named = [a for a in range(3) if "XYZ"[a] in v]
+        if named:
+            mid = self._target(v, scale, False)
+        elif self.dialect == "grbl":  # GRBL: no axis word = all axes straight to the point
+            named, mid = [0, 1, 2], st.position_mm
+        else:
+            raise self._fail(
+                raw, k, f"{code} needs the axes to return (X, Y, Z), e.g. G91 {code} Z0", line
+            )
+        ref = self._reference_mm[key]
+        if ref is None:
+            ref = (0.0, 0.0, 0.0)
+            if not self._reference_warned:
+                self._reference_warned = True
+                self._note(
+                    raw,
+                    k,
+                    f"no machine given: the {code} point is taken as machine zero = work zero "
+                    "(0, 0, 0) mm (give a machine config with reference_mm)",
+                    line,
+                )
+        end = list(mid)
+        for a in named:
+            end[a] = float(ref[a])
+        p0, p1 = st.position_mm, tuple(end)
+        nowhere = (NAN, NAN, NAN)
+        for a, b in ((p0, mid), (mid, p1)):
+            if a != b:
+                self._seg(out, RAPID, a, b, nowhere, NAN, 0.0, line, block)
         st.position_mm = p1
 
     def _arc_center(self, raw, v, scale, line, p0, p1, cw: bool) -> tuple[float, float, float]:

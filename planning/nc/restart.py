@@ -3,13 +3,18 @@
 A DNC streamer resuming at block N sends ``restart_preamble(state_at_block(program, N))`` and then
 blocks N, N+1, ... The preamble
 
-1. sets units, plane, arc-centre mode, feed mode, work offset and G98/G99, cancelling cutter and
+1. sets units, plane, arc-centre mode, G94, work offset and G98/G99, cancelling cutter and
    length compensation and any canned cycle;
 2. changes to the tool in the spindle (``T M6``) and preselects the next tool;
 3. starts the spindle (``S M3/M4``) and sets the coolant;
 4. rapids up to the safe Z (with ``G43 H`` when length compensation was on), then to X Y, then down
    to Z (rapid, or ``G1`` at the feed with ``plunge_feed``);
-5. re-establishes the feed, cutter compensation, distance mode (G90/G91) and motion mode.
+5. re-establishes the feed, cutter compensation, distance mode (G90/G91), motion mode and, last,
+   inverse-time feed G93 if it was on (the preamble's own moves run under G94; under G93 every
+   feed move carries its F, so there is no modal feed to restore).
+
+The position is wherever the blocks before N left the tool, including a G28/G30 return to the
+reference point: it is written back in the work frame like any other position.
 
 A restart inside a run of canned-cycle blocks is refused: re-establishing the cycle would drill a
 hole where the tool stands. Restart at the block that starts the cycle instead.
@@ -52,7 +57,7 @@ def restart_preamble(
         "G20" if state.inch else "G21",
         f"G{state.plane}",
         "G90.1" if state.arc_absolute else "G91.1",
-        f"G{state.feed_mode}",
+        "G94",
         f"G{state.work_offset}",
         "G40",
         "G49",
@@ -82,6 +87,8 @@ def restart_preamble(
         out.append(f"G{state.cutter_comp} D{state.cutter_comp_d}")
     last = ["G90" if state.absolute else "G91"]
     if state.motion != 0:
-        last.append(f"G{state.motion}" if state.motion != 80 else "G80")
+        last.append(f"G{state.motion}")
+    if state.feed_mode == 93:
+        last.append("G93")
     out.append(" ".join(last))
     return out

@@ -38,14 +38,14 @@ class ModalState:
     inch: bool = False  # G20 (True) / G21
     absolute: bool = True  # G90 (True) / G91
     arc_absolute: bool = False  # G90.1 (True) / G91.1: I J K absolute or relative to start
-    feed_mode: int = 94  # G94 units per minute (the only one supported)
+    feed_mode: int = 94  # G94 units per minute / G93 inverse time (F per block, not modal)
     cutter_comp: int = 40  # G40 / G41 / G42 (recorded; motion is not offset)
     cutter_comp_d: int = 0  # D register
     tool_length: int = 49  # G43 / G49 (recorded; positions are the programmed tool tip)
     tool_length_h: int = 0  # H register
     work_offset: int = 54  # G54..G59
     retract_initial: bool = True  # G98 (True) / G99 canned-cycle return level
-    feed_mm_min: float = math.nan  # F, converted to mm/min; NaN until set
+    feed_mm_min: float = math.nan  # G94 F in mm/min; NaN until set and under G93
     spindle_speed_rpm: float = 0.0  # S (unsigned)
     spindle_dir: int = 0  # +1 M3, -1 M4, 0 M5
     tool: int = 0  # tool in the spindle (after M6)
