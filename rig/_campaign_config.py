@@ -141,6 +141,13 @@ class SuspenderSection(Model):
     hold_timeout_s: float = Field(0.0, ge=0, le=3600, description="s held before aborting")
     on_overflow: Literal["fail", "continue"] = Field("fail", description="DAQ overflow")
     stop_campaign_on_fail: bool = Field(False, description="stop the campaign after a failed run")
+    watchdog_wall_s: float = Field(
+        10.0,
+        gt=0,
+        le=3600,
+        description="s of wall time, beyond twice the program's time plus "
+        "30 s, before a run whose program has not ended is declared hung",
+    )
 
 
 class FeedRuleSection(Model):

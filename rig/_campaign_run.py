@@ -219,6 +219,7 @@ def execute_run(
     expected_s: float = 60.0,
     progress: Callable[[int, int], None] | None = None,
     sim_speed: float = 1.0,
+    watchdog_wall_s: float = 10.0,
 ) -> RunOutcome:
     """Run ``program`` on ``session`` into ``writer`` (already holding conditions and program)."""
     wall0 = time.monotonic()
@@ -247,7 +248,11 @@ def execute_run(
         session.start(program, writer)
         # Watchdog on the run clock: a control that stops answering after it has read the whole
         # program (drip feed has no acknowledgement) would otherwise be waited for forever.
-        deadline = session.clock() + 2.0 * expected_s + WATCHDOG_MARGIN_S
+        limit_s = 2.0 * expected_s + WATCHDOG_MARGIN_S
+        deadline = session.clock() + limit_s
+        # ... and in wall time too (``watchdog_wall_s`` more): on a busy computer a simulated
+        # link can fall behind its clock.
+        deadline_wall = time.monotonic() + limit_s / sim_speed + watchdog_wall_s
         held_since: float | None = None
         while not session.finished():
             time.sleep(0.02)
@@ -268,9 +273,13 @@ def execute_run(
             if tap.daq_fault is not None and on_overflow == "fail":
                 status, reason = STATUS_FAIL, tap.daq_fault
                 break
-            if held_since is None and not stop.event.is_set() and session.clock() > deadline:
+            if (
+                held_since is None
+                and not stop.event.is_set()
+                and session.clock() > deadline
+                and time.monotonic() > deadline_wall
+            ):
                 done, total = session.progress()
-                limit_s = 2.0 * expected_s + WATCHDOG_MARGIN_S
                 status = STATUS_FAIL
                 reason = (
                     f"controller stopped answering: the program did not end within {limit_s:.0f}"

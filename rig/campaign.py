@@ -39,7 +39,7 @@ from typing import Any
 
 from analysis import __version__
 from analysis import runfile as rf
-from analysis.config import REPO_ROOT, FaceMill
+from analysis.config import FaceMill
 from analysis.errors import ConfigError
 from rig._campaign_config import Campaign, RunConditions, load_campaign
 from rig._campaign_nc import CutProgram, generate_program
@@ -425,7 +425,7 @@ def run_campaign(
                     expected_s=plan.expected_s,
                     sim_speed=campaign.spec.sim.speed if campaign.spec.campaign.rig == "sim"
                     else 1.0,
-                    progress=_within_run(bar, t.name),
+                    progress=_within_run(bar, t.name), watchdog_wall_s=sus.watchdog_wall_s,
                 )  # fmt: skip
                 status, reason = outcome.status, outcome.reason
             except BaseException as exc:
@@ -527,7 +527,3 @@ def dry_run(campaign: Campaign) -> DryRun:
         campaign.name, campaign.spec.campaign.rig, len(plans), len(plans),
         sum(p.expected_s for p in plans), hardware, problems,
     )  # fmt: skip
-
-
-def default_output_root() -> Path:
-    return REPO_ROOT / "data" / "campaigns"
