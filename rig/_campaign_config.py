@@ -109,7 +109,7 @@ class SimSection(Model):
         None, description="simulated controller (default: the machine's dialect)"
     )
     link_timeout_s: float = Field(
-        3.0, gt=0, le=600, description="s, DNC link timeout on the simulated rig (wall s)"
+        10.0, gt=0, le=600, description="s, DNC link timeout on the simulated rig (wall s)"
     )
     sim_controller_stall_after_block: int | None = Field(
         None, ge=0, description="blocks received, then the controller stops answering"
