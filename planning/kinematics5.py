@@ -190,31 +190,18 @@ def write_cl_csv(path: str | Path, result) -> None:
 
     ok = result.feasible
     cc = result.cc
-    df = pd.DataFrame(
-        {
-            "index": np.flatnonzero(ok),
-            "line": cc.line[ok],
-            "u": cc.u[ok],
-            "v": cc.v[ok],
-            "cc_x_mm": cc.point[ok, 0],
-            "cc_y_mm": cc.point[ok, 1],
-            "cc_z_mm": cc.point[ok, 2],
-            "tip_x_mm": result.tip_mm[ok, 0],
-            "tip_y_mm": result.tip_mm[ok, 1],
-            "tip_z_mm": result.tip_mm[ok, 2],
-            "centre_x_mm": result.centre_mm[ok, 0],
-            "centre_y_mm": result.centre_mm[ok, 1],
-            "centre_z_mm": result.centre_mm[ok, 2],
-            "axis_i": result.axis[ok, 0],
-            "axis_j": result.axis[ok, 1],
-            "axis_k": result.axis[ok, 2],
-            "alpha_deg": result.alpha_deg[ok],
-            "beta_deg": result.beta_deg[ok],
-            "kappa_per_mm": cc.kappa_per_mm[ok],
-            "K_per_mm": result.K_per_mm[ok],
-            "clearance_mm": result.clearance_mm[ok],
-        }
-    )
+    cols = {"index": np.flatnonzero(ok), "line": cc.line[ok], "u": cc.u[ok], "v": cc.v[ok]}
+    for name, xyz in (("cc", cc.point), ("tip", result.tip_mm), ("centre", result.centre_mm)):
+        cols |= {f"{name}_{a}_mm": xyz[ok, k] for k, a in enumerate("xyz")}
+    cols |= {f"axis_{a}": result.axis[ok, k] for k, a in enumerate("ijk")}
+    cols |= {
+        "alpha_deg": result.alpha_deg[ok],
+        "beta_deg": result.beta_deg[ok],
+        "kappa_per_mm": cc.kappa_per_mm[ok],
+        "K_per_mm": result.K_per_mm[ok],
+        "clearance_mm": result.clearance_mm[ok],
+    }
+    df = pd.DataFrame(cols)
     df.to_csv(path, index=False, float_format="%.6f")
 
 
