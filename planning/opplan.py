@@ -66,7 +66,7 @@ from planning.errors import PlanningError
 from planning.nc.arcs import PLANE_AXES, arc_radius_mm, linearize, segment_length_mm
 from planning.nc.motion import DWELL, LINE, RAPID, Motion
 from planning.nc.stats import segment_time_s
-from planning.zmap import Cutter, ZMap, split_moves
+from planning.zmap import Cutter, ZMap, split_pieces
 
 #: chordal tolerance for arcs, mm (the Z-map's own resolution is far coarser)
 DEFAULT_CHORD_TOL_MM = 0.001
@@ -285,7 +285,7 @@ def simulate_motion(
     lin = linearize(motion, chord_tol_mm)
     keep = lin.kind != DWELL
     src = lin.source[keep]
-    move, p0, p1 = split_moves(lin.start[keep], lin.end[keep], piece_mm)
+    move, p0, p1 = split_pieces(lin.start[keep], lin.end[keep], piece_mm)
     seg = src[move]
     removed = np.zeros(len(move))
     depth = np.zeros(len(move))

@@ -118,7 +118,7 @@ class PathCut:
         return np.linalg.norm(self.end_mm - self.start_mm, axis=1)
 
 
-def split_moves(
+def split_pieces(
     starts_mm: NDArray[np.float64], ends_mm: NDArray[np.float64], piece_mm: float
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
     """Cut each move into equal pieces no longer than ``piece_mm`` (vectorised).
@@ -377,7 +377,7 @@ class ZMap:
         progress : callable, optional
             Called with the number of pieces done, every 4096 pieces.
         """
-        move, p0, p1 = split_moves(
+        move, p0, p1 = split_pieces(
             np.asarray(starts_mm, float), np.asarray(ends_mm, float), piece_mm
         )
         n = len(np.asarray(starts_mm).reshape(-1, 3))

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from planning import _zmap_kernels as K
 from planning import _zmap_numba
 from planning.errors import PlanningError
-from planning.zmap import Cutter, ZMap, split_moves
+from planning.zmap import Cutter, ZMap, split_pieces
 
 
 def segment_area(r: float, d: float) -> float:
@@ -214,10 +214,10 @@ def test_bad_input_is_refused() -> None:
         ZMap(np.array([[np.nan]]), 0, 0, 1, -1)
 
 
-def test_split_moves_keeps_end_points_exact() -> None:
+def test_split_pieces_keeps_end_points_exact() -> None:
     s = np.array([[0, 0, 0], [5, 5, 5.0]])
     e = np.array([[10, 0, -1], [5, 5, 5.0]])
-    move, p0, p1 = split_moves(s, e, 3.0)
+    move, p0, p1 = split_pieces(s, e, 3.0)
     assert move.tolist() == [0, 0, 0, 0, 1]
     np.testing.assert_array_equal(p0[0], s[0])
     np.testing.assert_array_equal(p1[3], e[0])
