@@ -19,7 +19,7 @@ def _plt():  # noqa: ANN202 - the pyplot module
 
 
 def plot_traces(runs: Sequence[Any], path: Path, title: str, max_runs: int = 12) -> Path:
-    """Resultant force against time of up to ``max_runs`` runs, one panel each (decimated)."""
+    """Force channels against time of up to ``max_runs`` runs, one panel each (min/max band)."""
     plt = _plt()
     shown = list(runs)[:max_runs]
     n = max(1, len(shown))
@@ -30,11 +30,17 @@ def plot_traces(runs: Sequence[Any], path: Path, title: str, max_runs: int = 12)
         run = lr.run
         if run.force_n is None or not len(run.force_n):
             continue
-        step = max(1, len(run.time_s) // 4000)
-        t = run.time_s[::step]
-        f = run.force_n[::step]
-        for k, name in enumerate(run.channel_names[: f.shape[1]]):
-            ax.plot(t - t[0], f[:, k], lw=0.4, label=name)
+        # Min/max envelope per bucket: plain decimation would alias the tooth-passing pulses.
+        n = len(run.time_s)
+        rpm = abs(float(run.conditions.get("spindle_rpm") or 0.0))
+        # One bucket per revolution (a band over the tooth passes), at most 2000 buckets.
+        step = max(1, n // 2000, int(run.rate_hz * 60.0 / rpm) if rpm else 1)
+        m = n // step
+        t = run.time_s[: m * step : step] - run.time_s[0]
+        f = run.force_n[: m * step].reshape(m, step, -1)
+        lo, hi = f.min(axis=1), f.max(axis=1)
+        for k, name in enumerate(run.channel_names[: f.shape[2]]):
+            ax.fill_between(t, lo[:, k], hi[:, k], lw=0, alpha=0.6, label=name)
         ax.set_title(lr.name, fontsize=7)
         ax.tick_params(labelsize=6)
     for ax in list(axes.flat)[len(shown) :]:
