@@ -39,6 +39,9 @@ def test_check_table_and_lenient_warnings(tmp_path, capsys):
     assert main(["nc", "check", str(p), "--lenient"]) == 0
     cap = capsys.readouterr()
     assert "cutting_length_mm" in cap.out and f"{p}:2:1: 'M99'" in cap.err
+    for cmd in (["motions", "--csv"], ["plot", "-o", str(tmp_path / "odd.png")]):
+        assert main(["nc", cmd[0], str(p), "--lenient", *cmd[1:]]) == 0
+        assert f"warning: {p}:2:1: 'M99'" in capsys.readouterr().err  # not dropped
 
 
 def test_motions_csv(tmp_path, capsys):

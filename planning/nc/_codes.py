@@ -7,6 +7,8 @@ integers; groups follow RS-274 numbering (0 = non-modal), except that G80 has a 
 
 from __future__ import annotations
 
+INCH_MM = 25.4  # mm per inch (G20)
+
 # G-code (times 10, so G90.1 is 901) -> modal group (RS-274 numbering; 0 = non-modal)
 G_GROUP = {
     0: 1, 10: 1, 20: 1, 30: 1, 810: 1, 820: 1, 830: 1,

@@ -119,6 +119,16 @@ def block_words(raw: str, file: str, line: int) -> tuple[Words, int]:
     return _WORD_RE.findall(s), flag
 
 
+def undecodable(file: str, data: bytes, exc: UnicodeDecodeError, first_line: int = 1) -> NCError:
+    """NCError for bytes of ``data`` (text from line ``first_line`` on) that are not UTF-8."""
+    start = exc.start
+    line = first_line + data.count(b"\n", 0, start)
+    column = start - data.rfind(b"\n", 0, start)  # 1-based byte column within the line
+    return NCError(
+        f"not a text file (UTF-8 / ASCII): {exc.reason}", file=file, line=line, column=column
+    )
+
+
 def word_tokens(raw: str) -> list[Token]:
     """The word tokens of a line (for mapping a word's index back to its column)."""
     return [t for t in tokenize(raw) if t.kind == "word"]

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from planning.nc._codes import INCH_MM
 from planning.nc.arcs import PLANE_AXES, arc_sweep_rad
 from planning.nc.errors import NCError
 from planning.nc.interpreter import Interpreter
@@ -42,7 +43,6 @@ from planning.nc.state import ModalState
 if TYPE_CHECKING:
     from analysis.config import MachineConfig
 
-INCH_MM = 25.4
 Plan = Mapping[int, Sequence[tuple[float, float]]]
 
 
@@ -171,13 +171,19 @@ def _pieces(
 ) -> list[str | dict]:
     """Block texts / word mappings replacing block ``b`` (state ``st`` in force before it)."""
     raw = prog.lines[b]
-    letters = {t.letter for t in prog.words(b)}
-    if "G" in letters and any(float(t.number) == 53 for t in prog.words(b) if t.letter == "G"):
-        raise NCError("G53 moves are not split", file=prog.file, line=b + 1)
-    if any(t.letter == "M" and float(t.number) in (0, 1, 2, 30) for t in prog.words(b)):
-        raise NCError(
-            "blocks that stop or end the program are not split", file=prog.file, line=b + 1
-        )
+    toks = prog.words(b)
+    letters = {t.letter for t in toks}
+    for t in toks:
+        code = (t.letter, float(t.number))
+        if code == ("G", 53.0) or code in {("M", 0.0), ("M", 1.0), ("M", 2.0), ("M", 30.0)}:
+            why = "G53 moves" if t.letter == "G" else "blocks that stop or end the program"
+            raise NCError(
+                f"{why} are not split",
+                file=prog.file,
+                line=b + 1,
+                column=t.column,
+                word=t.text.strip(),
+            )
     scale = INCH_MM if st.inch else 1.0
     off = np.array(it.work_offsets_mm.get(st.work_offset, (0.0, 0.0, 0.0)))
     p0, p1 = motion.start[seg], motion.end[seg]

@@ -52,24 +52,23 @@ from planning.nc import _lexer
 from planning.nc._codes import (
     FAST_LETTERS,
     G_GROUP,
+    INCH_MM,
     KNOWN_M,
-    LETTERS,
     LETTERS_GM,
-    M_GROUP,
     MOTION_MODE,
     gkey,
     gname,
 )
-from planning.nc.arcs import PLANE_AXES, arc_length_mm, center_from_r, check_radius
+from planning.nc._moves import Moves
+from planning.nc._words import WordRules
 from planning.nc.canned import execute_canned
 from planning.nc.errors import NCError, NCWarning
-from planning.nc.motion import ARC_CCW, ARC_CW, DWELL, LINE, RAPID, Motion, MotionBuilder
+from planning.nc.motion import Motion, MotionBuilder
 from planning.nc.state import CannedCycle, ModalState
 
 if TYPE_CHECKING:
     from analysis.config import MachineConfig
 
-INCH_MM = 25.4
 DEFAULT_ARC_TOLERANCE_MM = 0.002  # MachineConfig's default
 NAN = math.nan
 
@@ -84,7 +83,7 @@ class _NullSink:
     fbuf = ibuf = _Drop()
 
 
-class Interpreter:
+class Interpreter(WordRules, Moves):
     """Executes NC blocks one at a time, tracking all modal state.
 
     Parameters
@@ -203,19 +202,6 @@ class Interpreter:
             self.state = saved
             raise
         self.blocks_seen = block + 1
-
-    def _problem(self, raw: str, index: int, reason: str, line: int) -> None:
-        """Strict: raise; lenient: record a warning about word ``index`` of the block."""
-        err = _lexer.word_error(raw, index, reason, self.file, line)
-        if self.strict:
-            raise err
-        self.warnings.append(NCWarning(err.reason, err.file, err.line, err.column, err.word))
-
-    def _fail(self, raw: str, letter_or_index: str | int, reason: str, line: int) -> NCError:
-        idx = letter_or_index
-        if isinstance(idx, str):
-            idx = _lexer.find_word(raw, idx)
-        return _lexer.word_error(raw, idx, reason, self.file, line)
 
     def _execute(self, raw: str, line: int, block: int, out: MotionBuilder | _NullSink) -> None:
         words, flag = _lexer.block_words(raw, self.file, line)
@@ -408,354 +394,3 @@ class Interpreter:
             raise self._fail(raw, 0, "G53 needs an axis word (X, Y or Z)", line)
         if end:
             st.ended = True
-
-    def _sort_words(self, raw: str, words, line: int):
-        """G codes, M codes (with their word index) and the other words; reports unknown codes,
-        unknown letters and repeated addresses."""
-        gcodes: list[tuple[int, int]] | None = None
-        mcodes: list[tuple[int, int]] | None = None
-        v: dict[str, str] = {}
-        for k, (letter, num) in enumerate(words):
-            if letter == "G":
-                key = gkey(num)
-                if key not in G_GROUP:
-                    self._problem(raw, k, f"unknown G-code {gname(key)}", line)
-                elif gcodes is None:
-                    gcodes = [(key, k)]
-                else:
-                    gcodes.append((key, k))
-            elif letter == "M":
-                key = round(float(num) * 10.0)
-                if key % 10 or key // 10 not in KNOWN_M:
-                    self._problem(raw, k, f"unknown M-code M{key / 10:g}", line)
-                elif mcodes is None:
-                    mcodes = [(key, k)]
-                else:
-                    mcodes.append((key, k))
-            elif letter not in LETTERS:
-                self._problem(raw, k, f"unknown address letter {letter}", line)
-            elif letter in v:
-                raise _lexer.word_error(
-                    raw, k, f"address {letter} appears twice in the block", self.file, line
-                )
-            else:
-                v[letter] = num
-        return gcodes, mcodes, v
-
-    def _words(self, raw: str, v: dict[str, str], scale: float, line: int, p_used: bool) -> None:
-        """F S T D H O N P Q L R I J K and A B C: checks and recording (``p_used``: G4 or G30 in
-        the block takes the P word)."""
-        st = self.state
-        if "F" in v:
-            self._feed(raw, v, scale, line)
-        if "S" in v:
-            s = float(v["S"])
-            if s < 0.0:
-                raise self._fail(raw, "S", "spindle speed S must be >= 0 rpm", line)
-            if s > self._spindle_max_rpm:
-                self._note(
-                    raw,
-                    "S",
-                    f"S {s:g} rpm exceeds the machine's spindle_max_rpm {self._spindle_max_rpm:g}",
-                    line,
-                )
-            st.spindle_speed_rpm = s
-        for letter in ("T", "D", "H", "O", "N"):
-            if letter in v:
-                n = self._whole(raw, v, letter, line)
-                if letter == "T":
-                    st.tool_selected = n
-                elif letter == "D":
-                    st.cutter_comp_d = n
-                elif letter == "H":
-                    st.tool_length_h = n
-                elif letter == "O":
-                    st.program_number = n
-                else:
-                    st.sequence_number = n
-        for letter in ("A", "B", "C"):
-            if letter in v:
-                st.rotary_deg[letter] = float(v[letter])
-        mode = st.motion
-        used = set()
-        if mode in (2, 3):
-            used.update("IJKR")
-        if mode >= 81:
-            used.update("RLPQ")
-        if p_used:
-            used.add("P")
-        for letter in "IJKRPQL":
-            if letter in v and letter not in used:
-                self._problem(
-                    raw,
-                    _lexer.find_word(raw, letter),
-                    f"word {letter} is not used by any code in force (motion G{mode})",
-                    line,
-                )
-
-    def _whole(self, raw: str, v: dict[str, str], letter: str, line: int) -> int:
-        """The value of a T D H O N word: a whole number 0..999999999."""
-        n = float(v[letter])
-        if n < 0 or n != int(n) or n > 999_999_999:
-            raise self._fail(
-                raw,
-                letter,
-                f"{letter} must be a whole number in 0..999999999, got {v[letter]}",
-                line,
-            )
-        return int(n)
-
-    def _feed(self, raw: str, v: dict[str, str], scale: float, line: int) -> None:
-        if self.state.feed_mode == 93:
-            f = float(v["F"])
-            if not f > 0.0:
-                raise self._fail(
-                    raw,
-                    "F",
-                    "inverse-time feed F must be > 0 (1/min: the move takes 1/F min)",
-                    line,
-                )
-            self._inverse_f = f
-            return
-        f = float(v["F"]) * scale
-        if not f > 0.0:
-            raise self._fail(raw, "F", "feed F must be > 0 (mm/min, or in/min under G20)", line)
-        if f > self._feed_max_mm_min:
-            self._note(
-                raw,
-                "F",
-                f"feed {f:g} mm/min exceeds the machine's feed_max_mm_min "
-                f"{self._feed_max_mm_min:g}",
-                line,
-            )
-        self.state.feed_mm_min = f
-
-    def _note(self, raw: str, letter_or_index: str | int, reason: str, line: int) -> None:
-        """A warning in both modes (the block is still executed as written)."""
-        err = self._fail(raw, letter_or_index, reason, line)
-        self.warnings.append(NCWarning(err.reason, err.file, err.line, err.column, err.word))
-
-    def _check_m_groups(self, raw: str, mcodes: list[tuple[int, int]], line: int) -> None:
-        seen: dict[str, int] = {}
-        for key, k in mcodes:
-            grp = M_GROUP[key // 10]
-            if grp in seen:
-                raise _lexer.word_error(
-                    raw,
-                    k,
-                    f"M{key // 10} and M{seen[grp]} are both {grp} codes and cannot share a block",
-                    self.file,
-                    line,
-                )
-            seen[grp] = key // 10
-
-    def _seg(
-        self, out, kind: int, p0, p1, c, feed: float, dwell_s: float, line: int, block: int
-    ) -> None:
-        st = self.state
-        out.fbuf.extend(
-            (
-                p0[0],
-                p0[1],
-                p0[2],
-                p1[0],
-                p1[1],
-                p1[2],
-                c[0],
-                c[1],
-                c[2],
-                feed,
-                st.spindle_dir * st.spindle_speed_rpm,
-                dwell_s,
-            )
-        )
-        out.ibuf.extend((kind, st.plane, st.tool, st.coolant, line, block))
-
-    def _dwell(self, raw: str, v: dict[str, str], line: int, block: int, out) -> None:
-        if "P" in v:
-            t = float(v["P"])
-            t = t / 1000.0 if self.dialect == "fanuc" else t
-            letter = "P"
-        elif "X" in v:
-            t, letter = float(v["X"]), "X"
-        else:
-            raise self._fail(raw, 0, "G4 dwell needs P (ms on Fanuc, s on GRBL) or X (s)", line)
-        if t < 0:
-            raise self._fail(raw, letter, "dwell time must be >= 0 s", line)
-        p = self.state.position_mm
-        self._seg(out, DWELL, p, p, (NAN, NAN, NAN), NAN, t, line, block)
-
-    def _target(self, v: dict[str, str], scale: float, g53: bool) -> tuple[float, float, float]:
-        st = self.state
-        x, y, z = st.position_mm
-        if g53:
-            ox = oy = oz = 0.0
-        else:
-            ox, oy, oz = self.work_offsets_mm.get(st.work_offset, (0.0, 0.0, 0.0))
-        if st.absolute or g53:
-            if "X" in v:
-                x = float(v["X"]) * scale + ox
-            if "Y" in v:
-                y = float(v["Y"]) * scale + oy
-            if "Z" in v:
-                z = float(v["Z"]) * scale + oz
-        else:
-            if "X" in v:
-                x += float(v["X"]) * scale
-            if "Y" in v:
-                y += float(v["Y"]) * scale
-            if "Z" in v:
-                z += float(v["Z"]) * scale
-        return x, y, z
-
-    def _need_feed(self, raw: str, line: int, length_mm: float | None = None) -> float:
-        """The feed of a feed move, mm/min; under G93 from the move's ``length_mm`` (None: a
-        canned cycle, which G93 does not allow)."""
-        if self.state.feed_mode != 93:
-            f = self.state.feed_mm_min
-            if f != f:
-                raise self._fail(raw, 0, "feed move with no feed rate set (program F first)", line)
-            return f
-        if length_mm is None:
-            raise self._fail(raw, 0, "canned cycles cannot run under inverse-time feed G93", line)
-        if self._inverse_f != self._inverse_f:
-            raise self._fail(
-                raw, 0, "under inverse-time feed G93 every feed move needs its own F (1/min)", line
-            )
-        if not length_mm > 0.0:
-            raise self._fail(
-                raw,
-                0,
-                "inverse-time (G93) feed move with no X/Y/Z travel: its time 1/F cannot be "
-                "represented (rotary-only moves are not modelled)",
-                line,
-            )
-        f = length_mm * self._inverse_f
-        if f > self._feed_max_mm_min:
-            self._note(
-                raw,
-                "F",
-                f"inverse-time feed gives {f:g} mm/min, above the machine's feed_max_mm_min "
-                f"{self._feed_max_mm_min:g}",
-                line,
-            )
-        return f
-
-    def _move(self, raw, v, scale, line, block, out, mode: int, g53: bool) -> None:
-        st = self.state
-        p0 = st.position_mm
-        p1 = self._target(v, scale, g53)
-        if g53 and mode not in (0, 1):
-            raise self._fail(raw, 0, "G53 needs G0 or G1 in force", line)
-        if mode <= 1:  # inlined _seg: this is the hot path of big programs
-            if mode == 0:
-                kind, feed = RAPID, NAN
-            else:
-                kind, feed = LINE, st.feed_mm_min
-                if feed != feed:
-                    feed = self._need_feed(raw, line, math.dist(p0, p1))
-            out.fbuf.extend(
-                (
-                    p0[0],
-                    p0[1],
-                    p0[2],
-                    p1[0],
-                    p1[1],
-                    p1[2],
-                    NAN,
-                    NAN,
-                    NAN,
-                    feed,
-                    st.spindle_dir * st.spindle_speed_rpm,
-                    0.0,
-                )
-            )
-            out.ibuf.extend((kind, st.plane, st.tool, st.coolant, line, block))
-        else:
-            c = self._arc_center(raw, v, scale, line, p0, p1, mode == 2)
-            length = arc_length_mm(p0, p1, c, st.plane, mode == 2) if st.feed_mode == 93 else None
-            feed = self._need_feed(raw, line, length)
-            self._seg(out, ARC_CW if mode == 2 else ARC_CCW, p0, p1, c, feed, 0.0, line, block)
-        st.position_mm = p1
-
-    def _home(self, raw, v, scale, line, block, out, key: int, k: int) -> None:
-        """G28 / G30 (word ``k`` of the block): the named axes rapid to the intermediate point,
-        then to the reference point (machine coordinates); the others stay."""
-        st = self.state
-        code = gname(key)
-        if key == 300 and "P" in v and float(v["P"]) != 2.0:
-            raise self._fail(
-                raw, "P", "only the second reference point (G30 P2) is configured", line
-            )
-        named = [a for a in range(3) if "XYZ"[a] in v]
-        if named:
-            mid = self._target(v, scale, False)
-        elif self.dialect == "grbl":  # GRBL: no axis word = all axes straight to the point
-            named, mid = [0, 1, 2], st.position_mm
-        else:
-            raise self._fail(
-                raw, k, f"{code} needs the axes to return (X, Y, Z), e.g. G91 {code} Z0", line
-            )
-        ref = self._reference_mm[key]
-        if ref is None:
-            ref = (0.0, 0.0, 0.0)
-            if not self._reference_warned:
-                self._reference_warned = True
-                self._note(
-                    raw,
-                    k,
-                    f"no machine given: the {code} point is taken as machine zero = work zero "
-                    "(0, 0, 0) mm (give a machine config with reference_mm)",
-                    line,
-                )
-        end = list(mid)
-        for a in named:
-            end[a] = float(ref[a])
-        p0, p1 = st.position_mm, tuple(end)
-        nowhere = (NAN, NAN, NAN)
-        for a, b in ((p0, mid), (mid, p1)):
-            if a != b:
-                self._seg(out, RAPID, a, b, nowhere, NAN, 0.0, line, block)
-        st.position_mm = p1
-
-    def _arc_center(self, raw, v, scale, line, p0, p1, cw: bool) -> tuple[float, float, float]:
-        st = self.state
-        ia, ib, ic = PLANE_AXES[st.plane]
-        tol = self.arc_tolerance_mm
-        ijk = "IJK"
-        la, lb, ln = ijk[ia], ijk[ib], ijk[ic]
-        has_r = "R" in v
-        has_ijk = la in v or lb in v
-        if ln in v:
-            self._problem(
-                raw,
-                _lexer.find_word(raw, ln),
-                f"{ln} is not an in-plane centre word for G{st.plane} arcs",
-                line,
-            )
-        a0, b0, a1, b1 = p0[ia], p0[ib], p1[ia], p1[ib]
-        try:
-            if has_r and has_ijk:
-                raise ValueError("give the arc by R or by I/J/K, not both")
-            if has_r:
-                r = float(v["R"]) * scale
-                ca, cb = center_from_r(a0, b0, a1, b1, r, cw, tol)
-            elif has_ijk:
-                if st.arc_absolute:
-                    if not (la in v and lb in v):
-                        raise ValueError(f"G90.1 (absolute centre) needs both {la} and {lb}")
-                    off = self.work_offsets_mm.get(st.work_offset, (0.0, 0.0, 0.0))
-                    ca = float(v[la]) * scale + off[ia]
-                    cb = float(v[lb]) * scale + off[ib]
-                else:
-                    ca = a0 + float(v.get(la, "0")) * scale
-                    cb = b0 + float(v.get(lb, "0")) * scale
-                check_radius(a0, b0, a1, b1, ca, cb, tol)
-            else:
-                raise ValueError(f"arc needs its centre ({la}, {lb}) or a radius R")
-        except ValueError as exc:
-            which = "R" if has_r else (la if la in v else lb if lb in v else 0)
-            raise self._fail(raw, which, str(exc), line) from None
-        c = [0.0, 0.0, 0.0]
-        c[ia], c[ib], c[ic] = ca, cb, p0[ic]
-        return c[0], c[1], c[2]

@@ -116,12 +116,7 @@ class Program:
             data = p.read_bytes()
             text = data.decode("utf-8-sig")  # a BOM is dropped (and not written back)
         except UnicodeDecodeError as exc:
-            line = data[: exc.start].count(b"\n") + 1
-            raise NCError(
-                f"not a text file (UTF-8 / ASCII): {exc.reason} at byte {exc.start}",
-                file=str(p),
-                line=line,
-            ) from None
+            raise _lexer.undecodable(str(p), data, exc) from None
         except OSError as exc:
             raise NCError(f"cannot read the program: {exc.strerror}", file=str(p)) from None
         return cls.parse(text, str(p), check=check)
@@ -184,7 +179,12 @@ class Program:
         """
         letter = _letter(letter)
         if letter in "GM":
-            raise ValueError(f"{letter} words may repeat in a block; use replace_word")
+            raise NCError(
+                f"{letter} words may repeat in a block; use replace_word",
+                file=self.file,
+                line=block + 1,
+                word=letter,
+            )
         self._check(block)
         num = value if isinstance(value, str) else self.style.format(value, letter)
         toks = _lexer.tokenize(self.lines[block])
@@ -205,7 +205,7 @@ class Program:
         self._check(block)
         want = _lexer.word_tokens(old)
         if len(want) != 1:
-            raise ValueError(f"old must be one word, got {old!r}")
+            raise NCError(f"old must be one word, got {old!r}", file=self.file, line=block + 1)
         w = want[0]
         toks = _lexer.tokenize(self.lines[block])
         for k, t in enumerate(toks):
@@ -218,7 +218,7 @@ class Program:
                     toks[k] = _lexer.Token("word", new, t.column)
                 self.lines[block] = "".join(x.text for x in toks)
                 return
-        raise NCError(f"block has no word {old}", file=self.file, line=block + 1)
+        raise NCError("block has no such word", file=self.file, line=block + 1, word=old)
 
     def remove_word(self, block: int, letter: str) -> None:
         """Delete the first ``letter`` word of a block (no-op if absent)."""
@@ -290,7 +290,7 @@ class Program:
 def _letter(letter: str) -> str:
     letter = letter.upper()
     if len(letter) != 1 or not ("A" <= letter <= "Z"):
-        raise ValueError(f"an address is one letter A-Z, got {letter!r}")
+        raise NCError(f"an address is one letter A-Z, got {letter!r}")
     return letter
 
 

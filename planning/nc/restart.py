@@ -22,11 +22,10 @@ hole where the tool stands. Restart at the block that starts the cycle instead.
 
 from __future__ import annotations
 
+from planning.nc._codes import INCH_MM
 from planning.nc.errors import NCError
 from planning.nc.program import NumberStyle
 from planning.nc.state import ModalState
-
-INCH_MM = 25.4
 
 
 def restart_preamble(

@@ -4,6 +4,7 @@ at block N for restarts. All build on :class:`~planning.nc.interpreter.Interpret
 
 from __future__ import annotations
 
+import itertools
 import os
 from collections.abc import Iterable, Iterator
 from pathlib import Path
@@ -65,12 +66,7 @@ def file_lines(path: str | Path) -> Iterator[str]:
                 try:
                     raw = data.decode("utf-8")
                 except UnicodeDecodeError as exc:
-                    raise NCError(
-                        f"not a text file (UTF-8 / ASCII): {exc.reason}",
-                        file=str(path),
-                        line=n,
-                        column=exc.start + 1,
-                    ) from None
+                    raise _lexer.undecodable(str(path), data, exc, n) from None
                 if n == 1 and raw.startswith("\ufeff"):
                     raw = raw[1:]
                 if "\r" in raw and "\r" in raw.rstrip("\r\n"):  # CR-only line ends
@@ -85,8 +81,7 @@ def interpret_file(
     path: str | Path, machine: MachineConfig | None = None, *, strict: bool = True, **options
 ) -> Motion:
     """Interpret a program file, streaming it line by line (memory: the segment arrays only)."""
-    it = Interpreter(machine, strict=strict, file=str(path), **options)
-    return it.run(file_lines(Path(path)))
+    return interpret(Path(path), machine, strict=strict, file=str(path), **options)
 
 
 def state_at_block(
@@ -108,15 +103,7 @@ def state_at_block(
         raise NCError(f"block index must be >= 0, got {block}", file=file or "<program>")
     name = file or getattr(source, "file", None) or _path_name(source) or "<program>"
     it = Interpreter(machine, strict=strict, file=name, **options)
-    lines = _lines_of(source)
-
-    def head() -> Iterator[str]:
-        for i, raw in enumerate(lines):
-            if i >= block:
-                return
-            yield raw
-
-    it.skip(head())
+    it.skip(itertools.islice(_lines_of(source), block))
     if it.blocks_seen < block:
         raise NCError(
             f"block {block} is past the end of the program ({it.blocks_seen} blocks)", file=name

@@ -46,12 +46,18 @@ def _progress_lines(path: str):
         bar.update(size - bar.n)
 
 
-def _interpret(args: argparse.Namespace):
+def _interpret(args: argparse.Namespace, *, warn: bool = True):
+    """(interpreter, motion, machine) of ``args.file``; the warnings go to stderr unless
+    ``warn`` is False (the caller reports them itself)."""
     from planning.nc import Interpreter
 
-    it = Interpreter(_machine(args.machine), strict=not args.lenient, file=args.file)
+    machine = _machine(args.machine)
+    it = Interpreter(machine, strict=not args.lenient, file=args.file)
     motion = it.run(_progress_lines(args.file))
-    return it, motion
+    if warn:
+        for w in it.warnings:
+            print(f"warning: {w}", file=sys.stderr)
+    return it, motion, machine
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
@@ -70,8 +76,8 @@ def _check(args: argparse.Namespace) -> int:
     from planning.nc import motion_stats
     from rig.cli._common import print_json, print_table
 
-    it, motion = _interpret(args)
-    st = motion_stats(motion, _machine(args.machine))
+    it, motion, machine = _interpret(args, warn=not args.json)
+    st = motion_stats(motion, machine)
     out = {
         "file": args.file,
         "blocks": it.blocks_seen,
@@ -93,15 +99,13 @@ def _check(args: argparse.Namespace) -> int:
     rows.append({"quantity": "bbox_min_mm", "value": " ".join(f"{c:.4g}" for c in st.bbox_min_mm)})
     rows.append({"quantity": "bbox_max_mm", "value": " ".join(f"{c:.4g}" for c in st.bbox_max_mm)})
     print_table(rows)
-    for w in it.warnings:
-        print(f"warning: {w}", file=sys.stderr)
     return 0
 
 
 def _motions(args: argparse.Namespace) -> int:
     from rig.cli._common import print_table
 
-    _, motion = _interpret(args)
+    _, motion, _ = _interpret(args)
     df = motion.to_dataframe()
     if args.csv or args.output:
         if args.output:
@@ -122,7 +126,7 @@ def _plot(args: argparse.Namespace) -> int:
     from planning.nc.plot import plot_motion
     from rig.cli._common import print_json, status
 
-    _, motion = _interpret(args)
+    _, motion, _ = _interpret(args)
     path = plot_motion(motion, args.output, title=args.file)
     if args.json:
         print_json({"file": args.file, "plot": str(path), "motions": len(motion)})
