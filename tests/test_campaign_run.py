@@ -228,3 +228,51 @@ def test_every_sample_can_be_tied_to_its_executed_block(tmp_path: Path) -> None:
     during = (run.time_s > t0) & (run.time_s < t1)
     before = run.time_s < t0 - 0.05
     assert f[during].max() > 300 and f[before].max() < 20
+
+
+def test_operator_pause_is_a_feed_hold_and_resume_continues_the_cut(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import threading
+
+    import rig._campaign_run as runmod
+    from rig._campaign_run import StopRequest
+
+    answered = threading.Event()
+
+    def resume_after_a_while(prompt: str) -> bool:
+        time.sleep(0.3)  # the operator looks at the machine, then presses cycle start
+        answered.set()
+        return True
+
+    monkeypatch.setattr(runmod, "_ask_resume", resume_after_a_while)
+    cfg = _config(tmp_path)
+    cfg.write_text(cfg.read_text().replace("speed = 50", "speed = 2"))
+    c = load_campaign(cfg)
+    stop = StopRequest()
+    folder = tmp_path / "out" / "quick"
+
+    def press_ctrl_c_during_the_cut() -> None:
+        _wait_for(lambda: _streaming(folder))
+        time.sleep(0.9)  # into the cut at 2x real time
+        stop.request()
+
+    threading.Thread(target=press_ctrl_c_during_the_cut, daemon=True).start()
+    res = run_campaign(c, progress=False, stop=stop, only=lambda t: t.index == 0)
+    assert answered.is_set()
+    r = res.runs[0]
+    assert r.status == "success", r.reason
+    run = rf.load_run(r.file)
+    kinds = list(run.events["kind"])
+    assert "pause" in kinds and "resume" in kinds
+    t_pause = run.events.loc[run.events["kind"] == "pause", "time_s"].iloc[0]
+    t_resume = run.events.loc[run.events["kind"] == "resume", "time_s"].iloc[0]
+    assert t_resume - t_pause > 0.4  # 0.3 s wall at 2x
+    # Held: the feed stopped, so the chip vanished and only ploughing remains on the insert.
+    f = np.linalg.norm(run.force_n, axis=1)
+    held = (run.time_s > t_pause + 0.15) & (run.time_s < t_resume - 0.05)
+    cutting = (run.time_s > t_resume + 0.2) & (run.time_s < t_resume + 0.6)
+    assert f[held].max() < 0.8 * f[cutting].max()
+    # Never a rewind: the cutting block ran to its programmed end after the resume.
+    notes = run.events[run.events["message"].str.contains("N70 G1 X")]
+    assert len(notes) == 1 and float(notes["message"].iloc[0].split("..")[1].split()[0]) > t_resume
