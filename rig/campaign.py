@@ -505,6 +505,7 @@ class DryRun:
     expected_machine_s: float
     hardware: list[str]
     problems: list[str]
+    warnings: list[str] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
@@ -525,5 +526,14 @@ def dry_run(campaign: Campaign) -> DryRun:
         hardware = ["simulated rig: controller on a pseudo-terminal, simulated DAQ"]
     return DryRun(
         campaign.name, campaign.spec.campaign.rig, len(plans), len(plans),
-        sum(p.expected_s for p in plans), hardware, problems,
+        sum(p.expected_s for p in plans), hardware, problems, mode_warnings(campaign),
     )  # fmt: skip
+
+
+def mode_warnings(campaign: Campaign) -> list[str]:
+    """Tooth-passing harmonics of the planned spindle speeds near a dynamometer mode (seed 003
+    3.2: the measured force would be amplified there)."""
+    from analysis.modal import tooth_passing_warnings
+
+    rpms = sorted({t.spindle_rpm for t in campaign.tests})
+    return tooth_passing_warnings(campaign.rig.dynamometer.modes, rpms, campaign.teeth)

@@ -179,8 +179,12 @@ def write_report(campaign_folder: str | Path) -> Report:
     counts: dict[str, int] = {}
     for e in entries:
         counts[e.get("status", "?")] = counts.get(e.get("status", "?"), 0) + 1
+    from rig.campaign import mode_warnings
+
+    warnings = mode_warnings(campaign)
     summary: dict[str, Any] = {
         "campaign": campaign.name,
+        "mode_warnings": warnings,
         "description": campaign.spec.campaign.description,
         "rig": campaign.spec.campaign.rig,
         "runs": len(entries),
@@ -193,6 +197,7 @@ def write_report(campaign_folder: str | Path) -> Report:
           f"{campaign.spec.campaign.tool}; material {campaign.spec.campaign.material}; "
           f"{len(entries)} runs ({', '.join(f'{v} {k}' for k, v in counts.items())}).\n",
           "![force traces](force_traces.png)\n"]  # fmt: skip
+    md += [f"Warning: {w}\n" for w in warnings]
     for s in sections:
         md += [f"## {s.title}\n", s.markdown]
     cols = ["run", "name", "status", "fz_mm", "depth_mm", "Fx_mean_N", "Fy_mean_N", "Fz_mean_N"]

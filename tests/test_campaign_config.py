@@ -134,3 +134,15 @@ def test_generated_programs_parse_and_cut_where_intended() -> None:
     grbl = generate_program(c.spec.program, t, c.tool, "grbl")
     assert "N10" not in grbl.text and "O1001" not in grbl.text
     interpret(grbl.text, c.machine, dialect="grbl")
+
+
+def test_dry_run_warns_when_tooth_passing_meets_a_dynamometer_mode(tmp_path: Path) -> None:
+    from rig.campaign import dry_run
+
+    # 8000 rpm x 3 flutes = 400 Hz; its 5th harmonic (2000 Hz) sits on the 2050 Hz X mode.
+    p = _write(tmp_path, tool="phi10-flat", kind="slot", rpm=8000, feed="fz_mm = 0.05",
+               depth="2.0")  # fmt: skip
+    d = dry_run(load_campaign(p))
+    assert d.ok and any("2050 Hz" in w and "harmonic 5" in w for w in d.warnings)
+    # Seed 003's 600 rpm with one insert is far below every mode (seed 003 3.2).
+    assert dry_run(load_campaign("facemill-ploughing")).warnings == []

@@ -55,6 +55,7 @@ def _run(args: argparse.Namespace) -> int:
             "expected_machine_s": round(d.expected_machine_s, 1),
             "hardware": d.hardware,
             "problems": d.problems,
+            "warnings": d.warnings,
             "ok": d.ok,
         }
         if args.json:
@@ -66,6 +67,8 @@ def _run(args: argparse.Namespace) -> int:
                 print(f"  ok: {h}")
             for p in d.problems:
                 print(f"  PROBLEM: {p}")
+            for w in d.warnings:
+                print(f"  warning: {w}")
         return 0 if d.ok else 2
     result = run_campaign(campaign, out_root=args.out, progress=not args.quiet)
     report = None
