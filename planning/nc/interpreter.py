@@ -251,72 +251,12 @@ class Interpreter(WordRules, Moves):
             gcodes, mcodes, v = self._sort_words(raw, words, line)
 
         # ---- G codes: modes first so this block's words use them
-        explicit_motion = False
-        dwell = g53 = False
-        home: tuple[int, int] | None = None  # (G28 or G30 key, word index)
         self._inverse_f = NAN
-        if gcodes is not None:
-            prev_motion = st.motion
-            groups: dict[int, int] = {}
-            for key, k in gcodes:
-                grp = G_GROUP[key]
-                if grp in groups:
-                    other = groups[grp]
-                    raise _lexer.word_error(
-                        raw,
-                        k,
-                        f"{gname(key)} and {gname(other)} are in the same modal group "
-                        f"(group {grp}) and cannot share a block",
-                        self.file,
-                        line,
-                    )
-                groups[grp] = key
-                if grp == 9:  # G80; a G0..G3 in the same block then sets the motion mode
-                    g1 = groups.get(1)
-                    if g1 is not None and g1 >= 810:
-                        raise _lexer.word_error(
-                            raw, k, f"G80 and {gname(g1)} cannot share a block", self.file, line
-                        )
-                    if g1 is None:
-                        st.motion = 80
-                        explicit_motion = True
-                elif grp == 1:
-                    if 9 in groups and key >= 810:
-                        raise _lexer.word_error(
-                            raw, k, f"{gname(key)} and G80 cannot share a block", self.file, line
-                        )
-                    st.motion = MOTION_MODE[key]
-                    explicit_motion = True
-                elif grp == 0:
-                    if key == 40:
-                        dwell = True
-                    elif key == 530:
-                        g53 = True
-                    else:
-                        home = (key, k)
-                elif grp == 2:
-                    st.plane = key // 10
-                elif grp == 6:
-                    st.inch = key == 200
-                elif grp == 3:
-                    st.absolute = key == 900
-                elif grp == 4:
-                    st.arc_absolute = key == 901
-                elif grp == 5:
-                    if key // 10 != st.feed_mode:  # F means something else now: set it again
-                        st.feed_mode = key // 10
-                        st.feed_mm_min = NAN
-                elif grp == 7:
-                    st.cutter_comp = key // 10
-                elif grp == 8:
-                    st.tool_length = key // 10
-                elif grp == 10:
-                    st.retract_initial = key == 980
-                else:  # 12, work offsets
-                    st.work_offset = key // 10
-            if explicit_motion and (st.motion >= 81) != (prev_motion >= 81):
-                # leaving a cycle, or starting one: its initial level is the Z here
-                st.canned = CannedCycle(initial_z_mm=st.position_mm[2])
+        if gcodes is None:
+            explicit_motion = dwell = g53 = False
+            home = None
+        else:
+            explicit_motion, dwell, g53, home = self._gcodes(raw, gcodes, line)
 
         scale = INCH_MM if st.inch else 1.0
         # ---- other words
@@ -329,28 +269,7 @@ class Interpreter(WordRules, Moves):
                 st.sequence_number = self._whole(raw, v, "N", line)
 
         # ---- M codes before motion (tool change, spindle, coolant)
-        end = False
-        if mcodes is not None:
-            if len(mcodes) > 1:
-                self._check_m_groups(raw, mcodes, line)
-            for key, _k in mcodes:
-                m = key // 10
-                if m == 6:
-                    st.tool = st.tool_selected
-                elif m == 3:
-                    st.spindle_dir = 1
-                elif m == 4:
-                    st.spindle_dir = -1
-                elif m == 5:
-                    st.spindle_dir = 0
-                elif m == 7 or m == 8:
-                    st.coolant = True
-                elif m == 9:
-                    st.coolant = False
-                elif m == 0 or m == 1:
-                    st.stopped = True
-                else:
-                    end = True
+        end = mcodes is not None and self._mcodes(raw, mcodes, line)
 
         # ---- dwell
         if dwell:
@@ -394,3 +313,101 @@ class Interpreter(WordRules, Moves):
             raise self._fail(raw, 0, "G53 needs an axis word (X, Y or Z)", line)
         if end:
             st.ended = True
+
+    def _gcodes(self, raw: str, gcodes: list[tuple[int, int]], line: int):
+        """Apply the block's G codes to the state (one per modal group). Returns
+        ``(explicit_motion, dwell, g53, home)``: whether a group-1/G80 code was given, G4, G53,
+        and ``(key, word index)`` of a G28/G30 or None."""
+        st = self.state
+        explicit_motion = False
+        dwell = g53 = False
+        home: tuple[int, int] | None = None
+        prev_motion = st.motion
+        groups: dict[int, int] = {}
+        for key, k in gcodes:
+            grp = G_GROUP[key]
+            if grp in groups:
+                other = groups[grp]
+                raise _lexer.word_error(
+                    raw,
+                    k,
+                    f"{gname(key)} and {gname(other)} are in the same modal group "
+                    f"(group {grp}) and cannot share a block",
+                    self.file,
+                    line,
+                )
+            groups[grp] = key
+            if grp == 9:  # G80; a G0..G3 in the same block then sets the motion mode
+                g1 = groups.get(1)
+                if g1 is not None and g1 >= 810:
+                    raise _lexer.word_error(
+                        raw, k, f"G80 and {gname(g1)} cannot share a block", self.file, line
+                    )
+                if g1 is None:
+                    st.motion = 80
+                    explicit_motion = True
+            elif grp == 1:
+                if 9 in groups and key >= 810:
+                    raise _lexer.word_error(
+                        raw, k, f"{gname(key)} and G80 cannot share a block", self.file, line
+                    )
+                st.motion = MOTION_MODE[key]
+                explicit_motion = True
+            elif grp == 0:
+                if key == 40:
+                    dwell = True
+                elif key == 530:
+                    g53 = True
+                else:
+                    home = (key, k)
+            elif grp == 2:
+                st.plane = key // 10
+            elif grp == 6:
+                st.inch = key == 200
+            elif grp == 3:
+                st.absolute = key == 900
+            elif grp == 4:
+                st.arc_absolute = key == 901
+            elif grp == 5:
+                if key // 10 != st.feed_mode:  # F means something else now: set it again
+                    st.feed_mode = key // 10
+                    st.feed_mm_min = NAN
+            elif grp == 7:
+                st.cutter_comp = key // 10
+            elif grp == 8:
+                st.tool_length = key // 10
+            elif grp == 10:
+                st.retract_initial = key == 980
+            else:  # 12, work offsets
+                st.work_offset = key // 10
+        if explicit_motion and (st.motion >= 81) != (prev_motion >= 81):
+            # leaving a cycle, or starting one: its initial level is the Z here
+            st.canned = CannedCycle(initial_z_mm=st.position_mm[2])
+        return explicit_motion, dwell, g53, home
+
+    def _mcodes(self, raw: str, mcodes: list[tuple[int, int]], line: int) -> bool:
+        """Apply the block's M codes (tool change, spindle, coolant, stops); True if it ends the
+        program (M2/M30), which takes effect after the block's motion."""
+        st = self.state
+        if len(mcodes) > 1:
+            self._check_m_groups(raw, mcodes, line)
+        end = False
+        for key, _k in mcodes:
+            m = key // 10
+            if m == 6:
+                st.tool = st.tool_selected
+            elif m == 3:
+                st.spindle_dir = 1
+            elif m == 4:
+                st.spindle_dir = -1
+            elif m == 5:
+                st.spindle_dir = 0
+            elif m == 7 or m == 8:
+                st.coolant = True
+            elif m == 9:
+                st.coolant = False
+            elif m == 0 or m == 1:
+                st.stopped = True
+            else:
+                end = True
+        return end
