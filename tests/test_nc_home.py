@@ -41,6 +41,8 @@ def test_g90_form_goes_through_the_intermediate_point_named_axes_only():
     assert home.kind.tolist() == [RAPID, RAPID]
     np.testing.assert_array_equal(home.start, [[10, 20, 5], [50, 20, 30]])
     np.testing.assert_array_equal(home.end, [[50, 20, 30], [100, 20, 300]])  # Y stays at 20
+    _, m = run("G20 G0 X1 Y1\nG28 X2")  # inch intermediate point, reference in mm
+    np.testing.assert_allclose(m.end[-2:], [[50.8, 25.4, 0], [100, 25.4, 0]])
 
 
 def test_g91_z0_goes_straight_up_and_g91_form_is_incremental():
