@@ -32,9 +32,10 @@ def line_program(n: int, feed_mm_min: float = 6000.0, step_mm: float = 1.0, grbl
 def fanuc_sim(speed: float, **kw: object) -> SimFanuc:
     """A simulated Fanuc at 115200 baud whose buffer leaves 4096 characters of room after its
     DC3: at x4 the line is 42 kB per wall second, so a streamer and controller sharing a loaded
-    CPU may take up to ~100 ms to react without an (unwanted) overrun alarm. DC1 at 1024."""
-    return SimFanuc(clock=SimClock(speed), baudrate=115200, rx_buffer_bytes=8192,
-                    xoff_free_bytes=4096, xon_fill_bytes=1024, **kw)  # fmt: skip
+    CPU may take up to ~100 ms to react without an (unwanted) overrun alarm. DC1 at 1024
+    (``kw`` overrides these)."""
+    params: dict = dict(rx_buffer_bytes=8192, xoff_free_bytes=4096, xon_fill_bytes=1024)
+    return SimFanuc(clock=SimClock(speed), baudrate=115200, **(params | kw))
 
 
 def fanuc_cfg(path: str, **kw: object) -> SerialConfig:

@@ -25,9 +25,9 @@ from rig.sim.clock import SimClock
 from rig.sim.grbl import SimGrbl
 
 
-def _fanuc_run(n_blocks: int, speed: float, tmp_path, **cfg_kw):
+def _fanuc_run(n_blocks: int, speed: float, tmp_path, sim_kw: dict | None = None, **cfg_kw):
     prog = line_program(n_blocks)
-    ctl = fanuc_sim(speed)
+    ctl = fanuc_sim(speed, **(sim_kw or {}))
     done = EventWaiter(ctl, "program_end")
     with ctl:
         cfg = fanuc_cfg(ctl.path, **cfg_kw)
@@ -57,7 +57,9 @@ def _check_fanuc(prog, ctl, cfg, res, rec_path) -> None:
 
 
 def test_fanuc_drip_feed_is_byte_exact_with_xon_xoff(tmp_path) -> None:
-    _check_fanuc(*_fanuc_run(2000, 4.0, tmp_path))
+    # DC1 at 3584 of 8192 (DC3 still at 4096): 512 characters per DC3/DC1 cycle, so 600 blocks
+    # fill and drain the buffer >= 10 times (the 12000-block run below is marked slow)
+    _check_fanuc(*_fanuc_run(600, 4.0, tmp_path, sim_kw={"xon_fill_bytes": 3584}))
 
 
 @pytest.mark.slow
@@ -100,7 +102,8 @@ def _check_grbl(prog, ctl, res, sink) -> None:
 
 
 def test_grbl_char_counting_is_byte_exact(tmp_path) -> None:
-    prog, ctl, res, sink = _grbl_run(2000, 10.0)
+    # 400 lines keep the 127-byte buffer full for ~390 planner waits (12000: slow test below)
+    prog, ctl, res, sink = _grbl_run(400, 10.0)
     _check_grbl(prog, ctl, res, sink)
     # never more in GRBL's receive buffer than it holds
     assert ctl.max_fill <= 127
