@@ -269,9 +269,12 @@ def test_sigkill_mid_recording_keeps_everything_flushed(tmp_path: Path, capsys) 
     try:
         seen = 0
         deadline = time.monotonic() + 60.0
-        while seen < 5000 and time.monotonic() < deadline:  # wait for >= 1 s flushed
-            if proc.poll() is not None:
+        while seen < 2500 and time.monotonic() < deadline:  # >= 0.5 s flushed (>= 2 flushes)
+            try:  # a bounded wait on the recorder's exit between looks at the file
+                proc.wait(timeout=0.05)
                 pytest.fail(f"recorder exited early: {proc.stderr.read().decode()}")
+            except subprocess.TimeoutExpired:
+                pass
             if out.exists():
                 try:
                     with RunFollower(out) as fol:
@@ -279,7 +282,7 @@ def test_sigkill_mid_recording_keeps_everything_flushed(tmp_path: Path, capsys) 
                         seen = first + len(volts)
                 except (rf.RunFileError, OSError, KeyError):
                     pass  # file still being created
-        assert seen >= 5000, "recorder did not flush 1 s of samples within 60 s"
+        assert seen >= 2500, "recorder did not flush 0.5 s of samples within 60 s"
         os.kill(proc.pid, signal.SIGKILL)
     finally:
         if proc.poll() is None:
