@@ -9,7 +9,6 @@ same ``on_start`` / ``on_block`` / ``on_event`` calls as the NI driver, from the
 from __future__ import annotations
 
 import threading
-import time
 from collections import deque
 from collections.abc import Callable, Sequence
 
@@ -294,10 +293,7 @@ class SimDaq(Daq):
     def run(self, sink: DaqSink, timeout_s: float | None = None) -> None:
         """Start, wait until a finite run ends (``seconds``), stop. Convenience for scripts."""
         self.start(sink)
-        deadline = None if timeout_s is None else time.monotonic() + timeout_s
-        while not self.wait(0.1):
-            if deadline is not None and time.monotonic() > deadline:
-                break
+        self.wait(timeout_s)
         self.stop()
         if self.error is not None:
             raise DaqError(f"simulated DAQ failed: {self.error}") from self.error
