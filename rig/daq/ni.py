@@ -25,6 +25,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from typing import Any
 
 import nidaqmx
@@ -124,7 +125,7 @@ class NiDaq(Daq):
         self.buffer_samples = max(
             2 * self.block_samples, int(round(config.rate_hz * config.buffer_s))
         )
-        self.info = DaqInfo(  # replaced in start() by one carrying the device's coefficients
+        self.info = DaqInfo(  # start() sets the sample format and the device's coefficients
             device=config.device,
             physical_channels=tuple(config.channels),
             channel_names=self._names,
@@ -195,16 +196,7 @@ class NiDaq(Daq):
         task.register_every_n_samples_acquired_into_buffer_event(
             self.block_samples, self._on_every_n_samples
         )
-        return DaqInfo(
-            device=cfg.device,
-            physical_channels=tuple(cfg.channels),
-            channel_names=self._names,
-            rate_hz=float(cfg.rate_hz),
-            sample_format=fmt,
-            input_range_v=r,
-            block_samples=self.block_samples,
-            scaling_coeff=sc,
-        )
+        return replace(self.info, sample_format=fmt, scaling_coeff=sc)
 
     def start(self, sink: DaqSink) -> None:
         if self._task is not None:
@@ -366,7 +358,3 @@ class NiDaq(Daq):
         if self._task is not None:
             self.stop()
             self._close_task()
-
-    @classmethod
-    def from_config(cls, config: DaqConfig, channel_names: Sequence[str] | None = None) -> NiDaq:
-        return cls(config, channel_names)
