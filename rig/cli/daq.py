@@ -90,7 +90,9 @@ def _record(args: argparse.Namespace) -> int:
         rig_meta["calibration_id"] = cal.calibration_id
 
     out = Path(args.output)
-    bar = tqdm(total=round(args.seconds, 3), unit="s", desc="recording", disable=args.quiet)
+    # disable=None: tqdm turns itself off when stderr is not a terminal (CI logs)
+    bar = tqdm(total=round(args.seconds, 3), unit="s", desc="recording",
+               disable=True if args.quiet else None)  # fmt: skip
 
     def progress(t: float) -> None:
         bar.n = round(min(t, args.seconds), 3)
