@@ -102,7 +102,9 @@ def test_fuzz_any_unicode_raises_only_nc_error(text):
         pass
 
 
-G_CODES = "0 1 2 3 4 17 18 19 20 21 40 41 43 49 53 54 80 81 82 83 90 91 90.1 91.1 93 94 98 99 7"
+G_CODES = (
+    "0 1 2 3 4 17 18 19 20 21 28 30 40 41 43 49 53 54 80 81 82 83 90 91 90.1 91.1 93 94 98 99 7"
+)
 G_CODES = G_CODES.split()
 M_CODES = ["0", "1", "2", "3", "4", "5", "6", "8", "9", "30", "98"]
 NUMBERS = st.one_of(
