@@ -89,6 +89,10 @@ def test_without_a_machine_machine_zero_and_one_warning():
     np.testing.assert_array_equal(m.end[-1], [0, 0, 0])
     assert len(it.warnings) == 1 and "machine zero = work zero" in it.warnings[0].reason
     assert (it.warnings[0].line, it.warnings[0].column, it.warnings[0].word) == (2, 5, "G28")
+    # a restart there would approach a guessed position: refused
+    with pytest.raises(NCError, match="reference point .* is unknown"):
+        restart_preamble(it.state)
+    assert not state_at_block(Program.read(POST), 21, load_machine("ace-h63")).reference_assumed
 
 
 @settings(max_examples=60, deadline=None)

@@ -153,6 +153,7 @@ class Moves:
         ref = self._reference_mm[key]
         if ref is None:
             ref = (0.0, 0.0, 0.0)
+            st.reference_assumed = True
             if not self._reference_warned:
                 self._reference_warned = True
                 self._note(

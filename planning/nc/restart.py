@@ -17,7 +17,9 @@ The position is wherever the blocks before N left the tool, including a G28/G30 
 reference point: it is written back in the work frame like any other position.
 
 A restart inside a run of canned-cycle blocks is refused: re-establishing the cycle would drill a
-hole where the tool stands. Restart at the block that starts the cycle instead.
+hole where the tool stands. Restart at the block that starts the cycle instead. So is a restart
+after a G28/G30 that was interpreted without a machine config (machine zero assumed): the
+preamble would approach a position the real machine does not have.
 """
 
 from __future__ import annotations
@@ -42,6 +44,11 @@ def restart_preamble(
     ``max(state Z, 0)``. Positions are written in the state's units and work frame
     (``work_offsets_mm`` subtracted, default zero), with ``style`` (default 4 decimals).
     """
+    if state.reference_assumed:
+        raise NCError(
+            "cannot restart after a G28/G30 interpreted without a machine config: the reference "
+            "point (and so the position) is unknown; give the machine (reference_mm)"
+        )
     if state.motion >= 81:
         raise NCError(
             f"cannot restart inside a canned cycle (G{state.motion} in force): restart at the "

@@ -55,6 +55,7 @@ class ModalState:
     sequence_number: int | None = None  # last N word
     rotary_deg: dict[str, float] = field(default_factory=dict)  # A/B/C words (recorded only)
     canned: CannedCycle = field(default_factory=CannedCycle)
+    reference_assumed: bool = False  # a G28/G30 went to machine zero for want of a machine config
     stopped: bool = False  # M0 / M1 seen in the last block
     ended: bool = False  # M2 / M30 seen
     tape_marks: int = 0  # '%' lines seen
