@@ -29,6 +29,13 @@ class WordRules:
         err = _lexer.word_error(raw, index, reason, self.file, line)
         if self.strict:
             raise err
+        self._warn(err)
+
+    def _note(self, raw: str, letter_or_index: str | int, reason: str, line: int) -> None:
+        """A warning in both modes (the block is still executed as written)."""
+        self._warn(self._fail(raw, letter_or_index, reason, line))
+
+    def _warn(self, err: NCError) -> None:
         self.warnings.append(NCWarning(err.reason, err.file, err.line, err.column, err.word))
 
     def _fail(self, raw: str, letter_or_index: str | int, reason: str, line: int) -> NCError:
@@ -157,11 +164,6 @@ class WordRules:
                 line,
             )
         self.state.feed_mm_min = f
-
-    def _note(self, raw: str, letter_or_index: str | int, reason: str, line: int) -> None:
-        """A warning in both modes (the block is still executed as written)."""
-        err = self._fail(raw, letter_or_index, reason, line)
-        self.warnings.append(NCWarning(err.reason, err.file, err.line, err.column, err.word))
 
     def _check_m_groups(self, raw: str, mcodes: list[tuple[int, int]], line: int) -> None:
         seen: dict[str, int] = {}
