@@ -34,18 +34,21 @@ with a :class:`~rig.dnc.errors.StreamFault` naming the last fully sent block.
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable
+from typing import Any
 
 from analysis.config import SerialConfig
 from rig.dnc import eia
 from rig.dnc._stream import Fault, Item, StreamerBase
 from rig.dnc.link import DC2, DC4, SerialLink
 from rig.dnc.port import EOB_BYTES
-from rig.dnc.record import BlockRow, BlockSink
+from rig.dnc.record import BlockRow
 
 
 class FanucStreamer(StreamerBase):
-    """Drip-feed a program to a Fanuc-style control (see the module docstring)."""
+    """Drip-feed a program to a Fanuc-style control (see the module docstring).
+
+    ``stream_kw``: sink, clock, pace_bytes_per_s, progress of :class:`StreamerBase`.
+    """
 
     protocol = "fanuc"
 
@@ -53,16 +56,11 @@ class FanucStreamer(StreamerBase):
         self,
         cfg: SerialConfig,
         *,
-        sink: BlockSink | None = None,
-        clock: Callable[[], float] | None = None,
-        pace_bytes_per_s: float | str | None = "auto",
-        progress: bool = False,
         wait_for_dc1: bool = True,
         record_batch: int = 32,
+        **stream_kw: Any,
     ) -> None:
-        super().__init__(
-            cfg, sink=sink, clock=clock, pace_bytes_per_s=pace_bytes_per_s, progress=progress
-        )
+        super().__init__(cfg, **stream_kw)
         self.eob = EOB_BYTES[cfg.end_of_block]
         self.wait_for_dc1 = wait_for_dc1
         self.record_batch = record_batch

@@ -32,12 +32,13 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from analysis.config import SerialConfig
 from rig.dnc._stream import Fault, Item, StreamerBase
 from rig.dnc.errors import DncError
 from rig.dnc.link import LinkLost, LinkTimeout, SerialLink
-from rig.dnc.record import BlockRow, BlockSink
+from rig.dnc.record import BlockRow
 
 FEED_HOLD, CYCLE_START, STATUS, SOFT_RESET = b"!", b"~", b"?", b"\x18"
 MODES = ("char-counting", "send-response")
@@ -109,6 +110,7 @@ class GrblStreamer(StreamerBase):
     wait_idle : after the last ``ok``, wait until GRBL reports ``Idle`` (the motion has run)
     unlock : if GRBL is in ``Alarm`` at the start, send ``$X`` (else that is a fault)
     halt_on_error : on ``error:N``, send feed hold + soft reset so nothing after it runs
+    stream_kw : sink, clock, pace_bytes_per_s, progress of :class:`StreamerBase`
     """
 
     protocol = "grbl"
@@ -117,24 +119,19 @@ class GrblStreamer(StreamerBase):
         self,
         cfg: SerialConfig,
         *,
-        sink: BlockSink | None = None,
-        clock: Callable[[], float] | None = None,
-        pace_bytes_per_s: float | str | None = "auto",
-        progress: bool = False,
         mode: str = "char-counting",
         rx_buffer_bytes: int = GRBL_RX_BUFFER_BYTES,
         status_hz: float = 5.0,
         wait_idle: bool = True,
         unlock: bool = False,
         halt_on_error: bool = True,
+        **stream_kw: Any,
     ) -> None:
         if mode not in MODES:
             raise DncError(f"GRBL mode = {mode!r}: unknown; expected one of {', '.join(MODES)}")
         if not 16 <= rx_buffer_bytes <= 65536:
             raise DncError(f"rx_buffer_bytes = {rx_buffer_bytes}: expected 16..65536 bytes")
-        super().__init__(
-            cfg, sink=sink, clock=clock, pace_bytes_per_s=pace_bytes_per_s, progress=progress
-        )
+        super().__init__(cfg, **stream_kw)
         self.mode = mode
         self.rx_buffer_bytes = rx_buffer_bytes
         self.status_hz = status_hz

@@ -66,7 +66,6 @@ from analysis.config import MachineConfig
 from planning.nc import NCError
 from rig.dnc import eia
 from rig.sim._controller import SimControllerBase, SimControllerError, _Planned
-from rig.sim.clock import SimClock
 
 DC1, DC2, DC3, DC4 = b"\x11", b"\x12", b"\x13", b"\x14"
 _END = "%"
@@ -75,7 +74,8 @@ _END = "%"
 class SimFanuc(SimControllerBase):
     """Fanuc-like control reading a drip-fed program (see the module docstring).
 
-    ``sim_knobs`` are the fault knobs of :class:`SimControllerBase` (a wrong name is a TypeError).
+    ``base_kw``: clock, speed, baudrate (9600) and the ``sim_`` fault knobs of
+    :class:`SimControllerBase` (a wrong name is a TypeError).
     """
 
     protocol = "fanuc"
@@ -84,9 +84,6 @@ class SimFanuc(SimControllerBase):
         self,
         machine: MachineConfig | None = None,
         *,
-        clock: SimClock | None = None,
-        speed: float = 1.0,
-        baudrate: int = 9600,
         bytesize: int = 7,
         parity: str = "E",
         stopbits: int = 2,
@@ -96,7 +93,7 @@ class SimFanuc(SimControllerBase):
         xon_fill_bytes: int = 1024,
         lookahead_blocks: int = 2,
         dc1_repeat_s: float = 0.2,
-        **sim_knobs: Any,
+        **base_kw: Any,
     ) -> None:
         if flow_control == "rtscts":
             raise SimControllerError(
@@ -111,15 +108,7 @@ class SimFanuc(SimControllerBase):
                 f"expected 0 < both < rx_buffer_bytes = {rx_buffer_bytes} bytes"
             )
         bits = 1 + bytesize + (parity != "N") + stopbits
-        super().__init__(
-            machine,
-            clock=clock,
-            speed=speed,
-            baudrate=baudrate,
-            bits_per_char=bits,
-            rx_buffer_bytes=rx_buffer_bytes,
-            **sim_knobs,
-        )
+        super().__init__(machine, bits_per_char=bits, rx_buffer_bytes=rx_buffer_bytes, **base_kw)
         self.flow = flow_control == "xonxoff"
         self.xoff_at = rx_buffer_bytes - xoff_free_bytes
         self.xon_at = xon_fill_bytes

@@ -59,7 +59,6 @@ import numpy as np
 from analysis.config import MachineConfig
 from planning.nc import NCError
 from rig.sim._controller import SimControllerBase, _Planned
-from rig.sim.clock import SimClock
 
 BANNER = b"\r\nGrbl 1.1h ['$' for help]\r\n"
 _WORD = re.compile(r"([A-Z])([-+]?[0-9]*\.?[0-9]*)")
@@ -91,7 +90,8 @@ _SETTINGS = {0: 10, 1: 25, 2: 0, 3: 0, 4: 0, 5: 0, 6: 0, 10: 3, 11: 0.010, 12: 0
 class SimGrbl(SimControllerBase):
     """GRBL-like controller (see the module docstring).
 
-    ``sim_knobs`` are the fault knobs of :class:`SimControllerBase` (a wrong name is a TypeError).
+    ``base_kw``: clock, speed and the ``sim_`` fault knobs of :class:`SimControllerBase` (a
+    wrong name is a TypeError).
     """
 
     protocol = "grbl"
@@ -100,23 +100,15 @@ class SimGrbl(SimControllerBase):
         self,
         machine: MachineConfig | None = None,
         *,
-        clock: SimClock | None = None,
-        speed: float = 1.0,
         baudrate: int = 115200,
         rx_buffer_bytes: int = 127,
         planner_blocks: int = 15,
         sim_error_at_block: tuple[int, int] | None = None,
-        **sim_knobs: Any,
+        **base_kw: Any,
     ) -> None:
         super().__init__(
-            machine,
-            clock=clock,
-            speed=speed,
-            baudrate=baudrate,
-            bits_per_char=10,  # 8N1
-            rx_buffer_bytes=rx_buffer_bytes,
-            **sim_knobs,
-        )
+            machine, baudrate=baudrate, bits_per_char=10, rx_buffer_bytes=rx_buffer_bytes, **base_kw
+        )  # 8N1
         self.planner_blocks = planner_blocks
         self.sim_error_at_block = sim_error_at_block
         self.settings = dict(_SETTINGS)
