@@ -78,7 +78,7 @@ class FanucStreamer(StreamerBase):
 
     def _make_link(self) -> SerialLink:
         soft = self.cfg.flow_control == "xonxoff" and self.cfg.xonxoff_in_streamer
-        link = SerialLink(
+        return SerialLink(
             self._serial(),
             soft_flow=soft,
             cts_flow=self.cfg.flow_control == "rtscts",
@@ -86,12 +86,6 @@ class FanucStreamer(StreamerBase):
             on_data=self._on_data,
             on_control=self._on_control,
         )
-        return link
-
-    def attach(self, link: SerialLink) -> None:
-        """Take the callbacks of an already open link (remote request server)."""
-        link.on_data = self._on_data
-        link.on_control = self._on_control
 
     def _on_data(self, data: bytes) -> None:
         if self.punching.is_set():
