@@ -106,8 +106,7 @@ class RemoteServer:
                     st.punched.clear()
                     done.set()
 
-            link.on_data = st._on_data
-            link.on_control = on_control
+            link.on_control = on_control  # the streamer's, plus: a finished request ends the wait
             self.listening.set()
             if self.on_listening is not None:
                 self.on_listening()
