@@ -93,6 +93,9 @@ class ProgramSection(Model):
 
 class DaqOverride(Model):
     rate_hz: float | None = Field(None, gt=0, le=10_000_000, description="Hz, per channel")
+    rest_s: float = Field(
+        1.0, gt=0, le=60, description="s at rest before and after each cut: zero and drift fit"
+    )
     read_interval_s: float | None = Field(None, gt=0, le=10, description="s between reads")
 
 

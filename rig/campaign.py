@@ -426,6 +426,7 @@ def run_campaign(
                     sim_speed=campaign.spec.sim.speed if campaign.spec.campaign.rig == "sim"
                     else 1.0,
                     progress=_within_run(bar, t.name), watchdog_wall_s=sus.watchdog_wall_s,
+                    zero_s=campaign.spec.daq.rest_s,
                 )  # fmt: skip
                 status, reason = outcome.status, outcome.reason
             except BaseException as exc:
