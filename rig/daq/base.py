@@ -22,10 +22,19 @@ from typing import Protocol
 
 import numpy as np
 
+from analysis.runfile import SAMPLE_FORMAT_RAW, SAMPLE_FORMAT_VOLTS  # the run file's names
 from rig.errors import RigError
 
-SAMPLE_FORMAT_RAW = "raw_int16"
-SAMPLE_FORMAT_VOLTS = "volts_float64"
+__all__ = [
+    "SAMPLE_FORMAT_RAW",
+    "SAMPLE_FORMAT_VOLTS",
+    "Daq",
+    "DaqError",
+    "DaqEvent",
+    "DaqInfo",
+    "DaqNotAvailableError",
+    "DaqSink",
+]
 
 
 class DaqError(RigError):
