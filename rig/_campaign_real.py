@@ -33,7 +33,7 @@ def _daq_config(campaign: Any) -> Any:
     over = {
         k: v
         for k, v in campaign.spec.daq.model_dump().items()
-        if v is not None and k in campaign.rig.daq.model_fields
+        if v is not None and k in type(campaign.rig.daq).model_fields
     }
     return campaign.rig.daq.model_copy(update=over)
 
