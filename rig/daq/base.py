@@ -25,17 +25,6 @@ import numpy as np
 from analysis.runfile import SAMPLE_FORMAT_RAW, SAMPLE_FORMAT_VOLTS  # the run file's names
 from rig.errors import RigError
 
-__all__ = [
-    "SAMPLE_FORMAT_RAW",
-    "SAMPLE_FORMAT_VOLTS",
-    "Daq",
-    "DaqError",
-    "DaqEvent",
-    "DaqInfo",
-    "DaqNotAvailableError",
-    "DaqSink",
-]
-
 
 class DaqError(RigError):
     """The DAQ failed, or is configured in a way the hardware (or the simulation) cannot do."""
