@@ -167,7 +167,8 @@ def test_restart_preamble_restores_the_modal_state() -> None:
 
 def test_restart_refuses_canned_cycles_and_ended_programs() -> None:
     cyc = program_from_text("G21 G90\nG0 Z5\nG81 X1 Y1 Z-2 R1 F100\nX2\nX3\nG80\n", "c.nc")
-    with pytest.raises(DncError, match=r"inside a canned cycle \(G81 modal\)"):
+    canned = r"restart at block 3 .*inside a canned cycle \(G81 in force\)"
+    with pytest.raises(DncError, match=canned):
         restart_blocks(cyc, 3, "fanuc")
     ended = program_from_text("G21\nG0 X1\nM30\nG0 X2\n", "e.nc", check_nc=False)
     with pytest.raises(DncError, match="program ended"):

@@ -32,7 +32,7 @@ from __future__ import annotations
 import re
 
 from analysis.config import MachineConfig
-from planning.nc import restart_preamble
+from planning.nc import NCError, restart_preamble
 from rig.dnc.errors import DncError
 from rig.dnc.nc import modal_state_at
 from rig.dnc.program import Program
@@ -54,17 +54,15 @@ def restart_blocks(
     where = f"{program.name}: restart at block {block} (line {block + 1})"
     if state.ended:
         raise DncError(f"{where}: the program ended (M2/M30) before that block")
-    if state.motion in (81, 82, 83):
-        raise DncError(
-            f"{where}: inside a canned cycle (G{state.motion} modal); restart at the block that "
-            "starts the cycle"
-        )
     if protocol == "grbl" and (state.cutter_comp != 40 or state.tool_length == 43):
         raise DncError(
             f"{where}: needs G{state.cutter_comp}/G{state.tool_length} compensation, which GRBL "
             "does not take"
         )
-    pre = restart_preamble(state, safe_z_mm=safe_z_mm, plunge_feed=True)
+    try:  # refusals of the preamble itself (canned cycle in force, unknown reference point)
+        pre = restart_preamble(state, safe_z_mm=safe_z_mm, plunge_feed=True)
+    except NCError as exc:
+        raise DncError(f"{where}: {exc} (nothing was sent)") from None
     out = [f"(RESTART AT BLOCK {block} LINE {block + 1})"]
     for text in pre:
         if protocol == "grbl":
