@@ -100,6 +100,8 @@ class SimControllerBase(ExecutorMixin):
         self._master = -1
         self._slave = -1
         self.path = ""
+        self.line_ok = True  # False while the streamer's line is at another baud rate
+        self._baud_warned = False  # the framing event is reported once
         self._init_state()
 
     # -- state ---------------------------------------------------------------------------------
@@ -313,11 +315,9 @@ class SimControllerBase(ExecutorMixin):
         except termios.error:
             return
         self.line_ok = attrs[5] == want
-        if not self.line_ok and not getattr(self, "_baud_warned", False):
+        if not self.line_ok and not self._baud_warned:
             self._baud_warned = True
             self._event("framing", f"line at the wrong baud rate (controller: {self.baudrate})")
-
-    line_ok = True
 
     def _deliver(self, now: float) -> None:
         """Move bytes whose arrival time has come from the wire into the receiver."""
