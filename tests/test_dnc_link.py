@@ -1,4 +1,4 @@
-"""The link layer on pyserial's own loopback port: CTS gating, DC3 gating, loss detection."""
+"""The link layer on pyserial's loopback port: CTS and DC3 gating, DC2 hold, loss detection."""
 
 from __future__ import annotations
 
@@ -93,3 +93,30 @@ def test_alarm_at_simulated_time() -> None:
     with ctl:
         assert ctl.quiet.wait(10)
     assert ctl.alarm == "1" and any(e.kind == "alarm" for e in ctl.events)
+
+
+def test_fanuc_drip_feed_holds_while_the_control_punches() -> None:
+    """DC2 (the control starts punching) stops the drip feed; without DC4 it is a timeout fault
+    naming the cause, and the record ends at the last block sent before it."""
+    from _dnc_helpers import fanuc_cfg, line_program
+
+    from rig.dnc import FanucStreamer, StreamFault
+    from rig.dnc.link import DC2
+
+    prog = line_program(200)
+    rows: list = []
+
+    class PunchAfterFirstBatch(MemorySink):
+        def append_blocks(self, batch) -> None:  # type: ignore[no-untyped-def]
+            super().append_blocks(batch)
+            if not rows:  # loop:// sends the DC2 back to the streamer's reader
+                st.link.write_now(bytes([DC2]))  # type: ignore[union-attr]
+            rows.extend(batch)
+
+    sink = PunchAfterFirstBatch()
+    st = FanucStreamer(fanuc_cfg("loop://", flow_control="none", timeout_s=0.3), sink=sink)
+    with pytest.raises(StreamFault, match="kept punching") as ei:
+        st.send(prog)
+    assert ei.value.kind == "timeout" and st.punching.is_set()
+    assert 32 <= len(sink.rows) < len(prog.blocks)
+    assert ei.value.result.last_acknowledged_block == sink.rows[-1].block

@@ -65,7 +65,9 @@ class FanucStreamer(StreamerBase):
         self.wait_for_dc1 = wait_for_dc1
         self.record_batch = record_batch
         self.punched = bytearray()
-        self.punching = threading.Event()
+        self.punching = threading.Event()  # set between DC2 and DC4
+        self._line_free = threading.Event()  # its complement, to wait on
+        self._line_free.set()
         self._stop = threading.Event()
 
     def stop(self) -> None:
@@ -94,14 +96,16 @@ class FanucStreamer(StreamerBase):
     def _on_control(self, b: int) -> None:
         if b == DC2:
             self.punching.set()
+            self._line_free.clear()
         elif b == DC4:
             self.punching.clear()
+            self._line_free.set()
 
     timeout_hint = " (alarm on the control? e.g. 087 buffer overflow)"
 
     def _write(self, data: bytes) -> None:
         timeout = self.cfg.timeout_s
-        if self.punching.is_set() and not _wait_clear(self.punching, timeout):
+        if not self._line_free.wait(timeout):
             raise Fault("timeout", f"control kept punching (DC2 without DC4) for {timeout:g} s")
         super()._write(data)
 
@@ -150,15 +154,3 @@ class FanucStreamer(StreamerBase):
         finally:
             if pending:
                 self._record(pending)
-
-
-def _wait_clear(ev: threading.Event, timeout_s: float) -> bool:
-    """Wait until ``ev`` is cleared (bounded polling: Event has no wait-for-clear)."""
-    done = threading.Event()
-    t = 0.0
-    while ev.is_set():
-        if t >= timeout_s:
-            return False
-        done.wait(0.01)
-        t += 0.01
-    return True
