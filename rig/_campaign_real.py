@@ -20,9 +20,9 @@ import threading
 import time
 from typing import Any
 
-from rig._campaign_run import WriterBlockSink
 from rig.dnc.errors import DncError, StreamFault
 from rig.dnc.program import Program
+from rig.dnc.sinks import LoggerSink
 from rig.errors import RigError
 
 #: Seconds added to a Fanuc program's estimated remaining time before the run is taken as done.
@@ -101,7 +101,7 @@ class RealSession:
 
         self._program = program
         cls = GrblStreamer if self.protocol == "grbl" else FanucStreamer
-        self.streamer = cls(self.campaign.machine.serial, sink=WriterBlockSink(writer),
+        self.streamer = cls(self.campaign.machine.serial, sink=LoggerSink(writer),
                             clock=self.clock)  # fmt: skip
         t0 = self.clock()
 

@@ -228,7 +228,7 @@ def execute_run(
     def hold_now(why: str) -> None:
         session.feed_hold()
         held_at.append(time.monotonic())
-        writer.event(rf.EV_PAUSE, f"suspender: {why}: feed hold"[: rf.EVENT_MESSAGE_BYTES])
+        writer.event(rf.EV_PAUSE, f"suspender: {why}: feed hold")
 
     tap = _Tap(writer, cal, force_limit_n, hold_now)
     status, reason = STATUS_SUCCESS, "program completed"
@@ -299,7 +299,7 @@ def execute_run(
                     status, reason = STATUS_ABORT, f"suspender: {tap.over_limit}"
                     break
         if status == STATUS_FAIL:
-            writer.event(rf.EV_FAULT, reason[: rf.EVENT_MESSAGE_BYTES])
+            writer.event(rf.EV_FAULT, reason)
         if status != STATUS_SUCCESS:
             session.stop()
         elif session.fault() is not None:
@@ -309,7 +309,7 @@ def execute_run(
         # When each block ran, on the run clock: ties every sample to the block cutting then.
         for seq, t0, t1, text in session.executed_blocks():
             msg = f"executed block {seq} {t0:.6f}..{t1:.6f} s: {text}"
-            writer.event(rf.EV_NOTE, msg[: rf.EVENT_MESSAGE_BYTES], time_s=t0)
+            writer.event(rf.EV_NOTE, msg, time_s=t0)
         # Rest after the cut: zero and drift from both rests (not after a failure: the rig may
         # not be at rest, so the zero taken before the cut stays).
         t_end = session.clock()
@@ -338,33 +338,3 @@ def execute_run(
     if tap.daq_fault is not None and status == STATUS_SUCCESS and on_overflow == "continue":
         reason = f"program completed; {tap.daq_fault}"
     return RunOutcome(status, reason, tap.peak_force_n, tap.samples, time.monotonic() - wall0)
-
-
-class WriterBlockSink:
-    """The DNC streamer's block record (``rig.dnc.record.BlockSink``) written into the run file.
-
-    Streamer events become run-file events (``fault:*`` as ``fault``, the rest as ``note``);
-    ``close`` does not close the run file (the run does that with its exit status).
-    """
-
-    def __init__(self, writer: object) -> None:
-        self.writer = writer
-
-    def append_blocks(self, rows: object) -> None:
-        rows = list(rows)  # type: ignore[call-overload]
-        if not rows:
-            return
-        self.writer.append_blocks(
-            [r.block for r in rows],
-            [r.line for r in rows],
-            [r.text for r in rows],
-            [r.send_time_s for r in rows],
-            [r.ack_time_s for r in rows],
-        )
-
-    def event(self, kind: str, time_s: float, detail: str = "") -> None:
-        ev = rf.EV_FAULT if kind.startswith("fault") else rf.EV_NOTE
-        self.writer.event(ev, f"dnc {kind}: {detail}"[: rf.EVENT_MESSAGE_BYTES], time_s=time_s)
-
-    def close(self) -> None:
-        """The run closes the file; nothing to do here."""

@@ -25,10 +25,10 @@ from typing import Any
 
 from analysis.config import EndMill
 from rig._campaign_nc import block_zmap
-from rig._campaign_run import WriterBlockSink
 from rig.daq.sim import SimDaq
 from rig.dnc.errors import DncError, StreamFault
 from rig.dnc.program import Program
+from rig.dnc.sinks import LoggerSink
 from rig.errors import RigError
 from rig.sim.clock import SimClock
 from rig.sim.machine import BlockStock, Chatter, SignalSettings, SimMachine, ZMapStock
@@ -132,7 +132,7 @@ class SimSession:
         # at the line rate times the clock's speed (on a pty it would pace in wall time and
         # starve a controller that runs faster than real time).
         pace = line_bytes_per_s(cfg) * self.sim_clock.speed
-        self.streamer = cls(cfg, sink=WriterBlockSink(writer), clock=self.clock,
+        self.streamer = cls(cfg, sink=LoggerSink(writer), clock=self.clock,
                             pace_bytes_per_s=pace)  # fmt: skip
 
         def stream() -> None:
