@@ -64,7 +64,10 @@ def test_controller_that_stops_answering_fails_the_run_and_resume_reruns_it(
     tmp_path: Path,
 ) -> None:
     cfg = _config(tmp_path, "sim_controller_stall_after_block = 5\nsim_fault_run = 0")
-    cfg.write_text(cfg.read_text() + "\n[suspenders]\nwatchdog_wall_s = 1.0\n")
+    # The campaign's watchdog (1 s of wall time past the expected end) must see the stall before
+    # the DNC link's own timeout does, also on loaded cores: give the link a wide margin.
+    text = cfg.read_text().replace("link_timeout_s = 1.5", "link_timeout_s = 5.0")
+    cfg.write_text(text + "\n[suspenders]\nwatchdog_wall_s = 1.0\n")
     res = run_campaign(load_campaign(cfg), progress=False)
     r = _runs(res)
     assert r[0].status == "fail" and "stopped answering" in r[0].reason
