@@ -8,8 +8,8 @@ Private to ``analysis.identify_facemill`` / ``analysis.identify_endmill`` / ``an
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -163,8 +163,15 @@ def default_bins(rate_hz: float, period_s: float) -> int:
     return int(min(4096, max(16, round(spr))))
 
 
-def reduce_run(run: ForceRun, teeth: int, n_bins: int | None = None) -> RunAverage:
-    """Steady part, offset removal, synchronous average and tooth peaks of an in-memory run."""
+def reduce_run(
+    run: ForceRun, teeth: int, n_bins: int | None = None, tolerance: float = 0.05
+) -> RunAverage:
+    """Steady part, offset removal, synchronous average and tooth peaks of an in-memory run.
+
+    ``tolerance``: revolutions whose mean stays within this fraction of the median count as
+    steady (:func:`analysis.steady.find_steady`); a face mill entering and leaving a narrow block
+    over many revolutions wants a tighter one (0.02) so partial engagement stays out.
+    """
     x = np.asarray(run.force_n, float)
     if x.ndim != 2 or x.shape[1] != 3:
         raise AnalysisError(f"run {run.name}: forces have shape {x.shape}: expected (n, 3) N")
@@ -172,7 +179,7 @@ def reduce_run(run: ForceRun, teeth: int, n_bins: int | None = None) -> RunAvera
         raise AnalysisError(f"run {run.name}: forces hold NaN or inf samples")
     c = run.conditions
     try:
-        part = find_steady(x, run.rate_hz, c.spindle_rpm)
+        part = find_steady(x, run.rate_hz, c.spindle_rpm, tolerance=tolerance)
     except AnalysisError as exc:
         raise AnalysisError(f"run {run.name}: {exc}") from None
     seg = part.corrected(x[part.window], part.window.start, run.rate_hz)
@@ -196,6 +203,71 @@ def reduce_run(run: ForceRun, teeth: int, n_bins: int | None = None) -> RunAvera
         runout_ratio=peaks.runout_ratio,
         force_unit=run.force_unit,
     )
+
+
+def reduce_runs(
+    runs: Sequence[ForceRun], teeth: int, n_bins: int | None = None, tolerance: float = 0.05
+) -> tuple[list[RunAverage], list[tuple[str, str]]]:
+    """:func:`reduce_run` over runs: (averages, rejected (name, reason)) — a run that cannot be
+    reduced (no cutting, too short) is listed with the reason instead of stopping the others."""
+    check_units(runs)
+    avgs, rejected = [], []
+    for r in runs:
+        try:
+            avgs.append(reduce_run(r, teeth, n_bins, tolerance))
+        except AnalysisError as exc:
+            rejected.append((r.name, str(exc)))
+    return avgs, rejected
+
+
+def with_rejected(fit: Any, rejected: Sequence[tuple[str, str]]) -> Any:
+    """A fit result (frozen dataclass with ``message`` and ``rejected``) naming rejected runs."""
+    if not rejected:
+        return fit
+    why = "; ".join(f"{n}: {m}" for n, m in rejected)
+    msg = f"{fit.message} (rejected {len(rejected)} run(s): {why})"
+    return replace(fit, message=msg, rejected=tuple(rejected))
+
+
+def synthetic_run(
+    name: str,
+    conditions: RunConditions,
+    forces: Callable[[np.ndarray], np.ndarray],
+    rate_hz: float,
+    cut_s: float,
+    air_s: float,
+    noise_frac: float,
+    dynamometer: Any = None,
+    rng: np.random.Generator | None = None,
+    offset_n: Sequence[float] = (0.0, 0.0, 0.0),
+    drift_n_s: Sequence[float] = (0.0, 0.0, 0.0),
+    phase_rad: float = 0.0,
+    angle_rpm: float | None = None,
+) -> ForceRun:
+    """A force record made from a model: air, ``cut_s`` of steady cutting, air.
+
+    ``forces(theta_rad (m,)) -> (m, 3)`` N is the model at cutter angles (called in chunks of
+    20 000 samples so memory stays bounded); the angle turns at ``angle_rpm`` (default the
+    conditions' spindle rpm) from ``phase_rad``. The true force passes through ``dynamometer``
+    (a DynamometerFilter: modes), then an offset with linear drift and white noise of
+    ``noise_frac`` x the peak resultant force are added.
+    """
+    rng = rng or np.random.default_rng(0)
+    rpm = conditions.spindle_rpm if angle_rpm is None else angle_rpm
+    n_air, n_cut = int(air_s * rate_hz), int(cut_s * rate_hz)
+    n = 2 * n_air + n_cut
+    t = np.arange(n) / rate_hz
+    theta = phase_rad + 2 * np.pi * rpm / 60.0 * t
+    f = np.zeros((n, 3))
+    for i in range(n_air, n_air + n_cut, 20_000):
+        j = min(i + 20_000, n_air + n_cut)
+        f[i:j] = forces(theta[i:j])
+    if dynamometer is not None:
+        f = dynamometer.apply(f)
+    peak = float(np.linalg.norm(f, axis=1).max())
+    f += np.asarray(offset_n, float) + t[:, None] * np.asarray(drift_n_s, float)
+    f += rng.normal(scale=noise_frac * peak, size=f.shape)
+    return ForceRun(name, f, rate_hz, conditions)
 
 
 def check_units(items: Sequence[ForceRun | RunAverage]) -> None:

@@ -28,7 +28,9 @@ from analysis._identify import (
     RunConditions,
     check_units,
     linear_fit,
-    reduce_run,
+    reduce_runs,
+    synthetic_run,
+    with_rejected,
 )
 from analysis.config import EndMill, EndMillCoefficients
 from analysis.dynamics import DynamometerFilter
@@ -110,24 +112,14 @@ def fit_endmill(
 
 
 def fit_endmill_runs(
-    runs: Sequence[ForceRun], tool: EndMill, n_bins: int | None = None
+    runs: Sequence[ForceRun], tool: EndMill, n_bins: int | None = None, tolerance: float = 0.05
 ) -> EndMillFit:
     """Reduce in-memory runs and fit; runs without steady cutting go to ``rejected``."""
-    check_units(runs)
     if not isinstance(tool, EndMill):
+        check_units(runs)
         return fit_endmill([], tool)
-    avgs, rejected = [], []
-    for r in runs:
-        try:
-            avgs.append(reduce_run(r, tool.flutes, n_bins))
-        except AnalysisError as exc:
-            rejected.append((r.name, str(exc)))
-    out = fit_endmill(avgs, tool)
-    if rejected:
-        why = "; ".join(f"{n}: {m}" for n, m in rejected)
-        out = EndMillFit(**{**out.__dict__, "message": f"{out.message} (rejected: {why})",
-                            "rejected": tuple(rejected)})  # fmt: skip
-    return out
+    avgs, rejected = reduce_runs(runs, tool.flutes, n_bins, tolerance)
+    return with_rejected(fit_endmill(avgs, tool), rejected)
 
 
 def synthetic_endmill_run(
@@ -146,20 +138,9 @@ def synthetic_endmill_run(
     n_discs: int = 16,
 ) -> ForceRun:
     """A record made from the end-mill model (air, steady cut, air) with modes, offset, noise."""
-    rng = rng or np.random.default_rng(0)
-    n_air, n_cut = int(air_s * rate_hz), int(cut_s * rate_hz)
-    n = 2 * n_air + n_cut
-    t = np.arange(n) / rate_hz
-    phi = phase_rad + 2 * np.pi * abs(conditions.spindle_rpm) / 60.0 * t
-    f = np.zeros((n, 3))
     cut = _cut(tool, conditions)
-    sl = slice(n_air, n_air + n_cut)
-    for i in range(sl.start, sl.stop, 20_000):  # bounded memory: teeth x discs per sample
-        j = min(i + 20_000, sl.stop)
-        f[i:j] = endmill_forces(phi[i:j], tool, coef, cut, n_discs)
-    if dynamometer is not None:
-        f = dynamometer.apply(f)
-    peak = float(np.linalg.norm(f, axis=1).max())
-    f += np.asarray(offset_n, float)
-    f += rng.normal(scale=noise_frac * peak, size=f.shape)
-    return ForceRun(name, f, rate_hz, conditions)
+    return synthetic_run(
+        name, conditions, lambda phi: endmill_forces(phi, tool, coef, cut, n_discs), rate_hz,
+        cut_s, air_s, noise_frac, dynamometer, rng, offset_n, phase_rad=phase_rad,
+        angle_rpm=abs(conditions.spindle_rpm),
+    )  # fmt: skip

@@ -35,6 +35,9 @@ from analysis._identify import (
     ratio_with_error,
     reduce_run,
     reduce_run_file,
+    reduce_runs,
+    synthetic_run,
+    with_rejected,
 )
 from analysis.config import Dynamometer, FaceMill, FaceMillCoefficients
 from analysis.dynamics import DynamometerFilter
@@ -277,22 +280,12 @@ def fit_facemill_runs(
     tool: FaceMill,
     dynamometer: Dynamometer | DynamometerFilter | None = None,
     n_bins: int | None = None,
+    tolerance: float = 0.05,
 ) -> FaceMillFit:
-    """Reduce in-memory runs (steady part, offset, averaging) and fit. Runs that cannot be
-    reduced (no cutting, too short) are listed in ``rejected`` with the reason."""
-    check_units(runs)
-    avgs, rejected = [], []
-    for r in runs:
-        try:
-            avgs.append(reduce_run(r, tool.inserts, n_bins))
-        except AnalysisError as exc:
-            rejected.append((r.name, str(exc)))
-    out = fit_facemill(avgs, tool, dynamometer)
-    if rejected:
-        why = "; ".join(f"{n}: {m}" for n, m in rejected)
-        msg = f"{out.message} (rejected {len(rejected)} run(s): {why})"
-        out = FaceMillFit(**{**out.__dict__, "message": msg, "rejected": tuple(rejected)})
-    return out
+    """Reduce in-memory runs (steady part within ``tolerance``, offset, averaging) and fit. Runs
+    that cannot be reduced (no cutting, too short) are listed in ``rejected`` with the reason."""
+    avgs, rejected = reduce_runs(runs, tool.inserts, n_bins, tolerance)
+    return with_rejected(fit_facemill(avgs, tool, dynamometer), rejected)
 
 
 def predicted_waveform(
@@ -326,17 +319,7 @@ def synthetic_facemill_run(
     The true force passes through ``dynamometer`` (modes), then a dynamometer offset with linear
     drift and white noise of ``noise_frac`` x the peak resultant force are added.
     """
-    rng = rng or np.random.default_rng(0)
-    n_air, n_cut = int(air_s * rate_hz), int(cut_s * rate_hz)
-    n = 2 * n_air + n_cut
-    t = np.arange(n) / rate_hz
-    theta = phase_rad + 2 * np.pi * conditions.spindle_rpm / 60.0 * t
-    f = np.zeros((n, 3))
-    cut = slice(n_air, n_air + n_cut)
-    f[cut] = facemill_forces(theta[cut], tool, coef, _cut(conditions))
-    if dynamometer is not None:
-        f = dynamometer.apply(f)
-    peak = float(np.linalg.norm(f, axis=1).max())
-    f += np.asarray(offset_n) + t[:, None] * np.asarray(drift_n_s)
-    f += rng.normal(scale=noise_frac * peak, size=f.shape)
-    return ForceRun(name, f, rate_hz, conditions)
+    return synthetic_run(
+        name, conditions, lambda th: facemill_forces(th, tool, coef, _cut(conditions)), rate_hz,
+        cut_s, air_s, noise_frac, dynamometer, rng, offset_n, drift_n_s, phase_rad,
+    )  # fmt: skip
