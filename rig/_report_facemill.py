@@ -35,26 +35,11 @@ STEADY_TOLERANCE = 0.02
 
 
 def force_run(lr: LoadedRun) -> Any:
-    """The run as an identification record: the air before the cut (for the offset; every
-    revolution before the cutter touches, so the offset's own noise stays far below the
-    smallest forces) followed by the steady part found with :data:`STEADY_TOLERANCE`."""
+    """The run as an identification record (forces in X, Y, Z; conditions from the run)."""
     from analysis.identify_facemill import ForceRun, RunConditions
-    from analysis.steady import find_steady, per_revolution
 
     cond = RunConditions.from_mapping(lr.conditions, f"{lr.path}: conditions")
-    f = xyz_forces(lr)
-    rate = lr.run.rate_hz
-    try:
-        w = find_steady(f, rate, cond.spindle_rpm, tolerance=STEADY_TOLERANCE).window
-    except AnalysisError:
-        return ForceRun(lr.name, f, rate, cond)  # the fit reports why it cannot use it
-    spr = rate * 60.0 / abs(cond.spindle_rpm)
-    means, _ = per_revolution(np.linalg.norm(f[: w.start], axis=1), rate, cond.spindle_rpm)
-    head = means[:5]
-    touching = np.flatnonzero(means > head.mean() + 8 * head.std() + 1e-9)
-    n_air = int(touching[0]) if touching.size else len(means)
-    air = f[: max(int(spr), int((n_air - 1) * spr))]
-    return ForceRun(lr.name, np.vstack([air, f[w]]), rate, cond)
+    return ForceRun(lr.name, xyz_forces(lr), lr.run.rate_hz, cond)
 
 
 def mean_prediction(tool: Any, coef: Any, c: dict[str, Any], n: int = 3600) -> np.ndarray:
@@ -85,7 +70,7 @@ def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section
     ident = [lr for lr in runs if lr.group in spec.identify_groups]
     valid = [lr for lr in runs if lr.group in spec.validate_groups]
     fit = fit_facemill_runs([force_run(lr) for lr in ident], campaign.tool,
-                            campaign.rig.dynamometer)  # fmt: skip
+                            campaign.rig.dynamometer, tolerance=STEADY_TOLERANCE)  # fmt: skip
     truth = _truth(runs)
     summary: dict[str, Any] = {
         "success": fit.success,
