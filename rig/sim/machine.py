@@ -30,7 +30,9 @@ How the twin differs from a real machine and dynamometer:
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -130,48 +132,55 @@ def _rotate_xy(f: np.ndarray, beta: np.ndarray) -> np.ndarray:
     return out
 
 
+def _truth(material: Material, kind: str) -> Any:
+    coef = getattr(material, kind)
+    if coef is None:
+        raise RigError(f"material has no {kind} coefficients: the simulator needs a truth")
+    return coef
+
+
+def _summed(
+    eng: FaceMillEngagement | EndMillEngagement,
+    forces_at: Callable[[tuple[np.ndarray, ...]], np.ndarray],
+) -> np.ndarray:
+    """Forces (n, 3) N in machine axes: ``forces_at(idx)`` (m, 3) for the engaged entries
+    ``idx = np.nonzero(eng.engaged)`` (sample first), summed per sample."""
+    f = np.zeros((eng.theta_rad.shape[0], 3))
+    idx = np.nonzero(eng.engaged)
+    if idx[0].size:
+        np.add.at(f, idx[0], forces_at(idx))
+    return _rotate_xy(f, eng.feed_angle_rad)
+
+
 def facemill_forces(eng: FaceMillEngagement, tool: FaceMill, material: Material) -> np.ndarray:
     """Summed insert forces (n, 3) N in machine axes (seed 003 model with ploughing)."""
     from analysis import facemill
 
-    coef = material.facemill
-    if coef is None:
-        raise RigError("material has no facemill coefficients: the simulator needs a truth")
-    n = eng.theta_rad.shape[0]
-    f = np.zeros((n, 3))
-    idx = np.nonzero(eng.engaged)
-    if idx[0].size:
-        # Engagement is decided here per insert, so the model sees one insert at a time over
-        # the whole half turn (its own width-based engagement is switched off).
-        one = _single_insert(tool)
+    coef = _truth(material, "facemill")
+    # Engagement is decided here per insert, so the model sees one insert at a time over the
+    # whole half turn (its own width-based engagement is switched off).
+    one = tool.model_copy(update={"inserts": 1, "insert_angles_deg": None, "runout_mm": 0.0})
+
+    def at(idx: tuple[np.ndarray, ...]) -> np.ndarray:
         cut = facemill.FaceMillCut(
             fz_mm=eng.fz_mm[idx[0]], depth_mm=eng.depth_mm[idx], entry_deg=0.0, exit_deg=180.0
         )
-        per = facemill.facemill_forces(eng.theta_rad[idx], one, coef, cut)  # (m, 3)
-        np.add.at(f, idx[0], per)
-    return _rotate_xy(f, eng.feed_angle_rad)
+        return facemill.facemill_forces(eng.theta_rad[idx], one, coef, cut)
 
-
-def _single_insert(tool: FaceMill) -> FaceMill:
-    return tool.model_copy(update={"inserts": 1, "insert_angles_deg": None, "runout_mm": 0.0})
+    return _summed(eng, at)
 
 
 def endmill_forces(eng: EndMillEngagement, tool: EndMill, material: Material) -> np.ndarray:
     """Summed edge-element forces (n, 3) N in machine axes (linear edge-force model)."""
     from analysis import endmill
 
-    coef = material.endmill
-    if coef is None:
-        raise RigError("material has no endmill coefficients: the simulator needs a truth")
-    n = eng.theta_rad.shape[0]
-    f = np.zeros((n, 3))
-    idx = np.nonzero(eng.engaged)
-    if idx[0].size:
-        per = endmill.element_forces(
+    coef = _truth(material, "endmill")
+    return _summed(
+        eng,
+        lambda idx: endmill.element_forces(
             eng.theta_rad[idx], eng.h_mm[idx], eng.dz_mm[idx[2]], eng.kappa_rad[idx[2]], coef
-        )
-        np.add.at(f, idx[0], per)
-    return _rotate_xy(f, eng.feed_angle_rad)
+        ),
+    )
 
 
 class SimMachine:
