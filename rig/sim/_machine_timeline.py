@@ -1,7 +1,8 @@
 """The executed motion of the simulated machine on the SimClock, queried per DAQ sample.
 
-The simulated controller reports each segment as it executes (start and end time on the shared
-clock, start/end point, arc centre, feed, spindle speed, NC block). The timeline answers, for a
+The simulated controller reports each segment as it executes
+(``rig.sim._controller_exec.ExecutedSegment``: start and end time on the shared clock, start/end
+point, arc centre, feed, spindle speed, NC block). The timeline answers, for a
 vector of sample times, where the tool tip is, how fast and in which direction it moves, the
 spindle's angle and speed, and which block was executing: the sample clock and the block clock are
 one clock.
@@ -14,23 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-ARC_CW, ARC_CCW = 2, 3
-
-
-@dataclass(frozen=True)
-class ExecutedSegment:
-    """One executed segment. Points in mm, times in simulated s, feed mm/min, spindle rpm signed
-    (+ M3 clockwise seen from +Z, - M4, 0 off)."""
-
-    t_start_s: float
-    t_end_s: float
-    start_mm: tuple[float, float, float]
-    end_mm: tuple[float, float, float]
-    spindle_rpm: float
-    block: int
-    kind: int = 1
-    center_mm: tuple[float, float, float] | None = None
-    feed_mm_min: float = float("nan")
+from planning.nc import ARC_CCW, ARC_CW
+from rig.sim._controller_exec import ExecutedSegment  # what the simulated controllers emit
 
 
 @dataclass(frozen=True)
