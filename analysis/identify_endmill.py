@@ -18,6 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -33,7 +34,6 @@ from analysis._identify import (
     with_rejected,
 )
 from analysis.config import EndMill, EndMillCoefficients
-from analysis.dynamics import DynamometerFilter
 from analysis.endmill import (
     PARAMETERS,
     EndMillCut,
@@ -129,18 +129,13 @@ def synthetic_endmill_run(
     conditions: RunConditions,
     rate_hz: float = 20_000.0,
     cut_s: float = 2.0,
-    air_s: float = 0.5,
-    noise_frac: float = 0.02,
-    dynamometer: DynamometerFilter | None = None,
-    rng: np.random.Generator | None = None,
-    offset_n: Sequence[float] = (0.0, 0.0, 0.0),
-    phase_rad: float = 0.0,
     n_discs: int = 16,
+    **record: Any,
 ) -> ForceRun:
-    """A record made from the end-mill model (air, steady cut, air) with modes, offset, noise."""
+    """A record made from the end-mill model (air, steady cut, air) with modes, offset, noise;
+    ``record`` as :func:`analysis._identify.synthetic_run`."""
     cut = _cut(tool, conditions)
     return synthetic_run(
         name, conditions, lambda phi: endmill_forces(phi, tool, coef, cut, n_discs), rate_hz,
-        cut_s, air_s, noise_frac, dynamometer, rng, offset_n, phase_rad=phase_rad,
-        angle_rpm=abs(conditions.spindle_rpm),
+        cut_s, angle_rpm=abs(conditions.spindle_rpm), **record,
     )  # fmt: skip

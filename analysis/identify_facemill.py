@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -306,20 +307,14 @@ def synthetic_facemill_run(
     conditions: RunConditions,
     rate_hz: float = 20_000.0,
     cut_s: float = 3.0,
-    air_s: float = 0.5,
-    noise_frac: float = 0.02,
-    dynamometer: DynamometerFilter | None = None,
-    rng: np.random.Generator | None = None,
-    offset_n: Sequence[float] = (0.0, 0.0, 0.0),
-    drift_n_s: Sequence[float] = (0.0, 0.0, 0.0),
-    phase_rad: float = 0.0,
+    **record: Any,
 ) -> ForceRun:
     """A force record made from the model: air, ``cut_s`` of steady cutting, air.
 
-    The true force passes through ``dynamometer`` (modes), then a dynamometer offset with linear
-    drift and white noise of ``noise_frac`` x the peak resultant force are added.
+    ``record``: air_s, noise_frac, dynamometer (DynamometerFilter), rng, offset_n, drift_n_s,
+    phase_rad, as :func:`analysis._identify.synthetic_run` (modes, offset with drift, noise).
     """
+    cut = _cut(conditions)
     return synthetic_run(
-        name, conditions, lambda th: facemill_forces(th, tool, coef, _cut(conditions)), rate_hz,
-        cut_s, air_s, noise_frac, dynamometer, rng, offset_n, drift_n_s, phase_rad,
-    )  # fmt: skip
+        name, conditions, lambda th: facemill_forces(th, tool, coef, cut), rate_hz, cut_s, **record
+    )
