@@ -210,6 +210,7 @@ def fit_facemill(
             "describes face mills only (use analysis.identify_endmill for end mills)"
         )
     check_units(averages)
+    names = tuple(a.name for a in averages)
     depths = {round(a.conditions.depth_mm, 6) for a in averages}
     if len(averages) < 3 or len(depths) < 2:
         return FaceMillFit(
@@ -217,7 +218,7 @@ def fit_facemill(
             f"too few runs for the unknowns: {len(averages)} run(s) at {len(depths)} depth(s); "
             "the face-mill fit needs >= 3 runs at >= 2 depths of cut to separate ploughing "
             "(~ l) from chip removal (~ S)",
-            runs=tuple(a.name for a in averages),
+            runs=names,
         )
     Xs, ys, phases = [], [], []
     filters: dict[float, DynamometerFilter | None] = {}
@@ -233,12 +234,12 @@ def fit_facemill(
     try:
         fit, resid = linear_fit(X, y, PARAMETERS, confidence)
     except AnalysisError as exc:
-        return FaceMillFit(False, str(exc), runs=tuple(a.name for a in averages))
+        return FaceMillFit(False, str(exc), runs=names)
     p = fit.values
     if p[1] <= 0:
         return FaceMillFit(
             False, f"fitted K_T = {p[1]:.4g} N/mm^2 is not positive: the runs do not show chip "
-            "removal growing with the chip area", fit=fit, runs=tuple(a.name for a in averages),
+            "removal growing with the chip area", fit=fit, runs=names,
         )  # fmt: skip
     summary = {
         "K_T_n_mm2": _row(fit, 1),
@@ -252,13 +253,13 @@ def fit_facemill(
         coef = coefficients_from_vector(p)
     except Exception as exc:  # pydantic range check: report, do not crash
         return FaceMillFit(False, f"fitted coefficients out of range: {exc}", fit=fit,
-                           summary=summary, runs=tuple(a.name for a in averages))  # fmt: skip
+                           summary=summary, runs=names)  # fmt: skip
     n_per = [len(a.waveform_n) * 3 for a in averages]
     res_runs = tuple(r.reshape(-1, 3) for r in np.split(resid, np.cumsum(n_per)[:-1]))
     return FaceMillFit(
         True,
         f"fitted {len(averages)} runs ({len(y)} points), R^2 = {fit.r_squared:.5f}",
-        coef, fit, summary, tuple(phases), res_runs, tuple(a.name for a in averages),
+        coef, fit, summary, tuple(phases), res_runs, names,
     )  # fmt: skip
 
 
