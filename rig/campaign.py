@@ -445,7 +445,7 @@ def run_campaign(
             )  # fmt: skip
             bar.update(1)
             if status != rf.STATUS_SUCCESS:
-                bar.write(f"cutlab: run {t.index} {t.name}: {status}: {reason}")
+                bar.write(f"cutlab: run {t.index} {t.name}: {status}: {reason}", file=sys.stderr)
             if stop.event.is_set() or (status == rf.STATUS_FAIL and sus.stop_campaign_on_fail):
                 stopped = True
         manifest.data["last_ended_utc"] = _utc()
@@ -460,23 +460,12 @@ def run_campaign(
     )
 
 
-class _NoBar:
-    def update(self, n: int) -> None: ...
-
-    def set_postfix_str(self, s: str) -> None: ...
-
-    def write(self, s: str) -> None:
-        print(s, file=sys.stderr)
-
-    def close(self) -> None: ...
-
-
-def _campaign_bar(n: int, show: bool, name: str):  # noqa: ANN202 - tqdm or a stand-in
-    if not show:
-        return _NoBar()
+def _campaign_bar(n: int, show: bool, name: str):  # noqa: ANN202 - a tqdm bar
     from tqdm import tqdm
 
-    return tqdm(total=n, desc=f"campaign {name}", unit="run", file=sys.stderr, leave=True)
+    # disable=None: no bar when stderr is not a terminal (CI logs); tqdm.write still prints.
+    return tqdm(total=n, desc=f"campaign {name}", unit="run", file=sys.stderr, leave=True,
+                disable=None if show else True)  # fmt: skip
 
 
 def _within_run(bar: object, name: str) -> Callable[[int, int], None]:
