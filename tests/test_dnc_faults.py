@@ -5,6 +5,8 @@ restart preamble."""
 
 from __future__ import annotations
 
+import threading
+
 import pytest
 import serial
 from _dnc_helpers import (
@@ -139,13 +141,21 @@ def test_grbl_feed_hold_and_cycle_start_split_the_segment() -> None:
     """``!`` mid-segment: a standstill segment at the hold point; ``~``: the remainder."""
     ctl = SimGrbl(clock=SimClock(10.0))
     segs = []
-    ctl.add_listener(on_segment=segs.append)
+    first = threading.Event()
+
+    def on_segment(seg) -> None:
+        segs.append(seg)
+        first.set()
+
+    ctl.add_listener(on_segment=on_segment)
     held, resumed = EventWaiter(ctl, "hold"), EventWaiter(ctl, "resume")
     with ctl:
         ser = serial.serial_for_url(ctl.path, baudrate=115200, timeout=5.0)
         try:
             ser.write(b"G1 X100 F600\n")  # 10 s simulated
             assert ser.read_until(b"ok\r\n").endswith(b"ok\r\n")
+            # "ok" means the line is planned; the executor reports the segment a moment later
+            assert first.wait(5)
             t0 = segs[0].t_start_s
             assert ctl.clock.sleep_until(t0 + 3.0)  # let the simulated clock run 3 s
             ser.write(b"!")
