@@ -25,10 +25,7 @@ pause, overflow, interlock, ...) and the exit status with its reason.
 from __future__ import annotations
 
 import contextlib
-import datetime as dt
 import hashlib
-import json
-import os
 import signal
 import sys
 import time
@@ -42,6 +39,14 @@ from analysis import runfile as rf
 from analysis.config import FaceMill
 from analysis.errors import ConfigError
 from rig._campaign_config import Campaign, RunConditions, load_campaign
+from rig._campaign_manifest import (
+    Manifest,
+    campaign_lock,
+    finished,
+    run_status,
+    set_aside,
+    utc_now,
+)
 from rig._campaign_nc import CutProgram, generate_program
 from rig._campaign_run import RigSession, StopRequest, execute_run
 from rig.calibration import Calibration
@@ -57,6 +62,7 @@ __all__ = [
     "load_campaign",
     "plan_campaign",
     "run_campaign",
+    "run_status",
 ]
 
 
@@ -161,97 +167,6 @@ def plan_campaign(campaign: Campaign) -> list[PlannedRun]:
 def _expected_seconds(cut: CutProgram, campaign: Campaign) -> float:
     plunge = (campaign.spec.program.safe_z_mm - cut.z_cut_mm) / min(cut.cut_feed_mm_min, 500.0)
     return 60.0 * (plunge + abs(cut.x_end_mm - cut.x_start_mm) / cut.cut_feed_mm_min) + 1.0
-
-
-# ----------------------------------------------------------------------------------------------
-# Manifest and lock
-# ----------------------------------------------------------------------------------------------
-
-
-def _utc() -> str:
-    return dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
-
-
-class _Manifest:
-    def __init__(self, folder: Path, campaign: Campaign) -> None:
-        self.path = folder / "campaign.json"
-        self.data: dict[str, Any] = {}
-        if self.path.exists():
-            try:
-                self.data = json.loads(self.path.read_text())
-            except (OSError, json.JSONDecodeError) as exc:
-                raise RigError(f"{self.path}: campaign manifest unreadable: {exc}") from None
-        self.data.setdefault("campaign", campaign.name)
-        self.data.setdefault("created_utc", _utc())
-        self.data["config_sha256"] = hashlib.sha256(campaign.text.encode()).hexdigest()
-        self.data["software_version"] = __version__
-        self.data.setdefault("runs", {})
-
-    def entry(self, name: str) -> dict[str, Any] | None:
-        return self.data["runs"].get(name)
-
-    def set(self, name: str, **kw: Any) -> None:
-        self.data["runs"].setdefault(name, {}).update(kw)
-        self.save()
-
-    def save(self) -> None:
-        tmp = self.path.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(self.data, indent=2, default=str))
-        os.replace(tmp, self.path)
-
-
-@contextlib.contextmanager
-def _lock(folder: Path) -> Iterator[None]:
-    lock = folder / "campaign.lock"
-    if lock.exists():
-        try:
-            pid = int(lock.read_text().strip() or 0)
-        except (OSError, ValueError):
-            pid = 0
-        alive = False
-        if pid > 0:
-            try:
-                os.kill(pid, 0)
-                alive = pid != os.getpid()
-            except (ProcessLookupError, PermissionError):
-                alive = False
-        if alive:
-            raise RigError(f"{folder}: campaign already running in process {pid} ({lock})")
-    lock.write_text(str(os.getpid()))
-    try:
-        yield
-    finally:
-        with contextlib.suppress(OSError):
-            lock.unlink()
-
-
-def run_status(path: Path) -> tuple[str, str]:
-    """(status, reason) stored in a run file; ("missing", ...) or ("unreadable", ...) otherwise."""
-    if not path.exists():
-        return "missing", "no run file"
-    try:
-        run = rf.load_run(path, 0.0, 0.0)
-    except Exception as exc:  # noqa: BLE001 - any unreadable file is re-run, and kept
-        return "unreadable", str(exc)
-    return run.status, run.reason
-
-
-def _finished(folder: Path, entry: dict[str, Any] | None, stem: str) -> bool:
-    path = folder / "runs" / f"{stem}.h5"
-    if entry is None or entry.get("status") != rf.STATUS_SUCCESS:
-        return False
-    return run_status(path)[0] == rf.STATUS_SUCCESS
-
-
-def _set_aside(path: Path) -> Path | None:
-    """Keep an earlier attempt's file (never delete recorded data)."""
-    if not path.exists():
-        return None
-    k = 1
-    while (dest := path.with_name(f"{path.stem}.attempt-{k}.h5")).exists():
-        k += 1
-    os.replace(path, dest)
-    return dest
 
 
 # ----------------------------------------------------------------------------------------------
@@ -383,15 +298,15 @@ def run_campaign(
     cal_sheet = Calibration.from_dynamometer(campaign.rig.dynamometer)
     sus = campaign.spec.suspenders
     bar = _campaign_bar(len(plans), progress, campaign.name)
-    with _lock(folder), _sigint_to(stop):
+    with campaign_lock(folder), _sigint_to(stop):
         (folder / "campaign.toml").write_text(campaign.text)
-        manifest = _Manifest(folder, campaign)
+        manifest = Manifest(folder, campaign)
         for k, plan in enumerate(plans):
             t = plan.test
             if only is not None and not only(t):
                 continue
             path = folder / "runs" / f"{plan.file_stem}.h5"
-            if _finished(folder, manifest.entry(t.name), plan.file_stem):
+            if finished(folder, manifest.entry(t.name), plan.file_stem):
                 records.append(
                     RunRecord(t.index, t.name, t.group, str(path), rf.STATUS_SUCCESS,
                               "finished earlier (resume)", skipped=True)
@@ -400,7 +315,7 @@ def run_campaign(
                 continue
             if stopped or stop.event.is_set():
                 break
-            earlier = _set_aside(path)
+            earlier = set_aside(path)
             (folder / "programs" / f"{plan.file_stem}.nc").write_text(plan.program_text)
             session = factory(campaign, plan, k)
             from rig.dnc.program import program_from_text
@@ -408,7 +323,7 @@ def run_campaign(
             program = program_from_text(plan.program_text, f"{plan.file_stem}.nc", check_nc=False)
             manifest.set(
                 t.name, index=t.index, group=t.group, file=str(path.relative_to(folder)),
-                status=rf.STATUS_RUNNING, reason="", started_utc=_utc(),
+                status=rf.STATUS_RUNNING, reason="", started_utc=utc_now(),
                 earlier_attempt=str(earlier.name) if earlier else None,
                 conditions=t.as_dict(), program_sha256=plan.sha256,
             )  # fmt: skip
@@ -432,11 +347,11 @@ def run_campaign(
             except BaseException as exc:
                 status, reason = rf.STATUS_FAIL, f"{type(exc).__name__}: {exc}"[:400]
                 writer.close(status, reason)
-                manifest.set(t.name, status=status, reason=reason, ended_utc=_utc())
+                manifest.set(t.name, status=status, reason=reason, ended_utc=utc_now())
                 raise
             writer.close(status, reason)
             manifest.set(
-                t.name, status=status, reason=reason, ended_utc=_utc(),
+                t.name, status=status, reason=reason, ended_utc=utc_now(),
                 peak_force_n=outcome.peak_force_n, wall_s=round(outcome.wall_s, 3),
             )  # fmt: skip
             records.append(
@@ -448,7 +363,7 @@ def run_campaign(
                 bar.write(f"cutlab: run {t.index} {t.name}: {status}: {reason}", file=sys.stderr)
             if stop.event.is_set() or (status == rf.STATUS_FAIL and sus.stop_campaign_on_fail):
                 stopped = True
-        manifest.data["last_ended_utc"] = _utc()
+        manifest.data["last_ended_utc"] = utc_now()
         manifest.save()
     bar.close()
     counts: dict[str, int] = {}
