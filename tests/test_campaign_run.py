@@ -253,16 +253,18 @@ def test_operator_pause_is_a_feed_hold_and_resume_continues_the_cut(
     cfg.write_text(cfg.read_text().replace("speed = 50", "speed = 2"))
     c = load_campaign(cfg)
     stop = StopRequest()
-    folder = tmp_path / "out" / "quick"
+    pressed = threading.Event()
+    on_block = runmod._Tap.on_block
 
-    def press_ctrl_c_during_the_cut() -> None:
-        _wait_for(lambda: _streaming(folder))
-        time.sleep(0.9)  # into the cut at 2x real time
-        stop.request()
+    def press_ctrl_c_during_the_cut(tap, first_sample: int, data) -> None:  # noqa: ANN001
+        on_block(tap, first_sample, data)
+        if tap.peak_force_n > 100.0 and not pressed.is_set():  # the insert is in the cut
+            pressed.set()
+            stop.request()
 
-    threading.Thread(target=press_ctrl_c_during_the_cut, daemon=True).start()
+    monkeypatch.setattr(runmod._Tap, "on_block", press_ctrl_c_during_the_cut)
     res = run_campaign(c, progress=False, stop=stop, only=lambda t: t.index == 0)
-    assert answered.is_set()
+    assert pressed.is_set() and answered.is_set()
     r = res.runs[0]
     assert r.status == "success", r.reason
     run = rf.load_run(r.file)
