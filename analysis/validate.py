@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis._identify import RunAverage
+from analysis._identify import RunAverage, RunConditions
 from analysis.config import EndMill, EndMillCoefficients, FaceMill, FaceMillCoefficients
 from analysis.errors import AnalysisError
 
@@ -29,10 +29,9 @@ __all__ = ["Comparison", "compare_runs", "plot_comparison", "plot_waveforms", "p
 
 
 def predicted_mean(
-    avg: RunAverage, tool: FaceMill | EndMill, coef: FaceMillCoefficients | EndMillCoefficients
+    c: RunConditions, tool: FaceMill | EndMill, coef: FaceMillCoefficients | EndMillCoefficients
 ) -> np.ndarray:
     """Mean force per revolution (3,) N predicted for a run's conditions."""
-    c = avg.conditions
     if isinstance(tool, FaceMill):
         from analysis.facemill import coefficient_vector, facemill_design
         from analysis.identify_facemill import _cut
@@ -80,7 +79,7 @@ def compare_runs(
     """Predict each run and compare with its measurement (see module docstring)."""
     rows = []
     for a in averages:
-        pred = predicted_mean(a, tool, coef)
+        pred = predicted_mean(a.conditions, tool, coef)
         meas = a.mean_n
         scale = max(float(np.linalg.norm(meas)), 1e-9)
         err = (pred - meas) / scale * 100

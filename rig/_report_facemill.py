@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import AnalysisError
-from rig.report import LoadedRun, Section, md_table, steady_means
+from rig.report import LoadedRun, Section, md_table
 
 #: The coefficients seed 003 reports, then the axial pair cutlab adds.
 COEFFS = ("K_T_n_mm2", "K_R", "P_T_n_mm", "P_R_n_mm", "K_A", "P_A_n_mm")
@@ -42,17 +42,13 @@ def force_run(lr: LoadedRun) -> Any:
     return ForceRun(lr.name, xyz_forces(lr), lr.run.rate_hz, cond)
 
 
-def mean_prediction(tool: Any, coef: Any, c: dict[str, Any], n: int = 3600) -> np.ndarray:
-    """Model mean force (3,) N over one revolution for a run's conditions (the dynamometer's modes
-    have unit static gain, so they do not change the mean)."""
-    from analysis.facemill import FaceMillCut, facemill_forces
+def _predicted_mean(tool: Any, coef: Any, c: dict[str, Any]) -> np.ndarray:
+    """Model mean force (3,) N over one revolution for a run's conditions (the dynamometer's
+    modes have unit static gain, so they do not change the mean)."""
+    from analysis.identify_facemill import RunConditions
+    from analysis.validate import predicted_mean
 
-    cut = FaceMillCut(
-        fz_mm=float(c["fz_mm"]), depth_mm=float(c["depth_mm"]), width_mm=float(c["width_mm"]),
-        center_offset_mm=float(c.get("center_offset_mm", 0.0)),
-    )  # fmt: skip
-    theta = 2 * np.pi * np.arange(n) / n
-    return facemill_forces(theta, tool, coef, cut).mean(axis=0)
+    return predicted_mean(RunConditions.from_mapping(c, "conditions"), tool, coef)
 
 
 def _truth(runs: list[LoadedRun]) -> dict[str, float] | None:
@@ -102,10 +98,10 @@ def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section
     # Validation: predicted vs measured mean forces of every run (identification runs too).
     vrows = []
     for lr in ident + valid:
-        meas = steady_means(lr)
+        meas = lr.steady_means
         if not meas["revs"]:
             continue
-        pred = mean_prediction(campaign.tool, fit.coefficients, lr.conditions)
+        pred = _predicted_mean(campaign.tool, fit.coefficients, lr.conditions)
         row = {"run": lr.name, "group": lr.group, "fz_mm": lr.conditions["fz_mm"],
                "depth_mm": lr.conditions["depth_mm"]}  # fmt: skip
         for k, a in enumerate("xyz"):
@@ -162,11 +158,10 @@ def _plot_fit(campaign: Any, coef: Any, ident: list[LoadedRun], path: Path) -> N
         return
     fig, ax = plt.subplots(figsize=(5.5, 3.8))
     d = np.array([lr.conditions["depth_mm"] for lr in ident])
-    meas = np.array([[steady_means(lr)[f"F{a}_mean_N"] for a in "xyz"] for lr in ident])
+    meas = np.array([[lr.steady_means[f"F{a}_mean_N"] for a in "xyz"] for lr in ident])
     c0 = dict(ident[0].conditions)
     dd = np.linspace(max(0.05, d.min() * 0.5), d.max() * 1.05, 40)
-    pred = np.array([mean_prediction(campaign.tool, coef, {**c0, "depth_mm": x}, 720)
-                     for x in dd])  # fmt: skip
+    pred = np.array([_predicted_mean(campaign.tool, coef, {**c0, "depth_mm": x}) for x in dd])
     for k, a in enumerate("xyz"):
         ax.plot(d, meas[:, k], "o", ms=4, label=f"F{a} measured")
         ax.plot(dd, pred[:, k], "-", lw=1, color=ax.lines[-1].get_color())

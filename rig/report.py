@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -45,6 +46,27 @@ class LoadedRun:
     @property
     def conditions(self) -> dict[str, Any]:
         return self.run.conditions
+
+    @cached_property
+    def steady_means(self) -> dict[str, float]:
+        """Mean forces over the steady cutting part (offset removed), N; NaN if there is none
+        (computed once: the runs table, the fit plot and the validation all use it)."""
+        from analysis.steady import find_steady
+
+        run = self.run
+        rpm = float(self.conditions.get("spindle_rpm", 0.0))
+        out = {"Fx_mean_N": math.nan, "Fy_mean_N": math.nan, "Fz_mean_N": math.nan, "revs": 0}
+        if run.force_n is None or not rpm:
+            return out
+        try:
+            part = find_steady(run.force_n, run.rate_hz, rpm)
+        except AnalysisError:
+            return out
+        seg = part.corrected(run.force_n[part.window], part.window.start, run.rate_hz)
+        m = seg.mean(axis=0)
+        out.update(Fx_mean_N=float(m[0]), Fy_mean_N=float(m[1]), Fz_mean_N=float(m[2]),
+                   revs=int(part.steady_revs))  # fmt: skip
+        return out
 
 
 @dataclass(frozen=True)
@@ -99,26 +121,6 @@ def load_runs(folder: Path) -> tuple[list[LoadedRun], list[dict[str, Any]]]:
     return runs, entries
 
 
-def steady_means(lr: LoadedRun) -> dict[str, float]:
-    """Mean forces over the steady cutting part (offset removed), N; NaN if there is none."""
-    from analysis.steady import find_steady
-
-    run = lr.run
-    rpm = float(lr.conditions.get("spindle_rpm", 0.0))
-    out = {"Fx_mean_N": math.nan, "Fy_mean_N": math.nan, "Fz_mean_N": math.nan, "revs": 0}
-    if run.force_n is None or not rpm:
-        return out
-    try:
-        part = find_steady(run.force_n, run.rate_hz, rpm)
-    except AnalysisError:
-        return out
-    seg = part.corrected(run.force_n[part.window], part.window.start, run.rate_hz)
-    m = seg.mean(axis=0)
-    out.update(Fx_mean_N=float(m[0]), Fy_mean_N=float(m[1]), Fz_mean_N=float(m[2]),
-               revs=int(part.steady_revs))  # fmt: skip
-    return out
-
-
 def _run_rows(runs: list[LoadedRun], entries: list[dict[str, Any]]) -> list[dict[str, Any]]:
     by_name = {r.name: r for r in runs}
     rows = []
@@ -139,7 +141,7 @@ def _run_rows(runs: list[LoadedRun], entries: list[dict[str, Any]]) -> list[dict
         if lr is not None:
             row["duration_s"] = lr.run.duration_s
             row["samples_lost"] = lr.run.samples_lost
-            row.update(steady_means(lr))
+            row.update(lr.steady_means)
             if lr.run.force_n is not None:
                 row["peak_N"] = float(np.max(np.linalg.norm(lr.run.force_n, axis=1)))
         rows.append(row)
