@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.config import EndMill, FaceMill
+from planning.nc.program import format_number
 from rig._campaign_config import ProgramSection, RunConditions
 
 
@@ -65,9 +66,9 @@ class CutProgram:
     cut_feed_mm_min: float
 
 
-def _f(x: float, nd: int = 3) -> str:
-    s = f"{x:.{nd}f}".rstrip("0").rstrip(".")
-    return "0" if s in ("-0", "") else s
+def _num(x: float) -> str:
+    """A coordinate or feed word's number: 3 decimals, no trailing zeros (planning.nc style)."""
+    return format_number(x, 3)
 
 
 class _Writer:
@@ -138,21 +139,21 @@ def generate_program(
     w = _Writer(dialect, prog.program_number, title or test.name)
     w.add("G21 G90 G17 G94")
     w.add("G54")
-    w.add(f"S{_f(test.spindle_rpm, 1)} M3")
-    w.add(f"G0 X{_f(x_start)} Y{_f(y_path)}")
-    w.add(f"G0 Z{_f(prog.safe_z_mm)}")
+    w.add(f"S{format_number(test.spindle_rpm, 1)} M3")
+    w.add(f"G0 X{_num(x_start)} Y{_num(y_path)}")
+    w.add(f"G0 Z{_num(prog.safe_z_mm)}")
     plunge = min(feed, 500.0)
-    w.add(f"G1 Z{_f(z_cut)} F{_f(plunge)}")
+    w.add(f"G1 Z{_num(z_cut)} F{_num(plunge)}")
     if prog.kind == "feed-sweep":
         feeds = prog.sweep_feeds_mm_min
         xs = np.linspace(0.0, length, len(feeds) + 1)[1:]
         xs[-1] = x_end
-        w.add(f"G1 X{_f(-r)} F{_f(feeds[0])}")
+        w.add(f"G1 X{_num(-r)} F{_num(feeds[0])}")
         for x, f in zip(xs, feeds):
-            w.add(f"G1 X{_f(float(x))} F{_f(f)}")
+            w.add(f"G1 X{_num(float(x))} F{_num(f)}")
     else:
-        w.add(f"G1 X{_f(x_end)} F{_f(feed)}")
-    w.add(f"G0 Z{_f(prog.safe_z_mm)}")
+        w.add(f"G1 X{_num(x_end)} F{_num(feed)}")
+    w.add(f"G0 Z{_num(prog.safe_z_mm)}")
     w.add("M5")
     w.add("M30")
     return CutProgram(w.text(), block, z_cut, x_start, x_end, y_path, feed)
