@@ -85,38 +85,26 @@ def test_feed_above_machine_max_is_refused_with_file_and_line(tmp_path: Path) ->
     assert f"{p}:13:" in msg  # the [[matrix]] line
 
 
-def test_depth_beyond_flute_length_is_refused(tmp_path: Path) -> None:
-    p = _write(tmp_path, tool="phi10-flat", kind="slot", feed="fz_mm = 0.05", depth="30",
-               rpm=3000)  # fmt: skip
-    with pytest.raises(ConfigError, match=r"depth_mm = 30 is beyond the flute length .*22 mm"):
-        load_campaign(p)
-    p = _write(tmp_path, depth="[1.0, 15.0]")
-    with pytest.raises(ConfigError, match=r"depth_mm = 15 is beyond the usable insert edge"):
-        load_campaign(p)
-
-
-def test_unknown_tool_and_material_are_named(tmp_path: Path) -> None:
-    p = _write(tmp_path, tool="phi99-unicorn")
-    with pytest.raises(ConfigError, match=r"campaign.tool = 'phi99-unicorn'.*known tools"):
-        load_campaign(p)
-
-
-def test_unknown_key_and_bad_value_are_named(tmp_path: Path) -> None:
-    p = _write(tmp_path, program_extra="block_lenght_mm = 20")
-    with pytest.raises(ConfigError, match=r"program.block_lenght_mm.*unknown key"):
-        load_campaign(p)
-    p = _write(tmp_path, feed="fz_mm = -0.1")
-    with pytest.raises(ConfigError, match=r"fz_mm = -0.1: must be > 0"):
-        load_campaign(p)
-    p = _write(tmp_path, rig="simulated")
-    with pytest.raises(ConfigError, match=r"campaign.rig = 'simulated'"):
-        load_campaign(p)
-
-
-def test_wrong_tool_for_program_is_refused(tmp_path: Path) -> None:
-    p = _write(tmp_path, kind="slot")
-    with pytest.raises(ConfigError, match="needs an end mill"):
-        load_campaign(p)
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (dict(tool="phi10-flat", kind="slot", feed="fz_mm = 0.05", depth="30", rpm=3000),
+         r"depth_mm = 30 is beyond the flute length .*22 mm"),
+        (dict(depth="[1.0, 15.0]"), r"depth_mm = 15 is beyond the usable insert edge"),
+        (dict(tool="phi99-unicorn"), r"campaign.tool = 'phi99-unicorn'.*known tools"),
+        (dict(program_extra="block_lenght_mm = 20"), r"program.block_lenght_mm.*unknown key"),
+        (dict(feed="fz_mm = -0.1"), r"fz_mm = -0.1: must be > 0"),
+        (dict(rig="simulated"), r"campaign.rig = 'simulated'"),
+        (dict(kind="slot"), "needs an end mill"),
+    ],
+    ids=["beyond-flute", "beyond-insert", "unknown-tool", "unknown-key", "negative-fz",
+         "unknown-rig", "wrong-tool-for-program"],
+)  # fmt: skip
+def test_bad_campaign_is_refused_naming_field_and_value(
+    tmp_path: Path, change: dict, message: str
+) -> None:
+    with pytest.raises(ConfigError, match=message):
+        load_campaign(_write(tmp_path, **change))
 
 
 def test_generated_programs_parse_and_cut_where_intended() -> None:
