@@ -271,6 +271,15 @@ def synthetic_run(
     return ForceRun(name, f, rate_hz, conditions)
 
 
+def too_few_runs(averages: Sequence[RunAverage], varied: str, label: str, why: str) -> str | None:
+    """None when there are >= 3 runs over >= 2 values of ``conditions.<varied>``, else the
+    reason (``label``: what the values are, e.g. 'depth(s)'; ``why``: the model's need)."""
+    values = {round(getattr(a.conditions, varied), 9) for a in averages}
+    if len(averages) >= 3 and len(values) >= 2:
+        return None
+    return f"too few runs for the unknowns: {len(averages)} run(s) at {len(values)} {label}; {why}"
+
+
 def check_units(items: Sequence[ForceRun | RunAverage]) -> None:
     units = {r.force_unit for r in items}
     if len(units) > 1 or (units and units != {"N"}):

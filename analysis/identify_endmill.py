@@ -31,6 +31,7 @@ from analysis._identify import (
     linear_fit,
     reduce_runs,
     synthetic_run,
+    too_few_runs,
     with_rejected,
 )
 from analysis.config import EndMill, EndMillCoefficients
@@ -85,15 +86,13 @@ def fit_endmill(
         )
     check_units(averages)
     names = tuple(a.name for a in averages)
-    feeds = {round(a.conditions.fz_mm, 9) for a in averages}
-    if len(averages) < 3 or len(feeds) < 2:
-        return EndMillFit(
-            False,
-            f"too few runs for the unknowns: {len(averages)} run(s) at {len(feeds)} feed(s) per "
-            "tooth; the average-force method needs >= 3 runs at >= 2 feeds per tooth (3 mean "
-            "forces per run, 6 coefficients; cutting and edge parts separate by feed)",
-            runs=names,
-        )
+    few = too_few_runs(
+        averages, "fz_mm", "feed(s) per tooth", "the average-force method needs >= 3 runs at "
+        ">= 2 feeds per tooth (3 mean forces per run, 6 coefficients; cutting and edge parts "
+        "separate by feed)",
+    )  # fmt: skip
+    if few:
+        return EndMillFit(False, few, runs=names)
     X = np.concatenate([mean_force_design(tool, _cut(tool, a.conditions)) for a in averages])
     y = np.concatenate([a.mean_n for a in averages])
     try:

@@ -38,6 +38,7 @@ from analysis._identify import (
     reduce_run_file,
     reduce_runs,
     synthetic_run,
+    too_few_runs,
     with_rejected,
 )
 from analysis.config import Dynamometer, FaceMill, FaceMillCoefficients
@@ -211,15 +212,12 @@ def fit_facemill(
         )
     check_units(averages)
     names = tuple(a.name for a in averages)
-    depths = {round(a.conditions.depth_mm, 6) for a in averages}
-    if len(averages) < 3 or len(depths) < 2:
-        return FaceMillFit(
-            False,
-            f"too few runs for the unknowns: {len(averages)} run(s) at {len(depths)} depth(s); "
-            "the face-mill fit needs >= 3 runs at >= 2 depths of cut to separate ploughing "
-            "(~ l) from chip removal (~ S)",
-            runs=names,
-        )
+    few = too_few_runs(
+        averages, "depth_mm", "depth(s)", "the face-mill fit needs >= 3 runs at >= 2 depths of "
+        "cut to separate ploughing (~ l) from chip removal (~ S)",
+    )  # fmt: skip
+    if few:
+        return FaceMillFit(False, few, runs=names)
     Xs, ys, phases = [], [], []
     filters: dict[float, DynamometerFilter | None] = {}
     for a in averages:
