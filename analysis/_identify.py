@@ -181,7 +181,7 @@ def reduce_run(
     try:
         part = find_steady(x, run.rate_hz, c.spindle_rpm, tolerance=tolerance)
     except AnalysisError as exc:
-        raise AnalysisError(f"run {run.name}: {exc}") from None
+        raise type(exc)(f"run {run.name}: {exc}") from None  # keeps NoSteadyCutError
     seg = part.corrected(x[part.window], part.window.start, run.rate_hz)
     nb = n_bins or default_bins(run.rate_hz, part.period_s)
     avg = SyncAverager(run.rate_hz, part.period_s, nb)
@@ -435,7 +435,7 @@ def reduce_run_file(
     try:
         part = steady_from_stats(stats, rate, c.spindle_rpm)
     except AnalysisError as exc:
-        raise AnalysisError(f"run {name}: {exc}") from None
+        raise type(exc)(f"run {name}: {exc}") from None
     lo = part.window.start
     # The period refinement and the tooth peaks look at one chunk (at least 4 revolutions).
     n_probe = min(part.window.stop - lo, max(chunk_samples, int(4 * stats.spr)))

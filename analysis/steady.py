@@ -27,6 +27,8 @@ from numpy.typing import ArrayLike
 from analysis.errors import AnalysisError
 
 __all__ = [
+    "NoAirError",
+    "NoSteadyCutError",
     "RevolutionStats",
     "SteadyPart",
     "SyncAverager",
@@ -38,6 +40,14 @@ __all__ = [
     "steady_window",
     "tooth_peaks",
 ]
+
+
+class NoSteadyCutError(AnalysisError):
+    """The record holds no cutting, or too few steady cutting revolutions: a run to leave out."""
+
+
+class NoAirError(AnalysisError):
+    """The record cuts from start to end: no air revolutions to take the offset from."""
 
 
 def _samples_per_rev(rate_hz: float, spindle_rpm: float) -> float:
@@ -105,9 +115,7 @@ def steady_window(
         raise AnalysisError(f"signal has shape {x.shape}: expected (n,)")
     try:
         part = find_steady(x[:, None], rate_hz, spindle_rpm, tolerance=tolerance, refine=False)
-    except AnalysisError as exc:
-        if "no air revolutions" not in str(exc):
-            raise
+    except NoAirError:
         # A record that cuts throughout: a level such as the resultant stands out from 0.
         part = find_steady(
             x[:, None], rate_hz, spindle_rpm, tolerance=tolerance, refine=False, offset_n=0.0
@@ -248,7 +256,7 @@ def steady_from_stats(
         floor = 8 * noise / np.sqrt(spr)
     cutting = dist > max(floor, 0.2 * dist.max())
     if dist.max() <= floor:
-        raise AnalysisError(
+        raise NoSteadyCutError(
             f"no cutting found: all {n_rev} revolutions look alike (spread {noise:.3g} N, "
             f"largest change {dist.max():.3g} N); is this an air run?"
         )
@@ -261,7 +269,7 @@ def steady_from_stats(
     else:
         n_air = int(air.sum())
         if n_air == 0:
-            raise AnalysisError(
+            raise NoAirError(
                 "no air revolutions to take the dynamometer offset from (the record cuts from "
                 "start to end); record some air before the cut or give offset_n"
             )
@@ -280,7 +288,7 @@ def steady_from_stats(
     lo, hi = _longest_steady(level, cutting, tolerance)
     lo, hi = lo + 1, hi - 1  # the first and last steady revolutions may hold the transition
     if hi - lo < 3:
-        raise AnalysisError(
+        raise NoSteadyCutError(
             f"only {max(hi - lo, 0)} steady cutting revolutions (of {int(cutting.sum())} cutting): "
             f"need at least 3 whose mean stays within {tolerance:.0%} of the median"
         )

@@ -20,20 +20,22 @@ def _load_runs(paths, args, rig):
     """Reduce each RUN to its revolution average; returns (averages, rejected)."""
     from tqdm import tqdm
 
-    from analysis.errors import AnalysisError
+    from analysis.errors import ConfigError
     from analysis.identify_facemill import RunConditions, reduce_run, reduce_run_file
     from analysis.importers import import_run
-    from analysis.runfile import RunFileError
+    from analysis.steady import NoSteadyCutError
 
     override = None
     if args.conditions:
+        bad = [item for item in args.conditions if "=" not in item]
+        if bad:
+            raise ConfigError(f"--conditions {bad[0]!r}: expected KEY=VALUE (e.g. fz_mm=0.2)")
         kv = dict(item.split("=", 1) for item in args.conditions)
         override = RunConditions.from_mapping(kv, "--conditions")
     avgs, rejected, tool_names = [], [], set()
     # disable=None: tqdm stays quiet when stderr is not a terminal (CI logs).
     quiet = True if (args.json or len(paths) < 2) else None
     for p in tqdm(paths, desc="reducing runs", unit="run", disable=quiet):
-        teeth = None
         try:
             if str(p).lower().endswith((".h5", ".hdf5")):
                 from analysis.runfile import load_run
@@ -47,13 +49,8 @@ def _load_runs(paths, args, rig):
                 tool_names.add(run.conditions.tool)
                 teeth = _teeth(args, run.conditions.tool)
                 avgs.append(reduce_run(run, teeth))
-        except RunFileError:
-            raise
-        except AnalysisError as exc:
-            if "no cutting" in str(exc) or "steady" in str(exc):
-                rejected.append((Path(p).stem, str(exc)))
-            else:
-                raise
+        except NoSteadyCutError as exc:  # a run to leave out; other bad input stops
+            rejected.append((Path(p).stem, str(exc)))
     return avgs, rejected, tool_names
 
 
