@@ -115,8 +115,7 @@ def fit_endmill_runs(
 ) -> EndMillFit:
     """Reduce in-memory runs and fit; runs without steady cutting go to ``rejected``."""
     if not isinstance(tool, EndMill):
-        check_units(runs)
-        return fit_endmill([], tool)
+        return fit_endmill([], tool)  # raises: names the tool kind
     avgs, rejected = reduce_runs(runs, tool.flutes, n_bins, tolerance)
     return with_rejected(fit_endmill(avgs, tool), rejected)
 

@@ -284,6 +284,8 @@ def fit_facemill_runs(
 ) -> FaceMillFit:
     """Reduce in-memory runs (steady part within ``tolerance``, offset, averaging) and fit. Runs
     that cannot be reduced (no cutting, too short) are listed in ``rejected`` with the reason."""
+    if not isinstance(tool, FaceMill):
+        return fit_facemill([], tool)  # raises: names the tool kind
     avgs, rejected = reduce_runs(runs, tool.inserts, n_bins, tolerance)
     return with_rejected(fit_facemill(avgs, tool, dynamometer), rejected)
 
