@@ -130,6 +130,19 @@ def _streaming(folder: Path) -> bool:
     return any(e.get("status") == "running" for e in runs.values())
 
 
+def _program_started(folder: Path) -> bool:
+    """The run being written (read live, SWMR) has samples and its program is streaming."""
+    from analysis.runfollow import RunFollower
+
+    files = sorted((folder / "runs").glob("*.h5"))
+    try:
+        with RunFollower(files[0]) as fol:
+            _, volts, events = fol.poll()
+    except (IndexError, OSError, rf.RunFileError, KeyError):
+        return False  # not created (or not readable) yet
+    return len(volts) > 0 and bool((events["kind"] == "start").any())
+
+
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT])
 def test_killed_or_interrupted_campaign_leaves_valid_files_and_resumes(
     tmp_path: Path, sig: signal.Signals
@@ -140,8 +153,7 @@ def test_killed_or_interrupted_campaign_leaves_valid_files_and_resumes(
     folder = tmp_path / "out" / "quick"
     p = _cli(["campaign", "run", str(cfg), "--quiet", "--no-report"])
     try:
-        _wait_for(lambda: _streaming(folder))
-        time.sleep(1.0)
+        _wait_for(lambda: _streaming(folder) and _program_started(folder))
         p.send_signal(sig)
         _, err = p.communicate(timeout=60)
     finally:
