@@ -364,7 +364,7 @@ def ratio_with_error(fit: LinearFit, num: int, den: int) -> tuple[float, float, 
     return float(r), se, float(r - tq * se), float(r + tq * se)
 
 
-def _axis_order(channel_names: Sequence[str], dynamometer=None) -> list[int]:
+def axis_order(channel_names: Sequence[str], dynamometer=None) -> list[int]:
     """Column of X, Y, Z among a run's channels (names from the rig config, else Fx, Fy, Fz)."""
     names = [n.lower() for n in channel_names]
     order = [-1, -1, -1]
@@ -402,7 +402,7 @@ def iter_run_chunks(path, chunk_samples: int = 1 << 20, start: int = 0, stop: in
         if run.force_n is None:
             raise AnalysisError(f"{path}: the run has no calibration: forces in N are unknown")
         if order is None:
-            order = _axis_order(run.channel_names)
+            order = axis_order(run.channel_names)
         # A copy: sample_index is a view into the loader's index of the whole run.
         idx, force = run.sample_index.copy(), run.force_n[:, order]
         del run

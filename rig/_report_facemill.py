@@ -19,16 +19,6 @@ from rig.report import LoadedRun, Section, md_table
 COEFFS = ("K_T_n_mm2", "K_R", "P_T_n_mm", "P_R_n_mm", "K_A", "P_A_n_mm")
 
 
-def xyz_forces(lr: LoadedRun) -> np.ndarray:
-    """Forces (n, 3) N in X, Y, Z order from the run's named channels."""
-    run = lr.run
-    if run.force_n is None:
-        raise AnalysisError(f"{lr.path}: the run has no calibration, so no forces in N")
-    names = [n.lower() for n in run.channel_names]
-    idx = [names.index(f"f{a}") if f"f{a}" in names else k for k, a in enumerate("xyz")]
-    return run.force_n[:, idx]
-
-
 #: A face mill enters and leaves a block over many revolutions; revolutions within this fraction
 #: of the steady level count as steady (a looser window lets partial engagement bias the fit).
 STEADY_TOLERANCE = 0.02
@@ -36,10 +26,13 @@ STEADY_TOLERANCE = 0.02
 
 def force_run(lr: LoadedRun) -> Any:
     """The run as an identification record (forces in X, Y, Z; conditions from the run)."""
-    from analysis.identify_facemill import ForceRun, RunConditions
+    from analysis.identify_facemill import ForceRun, RunConditions, axis_order
 
+    run = lr.run
+    if run.force_n is None:
+        raise AnalysisError(f"{lr.path}: the run has no calibration, so no forces in N")
     cond = RunConditions.from_mapping(lr.conditions, f"{lr.path}: conditions")
-    return ForceRun(lr.name, xyz_forces(lr), lr.run.rate_hz, cond)
+    return ForceRun(lr.name, run.force_n[:, axis_order(run.channel_names)], run.rate_hz, cond)
 
 
 def _predicted_mean(tool: Any, coef: Any, c: dict[str, Any]) -> np.ndarray:
