@@ -349,6 +349,19 @@ class SimControllerBase(ExecutorMixin):
             t = min(t, self._seg_t1)
         return max(t, now)
 
+    def advance_to(self, t_s: float) -> None:
+        """Run the executor up to simulated time ``t_s`` (never past now).
+
+        The simulated machine calls this before it samples the executed motion for the DAQ, so
+        the sample clock never runs ahead of the block clock when this controller's thread is
+        late (a loaded host): otherwise a segment that started at t would be reported after the
+        DAQ had already sampled the tool standing still at t.
+        """
+        with self._lock:
+            now = min(t_s, self.clock.now())
+            self._deliver(now)
+            self._advance(now)
+
     def _periodic(self, now: float) -> None:
         """Protocol hook run every loop pass (e.g. Fanuc re-sending DC1 while it waits)."""
 

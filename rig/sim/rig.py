@@ -75,7 +75,7 @@ class SimSession:
             overflow = [int(sim.sim_daq_overflow_at_s * rate)]
         dyno = rig.dynamometer
         self.daq = SimDaq(
-            self.machine.source,
+            self._source,
             rate_hz=rate,
             channels=tuple(f"sim/ai{i}" for i in range(len(dyno.channels))),
             channel_names=tuple(ch.name for ch in dyno.channels),
@@ -95,6 +95,11 @@ class SimSession:
         self._timer: threading.Thread | None = None
         self._stop = threading.Event()
         self.port = self.controller.start()
+
+    def _source(self, t0_s: float, n: int, rate_hz: float):
+        """The machine's volts, after the controller has run up to the last sample's time."""
+        self.controller.advance_to(t0_s + max(n - 1, 0) / rate_hz)
+        return self.machine.source(t0_s, n, rate_hz)
 
     def _make_controller(self, campaign: Any, faults: bool) -> Any:
         sim = campaign.spec.sim
