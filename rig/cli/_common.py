@@ -37,7 +37,10 @@ def print_table(rows: Sequence[Mapping[str, Any]], floatfmt: str = ".4g") -> Non
 
     def fmt(v: Any) -> str:
         if isinstance(v, float | np.floating):
-            return format(float(v), floatfmt)
+            x = float(v)
+            if x.is_integer() and abs(x) < 1e12:
+                return str(int(x))  # 30000, not 3e+04
+            return format(x, floatfmt)
         return str(v)
 
     cells = [[fmt(r.get(c, "")) for c in cols] for r in rows]
