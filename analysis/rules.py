@@ -179,7 +179,8 @@ def _check_bins(rule: FeedRule, where: str) -> None:
 
 def _representative_feeds(lo: float, base: float, hi: float, n: int) -> NDArray[np.float64]:
     """n feeds from ``hi`` down to ``lo`` through ``base``, evenly spaced on each side of it."""
-    if hi == base or lo == base:
+    # A base within rounding of a limit is that limit: two bins a few ulps apart would be empty.
+    if math.isclose(hi, base, rel_tol=1e-9) or math.isclose(lo, base, rel_tol=1e-9):
         return np.linspace(hi, lo, n)
     k = int(round((hi - base) / (hi - lo) * (n - 1)))
     k = min(max(k, 1), n - 2)  # keep base strictly inside so both sides have a bin
