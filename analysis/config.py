@@ -134,6 +134,12 @@ class MachineConfig(Model):
         0.002, gt=0, le=1, description="mm, arc end radius mismatch"
     )
     min_arc_radius_mm: float = Field(0.0, ge=0, description="mm, smallest arc the control can cut")
+    accel_mm_s2: float | None = Field(
+        None, gt=0, le=100_000, description="mm/s^2, path acceleration (unset: times ignore it)"
+    )
+    junction_deviation_mm: float = Field(
+        0.01, gt=0, le=10, description="mm, corner speed model of the look-ahead planner"
+    )
     reference_mm: tuple[float, float, float] | None = Field(
         None, description="mm, machine X Y Z of the G28 reference point (default: travel max)"
     )

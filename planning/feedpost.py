@@ -44,6 +44,7 @@ from planning._feedpost_write import (
 from planning._zmap_engagement import ForceModel
 from planning.errors import PlanningError
 from planning.nc import Program, interpret, segment_time_s
+from planning.nc.accel import accel_segment_time_s
 from planning.nc.arcs import segment_length_mm
 from planning.nc.motion import DWELL, Motion
 from planning.opplan import (
@@ -137,6 +138,9 @@ class FeedPostResult:
     rule: FeedRule
     stock: ZMap
     notes: tuple[str, ...] = field(default=())
+    # With the machine's acceleration (planning.nc.accel); None when the machine gives none.
+    accel_time_before_s: float | None = None
+    accel_time_after_s: float | None = None
 
     @property
     def time_saved_pct(self) -> float:
@@ -168,6 +172,8 @@ class FeedPostResult:
             "time_before_s": self.time_before_s,
             "time_after_s": self.time_after_s,
             "time_saved_pct": self.time_saved_pct,
+            "accel_time_before_s": self.accel_time_before_s,
+            "accel_time_after_s": self.accel_time_after_s,
             "removed_mm3": self.simulation.removed_total_mm3,
             "load_rate_max_before": before,
             "load_rate_max_after": after,
@@ -309,6 +315,11 @@ def post_process(
     verify_geometry(motion, motion_after, new_index, set(split), file)
     t_before = segment_time_s(motion, machine)  # feeds > 0: check_motion passed
     t_after = segment_time_s(motion_after, machine)
+    accel_before = accel_after = None
+    if machine is not None and machine.accel_mm_s2 is not None:
+        acc = (machine.accel_mm_s2, machine.junction_deviation_mm)
+        accel_before = float(accel_segment_time_s(motion, *acc, t_before).sum())
+        accel_after = float(accel_segment_time_s(motion_after, *acc, t_after).sum())
     if sim.contacts:
         notes.append(f"{len(sim.contacts)} holder/spindle contacts with the stock (see report)")
     if len(sim.rapid_cut_segments):
@@ -340,6 +351,8 @@ def post_process(
         rule=rule,
         stock=stock,
         notes=tuple(notes),
+        accel_time_before_s=accel_before,
+        accel_time_after_s=accel_after,
     )
 
 

@@ -303,6 +303,9 @@ def test_cli_feed_and_simulate(files: Path, capsys) -> None:
     summary = json.loads(so)
     assert summary["output"] == str(out) and out.exists()
     assert Path(summary["report"]["stock_png"]).exists()
+    # The default machine (ace-h63) gives an acceleration: its times can only be longer.
+    assert summary["accel_time_before_s"] > summary["time_before_s"]
+    assert summary["accel_time_after_s"] > summary["time_after_s"]
     png = files / "s.png"
     rc, so, _ = cli(
         ["plan", "simulate", str(files / "step.nc"), "--tool", "phi30-ball", "--stock",

@@ -2,8 +2,9 @@
 
 Time model: feed moves (lines, arcs) take ``length / F``; rapids take the longest single-axis
 travel at the machine's rapid rate (each axis moves at its rapid rate independently, as on Fanuc
-non-interpolated positioning); dwells take their time. Acceleration is ignored, so times are lower
-bounds. Without a machine, rapids use :data:`DEFAULT_RAPID_MM_MIN`.
+non-interpolated positioning); dwells take their time. Acceleration is ignored, so these times are
+lower bounds; with a machine that gives ``accel_mm_s2``, ``accel_time_s`` adds the look-ahead
+planner of :mod:`planning.nc.accel`. Without a machine, rapids use :data:`DEFAULT_RAPID_MM_MIN`.
 """
 
 from __future__ import annotations
@@ -30,7 +31,8 @@ class MotionStats:
     time_s : machining time, s (feed + rapid + dwell); feed_time_s, rapid_time_s, dwell_s : the
     parts, s; bbox_min_mm / bbox_max_mm : (3,) exact extent of the whole path including arc
     bulges, mm (NaN without motion); cutting_bbox_min_mm / cutting_bbox_max_mm : extent of feed
-    moves only; rapid_mm_min : rapid rate used, mm/min.
+    moves only; rapid_mm_min : rapid rate used, mm/min; accel_time_s : machining time with the
+    machine's acceleration and corner model, s (None when the machine gives no acceleration).
     """
 
     segments: int
@@ -45,6 +47,7 @@ class MotionStats:
     cutting_bbox_min_mm: tuple[float, float, float]
     cutting_bbox_max_mm: tuple[float, float, float]
     rapid_mm_min: float
+    accel_time_s: float | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -91,6 +94,15 @@ def motion_stats(
     feed_time = float(t[feed].sum())
     rapid_time = float(t[rap].sum())
     dwell = float(t[motion.kind == DWELL].sum())
+    accel_time = None
+    if machine is not None and machine.accel_mm_s2 is not None:
+        from planning.nc.accel import accel_segment_time_s
+
+        accel_time = float(
+            accel_segment_time_s(
+                motion, machine.accel_mm_s2, machine.junction_deviation_mm, t
+            ).sum()
+        )
     lo, hi = bounding_box(motion)
     clo, chi = bounding_box(motion[motion.is_feed])
     return MotionStats(
@@ -106,4 +118,5 @@ def motion_stats(
         cutting_bbox_min_mm=tuple(map(float, clo)),
         cutting_bbox_max_mm=tuple(map(float, chi)),
         rapid_mm_min=float(rapid),
+        accel_time_s=accel_time,
     )

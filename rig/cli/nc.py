@@ -85,6 +85,7 @@ def _check(args: argparse.Namespace) -> int:
         "cutting_length_mm": st.cutting_length_mm,
         "rapid_length_mm": st.rapid_length_mm,
         "time_s": st.time_s,
+        "time_with_accel_s": st.accel_time_s,
         "feed_time_s": st.feed_time_s,
         "rapid_time_s": st.rapid_time_s,
         "dwell_s": st.dwell_s,

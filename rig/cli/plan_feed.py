@@ -176,6 +176,8 @@ def _feed(args: argparse.Namespace) -> int:
         [
             {"": "machining time (s)", "before": result.time_before_s,
              "after": result.time_after_s},
+            {"": "with acceleration (s)", "before": result.accel_time_before_s,
+             "after": result.accel_time_after_s},
             {"": "max load x feed", "before": summary["load_rate_max_before"],
              "after": summary["load_rate_max_after"]},
         ]
