@@ -467,7 +467,7 @@ def load_plan(
             raise PlanningError(
                 f"{p}: operations[{i}].tool = {o.tool!r}: a face mill; the Z-map models end mills"
             )
-        motion = interpret_file(prog, machine, strict=strict)
+        motion = interpret_file(prog, machine, strict=strict, cutter_comp="refuse")
         ops.append(Operation(o.name, motion, tool, o.tool, str(prog), o.rule))
     return OperationPlan(stock, ops, machine), [o.rule for o in model.operations]
 

@@ -551,3 +551,27 @@ def test_programs_with_arcs_move_like_the_original(spec: list, piece: float) -> 
         lines += [f"G1 X{x0:.4f} Y{y0:.4f} Z{z:.3f}"]
         lines += [f"{'G2' if cw else 'G3'} X{x1:.4f} Y{y1:.4f} I{-r:.4f} J0"]
     adjust_feeds_keeping_geometry(lines, 0.5, piece)
+
+
+def test_cli_refuses_a_program_with_cutter_compensation(files: Path, capsys) -> None:
+    # The Z-map would cut the programmed path, not the tool centre's: refuse, naming the word.
+    (files / "comp.nc").write_text(STEP.replace("N40 G1 X215.", "N40 G41 D1 G1 X215."))
+    k = STEP.splitlines().index("N40 G1 X215. (across the steps)")
+    for cmd in (
+        [
+            "plan",
+            "feed",
+            str(files / "comp.nc"),
+            "--rules",
+            str(files / "rule.toml"),
+            "-o",
+            str(files / "o.nc"),
+        ],
+        ["plan", "simulate", str(files / "comp.nc")],
+    ):
+        rc, so, se = cli([*cmd, "--tool", "phi30-ball", "--stock", "box:0,200,0,60,-10,0",
+                          "--spacing", "0.5"], capsys)  # fmt: skip
+        assert rc == 2, se
+        assert f"comp.nc:{k + 1}:" in se and "'G41'" in se and "not applied" in se
+        assert "Traceback" not in se
+    assert not (files / "o.nc").exists()

@@ -335,3 +335,14 @@ def test_line_endings_and_bom_stream_like_text(tmp_path, ending):
     assert interpret(p).equals(want)  # a Path is streamed
     assert interpret(Program.read(p)).equals(want)
     assert Program.read(p).text() == text.replace("\n", ending)  # BOM dropped, ends kept
+
+
+def test_cutter_compensation_is_named_once_as_not_applied_or_refused():
+    it = Interpreter(file="p.nc")
+    text = "G0 X0 Y0\nG41 D1 G1 X10 F100\nG40 X20\nG42 D1 X0\nG40 X5"
+    motion = it.run(text.splitlines())
+    assert [w.line for w in it.warnings] == [2] and "G41" in str(it.warnings[0])
+    # The motion is the programmed path, exactly as without the words.
+    assert motion.equals(interpret(text.replace("G41 D1 ", "").replace("G42 D1 ", "")))
+    with pytest.raises(NCError, match=r"p\.nc:4:1: 'G42': G42 cutter radius compensation"):
+        interpret(text.replace("G41 D1 ", ""), cutter_comp="refuse", file="p.nc")

@@ -18,7 +18,9 @@ seconds on GRBL):
   program coordinates plus the active work offset G54..G59 (zero unless ``work_offsets_mm`` is
   given). G53 moves to machine coordinates for one block.
 * G40/G41/G42 (with D) and G43/G49 (with H) are recorded in the state; the motion is the
-  programmed tool-tip path (no cutter or length compensation applied).
+  programmed tool-tip path (no cutter or length compensation applied). A G41/G42 gives a warning
+  (the path is not the tool centre's), or an error with ``cutter_comp="refuse"`` (what the Z-map
+  consumers ask for: they would cut the wrong path).
 * A/B/C words are recorded in ``state.rotary_deg`` only.
 * G80..G83 with G98/G99 expand to rapid/feed/dwell moves (:mod:`planning.nc.canned`).
 * G28 / G30 (return to the reference / second reference point, P2 only), as on Fanuc: the axes
@@ -108,6 +110,8 @@ class Interpreter(WordRules, Moves):
         Machine coordinates of the G28 / G30 points, mm; override the machine's.
     state : ModalState, optional
         Start from this state (copied), e.g. to resume a program at a block.
+    cutter_comp : {"warn", "refuse"}
+        G41/G42 cutter radius compensation is not applied: warn once (default) or raise.
 
     Attributes
     ----------
@@ -133,8 +137,13 @@ class Interpreter(WordRules, Moves):
         reference_mm: Sequence[float] | None = None,
         second_reference_mm: Sequence[float] | None = None,
         state: ModalState | None = None,
+        cutter_comp: str = "warn",
     ) -> None:
         self.strict = strict
+        if cutter_comp not in ("warn", "refuse"):
+            raise ValueError(f"cutter_comp must be 'warn' or 'refuse', got {cutter_comp!r}")
+        self.cutter_comp = cutter_comp
+        self._comp_warned = False
         self.file = str(file)
         self.dialect = dialect or (machine.dialect if machine is not None else "fanuc")
         if self.dialect not in ("fanuc", "grbl"):
@@ -202,6 +211,20 @@ class Interpreter(WordRules, Moves):
             self.state = saved
             raise
         self.blocks_seen = block + 1
+
+    def _cutter_comp_word(self, raw: str, k: int, key: int, line: int) -> None:
+        reason = (
+            f"{gname(key)} cutter radius compensation is not applied: the motion is the "
+            "programmed path, not the tool centre's"
+        )
+        if self.cutter_comp == "refuse":
+            raise self._fail(
+                raw, k, reason + "; give a program with the compensation resolved (the tool "
+                "centre path, e.g. CAM 'computer' compensation)", line,
+            )  # fmt: skip
+        if not self._comp_warned:
+            self._comp_warned = True
+            self._note(raw, k, reason + " (said once)", line)
 
     def _execute(self, raw: str, line: int, block: int, out: MotionBuilder | _NullSink) -> None:
         words, flag = _lexer.block_words(raw, self.file, line)
@@ -374,6 +397,8 @@ class Interpreter(WordRules, Moves):
                     st.feed_mm_min = NAN
             elif grp == 7:
                 st.cutter_comp = key // 10
+                if st.cutter_comp != 40:
+                    self._cutter_comp_word(raw, k, key, line)
             elif grp == 8:
                 st.tool_length = key // 10
             elif grp == 10:

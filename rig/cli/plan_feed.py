@@ -119,7 +119,7 @@ def _load(args: argparse.Namespace):
     machine = load_machine(args.machine)
     tool = _tool(args.tool)
     program = Program.read(args.program)
-    motion = interpret(program, machine, file=str(args.program))
+    motion = interpret(program, machine, file=str(args.program), cutter_comp="refuse")
     cutter = Cutter.from_tool(tool)
     if args.stock:
         stock = load_stock(args.stock, args.spacing)
