@@ -17,7 +17,8 @@ from numpy.typing import NDArray
 
 from analysis.config import MachineConfig
 from planning.errors import PlanningError
-from planning.nc import Program
+from planning.nc import Interpreter, Program
+from planning.nc._codes import INCH_MM
 from planning.nc.edit import split_moves
 from planning.nc.motion import Motion
 
@@ -90,7 +91,8 @@ def write_program(
     lines = program.lines
     with_f = {i for i, raw in enumerate(lines) if "F" in raw or "f" in raw}
     fmt = out.style.format
-    modal = math.nan
+    scale = _feed_scale(program, machine)  # per block: mm per program unit of its F word
+    modal = math.nan  # mm/min, as the control reads the F words written so far
     for b in sorted(with_f | set(block_feed)):
         want = block_feed.get(b)
         if b in split:
@@ -98,12 +100,14 @@ def write_program(
         txt = out.get_word(b, "F") if b in with_f else None
         if want is None:  # an F word on a block without feed moves sets the modal feed
             if txt is not None:
-                modal = float(txt)
+                modal = float(txt) * scale[b]
             continue
-        if txt is not None or want != modal or b in split:
-            if txt is None or float(txt) != want:
-                out.set_word(b, "F", fmt(want, "F"))
-            modal = want
+        want_txt = fmt(want / scale[b], "F")
+        want_mm = float(want_txt) * scale[b]
+        if txt is not None or want_mm != modal or b in split:
+            if txt is None or float(txt) != float(want_txt):
+                out.set_word(b, "F", want_txt)
+            modal = want_mm
     if not split:
         return out, list(range(len(lines)))
     plan = {seg: runs for seg, runs in split.values()}
@@ -117,6 +121,19 @@ def write_program(
             f"{program.file}: splitting gave {len(result.lines)} blocks, expected {k} (internal)"
         )
     return result, new_index
+
+
+def _feed_scale(program: Program, machine: MachineConfig | None) -> NDArray[np.float64]:
+    """mm per unit of each block's F word: 25.4 under G20 (a unit word applies to its own
+    block's words), else 1. Only G20 programs are interpreted for it."""
+    scale = np.ones(len(program.lines))
+    if not any("20" in raw for raw in program.lines):
+        return scale
+    it = Interpreter(machine, strict=False, file=program.file)
+    for b, raw in enumerate(program.lines):
+        it.execute(raw, line=b + 1, block=b)
+        scale[b] = INCH_MM if it.state.inch else 1.0
+    return scale
 
 
 def rejoin(motion_after: Motion, new_index: list[int], split_blocks: set[int]) -> Motion:

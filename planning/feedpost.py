@@ -218,17 +218,11 @@ def post_process(
 
     ``stock`` is lowered in place (it ends as the machined part). Raises :class:`PlanningError`
     (before anything is written) for a program the machine cannot run, that leaves the stock,
-    that is in inches, or a tool the Z-map cannot model.
+    or a tool the Z-map cannot model. G20 programs get their F words in inch/min.
     """
     opts = options or FeedPostOptions()
     file = program.file
     cutter = Cutter.from_tool(tool)
-    for i, raw in enumerate(program.lines):
-        if "20" in raw and any(t.letter == "G" and float(t.number) == 20 for t in program.words(i)):
-            raise PlanningError(
-                f"{file}:{i + 1}: G20 (inch) program: the feed post-processor writes mm/min; "
-                "convert the program to G21"
-            )
     check_motion(motion, machine, stock, cutter, file, opts.chord_tol_mm)
     lo, hi = _feed_limits(rule, machine)
     piece_mm = opts.min_piece_mm / 2 if opts.split else math.inf
