@@ -155,3 +155,31 @@ def test_reference_points_in_the_machine_config(tmp_path):
     p.write_text(text.replace('dialect = "fanuc"', 'dialect = "fanuc"\nreference_mm = [0, 0, 401]'))
     with pytest.raises(ConfigError, match=r"reference_mm Z = 401.0 mm is outside the z travel"):
         load_machine(p)
+
+
+def test_g29_returns_through_the_last_intermediate_point() -> None:
+    text = "G90 G54 G0 X10 Y20 Z5\nG28 Z50\nG28 X0 Y0\nG29 X30 Y40\nG29 Z10"
+    m = interpret(text, reference_mm=REF)
+    ends = [tuple(p) for p in m.end[m.block >= 3]]
+    # X, Y: to their intermediate point (0, 0) at the reference Z, then to (30, 40); Z alone the
+    # same way through its own intermediate point 50.
+    assert ends == [(0.0, 0.0, 300.0), (30.0, 40.0, 300.0), (30.0, 40.0, 50.0), (30.0, 40.0, 10.0)]
+    assert np.all(m.kind == RAPID)
+    # G91: the increment counts from the intermediate point, not from the reference point.
+    m = interpret("G0 X10 Y20 Z5\nG91 G28 Z0\nG29 Z-3", reference_mm=REF)
+    assert tuple(m.end[-1]) == (10.0, 20.0, 2.0) and tuple(m.end[-2]) == (10.0, 20.0, 5.0)
+
+
+@pytest.mark.parametrize(
+    "text,dialect,why",
+    [
+        ("G0 X1\nG29 X5", "fanuc", "no G28/G30 has set an intermediate point"),
+        ("G28 Z10\nG29 X5", "fanuc", "G29 X: no G28/G30"),
+        ("G28 Z10\nG29", "fanuc", "G29 needs the axes"),
+        ("G28 Z10\nG29 Z5", "grbl", "not a GRBL command"),
+    ],
+)
+def test_g29_without_its_intermediate_point_is_refused(text, dialect, why) -> None:
+    with pytest.raises(NCError, match=r"p\.nc:2:") as e:
+        interpret(text, reference_mm=REF, dialect=dialect, file="p.nc")
+    assert why in str(e.value)

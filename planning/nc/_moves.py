@@ -134,9 +134,13 @@ class Moves:
 
     def _home(self, raw, v, scale, line, block, out, key: int, k: int) -> None:
         """G28 / G30 (word ``k`` of the block): the named axes rapid to the intermediate point,
-        then to the reference point (machine coordinates); the others stay."""
+        then to the reference point (machine coordinates); the others stay. G29: back from the
+        reference point through the last G28/G30 intermediate point to the programmed point."""
         st = self.state
         code = gname(key)
+        if key == 290:
+            self._from_reference(raw, v, scale, line, block, out, k)
+            return
         if key == 300 and "P" in v and float(v["P"]) != 2.0:
             raise self._fail(
                 raw, "P", "only the second reference point (G30 P2) is configured", line
@@ -164,14 +168,46 @@ class Moves:
                     line,
                 )
         end = list(mid)
+        inter = list(st.intermediate_mm)
         for a in named:
             end[a] = float(ref[a])
-        p0, p1 = st.position_mm, tuple(end)
+            inter[a] = mid[a]
+        st.intermediate_mm = (inter[0], inter[1], inter[2])
+        self._two_rapids(mid, tuple(end), line, block, out)
+
+    def _two_rapids(self, mid, end, line, block, out) -> None:
+        p0 = self.state.position_mm
         nowhere = (NAN, NAN, NAN)
-        for a, b in ((p0, mid), (mid, p1)):
+        for a, b in ((p0, mid), (mid, end)):
             if a != b:
                 self._seg(out, RAPID, a, b, nowhere, NAN, 0.0, line, block)
-        st.position_mm = p1
+        self.state.position_mm = end
+
+    def _from_reference(self, raw, v, scale, line, block, out, k: int) -> None:
+        """G29 (Fanuc): the named axes rapid to the last G28/G30 intermediate point, then to the
+        programmed point (G91: relative to the intermediate point); the others stay."""
+        st = self.state
+        if self.dialect == "grbl":
+            raise self._fail(raw, k, "G29 is not a GRBL command", line)
+        named = [a for a in range(3) if "XYZ"[a] in v]
+        if not named:
+            raise self._fail(raw, k, "G29 needs the axes to move (X, Y, Z)", line)
+        for a in named:
+            if st.intermediate_mm[a] != st.intermediate_mm[a]:
+                raise self._fail(
+                    raw, "XYZ"[a], f"G29 {'XYZ'[a]}: no G28/G30 has set an intermediate point "
+                    "for this axis yet", line,
+                )  # fmt: skip
+        mid = list(st.position_mm)
+        for a in named:
+            mid[a] = st.intermediate_mm[a]
+        if st.absolute:
+            end = self._target(v, scale, False)
+        else:
+            end = tuple(
+                mid[a] + float(v["XYZ"[a]]) * scale if a in named else mid[a] for a in range(3)
+            )
+        self._two_rapids(tuple(mid), tuple(end), line, block, out)
 
     def _arc_center(self, raw, v, scale, line, p0, p1, cw: bool) -> tuple[float, float, float]:
         st = self.state

@@ -32,6 +32,8 @@ seconds on GRBL):
   (0, 0, 0) is used and a warning says so. GRBL dialect: a G28/G30 with no axis word moves all
   axes straight to the point (Fanuc: an error). Tool length compensation is not applied, so the
   point is where the programmed tool tip goes.
+* G29 (Fanuc; GRBL has none): the named axes rapid to the intermediate point of the last G28/G30
+  that named them, then to the programmed point (G91: relative to the intermediate point).
 * G93 inverse-time feed: every feed move (G1/G2/G3) needs its own F, and takes 1/F minutes; the
   Motion gets ``feed_mm_min = path length * F``. F is not modal under G93, and switching between
   G93 and G94 leaves no feed set (program F again), as in RS-274/NGC. Canned cycles and feed moves

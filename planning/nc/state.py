@@ -56,6 +56,8 @@ class ModalState:
     rotary_deg: dict[str, float] = field(default_factory=dict)  # A/B/C words (recorded only)
     canned: CannedCycle = field(default_factory=CannedCycle)
     reference_assumed: bool = False  # a G28/G30 went to machine zero for want of a machine config
+    # The last G28/G30 intermediate point per axis (machine frame, NaN: never named), for G29.
+    intermediate_mm: tuple[float, float, float] = (math.nan, math.nan, math.nan)
     stopped: bool = False  # M0 / M1 seen in the last block
     ended: bool = False  # M2 / M30 seen
     tape_marks: int = 0  # '%' lines seen
