@@ -12,6 +12,15 @@ Moves, per pass of each level (levels in cutting order, passes outside in):
   wrapping round it as often as the depth needs (a helix following the contour), then one full
   loop at the level from where the ramp ended;
 * retract to the safe height.
+
+With ``rough.arc_fit_tol_mm > 0`` every cutting stretch (ramp, loop, open pass) is handed to
+:func:`planning._rough_arcs.fit_arcs` after rounding its vertices to the written precision
+(``_DECIMALS``): runs that follow a circle within the tolerance become ``ARC_CW``/``ARC_CCW``
+segments (plane 17; helical on a ramp, Z linear in angle between the run's end heights), nearly
+straight runs one line. The arcs' ends are rounded vertices and their centres lie exactly on the
+chord bisector, so the writer's rounding of the centre keeps the start and end radii within
+0.0015 mm of each other (under the interpreter's 0.002 mm). Plan path lengths (``plan.path_mm``,
+the paper's measure) come from the polylines and do not change.
 """
 
 from __future__ import annotations
@@ -21,10 +30,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planning._rough_arcs import fit_arcs
 from planning.nc import LINE, RAPID, Motion, MotionBuilder, NumberStyle, Program
 from planning.nc import motion_to_program as _write
 from planning.part_config import Part
 from planning.roughing import RoughPlan
+
+_DECIMALS = 3  # written precision (mm); arc fits work on vertices rounded to it
 
 
 @dataclass(frozen=True)
@@ -35,6 +47,7 @@ class MoveSettings:
     safe_z_mm: float
     clearance_mm: float
     ramp_angle_deg: float
+    arc_fit_tol_mm: float = 0.0
 
     @classmethod
     def of(cls, part: Part) -> MoveSettings:
@@ -46,6 +59,7 @@ class MoveSettings:
             part.config.stock.z_max_mm + r.clearance_mm,
             r.clearance_mm,
             r.ramp_angle_deg,
+            r.arc_fit_tol_mm,
         )
 
 
@@ -87,28 +101,46 @@ def plan_motion(plan: RoughPlan, part: Part, tool_numbers: tuple[int, int] = (1,
                block=level_idx)  # fmt: skip
         pos = end
 
+    def cut(xy: np.ndarray, z, feed: float, tool: int) -> None:
+        """Feed moves through xy (m, 2) from its first point (the current position) at heights
+        z (scalar or (m,)): one line per chord, or fitted arcs and lines."""
+        nonlocal pos
+        zz = np.broadcast_to(np.asarray(z, dtype=float), (xy.shape[0],))
+        if ms.arc_fit_tol_mm <= 0:
+            for (x, y), zk in zip(xy[1:], zz[1:]):
+                add(LINE, (x, y, zk), feed, tool)
+            return
+        xy = np.round(xy, _DECIMALS)
+        xy[0] = pos[:2]  # the stretch starts where the tool is (a rounded vertex already)
+        fit = fit_arcs(xy, ms.arc_fit_tol_mm)
+        for kind, b, (cx, cy) in zip(fit.kind.tolist(), fit.last.tolist(), fit.center_mm):
+            end = (float(xy[b, 0]), float(xy[b, 1]), float(zz[b]))
+            if kind == LINE:
+                add(LINE, end, feed, tool)
+                continue
+            # arcs are added even when end == pos (a full circle)
+            mb.add(kind, pos, end, (float(cx), float(cy), pos[2]), feed_mm_min=feed,
+                   spindle_rpm=ms.spindle_rpm, tool=tool, block=level_idx)  # fmt: skip
+            pos = list(end)
+
     for level_idx, lv in enumerate(plan.levels):  # noqa: B007 (read by add())
         tool = tool_numbers[0] if (lv.tool == 1 or same_tool) else tool_numbers[1]
         z, top = lv.z_mm, lv.hi_mm + ms.clearance_mm
         for p in lv.paths.passes:
-            xy = p.xy_mm
+            xy = p.xy_mm if ms.arc_fit_tol_mm <= 0 else np.round(p.xy_mm, _DECIMALS)
             add(RAPID, (pos[0], pos[1], ms.safe_z_mm), tool=tool)
             add(RAPID, (xy[0, 0], xy[0, 1], ms.safe_z_mm), tool=tool)
             add(RAPID, (xy[0, 0], xy[0, 1], top), tool=tool)
             if p.closed:
                 ramp_len = (top - z) / tan_a
                 rxy, rs = _walk(xy, 0.0, ramp_len)
-                rz = top - rs * tan_a
-                for (x, y), zz in zip(rxy[1:], rz[1:]):
-                    add(LINE, (x, y, zz), ms.feed_mm_min, tool)
+                cut(rxy, top - rs * tan_a, ms.feed_mm_min, tool)
                 per = float(np.sum(np.linalg.norm(np.diff(xy, axis=0), axis=1)))
                 loop, _ = _walk(xy, ramp_len, per)
-                for x, y in loop[1:]:
-                    add(LINE, (x, y, z), ms.feed_mm_min, tool)
+                cut(loop, z, ms.feed_mm_min, tool)
             else:
                 add(LINE, (xy[0, 0], xy[0, 1], z), ms.plunge_mm_min, tool)
-                for x, y in xy[1:]:
-                    add(LINE, (x, y, z), ms.feed_mm_min, tool)
+                cut(xy, z, ms.feed_mm_min, tool)
             add(RAPID, (pos[0], pos[1], ms.safe_z_mm), tool=tool)
     return mb.build()
 
@@ -139,4 +171,4 @@ def plan_program(plan: RoughPlan, part: Part, motion: Motion | None = None) -> P
         f"cutlab plan rough {part.config.name} method {plan.method}: {len(plan.levels)} levels "
         f"{heights} tool {part.config.tool.name}"
     )
-    return _write(m, style=NumberStyle(decimals=3), program_number=1, comment=comment)
+    return _write(m, style=NumberStyle(decimals=_DECIMALS), program_number=1, comment=comment)

@@ -105,6 +105,12 @@ class Rough(Model):
     )
     lee_factor: float = Field(3.0, ge=1, le=20, description="x cusp, Lee's first-tool step")
     lee_second_tool: str | None = Field(None, description="Lee's second tool (default: same)")
+    arc_fit_tol_mm: float = Field(
+        0.01,
+        ge=0,
+        le=1,
+        description="mm, G2/G3 arcs where a pass follows a circle within this (0 = lines only)",
+    )
 
 
 class PartConfig(Model):

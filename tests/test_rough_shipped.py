@@ -9,7 +9,8 @@ import pytest
 
 from analysis.config import REPO_ROOT
 from planning._rough_gcode import MoveSettings, plan_motion, plan_program, plan_totals
-from planning.nc import LINE, interpret
+from planning.nc import interpret
+from planning.nc.arcs import segment_length_mm
 from planning.part_config import load_part
 from planning.rough_check import check_program
 from planning.roughing import RoughPlanner
@@ -99,8 +100,8 @@ def test_program_interprets_back_to_the_planned_moves(shipped):
     plan = plans["bisection"]
     motion = plan_motion(plan, part)
     back = interpret(plan_program(plan, part, motion).text())
-    feed = back.kind == LINE
-    length = np.linalg.norm(back.end[feed] - back.start[feed], axis=1).sum()
+    feed = back.is_feed  # lines and the fitted G2/G3 arcs
+    length = segment_length_mm(back)[feed].sum()
     totals = plan_totals(plan, part, motion)
     assert length == pytest.approx(totals["feed_length_mm"], abs=0.5)
     # Cutting at the level heights only, plus the entry ramps/plunges above them.
