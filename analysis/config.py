@@ -70,6 +70,7 @@ class RotaryAxis(Model):
 
     min_deg: float = Field(-360.0, description="deg")
     max_deg: float = Field(360.0, description="deg")
+    rapid_deg_min: float = Field(5400.0, gt=0, le=1e6, description="deg/min, G0 rate")
 
     @model_validator(mode="after")
     def _ordered(self) -> RotaryAxis:

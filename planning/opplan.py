@@ -152,6 +152,13 @@ def check_motion(
     def where(seg: int) -> str:
         return f"{file}:{int(motion.line[seg])}: block {int(motion.block[seg])}"
 
+    turning = motion.has_rotary_travel
+    if turning.any():
+        i = int(np.argmax(turning))
+        raise PlanningError(
+            f"{where(i)}: the block turns a rotary axis (A/B/C); the Z-map is 3-axis, so a "
+            "5-axis program cannot be simulated or post-processed"
+        )
     feed_seg = motion.is_feed
     bad_feed = feed_seg & ~(motion.feed_mm_min > 0)
     if bad_feed.any():

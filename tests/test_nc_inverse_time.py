@@ -53,8 +53,12 @@ def test_switching_modes_needs_a_new_feed():
 
 
 def test_refusals():
-    with pytest.raises(NCError, match="no X/Y/Z travel"):
-        interpret("G93 G1 X0 A90 F2")  # a rotary-only move: its time has no place in Motion
+    with pytest.raises(NCError, match="moves no axis"):
+        interpret("G93 G1 X0 F2")  # no travel at all: 1/F min of standing still
+    # A rotary-only move is a segment of its own and takes 1/F min (feed counts degrees).
+    m = interpret("G93 G1 X0 A90 F2")
+    assert m.feed_mm_min[0] == pytest.approx(180.0)
+    assert segment_time_s(m)[0] == pytest.approx(30.0)
     with pytest.raises(NCError, match="canned cycles"):
         interpret("G93 G81 X1 Z-1 R1 F2")
     with pytest.raises(NCError, match="must be > 0"):

@@ -62,7 +62,7 @@ from planning.nc.program import NumberStyle, Program
 from planning.nc.restart import restart_preamble
 from planning.nc.run import interpret, interpret_file, state_at_block
 from planning.nc.state import CannedCycle, ModalState
-from planning.nc.stats import MotionStats, motion_stats, segment_time_s
+from planning.nc.stats import MotionStats, motion_stats, segment_time_s, segment_travel
 from planning.nc.writer import motion_to_program
 
 __all__ = [
@@ -95,5 +95,6 @@ __all__ = [
     "restart_preamble",
     "segment_length_mm",
     "segment_time_s",
+    "segment_travel",
     "state_at_block",
 ]

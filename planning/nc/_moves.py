@@ -31,12 +31,17 @@ class Moves:
     _reference_warned: bool
     _inverse_f: float
     _feed_max_mm_min: float
+    _rotary_to: tuple[float, float, float] | None
 
     def _seg(
-        self, out, kind: int, p0, p1, c, feed: float, dwell_s: float, line: int, block: int
-    ) -> None:
+        self, out, kind: int, p0, p1, c, feed: float, dwell_s: float, line: int, block: int,
+        r1=None,
+    ) -> None:  # fmt: skip
+        """One segment; the rotary axes go from the state's position to ``r1`` (None: stay)."""
         st = self.state
-        out.fbuf.extend((*p0, *p1, *c, feed, st.spindle_dir * st.spindle_speed_rpm, dwell_s))
+        r0 = st.rotary_deg
+        out.fbuf.extend((*p0, *p1, *c, feed, st.spindle_dir * st.spindle_speed_rpm, dwell_s,
+                         *r0, *(r0 if r1 is None else r1)))  # fmt: skip
         out.ibuf.extend((kind, st.plane, st.tool, st.coolant, line, block))
 
     def _dwell(self, raw: str, v: dict[str, str], line: int, block: int, out) -> None:
@@ -94,8 +99,8 @@ class Moves:
             raise self._fail(
                 raw,
                 0,
-                "inverse-time (G93) feed move with no X/Y/Z travel: its time 1/F cannot be "
-                "represented (rotary-only moves are not modelled)",
+                "inverse-time (G93) feed move that moves no axis: its time 1/F cannot be "
+                "represented",
                 line,
             )
         f = length_mm * self._inverse_f
@@ -113,6 +118,8 @@ class Moves:
         st = self.state
         p0 = st.position_mm
         p1 = self._target(v, scale, g53)
+        r0 = st.rotary_deg
+        r1 = r0 if self._rotary_to is None else self._rotary_to
         if g53 and mode not in (0, 1):
             raise self._fail(raw, 0, "G53 needs G0 or G1 in force", line)
         if mode <= 1:  # inlined _seg: this is the hot path of big programs
@@ -121,16 +128,22 @@ class Moves:
             else:
                 kind, feed = LINE, st.feed_mm_min
                 if feed != feed:
-                    feed = self._need_feed(raw, line, math.dist(p0, p1))
+                    feed = self._need_feed(raw, line, math.dist((*p0, *r0), (*p1, *r1)))
             rpm = st.spindle_dir * st.spindle_speed_rpm
-            out.fbuf.extend((*p0, *p1, NAN, NAN, NAN, feed, rpm, 0.0))
+            out.fbuf.extend((*p0, *p1, NAN, NAN, NAN, feed, rpm, 0.0, *r0, *r1))
             out.ibuf.extend((kind, st.plane, st.tool, st.coolant, line, block))
         else:
             c = self._arc_center(raw, v, scale, line, p0, p1, mode == 2)
-            length = arc_length_mm(p0, p1, c, st.plane, mode == 2) if st.feed_mode == 93 else None
+            length = None
+            if st.feed_mode == 93:
+                length = math.hypot(
+                    arc_length_mm(p0, p1, c, st.plane, mode == 2), math.dist(r0, r1)
+                )
             feed = self._need_feed(raw, line, length)
-            self._seg(out, ARC_CW if mode == 2 else ARC_CCW, p0, p1, c, feed, 0.0, line, block)
+            kind = ARC_CW if mode == 2 else ARC_CCW
+            self._seg(out, kind, p0, p1, c, feed, 0.0, line, block, r1)
         st.position_mm = p1
+        st.rotary_deg = r1
 
     def _home(self, raw, v, scale, line, block, out, key: int, k: int) -> None:
         """G28 / G30 (word ``k`` of the block): the named axes rapid to the intermediate point,

@@ -108,9 +108,15 @@ class WordRules:
                     st.program_number = n
                 else:
                     st.sequence_number = n
-        for letter in ("A", "B", "C"):
-            if letter in v:
-                st.rotary_deg[letter] = float(v[letter])
+        if "A" in v or "B" in v or "C" in v:
+            # Degrees whatever G20/G21; G91 makes them increments like the linear axes.
+            rot = list(st.rotary_deg)
+            for i, letter in enumerate("ABC"):
+                if letter in v:
+                    x = float(v[letter])
+                    rot[i] = x if st.absolute else rot[i] + x
+            self._rotary_to = (rot[0], rot[1], rot[2])
+            st.rotary_named = "".join(c for c in "ABC" if c in v or c in st.rotary_named)
         mode = st.motion
         used = set()
         if mode in (2, 3):

@@ -14,7 +14,9 @@ planner is modelled here, the way GRBL and most CNC controls plan:
 - the path stops before and after rapids and dwells, and at the ends of the program; rapids run
   at the speed that gives their stats.py time (the slowest axis at the rapid rate), with the same
   acceleration;
-- zero-length moves take no time and do not stop the path.
+- zero-length moves take no time and do not stop the path;
+- a move of the rotary axes counts its degrees with the millimetres (the feed's convention, see
+  :mod:`planning.nc.motion`); corners are judged on the X/Y/Z directions only.
 
 Two passes (backward: every junction reachable to a stop; forward: reachable from the start) give
 each segment's entry and exit speed; the time of a segment is then a closed-form trapezoid (or
@@ -27,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from planning.nc.arcs import _plane_coords, arc_radius_mm, arc_sweep_rad, segment_length_mm
+from planning.nc.arcs import _plane_coords, arc_radius_mm, arc_sweep_rad
 from planning.nc.motion import ARC_CW, DWELL, RAPID, Motion
 
 __all__ = ["accel_segment_time_s", "junction_speed_mm_s", "segment_tangents"]
@@ -114,7 +116,9 @@ def accel_segment_time_s(
             f"accel {accel_mm_s2} mm/s^2 and junction deviation {junction_deviation_mm} mm "
             "must be > 0"
         )
-    length = segment_length_mm(motion)
+    from planning.nc.stats import segment_travel  # stats imports this module lazily
+
+    length = segment_travel(motion)  # mm and degrees together, as the feed counts them
     kind = motion.kind
     moving = (length > 0) & (kind != DWELL)
     rows = np.flatnonzero(moving)

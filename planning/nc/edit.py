@@ -20,7 +20,7 @@ fractions of the segment's path, the last one 1.0) and gets back a new
 
 Blocks that cannot be split faithfully raise :class:`~planning.nc.NCError`: canned cycles (many
 segments per block), G28/G30 and G53 moves, blocks that stop or end the program (M0/M1/M2/M30),
-and feed moves under inverse-time feed G93.
+feed moves under inverse-time feed G93, and moves that turn a rotary axis.
 """
 
 from __future__ import annotations
@@ -112,6 +112,10 @@ def split_moves(
             )
         if motion.kind[seg] not in (LINE, ARC_CW, ARC_CCW):
             raise NCError(f"segment {seg} is not a feed move", file=program.file, line=line)
+        if motion.has_rotary_travel[seg]:
+            raise NCError(
+                "moves of the rotary axes (A/B/C) are not split", file=program.file, line=line
+            )
         _check_plan(plan[seg], seg, program.file, line)
         by_block[b] = seg
 

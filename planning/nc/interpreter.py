@@ -21,7 +21,11 @@ seconds on GRBL):
   programmed tool-tip path (no cutter or length compensation applied). A G41/G42 gives a warning
   (the path is not the tool centre's), or an error with ``cutter_comp="refuse"`` (what the Z-map
   consumers ask for: they would cut the wrong path).
-* A/B/C words are recorded in ``state.rotary_deg`` only.
+* A/B/C words move the rotary axes (degrees; G90 absolute, G91 incremental; no unit or offset
+  conversion) together with X/Y/Z in a G0/G1/G2/G3 block: Motion carries each segment's rotary
+  start and end. Under G94 the feed F applies to the combined move (mm and degrees together, as
+  on Fanuc); under G93 the move takes 1/F min whatever its axes. A/B/C in a dwell, reference
+  return or canned-cycle block are errors.
 * G80..G83 with G98/G99 expand to rapid/feed/dwell moves (:mod:`planning.nc.canned`).
 * G28 / G30 (return to the reference / second reference point, P2 only), as on Fanuc: the axes
   named rapid to the intermediate point their words give (program coordinates, G90 or G91; ``G91
@@ -37,7 +41,7 @@ seconds on GRBL):
 * G93 inverse-time feed: every feed move (G1/G2/G3) needs its own F, and takes 1/F minutes; the
   Motion gets ``feed_mm_min = path length * F``. F is not modal under G93, and switching between
   G93 and G94 leaves no feed set (program F again), as in RS-274/NGC. Canned cycles and feed moves
-  with no X/Y/Z travel (rotary only) under G93 are errors.
+  with no travel at all under G93 are errors.
 * After M2/M30 or the closing ``%`` nothing more is executed; blocks with words there give a
   warning.
 * Strict mode (default) raises :class:`~planning.nc.NCError` for unknown G/M codes, unknown
@@ -277,6 +281,7 @@ class Interpreter(WordRules, Moves):
 
         # ---- G codes: modes first so this block's words use them
         self._inverse_f = NAN
+        self._rotary_to = None  # A B C target of this block, deg (set by its A/B/C words)
         if gcodes is None:
             explicit_motion = dwell = g53 = False
             home = None
@@ -308,8 +313,15 @@ class Interpreter(WordRules, Moves):
             self._dwell(raw, v, line, block, out)
 
         # ---- motion
-        has_axes = ("X" in v or "Y" in v or "Z" in v) and not dwell
+        rotary = self._rotary_to is not None
+        has_axes = ("X" in v or "Y" in v or "Z" in v or rotary) and not dwell
         mode = st.motion
+        if rotary and (dwell or home is not None or mode >= 80):
+            why = "G4" if dwell else gname(home[0]) if home is not None else f"G{mode}"
+            raise self._fail(
+                raw, next(L for L in "ABC" if L in v), f"A/B/C words cannot move in a {why} "
+                "block (program the rotary move in its own G0/G1 block)", line,
+            )  # fmt: skip
         if home is not None:
             if explicit_motion and mode >= 81:
                 raise _lexer.word_error(
@@ -326,7 +338,7 @@ class Interpreter(WordRules, Moves):
             if mode == 80:
                 raise self._fail(
                     raw,
-                    next(L for L in "XYZ" if L in v),
+                    next(L for L in "XYZABC" if L in v),
                     "axis word with no motion mode in force (G80 cancelled it; program G0/G1)",
                     line,
                 )

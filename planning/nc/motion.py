@@ -18,7 +18,14 @@ coolant        (n,)         bool    M7/M8 on
 line           (n,)         int32   1-based source line
 block          (n,)         int32   0-based block index (block i is line i + 1 of a file)
 dwell_s        (n,)         float64 dwell time, s (0 unless DWELL)
+rotary_start_  (n, 3)       float64 rotary axes A B C at the start and end of the segment, deg
+deg, rotary_                        (0 where a program has no A/B/C words); they move linearly
+end_deg                             along the segment
 ============== ============ ======= ===========================================================
+
+``feed_mm_min`` is the programmed feed along the combined move: for a move of the rotary axes too,
+the length counts millimetres and degrees together (Fanuc's convention), so a segment takes
+``hypot(path length, rotary travel) / feed`` (:func:`planning.nc.stats.segment_time_s`).
 
 Arcs: CW/CCW are seen from the positive end of the plane's normal (Z for G17, Y for G18, X for
 G19). A helical arc moves the normal axis linearly. An arc whose start and end coincide in its
@@ -47,7 +54,7 @@ KIND_NAMES = ("rapid", "line", "arc_cw", "arc_ccw", "dwell")
 FULL_CIRCLE_TOL_MM = 1e-6
 
 # float fields per segment in the builder's flat buffer, then int fields
-_NF = 12  # x0 y0 z0 x1 y1 z1 cx cy cz feed rpm dwell
+_NF = 18  # x0 y0 z0 x1 y1 z1 cx cy cz feed rpm dwell a0 b0 c0 a1 b1 c1
 _NI = 6  # kind plane tool coolant line block
 
 
@@ -67,6 +74,8 @@ class Motion:
     line: np.ndarray
     block: np.ndarray
     dwell_s: np.ndarray
+    rotary_start_deg: np.ndarray
+    rotary_end_deg: np.ndarray
 
     def __len__(self) -> int:
         return int(self.kind.shape[0])
@@ -115,7 +124,9 @@ class Motion:
         for name in ("kind", "plane", "tool", "coolant"):
             if not np.array_equal(getattr(self, name), getattr(other, name)):
                 return False
-        for name in ("start", "end", "center", "dwell_s", "spindle_rpm"):
+        for name in (
+            "start", "end", "center", "dwell_s", "spindle_rpm", "rotary_start_deg", "rotary_end_deg"
+        ):  # fmt: skip
             if not np.allclose(
                 getattr(self, name), getattr(other, name), rtol=0, atol=atol_mm, equal_nan=True
             ):
@@ -150,14 +161,25 @@ class Motion:
                 "tool": self.tool,
                 "coolant": self.coolant,
                 "dwell_s": self.dwell_s,
+                **{
+                    f"{axis}{k}": arr[:, i]
+                    for k, arr in ((0, self.rotary_start_deg), (1, self.rotary_end_deg))
+                    for i, axis in enumerate("abc")
+                },
             }
         )
+
+    @property
+    def has_rotary_travel(self) -> np.ndarray:
+        """Boolean mask (n,) of segments that move a rotary axis."""
+        return np.any(self.rotary_end_deg != self.rotary_start_deg, axis=1)
 
 
 class MotionBuilder:
     """Append-only growth of segment arrays in two flat buffers (no per-segment objects).
 
-    ``fbuf`` takes 12 floats per segment (x0 y0 z0 x1 y1 z1 cx cy cz feed rpm dwell) and ``ibuf``
+    ``fbuf`` takes 18 floats per segment (x0 y0 z0 x1 y1 z1 cx cy cz feed rpm dwell a0 b0 c0 a1 b1
+    c1) and ``ibuf``
     6 ints (kind plane tool coolant line block); :meth:`add` appends one segment, hot loops may
     ``extend`` both buffers directly in that order.
     """
@@ -186,8 +208,13 @@ class MotionBuilder:
         line: int = 0,
         block: int = 0,
         dwell_s: float = 0.0,
+        rotary_start_deg: Sequence[float] = (0.0, 0.0, 0.0),
+        rotary_end_deg: Sequence[float] | None = None,
     ) -> None:
-        self.fbuf.extend((*start, *end, *center, feed_mm_min, spindle_rpm, dwell_s))
+        r1 = rotary_start_deg if rotary_end_deg is None else rotary_end_deg
+        self.fbuf.extend(
+            (*start, *end, *center, feed_mm_min, spindle_rpm, dwell_s, *rotary_start_deg, *r1)
+        )
         self.ibuf.extend((kind, plane, tool, int(coolant), line, block))
 
     def build(self) -> Motion:
@@ -214,4 +241,6 @@ class MotionBuilder:
             line=i[:, 4].copy(),
             block=i[:, 5].copy(),
             dwell_s=f[:, 11].copy(),
+            rotary_start_deg=f[:, 12:15].copy(),
+            rotary_end_deg=f[:, 15:18].copy(),
         )

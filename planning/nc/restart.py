@@ -7,8 +7,9 @@ blocks N, N+1, ... The preamble
    length compensation and any canned cycle;
 2. changes to the tool in the spindle (``T M6``) and preselects the next tool;
 3. starts the spindle (``S M3/M4``) and sets the coolant;
-4. rapids up to the safe Z (with ``G43 H`` when length compensation was on), then to X Y, then down
-   to Z (rapid, or ``G1`` at the feed with ``plunge_feed``);
+4. rapids up to the safe Z (with ``G43 H`` when length compensation was on), turns the rotary axes
+   the program has used (A/B/C) to their positions, then rapids to X Y, then down to Z (rapid, or
+   ``G1`` at the feed with ``plunge_feed``);
 5. re-establishes the feed, cutter compensation, distance mode (G90/G91), motion mode and, last,
    inverse-time feed G93 if it was on (the preamble's own moves run under G94; under G93 every
    feed move carries its F, so there is no modal feed to restore).
@@ -81,6 +82,10 @@ def restart_preamble(
     out.append("M8" if state.coolant else "M9")
     length = f" G43 H{state.tool_length_h}" if state.tool_length == 43 else ""
     out.append(f"G90 G0{length} Z{fmt(safe * scale)}")
+    if state.rotary_named:  # turn the rotary axes at the safe height, before X Y
+        out.append(
+            " ".join(f"{c}{fmt(state.rotary_deg['ABC'.index(c)])}" for c in state.rotary_named)
+        )
     out.append(f"X{fmt(x * scale)} Y{fmt(y * scale)}")
     feed = f"F{fmt(state.feed_mm_min * scale)}" if state.feed_mm_min == state.feed_mm_min else ""
     if plunge_feed and feed:

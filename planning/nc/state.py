@@ -53,7 +53,8 @@ class ModalState:
     coolant: bool = False  # M7/M8 on, M9 off
     program_number: int | None = None  # O word
     sequence_number: int | None = None  # last N word
-    rotary_deg: dict[str, float] = field(default_factory=dict)  # A/B/C words (recorded only)
+    rotary_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)  # A B C, deg
+    rotary_named: str = ""  # the rotary letters the program has used, in "ABC" order
     canned: CannedCycle = field(default_factory=CannedCycle)
     reference_assumed: bool = False  # a G28/G30 went to machine zero for want of a machine config
     # The last G28/G30 intermediate point per axis (machine frame, NaN: never named), for G29.
@@ -71,5 +72,4 @@ class ModalState:
         """An independent snapshot (cheap: the mutable parts are copied, the rest is immutable)."""
         new = copy.copy(self)
         new.canned = copy.copy(self.canned)
-        new.rotary_deg = dict(self.rotary_deg)
         return new

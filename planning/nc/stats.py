@@ -1,8 +1,10 @@
 """Program statistics: machining time, cutting and rapid lengths, bounding box.
 
-Time model: feed moves (lines, arcs) take ``length / F``; rapids take the longest single-axis
-travel at the machine's rapid rate (each axis moves at its rapid rate independently, as on Fanuc
-non-interpolated positioning); dwells take their time. Acceleration is ignored, so these times are
+Time model: feed moves (lines, arcs) take ``travel / F``, the travel counting the path length and
+the rotary axes' degrees together (:func:`segment_travel`; the path length alone without A/B/C);
+rapids take the longest single-axis travel at the axis' rapid rate (each axis moves at its rapid
+rate independently, as on Fanuc non-interpolated positioning; rotary axes at their
+``rapid_deg_min``); dwells take their time. Acceleration is ignored, so these times are
 lower bounds; with a machine that gives ``accel_mm_s2``, ``accel_time_s`` adds the look-ahead
 planner of :mod:`planning.nc.accel`. Without a machine, rapids use :data:`DEFAULT_RAPID_MM_MIN`.
 """
@@ -21,6 +23,7 @@ if TYPE_CHECKING:
     from analysis.config import MachineConfig
 
 DEFAULT_RAPID_MM_MIN = 10_000.0
+DEFAULT_ROTARY_RAPID_DEG_MIN = 5_400.0  # without a 5-axis machine config: 15 rpm
 
 
 @dataclass(frozen=True)
@@ -32,7 +35,8 @@ class MotionStats:
     parts, s; bbox_min_mm / bbox_max_mm : (3,) exact extent of the whole path including arc
     bulges, mm (NaN without motion); cutting_bbox_min_mm / cutting_bbox_max_mm : extent of feed
     moves only; rapid_mm_min : rapid rate used, mm/min; accel_time_s : machining time with the
-    machine's acceleration and corner model, s (None when the machine gives no acceleration).
+    machine's acceleration and corner model, s (None when the machine gives no acceleration);
+    rotary_min_deg / rotary_max_deg : (3,) range of A, B, C over the program, deg.
     """
 
     segments: int
@@ -48,6 +52,8 @@ class MotionStats:
     cutting_bbox_max_mm: tuple[float, float, float]
     rapid_mm_min: float
     accel_time_s: float | None = None
+    rotary_min_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rotary_max_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -61,19 +67,33 @@ def _rapid_rate(machine: MachineConfig | None, rapid_mm_min: float | None) -> fl
     return float(machine.rapid_mm_min) if machine is not None else DEFAULT_RAPID_MM_MIN
 
 
+def segment_travel(motion: Motion) -> np.ndarray:
+    """Combined travel (n,) of each segment: hypot(path length mm, rotary travel deg)."""
+    rot = np.linalg.norm(motion.rotary_end_deg - motion.rotary_start_deg, axis=1)
+    return np.hypot(segment_length_mm(motion), rot)
+
+
+def _rotary_rates(machine: MachineConfig | None) -> np.ndarray:
+    five = machine.five_axis if machine is not None else None
+    if five is None:
+        return np.full(3, DEFAULT_ROTARY_RAPID_DEG_MIN)
+    return np.array([five.a.rapid_deg_min, five.b.rapid_deg_min, five.c.rapid_deg_min])
+
+
 def segment_time_s(
     motion: Motion, machine: MachineConfig | None = None, *, rapid_mm_min: float | None = None
 ) -> np.ndarray:
     """Duration of each segment (n,), s, by the time model of this module (vectorised)."""
     rapid = _rapid_rate(machine, rapid_mm_min)
-    length = segment_length_mm(motion)
     t = np.zeros(len(motion))
     feed = motion.is_feed
     with np.errstate(invalid="ignore", divide="ignore"):
-        t[feed] = length[feed] / motion.feed_mm_min[feed] * 60.0
+        t[feed] = segment_travel(motion[feed]) / motion.feed_mm_min[feed] * 60.0
     rap = motion.kind == RAPID
     if rap.any():
-        t[rap] = np.abs(motion.end[rap] - motion.start[rap]).max(axis=1) / rapid * 60.0
+        linear = np.abs(motion.end[rap] - motion.start[rap]).max(axis=1) / rapid
+        turn = np.abs(motion.rotary_end_deg[rap] - motion.rotary_start_deg[rap])
+        t[rap] = np.maximum(linear, (turn / _rotary_rates(machine)).max(axis=1)) * 60.0
     dw = motion.kind == DWELL
     t[dw] = motion.dwell_s[dw]
     return t
@@ -90,7 +110,7 @@ def motion_stats(
     length = segment_length_mm(motion)
     feed = motion.is_feed
     rap = motion.kind == RAPID
-    t = segment_time_s(motion, rapid_mm_min=rapid)
+    t = segment_time_s(motion, machine, rapid_mm_min=rapid)
     feed_time = float(t[feed].sum())
     rapid_time = float(t[rap].sum())
     dwell = float(t[motion.kind == DWELL].sum())
@@ -119,4 +139,34 @@ def motion_stats(
         cutting_bbox_max_mm=tuple(map(float, chi)),
         rapid_mm_min=float(rapid),
         accel_time_s=accel_time,
+        **_rotary_range(motion),
     )
+
+
+def _rotary_range(motion: Motion) -> dict[str, tuple[float, float, float]]:
+    if not len(motion):
+        return {}
+    both = np.concatenate([motion.rotary_start_deg, motion.rotary_end_deg])
+    lo, hi = both.min(axis=0), both.max(axis=0)
+    return {"rotary_min_deg": tuple(map(float, lo)), "rotary_max_deg": tuple(map(float, hi))}
+
+
+def rotary_limit_problems(motion: Motion, machine: MachineConfig | None) -> list[str]:
+    """One line per rotary axis the program takes outside the machine's 5-axis limits (the first
+    offending source line); empty without a 5-axis machine config."""
+    five = machine.five_axis if machine is not None else None
+    if five is None or not len(motion):
+        return []
+    out = []
+    for i, name in enumerate("abc"):
+        lim = getattr(five, name)
+        ends = np.stack([motion.rotary_start_deg[:, i], motion.rotary_end_deg[:, i]], axis=1)
+        bad = np.any((ends < lim.min_deg - 1e-9) | (ends > lim.max_deg + 1e-9), axis=1)
+        if bad.any():
+            k = int(np.argmax(bad))
+            out.append(
+                f"line {int(motion.line[k])}: {name.upper()} goes to "
+                f"{float(ends[k][np.argmax(np.abs(ends[k]))]):g} deg, outside machine "
+                f"'{machine.name}' {name.upper()} limits {lim.min_deg:g}..{lim.max_deg:g} deg"
+            )
+    return out

@@ -47,15 +47,21 @@ def motion_to_program(
         out.append(f"({_clean(comment)})")
     out.append("G21 G90 G91.1 G94 G17")
     pos = [float(fmt(c)) for c in start_mm]
+    rot = [0.0, 0.0, 0.0]  # A B C as written so far (the interpreter starts at 0)
     mode, plane, feed, tool, rpm, coolant = None, 17, math.nan, 0, 0.0, False
 
-    def coords(p) -> list[str]:
+    def coords(p, r=None) -> list[str]:
         words = []
         for ax, letter in enumerate("XYZ"):
             txt = fmt(float(p[ax]))
             if float(txt) != pos[ax]:
                 words.append(letter + txt)
                 pos[ax] = float(txt)
+        for ax, letter in enumerate("ABC" if r is not None else ""):
+            txt = fmt(float(r[ax]))
+            if float(txt) != rot[ax]:
+                words.append(letter + txt)
+                rot[ax] = float(txt)
         return words
 
     for k in range(len(motion)):
@@ -77,14 +83,16 @@ def motion_to_program(
             t = float(motion.dwell_s[k])
             out.append(f"G4 X{format(t, '.3f')}" if dialect == "fanuc" else f"G4 P{t:.3f}")
             continue
-        s = motion.start[k]
-        if any(float(fmt(float(s[a]))) != pos[a] for a in range(3)):
-            w = coords(s)
+        s, r0 = motion.start[k], motion.rotary_start_deg[k]
+        if any(float(fmt(float(s[a]))) != pos[a] for a in range(3)) or any(
+            float(fmt(float(r0[a]))) != rot[a] for a in range(3)
+        ):
+            w = coords(s, r0)
             out.append(" ".join(([] if mode == RAPID else ["G0"]) + w))
             mode = RAPID
         words = [] if kind == mode else [_G[kind]]
         start = list(pos)
-        moved = coords(motion.end[k])
+        moved = coords(motion.end[k], motion.rotary_end_deg[k])
         words += moved or ["X" + fmt(pos[0])]  # a zero-length move still needs an axis word
         if kind in (ARC_CW, ARC_CCW):
             ia, ib, _ = PLANE_AXES[plane]

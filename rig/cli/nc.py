@@ -74,10 +74,15 @@ def _add_common(p: argparse.ArgumentParser) -> None:
 
 def _check(args: argparse.Namespace) -> int:
     from planning.nc import motion_stats
-    from rig.cli._common import print_json, print_table
+    from planning.nc.stats import rotary_limit_problems
+    from rig.cli._common import print_json, print_table, status
 
     it, motion, machine = _interpret(args, warn=not args.json)
     st = motion_stats(motion, machine)
+    limits = [f"{args.file}: {p}" for p in rotary_limit_problems(motion, machine)]
+    if not args.json:
+        for p in limits:
+            status("warning: " + p)
     out = {
         "file": args.file,
         "blocks": it.blocks_seen,
@@ -91,12 +96,20 @@ def _check(args: argparse.Namespace) -> int:
         "dwell_s": st.dwell_s,
         "rapid_mm_min": st.rapid_mm_min,
         "bbox": {"min_mm": list(st.bbox_min_mm), "max_mm": list(st.bbox_max_mm)},
-        "warnings": [str(w) for w in it.warnings],
+        "warnings": [str(w) for w in it.warnings] + limits,
     }
+    rotary = motion.has_rotary_travel.any() or any(st.rotary_min_deg) or any(st.rotary_max_deg)
+    if rotary:
+        out["rotary_range_deg"] = {
+            c: [st.rotary_min_deg[i], st.rotary_max_deg[i]] for i, c in enumerate("ABC")
+        }
     if args.json:
         print_json(out)
         return 0
-    rows = [{"quantity": k, "value": v} for k, v in out.items() if k not in ("bbox", "warnings")]
+    skip = ("bbox", "warnings", "rotary_range_deg")
+    rows = [{"quantity": k, "value": v} for k, v in out.items() if k not in skip]
+    for c, (lo, hi) in out.get("rotary_range_deg", {}).items():
+        rows.append({"quantity": f"{c}_range_deg", "value": f"{lo:.4g} {hi:.4g}"})
     rows.append({"quantity": "bbox_min_mm", "value": " ".join(f"{c:.4g}" for c in st.bbox_min_mm)})
     rows.append({"quantity": "bbox_max_mm", "value": " ".join(f"{c:.4g}" for c in st.bbox_max_mm)})
     print_table(rows)
