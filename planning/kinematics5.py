@@ -213,12 +213,17 @@ def nc_program(
     tool_number: int = 1,
     safe_z_mm: float | None = None,
     title: str = "cutlab plan orient",
+    tips_mm: np.ndarray | None = None,
 ) -> str:
-    """Fanuc-style G-code (planning.nc's block formatting, 4 decimals): G90 G94 G21, G43, one
-    G01 X Y Z A C per CL point, F in mm/min.
+    """Fanuc-style G-code (planning.nc's block formatting, 4 decimals): G90 G21, G43, one
+    G01 X Y Z A C per CL point.
 
-    Each iso-parameter line starts with a rapid positioning of A and C and an approach; lines are
-    separated by a retract to ``safe_z_mm`` (default: 20 mm above the highest Z).
+    Each iso-parameter line starts with a rapid positioning of A and C, an approach and a plunge
+    (G94, F in mm/min); lines are separated by a retract to ``safe_z_mm`` (default: 20 mm above
+    the highest Z). With ``tips_mm`` ((m, 3), the tool tips in the workpiece frame), the cutting
+    blocks run under inverse-time feed G93 with F = feed / tip chord (1/min), so the tip moves
+    over the part at ``feed_mm_min`` whatever the rotary axes do; without it they run under G94,
+    where the control applies F to millimetres and degrees together.
     """
     P = moves.as_array()
     safe = float(np.max(P[:, 2]) + 20.0) if safe_z_mm is None else safe_z_mm
@@ -231,6 +236,12 @@ def nc_program(
         {"S": spindle_rpm, "M": "03"},
         {"G": 43, "H": tool_number, "Z": safe},
     ]
+    chord = None
+    if tips_mm is not None:
+        chord = np.linalg.norm(np.diff(np.asarray(tips_mm, float), axis=0), axis=1)
+        # A repeated CL point would ask for an infinite F: 1 um is the shortest chord timed.
+        chord = np.concatenate([[np.nan], np.maximum(chord, 1e-3)])
+    g93 = False
     for i, (x, y, z, a, c) in enumerate(P):
         if i == 0 or line[i] != line[i - 1]:  # a new iso-parameter line: position, then plunge
             if i:
@@ -238,9 +249,17 @@ def nc_program(
             blocks += [
                 {"G": "00", "A": a, "C": c},
                 {"G": "00", "X": x, "Y": y},
-                {"G": "01", "Z": z, "F": feed_mm_min},
+                {"G": ["01", 94] if g93 else "01", "Z": z, "F": feed_mm_min},
             ]
+            g93 = False
+        elif chord is not None:
+            g = ["01", 93] if not g93 else "01"
+            blocks.append({"G": g, "X": x, "Y": y, "Z": z, "A": a, "C": c,
+                           "F": feed_mm_min / chord[i]})  # fmt: skip
+            g93 = True
         else:
             blocks.append({"G": "01", "X": x, "Y": y, "Z": z, "A": a, "C": c})
+    if g93:
+        blocks.append({"G": 94})
     blocks += [{"G": "00", "Z": safe}, {"M": "05"}, {"M": 30}, "%"]
     return Program.from_blocks(blocks, style=NumberStyle(decimals=4)).text()

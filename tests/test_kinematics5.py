@@ -85,7 +85,7 @@ def test_axis_limits_are_named():
 
 
 def test_gcode_reads_back_through_planning_nc(tmp_path):
-    from planning.nc import LINE, Program, interpret
+    from planning.nc import LINE, Program, interpret, segment_time_s
 
     m = machine()
     rng = np.random.default_rng(4)
@@ -94,25 +94,28 @@ def test_gcode_reads_back_through_planning_nc(tmp_path):
     tips = rng.uniform(-40, 40, (12, 3))
     line = np.repeat([0, 1, 2], 4)
     mv = inverse(m, tips, axes)
-    text = nc_program(mv, line, 900.0, 8000.0)
-    (tmp_path / "p.nc").write_text(text)
-    prog = Program.read(tmp_path / "p.nc")  # strict parse by the NC package
-    motion = interpret(prog)
-    cuts = motion.kind == LINE
-    ends = motion.end[cuts]
-    blocks = motion.block[cuts]
-    a = np.array([float(prog.get_word(int(b), "A") or "nan") for b in blocks])
-    c = np.array([float(prog.get_word(int(b), "C") or "nan") for b in blocks])
-    # Plunge blocks (G01 Z only) carry no A/C: they take the modal A/C of the line's rapid.
-    plunge = np.isnan(a)
-    assert plunge.sum() == 3 and len(ends) == 12
-    a[plunge], c[plunge] = mv.a_deg[line != np.roll(line, 1)], mv.c_deg[line != np.roll(line, 1)]
-    assert np.allclose(ends, mv.as_array()[:, :3], atol=1e-4)
-    back = type(mv)(ends[:, 0], ends[:, 1], ends[:, 2], a, c, mv.kind)
-    t2, u2 = forward(mv.kind, m, back, 0.0)
-    assert np.allclose(t2, tips, atol=5e-4)
-    assert np.allclose(u2, axes, atol=5e-6)
-    assert np.all(motion.feed_mm_min[cuts] == 900.0)
+    for tips_mm in (None, tips):
+        text = nc_program(mv, line, 900.0, 8000.0, tips_mm=tips_mm)
+        (tmp_path / "p.nc").write_text(text)
+        prog = Program.read(tmp_path / "p.nc")  # strict parse by the NC package
+        motion = interpret(prog, m)
+        cuts = motion.kind == LINE
+        assert cuts.sum() == 12  # a plunge and 3 cutting blocks per line
+        ends, rot = motion.end[cuts], motion.rotary_end_deg[cuts]
+        assert np.allclose(ends, mv.as_array()[:, :3], atol=1e-4)
+        assert np.allclose(rot[:, [0, 2]], mv.as_array()[:, 3:], atol=1e-4)
+        back = type(mv)(ends[:, 0], ends[:, 1], ends[:, 2], rot[:, 0], rot[:, 2], mv.kind)
+        t2, u2 = forward(mv.kind, m, back, 0.0)
+        assert np.allclose(t2, tips, atol=5e-4)
+        assert np.allclose(u2, axes, atol=5e-6)
+        t = segment_time_s(motion, m)[cuts]
+        plunge = line != np.roll(line, 1)
+        assert np.all(motion.feed_mm_min[cuts][plunge] == 900.0)
+        if tips_mm is None:  # G94: F over millimetres and degrees together
+            assert np.all(motion.feed_mm_min[cuts] == 900.0)
+        else:  # G93: the tip crosses the part at 900 mm/min
+            chord = np.linalg.norm(np.diff(tips, axis=0), axis=1)[~plunge[1:]]
+            np.testing.assert_allclose(t[~plunge], chord / 900.0 * 60.0, rtol=1e-5)
 
 
 def test_cl_csv_has_one_row_per_feasible_point(tmp_path):

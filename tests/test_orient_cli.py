@@ -35,7 +35,10 @@ def test_fan_writes_cl_nc_map_and_summary(tmp_path, capsys):
     assert len(cl) == 10
     axis = cl[["axis_i", "axis_j", "axis_k"]].to_numpy()
     assert np.allclose(np.linalg.norm(axis, axis=1), 1.0, atol=1e-5)
-    assert (out / "program.nc").read_text().count("G01 X") == 8  # 2 lines x (5 - 1) cuts
+    blocks = (out / "program.nc").read_text().splitlines()
+    cuts = [b for b in blocks if b.startswith("G01") and " A" in b]
+    assert len(cuts) == 8  # 2 lines x (5 - 1) cuts, each under inverse-time feed
+    assert sum(b.startswith("G01 G93") for b in cuts) == 2 and all(" F" in b for b in cuts)
     png = (out / "energy_map.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
     assert json.loads((out / "summary.json").read_text())["energy_map_point"] == 2

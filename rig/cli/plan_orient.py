@@ -82,7 +82,9 @@ def run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     write_cl_csv(out / "cl.csv", res)
     (out / "program.nc").write_text(
-        nc_program(moves, res.cc.line, pl.feed_mm_min, pl.spindle_rpm, title=cfg.name),
+        nc_program(
+            moves, res.cc.line, pl.feed_mm_min, pl.spindle_rpm, title=cfg.name, tips_mm=res.tip_mm
+        ),  # fmt: skip
         encoding="utf-8",
     )
     files = [str(out / "cl.csv"), str(out / "program.nc")]
