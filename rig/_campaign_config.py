@@ -173,6 +173,12 @@ class AnalysisSection(Model):
     validate_groups: tuple[str, ...] = ()
     rule_name: str = Field("derived", description="name of a derived feed rule")
     compare_groups: tuple[str, ...] = Field((), description="afc-compare: constant, adjusted")
+    cv_ratio_target: float = Field(
+        1 / 3, gt=0, le=1, description="afc-compare: force CV adjusted / constant at most"
+    )
+    time_saving_target_pct: float = Field(
+        30.0, ge=0, lt=100, description="%, afc-compare: cutting time saving at least"
+    )
 
 
 class MatrixEntry(Model):

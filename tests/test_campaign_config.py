@@ -96,9 +96,11 @@ def test_feed_above_machine_max_is_refused_with_file_and_line(tmp_path: Path) ->
         (dict(feed="fz_mm = -0.1"), r"fz_mm = -0.1: must be > 0"),
         (dict(rig="simulated"), r"campaign.rig = 'simulated'"),
         (dict(kind="slot"), "needs an end mill"),
+        (dict(program_extra="\n[analysis]\ncv_ratio_target = 2"),
+         r"c\.toml:14: analysis\.cv_ratio_target = 2: .*less than or equal to 1"),
     ],
     ids=["beyond-flute", "beyond-insert", "unknown-tool", "unknown-key", "negative-fz",
-         "unknown-rig", "wrong-tool-for-program"],
+         "unknown-rig", "wrong-tool-for-program", "cv-target-above-1"],
 )  # fmt: skip
 def test_bad_campaign_is_refused_naming_field_and_value(
     tmp_path: Path, change: dict, message: str
