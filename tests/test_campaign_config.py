@@ -97,7 +97,7 @@ def test_feed_above_machine_max_is_refused_with_file_and_line(tmp_path: Path) ->
         (dict(rig="simulated"), r"campaign.rig = 'simulated'"),
         (dict(kind="slot"), "needs an end mill"),
         (dict(program_extra="\n[analysis]\ncv_ratio_target = 2"),
-         r"c\.toml:14: analysis\.cv_ratio_target = 2: .*less than or equal to 1"),
+         r"c\.toml:13: analysis\.cv_ratio_target = 2: .*less than or equal to 1"),
     ],
     ids=["beyond-flute", "beyond-insert", "unknown-tool", "unknown-key", "negative-fz",
          "unknown-rig", "wrong-tool-for-program", "cv-target-above-1"],
