@@ -4,7 +4,9 @@ Each method runs on a fresh planner (so no method profits from sections another 
 timed by wall clock and by process CPU time (the machine is shared: CPU time is the steadier
 figure). Also timed: the shared set-up (offset surface, cusp table), writing the NC program and the
 Z-map check of the bisection program. Prints the path lengths and the comparisons the issue asks
-for. Targets: bisection under 10 s, optimal under 60 s.
+for. Targets: bisection under 10 s, optimal under 60 s. Then the bisection program with lines only
+vs with G2/G3 arcs (``rough.arc_fit_tol_mm``, a few tolerances): blocks, bytes, motion build time
+(the difference is the arc fitting).
 
     .venv/bin/python bench/bench_rough.py [--part configs/parts/seed000-bump.toml] [--repeat 1]
 """
@@ -16,7 +18,7 @@ import time
 
 from analysis.config import REPO_ROOT
 from planning._rough_gcode import MoveSettings, plan_motion, plan_program
-from planning.part_config import load_part
+from planning.part_config import Part, load_part
 from planning.rough_check import check_program
 from planning.roughing import METHODS, RoughPlanner
 
@@ -87,6 +89,30 @@ def main() -> None:
         print(
             f"Z-map check {spacing} mm: {w:.2f} s wall {c:.2f} s cpu; max left "
             f"{res.max_left_mm:.3f} mm, gouge {res.max_gouge_mm:.4f} mm, ok {res.ok}"
+        )
+    arc_figures(part, plans["bisection"], args.repeat)
+
+
+def arc_figures(part: Part, plan, repeat: int) -> None:
+    """Lines only vs fitted arcs: NC blocks, bytes, time to build the motion (best of repeat)."""
+    base = part.config.rough.arc_fit_tol_mm
+    print(f"NC program (bisection) lines only vs G2/G3 arcs (part default tol {base} mm):")
+    print(f"{'tol_mm':>7} {'blocks':>7} {'G2/G3':>6} {'bytes':>8} {'motion_s':>9} {'fit_s':>7}")
+    t_lines = None
+    for tol in (0.0, 0.002, 0.005, 0.01, 0.02):
+        cfg = part.config
+        rough = cfg.rough.model_copy(update={"arc_fit_tol_mm": tol})
+        p = Part(cfg.model_copy(update={"rough": rough}), part.path)
+        best = min((timed(lambda p=p: plan_motion(plan, p)) for _ in range(max(repeat, 3))),
+                   key=lambda r: r[1])  # fmt: skip
+        motion, w = best[0], best[1]
+        prog = plan_program(plan, p, motion)
+        t_lines = w if tol == 0 else t_lines
+        nbytes = len(prog.text().encode())
+        fit = "" if tol == 0 else f"{w - t_lines:7.3f}"
+        print(
+            f"{tol:7.3f} {len(prog.lines):7d} {int(motion.is_arc.sum()):6d} {nbytes:8d} "
+            f"{w:9.3f} {fit:>7}"
         )
 
 
