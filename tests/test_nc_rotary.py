@@ -25,7 +25,7 @@ from planning.nc import (
     state_at_block,
 )
 from planning.nc.edit import split_moves
-from planning.nc.stats import DEFAULT_ROTARY_RAPID_DEG_MIN, rotary_limit_problems
+from planning.nc.stats import DEFAULT_ROTARY_RAPID_DEG_MIN, axis_limit_problems
 
 
 def test_rotary_words_move_with_the_linear_axes_absolute_and_incremental() -> None:
@@ -113,13 +113,26 @@ def test_moves_that_turn_an_axis_are_not_split_nor_simulated() -> None:
         check_motion(interpret(prog), None, file="p.nc")
 
 
-def test_limits_of_the_five_axis_machine_are_checked() -> None:
+def test_rotary_limits_of_the_five_axis_machine_are_checked() -> None:
     five = load_machine("mill-5axis")  # A -120..30
     m = interpret("G0 A-20 C100\nG1 X5 A40 F100\nG0 A0", five)
-    problems = rotary_limit_problems(m, five)
+    problems = axis_limit_problems(m, five)
     assert problems == [
         "line 2: A goes to 40 deg, outside machine 'mill-5axis' A limits -120..30 deg"
     ]
     s = motion_stats(m, five)
     assert s.rotary_min_deg == (-20.0, 0.0, 0.0) and s.rotary_max_deg == (40.0, 0.0, 100.0)
-    assert rotary_limit_problems(m, load_machine("ace-h63")) == []  # no 5-axis section
+    assert axis_limit_problems(m, load_machine("ace-h63")) == []  # no 5-axis section
+
+
+def test_travel_limits_include_the_bulge_of_arcs() -> None:
+    from analysis.config import AxisTravel
+
+    small = load_machine("ace-h63").model_copy(
+        update={"y": AxisTravel(min_mm=-8, max_mm=8), "reference_mm": None}
+    )
+    m = interpret("G1 X5 F100\nG2 X25 I10\nG1 X5000", small)
+    assert axis_limit_problems(m, small) == [
+        "line 3: X goes to 5000 mm, outside machine 'ace-h63' travel -630..630 mm",
+        "line 2: Y goes to 10 mm, outside machine 'ace-h63' travel -8..8 mm",
+    ]

@@ -141,39 +141,45 @@ def segment_length_mm(motion: Motion) -> np.ndarray:
     return np.where(motion.is_arc, arc, np.where(motion.kind == DWELL, 0.0, chord))
 
 
-def bounding_box(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
-    """Exact axis-aligned bounding box ``(lo (3,), hi (3,))`` of the path, mm (NaN if empty).
+def segment_boxes(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """Exact axis-aligned box of every segment, ``(lo (n, 3), hi (n, 3))``, mm.
 
     Arcs contribute their end points and the quadrant points (0, 90, 180, 270 degrees in their
     plane) that lie inside their sweep; vectorised, no linearisation.
     """
-    if len(motion) == 0:
-        nan = np.full(3, np.nan)
-        return nan, nan.copy()
-    lo = np.minimum(motion.start, motion.end).min(axis=0)
-    hi = np.maximum(motion.start, motion.end).max(axis=0)
-    arcs = motion[motion.is_arc]
-    if len(arcs):
+    lo = np.minimum(motion.start, motion.end)
+    hi = np.maximum(motion.start, motion.end)
+    sel = np.flatnonzero(motion.is_arc)
+    if sel.size:
+        arcs = motion[sel]
         a0, b0, _, _, ca, cb, n0, _, idx = _plane_coords(arcs)
         r = np.hypot(a0 - ca, b0 - cb)
         t0 = np.arctan2(b0 - cb, a0 - ca)
         sweep = arc_sweep_rad(arcs)
         ccw = arcs.kind == ARC_CCW
-        rows = np.arange(len(arcs))
         for q in range(4):
             ang = q * 0.5 * math.pi
             delta = np.where(ccw, np.mod(ang - t0, TWO_PI), np.mod(t0 - ang, TWO_PI))
-            inside = delta <= sweep
-            if not inside.any():
+            k = np.flatnonzero(delta <= sweep)
+            if not k.size:
                 continue
-            p = np.empty((int(inside.sum()), 3))
-            k = rows[inside]
+            p = np.empty((k.size, 3))
             p[np.arange(k.size), idx[k, 0]] = ca[k] + r[k] * math.cos(ang)
             p[np.arange(k.size), idx[k, 1]] = cb[k] + r[k] * math.sin(ang)
             p[np.arange(k.size), idx[k, 2]] = n0[k]  # the normal axis peaks at the ends
-            lo = np.minimum(lo, p.min(axis=0))
-            hi = np.maximum(hi, p.max(axis=0))
+            lo[sel[k]] = np.minimum(lo[sel[k]], p)
+            hi[sel[k]] = np.maximum(hi[sel[k]], p)
     return lo, hi
+
+
+def bounding_box(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """Exact axis-aligned bounding box ``(lo (3,), hi (3,))`` of the path, mm (NaN if empty);
+    see :func:`segment_boxes`."""
+    if len(motion) == 0:
+        nan = np.full(3, np.nan)
+        return nan, nan.copy()
+    lo, hi = segment_boxes(motion)
+    return lo.min(axis=0), hi.max(axis=0)
 
 
 @dataclass(frozen=True)

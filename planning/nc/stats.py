@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planning.nc.arcs import bounding_box, segment_length_mm
+from planning.nc.arcs import bounding_box, segment_boxes, segment_length_mm
 from planning.nc.motion import DWELL, RAPID, Motion
 
 if TYPE_CHECKING:
@@ -151,14 +151,26 @@ def _rotary_range(motion: Motion) -> dict[str, tuple[float, float, float]]:
     return {"rotary_min_deg": tuple(map(float, lo)), "rotary_max_deg": tuple(map(float, hi))}
 
 
-def rotary_limit_problems(motion: Motion, machine: MachineConfig | None) -> list[str]:
-    """One line per rotary axis the program takes outside the machine's 5-axis limits (the first
-    offending source line); empty without a 5-axis machine config."""
-    five = machine.five_axis if machine is not None else None
-    if five is None or not len(motion):
+def axis_limit_problems(motion: Motion, machine: MachineConfig | None) -> list[str]:
+    """One line per axis the program takes outside the machine's X/Y/Z travel (work offsets as
+    given to the interpreter, zero by default) or its 5-axis A/B/C limits, naming the first
+    source line that does; empty without a machine."""
+    if machine is None or not len(motion):
         return []
     out = []
-    for i, name in enumerate("abc"):
+    lo, hi = segment_boxes(motion)
+    for i, name in enumerate("xyz"):
+        trav = getattr(machine, name)
+        bad = (lo[:, i] < trav.min_mm - 1e-9) | (hi[:, i] > trav.max_mm + 1e-9)
+        if bad.any():
+            k = int(np.argmax(bad))
+            v = lo[k, i] if lo[k, i] < trav.min_mm - 1e-9 else hi[k, i]
+            out.append(
+                f"line {int(motion.line[k])}: {name.upper()} goes to {float(v):g} mm, outside "
+                f"machine '{machine.name}' travel {trav.min_mm:g}..{trav.max_mm:g} mm"
+            )
+    five = machine.five_axis
+    for i, name in enumerate("abc" if five is not None else ""):
         lim = getattr(five, name)
         ends = np.stack([motion.rotary_start_deg[:, i], motion.rotary_end_deg[:, i]], axis=1)
         bad = np.any((ends < lim.min_deg - 1e-9) | (ends > lim.max_deg + 1e-9), axis=1)

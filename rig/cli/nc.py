@@ -74,12 +74,12 @@ def _add_common(p: argparse.ArgumentParser) -> None:
 
 def _check(args: argparse.Namespace) -> int:
     from planning.nc import motion_stats
-    from planning.nc.stats import rotary_limit_problems
+    from planning.nc.stats import axis_limit_problems
     from rig.cli._common import print_json, print_table, status
 
     it, motion, machine = _interpret(args, warn=not args.json)
     st = motion_stats(motion, machine)
-    limits = [f"{args.file}: {p}" for p in rotary_limit_problems(motion, machine)]
+    limits = [f"{args.file}: {p}" for p in axis_limit_problems(motion, machine)]
     if not args.json:
         for p in limits:
             status("warning: " + p)
@@ -121,6 +121,8 @@ def _motions(args: argparse.Namespace) -> int:
 
     _, motion, _ = _interpret(args)
     df = motion.to_dataframe()
+    if not (motion.rotary_start_deg.any() or motion.rotary_end_deg.any()):
+        df = df.drop(columns=["a0", "b0", "c0", "a1", "b1", "c1"])  # a 3-axis program
     if args.csv or args.output:
         if args.output:
             df.to_csv(args.output, index=False, float_format="%.6g")
