@@ -144,3 +144,22 @@ def test_bad_input_file_is_one_clear_error(name: str, kind: str, tmp_path, capsy
     assert err.startswith("cutlab: error:"), err[-500:]
     assert "Traceback" not in err
     assert f.name in err or str(tmp_path) in err, f"the message does not name the file: {err}"
+
+
+def test_a_reader_that_stops_early_ends_the_command_quietly(tmp_path) -> None:
+    """`cutlab nc motions big.nc | head -2`: exit 141 (SIGPIPE's), no traceback."""
+    import subprocess
+    import sys
+
+    prog = tmp_path / "big.nc"
+    prog.write_text("G21 G90 G1 F100\n" + "".join(f"G1 X{i % 50} Y{i % 7}\n" for i in range(20000)))
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from rig.cli import main; import sys; sys.exit(main())",
+         "nc", "motions", str(prog), "--csv"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    )  # fmt: skip
+    assert proc.stdout.readline().startswith(b"line,block,kind")
+    proc.stdout.close()  # what `head` does after its lines
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == 141, err
+    assert "Traceback" not in err
