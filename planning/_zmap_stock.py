@@ -14,6 +14,7 @@ from pydantic import Field
 
 from analysis.config import Model, read_toml, validate
 from planning.errors import PlanningError
+from planning.nc.arcs import bounding_box
 from planning.nc.motion import Motion
 from planning.zmap import Cutter, ZMap
 
@@ -90,14 +91,14 @@ def load_stock(
 
 def default_stock(motion: Motion, cutter: Cutter, spacing_mm: float | None = None) -> ZMap:
     """A box over the program's feed moves (XY extent plus the cutter radius), top at Z = 0
-    (work zero on the stock top, the usual convention), bottom 1 mm below the deepest feed move.
+    (work zero on the stock top, the usual convention), bottom 1 mm below the deepest feed move
+    (arcs' bulges included: a G18/G19 arc dips below its end points).
     """
     feed = motion.is_feed
     if not feed.any():
         raise PlanningError("the program has no feed moves: give the stock (--stock)")
-    pts = np.concatenate([motion.start[feed], motion.end[feed]])
     r = cutter.radius_mm
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    lo, hi = bounding_box(motion[feed])
     bottom = min(float(lo[2]) - 1.0, -1.0)
     return ZMap.box(
         float(lo[0]) - r, float(hi[0]) + r, float(lo[1]) - r, float(hi[1]) + r, bottom, 0.0,

@@ -595,3 +595,13 @@ def test_cli_refuses_a_program_with_cutter_compensation(files: Path, capsys) -> 
         assert f"comp.nc:{k + 1}:" in se and "'G41'" in se and "not applied" in se
         assert "Traceback" not in se
     assert not (files / "o.nc").exists()
+
+
+def test_default_stock_reaches_below_an_arc_that_dips_under_its_end_points() -> None:
+    from planning._zmap_stock import default_stock
+    from planning.zmap import Cutter
+
+    # A G18 arc from Z-1 to Z-1 through Z-6: the end points alone would put the bottom at -2.
+    motion = interpret("G0 X0 Y0 Z1\nG1 Z-1 F100\nG18 G2 X10 Z-1 I5 K0")
+    stock = default_stock(motion, Cutter.from_tool(get_tool("phi10-flat")), 1.0)
+    assert stock.bottom_mm <= -7.0 + 1e-9
