@@ -290,9 +290,9 @@ def tooth_passing_warnings(
                 if abs(k * ftp - fn) <= tol:
                     axis = getattr(m, "axis", getattr(m, "channel", "?"))
                     out.append(
-                        f"{rpm:g} rpm x {teeth} teeth: harmonic {k} of the tooth-passing frequency "
-                        f"({k * ftp:.0f} Hz) is within {tol:.0f} Hz of the {axis} mode at "
-                        f"{fn:.0f} Hz; measured forces will be amplified"
+                        f"{rpm:g} rpm x {teeth} teeth (tooth-passing frequency {ftp:.4g} Hz): "
+                        f"harmonic {k} = {k * ftp:.0f} Hz is within {tol:.0f} Hz of the {axis} "
+                        f"mode at {fn:.0f} Hz; measured forces will be amplified"
                     )
     return out
 

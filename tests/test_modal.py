@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -108,3 +110,14 @@ def test_tooth_passing_warning():
     # 18 000 rpm with 6 inserts: 1.8 kHz sits on the y mode.
     w = tooth_passing_warnings(modes, [600, 18_000], 6)
     assert len(w) >= 1 and "y mode" in w[0] and "18000 rpm" in w[0]
+
+
+def test_tooth_passing_warning_names_the_frequency_and_the_harmonic_apart():
+    # 600 rpm x 20 teeth: tooth passing at 200 Hz, its 10th harmonic on a 2 kHz mode. The message
+    # must not print 2000 Hz where it names the tooth-passing frequency.
+    mode = SimpleNamespace(frequency_hz=2000.0, damping_ratio=0.02, axis="x")
+    (w,) = tooth_passing_warnings([mode], 600, 20, margin=0.05)
+    assert "tooth-passing frequency 200 Hz" in w
+    assert "harmonic 10 = 2000 Hz" in w
+    assert "x mode at 2000 Hz" in w
+    assert "frequency (2000 Hz)" not in w
