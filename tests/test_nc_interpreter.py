@@ -4,6 +4,7 @@ cycles, strict/lenient modes, the incremental Interpreter and restart from block
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -346,3 +347,18 @@ def test_cutter_compensation_is_named_once_as_not_applied_or_refused():
     assert motion.equals(interpret(text.replace("G41 D1 ", "").replace("G42 D1 ", "")))
     with pytest.raises(NCError, match=r"p\.nc:4:1: 'G42': G42 cutter radius compensation"):
         interpret(text.replace("G41 D1 ", ""), cutter_comp="refuse", file="p.nc")
+
+
+@pytest.mark.parametrize(
+    "block,word",
+    [("O1001", "O1001"), ("T1 M6", "M6"), ("G41 D1 G1 X1 F100", "G41"), ("G43 H1 Z5", "G43"),
+     ("G81 X1 Z-1 R1 F100", "G81"), ("G1 X1 A5 F100", "A5"), ("G90.1", "G90.1")],
+)  # fmt: skip
+def test_grbl_dialect_refuses_what_grbl_answers_error_20_to(block, word):
+    text = f"G21 G90\n{block}\n"
+    interpret(text, dialect="fanuc")  # a Fanuc control takes it
+    with pytest.raises(NCError, match=rf"p\.nc:2:\d+: '{re.escape(word)}': .*GRBL"):
+        interpret(text, dialect="grbl", file="p.nc")
+    it = Interpreter(dialect="grbl", strict=False)
+    it.run(text.splitlines())
+    assert any("GRBL" in w.reason for w in it.warnings)

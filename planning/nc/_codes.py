@@ -28,6 +28,12 @@ MOTION_MODE = {0: 0, 10: 1, 20: 2, 30: 3, 800: 80, 810: 81, 820: 82, 830: 83}
 M_GROUP = {0: "stop", 1: "stop", 2: "stop", 30: "stop", 3: "spindle", 4: "spindle",
            5: "spindle", 6: "tool change", 7: "coolant", 8: "coolant", 9: "coolant"}  # fmt: skip
 KNOWN_M = set(M_GROUP)
+# What GRBL 1.1 refuses (error:20) of what this interpreter knows: cutter compensation, G43 (it
+# has only G43.1), canned cycles and their return modes, absolute arc centres, tool change, and
+# the O, D, H, Q and rotary words (3 axes).
+GRBL_UNSUPPORTED_G = frozenset({410, 420, 430, 810, 820, 830, 980, 990, 901})
+GRBL_UNSUPPORTED_M = frozenset({6})
+GRBL_UNSUPPORTED_LETTERS = frozenset("ODHQABC")
 LETTERS = frozenset("ABCDFHIJKLNOPQRSTXYZ")
 LETTERS_GM = LETTERS | {"G", "M"}
 FAST_LETTERS = frozenset("XYZFN")  # blocks with only these words skip the general word checks

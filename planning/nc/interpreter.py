@@ -42,6 +42,9 @@ seconds on GRBL):
   Motion gets ``feed_mm_min = path length * F``. F is not modal under G93, and switching between
   G93 and G94 leaves no feed set (program F again), as in RS-274/NGC. Canned cycles and feed moves
   with no travel at all under G93 are errors.
+* GRBL dialect: what GRBL 1.1 answers ``error:20`` to (G41/G42, G43, G81-G83, G98/G99, G90.1,
+  M6, O D H Q and A/B/C words) is an error (lenient: a warning), so ``dnc send`` refuses it before
+  anything is sent.
 * After M2/M30 or the closing ``%`` nothing more is executed; blocks with words there give a
   warning.
 * Strict mode (default) raises :class:`~planning.nc.NCError` for unknown G/M codes, unknown
@@ -60,6 +63,9 @@ from planning.nc import _lexer
 from planning.nc._codes import (
     FAST_LETTERS,
     G_GROUP,
+    GRBL_UNSUPPORTED_G,
+    GRBL_UNSUPPORTED_LETTERS,
+    GRBL_UNSUPPORTED_M,
     INCH_MM,
     KNOWN_M,
     LETTERS_GM,
@@ -218,6 +224,18 @@ class Interpreter(WordRules, Moves):
             raise
         self.blocks_seen = block + 1
 
+    def _grbl_words(self, raw: str, words, gcodes, mcodes, line: int) -> None:
+        """GRBL 1.1 answers error:20 to what it does not take: say so before anything is sent."""
+        for key, k in gcodes or ():
+            if key in GRBL_UNSUPPORTED_G:
+                self._problem(raw, k, f"{gname(key)} is not a GRBL 1.1 command", line)
+        for key, k in mcodes or ():
+            if key // 10 in GRBL_UNSUPPORTED_M:
+                self._problem(raw, k, f"M{key // 10} is not a GRBL 1.1 command", line)
+        for k, (letter, _) in enumerate(words):
+            if letter in GRBL_UNSUPPORTED_LETTERS:
+                self._problem(raw, k, f"GRBL 1.1 has no {letter} word", line)
+
     def _cutter_comp_word(self, raw: str, k: int, key: int, line: int) -> None:
         reason = (
             f"{gname(key)} cutter radius compensation is not applied: the motion is the "
@@ -278,6 +296,8 @@ class Interpreter(WordRules, Moves):
             v = None
         if v is None:
             gcodes, mcodes, v = self._sort_words(raw, words, line)
+        if self.dialect == "grbl":
+            self._grbl_words(raw, words, gcodes, mcodes, line)
 
         # ---- G codes: modes first so this block's words use them
         self._inverse_f = NAN
