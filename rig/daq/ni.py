@@ -75,7 +75,9 @@ HOW_TO_CONFIGURE = (
     "Install NI-DAQmx (Windows: the NI-DAQmx runtime; Linux: `python -m nidaqmx installdriver` "
     "on a supported distribution), connect the device, find its name with NI MAX or "
     "`nidaqmx.system.System.local().devices`, and set [daq] device and channels in "
-    "configs/rig.toml (or pass --rig FILE). Without hardware, use `cutlab daq record --sim`."
+    "configs/rig.toml (`cutlab daq record --rig FILE` reads another file; a campaign's [daq] "
+    "table overrides it). Without hardware, record with `cutlab daq record --sim`, or run the "
+    "campaign with rig = \"sim\"."
 )
 
 
