@@ -116,7 +116,13 @@ def _status(args: argparse.Namespace) -> int:
     if args.json:
         print_json({"campaign": campaign.name, "folder": str(folder), "runs": rows})
     else:
+        print(f"campaign folder: {folder.resolve()}")
         print_table(rows)
+        if not folder.exists():
+            status(
+                f"note: {folder} does not exist: the campaign has not run from here, or its runs "
+                "are elsewhere (--out FOLDER; `cutlab demo` writes to out/demo)"
+            )
     return 0
 
 
