@@ -18,6 +18,7 @@ from scipy import linalg, stats
 
 from analysis.errors import AnalysisError
 from analysis.steady import (
+    IDENTIFY_TOLERANCE,
     RevolutionStats,
     SyncAverager,
     find_steady,
@@ -164,13 +165,13 @@ def default_bins(rate_hz: float, period_s: float) -> int:
 
 
 def reduce_run(
-    run: ForceRun, teeth: int, n_bins: int | None = None, tolerance: float = 0.05
+    run: ForceRun, teeth: int, n_bins: int | None = None, tolerance: float = IDENTIFY_TOLERANCE
 ) -> RunAverage:
     """Steady part, offset removal, synchronous average and tooth peaks of an in-memory run.
 
     ``tolerance``: revolutions whose mean stays within this fraction of the median count as
-    steady (:func:`analysis.steady.find_steady`); a face mill entering and leaving a narrow block
-    over many revolutions wants a tighter one (0.02) so partial engagement stays out.
+    steady (:func:`analysis.steady.find_steady`); the default
+    :data:`analysis.steady.IDENTIFY_TOLERANCE` keeps a face mill's partial engagement out.
     """
     x = np.asarray(run.force_n, float)
     if x.ndim != 2 or x.shape[1] != 3:
@@ -206,7 +207,10 @@ def reduce_run(
 
 
 def reduce_runs(
-    runs: Sequence[ForceRun], teeth: int, n_bins: int | None = None, tolerance: float = 0.05
+    runs: Sequence[ForceRun],
+    teeth: int,
+    n_bins: int | None = None,
+    tolerance: float = IDENTIFY_TOLERANCE,
 ) -> tuple[list[RunAverage], list[tuple[str, str]]]:
     """:func:`reduce_run` over runs: (averages, rejected (name, reason)) — a run that cannot be
     reduced (no cutting, too short) is listed with the reason instead of stopping the others."""
@@ -411,7 +415,7 @@ def iter_run_chunks(path, chunk_samples: int = 1 << 20, start: int = 0, stop: in
 
 def reduce_run_file(
     path, teeth: int, conditions: RunConditions | None = None, n_bins: int | None = None,
-    chunk_samples: int = 1 << 20, progress=None,
+    chunk_samples: int = 1 << 20, progress=None, tolerance: float = IDENTIFY_TOLERANCE,
 ) -> RunAverage:  # fmt: skip
     """:func:`reduce_run` streamed from an HDF5 run file in two passes over chunks.
 
@@ -433,7 +437,7 @@ def reduce_run_file(
         if progress:
             progress(len(idx))
     try:
-        part = steady_from_stats(stats, rate, c.spindle_rpm)
+        part = steady_from_stats(stats, rate, c.spindle_rpm, tolerance)
     except AnalysisError as exc:
         raise type(exc)(f"run {name}: {exc}") from None
     lo = part.window.start

@@ -43,6 +43,7 @@ from analysis.endmill import (
     mean_force_design,
 )
 from analysis.errors import AnalysisError
+from analysis.steady import IDENTIFY_TOLERANCE
 
 __all__ = ["EndMillFit", "fit_endmill", "fit_endmill_runs", "synthetic_endmill_run"]
 
@@ -111,7 +112,10 @@ def fit_endmill(
 
 
 def fit_endmill_runs(
-    runs: Sequence[ForceRun], tool: EndMill, n_bins: int | None = None, tolerance: float = 0.05
+    runs: Sequence[ForceRun],
+    tool: EndMill,
+    n_bins: int | None = None,
+    tolerance: float = IDENTIFY_TOLERANCE,
 ) -> EndMillFit:
     """Reduce in-memory runs and fit; runs without steady cutting go to ``rejected``."""
     if not isinstance(tool, EndMill):

@@ -52,6 +52,7 @@ from analysis.facemill import (
     facemill_design,
     facemill_forces,
 )
+from analysis.steady import IDENTIFY_TOLERANCE
 
 __all__ = [
     "FaceMillFit",
@@ -282,7 +283,7 @@ def fit_facemill_runs(
     tool: FaceMill,
     dynamometer: Dynamometer | DynamometerFilter | None = None,
     n_bins: int | None = None,
-    tolerance: float = 0.05,
+    tolerance: float = IDENTIFY_TOLERANCE,
 ) -> FaceMillFit:
     """Reduce in-memory runs (steady part within ``tolerance``, offset, averaging) and fit. Runs
     that cannot be reduced (no cutting, too short) are listed in ``rejected`` with the reason."""

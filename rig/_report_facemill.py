@@ -18,10 +18,11 @@ from rig.report import LoadedRun, Section, md_table
 #: The coefficients seed 003 reports, then the axial pair cutlab adds.
 COEFFS = ("K_T_n_mm2", "K_R", "P_T_n_mm", "P_R_n_mm", "K_A", "P_A_n_mm")
 
-
-#: A face mill enters and leaves a block over many revolutions; revolutions within this fraction
-#: of the steady level count as steady (a looser window lets partial engagement bias the fit).
-STEADY_TOLERANCE = 0.02
+#: Under the coefficient table: the intervals cover the measurement noise, not the model error.
+CI_NOTE = (
+    "ci_low/ci_high: 95 % confidence intervals from the measurement noise only; model error "
+    "(the force model against the real cut) is not in them, so the truth may fall just outside."
+)
 
 
 def force_run(lr: LoadedRun) -> Any:
@@ -58,8 +59,9 @@ def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section
     spec = campaign.spec.analysis
     ident = [lr for lr in runs if lr.group in spec.identify_groups]
     valid = [lr for lr in runs if lr.group in spec.validate_groups]
+    # The library's steady window (analysis.steady.IDENTIFY_TOLERANCE), as `cutlab analyze forces`.
     fit = fit_facemill_runs([force_run(lr) for lr in ident], campaign.tool,
-                            campaign.rig.dynamometer, tolerance=STEADY_TOLERANCE)  # fmt: skip
+                            campaign.rig.dynamometer)  # fmt: skip
     truth = _truth(runs)
     summary: dict[str, Any] = {
         "success": fit.success,
@@ -87,7 +89,7 @@ def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section
     summary["r_squared"] = fit.fit.r_squared
     if truth is not None:
         summary["max_error_pct_seed003"] = max(abs(r["error_pct"]) for r in rows[:4])
-    md += ["", md_table(rows)]
+    md += ["", md_table(rows), "", CI_NOTE]
     # Validation: predicted vs measured mean forces of every run (identification runs too).
     vrows = []
     for lr in ident + valid:

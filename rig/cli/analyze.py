@@ -1,12 +1,14 @@
 """`cutlab analyze` commands: force coefficients from runs, dynamometer modes from a hammer test.
 
 cutlab analyze forces RUN... [--model facemill|endmill] [--tool NAME] [--validate RUN...]
+                             [--conditions KEY=VALUE...] [--steady-tolerance FRACTION]
                              [--plot DIR] [--json]
 cutlab analyze modal FILE [--hammer NAME] [--rpm RPM...] [--teeth N] [--json]
 
 RUN is an HDF5 run file (conditions from the file) or a DynoWare/plain CSV export (conditions
-from its header lines, or --conditions KEY=VALUE...). A fit that the runs cannot support prints
-its reason and exits with status 1; bad input exits with status 2.
+from its header lines); --conditions overrides them key by key for every run. A run that records
+another tool than --tool is refused. A fit that the runs cannot support prints its reason and
+exits with status 1; bad input exits with status 2.
 """
 
 from __future__ import annotations
@@ -15,23 +17,47 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+#: Printed under the coefficient table: what the intervals do and do not cover.
+CI_NOTE = (
+    "95 % confidence intervals from the measurement noise only; model error (the force model "
+    "against the real cut) is not in them"
+)
 
-def _load_runs(paths, args, rig):
-    """Reduce each RUN to its revolution average; returns (averages, rejected)."""
+
+def _condition_overrides(args) -> dict[str, str]:
+    """--conditions KEY=VALUE... as a mapping (applied over each file's own conditions)."""
+    from analysis.errors import ConfigError
+
+    bad = [item for item in args.conditions or () if "=" not in item]
+    if bad:
+        raise ConfigError(f"--conditions {bad[0]!r}: expected KEY=VALUE (e.g. fz_mm=0.2)")
+    return dict(item.split("=", 1) for item in args.conditions or ())
+
+
+def _check_tool(path, recorded: str, expected: str | None, by: str) -> None:
+    """Refuse a run cut with another tool than the fit's (a silent switch of model and teeth)."""
+    from analysis.errors import AnalysisError
+
+    if expected and recorded and recorded != expected:
+        raise AnalysisError(
+            f"{path}: the run records tool {recorded!r} but {by} is {expected!r}; leave out "
+            "--tool, or override the run's tool with --conditions tool=NAME"
+        )
+
+
+def _load_runs(paths, args, rig, expected_tool: str | None = None, by: str = "--tool"):
+    """Reduce each RUN to its revolution average; returns (averages, rejected, tool names).
+
+    Each run's conditions are its own (HDF5 conditions or the export's header) overridden key by
+    key by --conditions; ``expected_tool`` (given by ``by``) must match the tool a run records.
+    """
     from tqdm import tqdm
 
-    from analysis.errors import ConfigError
     from analysis.identify_facemill import RunConditions, reduce_run, reduce_run_file
     from analysis.importers import import_run
     from analysis.steady import NoSteadyCutError
 
-    override = None
-    if args.conditions:
-        bad = [item for item in args.conditions if "=" not in item]
-        if bad:
-            raise ConfigError(f"--conditions {bad[0]!r}: expected KEY=VALUE (e.g. fz_mm=0.2)")
-        kv = dict(item.split("=", 1) for item in args.conditions)
-        override = RunConditions.from_mapping(kv, "--conditions")
+    given = _condition_overrides(args)
     avgs, rejected, tool_names = [], [], set()
     # disable=None: tqdm stays quiet when stderr is not a terminal (CI logs).
     quiet = True if (args.json or len(paths) < 2) else None
@@ -41,23 +67,28 @@ def _load_runs(paths, args, rig):
                 from analysis.runfile import load_run
 
                 meta = load_run(p, samples=False)
-                tool_names.add(str(meta.conditions.get("tool", "")))
-                teeth = _teeth(args, str(meta.conditions.get("tool", "")))
-                avgs.append(reduce_run_file(p, teeth, override))
+                recorded = dict(meta.conditions)
+                if "fz_mm" in given:
+                    recorded.pop("feed_mm_min", None)
+                where = f"{p} (conditions" + (" and --conditions)" if given else ")")
+                cond = RunConditions.from_mapping({**recorded, **given}, where)
+                _check_tool(p, cond.tool, expected_tool, by)
+                teeth = _teeth(expected_tool or cond.tool)
+                avgs.append(reduce_run_file(p, teeth, cond, tolerance=args.steady_tolerance))
             else:
-                run = import_run(p, override, rig.dynamometer, args.rate)
-                tool_names.add(run.conditions.tool)
-                teeth = _teeth(args, run.conditions.tool)
-                avgs.append(reduce_run(run, teeth))
+                run = import_run(p, given, rig.dynamometer, args.rate)
+                _check_tool(p, run.conditions.tool, expected_tool, by)
+                teeth = _teeth(expected_tool or run.conditions.tool)
+                avgs.append(reduce_run(run, teeth, tolerance=args.steady_tolerance))
+            tool_names.add(expected_tool or avgs[-1].conditions.tool)
         except NoSteadyCutError as exc:  # a run to leave out; other bad input stops
             rejected.append((Path(p).stem, str(exc)))
     return avgs, rejected, tool_names
 
 
-def _teeth(args, tool_name: str) -> int:
+def _teeth(name: str) -> int:
     from analysis.config import EndMill, get_tool
 
-    name = args.tool or tool_name
     if not name:
         return 1
     tool = get_tool(name)
@@ -66,13 +97,18 @@ def _teeth(args, tool_name: str) -> int:
 
 def _forces(args: argparse.Namespace) -> int:
     from analysis.config import EndMill, FaceMill, get_tool, load_rig
-    from analysis.errors import AnalysisError
+    from analysis.errors import AnalysisError, ConfigError
     from analysis.identify_endmill import fit_endmill
     from analysis.identify_facemill import fit_facemill
     from rig.cli._common import print_json, print_table, status
 
+    if not 0.0 < args.steady_tolerance < 1.0:
+        raise ConfigError(
+            f"--steady-tolerance {args.steady_tolerance}: expected a fraction of the steady "
+            "force level, 0 < value < 1 (e.g. 0.02)"
+        )
     rig = load_rig(args.rig) if args.rig else load_rig()
-    avgs, rejected, tool_names = _load_runs(args.runs, args, rig)
+    avgs, rejected, tool_names = _load_runs(args.runs, args, rig, args.tool)
     names = {t for t in tool_names if t}
     if args.tool:
         tool_name = args.tool
@@ -105,6 +141,7 @@ def _forces(args: argparse.Namespace) -> int:
         "message": message,
         "coefficients": fit.coefficients.model_dump() if fit.coefficients else None,
         "statistics": stats,
+        "statistics_note": CI_NOTE,
         "r_squared": fit.fit.r_squared if fit.fit else None,
         "residual_rms_n": fit.fit.residual_rms if fit.fit else None,
         "dof": fit.fit.dof if fit.fit else None,
@@ -128,7 +165,8 @@ def _forces(args: argparse.Namespace) -> int:
 
         targets = avgs
         if args.validate:
-            targets, rej2, _ = _load_runs(args.validate, args, rig)
+            targets, rej2, _ = _load_runs(args.validate, args, rig, tool_name,
+                                          "the fitted runs' tool")  # fmt: skip
             out["rejected"] += [{"run": n, "reason": m} for n, m in rej2]
         cmp = compare_runs(targets, tool, fit.coefficients, rig.dynamometer)
         out["validation"] = {
@@ -149,6 +187,7 @@ def _forces(args: argparse.Namespace) -> int:
         print(f"{model} fit of {len(avgs)} run(s), tool {tool_name}: {message}")
         if stats:
             print_table([{"coefficient": k, **v} for k, v in stats.items()])
+            print(CI_NOTE)
         if "validation" in out:
             print()
             print_table(
@@ -246,6 +285,8 @@ def _modal(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
+    from analysis.steady import IDENTIFY_TOLERANCE
+
     p = sub.add_parser("analyze", help="force coefficients from runs, dynamometer modes")
     psub = p.add_subparsers(dest="analyze_command", metavar="ANALYZE_COMMAND")
     psub.required = True
@@ -257,9 +298,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--rig", default=None, help="rig config (default configs/rig.toml)")
     f.add_argument(
         "--conditions", nargs="*", metavar="KEY=VALUE",
-        help="conditions for exports without them (spindle_rpm=600 fz_mm=0.236 ...)",
+        help="conditions applied over each run's own (file header or run file), key by key "
+        "(spindle_rpm=600 depth_mm=2 mode=slot ...)",
     )  # fmt: skip
     f.add_argument("--rate", type=float, default=None, help="Hz, for exports without a rate")
+    f.add_argument(
+        "--steady-tolerance", type=float, default=IDENTIFY_TOLERANCE, metavar="FRACTION",
+        help="revolutions whose mean force is within this fraction of the steady level (median) "
+        f"count as steady cutting; fraction, default {IDENTIFY_TOLERANCE} (0.02 = 2 %%)",
+    )  # fmt: skip
     f.add_argument("--validate", nargs="*", default=None, metavar="RUN",
                    help="runs to predict with the fitted coefficients")  # fmt: skip
     f.add_argument("--plot", default=None, metavar="DIR", help="write validation PNGs here")
