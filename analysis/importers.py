@@ -239,8 +239,10 @@ def import_run(
 ) -> ForceRun:
     """A force run (N, dynamometer X, Y, Z) from a DynoWare export or plain CSV.
 
-    ``conditions`` override the file's header; ``rate_hz`` is needed when neither the header
-    nor a time column gives the rate.
+    ``conditions``: a mapping overrides the conditions in the file's header key by key (the
+    header's ``fz_mm`` stays unless the mapping gives one); a :class:`RunConditions` replaces
+    them. A condition in neither is an error naming the file and the key. ``rate_hz`` is needed
+    when neither the header nor a time column gives the rate.
     """
     t = read_force_table(path)
     rate = rate_hz if rate_hz is not None else t.rate_hz
@@ -264,14 +266,18 @@ def import_run(
             f"{t.path}: force channels in mixed units ({', '.join(sorted(units_seen))}); "
             "export all channels in N"
         )
-    if conditions is None:
+    if not isinstance(conditions, RunConditions):
         # Header numbers follow the file's locale too ("0,236").
-        cond_map = {
+        cond_map: dict[str, Any] = {
             k: (v.replace(",", ".") if re.fullmatch(r"[+-]?\d+,\d+", v) else v)
             for k, v in t.header.items()
             if k in _CONDITION_KEYS
         }
-        conditions = RunConditions.from_mapping(cond_map, str(t.path))
-    elif not isinstance(conditions, RunConditions):
-        conditions = RunConditions.from_mapping(conditions, str(t.path))
+        given = dict(conditions or {})
+        if "fz_mm" in given:
+            # An explicit feed per tooth wins over a header's feed_mm_min with teeth too.
+            cond_map.pop("feed_mm_min", None)
+        cond_map.update(given)
+        where = f"{t.path} (header" + (" and the given conditions)" if given else ")")
+        conditions = RunConditions.from_mapping(cond_map, where)
     return ForceRun(t.path.stem, force, float(rate), conditions, "N")
