@@ -63,6 +63,26 @@ _WEIGHTS = {
 _FAMILY_WEIGHT = 0.25
 
 
+class GroupExistsError(AnalysisError):
+    """A group with this key is stored already (``replace=True`` replaces it)."""
+
+    def __init__(self, path: Path, key: GroupKey, group_id: int) -> None:
+        self.path, self.key, self.group_id = path, key, group_id
+        super().__init__(
+            f"{path}: group {group_id} has this key already ({_key_text(key)}); "
+            "replace=True replaces its rule"
+        )
+
+
+def _fmt(v: object) -> str:
+    """A key value as a user typed it: 30 not 30.0, strings quoted."""
+    return f"{v:g}" if isinstance(v, float) else repr(v) if isinstance(v, str) else str(v)
+
+
+def _key_text(key: GroupKey) -> str:
+    return ", ".join(f"{k} = {_fmt(v)}" for k, v in asdict(key).items())
+
+
 @dataclass(frozen=True)
 class GroupKey:
     """What identifies a machining group (seed 001 Table 1)."""
@@ -146,8 +166,17 @@ def default_path() -> Path:
 class RuleBase:
     """The SQLite rule base. Use as a context manager or call :meth:`close`."""
 
-    def __init__(self, path: str | Path | None = None, timeout_s: float = 30.0) -> None:
+    def __init__(
+        self, path: str | Path | None = None, timeout_s: float = 30.0, *, create: bool = True
+    ) -> None:
+        """Open the rule base at ``path`` (default :func:`default_path`). ``create=False``
+        refuses a file that does not exist instead of creating an empty base there (a mistyped
+        path must not read as an empty base)."""
         self.path = Path(path) if path is not None else default_path()
+        if not create and not self.path.is_file():
+            raise ConfigError(
+                f"{self.path}: no rule base here (no such file); adding a rule creates one"
+            )
         self.path.parent.mkdir(parents=True, exist_ok=True)
         try:
             self._con = sqlite3.connect(self.path, timeout=timeout_s, isolation_level=None)
@@ -225,9 +254,8 @@ class RuleBase:
                 cur = con.execute(sql, row)
                 return int(cur.lastrowid)
         except sqlite3.IntegrityError:
-            raise AnalysisError(
-                f"{self.path}: a group with key {asdict(key)} exists already (use replace)"
-            ) from None
+            same = [g for g in self._rows("WHERE operation = ?", (key.operation,)) if g.key == key]
+            raise GroupExistsError(self.path, key, same[0].id if same else -1) from None
 
     def remove(self, group_id: int) -> None:
         with self._tx() as con:
@@ -278,11 +306,10 @@ class RuleBase:
         for g in cands:
             if g.key == key:
                 return Match(g, True, 0.0, {})
-        if exact_only or not cands:
+        if not cands:
             have = sorted({(g.key.operation, g.key.material) for g in self.list()})
-            what = "exactly " if exact_only and cands else ""
             raise AnalysisError(
-                f"{self.path}: no rule {what}for operation '{key.operation}' and material "
+                f"{self.path}: no rule for operation '{key.operation}' and material "
                 f"'{key.material}'; the base has (operation, material): {have}"
             )
 
@@ -299,6 +326,8 @@ class RuleBase:
             for f in fields(GroupKey)
             if getattr(key, f.name) != getattr(best.key, f.name)
         }
+        if exact_only:
+            raise AnalysisError(f"{self.path}: {_no_exact(key, cands, best, diffs)}")
         return Match(best, False, dist(best), diffs)
 
     def export(self, group_id: int, path: str | Path) -> Path:
@@ -311,3 +340,20 @@ class RuleBase:
 
     def integrity_ok(self) -> bool:
         return self._con.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+
+
+def _no_exact(
+    key: GroupKey, cands: list[Group], best: Group, diffs: dict[str, tuple[object, object]]
+) -> str:
+    """Why an exact lookup failed: each key field in which the nearest group differs, with the
+    values the base holds for it among the groups of the same operation and material."""
+    where = f"{key.operation}/{key.material}"
+    parts = []
+    for f in diffs:
+        have = sorted({getattr(g.key, f) for g in cands})
+        parts.append(f"{f} = {_fmt(getattr(key, f))} (the base has {', '.join(map(_fmt, have))})")
+    return (
+        f"no rule for {'; '.join(parts)} among the {len(cands)} {where} group(s); nearest: "
+        f"group {best.id} ({best.rule_name}) with "
+        + ", ".join(f"{f} = {_fmt(b)}" for f, (_, b) in diffs.items())
+    )

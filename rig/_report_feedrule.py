@@ -47,7 +47,8 @@ def feed_rule_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Sectio
         "base_feed_mm_min": base,
         "reference_load_pct": sweep.reference_load_pct,
     }
-    md = [f"Base feed: {res.message}\n", md_table(rows)]
+    # res.message is a sentence of its own ("base feed 1000 mm/min: between ..."): no prefix
+    md = [f"{res.message[:1].upper()}{res.message[1:]}.\n", md_table(rows)]
     _plot_sweep(rows, base, out / "sweep.png", campaign.name)
     md.append("![force against feed](sweep.png)\n")
     if fr is not None and sweep.reference_load_pct and math.isfinite(base):

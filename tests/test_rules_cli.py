@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from _rules_sweep import FS, RPM, sweep
 
 from analysis.config import load_rig
-from analysis.rules import load_rule
+from analysis.rules import derive_rule, load_rule, save_rule
+from rig._report_feedrule import feed_rule_section
 from rig.calibration import Calibration
 from rig.cli import main
 from rig.daq.base import SAMPLE_FORMAT_VOLTS, DaqInfo
@@ -115,3 +117,104 @@ def test_rules_derive_without_a_change_fails_cleanly(tmp_path, capsys) -> None:
     err = capsys.readouterr().err
     assert "no base feed found: no sharp change" in err and "--base-feed" in err
     assert not (tmp_path / "r.toml").exists()
+
+
+def _rule_base(tmp_path) -> tuple[str, list[str]]:
+    """A rule base holding one group (roughing/gm241, phi 30) and the CLI key that selects it."""
+    rule = tmp_path / "gm241.toml"
+    save_rule(derive_rule("gm241", 100, 1000, 3500, 0.1329), rule)
+    db = str(tmp_path / "rb.sqlite")
+    key = ["--part-family", "trunk/outer/draw/lower-die", "--operation", "roughing",
+           "--tool-diameter", "30", "--flute-length", "30", "--material", "gm241",
+           "--spindle", "2000", "--depth", "0.3", "--tolerance", "0.05"]  # fmt: skip
+    assert main(["rules", "add", str(rule), *key, "--db", db]) == 0
+    return db, key
+
+
+def test_derived_description_says_base_feed_once(tmp_path, capsys) -> None:
+    runs = _write_runs(tmp_path)
+    out = tmp_path / "r.toml"
+    assert main(["rules", "derive", *map(str, runs), "-o", str(out)]) == 0
+    text = load_rule(out).description
+    assert (
+        text.startswith("base feed 1000 mm/min: between 1000 and 1200")
+        and text.count("base feed") == 1
+    )
+    assert main(["rules", "derive", *map(str, runs[:3]), "-o", str(out), "--base-feed", "900"]) == 0
+    assert load_rule(out).description == "base feed 900 mm/min given with --base-feed"
+    capsys.readouterr()
+
+
+def test_feed_rule_report_says_base_feed_once(tmp_path) -> None:
+    runs = _write_runs(tmp_path)
+    spec = SimpleNamespace(
+        analysis=SimpleNamespace(identify_groups=(), rule_name="derived"),
+        feed_rule=SimpleNamespace(min_feed_mm_min=100.0, max_feed_mm_min=3500.0,
+                                  base_feed_mm_min=1000.0, exponent=1.0, n_bins=20),
+    )  # fmt: skip
+    out = tmp_path / "report"
+    out.mkdir()
+    sec = feed_rule_section(
+        SimpleNamespace(spec=spec, name="sweep"),
+        [SimpleNamespace(path=p, group="sweep") for p in runs],
+        out,
+    )
+    first = sec.markdown.splitlines()[0]
+    assert first.startswith("Base feed 1000 mm/min: between 1000 and 1200 mm/min the")
+    assert first.lower().count("base feed") == 1
+    assert sec.summary["base_feed_mm_min"] == 1000 and (out / "derived.toml").exists()
+
+
+def test_commands_other_than_add_refuse_a_missing_rule_base(tmp_path, capsys) -> None:
+    db, key = _rule_base(tmp_path)
+    typo = tmp_path / "rulbase.sqlite"
+    for argv in (
+        ["rules", "list"],
+        ["rules", "show", "gm241"],
+        ["rules", "lookup", *key],
+        ["rules", "export", "gm241", "-o", str(tmp_path / "x.toml")],
+    ):
+        capsys.readouterr()
+        assert main([*argv, "--db", str(typo)]) == 2, argv
+        err = capsys.readouterr().err.strip()
+        assert err == (
+            f"cutlab: error: {typo}: no rule base here (no such file); `cutlab rules add` "
+            "creates it"
+        )
+        assert not typo.exists()
+    assert main(["rules", "list", "--db", db, "--json"]) == 0
+    assert [g["rule"] for g in json.loads(capsys.readouterr().out)] == ["gm241"]
+
+
+def test_add_onto_an_existing_group_names_replace_option(tmp_path, capsys) -> None:
+    db, key = _rule_base(tmp_path)
+    other = save_rule(derive_rule("gm241-b", 100, 800, 3500, 0.1329), tmp_path / "b.toml")
+    capsys.readouterr()
+    assert main(["rules", "add", str(other), *key, "--db", db]) == 2
+    err = capsys.readouterr().err
+    assert "group 1 has this key already; add --replace to replace its rule" in err
+    assert "use replace" not in err and len(err.strip().splitlines()) == 1
+    assert main(["rules", "add", str(other), *key, "--db", db, "--replace"]) == 0
+    capsys.readouterr()
+    assert main(["rules", "show", "gm241-b", "--db", db, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["base_feed_mm_min"] == 800
+
+
+def test_lookup_exact_names_the_fields_that_differ(tmp_path, capsys) -> None:
+    db, key = _rule_base(tmp_path)
+    other = save_rule(derive_rule("gm241-50", 100, 800, 3500, 0.1329), tmp_path / "b.toml")
+    key50 = list(key)
+    key50[key50.index("--tool-diameter") + 1] = "50"
+    assert main(["rules", "add", str(other), *key50, "--db", db]) == 0
+    key32 = list(key)
+    key32[key32.index("--tool-diameter") + 1] = "32"
+    capsys.readouterr()
+    assert main(["rules", "lookup", *key32, "--exact", "--db", db]) == 2
+    err = capsys.readouterr().err
+    assert (
+        "no rule for tool_diameter_mm = 32 (the base has 30, 50) among the 2 roughing/gm241" in err
+    )
+    assert "nearest: group 1 (gm241) with tool_diameter_mm = 30" in err
+    assert "the base has (operation, material)" not in err
+    assert main(["rules", "lookup", *key, "--exact", "--db", db]) == 0
+    assert "exact match: group 1 (gm241)" in capsys.readouterr().out

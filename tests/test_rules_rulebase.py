@@ -13,7 +13,7 @@ import pytest
 
 from analysis.errors import AnalysisError, ConfigError
 from analysis.load import slot_load_percent
-from analysis.rulebase import GroupKey, RuleBase
+from analysis.rulebase import GroupExistsError, GroupKey, RuleBase
 from analysis.rules import derive_rule, rule_to_toml, save_rule
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -78,17 +78,37 @@ def test_exact_and_nearest_lookup(db) -> None:
     assert (
         "nearest match" in near.statement() and "tool_diameter_mm 40.0 -> 50.0" in near.statement()
     )
-    with pytest.raises(AnalysisError, match="no rule exactly"):
-        db.lookup(_key(tool_diameter_mm=40.0), exact_only=True)
     with pytest.raises(
         AnalysisError, match="no rule for operation 'roughing' and material 'SKD11'"
     ):
         db.lookup(_key(material="SKD11"))
 
 
+def test_exact_lookup_names_the_key_fields_that_differ(db) -> None:
+    """--exact with no exact row: the message names each differing key field, the asked value and
+    the values the base holds for the same operation/material, not just (operation, material)."""
+    db.add(_key(tool_diameter_mm=30.0), _rule("abc30", 650))
+    with pytest.raises(AnalysisError) as err:
+        db.lookup(_key(tool_diameter_mm=32.0), exact_only=True)
+    msg = str(err.value)
+    assert "no rule for tool_diameter_mm = 32 (the base has 30, 50)" in msg
+    assert "2 roughing/FC30 group(s)" in msg
+    assert "nearest: group 4 (abc30) with tool_diameter_mm = 30" in msg
+    assert "the base has (operation, material)" not in msg and "\n" not in msg
+    # Two fields off: both named, each with what the base has; untouched fields are not named.
+    with pytest.raises(AnalysisError) as err:
+        db.lookup(_key(tool_diameter_mm=32.0, depth_mm=0.8), exact_only=True)
+    msg = str(err.value)
+    assert "tool_diameter_mm = 32 (the base has 30, 50); depth_mm = 0.8 (the base has 0.5)" in msg
+    assert "spindle_rpm" not in msg and "part_family" not in msg
+    # Without --exact the same key gives the nearest match, stated.
+    assert db.lookup(_key(tool_diameter_mm=32.0)).group.rule_name == "abc30"
+
+
 def test_duplicate_key_rejected_unless_replace(db) -> None:
-    with pytest.raises(AnalysisError, match="exists already"):
+    with pytest.raises(GroupExistsError, match="group 1 has this key already") as err:
         db.add(_key(), _rule("again"))
+    assert err.value.group_id == 1 and "use replace" not in str(err.value)
     db.add(_key(), _rule("again", 700), replace=True)
     assert db.lookup(_key()).group.rule_name == "again"
     assert len(db.list()) == 3
@@ -113,6 +133,17 @@ def test_malformed_rule_file_rejected_with_file_field_value(db, tmp_path) -> Non
     ):
         db.import_file(p, _key(operation="x"))
     assert len(db.list()) == 3  # nothing stored
+
+
+def test_missing_file_refused_unless_create(tmp_path) -> None:
+    p = tmp_path / "rulbase.sqlite"  # a typo of an existing base's name
+    with pytest.raises(ConfigError, match=r"rulbase.sqlite: no rule base here \(no such file\)"):
+        RuleBase(p, create=False)
+    assert not p.exists()
+    with RuleBase(p) as rb:  # the default creates it (what adding a rule needs)
+        assert rb.list() == []
+    with RuleBase(p, create=False) as rb:
+        assert rb.integrity_ok()
 
 
 def test_not_a_rulebase(tmp_path) -> None:

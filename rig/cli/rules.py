@@ -88,6 +88,20 @@ def register(sub: argparse._SubParsersAction) -> None:
     ex.set_defaults(func=_export)
 
 
+def _open(db: Path | None):
+    """The rule base of ``--db`` (default from configs/lab.toml) for every command but ``add``:
+    a path that does not exist is an error, not a new empty base (a typo must not read as one)."""
+    from analysis.errors import ConfigError
+    from analysis.rulebase import RuleBase, default_path
+
+    path = db if db is not None else default_path()
+    if not path.is_file():
+        raise ConfigError(
+            f"{path}: no rule base here (no such file); `cutlab rules add` creates it"
+        )
+    return RuleBase(path, create=False)
+
+
 def _key(args: argparse.Namespace):
     from analysis.rulebase import GroupKey
 
@@ -113,7 +127,7 @@ def _derive(args: argparse.Namespace) -> int:
     settings = BaseFeedSettings(args.slope_ratio, args.vibration_ratio, criterion=args.criterion)
     result = find_base_feed(sweep.runs, settings) if len(sweep.runs) >= 4 else None
     if args.base_feed is not None:
-        base, how = args.base_feed, "given with --base-feed"
+        base, how = args.base_feed, f"base feed {args.base_feed:g} mm/min given with --base-feed"
     elif result is not None and result.found:
         base, how = result.base_feed_mm_min, result.message
     else:
@@ -139,7 +153,7 @@ def _derive(args: argparse.Namespace) -> int:
         ref,
         exponent=args.exponent,
         n_bins=args.bins,
-        description=f"base feed {how}",
+        description=how,  # a whole sentence already ("base feed 1000 mm/min: ...")
         source=f"feed sweep: {src}",
     )
     save_rule(rule, args.output)
@@ -172,10 +186,17 @@ def _derive(args: argparse.Namespace) -> int:
 
 
 def _add(args: argparse.Namespace) -> int:
-    from analysis.rulebase import RuleBase
+    from analysis.errors import AnalysisError
+    from analysis.rulebase import GroupExistsError, RuleBase
 
     with RuleBase(args.db) as rb:
-        gid = rb.import_file(args.rule, _key(args), note=args.note, replace=args.replace)
+        try:
+            gid = rb.import_file(args.rule, _key(args), note=args.note, replace=args.replace)
+        except GroupExistsError as exc:
+            raise AnalysisError(
+                f"{exc.path}: group {exc.group_id} has this key already; add --replace to "
+                "replace its rule"
+            ) from None
         g = rb.get(gid)
     if args.json:
         print_json(g.summary())
@@ -185,9 +206,7 @@ def _add(args: argparse.Namespace) -> int:
 
 
 def _list(args: argparse.Namespace) -> int:
-    from analysis.rulebase import RuleBase
-
-    with RuleBase(args.db) as rb:
+    with _open(args.db) as rb:
         rows = [g.summary() for g in rb.list()]
     if args.json:
         print_json(rows)
@@ -197,14 +216,13 @@ def _list(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from analysis.rulebase import RuleBase
     from analysis.rules import load_rule, plot_rule
 
     p = Path(args.rule)
     if p.suffix == ".toml" and p.exists():
         rule, where = load_rule(p), str(p)
     else:
-        with RuleBase(args.db) as rb:
+        with _open(args.db) as rb:
             g = rb.find(args.rule)
             rule, where = g.rule, f"group {g.id} of {rb.path}"
     if args.png:
@@ -233,9 +251,7 @@ def _show(args: argparse.Namespace) -> int:
 
 
 def _lookup(args: argparse.Namespace) -> int:
-    from analysis.rulebase import RuleBase
-
-    with RuleBase(args.db) as rb:
+    with _open(args.db) as rb:
         m = rb.lookup(_key(args), exact_only=args.exact)
     if args.json:
         print_json(
@@ -253,9 +269,7 @@ def _lookup(args: argparse.Namespace) -> int:
 
 
 def _export(args: argparse.Namespace) -> int:
-    from analysis.rulebase import RuleBase
-
-    with RuleBase(args.db) as rb:
+    with _open(args.db) as rb:
         g = rb.find(args.rule)
         rb.export(g.id, args.output)
     status(f"wrote {args.output}")
