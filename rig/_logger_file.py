@@ -109,7 +109,7 @@ def create_run_file(
     and its samples dataset. ``compression``: "auto" (gzip 1 + shuffle for int16 codes, none for
     float64), "gzip" or None."""
     if path.exists() and not overwrite:
-        raise RunWriterError(f"{path}: file exists (pass overwrite / --force)")
+        raise RunWriterError(f"{path}: file exists (overwrite=True replaces it)")
     path.parent.mkdir(parents=True, exist_ok=True)
     c = info.n_channels
     block_bytes = info.block_samples * c * info.dtype.itemsize

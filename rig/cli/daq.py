@@ -8,8 +8,51 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import time
 from pathlib import Path
+from typing import Any
+
+
+def parse_conditions(items: list[str]) -> dict[str, Any]:
+    """``--conditions``: one JSON object, or KEY=VALUE pairs as `cutlab analyze forces` takes
+    them (numbers become numbers: ``spindle_rpm=600 tool=phi10-flat``)."""
+    from analysis.errors import ConfigError
+
+    if not items:
+        return {}
+    if len(items) == 1 and items[0].lstrip().startswith("{"):
+        try:
+            obj = json.loads(items[0])
+        except json.JSONDecodeError as exc:
+            raise ConfigError(f"--conditions {items[0]!r}: not a JSON object ({exc})") from None
+        if not isinstance(obj, dict):
+            raise ConfigError(f"--conditions {items[0]!r}: expected a JSON object")
+        return obj
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, val = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ConfigError(
+                f"--conditions {item!r}: expected KEY=VALUE (e.g. spindle_rpm=600) or one JSON "
+                "object"
+            )
+        if key in out:
+            raise ConfigError(f"--conditions: {key} given twice")
+        out[key] = _number_or_text(val.strip())
+    return out
+
+
+def _number_or_text(text: str) -> int | float | str:
+    """600 -> 600, 0.236 -> 0.236, phi10-flat -> 'phi10-flat' (nan/inf stay text)."""
+    for kind in (int, float):
+        try:
+            v = kind(text)
+        except ValueError:
+            continue
+        return v if math.isfinite(v) else text
+    return text
 
 
 def _record(args: argparse.Namespace) -> int:
@@ -19,24 +62,23 @@ def _record(args: argparse.Namespace) -> int:
     from analysis.errors import ConfigError
     from rig.calibration import Calibration
     from rig.cli._common import print_json, print_table, status
-    from rig.daq.record import milling_force_source, record
+    from rig.daq.record import aliasing_warning, milling_force_source, record
 
     rig_path = args.rig
     rig = load_rig(rig_path)
     where = str(rig_path or "configs/rig.toml")
     if not args.seconds > 0:
         raise ConfigError(f"--seconds = {args.seconds}: must be > 0 (s)")
-    conditions = {}
-    if args.conditions:
-        try:
-            conditions = json.loads(args.conditions)
-        except json.JSONDecodeError as exc:
-            raise ConfigError(f"--conditions is not JSON: {exc}") from None
-        if not isinstance(conditions, dict):
-            raise ConfigError("--conditions must be a JSON object, e.g. '{\"feed_mm_min\": 300}'")
+    conditions = parse_conditions(args.conditions)
     rate_hz = float(args.rate_hz or rig.daq.rate_hz)
     if not 0 < rate_hz <= 10_000_000:
         raise ConfigError(f"--rate-hz = {rate_hz}: must be in (0, 1e7] Hz")
+    out = Path(args.output)
+    if out.exists() and not args.force:  # before any device is opened
+        raise ConfigError(f"{out}: file exists; --force overwrites it")
+    notes = [w for w in [aliasing_warning(rate_hz, rig.dynamometer)] if w]
+    for w in notes:
+        status(f"daq record: {w}")
 
     if args.sim:
         from rig.daq.sim import SimDaq
@@ -89,7 +131,6 @@ def _record(args: argparse.Namespace) -> int:
     if cal is not None:
         rig_meta["calibration_id"] = cal.calibration_id
 
-    out = Path(args.output)
     # disable=None: tqdm turns itself off when stderr is not a terminal (CI logs)
     bar = tqdm(total=round(args.seconds, 3), unit="s", desc="recording",
                disable=True if args.quiet else None)  # fmt: skip
@@ -110,6 +151,7 @@ def _record(args: argparse.Namespace) -> int:
             conditions=conditions,
             rig=rig_meta,
             progress=progress,
+            notes=notes,
         )
         progress(res.samples_acquired / daq.info.rate_hz)
     finally:
@@ -166,7 +208,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="--sim: inject a buffer overflow at these sample indices",
     )
     r.add_argument("--flush-s", type=float, default=1.0, help="s between flushes (<= 60)")
-    r.add_argument("--conditions", default="", help="cutting conditions as a JSON object")
+    r.add_argument(
+        "--conditions",
+        nargs="+",
+        default=[],
+        metavar="KEY=VALUE",
+        help="cutting conditions as KEY=VALUE pairs (spindle_rpm=600 tool=phi10-flat; numbers "
+        "stored as numbers) or one JSON object ('{\"feed_mm_min\": 300}')",
+    )
     r.add_argument("--force", action="store_true", help="overwrite an existing file")
     r.add_argument("--quiet", action="store_true", help="no progress bar")
     r.add_argument("--json", action="store_true", help="summary as JSON on stdout")

@@ -7,7 +7,7 @@ milling-force source that ``--sim`` records when no simulated machine drives the
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -47,6 +47,23 @@ def milling_force_source(
     return source
 
 
+def aliasing_warning(rate_hz: float, dynamometer: Any) -> str | None:
+    """A one-line warning when ``rate_hz`` (Hz per channel) is below twice the highest mode of
+    ``dynamometer`` (an ``analysis.config.Dynamometer``, modes with the workpiece mounted, seed 003
+    Table 2), else None. Below that the mode aliases into the force band and cannot be filtered."""
+    modes = tuple(getattr(dynamometer, "modes", ()))
+    if not modes:
+        return None
+    top = max(modes, key=lambda m: m.frequency_hz)
+    need_hz = 2.0 * top.frequency_hz
+    if rate_hz >= need_hz:
+        return None
+    return (
+        f"warning: sample rate {rate_hz:g} Hz is below twice the highest mode of the "
+        f"{dynamometer.model} ({top.axis} {top.frequency_hz:g} Hz): use >= {need_hz:g} Hz"
+    )
+
+
 @dataclass(frozen=True)
 class RecordResult:
     path: Path
@@ -69,11 +86,13 @@ def record(
     conditions: Mapping[str, Any] | None = None,
     rig: Mapping[str, Any] | None = None,
     progress: Callable[[float], None] | None = None,
+    notes: Sequence[str] = (),
 ) -> RecordResult:
     """Acquire for ``seconds`` of device time (or until the DAQ ends by itself) into ``path``.
 
     ``progress(seconds_acquired)`` is called about ten times a second. Ctrl-C ends the run with
     status ``abort``; a DAQ error with status ``fail`` (the file keeps what was acquired).
+    ``notes`` (e.g. :func:`aliasing_warning`) are stored as ``note`` events at sample 0.
     """
     writer = RunWriter(
         path,
@@ -88,6 +107,8 @@ def record(
         writer.set_conditions(conditions)
     if rig:
         writer.set_rig(rig)
+    for note in notes:
+        writer.event(rf.EV_NOTE, note, sample=0)
     status, reason = rf.STATUS_SUCCESS, ""
     try:
         daq.start(writer)
