@@ -102,6 +102,17 @@ def test_sim_controller_rejects_unknown_knob(capsys) -> None:
     assert rc == 2 and "unknown knob" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(("protocol", "extra"), [("fanuc", ""), ("grbl", "error_at_block, ")])
+def test_unknown_knob_lists_the_valid_ones(capsys, protocol, extra) -> None:
+    rc = main(["dnc", "sim-controller", "--protocol", protocol, "--sim", "foo=1"])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and err == (
+        f"cutlab: error: --sim foo: unknown knob for the {protocol} controller; valid knobs: "
+        f"alarm_at_block, alarm_at_s, drop_port_after_block, {extra}overrun_at_byte, "
+        "stop_answering_after_block, stop_answering_at_s"
+    )
+
+
 @pytest.mark.skipif(not os.path.exists("/dev/ptmx"), reason="needs pseudo-terminals")
 def test_sim_controller_fanuc_prints_a_tty() -> None:
     proc, path = _start_sim("--protocol", "fanuc", "--json")

@@ -168,6 +168,34 @@ def _knobs(items: list[str]) -> dict[str, Any]:
     return out
 
 
+def _check_knobs(knobs: dict[str, Any], protocol: str) -> None:
+    """Refuse a knob the controller class does not take, listing the ones it does (the
+    ``sim_*`` keyword parameters of its ``__init__`` and its bases')."""
+    import inspect
+
+    from rig.dnc.errors import DncError
+
+    if protocol == "fanuc":
+        from rig.sim.fanuc import SimFanuc as cls
+    else:
+        from rig.sim.grbl import SimGrbl as cls
+    valid = sorted(
+        {
+            name.removeprefix("sim_")
+            for klass in cls.__mro__
+            if "__init__" in vars(klass)
+            for name in inspect.signature(klass.__init__).parameters
+            if name.startswith("sim_")
+        }
+    )
+    bad = [k.removeprefix("sim_") for k in knobs if k.removeprefix("sim_") not in valid]
+    if bad:
+        raise DncError(
+            f"--sim {bad[0]}: unknown knob for the {protocol} controller; valid knobs: "
+            + ", ".join(valid)
+        )
+
+
 def _sim_controller(args: argparse.Namespace) -> int:
     import signal
     import threading
@@ -178,6 +206,7 @@ def _sim_controller(args: argparse.Namespace) -> int:
     protocol = _protocol(args.protocol)
     machine = _machine(args.machine, protocol)
     knobs = _knobs(args.sim)
+    _check_knobs(knobs, protocol)
     baud = args.baud or machine.serial.baudrate
     clock = SimClock(args.speed) if args.speed > 0 else None
     if clock is None:
@@ -201,8 +230,8 @@ def _sim_controller(args: argparse.Namespace) -> int:
             from rig.sim.grbl import SimGrbl
 
             ctl = SimGrbl(machine, clock=clock, baudrate=baud, **knobs)
-    except TypeError as exc:
-        raise DncError(f"--sim: unknown knob for the {protocol} controller ({exc})") from None
+    except TypeError as exc:  # a knob of the right name but an unusable value
+        raise DncError(f"--sim: the {protocol} controller refused the knobs ({exc})") from None
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())  # before the path is out: a script
     path = ctl.start()  # may stop us as soon as it has read it
