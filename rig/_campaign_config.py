@@ -346,57 +346,56 @@ def check_tests(
     tool: EndMill | FaceMill,
     program: ProgramSection,
     where: str,
+    text: str = "",
 ) -> None:
-    """Raise :class:`ConfigError` listing every impossible test (all, not just the first)."""
-    problems: list[str] = []
+    """Raise :class:`ConfigError` listing every impossible condition (all, not just the first),
+    once per field, with the line of the field in ``text`` and the tests it affects."""
+    found: dict[tuple[str, str], list[RunConditions]] = {}
+    program_line = _table_line(text, "program")
+
+    def add(t: RunConditions, fields: tuple[str, ...], msg: str, in_program: bool = False) -> None:
+        start = program_line if in_program else t.source_line
+        line = next((n for f in fields if (n := _field_line(text, start, f))), start)
+        place = f"{where}:{line}" if line else where
+        found.setdefault((place, msg), []).append(t)
+
     depth_limit = tool.depth_limit_mm if isinstance(tool, FaceMill) else tool.flute_length_mm
+    sweep = program.kind == "feed-sweep"
     for t in tests:
-        place = f"{where}:{t.source_line}" if t.source_line else where
-        head = f"{place}: test {t.index} ({t.group})"
-        feeds = [t.feed_mm_min]
-        if program.kind == "feed-sweep":
-            feeds = list(program.sweep_feeds_mm_min)
-        for f in feeds:
-            if f > machine.feed_max_mm_min:
-                problems.append(
-                    f"{head}: feed = {f:g} mm/min (fz {t.fz_mm:g} mm/tooth x {_teeth(tool)} x "
-                    f"{t.spindle_rpm:g} rpm) is above machine '{machine.name}' feed_max_mm_min = "
-                    f"{machine.feed_max_mm_min:g} mm/min"
-                )
-            if f < machine.feed_min_mm_min:
-                problems.append(
-                    f"{head}: feed = {f:g} mm/min is below feed_min_mm_min = "
-                    f"{machine.feed_min_mm_min:g} mm/min"
-                )
-        if t.spindle_rpm > machine.spindle_max_rpm:
-            problems.append(
-                f"{head}: spindle_rpm = {t.spindle_rpm:g} is above machine '{machine.name}' "
-                f"spindle_max_rpm = {machine.spindle_max_rpm:g} rpm"
+        for f in list(program.sweep_feeds_mm_min) if sweep else [t.feed_mm_min]:
+            fields = ("sweep_feeds_mm_min",) if sweep else ("fz_mm", "feed_mm_min")
+            how = (
+                ""
+                if sweep
+                else f" (fz {t.fz_mm:g} mm/tooth x {_teeth(tool)} x {t.spindle_rpm:g} rpm)"
             )
-        depths = [t.depth_mm]
-        if program.kind == "step-depth":
-            depths = list(program.step_depths_mm)
-        for d in depths:
+            if f > machine.feed_max_mm_min:
+                add(t, fields, f"feed = {f:g} mm/min{how} is above machine '{machine.name}' "
+                    f"feed_max_mm_min = {machine.feed_max_mm_min:g} mm/min", sweep)  # fmt: skip
+            if f < machine.feed_min_mm_min:
+                add(t, fields, f"feed = {f:g} mm/min is below feed_min_mm_min = "
+                    f"{machine.feed_min_mm_min:g} mm/min", sweep)  # fmt: skip
+        if t.spindle_rpm > machine.spindle_max_rpm:
+            add(t, ("spindle_rpm",), f"spindle_rpm = {t.spindle_rpm:g} is above machine "
+                f"'{machine.name}' spindle_max_rpm = {machine.spindle_max_rpm:g} rpm")  # fmt: skip
+        steps = program.kind == "step-depth"
+        for d in list(program.step_depths_mm) if steps else [t.depth_mm]:
+            fields = ("step_depths_mm",) if steps else ("depth_mm",)
             if not d == d:  # NaN
-                problems.append(f"{head}: depth_mm missing: give the axial depth of cut (mm)")
+                add(t, fields, "depth_mm missing: give the axial depth of cut (mm)", steps)
             elif d > depth_limit:
                 kind = "usable insert edge" if isinstance(tool, FaceMill) else "flute length"
-                problems.append(
-                    f"{head}: depth_mm = {d:g} is beyond the {kind} of tool '{program_tool(tool)}'"
-                    f" ({depth_limit:.3g} mm)"
-                )
+                add(t, fields, f"depth_mm = {d:g} is beyond the {kind} of tool "
+                    f"'{program_tool(tool)}' ({depth_limit:.3g} mm)", steps)  # fmt: skip
         if isinstance(tool, EndMill) and t.width_mm > tool.diameter_mm + 1e-9:
-            problems.append(
-                f"{head}: width_mm = {t.width_mm:g} exceeds the tool diameter "
-                f"{tool.diameter_mm:g} mm (one pass cuts at most a slot)"
-            )
+            add(t, ("width_mm",), f"width_mm = {t.width_mm:g} exceeds the tool diameter "
+                f"{tool.diameter_mm:g} mm (one pass cuts at most a slot)")  # fmt: skip
         if t.width_mm == t.width_mm and t.width_mm > program.block_width_mm + 1e-9:
-            problems.append(
-                f"{head}: width_mm = {t.width_mm:g} exceeds program.block_width_mm = "
-                f"{program.block_width_mm:g} mm"
-            )
+            add(t, ("width_mm",), f"width_mm = {t.width_mm:g} exceeds program.block_width_mm = "
+                f"{program.block_width_mm:g} mm")  # fmt: skip
         if t.feed_mode == "post-processed" and not t.rule:
-            problems.append(f"{head}: feed_mode = 'post-processed' needs rule = 'FILE' (a rule)")
+            add(t, ("feed_mode",), "feed_mode = 'post-processed' needs rule = 'FILE' (a rule)")
+    problems = [f"{place}: {_which(ts)}: {msg}" for (place, msg), ts in found.items()]
     if isinstance(tool, FaceMill) and program.kind != "facemill-pass":
         problems.append(
             f"{where}: program.kind = '{program.kind}' needs an end mill, got a face mill"
@@ -405,6 +404,40 @@ def check_tests(
         problems.append(f"{where}: program.kind = 'facemill-pass' needs a face mill tool")
     if problems:
         raise ConfigError("\n".join(problems))
+
+
+def _which(tests: list[RunConditions]) -> str:
+    """'test 3 (group)' or 'tests 0-9 (group)' / 'tests 1, 4 (a, b)'."""
+    idx = [t.index for t in tests]
+    groups = ", ".join(dict.fromkeys(t.group for t in tests))
+    if len(idx) == 1:
+        return f"test {idx[0]} ({groups})"
+    run = idx == list(range(idx[0], idx[0] + len(idx)))
+    return (
+        f"tests {idx[0]}-{idx[-1]} ({groups})"
+        if run
+        else f"tests {', '.join(map(str, idx))} ({groups})"
+    )
+
+
+def _table_line(text: str, table: str) -> int:
+    """1-based line of the ``[table]`` header (0 if absent)."""
+    pat = re.compile(r"^\s*\[\s*" + re.escape(table) + r"\s*\]")
+    return next((i + 1 for i, ln in enumerate(text.splitlines()) if pat.match(ln)), 0)
+
+
+def _field_line(text: str, table_line: int, field: str) -> int:
+    """1-based line of ``field = ...`` in the table whose header is at ``table_line`` (0: none)."""
+    if not text or not table_line:
+        return 0
+    pat = re.compile(r"^\s*" + re.escape(field) + r"\s*=")
+    lines = text.splitlines()
+    for i in range(table_line, len(lines)):
+        if lines[i].lstrip().startswith("["):
+            break
+        if pat.match(lines[i]):
+            return i + 1
+    return 0
 
 
 def program_tool(tool: EndMill | FaceMill) -> str:
@@ -448,5 +481,5 @@ def load_campaign(path: str | Path) -> Campaign:
             )
     lines = _table_lines(text, "matrix") + _table_lines(text, "tests")
     tests = expand_matrix(spec.matrix + spec.tests, tool, lines, spec.program.block_width_mm)
-    check_tests(tests, machine, tool, spec.program, str(p))
+    check_tests(tests, machine, tool, spec.program, str(p), text)
     return Campaign(p, text, spec, machine, tool, material, rig, tuple(tests))

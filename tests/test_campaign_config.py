@@ -82,7 +82,16 @@ def test_feed_above_machine_max_is_refused_with_file_and_line(tmp_path: Path) ->
         load_campaign(p)
     msg = str(e.value)
     assert f"{p}:" in msg and "16000 mm/min" in msg and "feed_max_mm_min = 10000" in msg
-    assert f"{p}:13:" in msg  # the [[matrix]] line
+    assert f"{p}:16: test 0 (g): feed = 16000" in msg  # the fz_mm line of the [[matrix]]
+
+
+def test_a_problem_shared_by_many_tests_is_said_once_at_its_field(tmp_path: Path) -> None:
+    p = _write(tmp_path, rpm="[600, 700, 800]", depth="15.0")
+    with pytest.raises(ConfigError) as e:
+        load_campaign(p)
+    lines = str(e.value).splitlines()
+    assert len(lines) == 1
+    assert lines[0].startswith(f"{p}:17: tests 0-2 (g): depth_mm = 15 is beyond the usable insert")
 
 
 @pytest.mark.parametrize(
