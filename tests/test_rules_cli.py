@@ -131,6 +131,15 @@ def _rule_base(tmp_path) -> tuple[str, list[str]]:
     return db, key
 
 
+def test_add_says_when_it_creates_the_rule_base(tmp_path, capsys) -> None:
+    db, key = _rule_base(tmp_path)
+    assert f"{db} does not exist: creating a new rule base there" in capsys.readouterr().err
+    other = save_rule(derive_rule("b", 100, 800, 3500, 0.1329), tmp_path / "b.toml")
+    key[key.index("--depth") + 1] = "0.5"
+    assert main(["rules", "add", str(other), *key, "--db", db]) == 0
+    assert "creating" not in capsys.readouterr().err
+
+
 def test_derived_description_says_base_feed_once(tmp_path, capsys) -> None:
     runs = _write_runs(tmp_path)
     out = tmp_path / "r.toml"

@@ -187,9 +187,12 @@ def _derive(args: argparse.Namespace) -> int:
 
 def _add(args: argparse.Namespace) -> int:
     from analysis.errors import AnalysisError
-    from analysis.rulebase import GroupExistsError, RuleBase
+    from analysis.rulebase import GroupExistsError, RuleBase, default_path
 
-    with RuleBase(args.db) as rb:
+    path = args.db if args.db is not None else default_path()
+    if not path.exists():
+        status(f"rules add: {path} does not exist: creating a new rule base there")
+    with RuleBase(path) as rb:
         try:
             gid = rb.import_file(args.rule, _key(args), note=args.note, replace=args.replace)
         except GroupExistsError as exc:
