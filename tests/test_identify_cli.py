@@ -11,6 +11,7 @@ import pytest
 from analysis._identify import RunConditions
 from analysis.config import get_material, get_tool, load_rig
 from analysis.dynamics import DynamometerFilter
+from analysis.identify_endmill import synthetic_endmill_run
 from analysis.identify_facemill import synthetic_facemill_run
 from rig.cli import main
 
@@ -80,3 +81,75 @@ def test_forces_bad_input_exits_2(tmp_path, capsys):
     assert rc == 2 and "mixed units" in err and "Traceback" not in err
     rc = main(["analyze", "forces", str(bad), "--model", "endmill", "--tool", "seed003-facemill"])
     assert rc == 2
+
+
+def _export_csv(path: Path, run, header: dict) -> None:
+    """A plain CSV export: ``key: value`` header lines, then time_s and the three forces."""
+    lines = [f"{k}: {v}" for k, v in header.items()] + ["time_s,Fx,Fy,Fz"]
+    t = np.arange(len(run.force_n)) / run.rate_hz
+    lines += [",".join(f"{v:.6g}" for v in row) for row in np.column_stack([t, run.force_n])]
+    path.write_text("\n".join(lines) + "\n")
+
+
+ENDMILL_FEEDS = (0.03, 0.05, 0.08, 0.1)
+
+
+@pytest.fixture(scope="module")
+def slot_exports(tmp_path_factory):
+    """Slots with the README's phi10-flat at 3000 rpm, 2 mm deep; each export's header gives its
+    own fz_mm and a depth_mm of 5 that --conditions depth_mm=2 must override."""
+    tool = get_tool("phi10-flat")
+    truth = get_material("al6061-t6").endmill
+    modes = DynamometerFilter.from_config(load_rig().dynamometer, 10_000.0, crosstalk=False)
+    d0 = tmp_path_factory.mktemp("slots")
+    rng = np.random.default_rng(8)
+    files = []
+    for fz in ENDMILL_FEEDS:
+        c = RunConditions(spindle_rpm=3000, fz_mm=fz, depth_mm=2.0, width_mm=10.0, mode="slot")
+        run = synthetic_endmill_run("s", tool, truth, c, 10_000.0, cut_s=1.0, air_s=0.3,
+                                    noise_frac=0.01, dynamometer=modes, rng=rng,
+                                    offset_n=rng.normal(0, 3, 3))  # fmt: skip
+        p = d0 / f"slot_{fz}.csv"
+        _export_csv(p, run, {"fz_mm": fz, "depth_mm": 5})
+        files.append(p)
+    return truth, files
+
+
+def test_endmill_readme_example_merges_conditions_with_each_header(slot_exports, capsys):
+    truth, files = slot_exports
+    rc = main(["analyze", "forces", *map(str, files), "--model", "endmill", "--tool",
+               "phi10-flat", "--conditions", "spindle_rpm=3000", "depth_mm=2", "mode=slot",
+               "--json"])  # fmt: skip
+    out = json.loads(capsys.readouterr().out)
+    assert rc == 0 and out["success"] and out["model"] == "endmill", out["message"]
+    # Each run keeps its own header feed; --conditions replaced the header's depth.
+    assert [r["fz_mm"] for r in out["per_run"]] == list(ENDMILL_FEEDS)
+    assert {r["depth_mm"] for r in out["per_run"]} == {2.0}
+    got = out["coefficients"]
+    for name in ("Ktc_n_mm2", "Krc_n_mm2", "Kac_n_mm2", "Kte_n_mm", "Kre_n_mm"):
+        assert got[name] == pytest.approx(getattr(truth, name), rel=0.02), name
+    assert got["Kae_n_mm"] == pytest.approx(truth.Kae_n_mm, abs=0.2)
+
+
+def test_condition_missing_from_header_and_flags_names_file_and_key(slot_exports, capsys):
+    _, files = slot_exports
+    rc = main(["analyze", "forces", *map(str, files), "--tool", "phi10-flat",
+               "--conditions", "depth_mm=2", "mode=slot"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert rc == 2 and "Traceback" not in err
+    assert "slot_0.03.csv" in err and "'spindle_rpm'" in err
+
+
+def test_forces_table_footer_says_what_the_intervals_cover(exports, capsys):
+    rc = main(["analyze", "forces", *map(str, exports[:3])])
+    out = capsys.readouterr().out
+    assert rc == 0 and "ci_high" in out
+    assert "measurement noise only" in out and "model error" in out
+
+
+def test_export_cut_with_another_tool_is_refused(exports, capsys):
+    rc = main(["analyze", "forces", *map(str, exports[:3]), "--tool", "phi10-flat"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "fz0.236_d0.5.txt" in err
+    assert "'seed003-facemill'" in err and "'phi10-flat'" in err
+    assert "too few runs" not in err

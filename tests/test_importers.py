@@ -101,3 +101,27 @@ def test_identification_from_imported_dynoware_files(tmp_path):
     assert fit.success, fit.message
     assert fit.coefficients.K_T_n_mm2 == pytest.approx(405.4, rel=0.02)
     assert fit.coefficients.P_T_n_mm == pytest.approx(39.7, rel=0.03)
+
+
+def test_given_conditions_override_the_header_key_by_key(tmp_path):
+    c = RunConditions(spindle_rpm=600, fz_mm=0.236, depth_mm=2.0, width_mm=100.0)
+    tool = FaceMill(kind="facemill", diameter_mm=125, inserts=1, lead_angle_deg=15,
+                    axial_rake_deg=7, radial_rake_deg=0, nose_radius_mm=0.4)  # fmt: skip
+    true = FaceMillCoefficients(K_T_n_mm2=405.4, K_R=1.1, P_T_n_mm=39.7, P_R_n_mm=19.6)
+    run = synthetic_facemill_run("r", tool, true, c, 5000.0, cut_s=0.2)
+    f = tmp_path / "run.txt"
+    _write_dynoware(f, run, {"fz_mm": 0.236, "depth_mm": 2, "width_mm": 100, "tool": "fm"})
+    # The header's fz_mm, width and tool stay; depth_mm is replaced, spindle_rpm added.
+    got = import_run(f, {"spindle_rpm": "600", "depth_mm": "1.5"}).conditions
+    assert (got.fz_mm, got.depth_mm, got.spindle_rpm) == (0.236, 1.5, 600.0)
+    assert got.width_mm == 100.0 and got.tool == "fm"
+    # A feed per tooth given replaces a header's feed in mm/min.
+    g = tmp_path / "feed.txt"
+    _write_dynoware(g, run, {"feed_mm_min": 141.6, "teeth": 1, "depth_mm": 2})
+    assert import_run(g, {"spindle_rpm": 600}).conditions.fz_mm == pytest.approx(0.236)
+    assert import_run(g, {"spindle_rpm": 600, "fz_mm": 0.3}).conditions.fz_mm == 0.3
+    # In neither: the error names the file and the key.
+    with pytest.raises(AnalysisError, match=r"run\.txt.*missing condition 'spindle_rpm'"):
+        import_run(f, {"depth_mm": 1.5})
+    # A complete RunConditions replaces the header.
+    assert import_run(f, c).conditions == c
