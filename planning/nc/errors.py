@@ -18,7 +18,7 @@ from planning.errors import PlanningError
 
 
 def _where(file: str, line: int, column: int, word: str, reason: str) -> str:
-    head = f"{file}:{line}:{column}"
+    head = f"{file}:{line}:{column}" if line else file  # line 0: about the whole file
     return f"{head}: {word!r}: {reason}" if word else f"{head}: {reason}"
 
 

@@ -106,6 +106,8 @@ def state_at_block(
     it.skip(itertools.islice(_lines_of(source), block))
     if it.blocks_seen < block:
         raise NCError(
-            f"block {block} is past the end of the program ({it.blocks_seen} blocks)", file=name
+            f"block {block} is past the end of the program: its blocks are 0..{it.blocks_seen - 1}"
+            " (block i is line i + 1)",
+            file=name,
         )
     return it.state
