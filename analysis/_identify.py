@@ -422,7 +422,7 @@ def reduce_run_file(
     Pass 1 gathers per-revolution statistics (steady part, offset, drift); the revolution period
     is refined on the first chunk of the steady part (at least 4 revolutions); pass 2 averages
     the steady part synchronously. Memory: the chunk plus O(revolutions + bins), plus what
-    ``load_run`` allocates per window.
+    ``load_run`` allocates per window. ``tolerance``: the steady window, as :func:`reduce_run`.
     """
     from analysis.runfile import load_run
 

@@ -153,3 +153,13 @@ def test_export_cut_with_another_tool_is_refused(exports, capsys):
     assert rc == 2 and "fz0.236_d0.5.txt" in err
     assert "'seed003-facemill'" in err and "'phi10-flat'" in err
     assert "too few runs" not in err
+
+
+def test_validation_run_of_another_tool_is_refused(exports, tmp_path, capsys):
+    other = tmp_path / "other_tool.txt"
+    text = exports[3].read_text()
+    assert "tool:\tseed003-facemill" in text
+    other.write_text(text.replace("tool:\tseed003-facemill", "tool:\tphi10-flat"))
+    rc = main(["analyze", "forces", *map(str, exports[:3]), "--validate", str(other)])
+    err = capsys.readouterr().err
+    assert rc == 2 and "other_tool.txt" in err and "the fitted runs' tool" in err

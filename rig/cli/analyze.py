@@ -39,9 +39,10 @@ def _check_tool(path, recorded: str, expected: str | None, by: str) -> None:
     from analysis.errors import AnalysisError
 
     if expected and recorded and recorded != expected:
+        hint = "leave out --tool, or" if by == "--tool" else "validate runs of that tool, or"
         raise AnalysisError(
-            f"{path}: the run records tool {recorded!r} but {by} is {expected!r}; leave out "
-            "--tool, or override the run's tool with --conditions tool=NAME"
+            f"{path}: the run records tool {recorded!r} but {by} is {expected!r}; {hint} "
+            "override the run's tool with --conditions tool=NAME"
         )
 
 
