@@ -107,7 +107,7 @@ def _check(args: argparse.Namespace) -> int:
         print_json(out)
         return 0
     skip = ("bbox", "warnings", "rotary_range_deg")
-    rows = [{"quantity": k, "value": v} for k, v in out.items() if k not in skip]
+    rows = [{"quantity": k, "value": v} for k, v in out.items() if k not in skip and v is not None]
     for c, (lo, hi) in out.get("rotary_range_deg", {}).items():
         rows.append({"quantity": f"{c}_range_deg", "value": f"{lo:.4g} {hi:.4g}"})
     rows.append({"quantity": "bbox_min_mm", "value": " ".join(f"{c:.4g}" for c in st.bbox_min_mm)})

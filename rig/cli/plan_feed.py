@@ -23,7 +23,7 @@ from pathlib import Path
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``feed`` and ``simulate`` to the ``plan`` group."""
     f = sub.add_parser("feed", help="adjust feeds by predicted cutting load (seed 001)")
-    f.add_argument("program", type=Path, help="NC program (G21)")
+    f.add_argument("program", type=Path, help="NC program (G21 or G20)")
     f.add_argument("--rules", required=True, help="rule file (TOML) or rule-base name / id")
     f.add_argument("--db", type=Path, help="rule base for a name / id (default from lab.toml)")
     _common(f)

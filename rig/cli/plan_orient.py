@@ -36,7 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="CC point for the energy map (default: the one that needed most energy evaluations)",
     )
-    p.add_argument("--no-plot", action="store_true", help="skip the energy map PNG")
+    p.add_argument(
+        "--no-plot", action="store_true", help="skip both PNGs (energy map and orientation)"
+    )
     p.set_defaults(func=run)
 
 
@@ -126,7 +128,11 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print_json(summary)
     else:
-        print_table([{"quantity": k, "value": v} for k, v in summary.items() if k != "files"])
+
+        def show(v):  # ranges as "lo .. hi" with 4 significant digits, not raw float lists
+            return f"{v[0]:.4g} .. {v[1]:.4g}" if isinstance(v, list) and len(v) == 2 else v
+
+        print_table([{"quantity": k, "value": show(v)} for k, v in summary.items() if k != "files"])
         for f in files:
             print(f)
     return 0
