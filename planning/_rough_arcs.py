@@ -7,8 +7,8 @@ arc and the run stay within ``tol_mm`` of each other both ways (Hausdorff distan
 nearly collinear vertices by one line; the rest stay lines.
 
 Hand-written: no maintained library fits tolerance-bounded arcs to polylines for G-code (pypi has
-3D-printer "arc welders" bound to their slicers' formats, clothoid/biarc Hermite fitters that do
-not bound the distance to a given polyline); the fit is a closed-form least squares per run.
+G-code writers and clothoid/biarc Hermite interpolators such as ``clothoids``, none bounding the
+distance to a given polyline both ways); the fit is a closed-form least squares per run.
 
 How a run ``i..j`` (at least ``min_chords`` chords) is tested as an arc:
 
