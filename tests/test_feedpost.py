@@ -605,3 +605,17 @@ def test_default_stock_reaches_below_an_arc_that_dips_under_its_end_points() -> 
     motion = interpret("G0 X0 Y0 Z1\nG1 Z-1 F100\nG18 G2 X10 Z-1 I5 K0")
     stock = default_stock(motion, Cutter.from_tool(get_tool("phi10-flat")), 1.0)
     assert stock.bottom_mm <= -7.0 + 1e-9
+
+
+def test_shipped_operation_plan_machines_its_programs_in_order(capsys) -> None:
+    plan = Path(__file__).parents[1] / "data" / "plans" / "demo-plan.toml"
+    rc, so, _ = cli(["plan", "simulate", str(plan), "--json"], capsys)
+    assert rc == 0
+    ops = {o["operation"]: o for o in json.loads(so)["operations"]}
+    assert list(ops) == ["demo-part", "inch-features"]
+    # The second program meets what the first left: it removes less than it would alone.
+    alone = Path(__file__).parents[1] / "data" / "programs" / "inch-features.nc"
+    rc, so, _ = cli(["plan", "simulate", str(alone), "--tool", "phi10-flat", "--stock",
+                     "box:-50,50,-45,45,-20,0", "--spacing", "0.5", "--json"], capsys)  # fmt: skip
+    assert rc == 0
+    assert 0 < ops["inch-features"]["removed_mm3"] < json.loads(so)["removed_mm3"]
