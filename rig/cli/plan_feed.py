@@ -49,7 +49,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--machine", default="ace-h63", help="machine config name or path")
-    p.add_argument("--tool", help="tool name in configs/tools.toml")
+    p.add_argument(
+        "--tool", help="end mill in configs/tools.toml (needed for a program; plans name theirs)"
+    )
     p.add_argument(
         "--stock",
         help="box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP | mesh (.stl) | stock TOML "
@@ -65,8 +67,8 @@ def _tool(name: str | None):
     from planning.errors import PlanningError
 
     if not name:
-        known = ", ".join(sorted(load_tools()))
-        raise PlanningError(f"--tool is required: one of {known}")
+        known = ", ".join(sorted(k for k, t in load_tools().items() if isinstance(t, EndMill)))
+        raise PlanningError(f"--tool is required (an end mill of configs/tools.toml): {known}")
     tool = get_tool(name)
     if not isinstance(tool, EndMill):
         raise PlanningError(f"tool '{name}' is a {tool.kind}: the Z-map models end mills only")
