@@ -166,9 +166,10 @@ def run(args: argparse.Namespace) -> int:
     if check is not None:
         c = check.summary()
         print(
-            f"Z-map check ({c['spacing_mm']} mm): max left {c['max_left_mm']} mm (limit "
-            f"{c['cusp_limit_mm']}), vertical {c['max_left_vertical_mm']} mm, gouge "
-            f"{c['max_gouge_mm']} mm, rapids into material {c['rapid_removed_mm3']} mm3: "
+            f"Z-map check ({c['spacing_mm']} mm grid, tolerance {c['tolerance_mm']} mm): max "
+            f"left {c['max_left_mm']} mm (cusp limit {c['cusp_limit_mm']} + tolerance), "
+            f"vertical {c['max_left_vertical_mm']} mm, gouge {c['max_gouge_mm']} mm (at most the "
+            f"tolerance), rapids into material {c['rapid_removed_mm3']} mm3: "
             f"{'OK' if c['ok'] else 'FAILED'}"
         )
     for k, v in pngs.items():
