@@ -247,12 +247,14 @@ class RuleBase:
             "note",
             "created_utc",
         ]
-        verb = "INSERT OR REPLACE" if replace else "INSERT"
-        sql = f"{verb} INTO groups ({', '.join(cols)}) VALUES ({', '.join('?' * len(cols))})"
+        sql = f"INSERT INTO groups ({', '.join(cols)}) VALUES ({', '.join('?' * len(cols))})"
+        if replace:  # an upsert keeps the group's id (INSERT OR REPLACE would give a new one)
+            keys = ", ".join(f.name for f in fields(GroupKey))
+            new = ", ".join(f"{c} = excluded.{c}" for c in cols[len(fields(GroupKey)) :])
+            sql += f" ON CONFLICT ({keys}) DO UPDATE SET {new}"
         try:
             with self._tx() as con:
-                cur = con.execute(sql, row)
-                return int(cur.lastrowid)
+                return int(con.execute(sql + " RETURNING id", row).fetchone()[0])
         except sqlite3.IntegrityError:
             same = [g for g in self._rows("WHERE operation = ?", (key.operation,)) if g.key == key]
             raise GroupExistsError(self.path, key, same[0].id if same else -1) from None

@@ -204,7 +204,7 @@ def test_add_onto_an_existing_group_names_replace_option(tmp_path, capsys) -> No
     assert "group 1 has this key already; add --replace to replace its rule" in err
     assert "use replace" not in err and len(err.strip().splitlines()) == 1
     assert main(["rules", "add", str(other), *key, "--db", db, "--replace"]) == 0
-    capsys.readouterr()
+    assert "as group 1 in" in capsys.readouterr().out
     assert main(["rules", "show", "gm241-b", "--db", db, "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["base_feed_mm_min"] == 800
 

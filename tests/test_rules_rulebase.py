@@ -109,7 +109,8 @@ def test_duplicate_key_rejected_unless_replace(db) -> None:
     with pytest.raises(GroupExistsError, match="group 1 has this key already") as err:
         db.add(_key(), _rule("again"))
     assert err.value.group_id == 1 and "use replace" not in str(err.value)
-    db.add(_key(), _rule("again", 700), replace=True)
+    assert db.add(_key(), _rule("again", 700), replace=True) == 1  # the group keeps its id
+    assert db.get(1).base_feed_mm_min == 700
     assert db.lookup(_key()).group.rule_name == "again"
     assert len(db.list()) == 3
 
