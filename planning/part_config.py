@@ -17,7 +17,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from analysis.config import EndMill, Model, get_tool, load_model
+from analysis.config import EndMill, Model, _find_line, get_tool, load_model
 from analysis.errors import ConfigError
 from planning.ferguson import FergusonSurface
 
@@ -132,7 +132,7 @@ class Part:
         where = str(path) if path else f"part {config.name}"
         self.where = where
         lib = self._lib(config.tool.library)
-        tool = get_tool(config.tool.name, lib)
+        tool = self._tool(config.tool.name, lib, ("tool", "name"))
         if not isinstance(tool, EndMill) or tool.kind != "flat":
             raise ConfigError(
                 f"{where}: tool.name = {config.tool.name!r} is a {getattr(tool, 'kind', '?')} "
@@ -140,10 +140,23 @@ class Part:
             )
         self.tool: EndMill = tool
         second = config.rough.lee_second_tool
-        self.lee_tool: EndMill = tool if second is None else get_tool(second, lib)  # type: ignore[assignment]
+        self.lee_tool: EndMill = (  # type: ignore[assignment]
+            tool if second is None else self._tool(second, lib, ("rough", "lee_second_tool"))
+        )
         if not isinstance(self.lee_tool, EndMill) or self.lee_tool.kind != "flat":
             raise ConfigError(f"{where}: rough.lee_second_tool = {second!r}: needs a flat end mill")
         self.surface = self._surface(config.surface, f"{where}: surface")
+
+    def _tool(self, name: str, lib, loc: tuple[str, str]):
+        """The named tool; an unknown name is reported at its line of the part file."""
+        try:
+            return get_tool(name, lib)
+        except ConfigError as exc:
+            line = None
+            if self.path is not None and self.path.exists():
+                line = _find_line(self.path.read_text(encoding="utf-8"), loc)
+            at = f"{self.where}:{line}" if line else self.where
+            raise ConfigError(f"{at}: {'.'.join(loc)} = {name!r}: {exc}") from None
 
     def _lib(self, library: str | None) -> Path | None:
         if library is None:
@@ -185,6 +198,8 @@ def load_part(path: str | Path) -> Part:
         from analysis.config import config_dir
 
         cand = config_dir() / "parts" / f"{path}.toml"
-        if cand.exists():
-            p = cand
+        if not cand.exists():
+            known = sorted(q.stem for q in (config_dir() / "parts").glob("*.toml"))
+            raise ConfigError(f"part '{path}' not found: not a file, and not one of {known}")
+        p = cand
     return Part(load_model(PartConfig, p), p)

@@ -76,8 +76,17 @@ def test_not_a_flat_end_mill_and_unknown_tool(tmp_path):
     x, y, z, _ = bump()
     with pytest.raises(ConfigError, match="needs a flat end mill"):
         load_toml(tmp_path, part_toml(x, y, z, top=45.0, tool="phi10-ball"))
-    with pytest.raises(ConfigError, match="tool 'nope' not found"):
+    with pytest.raises(
+        ConfigError, match=r"\.toml:\d+: tool\.name = 'nope': .*tool 'nope' not found"
+    ):
         load_toml(tmp_path, part_toml(x, y, z, top=45.0, tool="nope"))
+
+
+def test_an_unknown_part_name_lists_the_shipped_parts():
+    from planning.part_config import load_part
+
+    with pytest.raises(ConfigError, match=r"part 'seed000-bmp' not found: .*'seed000-bump'"):
+        load_part("seed000-bmp")
 
 
 def test_stock_not_covered_and_stock_below_the_part(tmp_path):
