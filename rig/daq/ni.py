@@ -77,7 +77,7 @@ HOW_TO_CONFIGURE = (
     "`nidaqmx.system.System.local().devices`, and set [daq] device and channels in "
     "configs/rig.toml (`cutlab daq record --rig FILE` reads another file; a campaign's [daq] "
     "table overrides it). Without hardware, record with `cutlab daq record --sim`, or run the "
-    "campaign with rig = \"sim\"."
+    'campaign with rig = "sim".'
 )
 
 
