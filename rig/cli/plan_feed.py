@@ -83,7 +83,7 @@ def _rule(spec: str, db: Path | None):
         return load_rule(p)
     from analysis.rulebase import RuleBase
 
-    with RuleBase(db) as base:
+    with RuleBase(db, create=False) as base:
         return base.find(spec).rule
 
 
