@@ -75,7 +75,8 @@ class ToolSpec(Model):
 
 
 class Cutting(Model):
-    feed_mm_min: float = Field(gt=0, le=100_000, description="mm/min")
+    # >= 1 mm/min: below that a value is more likely a feed per tooth (mm) than a table feed.
+    feed_mm_min: float = Field(ge=1, le=100_000, description="mm/min, not mm/tooth")
     spindle_rpm: float = Field(gt=0, le=100_000, description="rpm")
     plunge_feed_mm_min: float | None = Field(
         None, gt=0, le=100_000, description="mm/min (default: half the feed)"

@@ -101,3 +101,10 @@ def test_stock_not_covered_and_stock_below_the_part(tmp_path):
 
 def test_every_error_is_a_cutlab_error():
     assert issubclass(PlanningError, CutlabError) and issubclass(ConfigError, CutlabError)
+
+
+def test_a_feed_per_tooth_given_as_the_table_feed_is_refused(tmp_path):
+    x, y, z, _ = bump()
+    text = part_toml(x, y, z, top=45.0).replace("feed_mm_min = 300.0", "feed_mm_min = 0.3")
+    with pytest.raises(ConfigError, match=r"cutting\.feed_mm_min = 0\.3: .*mm/min, not mm/tooth"):
+        load_toml(tmp_path, text)
