@@ -179,8 +179,7 @@ def _check_bins(rule: FeedRule, where: str) -> None:
 
 def _representative_feeds(lo: float, base: float, hi: float, n: int) -> NDArray[np.float64]:
     """n feeds from ``hi`` down to ``lo`` through ``base``, evenly spaced on each side of it."""
-    # A base within rounding of a limit is that limit: two bins a few ulps apart would be empty.
-    if math.isclose(hi, base, rel_tol=1e-9) or math.isclose(lo, base, rel_tol=1e-9):
+    if hi == base or lo == base:
         return np.linspace(hi, lo, n)
     k = int(round((hi - base) / (hi - lo) * (n - 1)))
     k = min(max(k, 1), n - 2)  # keep base strictly inside so both sides have a bin
@@ -220,11 +219,15 @@ def derive_rule(
     )
     if not 3 <= n_bins <= 200:
         raise AnalysisError(f"n_bins = {n_bins}: expected 3..200 (seed 001 uses 20)")
-    feeds = _representative_feeds(
-        hdr.min_feed_mm_min, hdr.base_feed_mm_min, hdr.max_feed_mm_min, n_bins
-    )
+    lo, base, hi = hdr.min_feed_mm_min, hdr.base_feed_mm_min, hdr.max_feed_mm_min
+    # A base within rounding of a limit is that limit: bins a few ulps wide would be empty, and
+    # the reference load must fall exactly on the base feed's edge.
+    for limit in (lo, hi):
+        if math.isclose(base, limit, rel_tol=1e-9):
+            base = limit
+    feeds = _representative_feeds(lo, base, hi, n_bins)
     # Bin j's heavier edge is where the relation gives feed_j: L = L_ref (base / feed_j)^(1/p).
-    upper = hdr.reference_load_pct * (hdr.base_feed_mm_min / feeds[:-1]) ** (1.0 / hdr.exponent)
+    upper = hdr.reference_load_pct * (base / feeds[:-1]) ** (1.0 / hdr.exponent)
     edges = np.concatenate([[0.0], upper, [np.inf]])
     return FeedRule(
         name=hdr.name,

@@ -87,6 +87,7 @@ def test_rule_never_raises_removal_rate_above_reference(seed001_rule) -> None:
 )
 # A base feed one ulp below the maximum once gave a bin of zero width.
 @example(lo=1.0, base_frac=0.9999999999999999, span=4.0, ref=1.0, p=3.0, n=3)
+@example(lo=1.0, base_frac=0.9999999999999999, span=2.00001, ref=1.0, p=1.0, n=3)
 def test_rule_properties_hold_for_any_limits(lo, base_frac, span, ref, p, n) -> None:
     hi = lo * span
     base = lo + base_frac * (hi - lo)
