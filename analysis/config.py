@@ -23,7 +23,7 @@ import tomllib
 from collections.abc import Mapping
 from functools import lru_cache
 from pathlib import Path
-from typing import Annotated, Any, Literal, TypeVar
+from typing import Annotated, Any, Literal, TypeVar, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
@@ -462,13 +462,32 @@ def _all_models(root: type[BaseModel] = BaseModel) -> list[type[BaseModel]]:
     return out
 
 
-def _field_unit(model: type[BaseModel], field: str) -> str:
-    """The description (unit) of a field name, looked up in ``model`` and then every config model.
+def _models_in(annotation: Any) -> list[type[BaseModel]]:
+    """The config models inside a field's type (``Foo``, ``Foo | None``, ``tuple[Foo, ...]``,
+    ``dict[str, Foo]``, unions of models)."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    out: list[type[BaseModel]] = []
+    for arg in get_args(annotation):
+        out += _models_in(arg)
+    return out
 
-    Field names carry their unit and are unique enough across cutlab's configs for this to be exact.
-    """
-    for m in (model, *_all_models()):
-        f = m.model_fields.get(field)
+
+def _field_unit(model: type[BaseModel], loc: tuple[Any, ...]) -> str:
+    """The description (unit) of the field at ``loc``: followed from ``model`` through nested
+    models; failing that, the first config model with a field of that name."""
+    names = [p for p in loc if isinstance(p, str)]
+    if not names:
+        return ""
+    owners: list[type[BaseModel]] = [model]
+    for name in names[:-1]:
+        nxt = [m for o in owners if name in o.model_fields
+               for m in _models_in(o.model_fields[name].annotation)]  # fmt: skip
+        if not nxt:  # a dict key (tool or material name) or an unknown path: stay
+            nxt = owners
+        owners = nxt
+    for m in (*owners, *_all_models()):
+        f = m.model_fields.get(names[-1])
         if f is not None and f.description:
             return f.description
     return ""
@@ -506,8 +525,7 @@ def format_validation_error(
             msg = "unknown key (check the spelling; unknown keys are not ignored)"
         elif e["type"] == "missing":
             msg = "missing required field"
-        last = next((p for p in reversed(loc) if isinstance(p, str)), "")
-        unit = _field_unit(model, last) if e["type"] not in ("extra_forbidden",) else ""
+        unit = _field_unit(model, loc) if e["type"] not in ("extra_forbidden",) else ""
         inp = e.get("input")
         value = "" if e["type"] == "missing" or isinstance(inp, Mapping) else f" = {inp!r}"
         suffix = f" ({unit})" if unit and unit not in msg else ""
