@@ -6,6 +6,7 @@ import threading
 
 from analysis.config import SerialConfig
 from rig.dnc import program_from_text
+from rig.dnc.grbl import HANDSHAKE
 from rig.dnc.program import Program
 from rig.sim.clock import SimClock
 from rig.sim.fanuc import SimFanuc
@@ -63,9 +64,9 @@ def fanuc_bytes(program: Program, cfg: SerialConfig, preamble: list[str] | None 
 
 
 def grbl_bytes(program: Program, preamble: list[str] | None = None, start: int = 0) -> bytes:
-    """What a GRBL stream puts on the wire (after the handshake's empty line)."""
+    """What a GRBL stream puts on the wire (the handshake's "$I" first)."""
     blocks = [b.text for b in program.blocks if b.index >= start]
-    return b"\n" + b"".join(t.encode() + b"\n" for t in (preamble or []) + blocks)
+    return HANDSHAKE + b"".join(t.encode() + b"\n" for t in (preamble or []) + blocks)
 
 
 class EventWaiter:

@@ -27,6 +27,7 @@ from rig.dnc import (
     read_csv_record,
     restart_blocks,
 )
+from rig.dnc.grbl import HANDSHAKE
 from rig.sim.clock import SimClock
 from rig.sim.grbl import SimGrbl
 
@@ -38,7 +39,7 @@ FANUC_SPEED, GRBL_SPEED = 4.0, 10.0
 
 def _grbl_newline_byte(prog, j: int) -> int:
     """1-based position, in what GRBL receives, of the LF ending the j-th line sent."""
-    return 1 + sum(len(b.text) + 1 for b in prog.blocks[: j + 1])
+    return len(HANDSHAKE) + sum(len(b.text) + 1 for b in prog.blocks[: j + 1])
 
 
 CASES = [
