@@ -111,6 +111,9 @@ def test_fanuc_drip_feed_holds_while_the_control_punches() -> None:
             super().append_blocks(batch)
             if not rows:  # loop:// sends the DC2 back to the streamer's reader
                 st.link.write_now(bytes([DC2]))  # type: ignore[union-attr]
+                # Let the reader see it before more is sent (a loaded host could otherwise
+                # stream the whole program first: the test flaked under load).
+                assert st.punching.wait(10)
             rows.extend(batch)
 
     sink = PunchAfterFirstBatch()
