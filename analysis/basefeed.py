@@ -243,6 +243,7 @@ class Sweep:
 
     runs: tuple[SweepRun, ...]
     reference_load_pct: float | None  # seed 001 load of the sweep's slot, None if not derivable
+    tool: str | None = None  # the tool every run names (configs/tools.toml), None if they differ
 
 
 def sweep_runs_from_files(paths: Sequence[str | Path]) -> Sweep:
@@ -258,7 +259,7 @@ def sweep_runs_from_files(paths: Sequence[str | Path]) -> Sweep:
     from analysis.runfile import load_run
     from analysis.steady import steady_window
 
-    runs, cuts = [], set()
+    runs, cuts, tools = [], set(), set()
     for path in paths:
         run = load_run(path)
         c = run.conditions
@@ -267,6 +268,7 @@ def sweep_runs_from_files(paths: Sequence[str | Path]) -> Sweep:
             if not isinstance(c.get(k), int | float) or not c[k] > 0:
                 raise AnalysisError(f"{where}.{k} = {c.get(k)!r}: expected a number > 0")
         tool = get_tool(c["tool"]) if isinstance(c.get("tool"), str) else None
+        tools.add(c.get("tool") if isinstance(c.get("tool"), str) else None)
         flutes = c.get("flutes") or (getattr(tool, "flutes", None) if tool else None)
         if not isinstance(flutes, int) or flutes < 1:
             raise AnalysisError(f"{where}: neither flutes nor a known end-mill tool name given")
@@ -302,4 +304,5 @@ def sweep_runs_from_files(paths: Sequence[str | Path]) -> Sweep:
     if len(cuts) == 1:
         kind, dia, rc, flute, depth = cuts.pop()
         ref = slot_load_percent(kind, dia, depth, flute, rc)
-    return Sweep(tuple(runs), ref)
+    name = tools.pop() if len(tools) == 1 else None
+    return Sweep(tuple(runs), ref, name)

@@ -29,6 +29,7 @@ Rule file (TOML), small and readable::
     max_feed_mm_min = 3500.0
     reference_load_pct = 0.1323
     exponent = 1.0
+    tool = "phi30-ball"  # optional: the tool of the test cuts (loads are relative to it)
 
     [[bins]]            # 20 of them, lightest load first
     load_min_pct = 0.0
@@ -69,6 +70,7 @@ class _RuleHeader(Model):
     reference_load_pct: float = Field(gt=0, description="%, load of the base-feed test cut")
     exponent: float = Field(1.0, gt=0, le=5, description="p in feed = base (L_ref/L)^p")
     source: str = Field("", description="where the rule came from (runs, hand-made)")
+    tool: str = Field("", description="tool of the test cuts (configs/tools.toml name)")
 
     @model_validator(mode="after")
     def _ordered(self) -> _RuleHeader:
@@ -104,6 +106,7 @@ class FeedRule:
     exponent: float = 1.0
     description: str = ""
     source: str = ""
+    tool: str = ""  # the tool the rule was derived with (loads are relative to it); "" unknown
     meta: dict[str, Any] = field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:
@@ -198,6 +201,7 @@ def derive_rule(
     n_bins: int = N_BINS,
     description: str = "",
     source: str = "",
+    tool: str = "",
 ) -> FeedRule:
     """Seed 001 step 3: the load axis transformed so feed is linear in it, cut into ``n_bins``.
 
@@ -214,6 +218,7 @@ def derive_rule(
             exponent=exponent,
             description=description,
             source=source,
+            tool=tool,
         ),
         where=f"rule '{name}'",
     )
@@ -240,6 +245,7 @@ def derive_rule(
         exponent=hdr.exponent,
         description=hdr.description,
         source=hdr.source,
+        tool=hdr.tool,
     )
 
 
@@ -255,6 +261,8 @@ def rule_to_toml(rule: FeedRule) -> str:
         "exponent": rule.exponent,
         "source": rule.source,
     }
+    if rule.tool:
+        header["tool"] = rule.tool
     bins = [
         {
             "load_min_pct": float(r["load_min_pct"]),
@@ -304,6 +312,7 @@ def rule_from_toml(text: str, where: str = "<rule>") -> FeedRule:
             exponent=h.exponent,
             description=h.description,
             source=h.source,
+            tool=h.tool,
         )
     except ConfigError as exc:
         raise ConfigError(str(exc).replace(f"rule '{h.name}'", where, 1)) from None

@@ -192,6 +192,7 @@ def campaign_rule(spec: object, tool: EndMill, name: str = "campaign"):  # noqa:
     return derive_rule(
         name, fr.min_feed_mm_min, fr.base_feed_mm_min, fr.max_feed_mm_min, ref, fr.exponent,
         fr.n_bins, description=f"reference: {fr.reference_depth_mm} mm slot",
+        tool=spec.campaign.tool,  # type: ignore[attr-defined]
     )  # fmt: skip
 
 

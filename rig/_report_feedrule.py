@@ -56,7 +56,7 @@ def feed_rule_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Sectio
         rule = derive_rule(
             name, fr.min_feed_mm_min, base, fr.max_feed_mm_min, sweep.reference_load_pct,
             fr.exponent, fr.n_bins, description=f"derived by campaign {campaign.name}",
-            source=str(out.parent / "campaign.toml"),
+            source=str(out.parent / "campaign.toml"), tool=sweep.tool or "",
         )  # fmt: skip
         path = save_rule(rule, out / f"{name}.toml")
         plot_rule(rule, out / "rule.png")

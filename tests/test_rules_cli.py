@@ -227,3 +227,27 @@ def test_lookup_exact_names_the_fields_that_differ(tmp_path, capsys) -> None:
     assert "the base has (operation, material)" not in err
     assert main(["rules", "lookup", *key, "--exact", "--db", db]) == 0
     assert "exact match: group 1 (gm241)" in capsys.readouterr().out
+
+
+def test_a_derived_rule_records_the_tool_of_its_runs_and_plan_feed_warns_on_another(
+    tmp_path, capsys
+) -> None:
+    runs = _write_runs(tmp_path)
+    out = tmp_path / "r.toml"
+    assert main(["rules", "derive", *map(str, runs), "-o", str(out)]) == 0
+    rule = load_rule(out)
+    assert rule.tool == "phi30-ball"
+    # Old rule files without a tool still load (the tool is then unknown).
+    old = out.read_text().replace('tool = "phi30-ball"\n', "")
+    (tmp_path / "old.toml").write_text(old)
+    assert load_rule(tmp_path / "old.toml").tool == ""
+    prog = tmp_path / "slot.nc"
+    prog.write_text("G21 G90 G17\nG0 X-20 Y30 Z5\nG1 Z-0.3 F1000\nG1 X120\nG0 Z50\nM30\n")
+    for tool, warned in (("phi30-ball", False), ("phi10-flat", True)):
+        capsys.readouterr()
+        rc = main(["plan", "feed", str(prog), "--rules", str(out), "--tool", tool, "--stock",
+                   "box:0,100,0,60,-10,0", "--spacing", "1",
+                   "-o", str(tmp_path / f"{tool}.nc")])  # fmt: skip
+        err = capsys.readouterr().err
+        assert rc == 0, err
+        assert ("derived with tool 'phi30-ball', not 'phi10-flat'" in err) == warned

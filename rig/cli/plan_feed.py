@@ -141,6 +141,11 @@ def _feed(args: argparse.Namespace) -> int:
 
     rule = _rule(args.rules, args.db)
     machine, tool, program, motion, stock = _load(args)
+    if rule.tool and rule.tool != args.tool:
+        status(
+            f"warning: rule '{rule.name}' was derived with tool '{rule.tool}', not "
+            f"'{args.tool}': its loads (relative to that tool's size) do not carry over"
+        )
     coef = None
     if args.force_limit is not None and not args.material:
         raise PlanningError("--force-limit needs --material (its [endmill] coefficients)")

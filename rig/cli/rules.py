@@ -155,6 +155,7 @@ def _derive(args: argparse.Namespace) -> int:
         n_bins=args.bins,
         description=how,  # a whole sentence already ("base feed 1000 mm/min: ...")
         source=f"feed sweep: {src}",
+        tool=sweep.tool or "",
     )
     save_rule(rule, args.output)
     if args.png:
