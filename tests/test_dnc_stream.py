@@ -209,3 +209,33 @@ def test_simulated_fanuc_alarms_on_eia_parity_error() -> None:
             ser.write(bytes([0x0B, 0x80, 0x67, 0x03, 0x80]))  # ER EOB G <0x03: even> EOB
             assert alarm.wait(10)
     assert ctl.alarm == "1" and any("TH PARITY" in e.detail for e in ctl.events)
+
+
+def test_grbl_stream_connects_to_a_held_controller() -> None:
+    """GRBL 1.1 refuses $I while running or held (error:8); the handshake uses $G, which it
+    answers in every state, so a streamer can connect to a held controller and go on."""
+    import threading
+
+    import serial
+
+    ctl = SimGrbl(clock=SimClock(20.0))
+    with ctl:
+        with serial.Serial(ctl.path, 115200, timeout=2) as s:
+            s.write(b"G21 G90 G1 X20 F600\n")  # 2 s of motion, 0.1 s wall
+            s.flush()
+            assert s.readline().strip() == b"ok"
+            ctl.feed_hold()
+            assert ctl.state_name() == "Hold:0"
+            s.write(b"$I\n")
+            assert s.readline().strip() == b"error:8"
+        prog = line_program(5, grbl=True)
+        st = GrblStreamer(grbl_cfg(ctl.path, timeout_s=5.0), sink=MemorySink(),
+                          clock=ctl.clock.now)  # fmt: skip
+        out: list = []
+        th = threading.Thread(target=lambda: out.append(st.send(prog)))
+        th.start()
+        threading.Timer(0.5, ctl.cycle_start).start()  # the operator resumes
+        th.join(30)
+        assert out and out[0].ok
+        texts = [b.text for b in prog.blocks]
+        assert ctl.executed_texts()[-len(texts) :] == texts

@@ -41,7 +41,7 @@ from rig.dnc.link import LinkLost, LinkTimeout, SerialLink
 from rig.dnc.record import BlockRow
 
 FEED_HOLD, CYCLE_START, STATUS, SOFT_RESET = b"!", b"~", b"?", b"\x18"
-HANDSHAKE = b"$I\n"  # what a stream sends first (see GrblStreamer._handshake)
+HANDSHAKE = b"$G\n"  # what a stream sends first (see GrblStreamer._handshake)
 MODES = ("char-counting", "send-response")
 GRBL_RX_BUFFER_BYTES = 127
 GRBL_LINE_CHARS = 79  # LINE_BUFFER_SIZE 80 incl. the terminating NUL
@@ -282,20 +282,21 @@ class GrblStreamer(StreamerBase):
 
     def _handshake(self) -> None:
         heard = [time.perf_counter()]
-        # "$I" (build info) is answered "[VER:...]", "[OPT:...]", "ok" in every state, Alarm
-        # included. Answers still on their way from an earlier stream (error:9 for lines that
-        # arrived after an alarm, late oks) come before "[VER:" and are dropped here: taken as
-        # this stream's, they would let the character counting overfill GRBL's receive buffer.
+        # "$G" (parser state) is answered "[GC:...]" then "ok" in every state (GRBL 1.1 refuses
+        # "$I" and "$$" while running or held). Answers still on their way from an earlier
+        # stream (error:9 for lines that arrived after an alarm, late oks) come before "[GC:" and
+        # are dropped here: taken as this stream's, they would let the character counting
+        # overfill GRBL's receive buffer.
         self._write(HANDSHAKE)
         while True:
             _, line = self._get(heard)
-            if line.startswith("[VER:"):
+            if line.startswith("[GC:"):
                 break
             if not line.startswith("<"):
                 self.messages.append(line)
         _, line = self._next(heard)
         if line != "ok":
-            raise Fault("error", f"GRBL answered $I (build info) with {line}")
+            raise Fault("error", f"GRBL answered $G (parser state) with {line}")
         self._wait_state(heard, lambda st: True)
         assert self.last_status is not None
         if self.last_status.state.startswith("Alarm"):

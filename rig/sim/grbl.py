@@ -237,6 +237,9 @@ class SimGrbl(SimControllerBase):
 
     def _dollar(self, text: str) -> None:
         cmd = text.upper().replace(" ", "")
+        if cmd in ("$$", "$I") and self.state_name() not in ("Idle", "Alarm"):
+            self._error(8, text)  # GRBL 1.1: "not idle" for these while running or held
+            return
         if cmd == "$$":
             out = "".join(
                 f"${k}={v:.3f}\r\n" if isinstance(v, float) else f"${k}={v}\r\n"
