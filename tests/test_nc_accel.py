@@ -84,6 +84,22 @@ def test_a_line_running_tangentially_into_an_arc_does_not_slow_down() -> None:
     assert t.sum() == pytest.approx(_line_time(length, 20), rel=1e-9)
 
 
+def test_rotary_moves_count_in_corners_and_lengths() -> None:
+    # Five collinear A steps are one move; an A reversal under straight X slows the path.
+    one = _t("G1 A60 F3000").sum()
+    assert _t("G1 A10 F3000\nA20\nA30\nA40\nA50\nA60").sum() == pytest.approx(one, rel=1e-12)
+    assert one == pytest.approx(_line_time(60, 50), rel=1e-12)
+    straight = _t("G1 X30 A30 F3000").sum()
+    assert _t("G1 X10 A10 F3000\nX20 A0\nX30 A10").sum() > straight * 1.1
+
+
+def test_the_path_stops_where_the_spindle_tool_or_coolant_changes() -> None:
+    one = _line_time(10, 50)
+    for change in ("S500 M3", "M8", "T2 M6"):
+        t = _t(f"G1 X10 F3000\n{change}\nX20").sum()
+        assert t == pytest.approx(2 * one, rel=1e-12), change
+
+
 def test_helix_tangents_are_unit_and_follow_the_lead() -> None:
     m = interpret("G1 X10 Y0 F600\nG3 X10 Y0 Z-2 I-10 J0")
     t0, t1 = segment_tangents(m)

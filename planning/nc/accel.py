@@ -16,7 +16,9 @@ planner is modelled here, the way GRBL and most CNC controls plan:
   acceleration;
 - zero-length moves take no time and do not stop the path;
 - a move of the rotary axes counts its degrees with the millimetres (the feed's convention, see
-  :mod:`planning.nc.motion`); corners are judged on the X/Y/Z directions only.
+  :mod:`planning.nc.motion`), for lengths and for corners (directions in X Y Z A B C);
+- the path also stops where the tool, the spindle speed or the coolant changes between two moves
+  (M0/M1 program stops are not in :class:`~planning.nc.Motion`, so they do not stop it here).
 
 Two passes (backward: every junction reachable to a stop; forward: reachable from the start) give
 each segment's entry and exit speed; the time of a segment is then a closed-form trapezoid (or
@@ -63,10 +65,24 @@ def segment_tangents(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     return t0, t1
 
 
+def _combined_tangents(
+    motion: Motion, rows: np.ndarray, travel: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Unit tangents (m, 6) at the start and end of the moving segments ``rows`` in the combined
+    X Y Z A B C space the feed is counted in (mm and degrees alike): the X/Y/Z direction scaled
+    by the path's share of the travel, the rotary axes' share constant along the segment."""
+    from planning.nc.arcs import segment_length_mm
+
+    t0, t1 = segment_tangents(motion[rows])
+    share = (segment_length_mm(motion[rows]) / travel)[:, None]
+    rot = (motion.rotary_end_deg[rows] - motion.rotary_start_deg[rows]) / travel[:, None]
+    return np.hstack([t0 * share, rot]), np.hstack([t1 * share, rot])
+
+
 def junction_speed_mm_s(
     exit_dir: np.ndarray, entry_dir: np.ndarray, accel_mm_s2: float, deviation_mm: float
 ) -> np.ndarray:
-    """Largest speed through a corner from ``exit_dir`` into ``entry_dir`` (unit, (..., 3)),
+    """Largest speed through a corner from ``exit_dir`` into ``entry_dir`` (unit, (..., k)),
     mm/s, by the junction-deviation model (module doc); inf for a straight continuation."""
     cos_theta = -np.sum(exit_dir * entry_dir, axis=-1)
     sin_half = np.sqrt(np.clip(0.5 * (1.0 - cos_theta), 0.0, 1.0))
@@ -132,14 +148,17 @@ def accel_segment_time_s(
     arc = motion.is_arc[rows]
     if arc.any():
         v[arc] = np.minimum(v[arc], np.sqrt(accel_mm_s2 * arc_radius_mm(motion)[rows][arc]))
-    t0, t1 = segment_tangents(motion)
+    t0, t1 = _combined_tangents(motion, rows, seg_len)
     junction = np.zeros(rows.size + 1)
     if rows.size > 1:
-        corner = junction_speed_mm_s(t1[rows[:-1]], t0[rows[1:]], accel_mm_s2,
-                                     junction_deviation_mm)  # fmt: skip
+        corner = junction_speed_mm_s(t1[:-1], t0[1:], accel_mm_s2, junction_deviation_mm)
         corner = np.minimum(corner, np.minimum(v[:-1], v[1:]))
-        # Stop around rapids and wherever a dwell sits between two moves.
-        stop = (kind[rows[:-1]] == RAPID) | (kind[rows[1:]] == RAPID)
+        # Stop around rapids, where the tool, spindle or coolant changes between two moves (the
+        # control finishes the motion before an M-code), and wherever a dwell sits between them.
+        a, b = rows[:-1], rows[1:]
+        stop = (kind[a] == RAPID) | (kind[b] == RAPID)
+        stop |= (motion.tool[a] != motion.tool[b]) | (motion.coolant[a] != motion.coolant[b])
+        stop |= motion.spindle_rpm[a] != motion.spindle_rpm[b]
         dwell_between = np.zeros(rows.size - 1, dtype=bool)
         dwells = np.flatnonzero(kind == DWELL)
         if dwells.size:
