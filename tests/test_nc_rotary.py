@@ -123,6 +123,9 @@ def test_rotary_limits_of_the_five_axis_machine_are_checked() -> None:
     s = motion_stats(m, five)
     assert s.rotary_min_deg == (-20.0, 0.0, 0.0) and s.rotary_max_deg == (40.0, 0.0, 100.0)
     assert axis_limit_problems(m, load_machine("ace-h63")) == []  # no 5-axis section
+    # The value named is the one outside the limits, not the larger in size.
+    m = interpret("G0 A-100\nG1 X5 A40 F100", five)
+    assert axis_limit_problems(m, five)[0].startswith("line 2: A goes to 40 deg")
 
 
 def test_travel_limits_include_the_bulge_of_arcs() -> None:

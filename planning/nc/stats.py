@@ -173,12 +173,13 @@ def axis_limit_problems(motion: Motion, machine: MachineConfig | None) -> list[s
     for i, name in enumerate("abc" if five is not None else ""):
         lim = getattr(five, name)
         ends = np.stack([motion.rotary_start_deg[:, i], motion.rotary_end_deg[:, i]], axis=1)
-        bad = np.any((ends < lim.min_deg - 1e-9) | (ends > lim.max_deg + 1e-9), axis=1)
+        outside = (ends < lim.min_deg - 1e-9) | (ends > lim.max_deg + 1e-9)
+        bad = outside.any(axis=1)
         if bad.any():
             k = int(np.argmax(bad))
+            v = float(ends[k][np.argmax(outside[k])])  # the end that is outside
             out.append(
-                f"line {int(motion.line[k])}: {name.upper()} goes to "
-                f"{float(ends[k][np.argmax(np.abs(ends[k]))]):g} deg, outside machine "
+                f"line {int(motion.line[k])}: {name.upper()} goes to {v:g} deg, outside machine "
                 f"'{machine.name}' {name.upper()} limits {lim.min_deg:g}..{lim.max_deg:g} deg"
             )
     return out
