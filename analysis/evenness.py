@@ -132,7 +132,7 @@ class ForceTable:
         f = np.asarray(feeds_mm_min, dtype=float)
         return force_cv(self.force(f), f, self.lengths_mm, self.rpm)
 
-    def front(self, feed_min_mm_min: float, feed_max_mm_min: float, n_levels: int = 800):
+    def front(self, feed_min_mm_min: float, feed_max_mm_min: float, n_levels: int = 2000):
         """The equal-force family (module doc) within [feed_min, feed_max], inside the grid."""
         lo = max(feed_min_mm_min, self.feeds_mm_min[0])
         hi = min(feed_max_mm_min, self.feeds_mm_min[-1])
@@ -141,9 +141,9 @@ class ForceTable:
                 f"evenness: feed limits [{feed_min_mm_min}, {feed_max_mm_min}] mm/min leave no "
                 f"room inside the table's [{self.feeds_mm_min[0]:g}, {self.feeds_mm_min[-1]:g}]"
             )
-        at_lo = self.force(np.full(len(self.force_n), lo))
-        at_hi = self.force(np.full(len(self.force_n), hi))
-        levels = np.linspace(at_lo.min(), at_hi.max(), n_levels)
+        # Levels over the whole table, whatever the limits: then raising the maximum feed only
+        # adds choices, level by level, which max_feed_needed's bisection relies on.
+        levels = np.linspace(self.force_n.min(), self.force_n.max(), n_levels)
         feeds = np.stack([np.interp(levels, row, self.feeds_mm_min) for row in self.force_n], -1)
         feeds = np.clip(feeds, lo, hi)
         cv, time_s = self.stats(feeds)

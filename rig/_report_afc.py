@@ -169,9 +169,14 @@ def _feed_limit_bound(
         return {}
     cuts = [SteadyCut(d, b - a) for d, a, b in zip(depths, edges[:-1], edges[1:])]
     rpm = float(const.conditions["spindle_rpm"])
-    top = max(fr.max_feed_mm_min, campaign.machine.feed_max_mm_min)
-    table = ForceTable.build(campaign.tool, coef, cuts, rpm, fr.min_feed_mm_min, top)
-    cv0, t0 = (float(v) for v in table.stats(np.full(len(cuts), const.conditions["feed_mm_min"])))
+    f_const = float(const.conditions["feed_mm_min"])
+    # The table spans the constant feed too, so its force is not clamped to the rule's range.
+    bottom = min(fr.min_feed_mm_min, f_const)
+    top = max(fr.max_feed_mm_min, campaign.machine.feed_max_mm_min, f_const)
+    table = ForceTable.build(campaign.tool, coef, cuts, rpm, bottom, top)
+    cv0, t0 = (float(v) for v in table.stats(np.full(len(cuts), f_const)))
+    if not cv0 > 0:  # equal steps: the constant feed is already even, no ratio to speak of
+        return {}
     front = table.front(fr.min_feed_mm_min, fr.max_feed_mm_min)
     t_target = t0 * (1 - time_target / 100)
     finite = lambda x: x if math.isfinite(x) else None  # noqa: E731  (JSON has no inf)
