@@ -36,7 +36,7 @@ from analysis._identify import ForceRun, RunConditions
 from analysis.config import Dynamometer
 from analysis.errors import AnalysisError
 
-__all__ = ["ForceTable", "import_run", "read_force_table"]
+__all__ = ["ForceTable", "import_run", "merge_conditions", "read_force_table"]
 
 _TIME_NAMES = ("time", "zeit", "t", "time_s", "temps", "tiempo", "tempo")
 _UNIT_TO_N = {"n": 1.0, "kn": 1000.0, "lbf": 4.4482216152605, "mn": 1e-3}
@@ -231,6 +231,18 @@ def _channel_map(table: ForceTable, dyno: Dynamometer | None) -> list[tuple[int,
     return out
 
 
+def merge_conditions(recorded: Mapping[str, Any], given: Mapping[str, Any]) -> dict[str, Any]:
+    """A run's recorded conditions overridden key by key by ``given``; a given feed replaces the
+    recorded one in whichever form each gives it (``fz_mm`` or ``feed_mm_min``)."""
+    out = dict(recorded)
+    if "fz_mm" in given:
+        out.pop("feed_mm_min", None)
+    if "feed_mm_min" in given:
+        out.pop("fz_mm", None)
+    out.update(given)
+    return out
+
+
 def import_run(
     path: str | Path,
     conditions: RunConditions | Mapping[str, Any] | None = None,
@@ -274,10 +286,7 @@ def import_run(
             if k in _CONDITION_KEYS
         }
         given = dict(conditions or {})
-        if "fz_mm" in given:
-            # An explicit feed per tooth wins over a header's feed_mm_min with teeth too.
-            cond_map.pop("feed_mm_min", None)
-        cond_map.update(given)
+        cond_map = merge_conditions(cond_map, given)
         where = f"{t.path} (header" + (" and the given conditions)" if given else ")")
         conditions = RunConditions.from_mapping(cond_map, where)
     return ForceRun(t.path.stem, force, float(rate), conditions, "N")

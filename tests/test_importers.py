@@ -125,3 +125,15 @@ def test_given_conditions_override_the_header_key_by_key(tmp_path):
         import_run(f, {"depth_mm": 1.5})
     # A complete RunConditions replaces the header.
     assert import_run(f, c).conditions == c
+
+
+def test_a_given_feed_replaces_the_recorded_one_in_either_form() -> None:
+    from analysis.importers import merge_conditions
+
+    rec = {"fz_mm": 0.1, "spindle_rpm": 600, "teeth": 2}
+    assert merge_conditions(rec, {"feed_mm_min": 600}) == {
+        "spindle_rpm": 600, "teeth": 2, "feed_mm_min": 600
+    }  # fmt: skip
+    rec = {"feed_mm_min": 600, "spindle_rpm": 600}
+    assert merge_conditions(rec, {"fz_mm": 0.2}) == {"spindle_rpm": 600, "fz_mm": 0.2}
+    assert merge_conditions(rec, {"depth_mm": 2}) == {**rec, "depth_mm": 2}

@@ -55,7 +55,7 @@ def _load_runs(paths, args, rig, expected_tool: str | None = None, by: str = "--
     from tqdm import tqdm
 
     from analysis.identify_facemill import RunConditions, reduce_run, reduce_run_file
-    from analysis.importers import import_run
+    from analysis.importers import import_run, merge_conditions
     from analysis.steady import NoSteadyCutError
 
     given = _condition_overrides(args)
@@ -68,11 +68,8 @@ def _load_runs(paths, args, rig, expected_tool: str | None = None, by: str = "--
                 from analysis.runfile import load_run
 
                 meta = load_run(p, samples=False)
-                recorded = dict(meta.conditions)
-                if "fz_mm" in given:
-                    recorded.pop("feed_mm_min", None)
                 where = f"{p} (conditions" + (" and --conditions)" if given else ")")
-                cond = RunConditions.from_mapping({**recorded, **given}, where)
+                cond = RunConditions.from_mapping(merge_conditions(meta.conditions, given), where)
                 _check_tool(p, cond.tool, expected_tool, by)
                 teeth = _teeth(expected_tool or cond.tool)
                 avgs.append(reduce_run_file(p, teeth, cond, tolerance=args.steady_tolerance))
