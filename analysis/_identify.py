@@ -149,6 +149,13 @@ class RunAverage:
     force_unit: str = "N"
 
 
+#: Said under every coefficient table: what the intervals do and do not cover.
+CI_NOTE = (
+    "ci_low/ci_high: 95 % confidence intervals from the measurement noise only; model error "
+    "(the force model against the real cut) is not in them, so the truth may fall just outside."
+)
+
+
 def default_bins(rate_hz: float, period_s: float) -> int:
     """Angle bins for a revolution average: one per sample, or (above 4096 samples per
     revolution) a whole number of samples per bin when the revolution holds a whole number of

@@ -12,17 +12,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from analysis._identify import CI_NOTE
 from analysis.errors import AnalysisError
 from rig.report import LoadedRun, Section, md_table
 
 #: The coefficients seed 003 reports, then the axial pair cutlab adds.
 COEFFS = ("K_T_n_mm2", "K_R", "P_T_n_mm", "P_R_n_mm", "K_A", "P_A_n_mm")
-
-#: Under the coefficient table: the intervals cover the measurement noise, not the model error.
-CI_NOTE = (
-    "ci_low/ci_high: 95 % confidence intervals from the measurement noise only; model error "
-    "(the force model against the real cut) is not in them, so the truth may fall just outside."
-)
 
 
 def force_run(lr: LoadedRun) -> Any:

@@ -17,11 +17,11 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-#: Printed under the coefficient table: what the intervals do and do not cover.
-CI_NOTE = (
-    "95 % confidence intervals from the measurement noise only; model error (the force model "
-    "against the real cut) is not in them"
-)
+
+def _ci_note() -> str:
+    from analysis._identify import CI_NOTE  # inside: `cutlab --help` need not load scipy
+
+    return CI_NOTE
 
 
 def _condition_overrides(args) -> dict[str, str]:
@@ -139,7 +139,7 @@ def _forces(args: argparse.Namespace) -> int:
         "message": message,
         "coefficients": fit.coefficients.model_dump() if fit.coefficients else None,
         "statistics": stats,
-        "statistics_note": CI_NOTE,
+        "statistics_note": _ci_note(),
         "r_squared": fit.fit.r_squared if fit.fit else None,
         "residual_rms_n": fit.fit.residual_rms if fit.fit else None,
         "dof": fit.fit.dof if fit.fit else None,
@@ -185,7 +185,7 @@ def _forces(args: argparse.Namespace) -> int:
         print(f"{model} fit of {len(avgs)} run(s), tool {tool_name}: {message}")
         if stats:
             print_table([{"coefficient": k, **v} for k, v in stats.items()])
-            print(CI_NOTE)
+            print(_ci_note())
         if "validation" in out:
             print()
             print_table(
