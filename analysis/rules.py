@@ -207,6 +207,11 @@ def derive_rule(
 
     See the module docstring for the transformation and how the bins are placed.
     """
+    # A base within rounding of a limit is that limit: bins a few ulps wide would be empty, and
+    # the reference load must fall exactly on the base feed's edge.
+    for limit in (min_feed_mm_min, max_feed_mm_min):
+        if math.isclose(base_feed_mm_min, limit, rel_tol=1e-9):
+            base_feed_mm_min = limit
     hdr = validate(
         _RuleHeader,
         dict(
@@ -225,11 +230,6 @@ def derive_rule(
     if not 3 <= n_bins <= 200:
         raise AnalysisError(f"n_bins = {n_bins}: expected 3..200 (seed 001 uses 20)")
     lo, base, hi = hdr.min_feed_mm_min, hdr.base_feed_mm_min, hdr.max_feed_mm_min
-    # A base within rounding of a limit is that limit: bins a few ulps wide would be empty, and
-    # the reference load must fall exactly on the base feed's edge.
-    for limit in (lo, hi):
-        if math.isclose(base, limit, rel_tol=1e-9):
-            base = limit
     feeds = _representative_feeds(lo, base, hi, n_bins)
     # Bin j's heavier edge is where the relation gives feed_j: L = L_ref (base / feed_j)^(1/p).
     upper = hdr.reference_load_pct * (base / feeds[:-1]) ** (1.0 / hdr.exponent)
