@@ -473,24 +473,40 @@ def _models_in(annotation: Any) -> list[type[BaseModel]]:
     return out
 
 
-def _field_unit(model: type[BaseModel], loc: tuple[Any, ...]) -> str:
+def _field_unit(model: type[BaseModel], loc: tuple[Any, ...], data: Any = None) -> str:
     """The description (unit) of the field at ``loc``: followed from ``model`` through nested
-    models; failing that, the first config model with a field of that name."""
+    models (a union member chosen by the data's ``kind``); failing that, the first config model
+    with a field of that name."""
     names = [p for p in loc if isinstance(p, str)]
     if not names:
         return ""
     owners: list[type[BaseModel]] = [model]
-    for name in names[:-1]:
-        nxt = [m for o in owners if name in o.model_fields
-               for m in _models_in(o.model_fields[name].annotation)]  # fmt: skip
+    cur = data
+    for part in loc[:-1]:
+        cur = cur.get(part) if isinstance(cur, Mapping) else (
+            cur[part] if isinstance(cur, list | tuple) and isinstance(part, int)
+            and part < len(cur) else None
+        )  # fmt: skip
+        if not isinstance(part, str):
+            continue
+        nxt = [m for o in owners if part in o.model_fields
+               for m in _models_in(o.model_fields[part].annotation)]  # fmt: skip
         if not nxt:  # a dict key (tool or material name) or an unknown path: stay
             nxt = owners
-        owners = nxt
+        kind = cur.get("kind") if isinstance(cur, Mapping) else None
+        tagged = [m for m in nxt if kind is not None and kind in _kinds(m)]
+        owners = tagged or nxt
     for m in (*owners, *_all_models()):
         f = m.model_fields.get(names[-1])
         if f is not None and f.description:
             return f.description
     return ""
+
+
+def _kinds(model: type[BaseModel]) -> tuple[Any, ...]:
+    """The values a model's ``kind`` field allows (its Literal), () without one."""
+    f = model.model_fields.get("kind")
+    return get_args(f.annotation) if f is not None else ()
 
 
 def _clean_loc(loc: tuple[Any, ...], data: Any) -> tuple[Any, ...]:
@@ -525,7 +541,7 @@ def format_validation_error(
             msg = "unknown key (check the spelling; unknown keys are not ignored)"
         elif e["type"] == "missing":
             msg = "missing required field"
-        unit = _field_unit(model, loc) if e["type"] not in ("extra_forbidden",) else ""
+        unit = _field_unit(model, loc, data) if e["type"] not in ("extra_forbidden",) else ""
         inp = e.get("input")
         value = "" if e["type"] == "missing" or isinstance(inp, Mapping) else f" = {inp!r}"
         suffix = f" ({unit})" if unit and unit not in msg else ""

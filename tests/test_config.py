@@ -84,3 +84,18 @@ def test_machine_feed_limits_ordered(tmp_path: Path) -> None:
     text = text.replace("feed_min_mm_min = 1", "feed_min_mm_min = 20000")
     with pytest.raises(ConfigError, match="feed_max_mm_min"):
         cfg.load_machine(_write(tmp_path, text, "m.toml"))
+
+
+def test_the_unit_shown_is_that_of_the_tool_kind_at_fault(tmp_path: Path) -> None:
+    """End mills and face mills both have runout_mm, described differently: the face mill's
+    description must come with a face mill's error (the union member chosen by `kind`)."""
+    text = (
+        '[tools.fm]\nkind = "facemill"\ndiameter_mm = 125.0\ninserts = 1\nrunout_mm = 5\n'
+        "lead_angle_deg = 15.0\naxial_rake_deg = 7.0\nradial_rake_deg = 0.0\n"
+        "nose_radius_mm = 0.4\ninsert_edge_length_mm = 12.7\n"
+    )
+    p = tmp_path / "tools.toml"
+    p.write_text(text)
+    with pytest.raises(ConfigError, match=r"tools\.toml:5: tools\.fm\.runout_mm = 5: .*\(mm, "
+                       r"radial runout per insert\)$"):  # fmt: skip
+        cfg.load_tools(p)
