@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -53,3 +54,44 @@ def print_table(rows: Sequence[Mapping[str, Any]], floatfmt: str = ".4g") -> Non
 def status(msg: str) -> None:
     """Status and progress go to stderr so stdout stays machine-readable."""
     print(msg, file=sys.stderr, flush=True)
+
+
+def parse_conditions(items: list[str]) -> dict[str, Any]:
+    """``--conditions``: one JSON object, or KEY=VALUE pairs as `cutlab analyze forces` takes
+    them (numbers become numbers: ``spindle_rpm=600 tool=phi10-flat``)."""
+    from analysis.errors import ConfigError
+
+    if not items:
+        return {}
+    if len(items) == 1 and items[0].lstrip().startswith("{"):
+        try:
+            obj = json.loads(items[0])
+        except json.JSONDecodeError as exc:
+            raise ConfigError(f"--conditions {items[0]!r}: not a JSON object ({exc})") from None
+        if not isinstance(obj, dict):
+            raise ConfigError(f"--conditions {items[0]!r}: expected a JSON object")
+        return obj
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, val = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise ConfigError(
+                f"--conditions {item!r}: expected KEY=VALUE (e.g. spindle_rpm=600) or one JSON "
+                "object"
+            )
+        if key in out:
+            raise ConfigError(f"--conditions: {key} given twice")
+        out[key] = _number_or_text(val.strip())
+    return out
+
+
+def _number_or_text(text: str) -> int | float | str:
+    """600 -> 600, 0.236 -> 0.236, phi10-flat -> 'phi10-flat' (nan/inf stay text)."""
+    for kind in (int, float):
+        try:
+            v = kind(text)
+        except ValueError:
+            continue
+        return v if math.isfinite(v) else text
+    return text

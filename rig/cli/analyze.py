@@ -24,14 +24,11 @@ def _ci_note() -> str:
     return CI_NOTE
 
 
-def _condition_overrides(args) -> dict[str, str]:
+def _condition_overrides(args) -> dict[str, Any]:
     """--conditions KEY=VALUE... as a mapping (applied over each file's own conditions)."""
-    from analysis.errors import ConfigError
+    from rig.cli._common import parse_conditions
 
-    bad = [item for item in args.conditions or () if "=" not in item]
-    if bad:
-        raise ConfigError(f"--conditions {bad[0]!r}: expected KEY=VALUE (e.g. fz_mm=0.2)")
-    return dict(item.split("=", 1) for item in args.conditions or ())
+    return parse_conditions(args.conditions)
 
 
 def _check_tool(path, recorded: str, expected: str | None, by: str) -> None:

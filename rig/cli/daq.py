@@ -7,52 +7,8 @@ cutlab daq record --seconds 5 -o run.h5                 # the NI device of confi
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import time
 from pathlib import Path
-from typing import Any
-
-
-def parse_conditions(items: list[str]) -> dict[str, Any]:
-    """``--conditions``: one JSON object, or KEY=VALUE pairs as `cutlab analyze forces` takes
-    them (numbers become numbers: ``spindle_rpm=600 tool=phi10-flat``)."""
-    from analysis.errors import ConfigError
-
-    if not items:
-        return {}
-    if len(items) == 1 and items[0].lstrip().startswith("{"):
-        try:
-            obj = json.loads(items[0])
-        except json.JSONDecodeError as exc:
-            raise ConfigError(f"--conditions {items[0]!r}: not a JSON object ({exc})") from None
-        if not isinstance(obj, dict):
-            raise ConfigError(f"--conditions {items[0]!r}: expected a JSON object")
-        return obj
-    out: dict[str, Any] = {}
-    for item in items:
-        key, sep, val = item.partition("=")
-        key = key.strip()
-        if not sep or not key:
-            raise ConfigError(
-                f"--conditions {item!r}: expected KEY=VALUE (e.g. spindle_rpm=600) or one JSON "
-                "object"
-            )
-        if key in out:
-            raise ConfigError(f"--conditions: {key} given twice")
-        out[key] = _number_or_text(val.strip())
-    return out
-
-
-def _number_or_text(text: str) -> int | float | str:
-    """600 -> 600, 0.236 -> 0.236, phi10-flat -> 'phi10-flat' (nan/inf stay text)."""
-    for kind in (int, float):
-        try:
-            v = kind(text)
-        except ValueError:
-            continue
-        return v if math.isfinite(v) else text
-    return text
 
 
 def _record(args: argparse.Namespace) -> int:
@@ -69,6 +25,8 @@ def _record(args: argparse.Namespace) -> int:
     where = str(rig_path or "configs/rig.toml")
     if not args.seconds > 0:
         raise ConfigError(f"--seconds = {args.seconds}: must be > 0 (s)")
+    from rig.cli._common import parse_conditions
+
     conditions = parse_conditions(args.conditions)
     rate_hz = float(args.rate_hz or rig.daq.rate_hz)
     if not 0 < rate_hz <= 10_000_000:
