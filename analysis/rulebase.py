@@ -175,7 +175,7 @@ class RuleBase:
         self.path = Path(path) if path is not None else default_path()
         if not create and not self.path.is_file():
             raise ConfigError(
-                f"{self.path}: no rule base here (no such file); adding a rule creates one"
+                f"{self.path}: no rule base here (no such file); `cutlab rules add` creates it"
             )
         self.path.parent.mkdir(parents=True, exist_ok=True)
         try:

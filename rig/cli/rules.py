@@ -91,15 +91,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _open(db: Path | None):
     """The rule base of ``--db`` (default from configs/lab.toml) for every command but ``add``:
     a path that does not exist is an error, not a new empty base (a typo must not read as one)."""
-    from analysis.errors import ConfigError
-    from analysis.rulebase import RuleBase, default_path
+    from analysis.rulebase import RuleBase
 
-    path = db if db is not None else default_path()
-    if not path.is_file():
-        raise ConfigError(
-            f"{path}: no rule base here (no such file); `cutlab rules add` creates it"
-        )
-    return RuleBase(path, create=False)
+    return RuleBase(db, create=False)
 
 
 def _key(args: argparse.Namespace):
