@@ -25,6 +25,9 @@ while it is written, SWMR)::
                                          not pay and would halve the sustained rate)
     /forces/scaling_coeff float64 (c, k) raw only: device polynomial, volts = sum_j a[:, j] code^j
                                          (nidaqmx ``ai_dev_scaling_coeff``)
+    /forces/flushed      int64   (1,)    samples on disk: set after each flush, so a live reader
+                                         reads no further (the dataset's extent can reach the
+                                         reader before the samples in it do)
     /calibration/                       attrs: calibration_id, dynamometer, sensitivity_pc_n (c),
                                                amp_sensitivity_pc_n (c), range_n_v (c), sign (c),
                                                crosstalk (c, c) (measured = C @ true)
@@ -92,6 +95,7 @@ FORCES = "forces"
 RAW = "forces/raw"
 VOLTS = "forces/volts"
 SCALING_COEFF = "forces/scaling_coeff"
+FLUSHED = "forces/flushed"
 SAMPLE_FORMAT_RAW = "raw_int16"
 SAMPLE_FORMAT_VOLTS = "volts_float64"
 

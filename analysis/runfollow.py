@@ -48,6 +48,10 @@ class RunFollower:
         ds = rf.samples_dataset(self._f)
         ds.refresh()
         n = int(ds.shape[0])
+        if rf.FLUSHED in self._f:  # files written before it: the extent only
+            fl = self._f[rf.FLUSHED]
+            fl.refresh()
+            n = min(n, int(fl[0])) if status == rf.STATUS_RUNNING else n
         block = ds[self._n : n]
         volts = rf.raw_to_volts(block, self._coeff) if self._coeff is not None else block
         first, self._n = self._n, n

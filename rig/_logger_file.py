@@ -157,6 +157,7 @@ def create_run_file(
         dtype=info.dtype,
         **kw,
     )
+    f.create_dataset(rf.FLUSHED, data=np.zeros(1, np.int64))
     if info.sample_format == SAMPLE_FORMAT_RAW:
         f.create_dataset(rf.SCALING_COEFF, data=np.asarray(info.scaling_coeff, np.float64))
     if cal is not None:

@@ -463,9 +463,13 @@ class RunWriter:
             self._idle.notify_all()
 
     def _flush(self) -> None:
-        """Flush everything written so far to the file, for SWMR readers and crash safety."""
+        """Flush everything written so far to the file, for SWMR readers and crash safety; then
+        say how many samples that was (a live reader reads no further)."""
         t = time.perf_counter()
         self._f.flush()
+        flushed = self._f[rf.FLUSHED]
+        flushed[0] = self._committed
+        flushed.flush()
         self._flushes += 1
         self._max_flush_s = max(self._max_flush_s, time.perf_counter() - t)
 
