@@ -51,7 +51,7 @@ class LoadedRun:
     def steady_means(self) -> dict[str, float]:
         """Mean forces over the steady cutting part (offset removed), N; NaN if there is none
         (computed once: the runs table, the fit plot and the validation all use it)."""
-        from analysis.steady import IDENTIFY_TOLERANCE, find_steady
+        from analysis.steady import find_steady
 
         run = self.run
         rpm = float(self.conditions.get("spindle_rpm", 0.0))
@@ -59,8 +59,7 @@ class LoadedRun:
         if run.force_n is None or not rpm:
             return out
         try:
-            # The identification's window, so measured and fitted means agree on what is steady.
-            part = find_steady(run.force_n, run.rate_hz, rpm, IDENTIFY_TOLERANCE)
+            part = find_steady(run.force_n, run.rate_hz, rpm)
         except AnalysisError:
             return out
         seg = part.corrected(run.force_n[part.window], part.window.start, run.rate_hz)
