@@ -125,14 +125,24 @@ def _arc_test(
     rad = np.hypot(v[:, 0], v[:, 1])
     if np.max(np.abs(rad - r)) > tol:
         return None
+    turning = _one_way_sweep(v)
+    if turning is None:
+        return None
+    sweep, sense = turning
+    if abs(sweep) > max_sweep or _chord_inner_dev(p, centre, r) > tol:
+        return None
+    return (ARC_CCW if sense > 0 else ARC_CW), centre, r
+
+
+def _one_way_sweep(v: np.ndarray) -> tuple[float, float] | None:
+    """(signed sweep rad, sense +-1) of vectors ``v`` (k, 2) from a centre to the vertices, or
+    None unless they turn one way in steps of at most MAX_CHORD_TURN_RAD."""
     turn = _wrap(np.diff(np.arctan2(v[:, 1], v[:, 0])))
     sweep = float(turn.sum())
     sense = 1.0 if sweep > 0 else -1.0
     if np.any(turn * sense < 0) or np.any(np.abs(turn) > MAX_CHORD_TURN_RAD):
         return None
-    if abs(sweep) > max_sweep or _chord_inner_dev(p, centre, r) > tol:
-        return None
-    return (ARC_CCW if sense > 0 else ARC_CW), centre, r
+    return sweep, sense
 
 
 def _line_test(p: np.ndarray, tol: float) -> bool:
@@ -197,11 +207,10 @@ def _full_circle(
     r = float(rad[0])
     if not r <= max_radius or np.max(np.abs(rad - r)) > tol:
         return None
-    turn = _wrap(np.diff(np.arctan2(v[:, 1], v[:, 0])))
-    sweep = float(turn.sum())
-    sense = 1.0 if sweep > 0 else -1.0
-    if np.any(turn * sense < 0) or np.any(np.abs(turn) > MAX_CHORD_TURN_RAD):
+    turning = _one_way_sweep(v)
+    if turning is None:
         return None
+    sweep, sense = turning
     if abs(abs(sweep) - TWO_PI) > 1e-6 or _chord_inner_dev(p, centre, r) > tol:
         return None
     return (ARC_CCW if sense > 0 else ARC_CW), centre, r
