@@ -34,7 +34,7 @@ _CUT = "\x00"
 _BLOCK_OK_CUT = re.compile(
     "[ \t\r\n\f\v\x00]*(?:[A-Z]" + WS + "*" + NUMBER + "[ \t\r\n\f\v\x00]*)*"
 )
-_COMMENT_RE = re.compile(r"\([^()]*\)|;.*")
+_COMMENT_RE = re.compile(r"\([^()]*\)|;.*", re.DOTALL)  # as _TOKEN_RE: ";" runs to the end
 _TOKEN_RE = re.compile(
     r"(?P<space>" + WS + "+)"
     r"|(?P<comment>\([^()]*\)|;.*)"
@@ -93,8 +93,8 @@ def block_words(raw: str, file: str, line: int) -> tuple[Words, int]:
     s = raw
     ok, blank = _BLOCK_OK, _WS_CHARS
     if "(" in s or ";" in s or ")" in s:
-        if _CUT in s:
-            raise line_error(raw, file, line)
+        if _CUT in s:  # the line holds the placeholder itself: let the tokens decide
+            return _block_words_from_tokens(raw, file, line)
         s = _COMMENT_RE.sub(_CUT, s)
         if "(" in s or ")" in s:
             raise line_error(raw, file, line)
@@ -117,6 +117,18 @@ def block_words(raw: str, file: str, line: int) -> tuple[Words, int]:
     if ok.fullmatch(s) is None:
         raise line_error(raw, file, line)
     return _WORD_RE.findall(s), flag
+
+
+def _block_words_from_tokens(raw: str, file: str, line: int) -> tuple[Words, int]:
+    """:func:`block_words` by the layout tokenizer (the slow path, for rare lines)."""
+    err = line_error(raw, file, line)
+    if err.reason != "unreadable block":
+        raise err
+    toks = tokenize(raw)
+    code = [t for t in toks if t.kind in ("word", "delete", "percent")]
+    first = code[0].kind if code else ""
+    flag = 2 if first == "percent" else 1 if first == "delete" else 0
+    return [(t.letter, t.number) for t in toks if t.kind == "word"], flag
 
 
 def undecodable(file: str, data: bytes, exc: UnicodeDecodeError, first_line: int = 1) -> NCError:
