@@ -17,7 +17,7 @@ import numpy as np
 from scipy import linalg, stats
 
 from analysis.errors import AnalysisError
-from analysis.steady import (
+from analysis.runs.steady import (
     IDENTIFY_TOLERANCE,
     RevolutionStats,
     SyncAverager,
@@ -177,8 +177,8 @@ def reduce_run(
     """Steady part, offset removal, synchronous average and tooth peaks of an in-memory run.
 
     ``tolerance``: revolutions whose mean stays within this fraction of the median count as
-    steady (:func:`analysis.steady.find_steady`); the default
-    :data:`analysis.steady.IDENTIFY_TOLERANCE` keeps a face mill's partial engagement out.
+    steady (:func:`analysis.runs.steady.find_steady`); the default
+    :data:`analysis.runs.steady.IDENTIFY_TOLERANCE` keeps a face mill's partial engagement out.
     """
     x = np.asarray(run.force_n, float)
     if x.ndim != 2 or x.shape[1] != 3:
@@ -396,10 +396,10 @@ def axis_order(channel_names: Sequence[str], dynamometer=None) -> list[int]:
 def iter_run_chunks(path, chunk_samples: int = 1 << 20, start: int = 0, stop: int | None = None):
     """Yield (device sample indices (m,), force (m, 3) N in X, Y, Z) of a run file in chunks.
 
-    Reads through :func:`analysis.runfile.load_run` time windows, so memory is bounded by the
+    Reads through :func:`analysis.runs.file.load_run` time windows, so memory is bounded by the
     chunk (plus the loader's index bookkeeping).
     """
-    from analysis.runfile import load_run
+    from analysis.runs.file import load_run
 
     meta = load_run(path, samples=False)
     rate, acquired = meta.rate_hz, meta.samples_acquired
@@ -431,7 +431,7 @@ def reduce_run_file(
     the steady part synchronously. Memory: the chunk plus O(revolutions + bins), plus what
     ``load_run`` allocates per window. ``tolerance``: the steady window, as :func:`reduce_run`.
     """
-    from analysis.runfile import load_run
+    from analysis.runs.file import load_run
 
     meta = load_run(path, samples=False)
     name = Path(str(path)).stem

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.errors import AnalysisError
-from analysis.steady import per_revolution
+from analysis.runs.steady import per_revolution
 
 
 @dataclass(frozen=True)
@@ -247,7 +247,7 @@ class Sweep:
 
 
 def sweep_runs_from_files(paths: Sequence[str | Path]) -> Sweep:
-    """Read feed-sweep runs (``analysis.runfile``) into :class:`SweepRun` s, steady part only.
+    """Read feed-sweep runs (``analysis.runs.file``) into :class:`SweepRun` s, steady part only.
 
     Each run's conditions must give ``feed_mm_min`` and ``spindle_rpm``, and ``flutes`` or a
     ``tool`` name from the tool library. The force channels used are Fx and Fy (else the first two).
@@ -256,8 +256,8 @@ def sweep_runs_from_files(paths: Sequence[str | Path]) -> Sweep:
     """
     from analysis.config import EndMill, get_tool
     from analysis.load import slot_load_percent
-    from analysis.runfile import load_run
-    from analysis.steady import steady_window
+    from analysis.runs.file import load_run
+    from analysis.runs.steady import steady_window
 
     runs, cuts, tools = [], set(), set()
     for path in paths:

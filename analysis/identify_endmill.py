@@ -43,7 +43,7 @@ from analysis.endmill import (
     mean_force_design,
 )
 from analysis.errors import AnalysisError
-from analysis.steady import IDENTIFY_TOLERANCE
+from analysis.runs.steady import IDENTIFY_TOLERANCE
 
 __all__ = ["EndMillFit", "fit_endmill", "fit_endmill_runs", "synthetic_endmill_run"]
 

@@ -2,7 +2,7 @@
 
 Seed 003's method: one feed per tooth, the axial depth of cut varied (0.5 -> 3 mm); ploughing
 grows with the engaged edge length l, chip removal with the chip area S, and a least-squares fit
-over the runs separates them. Here each run is first reduced (``analysis.steady``) to its
+over the runs separates them. Here each run is first reduced (``analysis.runs.steady``) to its
 synchronous revolution average with the dynamometer offset removed; the model's regressors
 (``analysis.facemill.facemill_design``: force per unit coefficient over a revolution) are passed
 through the dynamometer's modes (``analysis.dynamics``) so the ringing after each insert entry
@@ -52,7 +52,7 @@ from analysis.facemill import (
     facemill_design,
     facemill_forces,
 )
-from analysis.steady import IDENTIFY_TOLERANCE
+from analysis.runs.steady import IDENTIFY_TOLERANCE
 
 __all__ = [
     "FaceMillFit",
@@ -80,7 +80,7 @@ def _bin_offsets(avg: RunAverage) -> np.ndarray:
     r = avg.rate_hz * avg.period_s / len(avg.waveform_n)
     if abs(r - round(r)) < 1e-3 and round(r) >= 1:
         return np.arange(round(r)) / round(r)
-    # The bin's edges sit half a sample early (see analysis.steady.SyncAverager).
+    # The bin's edges sit half a sample early (see analysis.runs.steady.SyncAverager).
     return (np.arange(4) + 0.5) / 4 - 0.5 / r
 
 

@@ -57,7 +57,7 @@ def _physics(tool_name: str, material: str, rate_hz: float, seconds: float) -> d
 
 
 def _campaign() -> dict:
-    from analysis.runfile import load_run
+    from analysis.runs.file import load_run
     from rig.campaign import load_campaign, run_campaign
     from rig.report import write_report
 

@@ -3,7 +3,7 @@
 Writes (once; reused while they exist) 10 run files of 3.34 M samples x 3 channels each with
 ``rig.logger.RunWriter`` — face milling at depths 0.5..3.0 mm with seed 003's setup, Table 2's
 modes, 2 % noise, an offset — then times the identification: each file is streamed in chunks
-through ``analysis.runfile.load_run`` windows (two passes: per-revolution statistics, then the
+through ``analysis.runs.file.load_run`` windows (two passes: per-revolution statistics, then the
 synchronous average) and the fit runs on the averages. Prints samples, wall time, throughput,
 peak traced memory of the identification, the chunk size, and the coefficients' errors.
 
@@ -23,7 +23,7 @@ from analysis.config import get_material, get_tool, load_rig
 from analysis.dynamics import DynamometerFilter
 from analysis.facemill import FaceMillCut, facemill_forces
 from analysis.identify_facemill import fit_facemill, reduce_run_file
-from analysis.runfile import SAMPLE_FORMAT_VOLTS, load_run
+from analysis.runs.file import SAMPLE_FORMAT_VOLTS, load_run
 from rig.calibration import Calibration
 from rig.daq.base import DaqInfo
 from rig.logger import RunWriter

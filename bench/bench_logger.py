@@ -32,7 +32,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from analysis import runfile as rf
+from analysis.runs import file as rf
 from rig.daq.base import DaqInfo
 from rig.daq.sim import SimDaq
 from rig.logger import RunWriter

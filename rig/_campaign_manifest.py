@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from analysis import __version__
-from analysis import runfile as rf
+from analysis.runs import file as rf
 from rig._campaign_config import Campaign
 from rig.errors import RigError
 

@@ -29,7 +29,7 @@ from typing import Protocol
 
 import numpy as np
 
-from analysis import runfile as rf
+from analysis.runs import file as rf
 from rig.calibration import Calibration, CalibrationError, compensate, fit_drift
 from rig.daq.base import SAMPLE_FORMAT_RAW, Daq, DaqEvent, DaqInfo
 from rig.dnc.program import Program

@@ -1,6 +1,6 @@
 """Creating a run file for :class:`rig.logger.RunWriter`: every object before SWMR is switched on.
 
-The layout itself is documented in :mod:`analysis.runfile`; this module only builds it.
+The layout itself is documented in :mod:`analysis.runs.file`; this module only builds it.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import h5py
 import numpy as np
 
 from analysis import __version__
-from analysis import runfile as rf
+from analysis.runs import file as rf
 from rig.calibration import Calibration
 from rig.daq.base import SAMPLE_FORMAT_RAW, DaqInfo
 from rig.errors import RigError

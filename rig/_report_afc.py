@@ -33,7 +33,7 @@ CUT_FRACTION = 0.15
 
 def cutting_revolutions(lr: LoadedRun) -> dict[str, Any]:
     """Per-revolution feed-plane force of the cutting part of a run and its statistics."""
-    from analysis.steady import per_revolution
+    from analysis.runs.steady import per_revolution
 
     run = lr.run
     rpm = float(lr.conditions["spindle_rpm"])

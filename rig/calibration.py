@@ -13,7 +13,7 @@ cancels and V = F_meas / R), ``R`` the amplifier's scale in N/V (mechanical unit
 the output at zero load after reset/operate and ``d`` the amplifier's linear drift (V/s). The
 inverse, applied to recorded volts, is the affine map ``force = M @ (V - V0 - d (t - t_zero))`` with
 ``M = diag(sign) @ inv(C) @ diag(R * S_amp / S)``; ``rig.logger`` stores M, V0, t_zero and d in the
-run file (``analysis.runfile`` documents where) and the raw volts are kept beside it.
+run file (``analysis.runs.file`` documents where) and the raw volts are kept beside it.
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from analysis import runfile as rf
 from analysis.config import Dynamometer, RigConfig
 from analysis.errors import ConfigError
+from analysis.runs import file as rf
 from rig.errors import RigError
 
 
@@ -207,7 +207,7 @@ class Calibration:
         return replace(self, drift_v_s=drift_v_s)
 
     def as_attrs(self) -> dict[str, object]:
-        """The sheet values as HDF5 attributes (see analysis.runfile, /calibration)."""
+        """The sheet values as HDF5 attributes (see analysis.runs.file, /calibration)."""
         return {
             "calibration_id": self.calibration_id,
             "dynamometer": self.dynamometer,

@@ -8,7 +8,7 @@ in order on the rig, each through :func:`rig._campaign_run.execute_run`, and kee
     <output_dir>/<campaign name>/
         campaign.json           manifest: config hash, software version, every run's status
         campaign.toml           the campaign file as run
-        runs/NNN-<test name>.h5 one run file per test (layout: analysis.runfile)
+        runs/NNN-<test name>.h5 one run file per test (layout: analysis.runs.file)
         programs/NNN-<test name>.nc
         report/                 written by rig.report after the campaign
 
@@ -35,9 +35,9 @@ from pathlib import Path
 from typing import Any
 
 from analysis import __version__
-from analysis import runfile as rf
 from analysis.config import FaceMill
 from analysis.errors import ConfigError
+from analysis.runs import file as rf
 from rig._campaign_config import Campaign, RunConditions, load_campaign
 from rig._campaign_manifest import (
     Manifest,

@@ -7,10 +7,10 @@ until the next block completes it, so no chunk is read back) and returns them to
 the pool is empty (disk too slow) the block is dropped and recorded as a ``queue_full`` event with
 its exact device sample index and length, so the acquisition never waits on the disk and nothing
 is lost silently. Every dataset is created before SWMR is switched on, so
-``analysis.runfollow.RunFollower`` can read the file while it grows, and a writer killed at any
+``analysis.runs.follow.RunFollower`` can read the file while it grows, and a writer killed at any
 moment leaves a file that opens and holds everything up to its last flush (default every 1 s).
 
-The layout is documented in :mod:`analysis.runfile` and written here only through its constants.
+The layout is documented in :mod:`analysis.runs.file` and written here only through its constants.
 
 Other threads (the DNC streamer, the campaign runner) write through thread-safe methods that
 queue small records for the writer thread: :meth:`append_blocks`, :meth:`ack_blocks`,
@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis import runfile as rf
+from analysis.runs import file as rf
 from rig._logger_file import (
     RunWriterError,
     append_rows,

@@ -1,7 +1,7 @@
 """After a campaign: its configured analysis, written as a report folder.
 
 ``write_report(campaign_folder)`` reads the campaign as it was run (``campaign.toml`` and the
-manifest in the folder) and every run file through :mod:`analysis.runfile`, then writes::
+manifest in the folder) and every run file through :mod:`analysis.runs.file`, then writes::
 
     report/
         report.md            the summary people read (tables in Markdown)
@@ -28,8 +28,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from analysis import runfile as rf
 from analysis.errors import AnalysisError
+from analysis.runs import file as rf
 from rig.errors import RigError
 
 
@@ -51,7 +51,7 @@ class LoadedRun:
     def steady_means(self) -> dict[str, float]:
         """Mean forces over the steady cutting part (offset removed), N; NaN if there is none
         (computed once: the runs table, the fit plot and the validation all use it)."""
-        from analysis.steady import find_steady
+        from analysis.runs.steady import find_steady
 
         run = self.run
         rpm = float(self.conditions.get("spindle_rpm", 0.0))

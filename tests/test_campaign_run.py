@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis import runfile as rf
 from analysis.errors import CutlabError
+from analysis.runs import file as rf
 from rig.campaign import load_campaign, run_campaign
 
 DATA = Path(__file__).parent / "data" / "campaign"
@@ -132,7 +132,7 @@ def _streaming(folder: Path) -> bool:
 
 def _program_started(folder: Path) -> bool:
     """The run being written (read live, SWMR) has samples and its program is streaming."""
-    from analysis.runfollow import RunFollower
+    from analysis.runs.follow import RunFollower
 
     files = sorted((folder / "runs").glob("*.h5"))
     try:

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis import runfile as rf
+from analysis.runs import file as rf
 from rig.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent

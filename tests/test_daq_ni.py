@@ -26,8 +26,8 @@ from nidaqmx.task import InStream, Timing
 from nidaqmx.task.channels import AIChannel
 from nidaqmx.task.collections import AIChannelCollection
 
-from analysis import runfile as rf
 from analysis.config import DaqConfig, load_rig
+from analysis.runs import file as rf
 from rig.calibration import Calibration
 from rig.daq import DaqError, DaqNotAvailableError
 from rig.daq.ni import NiDaq

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis import runfile as rf
+from analysis.runs import file as rf
 from rig.daq import DaqError, PushedSource, SimDaq, ramp_source, sine_source
 from rig.daq.base import DaqEvent, DaqInfo
 from rig.logger import RunWriter

@@ -256,7 +256,7 @@ def test_csv_record_round_trip(tmp_path) -> None:
 
 def test_block_record_in_a_real_run_file_after_a_fault(tmp_path) -> None:
     """GRBL error:N mid-stream: the HDF5 run file is closed (status fail) and holds the blocks."""
-    from analysis.runfile import load_run
+    from analysis.runs.file import load_run
     from rig.daq.base import SAMPLE_FORMAT_VOLTS, DaqInfo
     from rig.dnc.sinks import LoggerSink
     from rig.logger import RunWriter

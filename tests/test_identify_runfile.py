@@ -14,7 +14,7 @@ from analysis.dynamics import DynamometerFilter
 from analysis.errors import AnalysisError
 from analysis.facemill import FaceMillCut, facemill_forces
 from analysis.identify_facemill import fit_facemill, fit_facemill_runs, synthetic_facemill_run
-from analysis.runfile import SAMPLE_FORMAT_VOLTS
+from analysis.runs.file import SAMPLE_FORMAT_VOLTS
 from rig.calibration import Calibration
 from rig.cli import main
 from rig.daq.base import DaqInfo

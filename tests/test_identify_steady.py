@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from analysis.errors import AnalysisError
-from analysis.steady import (
+from analysis.runs.steady import (
     SyncAverager,
     find_steady,
     per_revolution,

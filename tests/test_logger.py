@@ -16,9 +16,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from analysis import runfile as rf
 from analysis.config import load_rig
-from analysis.runfollow import RunFollower
+from analysis.runs import file as rf
+from analysis.runs.follow import RunFollower
 from rig.calibration import Calibration
 from rig.cli import main
 from rig.daq.base import DaqEvent, DaqInfo

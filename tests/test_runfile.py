@@ -1,4 +1,4 @@
-"""analysis.runfile: the loader's errors, device-index bookkeeping, windows, the layout contract."""
+"""analysis.runs.file: the loader's errors, device-index bookkeeping, windows, the layout contract."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from analysis import runfile as rf
+from analysis.runs import file as rf
 from rig.daq.base import DaqInfo
 from rig.logger import RunWriter
 

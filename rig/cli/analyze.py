@@ -53,7 +53,7 @@ def _load_runs(paths, args, rig, expected_tool: str | None = None, by: str = "--
 
     from analysis.identify_facemill import RunConditions, reduce_run, reduce_run_file
     from analysis.importers import import_run, merge_conditions
-    from analysis.steady import NoSteadyCutError
+    from analysis.runs.steady import NoSteadyCutError
 
     given = _condition_overrides(args)
     avgs, rejected, tool_names = [], [], set()
@@ -62,7 +62,7 @@ def _load_runs(paths, args, rig, expected_tool: str | None = None, by: str = "--
     for p in tqdm(paths, desc="reducing runs", unit="run", disable=quiet):
         try:
             if str(p).lower().endswith((".h5", ".hdf5")):
-                from analysis.runfile import load_run
+                from analysis.runs.file import load_run
 
                 meta = load_run(p, samples=False)
                 where = f"{p} (conditions" + (" and --conditions)" if given else ")")
@@ -212,7 +212,7 @@ def _modal(args: argparse.Namespace) -> int:
 
     path = Path(args.file)
     if path.suffix.lower() in (".h5", ".hdf5"):
-        from analysis.runfile import load_run
+        from analysis.runs.file import load_run
 
         run = load_run(path)
         data = run.force_n if run.force_n is not None else run.volts
@@ -280,7 +280,7 @@ def _modal(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
-    from analysis.steady import IDENTIFY_TOLERANCE
+    from analysis.runs.steady import IDENTIFY_TOLERANCE
 
     p = sub.add_parser("analyze", help="force coefficients from runs, dynamometer modes")
     psub = p.add_subparsers(dest="analyze_command", metavar="ANALYZE_COMMAND")

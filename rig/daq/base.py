@@ -22,7 +22,7 @@ from typing import Protocol
 
 import numpy as np
 
-from analysis.runfile import SAMPLE_FORMAT_RAW, SAMPLE_FORMAT_VOLTS  # the run file's names
+from analysis.runs.file import SAMPLE_FORMAT_RAW, SAMPLE_FORMAT_VOLTS  # the run file's names
 from rig.errors import RigError
 
 
@@ -78,7 +78,7 @@ class DaqInfo:
 
 @dataclass(frozen=True)
 class DaqEvent:
-    """Something the DAQ saw: kind is one of analysis.runfile.EVENT_KINDS.
+    """Something the DAQ saw: kind is one of analysis.runs.file.EVENT_KINDS.
 
     sample : device sample index where it happened; lost : samples per channel it cost (0 if the
     DAQ does not know; the sink measures holes itself); time_s : run clock (NaN: from sample).

@@ -41,8 +41,8 @@ from nidaqmx.constants import (
 from nidaqmx.error_codes import DAQmxErrors
 from nidaqmx.stream_readers import AnalogMultiChannelReader, AnalogUnscaledReader
 
-from analysis import runfile as rf
 from analysis.config import DaqConfig
+from analysis.runs import file as rf
 from rig.daq.base import (
     SAMPLE_FORMAT_RAW,
     SAMPLE_FORMAT_VOLTS,

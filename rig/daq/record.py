@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis import runfile as rf
+from analysis.runs import file as rf
 from rig.calibration import Calibration
 from rig.daq.base import Daq
 from rig.logger import RunWriter, WriterStats

@@ -14,7 +14,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from analysis import runfile as rf
+from analysis.runs import file as rf
 from rig.daq.base import (
     SAMPLE_FORMAT_RAW,
     SAMPLE_FORMAT_VOLTS,

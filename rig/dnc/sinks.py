@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from analysis import runfile as rf
+from analysis.runs import file as rf
 from rig.dnc.record import BlockRow
 
 

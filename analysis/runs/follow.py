@@ -1,5 +1,5 @@
 """Reading a run file while it is being written (HDF5 SWMR read mode): :class:`RunFollower`
-and :func:`follow`. The layout is :mod:`analysis.runfile`'s."""
+and :func:`follow`. The layout is :mod:`analysis.runs.file`'s."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import h5py
 import numpy as np
 import pandas as pd
 
-from analysis import runfile as rf
+from analysis.runs import file as rf
 
 
 class RunFollower:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis import runfile as rf
+from analysis.runs import file as rf
 
 _MARK = {
     rf.EV_OVERFLOW: "tab:red",

@@ -1,7 +1,7 @@
 """The HDF5 run file: its layout (documented here and only here) and the loader.
 
 ``rig.logger.RunWriter`` writes run files using the constants below; everything else reads them
-through :func:`load_run` (whole run, or a time window) or :mod:`analysis.runfollow` (a run still
+through :func:`load_run` (whole run, or a time window) or :mod:`analysis.runs.follow` (a run still
 being written). Nothing outside these modules and ``rig.logger`` should name an HDF5 path of a run
 file.
 
