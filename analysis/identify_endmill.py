@@ -1,7 +1,7 @@
 """Identify end-mill cutting and edge coefficients by the average-force method (Altintas).
 
 The mean force over whole revolutions is linear in the feed per tooth: F_mean = F_c f_z + F_e.
-For a flat end mill the closed forms (``analysis.endmill.mean_force_design``, valid for slotting
+For a flat end mill the closed forms (``analysis.forces.endmill.mean_force_design``, valid for slotting
 and any immersion, up or down milling, any helix) give the mean X, Y, Z force per unit value of
 each of K_tc, K_rc, K_ac, K_te, K_re, K_ae; ball and bull-nose end mills use the same relation
 with the model averaged numerically over a revolution. Stacking every run's three mean forces
@@ -35,14 +35,14 @@ from analysis._identify import (
     with_rejected,
 )
 from analysis.config import EndMill, EndMillCoefficients
-from analysis.endmill import (
+from analysis.errors import AnalysisError
+from analysis.forces.endmill import (
     PARAMETERS,
     EndMillCut,
     coefficients_from_vector,
     endmill_forces,
     mean_force_design,
 )
-from analysis.errors import AnalysisError
 from analysis.runs.steady import IDENTIFY_TOLERANCE
 
 __all__ = ["EndMillFit", "fit_endmill", "fit_endmill_runs", "synthetic_endmill_run"]
@@ -64,7 +64,7 @@ def _cut(tool: EndMill, c: RunConditions) -> EndMillCut:
 @dataclass(frozen=True)
 class EndMillFit:
     """Result of :func:`fit_endmill`: ``success``/``message``; ``coefficients``
-    (EndMillCoefficients); ``fit`` (LinearFit over :data:`analysis.endmill.PARAMETERS`);
+    (EndMillCoefficients); ``fit`` (LinearFit over :data:`analysis.forces.endmill.PARAMETERS`);
     ``residuals_n`` (runs, 3) N mean-force residuals; ``runs``; ``rejected`` (name, reason)."""
 
     success: bool

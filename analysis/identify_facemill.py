@@ -4,7 +4,7 @@ Seed 003's method: one feed per tooth, the axial depth of cut varied (0.5 -> 3 m
 grows with the engaged edge length l, chip removal with the chip area S, and a least-squares fit
 over the runs separates them. Here each run is first reduced (``analysis.runs.steady``) to its
 synchronous revolution average with the dynamometer offset removed; the model's regressors
-(``analysis.facemill.facemill_design``: force per unit coefficient over a revolution) are passed
+(``analysis.forces.facemill.facemill_design``: force per unit coefficient over a revolution) are passed
 through the dynamometer's modes (``analysis.dynamics``) so the ringing after each insert entry
 does not bias the fit; the unknown angular phase of each run is found by a circular
 cross-correlation search refined to a fraction of a bin; then one linear least-squares fit over
@@ -45,7 +45,7 @@ from analysis._identify import (
 from analysis.config import Dynamometer, FaceMill, FaceMillCoefficients
 from analysis.dynamics import DynamometerFilter
 from analysis.errors import AnalysisError
-from analysis.facemill import (
+from analysis.forces.facemill import (
     PARAMETERS,
     FaceMillCut,
     coefficients_from_vector,
@@ -90,7 +90,7 @@ class FaceMillFit:
 
     ``success``/``message``: False with the reason when the runs cannot determine the model.
     ``coefficients``: the identified FaceMillCoefficients (K_R, K_A ratios). ``fit``: the linear
-    fit of :data:`analysis.facemill.PARAMETERS` (values, std_errors, ci, r_squared, ...).
+    fit of :data:`analysis.forces.facemill.PARAMETERS` (values, std_errors, ci, r_squared, ...).
     ``summary``: per coefficient name (K_T_n_mm2, K_R, P_T_n_mm, P_R_n_mm, K_A, P_A_n_mm) its
     value, std_error, ci_low, ci_high. ``phases_rad`` (runs,) angle of bin 0 of each run;
     ``residuals_n`` per run (n_bins, 3) N; ``runs`` names used; ``rejected`` (name, reason).
@@ -298,7 +298,7 @@ def predicted_waveform(
     dynamometer: Dynamometer | DynamometerFilter | None = None, phase_rad: float = 0.0,
 ) -> np.ndarray:  # fmt: skip
     """The model's revolution waveform (n_bins, 3) N for a reduced run's conditions."""
-    from analysis.facemill import coefficient_vector
+    from analysis.forces.facemill import coefficient_vector
 
     X = _regressors(avg, tool, _filter_for(dynamometer, avg.rate_hz), phase_rad)
     return X @ coefficient_vector(coef)

@@ -33,13 +33,13 @@ def predicted_mean(
 ) -> np.ndarray:
     """Mean force per revolution (3,) N predicted for a run's conditions."""
     if isinstance(tool, FaceMill):
-        from analysis.facemill import coefficient_vector, facemill_design
+        from analysis.forces.facemill import coefficient_vector, facemill_design
         from analysis.identify_facemill import _cut
 
         theta = 2 * np.pi * (np.arange(4096) + 0.5) / 4096
         return facemill_design(theta, tool, _cut(c)).mean(axis=0) @ coefficient_vector(coef)
     if isinstance(tool, EndMill):
-        from analysis.endmill import coefficient_vector, mean_force_design
+        from analysis.forces.endmill import coefficient_vector, mean_force_design
         from analysis.identify_endmill import _cut as em_cut
 
         return mean_force_design(tool, em_cut(tool, c)) @ coefficient_vector(coef)

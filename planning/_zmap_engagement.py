@@ -1,4 +1,4 @@
-"""Engagement of each cut piece from the Z-map, and its predicted peak force (analysis.endmill).
+"""Engagement of each cut piece from the Z-map, and its predicted peak force (analysis.forces.endmill).
 
 Private helper of :mod:`planning.feedpost` (the optional force limit and the force column of the
 report, a step beyond seed 001).
@@ -14,7 +14,7 @@ from planning.opplan import Simulation
 
 
 class ForceModel:
-    """Predicted peak force of each piece as a function of its feed (analysis.endmill).
+    """Predicted peak force of each piece as a function of its feed (analysis.forces.endmill).
 
     Engagement from the Z-map: axial depth = the piece's deepest height drop, radial width =
     removed cross-section / depth (capped at the diameter), down milling. Pieces that remove
@@ -33,7 +33,7 @@ class ForceModel:
         self.ae = np.clip(area / self.depth, 1e-3, tool.diameter_mm)
 
     def _peak(self, fz: NDArray) -> NDArray:
-        from analysis.endmill import EndMillCut, peak_force
+        from analysis.forces.endmill import EndMillCut, peak_force
 
         cut = EndMillCut.from_width(self.tool, fz, self.depth, self.ae, mode="down")
         return peak_force(self.tool, self.coef, cut, n_phi=90)

@@ -7,7 +7,7 @@ last cutting revolution); the program's feed-move time from ``planning.nc``. The
 ``cv_ratio`` = CV(adjusted) / CV(constant) (seed 001: force nearly uniform; target <= 1/3) and
 ``time_saving_pct`` = 1 - t(adjusted) / t(constant) (seed 001: about 40 %; target >= 30 %).
 
-Beside the measured figures, the bound of :mod:`analysis.evenness` from the material's end-mill
+Beside the measured figures, the bound of :mod:`analysis.forces.evenness` from the material's end-mill
 coefficients: the least CV ratio any feeds within the rule's limits reach at the measured time
 saving and at the target's, the most time saving at the target CV ratio, and the least maximum
 feed at which both targets are reachable. The bound says whether a miss is the post-processor's
@@ -157,7 +157,7 @@ def _feed_limit_bound(
     """The evenness any feeds within the rule's limits can reach (module doc); {} when the
     campaign has no end mill, no end-mill coefficients, no feed rule or no depth steps."""
     from analysis.config import EndMill
-    from analysis.evenness import ForceTable, SteadyCut
+    from analysis.forces.evenness import ForceTable, SteadyCut
 
     fr = campaign.spec.feed_rule
     coef = campaign.material.endmill
@@ -203,7 +203,7 @@ def _bound_text(b: dict[str, Any], fr: Any, cv_target: float, time_target: float
 
     return (
         f"\nWhat any feeds within the rule's [{fr.min_feed_mm_min:g}, {fr.max_feed_mm_min:g}] "
-        "mm/min can reach (end-mill model, the material's coefficients; analysis.evenness): "
+        "mm/min can reach (end-mill model, the material's coefficients; analysis.forces.evenness): "
         f"least CV ratio {num(b['bound_least_cv_ratio_at_this_saving'], '.3f')} at this run's "
         f"time saving, {num(b['bound_least_cv_ratio_at_target_saving'], '.3f')} at "
         f"{time_target:g} %; a CV ratio of {cv_target:.3f} at most "

@@ -10,7 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from analysis.config import EndMill, EndMillCoefficients, FaceMill
-from analysis.endmill import (
+from analysis.errors import AnalysisError
+from analysis.forces.endmill import (
     EndMillCut,
     coefficient_vector,
     element_forces,
@@ -20,7 +21,6 @@ from analysis.endmill import (
     mean_force_design,
     peak_force,
 )
-from analysis.errors import AnalysisError
 
 COEF = EndMillCoefficients(
     Ktc_n_mm2=796, Krc_n_mm2=168, Kac_n_mm2=222, Kte_n_mm=27.7, Kre_n_mm=30.8, Kae_n_mm=1.8

@@ -1,4 +1,4 @@
-"""The evenness bound of analysis.evenness against a global optimiser and direct force sums."""
+"""The evenness bound of analysis.forces.evenness against a global optimiser and direct force sums."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from scipy.optimize import NonlinearConstraint, differential_evolution
 
 from analysis.config import EndMill, EndMillCoefficients
 from analysis.errors import AnalysisError
-from analysis.evenness import ForceTable, SteadyCut, feed_plane_force_n
+from analysis.forces.evenness import ForceTable, SteadyCut, feed_plane_force_n
 
 BALL = EndMill(kind="ball", diameter_mm=30, corner_radius_mm=15, flute_length_mm=30, flutes=2)
 COEF = EndMillCoefficients(

@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from analysis._facemill_geometry import chip_section, edge_table
 from analysis.config import FaceMill
 from analysis.errors import AnalysisError
-from analysis.facemill import (
+from analysis.forces._facemill_geometry import chip_section, edge_table
+from analysis.forces.facemill import (
     DYNO_FROM_TOOL,
     chip_thickness,
     projected_angles,
@@ -74,7 +74,7 @@ def test_each_angle_alone_is_the_plain_rotation(a):
 
 def test_printed_eqs_6_and_7_are_a_slip():
     """As printed, eqs 6-7 give a non-orthonormal [M]^-1 for the seed's own tool (15/0/7 deg):
-    the reason analysis.facemill uses the cyclic forms that follow eq 5."""
+    the reason analysis.forces.facemill uses the cyclic forms that follow eq 5."""
     gl, gr, ga = np.radians([15.0, 0.0, 7.0])
     tl, tr, ta = np.tan([gl, gr, ga])
     den = 1 + tl * tr * ta

@@ -9,7 +9,7 @@ import pytest
 
 from analysis.config import EndMill, FaceMill, FaceMillCoefficients
 from analysis.errors import AnalysisError
-from analysis.facemill import (
+from analysis.forces.facemill import (
     FaceMillCut,
     coefficient_vector,
     coefficients_from_vector,

@@ -412,7 +412,7 @@ def test_arc_block_is_split_into_arcs_on_the_same_circle() -> None:
 
 def test_force_limit_caps_the_predicted_peak_force() -> None:
     from analysis.config import get_material
-    from analysis.endmill import EndMillCut, peak_force
+    from analysis.forces.endmill import EndMillCut, peak_force
 
     coef = get_material("gm241").endmill
     text = "G21 G90 G17\nS2000 M3\nG0 X-20 Y30 Z5\nG1 Z-0.7 F1000\nX215\nG0 Z20\n"

@@ -12,7 +12,7 @@ from analysis._identify import RunConditions, reduce_run, reduce_run_file, synth
 from analysis.config import FaceMill, FaceMillCoefficients, get_tool, load_rig
 from analysis.dynamics import DynamometerFilter
 from analysis.errors import AnalysisError
-from analysis.facemill import FaceMillCut, facemill_forces
+from analysis.forces.facemill import FaceMillCut, facemill_forces
 from analysis.identify_facemill import fit_facemill, fit_facemill_runs, synthetic_facemill_run
 from analysis.runs.file import SAMPLE_FORMAT_VOLTS
 from rig.calibration import Calibration

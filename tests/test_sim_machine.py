@@ -225,8 +225,8 @@ def _facemill_machine(width: float, depth: float, rate_hz: float = 20_000.0):
 def test_facemill_pass_force_equals_the_model_over_a_revolution(depth: float) -> None:
     # The machine decides engagement from geometry; the model from the width. In steady cutting
     # both give the same force at every angle (feed along +X, dynamometer = machine axes).
-    from analysis import facemill
     from analysis.config import get_material
+    from analysis.forces import facemill
 
     rpm, fz, width = 600.0, 0.236, 50.0
     m = _facemill_machine(width, depth)
@@ -260,10 +260,10 @@ def test_feed_hold_leaves_only_ploughing() -> None:
 @pytest.mark.parametrize(("tool", "depth", "width"), [(FLAT, 3.0, 10.0), (FLAT, 2.0, 4.0),
                                                       (BALL, 0.7, 30.0)])  # fmt: skip
 def test_endmill_mean_force_equals_the_model(tool: EndMill, depth: float, width: float) -> None:
-    # The machine's slices and engagement vs analysis.endmill's own discs and immersion: the
+    # The machine's slices and engagement vs analysis.forces.endmill's own discs and immersion: the
     # per-revolution mean force agrees (both integrate the same edge-force model).
-    from analysis import endmill
     from analysis.config import get_material
+    from analysis.forces import endmill
     from rig.sim.machine import SignalSettings, SimMachine
 
     mat = get_material("al6061-t6")

@@ -154,7 +154,7 @@ def _summed(
 
 def facemill_forces(eng: FaceMillEngagement, tool: FaceMill, material: Material) -> np.ndarray:
     """Summed insert forces (n, 3) N in machine axes (seed 003 model with ploughing)."""
-    from analysis import facemill
+    from analysis.forces import facemill
 
     coef = _truth(material, "facemill")
     # Engagement is decided here per insert, so the model sees one insert at a time over the
@@ -172,7 +172,7 @@ def facemill_forces(eng: FaceMillEngagement, tool: FaceMill, material: Material)
 
 def endmill_forces(eng: EndMillEngagement, tool: EndMill, material: Material) -> np.ndarray:
     """Summed edge-element forces (n, 3) N in machine axes (linear edge-force model)."""
-    from analysis import endmill
+    from analysis.forces import endmill
 
     coef = _truth(material, "endmill")
     return _summed(

@@ -1,6 +1,6 @@
 """Insert geometry of seed 003: projected tool angles, [M]^-1, chip section with a nose radius.
 
-Private helpers of :mod:`analysis.facemill` (the public names are re-exported there).
+Private helpers of :mod:`analysis.forces.facemill` (the public names are re-exported there).
 
 Frames (seed 003 Fig. 1): T is the cutting-velocity direction at the insert, R the radial direction
 (outwards), A the cutter axis (up, away from the machined floor). T', R', A' are the insert's own

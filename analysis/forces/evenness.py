@@ -14,7 +14,7 @@ measurably better (there is no closed-form proof that the family is optimal).
 Statistics are over revolutions, as a per-revolution force record sees them: cut i contributes
 ``length_i / (feed_i / rpm)`` revolutions of force ``F_i(feed_i)``; its time is ``length_i /
 feed_i``. Transitions between cuts are ignored (they are a few revolutions each). The force is
-the revolution mean of the feed-plane resultant |(Fx, Fy)|, from :mod:`analysis.endmill`.
+the revolution mean of the feed-plane resultant |(Fx, Fy)|, from :mod:`analysis.forces.endmill`.
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.config import EndMill, EndMillCoefficients
-from analysis.endmill import EndMillCut, endmill_forces
 from analysis.errors import AnalysisError
+from analysis.forces.endmill import EndMillCut, endmill_forces
 
 __all__ = ["EvennessFront", "ForceTable", "SteadyCut", "feed_plane_force_n", "force_cv"]
 

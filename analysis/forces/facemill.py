@@ -46,15 +46,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from analysis._facemill_geometry import (
+from analysis.config import FaceMill, FaceMillCoefficients
+from analysis.errors import AnalysisError
+from analysis.forces._facemill_geometry import (
     EdgeTable,
     chip_section,
     edge_table,
     projected_angles,
     rotation_inverse,
 )
-from analysis.config import FaceMill, FaceMillCoefficients
-from analysis.errors import AnalysisError
 
 __all__ = [
     "DYNO_FROM_TOOL",
@@ -142,7 +142,7 @@ def chip_area_and_edge_length(tool: FaceMill, h_mm: ArrayLike, depth_mm: ArrayLi
     """Chip area on the rake face S (mm^2, eqs 11-13) and engaged edge length l (mm, eq 16).
 
     ``h_mm`` is the chip thickness CI in the radial direction, ``depth_mm`` the axial depth of cut;
-    they broadcast. See :mod:`analysis._facemill_geometry` for the construction.
+    they broadcast. See :mod:`analysis.forces._facemill_geometry` for the construction.
     """
     return chip_section(tool_table(tool), h_mm, depth_mm)
 

@@ -9,7 +9,7 @@ kappa the axial immersion angle of the edge (90 deg on the cylinder; on a ball o
 corner the angle between the tool axis and the surface normal, after Lee & Altintas 1996). The
 cutter is cut into axial discs; the helix (constant lead) delays each disc by z tan(helix) / R.
 
-Conventions (shared with :mod:`analysis.facemill` so the rig and the identification agree):
+Conventions (shared with :mod:`analysis.forces.facemill` so the rig and the identification agree):
 
 - ``phi`` is tooth 0's angular position at the tool tip, radians, measured from +Y towards +X
   (the feed direction) — clockwise seen from above, the sense of an M3 spindle; the tooth sits at
@@ -108,7 +108,7 @@ def _check_tool(tool: EndMill) -> None:
     if not isinstance(tool, EndMill):
         raise AnalysisError(
             f"the end-mill model needs a flat, ball or bull end mill, got kind {tool.kind!r} "
-            "(use analysis.facemill for face mills)"
+            "(use analysis.forces.facemill for face mills)"
         )
 
 
