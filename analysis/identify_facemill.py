@@ -5,7 +5,7 @@ grows with the engaged edge length l, chip removal with the chip area S, and a l
 over the runs separates them. Here each run is first reduced (``analysis.runs.steady``) to its
 synchronous revolution average with the dynamometer offset removed; the model's regressors
 (``analysis.forces.facemill.facemill_design``: force per unit coefficient over a revolution) are passed
-through the dynamometer's modes (``analysis.dynamics``) so the ringing after each insert entry
+through the dynamometer's modes (``analysis.modal.filter``) so the ringing after each insert entry
 does not bias the fit; the unknown angular phase of each run is found by a circular
 cross-correlation search refined to a fraction of a bin; then one linear least-squares fit over
 all runs, channels and angle bins gives the six parameters with standard errors, confidence
@@ -43,7 +43,6 @@ from analysis._identify import (
     with_rejected,
 )
 from analysis.config import Dynamometer, FaceMill, FaceMillCoefficients
-from analysis.dynamics import DynamometerFilter
 from analysis.errors import AnalysisError
 from analysis.forces.facemill import (
     PARAMETERS,
@@ -52,6 +51,7 @@ from analysis.forces.facemill import (
     facemill_design,
     facemill_forces,
 )
+from analysis.modal.filter import DynamometerFilter
 from analysis.runs.steady import IDENTIFY_TOLERANCE
 
 __all__ = [

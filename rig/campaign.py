@@ -438,7 +438,7 @@ def dry_run(campaign: Campaign) -> DryRun:
 def mode_warnings(campaign: Campaign) -> list[str]:
     """Tooth-passing harmonics of the planned spindle speeds near a dynamometer mode (seed 003
     3.2: the measured force would be amplified there)."""
-    from analysis.modal import tooth_passing_warnings
+    from analysis.modal.hammer import tooth_passing_warnings
 
     rpms = sorted({t.spindle_rpm for t in campaign.tests})
     return tooth_passing_warnings(campaign.rig.dynamometer.modes, rpms, campaign.teeth)

@@ -10,9 +10,9 @@ import pytest
 
 from analysis._identify import RunConditions
 from analysis.config import get_material, get_tool, load_rig
-from analysis.dynamics import DynamometerFilter
 from analysis.identify_endmill import synthetic_endmill_run
 from analysis.identify_facemill import synthetic_facemill_run
+from analysis.modal.filter import DynamometerFilter
 from rig.cli import main
 
 

@@ -7,9 +7,9 @@ import pytest
 
 from analysis._identify import RunConditions, reduce_run
 from analysis.config import EndMill, EndMillCoefficients, FaceMill, load_rig
-from analysis.dynamics import DynamometerFilter
 from analysis.errors import AnalysisError
 from analysis.identify_endmill import fit_endmill, fit_endmill_runs, synthetic_endmill_run
+from analysis.modal.filter import DynamometerFilter
 from analysis.validate import compare_runs
 
 TRUE = EndMillCoefficients(

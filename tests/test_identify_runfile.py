@@ -10,10 +10,10 @@ import pytest
 
 from analysis._identify import RunConditions, reduce_run, reduce_run_file, synthetic_run
 from analysis.config import FaceMill, FaceMillCoefficients, get_tool, load_rig
-from analysis.dynamics import DynamometerFilter
 from analysis.errors import AnalysisError
 from analysis.forces.facemill import FaceMillCut, facemill_forces
 from analysis.identify_facemill import fit_facemill, fit_facemill_runs, synthetic_facemill_run
+from analysis.modal.filter import DynamometerFilter
 from analysis.runs.file import SAMPLE_FORMAT_VOLTS
 from rig.calibration import Calibration
 from rig.cli import main

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from analysis.config import load_rig
-from analysis.dynamics import DynamometerFilter
 from analysis.errors import AnalysisError
-from analysis.modal import (
+from analysis.modal.filter import DynamometerFilter
+from analysis.modal.hammer import (
     ImpactRecord,
     double_hit,
     half_power,

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from analysis.dynamics import DynamometerFilter
+from analysis.modal.filter import DynamometerFilter
 from rig.cli import main
 
 

@@ -207,7 +207,7 @@ def _modal(args: argparse.Namespace) -> int:
     from analysis.config import load_rig
     from analysis.errors import AnalysisError
     from analysis.importers import read_force_table
-    from analysis.modal import ImpactRecord, modal_analysis, tooth_passing_warnings
+    from analysis.modal.hammer import ImpactRecord, modal_analysis, tooth_passing_warnings
     from rig.cli._common import print_json, print_table, status
 
     path = Path(args.file)
@@ -263,7 +263,7 @@ def _modal(args: argparse.Namespace) -> int:
         "warnings": warn,
     }
     if args.plot:
-        from analysis.modal import plot_frf
+        from analysis.modal.hammer import plot_frf
 
         out["plot"] = str(plot_frf(res, args.plot))
         status(f"analyze modal: wrote {out['plot']}")

@@ -1,7 +1,7 @@
 """From true cutting forces to the volts the DAQ reads: dynamometer modes, cross-talk, charge
 amplifier scaling, and the amplifier's noise, drift and mains hum.
 
-The modes are :class:`analysis.dynamics.DynamometerFilter` (one unit-DC-gain second-order mode
+The modes are :class:`analysis.modal.filter.DynamometerFilter` (one unit-DC-gain second-order mode
 per axis, zero-order hold at the DAQ rate); its state carries across blocks so consecutive reads
 form one continuous signal. Then ``measured = crosstalk @ filtered`` (rows: channel), each channel
 takes its axis with its sign, and ``volts = newtons / range_n_v`` (the amplifier is set to the
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.config import Dynamometer
-from analysis.dynamics import DynamometerFilter
+from analysis.modal.filter import DynamometerFilter
 from rig.calibration import Calibration
 
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -46,7 +46,7 @@ class DynoChain:
         self.hum_hz = hum_hz
         self._rng = np.random.default_rng(seed)
         self._hum_phase = self._rng.uniform(0, 2 * np.pi, len(dyno.channels))
-        # The modes are analysis.dynamics' filter; cross-talk is left to the calibration below.
+        # The modes are analysis.modal.filter' filter; cross-talk is left to the calibration below.
         self._modes = (
             DynamometerFilter.from_config(dyno, rate_hz, crosstalk=False) if modes else None
         )
