@@ -18,10 +18,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
 from _rules_sweep import sweep  # noqa: E402
 
-from analysis.basefeed import find_base_feed  # noqa: E402
-from analysis.load import slot_load_percent  # noqa: E402
-from analysis.rulebase import GroupKey, RuleBase  # noqa: E402
-from analysis.rules import derive_rule  # noqa: E402
+from analysis.rules.basefeed import find_base_feed  # noqa: E402
+from analysis.rules.load import slot_load_percent  # noqa: E402
+from analysis.rules.rule import derive_rule  # noqa: E402
+from analysis.rules.rulebase import GroupKey, RuleBase  # noqa: E402
 
 
 def best(fn, n: int = 5) -> float:

@@ -25,8 +25,8 @@ import tracemalloc
 import numpy as np
 
 from analysis.config import get_tool, load_machine
-from analysis.load import slot_load_percent
-from analysis.rules import derive_rule
+from analysis.rules.load import slot_load_percent
+from analysis.rules.rule import derive_rule
 from planning import _zmap_numba
 from planning.feedpost import FeedPostOptions, post_process
 from planning.nc import Program, interpret

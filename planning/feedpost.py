@@ -5,7 +5,7 @@ For a program, its tool, a machine and a feed rule:
 1. virtual machining on a Z-map (:mod:`planning.opplan`) gives the volume each piece of each
    block removes (pieces no longer than half the minimum piece length);
 2. the cutting load of each piece is seed 001's relative removal rate
-   (:func:`analysis.load.cutting_load_percent`: plunge formula for Z-only moves);
+   (:func:`analysis.rules.load.cutting_load_percent`: plunge formula for Z-only moves);
 3. the rule gives each piece a feed, clamped to the rule's and the machine's [min, max] and,
    optionally, to the feed at which the predicted peak force reaches a limit;
 4. a line or arc block whose feed changes along it is split at the changes into blocks no
@@ -31,8 +31,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.config import EndMill, EndMillCoefficients, MachineConfig
-from analysis.load import cutting_load_percent
-from analysis.rules import FeedRule
+from analysis.rules.load import cutting_load_percent
+from analysis.rules.rule import FeedRule
 from planning._feedpost_report import write_report
 from planning._feedpost_write import (
     feed_runs,

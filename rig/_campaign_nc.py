@@ -179,10 +179,10 @@ def block_zmap(block: CutBlock, tool: EndMill, spacing_mm: float = ZMAP_SPACING_
 
 
 def campaign_rule(spec: object, tool: EndMill, name: str = "campaign"):  # noqa: ANN201
-    """The campaign's ``[feed_rule]`` as an ``analysis.rules.FeedRule`` (reference load: a slot of
+    """The campaign's ``[feed_rule]`` as an ``analysis.rules.rule.FeedRule`` (reference load: a slot of
     ``reference_depth_mm`` with the campaign's tool, seed 001's load definition)."""
-    from analysis.load import slot_load_percent
-    from analysis.rules import derive_rule
+    from analysis.rules.load import slot_load_percent
+    from analysis.rules.rule import derive_rule
 
     fr = spec.feed_rule  # type: ignore[attr-defined]
     ref = slot_load_percent(

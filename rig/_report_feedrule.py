@@ -1,7 +1,7 @@
 """Report section for seed 001 4.2: the base feed from a feed sweep and the derived feed rule.
 
-The sweep's runs go to :func:`analysis.basefeed.find_base_feed` (force-slope and vibration jumps);
-the rule is :func:`analysis.rules.derive_rule` with the campaign's ``[feed_rule]`` min and max,
+The sweep's runs go to :func:`analysis.rules.basefeed.find_base_feed` (force-slope and vibration jumps);
+the rule is :func:`analysis.rules.rule.derive_rule` with the campaign's ``[feed_rule]`` min and max,
 the base feed found (the configured one if the sweep shows none) and the reference load of the
 sweep's slot. The rule is written as a TOML file the post-processor reads.
 """
@@ -20,8 +20,8 @@ from rig.report import LoadedRun, Section, md_table
 
 
 def feed_rule_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section:
-    from analysis.basefeed import find_base_feed, sweep_runs_from_files
-    from analysis.rules import derive_rule, plot_rule, save_rule
+    from analysis.rules.basefeed import find_base_feed, sweep_runs_from_files
+    from analysis.rules.rule import derive_rule, plot_rule, save_rule
 
     groups = campaign.spec.analysis.identify_groups
     sweep_runs = [lr for lr in runs if not groups or lr.group in groups]

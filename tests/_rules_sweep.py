@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.basefeed import SweepRun
+from analysis.rules.basefeed import SweepRun
 
 RPM, FLUTES, FS = 2000.0, 2, 10_000.0
 FEEDS = np.arange(400, 2201, 200.0)  # seed 001 Table 2: 400..2200 mm/min in 10 steps

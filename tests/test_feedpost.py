@@ -14,8 +14,8 @@ from hypothesis import strategies as st
 
 from analysis.config import get_tool, load_machine
 from analysis.errors import CutlabError
-from analysis.load import slot_load_percent
-from analysis.rules import derive_rule, save_rule
+from analysis.rules.load import slot_load_percent
+from analysis.rules.rule import derive_rule, save_rule
 from planning.errors import PlanningError
 from planning.feedpost import FeedPostOptions, post_process, rejoin, write_report
 from planning.nc import Program, interpret
@@ -28,7 +28,7 @@ F_WORD = re.compile(r"\s?F[-+]?[\d.]+", re.IGNORECASE)
 
 def seed001_rule():
     """Seed 001 4.2 step 3: min 100, base 1000, max 3500 mm/min, 20 bins; the base feed is the
-    one known safe for the heaviest cut of the test (the 0.7 mm step, see analysis.rules)."""
+    one known safe for the heaviest cut of the test (the 0.7 mm step, see analysis.rules.rule)."""
     return derive_rule("seed001-4.3", 100, 1000, 3500, slot_load_percent("ball", 30, 0.7, 30))
 
 
@@ -482,7 +482,7 @@ def test_stock_at_any_moment() -> None:
 
 
 def test_cli_feed_with_a_rule_from_the_rule_base(files: Path, capsys) -> None:
-    from analysis.rulebase import GroupKey, RuleBase
+    from analysis.rules.rulebase import GroupKey, RuleBase
 
     db = files / "rules.sqlite"
     key = GroupKey("test/step", "finishing", 30.0, 30.0, "gm241", 2000.0, 0.3, 0.05)

@@ -7,8 +7,8 @@ import pytest
 from _rules_sweep import FEEDS, FLUTES, FS, RPM
 from _rules_sweep import sweep as _sweep
 
-from analysis.basefeed import BaseFeedSettings, SweepRun, find_base_feed
 from analysis.errors import AnalysisError
+from analysis.rules.basefeed import BaseFeedSettings, SweepRun, find_base_feed
 
 
 def test_base_feed_is_1000_when_slope_and_vibration_change_between_1000_and_1200() -> None:

@@ -10,7 +10,7 @@ import pytest
 from _rules_sweep import FS, RPM, sweep
 
 from analysis.config import load_rig
-from analysis.rules import derive_rule, load_rule, save_rule
+from analysis.rules.rule import derive_rule, load_rule, save_rule
 from rig._report_feedrule import feed_rule_section
 from rig.calibration import Calibration
 from rig.cli import main

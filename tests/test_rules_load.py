@@ -10,8 +10,8 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from analysis.errors import AnalysisError, ConfigError
-from analysis.load import cutting_load_percent, groove_area_mm2, slot_load_percent
-from analysis.rules import (
+from analysis.rules.load import cutting_load_percent, groove_area_mm2, slot_load_percent
+from analysis.rules.rule import (
     derive_rule,
     load_rule,
     plot_rule,

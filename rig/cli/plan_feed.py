@@ -76,12 +76,12 @@ def _tool(name: str | None):
 
 
 def _rule(spec: str, db: Path | None):
-    from analysis.rules import load_rule
+    from analysis.rules.rule import load_rule
 
     p = Path(spec)
     if p.exists() or p.suffix == ".toml":
         return load_rule(p)
-    from analysis.rulebase import RuleBase
+    from analysis.rules.rulebase import RuleBase
 
     with RuleBase(db, create=False) as base:
         return base.find(spec).rule

@@ -91,13 +91,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _open(db: Path | None):
     """The rule base of ``--db`` (default from configs/lab.toml) for every command but ``add``:
     a path that does not exist is an error, not a new empty base (a typo must not read as one)."""
-    from analysis.rulebase import RuleBase
+    from analysis.rules.rulebase import RuleBase
 
     return RuleBase(db, create=False)
 
 
 def _key(args: argparse.Namespace):
-    from analysis.rulebase import GroupKey
+    from analysis.rules.rulebase import GroupKey
 
     return GroupKey(
         args.part_family,
@@ -112,10 +112,10 @@ def _key(args: argparse.Namespace):
 
 
 def _derive(args: argparse.Namespace) -> int:
-    from analysis.basefeed import BaseFeedSettings, find_base_feed, sweep_runs_from_files
     from analysis.config import load_machine
     from analysis.errors import AnalysisError
-    from analysis.rules import derive_rule, plot_rule, save_rule
+    from analysis.rules.basefeed import BaseFeedSettings, find_base_feed, sweep_runs_from_files
+    from analysis.rules.rule import derive_rule, plot_rule, save_rule
 
     sweep = sweep_runs_from_files(args.runs)
     settings = BaseFeedSettings(args.slope_ratio, args.vibration_ratio, criterion=args.criterion)
@@ -182,7 +182,7 @@ def _derive(args: argparse.Namespace) -> int:
 
 def _add(args: argparse.Namespace) -> int:
     from analysis.errors import AnalysisError
-    from analysis.rulebase import GroupExistsError, RuleBase, default_path
+    from analysis.rules.rulebase import GroupExistsError, RuleBase, default_path
 
     path = args.db if args.db is not None else default_path()
     if not path.exists():
@@ -214,7 +214,7 @@ def _list(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from analysis.rules import load_rule, plot_rule
+    from analysis.rules.rule import load_rule, plot_rule
 
     p = Path(args.rule)
     if p.suffix == ".toml" and p.exists():

@@ -255,7 +255,7 @@ def sweep_runs_from_files(paths: Sequence[str | Path]) -> Sweep:
     tool, when every run names the same tool and depth.
     """
     from analysis.config import EndMill, get_tool
-    from analysis.load import slot_load_percent
+    from analysis.rules.load import slot_load_percent
     from analysis.runs.file import load_run
     from analysis.runs.steady import steady_window
 

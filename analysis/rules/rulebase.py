@@ -27,7 +27,7 @@ from pathlib import Path
 
 from analysis.config import REPO_ROOT, config_dir, read_toml
 from analysis.errors import AnalysisError, ConfigError
-from analysis.rules import FeedRule, rule_from_toml, rule_to_toml
+from analysis.rules.rule import FeedRule, rule_from_toml, rule_to_toml
 
 SCHEMA_VERSION = 1
 
