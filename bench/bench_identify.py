@@ -21,7 +21,7 @@ import numpy as np
 
 from analysis.config import get_material, get_tool, load_rig
 from analysis.forces.facemill import FaceMillCut, facemill_forces
-from analysis.identify_facemill import fit_facemill, reduce_run_file
+from analysis.identify.facemill import fit_facemill, reduce_run_file
 from analysis.modal.filter import DynamometerFilter
 from analysis.runs.file import SAMPLE_FORMAT_VOLTS, load_run
 from rig.calibration import Calibration

@@ -12,8 +12,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from analysis._identify import CI_NOTE
 from analysis.errors import AnalysisError
+from analysis.identify._common import CI_NOTE
 from rig.report import LoadedRun, Section, md_table
 
 #: The coefficients seed 003 reports, then the axial pair cutlab adds.
@@ -22,7 +22,7 @@ COEFFS = ("K_T_n_mm2", "K_R", "P_T_n_mm", "P_R_n_mm", "K_A", "P_A_n_mm")
 
 def force_run(lr: LoadedRun) -> Any:
     """The run as an identification record (forces in X, Y, Z; conditions from the run)."""
-    from analysis.identify_facemill import ForceRun, RunConditions, axis_order
+    from analysis.identify.facemill import ForceRun, RunConditions, axis_order
 
     run = lr.run
     if run.force_n is None:
@@ -34,8 +34,8 @@ def force_run(lr: LoadedRun) -> Any:
 def _predicted_mean(tool: Any, coef: Any, c: dict[str, Any]) -> np.ndarray:
     """Model mean force (3,) N over one revolution for a run's conditions (the dynamometer's
     modes have unit static gain, so they do not change the mean)."""
-    from analysis.identify_facemill import RunConditions
-    from analysis.validate import predicted_mean
+    from analysis.identify.facemill import RunConditions
+    from analysis.identify.validate import predicted_mean
 
     return predicted_mean(RunConditions.from_mapping(c, "conditions"), tool, coef)
 
@@ -49,7 +49,7 @@ def _truth(runs: list[LoadedRun]) -> dict[str, float] | None:
 
 
 def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section:
-    from analysis.identify_facemill import fit_facemill_runs
+    from analysis.identify.facemill import fit_facemill_runs
 
     spec = campaign.spec.analysis
     ident = [lr for lr in runs if lr.group in spec.identify_groups]

@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from analysis._identify import RunConditions
 from analysis.config import get_material, get_tool, load_rig
-from analysis.identify_endmill import synthetic_endmill_run
-from analysis.identify_facemill import synthetic_facemill_run
+from analysis.identify._common import RunConditions
+from analysis.identify.endmill import synthetic_endmill_run
+from analysis.identify.facemill import synthetic_facemill_run
 from analysis.modal.filter import DynamometerFilter
 from rig.cli import main
 

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis._identify import RunConditions, reduce_run
 from analysis.config import EndMill, EndMillCoefficients, FaceMill, load_rig
 from analysis.errors import AnalysisError
-from analysis.identify_endmill import fit_endmill, fit_endmill_runs, synthetic_endmill_run
+from analysis.identify._common import RunConditions, reduce_run
+from analysis.identify.endmill import fit_endmill, fit_endmill_runs, synthetic_endmill_run
+from analysis.identify.validate import compare_runs
 from analysis.modal.filter import DynamometerFilter
-from analysis.validate import compare_runs
 
 TRUE = EndMillCoefficients(
     Ktc_n_mm2=796, Krc_n_mm2=168, Kac_n_mm2=222, Kte_n_mm=27.7, Kre_n_mm=30.8, Kae_n_mm=1.8

@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from analysis._identify import ForceRun, RunConditions, reduce_run
 from analysis.config import EndMill, FaceMill, FaceMillCoefficients, load_rig
 from analysis.errors import AnalysisError
-from analysis.identify_facemill import fit_facemill, fit_facemill_runs, synthetic_facemill_run
+from analysis.identify._common import ForceRun, RunConditions, reduce_run
+from analysis.identify.facemill import fit_facemill, fit_facemill_runs, synthetic_facemill_run
+from analysis.identify.validate import compare_runs, plot_comparison
 from analysis.modal.filter import DynamometerFilter
-from analysis.validate import compare_runs, plot_comparison
 
 RATE = 20_000.0
 TOOL = FaceMill(

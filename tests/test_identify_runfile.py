@@ -8,11 +8,11 @@ from dataclasses import asdict
 import numpy as np
 import pytest
 
-from analysis._identify import RunConditions, reduce_run, reduce_run_file, synthetic_run
 from analysis.config import FaceMill, FaceMillCoefficients, get_tool, load_rig
 from analysis.errors import AnalysisError
 from analysis.forces.facemill import FaceMillCut, facemill_forces
-from analysis.identify_facemill import fit_facemill, fit_facemill_runs, synthetic_facemill_run
+from analysis.identify._common import RunConditions, reduce_run, reduce_run_file, synthetic_run
+from analysis.identify.facemill import fit_facemill, fit_facemill_runs, synthetic_facemill_run
 from analysis.modal.filter import DynamometerFilter
 from analysis.runs.file import SAMPLE_FORMAT_VOLTS
 from rig.calibration import Calibration

@@ -19,7 +19,7 @@ from typing import Any
 
 
 def _ci_note() -> str:
-    from analysis._identify import CI_NOTE  # inside: `cutlab --help` need not load scipy
+    from analysis.identify._common import CI_NOTE  # inside: `cutlab --help` need not load scipy
 
     return CI_NOTE
 
@@ -51,8 +51,8 @@ def _load_runs(paths, args, rig, expected_tool: str | None = None, by: str = "--
     """
     from tqdm import tqdm
 
-    from analysis.identify_facemill import RunConditions, reduce_run, reduce_run_file
-    from analysis.importers import import_run, merge_conditions
+    from analysis.identify.facemill import RunConditions, reduce_run, reduce_run_file
+    from analysis.identify.importers import import_run, merge_conditions
     from analysis.runs.steady import NoSteadyCutError
 
     given = _condition_overrides(args)
@@ -93,8 +93,8 @@ def _teeth(name: str) -> int:
 def _forces(args: argparse.Namespace) -> int:
     from analysis.config import EndMill, FaceMill, get_tool, load_rig
     from analysis.errors import AnalysisError, ConfigError
-    from analysis.identify_endmill import fit_endmill
-    from analysis.identify_facemill import fit_facemill
+    from analysis.identify.endmill import fit_endmill
+    from analysis.identify.facemill import fit_facemill
     from rig.cli._common import print_json, print_table, status
 
     if not 0.0 < args.steady_tolerance < 1.0:
@@ -156,7 +156,7 @@ def _forces(args: argparse.Namespace) -> int:
         ],
     }
     if fit.success and (args.validate or args.plot):
-        from analysis.validate import compare_runs, plot_comparison
+        from analysis.identify.validate import compare_runs, plot_comparison
 
         targets = avgs
         if args.validate:
@@ -171,7 +171,7 @@ def _forces(args: argparse.Namespace) -> int:
         if args.plot:
             pngs = plot_comparison(cmp, args.plot)
             if model == "facemill":
-                from analysis.validate import plot_waveforms
+                from analysis.identify.validate import plot_waveforms
 
                 pngs += plot_waveforms(targets, tool, fit.coefficients, args.plot, rig.dynamometer)
             out["plots"] = [str(p) for p in pngs]
@@ -206,7 +206,7 @@ def _modal(args: argparse.Namespace) -> int:
 
     from analysis.config import load_rig
     from analysis.errors import AnalysisError
-    from analysis.importers import read_force_table
+    from analysis.identify.importers import read_force_table
     from analysis.modal.hammer import ImpactRecord, modal_analysis, tooth_passing_warnings
     from rig.cli._common import print_json, print_table, status
 

@@ -26,7 +26,16 @@ from typing import Any
 
 import numpy as np
 
-from analysis._identify import (
+from analysis.config import Dynamometer, FaceMill, FaceMillCoefficients
+from analysis.errors import AnalysisError
+from analysis.forces.facemill import (
+    PARAMETERS,
+    FaceMillCut,
+    coefficients_from_vector,
+    facemill_design,
+    facemill_forces,
+)
+from analysis.identify._common import (
     ForceRun,
     LinearFit,
     RunAverage,
@@ -41,15 +50,6 @@ from analysis._identify import (
     synthetic_run,
     too_few_runs,
     with_rejected,
-)
-from analysis.config import Dynamometer, FaceMill, FaceMillCoefficients
-from analysis.errors import AnalysisError
-from analysis.forces.facemill import (
-    PARAMETERS,
-    FaceMillCut,
-    coefficients_from_vector,
-    facemill_design,
-    facemill_forces,
 )
 from analysis.modal.filter import DynamometerFilter
 from analysis.runs.steady import IDENTIFY_TOLERANCE
@@ -211,7 +211,7 @@ def fit_facemill(
     if not isinstance(tool, FaceMill):
         raise AnalysisError(
             f"tool of kind {getattr(tool, 'kind', type(tool).__name__)!r}: the seed 003 model "
-            "describes face mills only (use analysis.identify_endmill for end mills)"
+            "describes face mills only (use analysis.identify.endmill for end mills)"
         )
     check_units(averages)
     names = tuple(a.name for a in averages)
@@ -316,7 +316,7 @@ def synthetic_facemill_run(
     """A force record made from the model: air, ``cut_s`` of steady cutting, air.
 
     ``record``: air_s, noise_frac, dynamometer (DynamometerFilter), rng, offset_n, drift_n_s,
-    phase_rad, as :func:`analysis._identify.synthetic_run` (modes, offset with drift, noise).
+    phase_rad, as :func:`analysis.identify._common.synthetic_run` (modes, offset with drift, noise).
     """
     cut = _cut(conditions)
     return synthetic_run(

@@ -22,7 +22,16 @@ from typing import Any
 
 import numpy as np
 
-from analysis._identify import (
+from analysis.config import EndMill, EndMillCoefficients
+from analysis.errors import AnalysisError
+from analysis.forces.endmill import (
+    PARAMETERS,
+    EndMillCut,
+    coefficients_from_vector,
+    endmill_forces,
+    mean_force_design,
+)
+from analysis.identify._common import (
     ForceRun,
     LinearFit,
     RunAverage,
@@ -33,15 +42,6 @@ from analysis._identify import (
     synthetic_run,
     too_few_runs,
     with_rejected,
-)
-from analysis.config import EndMill, EndMillCoefficients
-from analysis.errors import AnalysisError
-from analysis.forces.endmill import (
-    PARAMETERS,
-    EndMillCut,
-    coefficients_from_vector,
-    endmill_forces,
-    mean_force_design,
 )
 from analysis.runs.steady import IDENTIFY_TOLERANCE
 
@@ -135,7 +135,7 @@ def synthetic_endmill_run(
     **record: Any,
 ) -> ForceRun:
     """A record made from the end-mill model (air, steady cut, air) with modes, offset, noise;
-    ``record`` as :func:`analysis._identify.synthetic_run`."""
+    ``record`` as :func:`analysis.identify._common.synthetic_run`."""
     cut = _cut(tool, conditions)
     return synthetic_run(
         name, conditions, lambda phi: endmill_forces(phi, tool, coef, cut, n_discs), rate_hz,

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis._identify import RunAverage, RunConditions
 from analysis.config import EndMill, EndMillCoefficients, FaceMill, FaceMillCoefficients
 from analysis.errors import AnalysisError
+from analysis.identify._common import RunAverage, RunConditions
 
 __all__ = ["Comparison", "compare_runs", "plot_comparison", "plot_waveforms", "predicted_mean"]
 
@@ -34,13 +34,13 @@ def predicted_mean(
     """Mean force per revolution (3,) N predicted for a run's conditions."""
     if isinstance(tool, FaceMill):
         from analysis.forces.facemill import coefficient_vector, facemill_design
-        from analysis.identify_facemill import _cut
+        from analysis.identify.facemill import _cut
 
         theta = 2 * np.pi * (np.arange(4096) + 0.5) / 4096
         return facemill_design(theta, tool, _cut(c)).mean(axis=0) @ coefficient_vector(coef)
     if isinstance(tool, EndMill):
         from analysis.forces.endmill import coefficient_vector, mean_force_design
-        from analysis.identify_endmill import _cut as em_cut
+        from analysis.identify.endmill import _cut as em_cut
 
         return mean_force_design(tool, em_cut(tool, c)) @ coefficient_vector(coef)
     raise AnalysisError(f"tool of kind {getattr(tool, 'kind', '?')!r} cannot be predicted")
@@ -86,7 +86,7 @@ def compare_runs(
         peak_meas = float(np.linalg.norm(a.waveform_n, axis=1).max())
         peak_pred = float("nan")
         if isinstance(tool, FaceMill):
-            from analysis.identify_facemill import predicted_waveform
+            from analysis.identify.facemill import predicted_waveform
 
             # The peak of the resultant does not depend on the run's unknown phase.
             wave = predicted_waveform(a, tool, coef, dynamometer)
@@ -155,7 +155,7 @@ def plot_waveforms(
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from analysis.identify_facemill import _filter_for, _phase, predicted_waveform
+    from analysis.identify.facemill import _filter_for, _phase, predicted_waveform
 
     if not isinstance(tool, FaceMill):
         raise AnalysisError("waveform plots need the face-mill model (end mills: mean forces)")

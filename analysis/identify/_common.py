@@ -1,7 +1,7 @@
 """Shared pieces of the force-coefficient identification: runs, their conditions, revolution
 averages and a linear least-squares fit with its statistics.
 
-Private to ``analysis.identify_facemill`` / ``analysis.identify_endmill`` / ``analysis.validate``
+Private to ``analysis.identify.facemill`` / ``analysis.identify.endmill`` / ``analysis.identify.validate``
 (the public names are re-exported there).
 """
 

@@ -32,9 +32,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from analysis._identify import ForceRun, RunConditions
 from analysis.config import Dynamometer
 from analysis.errors import AnalysisError
+from analysis.identify._common import ForceRun, RunConditions
 
 __all__ = ["ForceTable", "import_run", "merge_conditions", "read_force_table"]
 
