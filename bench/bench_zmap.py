@@ -27,11 +27,11 @@ import numpy as np
 from analysis.config import get_tool, load_machine
 from analysis.rules.load import slot_load_percent
 from analysis.rules.rule import derive_rule
-from planning import _zmap_numba
 from planning.feedpost import FeedPostOptions, post_process
 from planning.nc import Program, interpret
-from planning.opplan import simulate_motion
-from planning.zmap import ZMap
+from planning.stock import _numba as _zmap_numba
+from planning.stock.machining import simulate_motion
+from planning.stock.zmap import ZMap
 
 
 def dome_mm(x: np.ndarray, y: np.ndarray) -> np.ndarray:

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.config import EndMill, EndMillCoefficients
-from planning.opplan import Simulation
+from planning.stock.machining import Simulation
 
 
 class ForceModel:

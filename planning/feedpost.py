@@ -2,7 +2,7 @@
 
 For a program, its tool, a machine and a feed rule:
 
-1. virtual machining on a Z-map (:mod:`planning.opplan`) gives the volume each piece of each
+1. virtual machining on a Z-map (:mod:`planning.stock.machining`) gives the volume each piece of each
    block removes (pieces no longer than half the minimum piece length);
 2. the cutting load of each piece is seed 001's relative removal rate
    (:func:`analysis.rules.load.cutting_load_percent`: plunge formula for Z-only moves);
@@ -47,14 +47,14 @@ from planning.nc import Program, interpret, segment_time_s
 from planning.nc.accel import accel_segment_time_s
 from planning.nc.arcs import segment_length_mm
 from planning.nc.motion import DWELL, Motion
-from planning.opplan import (
+from planning.stock.machining import (
     DEFAULT_CHORD_TOL_MM,
     Simulation,
     check_motion,
     plunge_mask,
     simulate_motion,
 )
-from planning.zmap import Cutter, ZMap
+from planning.stock.zmap import Cutter, ZMap
 
 
 @dataclass(frozen=True)

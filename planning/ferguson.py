@@ -135,14 +135,14 @@ class FergusonSurface:
     def from_stl(cls, path: str | Path, spacing_mm: float) -> FergusonSurface:
         """Sample the top of an STL part on a grid about ``spacing_mm`` apart and fit a surface.
 
-        The top-most triangle over each grid point is found by planning.zmap's mesh rasteriser
+        The top-most triangle over each grid point is found by planning.stock.zmap's mesh rasteriser
         (trimesh loads the file; its own ray queries would need rtree or embree). The grid spans
         the mesh's xy bounds exactly; where no triangle covers a point the height is the mesh's
         lowest z (the part stands on that plane).
         """
         import trimesh
 
-        from planning.zmap import ZMap
+        from planning.stock.zmap import ZMap
 
         if not np.isfinite(spacing_mm) or not spacing_mm > 0:
             raise PlanningError(f"{path}: spacing_mm = {spacing_mm}: must be > 0 (mm)")

@@ -2,7 +2,7 @@
 
 The program *text* is interpreted by :mod:`planning.nc` (not the planner's own move list), every
 move - rapids included, arcs as chords within 1 um (:func:`planning.nc.linearize`) - is cut on a
-:class:`planning.zmap.ZMap` box of the stock, and the result
+:class:`planning.stock.zmap.ZMap` box of the stock, and the result
 is compared with the offset surface (finish allowance applied):
 
 * material left: at every Z-map point above the offset surface, its distance to the surface
@@ -25,7 +25,7 @@ from scipy.spatial import cKDTree
 from planning.errors import PlanningError
 from planning.ferguson import FergusonSurface
 from planning.nc import DWELL, RAPID, Motion, Program, interpret, linearize
-from planning.zmap import Cutter, ZMap
+from planning.stock.zmap import Cutter, ZMap
 
 
 @dataclass(frozen=True, eq=False)

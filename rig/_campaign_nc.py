@@ -163,9 +163,9 @@ ZMAP_SPACING_MM = 0.25
 
 
 def block_zmap(block: CutBlock, tool: EndMill, spacing_mm: float = ZMAP_SPACING_MM):  # noqa: ANN201
-    """The test block as a ``planning.zmap.ZMap`` (one tool radius of margin around it; the
+    """The test block as a ``planning.stock.zmap.ZMap`` (one tool radius of margin around it; the
     material outside the block sits a flute length below its lowest step)."""
-    from planning.zmap import ZMap
+    from planning.stock.zmap import ZMap
 
     r = tool.radius_mm
     s = spacing_mm

@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planning import _zmap_kernels as K
-from planning import _zmap_numba
 from planning.errors import PlanningError
-from planning.zmap import Cutter, ZMap, split_pieces
+from planning.stock import _kernels as K
+from planning.stock import _numba as _zmap_numba
+from planning.stock.zmap import Cutter, ZMap, split_pieces
 
 
 def segment_area(r: float, d: float) -> float:

@@ -115,8 +115,8 @@ def _load(args: argparse.Namespace):
     from analysis.config import load_machine
     from planning.errors import PlanningError
     from planning.nc import Program, interpret
-    from planning.opplan import default_stock, load_stock
-    from planning.zmap import Cutter
+    from planning.stock.machining import default_stock, load_stock
+    from planning.stock.zmap import Cutter
 
     machine = load_machine(args.machine)
     tool = _tool(args.tool)
@@ -197,7 +197,7 @@ def _feed(args: argparse.Namespace) -> int:
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    from planning.opplan import Operation, OperationPlan, load_plan, summary
+    from planning.stock.machining import Operation, OperationPlan, load_plan, summary
     from rig.cli._common import print_json, print_table, status
 
     if args.program.suffix.lower() == ".toml":

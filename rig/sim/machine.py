@@ -10,7 +10,7 @@ with the material's *true* coefficients, and passes the summed force through the
 modes and the charge amplifier (:mod:`rig.sim._machine_signal`).
 
 The stock is the test block (:class:`rig._campaign_nc.CutBlock`) for a face mill's single pass, or
-a ``planning.zmap.ZMap`` lowered by every completed segment for end mills, so a later pass sees what
+a ``planning.stock.zmap.ZMap`` lowered by every completed segment for end mills, so a later pass sees what
 an earlier one left.
 
 Notes
@@ -97,10 +97,10 @@ class BlockStock:
 
 
 class ZMapStock:
-    """A ``planning.zmap.ZMap`` lowered by each segment once the clock has passed its end."""
+    """A ``planning.stock.zmap.ZMap`` lowered by each segment once the clock has passed its end."""
 
     def __init__(self, zmap: object, tool: EndMill) -> None:
-        from planning.zmap import Cutter
+        from planning.stock.zmap import Cutter
 
         self.zmap = zmap
         self.cutter = Cutter.from_tool(tool)

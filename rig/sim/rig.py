@@ -2,7 +2,7 @@
 simulated DAQ, all on one :class:`SimClock`, behind the campaign's :class:`RigSession` interface.
 
 For each run: a new clock (``[sim] speed`` times real time), a new stock (the test block; a
-``planning.zmap.ZMap`` for end mills), the machine listening to the controller's executed
+``planning.stock.zmap.ZMap`` for end mills), the machine listening to the controller's executed
 segments, a :class:`rig.daq.SimDaq` reading the machine's volts, and the real DNC streamer
 (``rig.dnc``) opening the controller's tty through pyserial, exactly as on the lab's RS-232 link.
 

@@ -1,10 +1,10 @@
-"""Compiled Z-map kernel (numba), used by :meth:`planning.zmap.ZMap.cut_pieces` when available.
+"""Compiled Z-map kernel (numba), used by :meth:`planning.stock.zmap.ZMap.cut_pieces` when available.
 
 Why: the numpy kernel evaluates each move on its footprint patch with ~10-20 whole-array
 operations; for the short blocks of real roughing programs (a patch of ~2,000 points) the per-call
 overhead of numpy dominates and ``bench/bench_zmap.py`` measured about 15,000-30,000 moves/s, below
 the 20,000 blocks/s target for simulation plus post-processing. This kernel runs the same geometry
-(:mod:`planning._zmap_kernels`: flat interval ends, Choi's ball formula, torus bisection) point by
+(:mod:`planning.stock._kernels`: flat interval ends, Choi's ball formula, torus bisection) point by
 point in compiled loops, with no temporaries. numba is optional: without it (or with
 ``CUTLAB_NO_NUMBA=1``) the numpy kernel runs, and the tests check both give the same stock.
 """

@@ -1,7 +1,7 @@
-"""Starting stocks from specs and files (private to planning.opplan, which re-exports them).
+"""Starting stocks from specs and files (private to planning.stock.machining, which re-exports them).
 
 Spec: ``box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP`` (mm), a mesh file (``.stl``, ``.obj``, ``.ply``,
-``.off``), or a TOML file with a ``[stock]`` table (see :mod:`planning.opplan`).
+``.off``), or a TOML file with a ``[stock]`` table (see :mod:`planning.stock.machining`).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from analysis.config import Model, read_toml, validate
 from planning.errors import PlanningError
 from planning.nc.arcs import bounding_box
 from planning.nc.motion import Motion
-from planning.zmap import Cutter, ZMap
+from planning.stock.zmap import Cutter, ZMap
 
 
 class _StockModel(Model):

@@ -55,18 +55,18 @@ from analysis.config import (
     read_toml,
     validate,
 )
-from planning import _zmap_kernels as _k
-from planning._zmap_stock import (
+from planning.errors import PlanningError
+from planning.nc.arcs import PLANE_AXES, arc_radius_mm, linearize, segment_length_mm
+from planning.nc.motion import DWELL, LINE, RAPID, Motion
+from planning.nc.stats import segment_time_s
+from planning.stock import _kernels as _k
+from planning.stock.starts import (
     _stock_from_model,
     _StockModel,
     default_stock,
     load_stock,
 )
-from planning.errors import PlanningError
-from planning.nc.arcs import PLANE_AXES, arc_radius_mm, linearize, segment_length_mm
-from planning.nc.motion import DWELL, LINE, RAPID, Motion
-from planning.nc.stats import segment_time_s
-from planning.zmap import Cutter, ZMap, split_pieces
+from planning.stock.zmap import Cutter, ZMap, split_pieces
 
 #: chordal tolerance for arcs, mm (the Z-map's own resolution is far coarser)
 DEFAULT_CHORD_TOL_MM = 0.001

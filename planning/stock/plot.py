@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from planning.zmap import ZMap
+    from planning.stock.zmap import ZMap
 
 
 def save_stock_png(stock: ZMap, path: str | Path, title: str = "stock") -> Path:

@@ -3,10 +3,10 @@
 The stock is a regular grid of points at the centres of square cells of side ``spacing_mm``; each
 point holds the top of the material above it (a Z-map cannot hold overhangs, which a 3-axis cutter
 with a vertical shank cannot leave either). A move of the cutter lowers every point under its swept
-envelope (see :mod:`planning._zmap_kernels` for the flat, ball and bull geometry, including Choi's
+envelope (see :mod:`planning.stock._kernels` for the flat, ball and bull geometry, including Choi's
 formulas); the volume removed is the sum of the height drops times the cell area. Each move touches
 only the patch of grid covering its footprint, so the cost of a move is its footprint in cells.
-Moves run through a compiled kernel (:mod:`planning._zmap_numba`) when numba is installed, else
+Moves run through a compiled kernel (:mod:`planning.stock._numba`) when numba is installed, else
 through the numpy kernel here; both compute the same geometry (tests compare them).
 
 Starting shapes: a box (:meth:`ZMap.box`), a height field (:meth:`ZMap.from_heights`), or a mesh /
@@ -30,9 +30,10 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from planning import _zmap_kernels as _k
-from planning import _zmap_mesh, _zmap_numba
 from planning.errors import PlanningError
+from planning.stock import _kernels as _k
+from planning.stock import _mesh as _zmap_mesh
+from planning.stock import _numba as _zmap_numba
 
 _KIND_CODES = {"flat": _k.FLAT, "ball": _k.BALL, "bull": _k.BULL}
 #: grid points beyond this count are refused (8 bytes each: 400 MB)
@@ -193,7 +194,7 @@ class ZMap:
         self.x_mm = self.x0_mm + (np.arange(nx) + 0.5) * self.spacing_mm
         self.y_mm = self.y0_mm + (np.arange(ny) + 0.5) * self.spacing_mm
         self._ycol = self.y_mm[:, None]
-        #: use the compiled kernel (planning._zmap_numba) when numba is installed
+        #: use the compiled kernel (planning.stock._numba) when numba is installed
         self.compiled = True
 
     # ------------------------------------------------------------------ construction
@@ -498,6 +499,6 @@ class ZMap:
 
     def save_png(self, path: str | Path, title: str = "stock") -> Path:
         """Shaded height map of the stock, PNG (matplotlib, Agg)."""
-        from planning._zmap_plot import save_stock_png
+        from planning.stock.plot import save_stock_png
 
         return save_stock_png(self, path, title)
