@@ -27,7 +27,7 @@ import numpy as np
 from analysis.config import get_tool, load_machine
 from analysis.rules.load import slot_load_percent
 from analysis.rules.rule import derive_rule
-from planning.feedpost import FeedPostOptions, post_process
+from planning.feed.post import FeedPostOptions, post_process
 from planning.nc import Program, interpret
 from planning.stock import _numba as _zmap_numba
 from planning.stock.machining import simulate_motion

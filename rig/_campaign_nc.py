@@ -199,9 +199,9 @@ def campaign_rule(spec: object, tool: EndMill, name: str = "campaign"):  # noqa:
 def post_process_program(
     cut: CutProgram, tool: EndMill, rule: object, machine: object, min_piece_mm: float
 ) -> tuple[str, dict]:
-    """The load-based feed post-processor (``planning.feedpost``, seed 001) over a test program,
+    """The load-based feed post-processor (``planning.feed.post``, seed 001) over a test program,
     on the Z-map of its block. Returns (program text, the post-processor's summary)."""
-    from planning.feedpost import FeedPostOptions, post_process
+    from planning.feed.post import FeedPostOptions, post_process
     from planning.nc import Program, interpret
 
     program = Program.parse(cut.text, "<test program>")

@@ -119,7 +119,7 @@ def _dialect(campaign: Campaign) -> str:
 
 
 def _post_process(text: str, campaign: Campaign, test: RunConditions, cut: CutProgram) -> str:
-    """The feed post-processor (planning.feedpost, seed 001) over a generated program."""
+    """The feed post-processor (planning.feed.post, seed 001) over a generated program."""
     from analysis.config import EndMill
     from analysis.rules.rule import load_rule
     from rig._campaign_nc import campaign_rule, post_process_program

@@ -17,7 +17,7 @@ from analysis.errors import CutlabError
 from analysis.rules.load import slot_load_percent
 from analysis.rules.rule import derive_rule, save_rule
 from planning.errors import PlanningError
-from planning.feedpost import FeedPostOptions, post_process, rejoin, write_report
+from planning.feed.post import FeedPostOptions, post_process, rejoin, write_report
 from planning.nc import Program, interpret
 from planning.nc.motion import LINE
 from planning.stock.zmap import ZMap
@@ -517,7 +517,7 @@ def test_cli_feed_with_a_rule_from_the_rule_base(files: Path, capsys) -> None:
 def test_adjusted_feeds_even_out_the_predicted_force_across_the_steps() -> None:
     # Seed 001 Fig. 11: with the adjusted feeds the force is nearly uniform across the steps.
     from analysis.config import get_material
-    from planning._zmap_engagement import ForceModel
+    from planning.feed.force import ForceModel
 
     coef = get_material("gm241").endmill
     text = STEP.replace("N10 G21 G90 G17", "N10 G21 G90 G17 S2000 M3")

@@ -136,7 +136,7 @@ def _load(args: argparse.Namespace):
 def _feed(args: argparse.Namespace) -> int:
     from analysis.config import get_material
     from planning.errors import PlanningError
-    from planning.feedpost import FeedPostOptions, post_process, write_report
+    from planning.feed.post import FeedPostOptions, post_process, write_report
     from rig.cli._common import print_json, print_table, status
 
     rule = _rule(args.rules, args.db)

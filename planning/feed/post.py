@@ -33,16 +33,16 @@ from numpy.typing import NDArray
 from analysis.config import EndMill, EndMillCoefficients, MachineConfig
 from analysis.rules.load import cutting_load_percent
 from analysis.rules.rule import FeedRule
-from planning._feedpost_report import write_report
-from planning._feedpost_write import (
+from planning.errors import PlanningError
+from planning.feed._write import (
     feed_runs,
     rejoin,
     splittable,
     verify_geometry,
     write_program,
 )
-from planning._zmap_engagement import ForceModel
-from planning.errors import PlanningError
+from planning.feed.force import ForceModel
+from planning.feed.report import write_report
 from planning.nc import Program, interpret, segment_time_s
 from planning.nc.accel import accel_segment_time_s
 from planning.nc.arcs import segment_length_mm

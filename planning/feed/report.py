@@ -1,5 +1,5 @@
 """The feed post-processor's report files: per-block CSV, load and feed along the path,
-load histogram and final stock (PNG, matplotlib Agg). Re-exported by :mod:`planning.feedpost`.
+load histogram and final stock (PNG, matplotlib Agg). Re-exported by :mod:`planning.feed.post`.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from planning.feedpost import FeedPostResult
+    from planning.feed.post import FeedPostResult
 
 
 def write_report(result: FeedPostResult, folder: str | Path, stem: str = "feedpost") -> dict:

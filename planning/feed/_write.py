@@ -1,4 +1,4 @@
-"""Writing the feed post-processor's answer back into the program (see :mod:`planning.feedpost`).
+"""Writing the feed post-processor's answer back into the program (see :mod:`planning.feed.post`).
 
 Pieces of equal feed are grouped into runs no shorter than the minimum piece length
 (:func:`feed_runs`); F words are rewritten only where the modal feed must change and split blocks
