@@ -24,9 +24,9 @@ from scipy.spatial import cKDTree
 from shapely.geometry import LineString, MultiPolygon, Polygon, box
 from shapely.geometry.polygon import orient
 
-from planning.contours import SectionMaker, as_multipolygon
 from planning.errors import PlanningError
-from planning.ferguson import FergusonSurface
+from planning.surface.contours import SectionMaker, as_multipolygon
+from planning.surface.ferguson import FergusonSurface
 
 _QUAD_SEGS = 16
 _SAMPLE_MM = 0.5  # spacing of boundary samples for the cover distance

@@ -27,7 +27,6 @@ from analysis.config import EndMill
 from planning._energy import Charges, Site
 from planning._orient_search import _Context, curvature_optimum, descend, solve_point
 from planning.errors import PlanningError
-from planning.nurbs import NurbsSurface
 from planning.orient_check import CheckMesh
 from planning.orient_config import OrientConfig
 from planning.orient_tool import (
@@ -37,6 +36,7 @@ from planning.orient_tool import (
     szende_K,
     tool_axis,
 )
+from planning.surface.nurbs import NurbsSurface
 
 
 @dataclass(frozen=True)

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from planning.nurbs import NurbsSurface
 from planning.orient_tool import ToolSystem, meridian
+from planning.surface.nurbs import NurbsSurface
 
 PART_NAMES = ("cutter", "holder", "spindle nose")
 

@@ -26,7 +26,7 @@ from analysis.config import (
     validate,
 )
 from analysis.errors import ConfigError
-from planning.nurbs import NurbsSurface
+from planning.surface.nurbs import NurbsSurface
 
 
 class SurfaceSpec(Model):
@@ -65,7 +65,7 @@ class SurfaceSpec(Model):
         return self
 
     def build(self) -> NurbsSurface:
-        from planning.nurbs import clamped_uniform_knots
+        from planning.surface.nurbs import clamped_uniform_knots
 
         cp = np.asarray(self.control_points_mm, float)
         p, q = self.degree

@@ -23,9 +23,9 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from planning.errors import PlanningError
-from planning.ferguson import FergusonSurface
 from planning.nc import DWELL, RAPID, Motion, Program, interpret, linearize
 from planning.stock.zmap import Cutter, ZMap
+from planning.surface.ferguson import FergusonSurface
 
 
 @dataclass(frozen=True, eq=False)

@@ -8,8 +8,8 @@ import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planning.contours import SectionMaker, section
-from planning.ferguson import FergusonSurface
+from planning.surface.contours import SectionMaker, section
+from planning.surface.ferguson import FergusonSurface
 
 R = 50.0
 
@@ -133,7 +133,7 @@ def test_level_above_everything_is_empty_and_below_is_everything(sphere):
 def test_polygon_is_within_the_stated_tolerance_of_the_true_contour(tol):
     # A wavy free-form surface: take every edge midpoint of the traced polygon, pull it onto the
     # exact contour of the Ferguson surface (Newton), and measure its distance to the polygon.
-    from planning.contours import _project
+    from planning.surface.contours import _project
 
     def f(x, y):
         return 5 * np.sin(x / 7) * np.cos(y / 9) + 0.02 * x * y

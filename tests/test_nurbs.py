@@ -1,4 +1,4 @@
-"""planning.nurbs: NURBS evaluation (rational via splipy + quotient rule), normals, curvature."""
+"""planning.surface.nurbs: NURBS evaluation (rational via splipy + quotient rule), normals, curvature."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from splipy import surface_factory as sf
 
 from planning.errors import PlanningError
-from planning.nurbs import NurbsSurface, clamped_uniform_knots
+from planning.surface.nurbs import NurbsSurface, clamped_uniform_knots
 
 
 def from_splipy(s, name="s") -> NurbsSurface:

@@ -106,7 +106,7 @@ def closest_on_triangles(p, a, b, c):
 def chord_sag_mm(surfaces, spacing_mm):
     """Upper estimate of how far a mesh triangle lies off its surface: kappa_max h^2 / 8, with h
     the triangle diagonal and kappa_max the largest normal curvature met on the surface."""
-    from planning.nurbs import NurbsSurface
+    from planning.surface.nurbs import NurbsSurface
 
     k = 0.0
     for s in surfaces:

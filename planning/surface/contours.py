@@ -28,7 +28,7 @@ from shapely.geometry import MultiPolygon, Polygon
 from shapely.geometry.polygon import orient
 
 from planning.errors import PlanningError
-from planning.ferguson import FergusonSurface
+from planning.surface.ferguson import FergusonSurface
 
 _NEWTON_STEPS = 12
 _MAX_REFINE_PASSES = 12
