@@ -17,10 +17,10 @@ import argparse
 import time
 
 from analysis.config import REPO_ROOT
-from planning._rough_gcode import MoveSettings, plan_motion, plan_program
-from planning.part_config import Part, load_part
-from planning.rough_check import check_program
-from planning.roughing import METHODS, RoughPlanner
+from planning.rough.check import check_program
+from planning.rough.gcode import MoveSettings, plan_motion, plan_program
+from planning.rough.part import Part, load_part
+from planning.rough.planner import METHODS, RoughPlanner
 
 
 def timed(fn):

@@ -50,7 +50,7 @@ def test_two_machined_surfaces_and_unknown_keys_are_refused(tmp_path):
         load_orient(_write(tmp_path, text))
     # Another model also has a feed_mm_min (with another description): the unit shown is the
     # planner's own, found by following the error's location, not the first field of that name.
-    import planning.part_config  # noqa: F401
+    import planning.rough.part  # noqa: F401
 
     text = IMP.read_text().replace("feed_mm_min = 800.0", "feed_mm_min = -800.0")
     with pytest.raises(ConfigError, match=r"planner.feed_mm_min = -800.0: .*0 \(mm/min\)$"):

@@ -12,7 +12,7 @@ import shapely
 from shapely.geometry import MultiLineString
 from test_rough_parts import load_toml, part_toml
 
-from planning.roughing import RoughPlanner, mrr_mm3_min
+from planning.rough.planner import RoughPlanner, mrr_mm3_min
 
 CONE_H, CONE_K = 70.0, 0.5
 
@@ -159,7 +159,7 @@ def test_check_cuts_arcs_along_the_arc_not_the_chord():
     """The independent Z-map check follows G2/G3 (a half turn of radius 20 at 2 mm depth with a
     phi 6 flat end mill removes the half annulus plus the two end half discs)."""
     from planning.nc import interpret
-    from planning.rough_check import simulate
+    from planning.rough.check import simulate
 
     text = "G21 G90 G17\nG0 Z5\nG0 X70 Y50\nG1 Z-2 F200\nG2 X30 Y50 I-20 J0\nG0 Z5\nM30\n"
     zm, removed, rapid = simulate(interpret(text), (0, 100, 0, 100, -10, 0), 3.0, 0.1, 5.0)

@@ -1,4 +1,4 @@
-"""G2/G3 arcs fitted to roughing passes (planning/_rough_arcs.py) and the program written."""
+"""G2/G3 arcs fitted to roughing passes (planning/rough/_arcs.py) and the program written."""
 
 from __future__ import annotations
 
@@ -14,14 +14,14 @@ from shapely.geometry.polygon import orient
 
 from analysis.config import REPO_ROOT
 from analysis.errors import ConfigError
-from planning._rough_arcs import fit_arcs, sample_path
-from planning._rough_gcode import MoveSettings, plan_motion, plan_program, plan_totals
 from planning.errors import PlanningError
 from planning.nc import ARC_CCW, ARC_CW, LINE, interpret
 from planning.nc.arcs import linearize
-from planning.part_config import Part, load_part
-from planning.rough_check import check_program
-from planning.roughing import RoughPlanner
+from planning.rough._arcs import fit_arcs, sample_path
+from planning.rough.check import check_program
+from planning.rough.gcode import MoveSettings, plan_motion, plan_program, plan_totals
+from planning.rough.part import Part, load_part
+from planning.rough.planner import RoughPlanner
 
 PART = REPO_ROOT / "configs" / "parts" / "seed000-bump.toml"
 

@@ -9,9 +9,9 @@ import pytest
 import trimesh
 from test_rough_parts import bump_grid, load_toml, part_toml
 
-from planning._rough_gcode import MoveSettings, plan_motion
 from planning.nc import RAPID, motion_stats
-from planning.roughing import RoughPlan, RoughPlanner
+from planning.rough.gcode import MoveSettings, plan_motion
+from planning.rough.planner import RoughPlan, RoughPlanner
 
 
 @pytest.fixture(scope="module")

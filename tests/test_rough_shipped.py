@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from analysis.config import REPO_ROOT
-from planning._rough_gcode import MoveSettings, plan_motion, plan_program, plan_totals
 from planning.nc import interpret
 from planning.nc.arcs import segment_length_mm
-from planning.part_config import load_part
-from planning.rough_check import check_program
-from planning.roughing import RoughPlanner
+from planning.rough.check import check_program
+from planning.rough.gcode import MoveSettings, plan_motion, plan_program, plan_totals
+from planning.rough.part import load_part
+from planning.rough.planner import RoughPlanner
 
 PART = REPO_ROOT / "configs" / "parts" / "seed000-bump.toml"
 

@@ -62,11 +62,11 @@ def _comparison(totals: dict) -> dict:
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from planning._rough_gcode import MoveSettings, plan_motion, plan_program, plan_totals
     from planning.errors import PlanningError
-    from planning.part_config import Part, load_part
-    from planning.rough_check import check_program
-    from planning.roughing import RoughPlanner
+    from planning.rough.check import check_program
+    from planning.rough.gcode import MoveSettings, plan_motion, plan_program, plan_totals
+    from planning.rough.part import Part, load_part
+    from planning.rough.planner import RoughPlanner
     from rig.cli._common import print_json, print_table, status
 
     if not args.check_spacing > 0:
@@ -108,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
         )
     pngs = {}
     if not args.no_png:
-        from planning._rough_plots import plot_levels, plot_paths, plot_roughed
+        from planning.rough.plot import plot_levels, plot_paths, plot_roughed
 
         stem = args.output.with_suffix("")
         pngs["levels"] = str(plot_levels(planner, plans, f"{stem}.levels.png"))

@@ -8,8 +8,8 @@ import numpy as np
 import shapely
 from shapely.geometry import LineString
 
-from planning.rough_check import CheckResult, SurfaceHeights
-from planning.roughing import RoughPlan, RoughPlanner
+from planning.rough.check import CheckResult, SurfaceHeights
+from planning.rough.planner import RoughPlan, RoughPlanner
 
 
 def _plt():

@@ -14,7 +14,7 @@ Moves, per pass of each level (levels in cutting order, passes outside in):
 * retract to the safe height.
 
 With ``rough.arc_fit_tol_mm > 0`` every cutting stretch (ramp, loop, open pass) is handed to
-:func:`planning._rough_arcs.fit_arcs` after rounding its vertices to the written precision
+:func:`planning.rough._arcs.fit_arcs` after rounding its vertices to the written precision
 (``_DECIMALS``): runs that follow a circle within the tolerance become ``ARC_CW``/``ARC_CCW``
 segments (plane 17; helical on a ramp, Z linear in angle between the run's end heights), nearly
 straight runs one line. The arcs' ends are rounded vertices and their centres lie exactly on the
@@ -30,11 +30,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planning._rough_arcs import fit_arcs
 from planning.nc import LINE, RAPID, Motion, MotionBuilder, NumberStyle, Program
 from planning.nc import motion_to_program as _write
-from planning.part_config import Part
-from planning.roughing import RoughPlan
+from planning.rough._arcs import fit_arcs
+from planning.rough.part import Part
+from planning.rough.planner import RoughPlan
 
 _DECIMALS = 3  # written precision (mm); arc fits work on vertices rounded to it
 

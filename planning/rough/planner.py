@@ -20,7 +20,7 @@ Methods (all under the same cusp limit and the tool's depth limit L):
                the heights the other methods chose, so its optimum is never worse than theirs).
 
 A level's cost depends on its height z, the lower level lo of its shoulder (the region it clears
-is A(lo) - C(z), see :mod:`planning._rough_levels`) and, for time, the upper level hi. Cutting a
+is A(lo) - C(z), see :mod:`planning.rough._levels`) and, for time, the upper level hi. Cutting a
 level first inside a shoulder splits it into two independent shoulders, so the best plan of a
 shoulder is ``f(lo, hi) = min_z cost(lo, z, hi) + f(lo, z) + f(z, hi)``, or 0 when its cusp is
 already within the allowance.
@@ -34,9 +34,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from planning._rough_levels import CuspTable, LevelGeometry, LevelPaths
 from planning.errors import PlanningError
-from planning.part_config import Part
+from planning.rough._levels import CuspTable, LevelGeometry, LevelPaths
+from planning.rough.part import Part
 
 METHODS = ("bisection", "equal", "lee", "optimal")
 _EPS = 1e-9
