@@ -27,10 +27,10 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from planning.orient import build_context, cc_points, solve_all  # noqa: E402
-from planning.orient_check import verify  # noqa: E402
-from planning.orient_config import load_orient  # noqa: E402
-from planning.orient_tool import ToolSystem  # noqa: E402
+from planning.orient.check import verify  # noqa: E402
+from planning.orient.config import load_orient  # noqa: E402
+from planning.orient.planner import build_context, cc_points, solve_all  # noqa: E402
+from planning.orient.tool import ToolSystem  # noqa: E402
 
 PAPER = {  # seed 002 Table 1: label, CC points, total s, s per point (SGI Indigo2)
     "impeller": ("Impeller blade (Fig. 7)", 40, 49.6, 1.24),

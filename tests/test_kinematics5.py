@@ -1,4 +1,4 @@
-"""planning.kinematics5: AC inverse kinematics round trips, limits, CL CSV and G-code read back."""
+"""planning.orient.kinematics: AC inverse kinematics round trips, limits, CL CSV and G-code read back."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from analysis.config import load_machine
 from planning.errors import PlanningError
-from planning.kinematics5 import forward, inverse, nc_program, write_cl_csv
+from planning.orient.kinematics import forward, inverse, nc_program, write_cl_csv
 
 ROOT = Path(__file__).resolve().parent.parent
 

@@ -1,4 +1,4 @@
-"""planning.orient_config: the three shipped models load; bad configs name file, line and field."""
+"""planning.orient.config: the three shipped models load; bad configs name file, line and field."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from analysis.errors import ConfigError
-from planning.orient import energy_map, plan_orientation
-from planning.orient_config import load_orient
+from planning.orient.config import load_orient
+from planning.orient.planner import energy_map, plan_orientation
 
 ROOT = Path(__file__).resolve().parent.parent
 IMP = ROOT / "configs" / "orient" / "impeller.toml"

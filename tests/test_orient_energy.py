@@ -1,4 +1,4 @@
-"""planning._energy: eq 7 is zero exactly when nothing collides; its gradient; the descent."""
+"""planning.orient._energy: eq 7 is zero exactly when nothing collides; its gradient; the descent."""
 
 from __future__ import annotations
 
@@ -7,10 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planning._energy import Charges, Site, energy
-from planning._orient_search import _Context, descend, solve_point
-from planning.orient_check import CheckMesh, check
-from planning.orient_tool import ToolSystem, cutter_position, local_frame, szende_K, tool_axis
+from planning.orient._energy import Charges, Site, energy
+from planning.orient._search import _Context, descend, solve_point
+from planning.orient.check import CheckMesh, check
+from planning.orient.tool import ToolSystem, cutter_position, local_frame, szende_K, tool_axis
 from planning.surface.nurbs import NurbsSurface, clamped_uniform_knots
 
 TOOL = ToolSystem(6.0, 2.0, 50.0, 12.0, 40.0, 40.0, 80.0, name="phi12-bull")

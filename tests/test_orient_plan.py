@@ -1,4 +1,4 @@
-"""planning.orient on the three seed 002 test models, checked independently of the energy.
+"""planning.orient.planner on the three seed 002 test models, checked independently of the energy.
 
 The independent check here is a second implementation: points sampled on the tool system's
 surfaces of revolution (cutter with its corner radius, holder, spindle nose, with their end faces)
@@ -17,10 +17,10 @@ import pytest
 from scipy.spatial import cKDTree
 
 from planning.errors import PlanningError
-from planning.orient import axis_jumps_deg, plan_orientation, require_feasible
-from planning.orient_check import verify
-from planning.orient_config import load_orient
-from planning.orient_tool import ToolSystem
+from planning.orient.check import verify
+from planning.orient.config import load_orient
+from planning.orient.planner import axis_jumps_deg, plan_orientation, require_feasible
+from planning.orient.tool import ToolSystem
 
 ROOT = Path(__file__).resolve().parent.parent
 MODELS = ["impeller", "fan", "mask"]

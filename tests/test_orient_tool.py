@@ -1,4 +1,4 @@
-"""planning.orient_tool: frame, angles, Szende's K (eq 8) vs closed forms and silhouettes, solid."""
+"""planning.orient.tool: frame, angles, Szende's K (eq 8) vs closed forms and silhouettes, solid."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from scipy.spatial import cKDTree
 from analysis.config import EndMill, validate
 from analysis.errors import ConfigError
 from planning.errors import PlanningError
-from planning.orient_tool import (
+from planning.orient.tool import (
     ToolSystem,
     cutter_position,
     local_frame,

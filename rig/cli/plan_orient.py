@@ -47,11 +47,11 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from planning.errors import PlanningError
-    from planning.kinematics5 import inverse, nc_program, write_cl_csv
-    from planning.orient import energy_map, plan_orientation, require_feasible
-    from planning.orient_check import verify
-    from planning.orient_config import load_orient
-    from planning.orient_tool import ToolSystem
+    from planning.orient.check import verify
+    from planning.orient.config import load_orient
+    from planning.orient.kinematics import inverse, nc_program, write_cl_csv
+    from planning.orient.planner import energy_map, plan_orientation, require_feasible
+    from planning.orient.tool import ToolSystem
     from rig.cli._common import print_json, print_table, status
 
     cfg, tool_cfg, machine = load_orient(args.config)

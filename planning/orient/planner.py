@@ -8,7 +8,7 @@ and K - kappa >= 0 (no local overcut), within the angle limits.
 The paper used the ADS optimiser; here the search for one point (scipy's SLSQP for the
 curvature, the paper's gradient descent on U, bisection and a compass search along the
 collision-free set, and a final check on a dense mesh independent of the energy) lives in
-:mod:`planning._orient_search`. Beyond the paper, a smoothness term w |theta - theta_prev|^2
+:mod:`planning.orient._search`. Beyond the paper, a smoothness term w |theta - theta_prev|^2
 (``smoothness_weight``) in the objective and a warm start from the neighbour's answer keep the axis
 from jumping between neighbouring CC points -- the paper's own stated weakness -- and the largest
 jump is reported. A point with no collision-free orientation in the limits gets no orientation
@@ -24,12 +24,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.config import EndMill
-from planning._energy import Charges, Site
-from planning._orient_search import _Context, curvature_optimum, descend, solve_point
 from planning.errors import PlanningError
-from planning.orient_check import CheckMesh
-from planning.orient_config import OrientConfig
-from planning.orient_tool import (
+from planning.orient._energy import Charges, Site
+from planning.orient._search import _Context, curvature_optimum, descend, solve_point
+from planning.orient.check import CheckMesh
+from planning.orient.config import OrientConfig
+from planning.orient.tool import (
     ToolSystem,
     cutter_position,
     local_frame,

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from planning.orient_tool import (
+from planning.orient.tool import (
     ToolSystem,
     cutter_position,
     meridian,

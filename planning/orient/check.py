@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from planning.orient_tool import ToolSystem, meridian
+from planning.orient.tool import ToolSystem, meridian
 from planning.surface.nurbs import NurbsSurface
 
 PART_NAMES = ("cutter", "holder", "spindle nose")

@@ -1,4 +1,4 @@
-"""Search for one CC point's orientation (seed 002 sections 3-4); used by planning.orient.
+"""Search for one CC point's orientation (seed 002 sections 3-4); used by planning.orient.planner.
 
 The steps, cheapest first (each counted in ``_Context.evals`` energy evaluations):
 
@@ -11,7 +11,7 @@ The steps, cheapest first (each counted in ``_Context.evals`` energy evaluations
 3. From that start towards the optimum, bisection on U = 0 (U is flat, zero, on the free set,
    which gives a gradient optimiser nothing to hold on to as an equality constraint), then a
    compass search that walks along the free set while the objective drops.
-4. The answer must pass the dense check mesh (:mod:`planning.orient_check`); if nothing does, the
+4. The answer must pass the dense check mesh (:mod:`planning.orient.check`); if nothing does, the
    point is infeasible and the reason names the tool part and the surface it hits.
 """
 
@@ -22,9 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from planning._energy import Charges, Site, energy, place
-from planning.orient_check import CheckMesh, check
-from planning.orient_tool import ToolSystem, szende_K, szende_K_grad
+from planning.orient._energy import Charges, Site, energy, place
+from planning.orient.check import CheckMesh, check
+from planning.orient.tool import ToolSystem, szende_K, szende_K_grad
 
 K_CAP_PER_MM = 1e3  # stands in for the flat end mill's infinite K at alpha = 0, beta != 0
 
