@@ -24,8 +24,8 @@ from analysis.forces.facemill import FaceMillCut, facemill_forces
 from analysis.identify.facemill import fit_facemill, reduce_run_file
 from analysis.modal.filter import DynamometerFilter
 from analysis.runs.file import SAMPLE_FORMAT_VOLTS, load_run
-from rig.calibration import Calibration
 from rig.daq.base import DaqInfo
+from rig.daq.calibration import Calibration
 from rig.logger import RunWriter
 
 RATE_HZ = 50_000.0

@@ -30,8 +30,8 @@ from typing import Protocol
 import numpy as np
 
 from analysis.runs import file as rf
-from rig.calibration import Calibration, CalibrationError, compensate, fit_drift
 from rig.daq.base import SAMPLE_FORMAT_RAW, Daq, DaqEvent, DaqInfo
+from rig.daq.calibration import Calibration, CalibrationError, compensate, fit_drift
 from rig.dnc.program import Program
 
 STATUS_SUCCESS, STATUS_ABORT, STATUS_FAIL = rf.STATUS_SUCCESS, rf.STATUS_ABORT, rf.STATUS_FAIL

@@ -49,7 +49,7 @@ from rig._campaign_manifest import (
 )
 from rig._campaign_nc import CutProgram, generate_program
 from rig._campaign_run import RigSession, StopRequest, execute_run
-from rig.calibration import Calibration
+from rig.daq.calibration import Calibration
 from rig.errors import RigError
 
 __all__ = [

@@ -46,8 +46,8 @@ from rig._logger_file import (
     write_text,
     write_zero_and_drift,
 )
-from rig.calibration import Calibration
 from rig.daq.base import DaqEvent, DaqInfo
+from rig.daq.calibration import Calibration
 
 __all__ = ["RunWriter", "RunWriterError", "WriterStats"]
 

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from analysis.config import Dynamometer, DynoChannel, load_rig
 from analysis.errors import ConfigError
-from rig.calibration import Calibration, CalibrationError, compensate, fit_drift
+from rig.daq.calibration import Calibration, CalibrationError, compensate, fit_drift
 
 
 def _cal(**kw) -> Calibration:

@@ -28,8 +28,8 @@ from nidaqmx.task.collections import AIChannelCollection
 
 from analysis.config import DaqConfig, load_rig
 from analysis.runs import file as rf
-from rig.calibration import Calibration
 from rig.daq import DaqError, DaqNotAvailableError
+from rig.daq.calibration import Calibration
 from rig.daq.ni import NiDaq
 from rig.logger import RunWriter
 

@@ -15,9 +15,9 @@ from analysis.identify._common import RunConditions, reduce_run, reduce_run_file
 from analysis.identify.facemill import fit_facemill, fit_facemill_runs, synthetic_facemill_run
 from analysis.modal.filter import DynamometerFilter
 from analysis.runs.file import SAMPLE_FORMAT_VOLTS
-from rig.calibration import Calibration
 from rig.cli import main
 from rig.daq.base import DaqInfo
+from rig.daq.calibration import Calibration
 from rig.logger import RunWriter
 
 RATE = 10_000.0

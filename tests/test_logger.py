@@ -19,9 +19,9 @@ from hypothesis import strategies as st
 from analysis.config import load_rig
 from analysis.runs import file as rf
 from analysis.runs.follow import RunFollower
-from rig.calibration import Calibration
 from rig.cli import main
 from rig.daq.base import DaqEvent, DaqInfo
+from rig.daq.calibration import Calibration
 from rig.logger import RunWriter, RunWriterError
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -12,9 +12,9 @@ from _rules_sweep import FS, RPM, sweep
 from analysis.config import load_rig
 from analysis.rules.rule import derive_rule, load_rule, save_rule
 from rig._report_feedrule import feed_rule_section
-from rig.calibration import Calibration
 from rig.cli import main
 from rig.daq.base import SAMPLE_FORMAT_VOLTS, DaqInfo
+from rig.daq.calibration import Calibration
 from rig.logger import RunWriter
 
 

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from analysis.config import Dynamometer, DynoChannel, EndMill, FaceMill, Mode
 from rig._campaign_nc import CutBlock
-from rig.calibration import Calibration
+from rig.daq.calibration import Calibration
 from rig.sim._machine_engagement import endmill_engagement, facemill_engagement
 from rig.sim._machine_signal import DynoChain
 from rig.sim._machine_timeline import ARC_CCW, ExecutedSegment, MotionTimeline

@@ -220,7 +220,7 @@ def volts_to_force(
     zero_time_s: float,
     drift_v_s: np.ndarray,
 ) -> np.ndarray:
-    """Apply the stored affine calibration (built by ``rig.calibration``).
+    """Apply the stored affine calibration (built by ``rig.daq.calibration``).
 
     volts : (n, c) V; time_s : (n,) run clock s (only read when a drift is set). Returns force,
     (n, c) N: ``force = volts_to_n @ (volts - zero_v - drift_v_s * (t - zero_time_s))`` per

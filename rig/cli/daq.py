@@ -16,8 +16,8 @@ def _record(args: argparse.Namespace) -> int:
 
     from analysis.config import load_rig
     from analysis.errors import ConfigError
-    from rig.calibration import Calibration
     from rig.cli._common import print_json, print_table, status
+    from rig.daq.calibration import Calibration
     from rig.daq.record import aliasing_warning, milling_force_source, record
 
     rig_path = args.rig

@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 
 from analysis.runs import file as rf
-from rig.calibration import Calibration
 from rig.daq.base import Daq
+from rig.daq.calibration import Calibration
 from rig.logger import RunWriter, WriterStats
 
 

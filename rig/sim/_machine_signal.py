@@ -5,7 +5,7 @@ The modes are :class:`analysis.modal.filter.DynamometerFilter` (one unit-DC-gain
 per axis, zero-order hold at the DAQ rate); its state carries across blocks so consecutive reads
 form one continuous signal. Then ``measured = crosstalk @ filtered`` (rows: channel), each channel
 takes its axis with its sign, and ``volts = newtons / range_n_v`` (the amplifier is set to the
-sensor's sensitivity, so pC cancel): :class:`rig.calibration.Calibration` run forwards.
+sensor's sensitivity, so pC cancel): :class:`rig.daq.calibration.Calibration` run forwards.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import numpy as np
 
 from analysis.config import Dynamometer
 from analysis.modal.filter import DynamometerFilter
-from rig.calibration import Calibration
+from rig.daq.calibration import Calibration
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
