@@ -1,7 +1,7 @@
 """Benchmark: seed 003 identification over 10^8 force samples streamed from HDF5 run files.
 
 Writes (once; reused while they exist) 10 run files of 3.34 M samples x 3 channels each with
-``rig.logger.RunWriter`` — face milling at depths 0.5..3.0 mm with seed 003's setup, Table 2's
+``rig.log.writer.RunWriter`` — face milling at depths 0.5..3.0 mm with seed 003's setup, Table 2's
 modes, 2 % noise, an offset — then times the identification: each file is streamed in chunks
 through ``analysis.runs.file.load_run`` windows (two passes: per-revolution statistics, then the
 synchronous average) and the fit runs on the averages. Prints samples, wall time, throughput,
@@ -26,7 +26,7 @@ from analysis.modal.filter import DynamometerFilter
 from analysis.runs.file import SAMPLE_FORMAT_VOLTS, load_run
 from rig.daq.base import DaqInfo
 from rig.daq.calibration import Calibration
-from rig.logger import RunWriter
+from rig.log.writer import RunWriter
 
 RATE_HZ = 50_000.0
 RPM = 600.0

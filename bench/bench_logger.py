@@ -35,7 +35,7 @@ import numpy as np
 from analysis.runs import file as rf
 from rig.daq.base import DaqInfo
 from rig.daq.sim import SimDaq
-from rig.logger import RunWriter
+from rig.log.writer import RunWriter
 from rig.sim.clock import SimClock
 
 

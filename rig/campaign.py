@@ -275,7 +275,7 @@ def run_campaign(
     only: Callable[[RunConditions], bool] | None = None,
 ) -> CampaignResult:
     """Run (or resume) a campaign; returns every run's status. See the module docstring."""
-    from rig.logger import RunWriter
+    from rig.log.writer import RunWriter
 
     plans = plan_campaign(campaign)
     if campaign.spec.campaign.rig == "real" and session_factory is None:

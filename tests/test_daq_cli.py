@@ -148,7 +148,7 @@ def test_real_device_missing_is_explained(tmp_path: Path, capsys) -> None:
 
 def test_aliasing_warning_follows_the_configured_modes() -> None:
     from analysis.config import Mode, load_rig
-    from rig.daq.record import aliasing_warning
+    from rig.log.record import aliasing_warning
 
     dyno = load_rig().dynamometer
     assert aliasing_warning(6460.0, dyno) is None

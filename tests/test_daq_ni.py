@@ -31,7 +31,7 @@ from analysis.runs import file as rf
 from rig.daq import DaqError, DaqNotAvailableError
 from rig.daq.calibration import Calibration
 from rig.daq.ni import NiDaq
-from rig.logger import RunWriter
+from rig.log.writer import RunWriter
 
 COEFF = [0.0012, 3.0517578125e-4, 1e-12, 0.0]  # a device's polynomial: volts = sum c_j code^j
 
@@ -328,7 +328,7 @@ def test_hardware_acquires_continuously(tmp_path: Path) -> None:
     rig = load_rig()
     daq = NiDaq(rig.daq, Calibration.from_rig(rig).channel_names)
     try:
-        from rig.daq.record import record
+        from rig.log.record import record
 
         res = record(daq, tmp_path / "hw.h5", 2.0, calibration=Calibration.from_rig(rig))
     except DaqNotAvailableError as exc:

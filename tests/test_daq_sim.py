@@ -11,7 +11,7 @@ import pytest
 from analysis.runs import file as rf
 from rig.daq import DaqError, PushedSource, SimDaq, ramp_source, sine_source
 from rig.daq.base import DaqEvent, DaqInfo
-from rig.logger import RunWriter
+from rig.log.writer import RunWriter
 from rig.sim.clock import SimClock
 
 

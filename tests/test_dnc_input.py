@@ -259,7 +259,7 @@ def test_block_record_in_a_real_run_file_after_a_fault(tmp_path) -> None:
     from analysis.runs.file import load_run
     from rig.daq.base import SAMPLE_FORMAT_VOLTS, DaqInfo
     from rig.dnc.sinks import LoggerSink
-    from rig.logger import RunWriter
+    from rig.log.writer import RunWriter
 
     info = DaqInfo("Sim1", ("a0", "a1", "a2"), ("Fx", "Fy", "Fz"), 1000.0, SAMPLE_FORMAT_VOLTS,
                    10.0, 100)  # fmt: skip

@@ -1,4 +1,4 @@
-"""Identification from real HDF5 run files written by rig.logger.RunWriter, streamed in chunks."""
+"""Identification from real HDF5 run files written by rig.log.writer.RunWriter, streamed in chunks."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from analysis.runs.file import SAMPLE_FORMAT_VOLTS
 from rig.cli import main
 from rig.daq.base import DaqInfo
 from rig.daq.calibration import Calibration
-from rig.logger import RunWriter
+from rig.log.writer import RunWriter
 
 RATE = 10_000.0
 TOOL = FaceMill(kind="facemill", diameter_mm=125, inserts=1, lead_angle_deg=15,

@@ -22,7 +22,7 @@ from analysis.runs.follow import RunFollower
 from rig.cli import main
 from rig.daq.base import DaqEvent, DaqInfo
 from rig.daq.calibration import Calibration
-from rig.logger import RunWriter, RunWriterError
+from rig.log.writer import RunWriter, RunWriterError
 
 ROOT = Path(__file__).resolve().parent.parent
 B = 500  # samples per block
@@ -295,7 +295,7 @@ def test_sigkill_mid_recording_keeps_everything_flushed(tmp_path: Path, capsys) 
     assert run.samples_lost == 0
     np.testing.assert_array_equal(run.sample_index, np.arange(run.samples_stored))
     # Every stored sample is the source's value at its time: nothing torn or shifted.
-    from rig.daq.record import milling_force_source
+    from rig.log.record import milling_force_source
 
     cal = Calibration.from_rig(load_rig())
     expect = milling_force_source(cal, 3)(run.t0_s, run.samples_stored, 5000.0).T

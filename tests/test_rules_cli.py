@@ -15,7 +15,7 @@ from rig._report_feedrule import feed_rule_section
 from rig.cli import main
 from rig.daq.base import SAMPLE_FORMAT_VOLTS, DaqInfo
 from rig.daq.calibration import Calibration
-from rig.logger import RunWriter
+from rig.log.writer import RunWriter
 
 
 def _write_runs(tmp_path, change_at=1000.0):

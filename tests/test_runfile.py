@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from analysis.runs import file as rf
 from rig.daq.base import DaqInfo
-from rig.logger import RunWriter
+from rig.log.writer import RunWriter
 
 
 def _info(rate_hz: float = 1000.0, block: int = 250) -> DaqInfo:

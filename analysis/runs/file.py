@@ -1,8 +1,8 @@
 """The HDF5 run file: its layout (documented here and only here) and the loader.
 
-``rig.logger.RunWriter`` writes run files using the constants below; everything else reads them
+``rig.log.writer.RunWriter`` writes run files using the constants below; everything else reads them
 through :func:`load_run` (whole run, or a time window) or :mod:`analysis.runs.follow` (a run still
-being written). Nothing outside these modules and ``rig.logger`` should name an HDF5 path of a run
+being written). Nothing outside these modules and ``rig.log.writer`` should name an HDF5 path of a run
 file.
 
 Layout (format ``cutlab-run``, version 1; HDF5 >= 1.10 "latest" format so that the file can be read

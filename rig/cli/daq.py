@@ -18,7 +18,7 @@ def _record(args: argparse.Namespace) -> int:
     from analysis.errors import ConfigError
     from rig.cli._common import print_json, print_table, status
     from rig.daq.calibration import Calibration
-    from rig.daq.record import aliasing_warning, milling_force_source, record
+    from rig.log.record import aliasing_warning, milling_force_source, record
 
     rig_path = args.rig
     rig = load_rig(rig_path)

@@ -1,7 +1,7 @@
 """The acquisition interface shared by the NI-DAQmx driver and the simulated DAQ.
 
 A DAQ acquires ``c`` channels continuously at ``rate_hz`` and hands every block it reads to a sink
-(normally :class:`rig.logger.RunWriter`) from its own thread::
+(normally :class:`rig.log.writer.RunWriter`) from its own thread::
 
     sink.on_start(info, t0_s)          once, t0_s = run-clock time of device sample 0
     sink.on_block(first_sample, data)  data (c, n): int16 ADC codes or float64 volts, valid only

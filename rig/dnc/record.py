@@ -3,7 +3,7 @@
 The streamer writes rows to a *sink*, any object with ``append_blocks(rows)``, ``event(kind,
 time_s, detail)`` and ``close()`` (:class:`BlockSink`). Sinks here: :class:`MemorySink` (tests, the
 simulated rig) and :class:`CsvSink` (the CLI's ``--record FILE``). The HDF5 run writer of
-``rig.logger`` is adapted by :class:`rig.dnc.sinks.LoggerSink`.
+``rig.log.writer`` is adapted by :class:`rig.dnc.sinks.LoggerSink`.
 
 Rows are appended in block order. Times are seconds on the streamer's clock (Unix time by default,
 the :class:`rig.sim.clock.SimClock` in the simulated rig). ``ack_time_s`` is NaN where the protocol

@@ -1,4 +1,4 @@
-"""The block record into a run file: :class:`LoggerSink` adapts ``rig.logger.RunWriter``.
+"""The block record into a run file: :class:`LoggerSink` adapts ``rig.log.writer.RunWriter``.
 
 Rows go to ``RunWriter.append_blocks`` (block, line, text, send time, ack time; both on the clock
 the writer and the streamer share), stream events to ``RunWriter.event`` (``fault`` for a fault,
@@ -17,7 +17,7 @@ from rig.dnc.record import BlockRow
 
 
 class LoggerSink:
-    """A :class:`~rig.dnc.record.BlockSink` writing into a ``rig.logger.RunWriter``."""
+    """A :class:`~rig.dnc.record.BlockSink` writing into a ``rig.log.writer.RunWriter``."""
 
     def __init__(self, writer: Any, close_writer: bool = False) -> None:
         self.writer = writer

@@ -1,4 +1,4 @@
-"""Record one run: a DAQ into a :class:`rig.logger.RunWriter` for a given time.
+"""Record one run: a DAQ into a :class:`rig.log.writer.RunWriter` for a given time.
 
 Used by ``cutlab daq record``; the campaign runner can use it too. Also holds the synthetic
 milling-force source that ``--sim`` records when no simulated machine drives the DAQ.
@@ -17,7 +17,7 @@ import numpy as np
 from analysis.runs import file as rf
 from rig.daq.base import Daq
 from rig.daq.calibration import Calibration
-from rig.logger import RunWriter, WriterStats
+from rig.log.writer import RunWriter, WriterStats
 
 
 def milling_force_source(

@@ -36,7 +36,9 @@ from typing import Any
 import numpy as np
 
 from analysis.runs import file as rf
-from rig._logger_file import (
+from rig.daq.base import DaqEvent, DaqInfo
+from rig.daq.calibration import Calibration
+from rig.log._file import (
     RunWriterError,
     append_rows,
     create_run_file,
@@ -46,8 +48,6 @@ from rig._logger_file import (
     write_text,
     write_zero_and_drift,
 )
-from rig.daq.base import DaqEvent, DaqInfo
-from rig.daq.calibration import Calibration
 
 __all__ = ["RunWriter", "RunWriterError", "WriterStats"]
 
