@@ -34,9 +34,9 @@ import numpy as np
 
 from analysis.runs import file as rf
 from rig.daq.base import DaqInfo
-from rig.daq.sim import SimDaq
 from rig.log.writer import RunWriter
 from rig.sim.clock import SimClock
+from rig.sim.daq import SimDaq
 
 
 def _info(c: int, rate_hz: float, block: int) -> DaqInfo:

@@ -178,7 +178,7 @@ SessionFactory = Callable[[Campaign, PlannedRun, int], RigSession]
 
 def default_session_factory(campaign: Campaign) -> SessionFactory:
     if campaign.spec.campaign.rig == "sim":
-        from rig.sim.rig import sim_session
+        from rig.sim.session import sim_session
 
         return sim_session
     from rig._campaign_real import real_session

@@ -39,8 +39,8 @@ def _record(args: argparse.Namespace) -> int:
         status(f"daq record: {w}")
 
     if args.sim:
-        from rig.daq.sim import SimDaq
         from rig.sim.clock import SimClock
+        from rig.sim.daq import SimDaq
 
         n = int(args.channels or len(rig.daq.channels))
         if not 1 <= n <= 64:

@@ -4,7 +4,7 @@
   :class:`DaqEvent`, errors.
 - :mod:`rig.daq.ni` — :class:`NiDaq` on the ``nidaqmx`` package (hardware-timed, every-N-samples
   reads into a preallocated array, continuity checked against the device's sample count).
-- :mod:`rig.daq.sim` — :class:`SimDaq` driven by a signal source, with ``sim_`` fault knobs.
+- :mod:`rig.sim.daq` — :class:`SimDaq` driven by a signal source, with ``sim_`` fault knobs.
 """
 
 from rig.daq.base import (
@@ -17,7 +17,7 @@ from rig.daq.base import (
     DaqNotAvailableError,
     DaqSink,
 )
-from rig.daq.sim import PushedSource, SimDaq, ramp_source, sine_source
+from rig.sim.daq import PushedSource, SimDaq, ramp_source, sine_source
 
 __all__ = [
     "SAMPLE_FORMAT_RAW",

@@ -90,7 +90,7 @@ def _known_devices() -> str:
 
 
 class NiDaq(Daq):
-    """Continuous acquisition on an NI device; same interface as :class:`rig.daq.sim.SimDaq`.
+    """Continuous acquisition on an NI device; same interface as :class:`rig.sim.daq.SimDaq`.
 
     Parameters
     ----------

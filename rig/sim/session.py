@@ -25,12 +25,12 @@ from typing import Any
 
 from analysis.config import EndMill
 from rig._campaign_nc import block_zmap
-from rig.daq.sim import SimDaq
 from rig.dnc.errors import DncError, StreamFault
 from rig.dnc.program import Program
 from rig.dnc.sinks import LoggerSink
 from rig.errors import RigError
 from rig.sim.clock import SimClock
+from rig.sim.daq import SimDaq
 from rig.sim.machine import BlockStock, Chatter, SignalSettings, SimMachine, ZMapStock
 
 
