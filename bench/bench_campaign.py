@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 def _physics(tool_name: str, material: str, rate_hz: float, seconds: float) -> dict:
     from analysis.config import get_material, get_tool, load_rig
-    from rig._campaign_nc import CutBlock, block_zmap
+    from rig.campaign.programs import CutBlock, block_zmap
     from rig.sim._machine_timeline import ExecutedSegment
     from rig.sim.machine import BlockStock, SignalSettings, SimMachine, ZMapStock
 
@@ -58,7 +58,7 @@ def _physics(tool_name: str, material: str, rate_hz: float, seconds: float) -> d
 
 def _campaign() -> dict:
     from analysis.runs.file import load_run
-    from rig.campaign import load_campaign, run_campaign
+    from rig.campaign.runner import load_campaign, run_campaign
     from rig.report import write_report
 
     c = load_campaign("facemill-ploughing")

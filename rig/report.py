@@ -153,8 +153,8 @@ def write_report(campaign_folder: str | Path) -> Report:
     import matplotlib
 
     matplotlib.use("Agg")
-    from rig._campaign_config import load_campaign
     from rig._report_plots import plot_traces
+    from rig.campaign.config import load_campaign
 
     folder = Path(campaign_folder)
     campaign = load_campaign(folder / "campaign.toml")
@@ -181,7 +181,7 @@ def write_report(campaign_folder: str | Path) -> Report:
     counts: dict[str, int] = {}
     for e in entries:
         counts[e.get("status", "?")] = counts.get(e.get("status", "?"), 0) + 1
-    from rig.campaign import mode_warnings
+    from rig.campaign.runner import mode_warnings
 
     warnings = mode_warnings(campaign)
     summary: dict[str, Any] = {

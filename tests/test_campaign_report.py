@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from analysis.config import get_material
-from rig.campaign import load_campaign, run_campaign
+from rig.campaign.runner import load_campaign, run_campaign
 from rig.report import write_report
 
 DATA = Path(__file__).parent / "data" / "campaign"

@@ -18,7 +18,7 @@ import pytest
 
 from analysis.errors import CutlabError
 from analysis.runs import file as rf
-from rig.campaign import load_campaign, run_campaign
+from rig.campaign.runner import load_campaign, run_campaign
 
 DATA = Path(__file__).parent / "data" / "campaign"
 ROOT = Path(__file__).resolve().parent.parent
@@ -250,8 +250,8 @@ def test_operator_pause_is_a_feed_hold_and_resume_continues_the_cut(
 ) -> None:
     import threading
 
-    import rig._campaign_run as runmod
-    from rig._campaign_run import StopRequest
+    import rig.campaign.run as runmod
+    from rig.campaign.run import StopRequest
 
     answered = threading.Event()
 

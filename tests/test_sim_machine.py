@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from analysis.config import Dynamometer, DynoChannel, EndMill, FaceMill, Mode
-from rig._campaign_nc import CutBlock
+from rig.campaign.programs import CutBlock
 from rig.daq.calibration import Calibration
 from rig.sim._machine_engagement import endmill_engagement, facemill_engagement
 from rig.sim._machine_signal import DynoChain
@@ -289,7 +289,7 @@ def test_zmap_stock_remembers_earlier_passes() -> None:
     # Two identical slots along the same line: the second finds the groove empty; a third pass
     # half a diameter aside cuts again, less than a full slot.
     from analysis.config import get_material
-    from rig._campaign_nc import block_zmap
+    from rig.campaign.programs import block_zmap
     from rig.sim.machine import SignalSettings, SimMachine, ZMapStock
 
     block = CutBlock(-20, 20, (0.0, 40.0), (0.0,))

@@ -42,7 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from rig.campaign import dry_run, load_campaign, run_campaign
+    from rig.campaign.runner import dry_run, load_campaign, run_campaign
 
     campaign = load_campaign(args.config)
     if args.dry_run:
@@ -105,7 +105,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _status(args: argparse.Namespace) -> int:
-    from rig.campaign import campaign_folder, load_campaign, plan_campaign, run_status
+    from rig.campaign.runner import campaign_folder, load_campaign, plan_campaign, run_status
 
     campaign = load_campaign(args.config)
     folder = campaign_folder(campaign, args.out)
@@ -127,7 +127,7 @@ def _status(args: argparse.Namespace) -> int:
 
 
 def _report(args: argparse.Namespace) -> int:
-    from rig.campaign import campaign_folder, load_campaign
+    from rig.campaign.runner import campaign_folder, load_campaign
     from rig.report import write_report
 
     campaign = load_campaign(args.config)

@@ -37,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _demo(args: argparse.Namespace) -> int:
     from analysis.errors import ConfigError
-    from rig.campaign import campaign_folder, load_campaign, run_campaign
+    from rig.campaign.runner import campaign_folder, load_campaign, run_campaign
     from rig.cli._common import print_json, print_table, status
     from rig.report import write_report
 

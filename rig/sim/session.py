@@ -24,7 +24,7 @@ import threading
 from typing import Any
 
 from analysis.config import EndMill
-from rig._campaign_nc import block_zmap
+from rig.campaign.programs import block_zmap
 from rig.dnc.errors import DncError, StreamFault
 from rig.dnc.program import Program
 from rig.dnc.sinks import LoggerSink

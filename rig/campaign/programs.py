@@ -18,7 +18,7 @@ import numpy as np
 
 from analysis.config import EndMill, FaceMill
 from planning.nc.program import format_number
-from rig._campaign_config import ProgramSection, RunConditions
+from rig.campaign.config import ProgramSection, RunConditions
 
 
 @dataclass(frozen=True)

@@ -1,9 +1,9 @@
 """The campaign runner: a campaign TOML -> one NC program and one HDF5 run file per test.
 
-A campaign (see :mod:`rig._campaign_config` for the file) names the machine, tool, material, rig
+A campaign (see :mod:`rig.campaign.config` for the file) names the machine, tool, material, rig
 (``sim`` or ``real``), DAQ and dynamometer settings and a test matrix. :func:`run_campaign` plans
 every test (program generated and checked by the NC parser before anything runs), then runs them
-in order on the rig, each through :func:`rig._campaign_run.execute_run`, and keeps a manifest::
+in order on the rig, each through :func:`rig.campaign.run.execute_run`, and keeps a manifest::
 
     <output_dir>/<campaign name>/
         campaign.json           manifest: config hash, software version, every run's status
@@ -38,8 +38,8 @@ from analysis import __version__
 from analysis.config import FaceMill
 from analysis.errors import ConfigError
 from analysis.runs import file as rf
-from rig._campaign_config import Campaign, RunConditions, load_campaign
-from rig._campaign_manifest import (
+from rig.campaign.config import Campaign, RunConditions, load_campaign
+from rig.campaign.manifest import (
     Manifest,
     campaign_lock,
     finished,
@@ -47,8 +47,8 @@ from rig._campaign_manifest import (
     set_aside,
     utc_now,
 )
-from rig._campaign_nc import CutProgram, generate_program
-from rig._campaign_run import RigSession, StopRequest, execute_run
+from rig.campaign.programs import CutProgram, generate_program
+from rig.campaign.run import RigSession, StopRequest, execute_run
 from rig.daq.calibration import Calibration
 from rig.errors import RigError
 
@@ -122,7 +122,7 @@ def _post_process(text: str, campaign: Campaign, test: RunConditions, cut: CutPr
     """The feed post-processor (planning.feed.post, seed 001) over a generated program."""
     from analysis.config import EndMill
     from analysis.rules.rule import load_rule
-    from rig._campaign_nc import campaign_rule, post_process_program
+    from rig.campaign.programs import campaign_rule, post_process_program
 
     tool = campaign.tool
     if not isinstance(tool, EndMill):
@@ -181,7 +181,7 @@ def default_session_factory(campaign: Campaign) -> SessionFactory:
         from rig.sim.session import sim_session
 
         return sim_session
-    from rig._campaign_real import real_session
+    from rig.campaign.real import real_session
 
     return real_session
 
@@ -279,7 +279,7 @@ def run_campaign(
 
     plans = plan_campaign(campaign)
     if campaign.spec.campaign.rig == "real" and session_factory is None:
-        from rig._campaign_real import check_hardware
+        from rig.campaign.real import check_hardware
 
         _, problems = check_hardware(campaign)
         if problems:
@@ -424,7 +424,7 @@ def dry_run(campaign: Campaign) -> DryRun:
     hardware: list[str] = []
     problems: list[str] = []
     if campaign.spec.campaign.rig == "real":
-        from rig._campaign_real import check_hardware
+        from rig.campaign.real import check_hardware
 
         hardware, problems = check_hardware(campaign)
     else:

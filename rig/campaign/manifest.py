@@ -14,7 +14,7 @@ from typing import Any
 
 from analysis import __version__
 from analysis.runs import file as rf
-from rig._campaign_config import Campaign
+from rig.campaign.config import Campaign
 from rig.errors import RigError
 
 
