@@ -59,7 +59,7 @@ def _physics(tool_name: str, material: str, rate_hz: float, seconds: float) -> d
 def _campaign() -> dict:
     from analysis.runs.file import load_run
     from rig.campaign.runner import load_campaign, run_campaign
-    from rig.report import write_report
+    from rig.report.base import write_report
 
     c = load_campaign("facemill-ploughing")
     with tempfile.TemporaryDirectory() as tmp:

@@ -10,7 +10,7 @@ import pytest
 
 from analysis.config import get_material
 from rig.campaign.runner import load_campaign, run_campaign
-from rig.report import write_report
+from rig.report.base import write_report
 
 DATA = Path(__file__).parent / "data" / "campaign"
 

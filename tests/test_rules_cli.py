@@ -11,11 +11,11 @@ from _rules_sweep import FS, RPM, sweep
 
 from analysis.config import load_rig
 from analysis.rules.rule import derive_rule, load_rule, save_rule
-from rig._report_feedrule import feed_rule_section
 from rig.cli import main
 from rig.daq.base import SAMPLE_FORMAT_VOLTS, DaqInfo
 from rig.daq.calibration import Calibration
 from rig.log.writer import RunWriter
+from rig.report.feedrule import feed_rule_section
 
 
 def _write_runs(tmp_path, change_at=1000.0):

@@ -10,7 +10,7 @@ in order on the rig, each through :func:`rig.campaign.run.execute_run`, and keep
         campaign.toml           the campaign file as run
         runs/NNN-<test name>.h5 one run file per test (layout: analysis.runs.file)
         programs/NNN-<test name>.nc
-        report/                 written by rig.report after the campaign
+        report/                 written by rig.report.base after the campaign
 
 Resume: running a campaign again skips every test whose run file closed with status
 ``success``; a run that ended in abort or fail, or whose process was killed (the file still says

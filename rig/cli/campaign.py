@@ -73,7 +73,7 @@ def _run(args: argparse.Namespace) -> int:
     result = run_campaign(campaign, out_root=args.out, progress=not args.quiet)
     report = None
     if not args.no_report and not result.stopped:
-        from rig.report import write_report
+        from rig.report.base import write_report
 
         report = write_report(result.folder)
     summary = {
@@ -128,7 +128,7 @@ def _status(args: argparse.Namespace) -> int:
 
 def _report(args: argparse.Namespace) -> int:
     from rig.campaign.runner import campaign_folder, load_campaign
-    from rig.report import write_report
+    from rig.report.base import write_report
 
     campaign = load_campaign(args.config)
     rep = write_report(campaign_folder(campaign, args.out))

@@ -39,7 +39,7 @@ def _demo(args: argparse.Namespace) -> int:
     from analysis.errors import ConfigError
     from rig.campaign.runner import campaign_folder, load_campaign, run_campaign
     from rig.cli._common import print_json, print_table, status
-    from rig.report import write_report
+    from rig.report.base import write_report
 
     t0 = time.monotonic()
     campaign = load_campaign(args.campaign)

@@ -14,7 +14,7 @@ import pandas as pd
 
 from analysis.errors import AnalysisError
 from analysis.identify._common import CI_NOTE
-from rig.report import LoadedRun, Section, md_table
+from rig.report.base import LoadedRun, Section, md_table
 
 #: The coefficients seed 003 reports, then the axial pair cutlab adds.
 COEFFS = ("K_T_n_mm2", "K_R", "P_T_n_mm", "P_R_n_mm", "K_A", "P_A_n_mm")
@@ -106,7 +106,7 @@ def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section
     v_only = [r for r in vrows if r["group"] in spec.validate_groups]
     if v_only:
         summary["validation_max_abs_error_pct"] = max(abs(r["Fxy_error_pct"]) for r in v_only)
-    from rig._report_plots import plot_pred_vs_meas
+    from rig.report.plots import plot_pred_vs_meas
 
     plot_pred_vs_meas(vrows, out / "predicted_vs_measured.png",
                       f"{campaign.name}: mean force per run")  # fmt: skip
@@ -141,7 +141,7 @@ def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section
 
 
 def _plot_fit(campaign: Any, coef: Any, ident: list[LoadedRun], path: Path) -> None:
-    from rig._report_plots import _plt
+    from rig.report.plots import _plt
 
     plt = _plt()
     if not ident:

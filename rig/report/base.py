@@ -11,9 +11,9 @@ manifest in the folder) and every run file through :mod:`analysis.runs.file`, th
         *.png                force traces, fits, predicted vs measured, load and feed
 
 The analysis follows ``[analysis] kind``: ``facemill-coefficients`` (seed 003: identification
-and validation, :mod:`rig._report_facemill`), ``feed-rule`` (seed 001 4.2: base feed and the
-derived rule, :mod:`rig._report_feedrule`) or ``afc-compare`` (seed 001 4.3: constant vs
-post-processed feeds, :mod:`rig._report_afc`).
+and validation, :mod:`rig.report.facemill`), ``feed-rule`` (seed 001 4.2: base feed and the
+derived rule, :mod:`rig.report.feedrule`) or ``afc-compare`` (seed 001 4.3: constant vs
+post-processed feeds, :mod:`rig.report.afc`).
 """
 
 from __future__ import annotations
@@ -153,8 +153,8 @@ def write_report(campaign_folder: str | Path) -> Report:
     import matplotlib
 
     matplotlib.use("Agg")
-    from rig._report_plots import plot_traces
     from rig.campaign.config import load_campaign
+    from rig.report.plots import plot_traces
 
     folder = Path(campaign_folder)
     campaign = load_campaign(folder / "campaign.toml")
@@ -167,15 +167,15 @@ def write_report(campaign_folder: str | Path) -> Report:
     kind = campaign.spec.analysis.kind
     sections: list[Section] = []
     if kind == "facemill-coefficients":
-        from rig._report_facemill import facemill_section
+        from rig.report.facemill import facemill_section
 
         sections.append(facemill_section(campaign, runs, out))
     elif kind == "feed-rule":
-        from rig._report_feedrule import feed_rule_section
+        from rig.report.feedrule import feed_rule_section
 
         sections.append(feed_rule_section(campaign, runs, out))
     elif kind == "afc-compare":
-        from rig._report_afc import afc_section
+        from rig.report.afc import afc_section
 
         sections.append(afc_section(campaign, runs, out))
     counts: dict[str, int] = {}

@@ -16,7 +16,7 @@ from typing import Any
 import pandas as pd
 
 from analysis.errors import AnalysisError
-from rig.report import LoadedRun, Section, md_table
+from rig.report.base import LoadedRun, Section, md_table
 
 
 def feed_rule_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section:
@@ -71,7 +71,7 @@ def feed_rule_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Sectio
 
 
 def _plot_sweep(rows: list[dict], base: float, path: Path, title: str) -> None:
-    from rig._report_plots import _plt
+    from rig.report.plots import _plt
 
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6, 3.8))

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from rig.report import LoadedRun, Section, md_table
+from rig.report.base import LoadedRun, Section, md_table
 
 #: A revolution cuts when its mean resultant exceeds this fraction of the run's 95th percentile
 #: (and the air level by 6 sigma): entry and exit ramps of a few revolutions are left out.
@@ -215,7 +215,7 @@ def _bound_text(b: dict[str, Any], fr: Any, cv_target: float, time_target: float
 
 
 def _plot_bound(b: dict[str, Any], summary: dict[str, Any], path: Path) -> None:
-    from rig._report_plots import _plt
+    from rig.report.plots import _plt
 
     plt = _plt()
     front, cv0, t0 = b["front"], b["bound_model_cv_constant"], b["bound_t0_s"]
@@ -248,7 +248,7 @@ def _feed_along_x(text: str, machine: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _plot(campaign: Any, const: LoadedRun, adj: LoadedRun, stats: dict, path: Path) -> None:
-    from rig._report_plots import _plt
+    from rig.report.plots import _plt
 
     plt = _plt()
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7, 5.5))
