@@ -26,17 +26,17 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 def _physics(tool_name: str, material: str, rate_hz: float, seconds: float) -> dict:
     from analysis.config import get_material, get_tool, load_rig
-    from rig.campaign.programs import CutBlock, block_zmap
+    from planning.stock import SteppedBlock
     from rig.sim._machine_timeline import ExecutedSegment
     from rig.sim.machine import BlockStock, SignalSettings, SimMachine, ZMapStock
 
     tool = get_tool(tool_name)
-    block = CutBlock(-30.0, 30.0, (0.0, 400.0), (0.0,))
+    block = SteppedBlock(-30.0, 30.0, (0.0, 400.0), (0.0,))
     if tool.kind == "facemill":
         stock = BlockStock(block)
         rpm, feed, depth, y = 600.0, 141.6, 2.0, 0.0
     else:
-        stock = ZMapStock(block_zmap(block, tool), tool)
+        stock = ZMapStock(block.to_zmap(tool), tool)
         rpm, feed, depth, y = 2000.0, 1000.0, 0.7, 0.0
     m = SimMachine(tool, get_material(material), load_rig().dynamometer, stock, rate_hz,
                    SignalSettings())  # fmt: skip
@@ -57,9 +57,9 @@ def _physics(tool_name: str, material: str, rate_hz: float, seconds: float) -> d
 
 
 def _campaign() -> dict:
-    from analysis.runs.file import load_run
-    from rig.campaign.runner import load_campaign, run_campaign
-    from rig.report.base import write_report
+    from analysis.runs import load_run
+    from rig.campaign import load_campaign, run_campaign
+    from rig.report import write_report
 
     c = load_campaign("facemill-ploughing")
     with tempfile.TemporaryDirectory() as tmp:

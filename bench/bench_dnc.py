@@ -26,9 +26,7 @@ import time
 
 from analysis.config import SerialConfig
 from rig.dnc import FanucStreamer, GrblStreamer, MemorySink, program_from_text
-from rig.sim.clock import SimClock
-from rig.sim.fanuc import SimFanuc
-from rig.sim.grbl import SimGrbl
+from rig.sim import SimClock, SimFanuc, SimGrbl
 
 BAUD = 115200
 

@@ -20,13 +20,12 @@ from pathlib import Path
 import numpy as np
 
 from analysis.config import get_material, get_tool, load_rig
-from analysis.forces.facemill import FaceMillCut, facemill_forces
-from analysis.identify.facemill import fit_facemill, reduce_run_file
-from analysis.modal.filter import DynamometerFilter
-from analysis.runs.file import SAMPLE_FORMAT_VOLTS, load_run
-from rig.daq.base import DaqInfo
-from rig.daq.calibration import Calibration
-from rig.log.writer import RunWriter
+from analysis.forces import FaceMillCut, facemill_forces
+from analysis.identify import fit_facemill, reduce_run_file
+from analysis.modal import DynamometerFilter
+from analysis.runs import SAMPLE_FORMAT_VOLTS, load_run
+from rig.daq import Calibration, DaqInfo
+from rig.log import RunWriter
 
 RATE_HZ = 50_000.0
 RPM = 600.0

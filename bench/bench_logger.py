@@ -33,10 +33,9 @@ import h5py
 import numpy as np
 
 from analysis.runs import file as rf
-from rig.daq.base import DaqInfo
-from rig.log.writer import RunWriter
-from rig.sim.clock import SimClock
-from rig.sim.daq import SimDaq
+from rig.daq import DaqInfo
+from rig.log import RunWriter
+from rig.sim import SimClock, SimDaq
 
 
 def _info(c: int, rate_hz: float, block: int) -> DaqInfo:

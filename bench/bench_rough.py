@@ -17,9 +17,8 @@ import argparse
 import time
 
 from analysis.config import REPO_ROOT
-from planning.rough.check import check_program
+from planning.rough import Part, check_program, load_part
 from planning.rough.gcode import MoveSettings, plan_motion, plan_program
-from planning.rough.part import Part, load_part
 from planning.rough.planner import METHODS, RoughPlanner
 
 

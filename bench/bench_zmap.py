@@ -25,13 +25,11 @@ import tracemalloc
 import numpy as np
 
 from analysis.config import get_tool, load_machine
-from analysis.rules.load import slot_load_percent
-from analysis.rules.rule import derive_rule
-from planning.feed.post import FeedPostOptions, post_process
+from analysis.rules import derive_rule, slot_load_percent
+from planning.feed import FeedPostOptions, post_process
 from planning.nc import Program, interpret
+from planning.stock import ZMap, simulate_motion
 from planning.stock import _numba as _zmap_numba
-from planning.stock.machining import simulate_motion
-from planning.stock.zmap import ZMap
 
 
 def dome_mm(x: np.ndarray, y: np.ndarray) -> np.ndarray:

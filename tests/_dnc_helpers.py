@@ -5,11 +5,9 @@ from __future__ import annotations
 import threading
 
 from analysis.config import SerialConfig
-from rig.dnc import program_from_text
+from rig.dnc import Program, program_from_text
 from rig.dnc.grbl import HANDSHAKE
-from rig.dnc.program import Program
-from rig.sim.clock import SimClock
-from rig.sim.fanuc import SimFanuc
+from rig.sim import SimClock, SimFanuc
 
 FANUC_LINE_B_S = 115200 / 11  # 7E2
 GRBL_LINE_B_S = 115200 / 10  # 8N1

@@ -9,9 +9,9 @@ import pytest
 
 from analysis.config import get_tool
 from analysis.errors import ConfigError
+from rig.campaign import plan_campaign
 from rig.campaign.config import MatrixEntry, expand_matrix, load_campaign
 from rig.campaign.programs import generate_program
-from rig.campaign.runner import plan_campaign
 
 BASE = """
 [campaign]
@@ -136,7 +136,7 @@ def test_generated_programs_parse_and_cut_where_intended() -> None:
 
 
 def test_dry_run_warns_when_tooth_passing_meets_a_dynamometer_mode(tmp_path: Path) -> None:
-    from rig.campaign.runner import dry_run
+    from rig.campaign import dry_run
 
     # 8000 rpm x 3 flutes = 400 Hz; its 5th harmonic (2000 Hz) sits on the 2050 Hz X mode.
     p = _write(tmp_path, tool="phi10-flat", kind="slot", rpm=8000, feed="fz_mm = 0.05",

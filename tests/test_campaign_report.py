@@ -9,8 +9,8 @@ import pandas as pd
 import pytest
 
 from analysis.config import get_material
-from rig.campaign.runner import load_campaign, run_campaign
-from rig.report.base import write_report
+from rig.campaign import load_campaign, run_campaign
+from rig.report import write_report
 
 DATA = Path(__file__).parent / "data" / "campaign"
 
@@ -65,7 +65,7 @@ def test_afc_post_processed_feeds_shorten_the_cut_and_even_the_force(tmp_path: P
 
 @pytest.mark.slow
 def test_feed_sweep_finds_seed001_base_feed_and_writes_a_rule(tmp_path: Path) -> None:
-    from analysis.rules.rule import load_rule
+    from analysis.rules import load_rule
 
     res = run_campaign(load_campaign("feed-sweep"), out_root=tmp_path, progress=False)
     assert res.ok

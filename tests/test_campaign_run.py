@@ -18,7 +18,7 @@ import pytest
 
 from analysis.errors import CutlabError
 from analysis.runs import file as rf
-from rig.campaign.runner import load_campaign, run_campaign
+from rig.campaign import load_campaign, run_campaign
 
 DATA = Path(__file__).parent / "data" / "campaign"
 ROOT = Path(__file__).resolve().parent.parent
@@ -132,7 +132,7 @@ def _streaming(folder: Path) -> bool:
 
 def _program_started(folder: Path) -> bool:
     """The run being written (read live, SWMR) has samples and its program is streaming."""
-    from analysis.runs.follow import RunFollower
+    from analysis.runs import RunFollower
 
     files = sorted((folder / "runs").glob("*.h5"))
     try:

@@ -8,8 +8,8 @@ import shapely
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from planning.surface import FergusonSurface
 from planning.surface.contours import SectionMaker, section
-from planning.surface.ferguson import FergusonSurface
 
 R = 50.0
 

@@ -28,10 +28,9 @@ from nidaqmx.task.collections import AIChannelCollection
 
 from analysis.config import DaqConfig, load_rig
 from analysis.runs import file as rf
-from rig.daq import DaqError, DaqNotAvailableError
-from rig.daq.calibration import Calibration
+from rig.daq import Calibration, DaqError, DaqNotAvailableError
 from rig.daq.ni import NiDaq
-from rig.log.writer import RunWriter
+from rig.log import RunWriter
 
 COEFF = [0.0012, 3.0517578125e-4, 1e-12, 0.0]  # a device's polynomial: volts = sum c_j code^j
 
@@ -159,7 +158,7 @@ def test_task_configuration_uses_the_real_api(tmp_path: Path) -> None:
 
 
 def _raw_info(daq: NiDaq):
-    from rig.daq.base import DaqInfo
+    from rig.daq import DaqInfo
 
     return DaqInfo(
         device="Dev1",
@@ -328,7 +327,7 @@ def test_hardware_acquires_continuously(tmp_path: Path) -> None:
     rig = load_rig()
     daq = NiDaq(rig.daq, Calibration.from_rig(rig).channel_names)
     try:
-        from rig.log.record import record
+        from rig.log import record
 
         res = record(daq, tmp_path / "hw.h5", 2.0, calibration=Calibration.from_rig(rig))
     except DaqNotAvailableError as exc:

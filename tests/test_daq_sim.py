@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from analysis.runs import file as rf
-from rig.daq import DaqError, PushedSource, SimDaq, ramp_source, sine_source
-from rig.daq.base import DaqEvent, DaqInfo
-from rig.log.writer import RunWriter
-from rig.sim.clock import SimClock
+from rig.daq import DaqError, DaqEvent, DaqInfo
+from rig.log import RunWriter
+from rig.sim import SimClock
+from rig.sim.daq import PushedSource, SimDaq, ramp_source, sine_source
 
 
 class Recorder:

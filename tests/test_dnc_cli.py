@@ -124,8 +124,7 @@ def test_serve_answers_a_remote_request(tmp_path) -> None:
     """`cutlab dnc serve --once` (subprocess) answers the simulated control's request."""
     from _dnc_helpers import EventWaiter
 
-    from rig.sim.clock import SimClock
-    from rig.sim.fanuc import SimFanuc
+    from rig.sim import SimClock, SimFanuc
 
     prog = line_program(30)
     (tmp_path / "O4321.nc").write_text(prog.text)

@@ -28,8 +28,7 @@ from rig.dnc import (
     restart_blocks,
 )
 from rig.dnc.grbl import HANDSHAKE
-from rig.sim.clock import SimClock
-from rig.sim.grbl import SimGrbl
+from rig.sim import SimClock, SimGrbl
 
 N_BLOCKS = 250
 K = 100  # the block count at which faults are injected

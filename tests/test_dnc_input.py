@@ -22,6 +22,7 @@ from _dnc_helpers import (
 from analysis.config import SerialConfig
 from planning.nc import interpret, state_at_block
 from rig.dnc import (
+    BlockRow,
     CsvSink,
     DncError,
     FanucStreamer,
@@ -36,11 +37,8 @@ from rig.dnc import (
     restart_blocks,
 )
 from rig.dnc.port import check_settings
-from rig.dnc.record import BlockRow
+from rig.sim import SimClock, SimFanuc, SimGrbl
 from rig.sim._controller import SimControllerError
-from rig.sim.clock import SimClock
-from rig.sim.fanuc import SimFanuc
-from rig.sim.grbl import SimGrbl
 
 # -- bad input ------------------------------------------------------------------------------------
 
@@ -256,10 +254,10 @@ def test_csv_record_round_trip(tmp_path) -> None:
 
 def test_block_record_in_a_real_run_file_after_a_fault(tmp_path) -> None:
     """GRBL error:N mid-stream: the HDF5 run file is closed (status fail) and holds the blocks."""
-    from analysis.runs.file import load_run
-    from rig.daq.base import SAMPLE_FORMAT_VOLTS, DaqInfo
+    from analysis.runs import load_run
+    from rig.daq import SAMPLE_FORMAT_VOLTS, DaqInfo
     from rig.dnc.sinks import LoggerSink
-    from rig.log.writer import RunWriter
+    from rig.log import RunWriter
 
     info = DaqInfo("Sim1", ("a0", "a1", "a2"), ("Fx", "Fy", "Fz"), 1000.0, SAMPLE_FORMAT_VOLTS,
                    10.0, 100)  # fmt: skip

@@ -10,8 +10,7 @@ from _dnc_helpers import GRBL_LINE_B_S, grbl_cfg
 
 from rig.dnc import GrblStreamer, MemorySink, program_from_text
 from rig.dnc.link import DC1, DC3, LinkLost, LinkTimeout, SerialLink
-from rig.sim.clock import SimClock
-from rig.sim.grbl import SimGrbl
+from rig.sim import SimClock, SimGrbl
 
 
 def test_cts_off_holds_the_writer_until_timeout() -> None:

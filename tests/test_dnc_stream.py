@@ -21,8 +21,7 @@ from _dnc_helpers import (
 )
 
 from rig.dnc import CsvSink, FanucStreamer, GrblStreamer, MemorySink, read_csv_record
-from rig.sim.clock import SimClock
-from rig.sim.grbl import SimGrbl
+from rig.sim import SimClock, SimGrbl
 
 
 def _fanuc_run(n_blocks: int, speed: float, tmp_path, sim_kw: dict | None = None, **cfg_kw):

@@ -14,13 +14,12 @@ from hypothesis import strategies as st
 
 from analysis.config import get_tool, load_machine
 from analysis.errors import CutlabError
-from analysis.rules.load import slot_load_percent
-from analysis.rules.rule import derive_rule, save_rule
+from analysis.rules import derive_rule, save_rule, slot_load_percent
 from planning.errors import PlanningError
-from planning.feed.post import FeedPostOptions, post_process, rejoin, write_report
-from planning.nc import Program, interpret
-from planning.nc.motion import LINE
-from planning.stock.zmap import ZMap
+from planning.feed import write_report
+from planning.feed.post import FeedPostOptions, post_process, rejoin
+from planning.nc import LINE, Program, interpret
+from planning.stock import ZMap
 
 DATA = Path(__file__).parent / "data" / "zmap"
 F_WORD = re.compile(r"\s?F[-+]?[\d.]+", re.IGNORECASE)
@@ -194,7 +193,7 @@ def test_modal_feed_is_restated_after_a_split() -> None:
 
 
 def test_arc_pocket_through_nc_matches_annulus() -> None:
-    from planning.stock.machining import simulate_motion
+    from planning.stock import simulate_motion
 
     text = "G21 G90 G17\nG0 X25 Y0 Z5\nG1 Z-1.5 F300\nG3 X25 Y0 I-25 J0\nG0 Z5\n"
     stock = ZMap.box(-40, 40, -40, 40, bottom_mm=-20, top_mm=0, spacing_mm=0.1)
@@ -236,7 +235,7 @@ def test_adjusted_program_moves_like_the_original(pts: list, piece: float) -> No
 
 
 def test_holder_contact_is_reported_with_its_block() -> None:
-    from planning.stock.machining import simulate_motion
+    from planning.stock import simulate_motion
 
     text = "G21 G90\nG0 X50 Y25 Z5\nG1 Z-50 F100\nG1 X60\nG0 Z80\n"
     stock = ZMap.box(0, 100, 0, 50, bottom_mm=-80, top_mm=0, spacing_mm=0.5)
@@ -254,7 +253,7 @@ def test_holder_contact_is_reported_with_its_block() -> None:
 
 
 def test_operation_plan_rest_machining_sees_the_roughing(tmp_path: Path) -> None:
-    from planning.stock.machining import load_plan
+    from planning.stock import load_plan
 
     (tmp_path / "rough.nc").write_text("G21 G90\nG0 X-10 Y20 Z5\nG1 Z-3 F500\nX90\nG0 Z20\n")
     (tmp_path / "rest.nc").write_text("G21 G90\nG0 X-10 Y20 Z5\nG1 Z-3 F500\nX90\nG0 Z20\n")
@@ -412,7 +411,7 @@ def test_arc_block_is_split_into_arcs_on_the_same_circle() -> None:
 
 def test_force_limit_caps_the_predicted_peak_force() -> None:
     from analysis.config import get_material
-    from analysis.forces.endmill import EndMillCut, peak_force
+    from analysis.forces import EndMillCut, peak_force
 
     coef = get_material("gm241").endmill
     text = "G21 G90 G17\nS2000 M3\nG0 X-20 Y30 Z5\nG1 Z-0.7 F1000\nX215\nG0 Z20\n"
@@ -464,7 +463,7 @@ def test_cli_simulate_on_a_mesh_stock_and_a_plan(tmp_path: Path, capsys) -> None
 
 
 def test_stock_at_any_moment() -> None:
-    from planning.stock.machining import simulate_motion
+    from planning.stock import simulate_motion
 
     text = (DATA / "step-depth.nc").read_text()
     motion = interpret(text)
@@ -482,7 +481,7 @@ def test_stock_at_any_moment() -> None:
 
 
 def test_cli_feed_with_a_rule_from_the_rule_base(files: Path, capsys) -> None:
-    from analysis.rules.rulebase import GroupKey, RuleBase
+    from analysis.rules import GroupKey, RuleBase
 
     db = files / "rules.sqlite"
     key = GroupKey("test/step", "finishing", 30.0, 30.0, "gm241", 2000.0, 0.3, 0.05)
@@ -598,8 +597,7 @@ def test_cli_refuses_a_program_with_cutter_compensation(files: Path, capsys) -> 
 
 
 def test_default_stock_reaches_below_an_arc_that_dips_under_its_end_points() -> None:
-    from planning.stock.starts import default_stock
-    from planning.stock.zmap import Cutter
+    from planning.stock import Cutter, default_stock
 
     # A G18 arc from Z-1 to Z-1 through Z-6: the end points alone would put the bottom at -2.
     motion = interpret("G0 X0 Y0 Z1\nG1 Z-1 F100\nG18 G2 X10 Z-1 I5 K0")

@@ -9,7 +9,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planning.errors import PlanningError
-from planning.surface.ferguson import FergusonSurface
+from planning.surface import FergusonSurface
 
 
 def cap(R=50.0, half=30.0, n=13):

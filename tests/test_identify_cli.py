@@ -12,7 +12,7 @@ from analysis.config import get_material, get_tool, load_rig
 from analysis.identify._common import RunConditions
 from analysis.identify.endmill import synthetic_endmill_run
 from analysis.identify.facemill import synthetic_facemill_run
-from analysis.modal.filter import DynamometerFilter
+from analysis.modal import DynamometerFilter
 from rig.cli import main
 
 

@@ -7,10 +7,10 @@ import pytest
 
 from analysis.config import EndMill, EndMillCoefficients, FaceMill, load_rig
 from analysis.errors import AnalysisError
+from analysis.identify import compare_runs
 from analysis.identify._common import RunConditions, reduce_run
 from analysis.identify.endmill import fit_endmill, fit_endmill_runs, synthetic_endmill_run
-from analysis.identify.validate import compare_runs
-from analysis.modal.filter import DynamometerFilter
+from analysis.modal import DynamometerFilter
 
 TRUE = EndMillCoefficients(
     Ktc_n_mm2=796, Krc_n_mm2=168, Kac_n_mm2=222, Kte_n_mm=27.7, Kre_n_mm=30.8, Kae_n_mm=1.8

@@ -10,15 +10,14 @@ import pytest
 
 from analysis.config import FaceMill, FaceMillCoefficients, get_tool, load_rig
 from analysis.errors import AnalysisError
-from analysis.forces.facemill import FaceMillCut, facemill_forces
+from analysis.forces import FaceMillCut, facemill_forces
 from analysis.identify._common import RunConditions, reduce_run, reduce_run_file, synthetic_run
 from analysis.identify.facemill import fit_facemill, fit_facemill_runs, synthetic_facemill_run
-from analysis.modal.filter import DynamometerFilter
-from analysis.runs.file import SAMPLE_FORMAT_VOLTS
+from analysis.modal import DynamometerFilter
+from analysis.runs import SAMPLE_FORMAT_VOLTS
 from rig.cli import main
-from rig.daq.base import DaqInfo
-from rig.daq.calibration import Calibration
-from rig.log.writer import RunWriter
+from rig.daq import Calibration, DaqInfo
+from rig.log import RunWriter
 
 RATE = 10_000.0
 TOOL = FaceMill(kind="facemill", diameter_mm=125, inserts=1, lead_angle_deg=15,

@@ -9,9 +9,9 @@ import pytest
 
 from analysis.config import Dynamometer, DynoChannel, FaceMill, FaceMillCoefficients
 from analysis.errors import AnalysisError
+from analysis.identify import import_run, read_force_table
 from analysis.identify._common import RunConditions
 from analysis.identify.facemill import fit_facemill_runs, synthetic_facemill_run
-from analysis.identify.importers import import_run, read_force_table
 
 DATA = Path(__file__).parent / "data" / "analysis"
 
@@ -128,7 +128,7 @@ def test_given_conditions_override_the_header_key_by_key(tmp_path):
 
 
 def test_a_given_feed_replaces_the_recorded_one_in_either_form() -> None:
-    from analysis.identify.importers import merge_conditions
+    from analysis.identify import merge_conditions
 
     rec = {"fz_mm": 0.1, "spindle_rpm": 600, "teeth": 2}
     assert merge_conditions(rec, {"feed_mm_min": 600}) == {

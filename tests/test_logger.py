@@ -17,12 +17,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from analysis.config import load_rig
+from analysis.runs import RunFollower
 from analysis.runs import file as rf
-from analysis.runs.follow import RunFollower
 from rig.cli import main
-from rig.daq.base import DaqEvent, DaqInfo
-from rig.daq.calibration import Calibration
-from rig.log.writer import RunWriter, RunWriterError
+from rig.daq import Calibration, DaqEvent, DaqInfo
+from rig.log import RunWriter, RunWriterError
 
 ROOT = Path(__file__).resolve().parent.parent
 B = 500  # samples per block

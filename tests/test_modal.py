@@ -9,7 +9,7 @@ import pytest
 
 from analysis.config import load_rig
 from analysis.errors import AnalysisError
-from analysis.modal.filter import DynamometerFilter
+from analysis.modal import DynamometerFilter
 from analysis.modal.hammer import (
     ImpactRecord,
     double_hit,

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from analysis.modal.filter import DynamometerFilter
+from analysis.modal import DynamometerFilter
 from rig.cli import main
 
 

@@ -107,7 +107,7 @@ def test_moves_that_turn_an_axis_are_not_split_nor_simulated() -> None:
     ]
     with pytest.raises(NCError, match="rotary axes .* are not split"):
         split_moves(prog, {1: [(0.5, 50.0), (1.0, 100.0)]})
-    from planning.stock.machining import check_motion
+    from planning.stock import check_motion
 
     with pytest.raises(PlanningError, match=r"p\.nc:2: block 1: the block turns a rotary axis"):
         check_motion(interpret(prog), None, file="p.nc")

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 from analysis.errors import ConfigError
-from planning.orient.config import load_orient
-from planning.orient.planner import energy_map, plan_orientation
+from planning.orient import energy_map, load_orient, plan_orientation
 
 ROOT = Path(__file__).resolve().parent.parent
 IMP = ROOT / "configs" / "orient" / "impeller.toml"

@@ -17,10 +17,8 @@ import pytest
 from scipy.spatial import cKDTree
 
 from planning.errors import PlanningError
-from planning.orient.check import verify
-from planning.orient.config import load_orient
+from planning.orient import ToolSystem, load_orient, verify
 from planning.orient.planner import axis_jumps_deg, plan_orientation, require_feasible
-from planning.orient.tool import ToolSystem
 
 ROOT = Path(__file__).resolve().parent.parent
 MODELS = ["impeller", "fan", "mask"]
@@ -106,7 +104,7 @@ def closest_on_triangles(p, a, b, c):
 def chord_sag_mm(surfaces, spacing_mm):
     """Upper estimate of how far a mesh triangle lies off its surface: kappa_max h^2 / 8, with h
     the triangle diagonal and kappa_max the largest normal curvature met on the surface."""
-    from planning.surface.nurbs import NurbsSurface
+    from planning.surface import NurbsSurface
 
     k = 0.0
     for s in surfaces:

@@ -15,13 +15,10 @@ from shapely.geometry.polygon import orient
 from analysis.config import REPO_ROOT
 from analysis.errors import ConfigError
 from planning.errors import PlanningError
-from planning.nc import ARC_CCW, ARC_CW, LINE, interpret
-from planning.nc.arcs import linearize
+from planning.nc import ARC_CCW, ARC_CW, LINE, interpret, linearize
+from planning.rough import Part, RoughPlanner, check_program, load_part
 from planning.rough._arcs import fit_arcs, sample_path
-from planning.rough.check import check_program
 from planning.rough.gcode import MoveSettings, plan_motion, plan_program, plan_totals
-from planning.rough.part import Part, load_part
-from planning.rough.planner import RoughPlanner
 
 PART = REPO_ROOT / "configs" / "parts" / "seed000-bump.toml"
 

@@ -8,7 +8,7 @@ from test_rough_parts import bump_grid, load_toml, part_toml
 
 from analysis.errors import ConfigError, CutlabError
 from planning.errors import PlanningError
-from planning.rough.planner import RoughPlanner
+from planning.rough import RoughPlanner
 
 
 def bump(**kw):
@@ -83,7 +83,7 @@ def test_not_a_flat_end_mill_and_unknown_tool(tmp_path):
 
 
 def test_an_unknown_part_name_lists_the_shipped_parts():
-    from planning.rough.part import load_part
+    from planning.rough import load_part
 
     with pytest.raises(ConfigError, match=r"part 'seed000-bmp' not found: .*'seed000-bump'"):
         load_part("seed000-bmp")

@@ -10,8 +10,8 @@ import trimesh
 from test_rough_parts import bump_grid, load_toml, part_toml
 
 from planning.nc import RAPID, motion_stats
+from planning.rough import RoughPlan, RoughPlanner
 from planning.rough.gcode import MoveSettings, plan_motion
-from planning.rough.planner import RoughPlan, RoughPlanner
 
 
 @pytest.fixture(scope="module")

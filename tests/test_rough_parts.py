@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from planning.rough.part import Part, load_part
+from planning.rough import Part, load_part
 
 
 def _arr(a) -> str:

@@ -13,8 +13,8 @@ from shapely.geometry import MultiLineString
 from test_rough_parts import bump_grid, part_toml
 
 from analysis.config import validate
+from planning.rough import RoughPlanner
 from planning.rough.part import Part, PartConfig
-from planning.rough.planner import RoughPlanner
 
 TOL_MM = 0.03  # contour tolerance + polygonal offsets (16 segments per quarter circle)
 

@@ -8,12 +8,9 @@ import numpy as np
 import pytest
 
 from analysis.config import REPO_ROOT
-from planning.nc import interpret
-from planning.nc.arcs import segment_length_mm
-from planning.rough.check import check_program
+from planning.nc import interpret, segment_length_mm
+from planning.rough import RoughPlanner, check_program, load_part
 from planning.rough.gcode import MoveSettings, plan_motion, plan_program, plan_totals
-from planning.rough.part import load_part
-from planning.rough.planner import RoughPlanner
 
 PART = REPO_ROOT / "configs" / "parts" / "seed000-bump.toml"
 

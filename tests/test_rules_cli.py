@@ -10,11 +10,10 @@ import pytest
 from _rules_sweep import FS, RPM, sweep
 
 from analysis.config import load_rig
-from analysis.rules.rule import derive_rule, load_rule, save_rule
+from analysis.rules import derive_rule, load_rule, save_rule
 from rig.cli import main
-from rig.daq.base import SAMPLE_FORMAT_VOLTS, DaqInfo
-from rig.daq.calibration import Calibration
-from rig.log.writer import RunWriter
+from rig.daq import SAMPLE_FORMAT_VOLTS, Calibration, DaqInfo
+from rig.log import RunWriter
 from rig.report.feedrule import feed_rule_section
 
 

@@ -12,9 +12,8 @@ from pathlib import Path
 import pytest
 
 from analysis.errors import AnalysisError, ConfigError
-from analysis.rules.load import slot_load_percent
+from analysis.rules import GroupExistsError, GroupKey, RuleBase, slot_load_percent
 from analysis.rules.rule import derive_rule, rule_to_toml, save_rule
-from analysis.rules.rulebase import GroupExistsError, GroupKey, RuleBase
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -157,7 +156,7 @@ def test_not_a_rulebase(tmp_path) -> None:
 _WRITER = textwrap.dedent("""
     import sys
     sys.path.insert(0, {root!r})
-    from analysis.rules.rulebase import RuleBase, GroupKey
+    from analysis.rules import RuleBase, GroupKey
     from analysis.rules.rule import derive_rule, rule_to_toml
     rb = RuleBase({path!r})
     rule = derive_rule("w", 100, 600, 3500, 0.1)
@@ -199,7 +198,7 @@ def test_killed_writer_leaves_base_as_before(db) -> None:
 _READER = textwrap.dedent("""
     import sys
     sys.path.insert(0, {root!r})
-    from analysis.rules.rulebase import RuleBase
+    from analysis.rules import RuleBase
     rb = RuleBase({path!r})
     last = 0
     for _ in range(60):

@@ -11,8 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from analysis.runs import file as rf
-from rig.daq.base import DaqInfo
-from rig.log.writer import RunWriter
+from rig.daq import DaqInfo
+from rig.log import RunWriter
 
 
 def _info(rate_hz: float = 1000.0, block: int = 250) -> DaqInfo:

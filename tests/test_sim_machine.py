@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from analysis.config import Dynamometer, DynoChannel, EndMill, FaceMill, Mode
-from rig.campaign.programs import CutBlock
-from rig.daq.calibration import Calibration
+from planning.stock import SteppedBlock
+from rig.daq import Calibration
 from rig.sim._machine_engagement import endmill_engagement, facemill_engagement
 from rig.sim._machine_signal import DynoChain
 from rig.sim._machine_timeline import ARC_CCW, ExecutedSegment, MotionTimeline
@@ -49,7 +49,7 @@ def test_facemill_symmetric_pass_engaged_arc(width: float, along_y: bool) -> Non
     tl = MotionTimeline()
     dx = (0.0, 1.0) if along_y else (1.0, 0.0)
     tl.add(_line(-70, 100, 0.0, -depth, feed, rpm, dx=dx))
-    blk = CutBlock(-width / 2, width / 2, (0.0, 80.0), (0.0,))
+    blk = SteppedBlock(-width / 2, width / 2, (0.0, 80.0), (0.0,))
     if along_y:  # rotate the block with the path
 
         class _Rot:
@@ -75,7 +75,7 @@ def test_facemill_out_of_block_and_spindle_off_do_not_cut() -> None:
     tl = MotionTimeline()
     tl.add(_line(-200, -100, 0.0, -1.0, 141.6, 600.0))
     tl.add(_line(-100, 20, 0.0, -1.0, 141.6, 0.0, t0=tl.segments[-1].t_end_s))
-    stock = BlockStock(CutBlock(-25, 25, (0.0, 40.0), (0.0,)))
+    stock = BlockStock(SteppedBlock(-25, 25, (0.0, 40.0), (0.0,)))
     t = np.linspace(0, tl.segments[-1].t_end_s, 5000)
     eng = facemill_engagement(tl.state(t), FACEMILL, stock)
     assert not eng.engaged.any()
@@ -92,7 +92,7 @@ def test_endmill_radial_immersion_matches_closed_form(width: float) -> None:
     y_path = half + r - width if width < FLAT.diameter_mm else 0.0
     tl = MotionTimeline()
     tl.add(_line(-20, 80, y_path, -2.0, feed, rpm))
-    stock = BlockStock(CutBlock(-half, half, (0.0, 60.0), (0.0,)))
+    stock = BlockStock(SteppedBlock(-half, half, (0.0, 60.0), (0.0,)))
     t_mid = 50.0 / (feed / 60.0)
     eng = endmill_engagement(tl.state(_one_rev_times(t_mid, rpm, 30000)), FLAT, stock, 2.0, 4)
     frac = eng.engaged.mean()
@@ -110,7 +110,7 @@ def test_ball_endmill_slices_above_depth_do_not_cut() -> None:
     rpm, feed, depth = 2000.0, 1000.0, 0.7
     tl = MotionTimeline()
     tl.add(_line(-20, 80, 0.0, -depth, feed, rpm))
-    stock = BlockStock(CutBlock(-25, 25, (0.0, 60.0), (0.0,)))
+    stock = BlockStock(SteppedBlock(-25, 25, (0.0, 60.0), (0.0,)))
     t_mid = 40.0 / (feed / 60.0)
     eng = endmill_engagement(tl.state(_one_rev_times(t_mid, rpm)), BALL, stock, 1.4, 14)
     cuts = eng.engaged.any(axis=(0, 1))
@@ -217,7 +217,7 @@ def _facemill_machine(width: float, depth: float, rate_hz: float = 20_000.0):
     from rig.sim.machine import SignalSettings, SimMachine
 
     quiet = SignalSettings(noise_n=0.0, drift_n_s=0.0, hum_n=0.0, modes=False)
-    stock = BlockStock(CutBlock(-width / 2, width / 2, (0.0, 80.0), (0.0,)))
+    stock = BlockStock(SteppedBlock(-width / 2, width / 2, (0.0, 80.0), (0.0,)))
     return SimMachine(FACEMILL, get_material("al6061-t6"), _dyno(), stock, rate_hz, quiet)
 
 
@@ -272,7 +272,7 @@ def test_endmill_mean_force_equals_the_model(tool: EndMill, depth: float, width:
     half = 40.0
     r = tool.radius_mm
     y_path = 0.0 if width >= tool.diameter_mm else half + r - width
-    stock = BlockStock(CutBlock(-half, half, (0.0, 120.0), (0.0,)))
+    stock = BlockStock(SteppedBlock(-half, half, (0.0, 120.0), (0.0,)))
     quiet = SignalSettings(noise_n=0.0, drift_n_s=0.0, hum_n=0.0, modes=False)
     m = SimMachine(tool, mat, _dyno(), stock, 20_000.0, quiet, n_slices=48)
     m.on_segment(_line(-30, 150, y_path, -depth, feed, rpm))
@@ -289,11 +289,10 @@ def test_zmap_stock_remembers_earlier_passes() -> None:
     # Two identical slots along the same line: the second finds the groove empty; a third pass
     # half a diameter aside cuts again, less than a full slot.
     from analysis.config import get_material
-    from rig.campaign.programs import block_zmap
     from rig.sim.machine import SignalSettings, SimMachine, ZMapStock
 
-    block = CutBlock(-20, 20, (0.0, 40.0), (0.0,))
-    stock = ZMapStock(block_zmap(block, FLAT), FLAT)
+    block = SteppedBlock(-20, 20, (0.0, 40.0), (0.0,))
+    stock = ZMapStock(block.to_zmap(FLAT), FLAT)
     quiet = SignalSettings(noise_n=0.0, drift_n_s=0.0, hum_n=0.0, modes=False)
     m = SimMachine(FLAT, get_material("al6061-t6"), _dyno(), stock, 20_000.0, quiet)
     rpm, feed, depth = 3000.0, 450.0, 2.0

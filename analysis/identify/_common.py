@@ -399,7 +399,7 @@ def iter_run_chunks(path, chunk_samples: int = 1 << 20, start: int = 0, stop: in
     Reads through :func:`analysis.runs.file.load_run` time windows, so memory is bounded by the
     chunk (plus the loader's index bookkeeping).
     """
-    from analysis.runs.file import load_run
+    from analysis.runs import load_run
 
     meta = load_run(path, samples=False)
     rate, acquired = meta.rate_hz, meta.samples_acquired
@@ -431,7 +431,7 @@ def reduce_run_file(
     the steady part synchronously. Memory: the chunk plus O(revolutions + bins), plus what
     ``load_run`` allocates per window. ``tolerance``: the steady window, as :func:`reduce_run`.
     """
-    from analysis.runs.file import load_run
+    from analysis.runs import load_run
 
     meta = load_run(path, samples=False)
     name = Path(str(path)).stem

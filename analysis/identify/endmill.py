@@ -43,7 +43,7 @@ from analysis.identify._common import (
     too_few_runs,
     with_rejected,
 )
-from analysis.runs.steady import IDENTIFY_TOLERANCE
+from analysis.runs import IDENTIFY_TOLERANCE
 
 __all__ = ["EndMillFit", "fit_endmill", "fit_endmill_runs", "synthetic_endmill_run"]
 

@@ -51,8 +51,8 @@ from analysis.identify._common import (
     too_few_runs,
     with_rejected,
 )
-from analysis.modal.filter import DynamometerFilter
-from analysis.runs.steady import IDENTIFY_TOLERANCE
+from analysis.modal import DynamometerFilter
+from analysis.runs import IDENTIFY_TOLERANCE
 
 __all__ = [
     "FaceMillFit",

@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.errors import AnalysisError
-from analysis.runs.steady import per_revolution
+from analysis.runs import per_revolution
 
 
 @dataclass(frozen=True)
@@ -256,8 +256,7 @@ def sweep_runs_from_files(paths: Sequence[str | Path]) -> Sweep:
     """
     from analysis.config import EndMill, get_tool
     from analysis.rules.load import slot_load_percent
-    from analysis.runs.file import load_run
-    from analysis.runs.steady import steady_window
+    from analysis.runs import load_run, steady_window
 
     runs, cuts, tools = [], set(), set()
     for path in paths:

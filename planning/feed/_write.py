@@ -17,10 +17,8 @@ from numpy.typing import NDArray
 
 from analysis.config import MachineConfig
 from planning.errors import PlanningError
-from planning.nc import Interpreter, Program
-from planning.nc._codes import INCH_MM
+from planning.nc import INCH_MM, Interpreter, Motion, Program
 from planning.nc.edit import split_moves
-from planning.nc.motion import Motion
 
 _GEOMETRY_TOL_MM = 1e-3  # written coordinates are rounded to the program's decimals (>= 3)
 

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.config import EndMill, EndMillCoefficients
-from planning.stock.machining import Simulation
+from planning.stock import Simulation
 
 
 class ForceModel:
@@ -33,7 +33,7 @@ class ForceModel:
         self.ae = np.clip(area / self.depth, 1e-3, tool.diameter_mm)
 
     def _peak(self, fz: NDArray) -> NDArray:
-        from analysis.forces.endmill import EndMillCut, peak_force
+        from analysis.forces import EndMillCut, peak_force
 
         cut = EndMillCut.from_width(self.tool, fz, self.depth, self.ae, mode="down")
         return peak_force(self.tool, self.coef, cut, n_phi=90)

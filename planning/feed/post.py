@@ -17,7 +17,7 @@ For a program, its tool, a machine and a feed rule:
    compared with the original's (splits re-joined) before anything is returned: the geometry
    never changes.
 
-The report (:func:`write_report`): machining time before and after, the load histogram over the
+The report (:func:`planning.feed.report.write_report`): machining time before and after, the load histogram over the
 rule's bins, load and feed along the path (PNG), the final stock (PNG) and a per-block CSV.
 """
 
@@ -31,8 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from analysis.config import EndMill, EndMillCoefficients, MachineConfig
-from analysis.rules.load import cutting_load_percent
-from analysis.rules.rule import FeedRule
+from analysis.rules import FeedRule, cutting_load_percent
 from planning.errors import PlanningError
 from planning.feed._write import (
     feed_runs,
@@ -42,11 +41,9 @@ from planning.feed._write import (
     write_program,
 )
 from planning.feed.force import ForceModel
-from planning.feed.report import write_report
-from planning.nc import Program, interpret, segment_time_s
+from planning.nc import DWELL, Motion, Program, interpret, segment_length_mm, segment_time_s
 from planning.nc.accel import accel_segment_time_s
-from planning.nc.arcs import segment_length_mm
-from planning.nc.motion import DWELL, Motion
+from planning.stock import Cutter, ZMap
 from planning.stock.machining import (
     DEFAULT_CHORD_TOL_MM,
     Simulation,
@@ -54,7 +51,6 @@ from planning.stock.machining import (
     plunge_mask,
     simulate_motion,
 )
-from planning.stock.zmap import Cutter, ZMap
 
 
 @dataclass(frozen=True)
@@ -416,5 +412,4 @@ __all__ = [
     "FeedPostResult",
     "post_process",
     "rejoin",
-    "write_report",
 ]

@@ -1,16 +1,16 @@
 """The feed post-processor's report files: per-block CSV, load and feed along the path,
-load histogram and final stock (PNG, matplotlib Agg). Re-exported by :mod:`planning.feed.post`.
+load histogram and final stock (PNG, matplotlib Agg). It reads a finished
+:class:`~planning.feed.post.FeedPostResult`; the result knows nothing of its report.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from planning.feed.post import FeedPostResult
+from planning.feed.post import FeedPostResult
+from planning.stock import save_stock_png
 
 
 def write_report(result: FeedPostResult, folder: str | Path, stem: str = "feedpost") -> dict:
@@ -66,5 +66,5 @@ def write_report(result: FeedPostResult, folder: str | Path, stem: str = "feedpo
     fig.savefig(paths["histogram_png"])
     plt.close(fig)
 
-    paths["stock_png"] = result.stock.save_png(out / f"{stem}-stock.png", "final stock")
+    paths["stock_png"] = save_stock_png(result.stock, out / f"{stem}-stock.png", "final stock")
     return paths

@@ -37,6 +37,7 @@ Modules: :mod:`~planning.nc.motion` (Motion, kinds), :mod:`~planning.nc.interpre
 :mod:`~planning.nc.restart`, :mod:`~planning.nc.plot`, :mod:`~planning.nc.errors`.
 """
 
+from planning.nc._codes import INCH_MM
 from planning.nc.arcs import (
     Linearized,
     arc_radius_mm,
@@ -44,6 +45,7 @@ from planning.nc.arcs import (
     bounding_box,
     linearize,
     segment_length_mm,
+    segment_travel,
 )
 from planning.nc.errors import NCError, NCWarning
 from planning.nc.interpreter import Interpreter
@@ -62,10 +64,11 @@ from planning.nc.program import NumberStyle, Program
 from planning.nc.restart import restart_preamble
 from planning.nc.run import interpret, interpret_file, state_at_block
 from planning.nc.state import CannedCycle, ModalState
-from planning.nc.stats import MotionStats, motion_stats, segment_time_s, segment_travel
+from planning.nc.stats import MotionStats, motion_stats, segment_time_s
 from planning.nc.writer import motion_to_program
 
 __all__ = [
+    "INCH_MM",
     "ARC_CCW",
     "ARC_CW",
     "DWELL",

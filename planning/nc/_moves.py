@@ -14,6 +14,7 @@ import math
 from planning.nc import _lexer
 from planning.nc._codes import gname
 from planning.nc.arcs import PLANE_AXES, arc_length_mm, center_from_r, check_radius
+from planning.nc.canned import drill_hole
 from planning.nc.motion import ARC_CCW, ARC_CW, DWELL, LINE, RAPID
 from planning.nc.state import ModalState
 
@@ -21,7 +22,7 @@ NAN = math.nan
 
 
 class Moves:
-    """Motion execution of the Interpreter (mixin)."""
+    """Motion execution of the Interpreter (mixin): lines, arcs, dwells and canned cycles."""
 
     state: ModalState
     dialect: str
@@ -32,6 +33,7 @@ class Moves:
     _inverse_f: float
     _feed_max_mm_min: float
     _rotary_to: tuple[float, float, float] | None
+    peck_clearance_mm: float
 
     def _seg(
         self, out, kind: int, p0, p1, c, feed: float, dwell_s: float, line: int, block: int,
@@ -263,3 +265,67 @@ class Moves:
         c = [0.0, 0.0, 0.0]
         c[ia], c[ib], c[ic] = ca, cb, p0[ic]
         return c[0], c[1], c[2]
+
+    def _canned(
+        self, raw: str, v: dict[str, str], scale: float, line: int, block: int, out
+    ) -> None:
+        """Run one block in a canned-cycle mode: update R/Z/Q/P from its words (G90: absolute;
+        G91: R from the initial level, Z from R) and drill L holes (default 1) at its X/Y.
+
+        Errors become NCError naming the first of Z R Q L in the block.
+        """
+        st = self.state
+        cy = st.canned
+        x0, y0, z0 = st.position_mm
+        oz = self.work_offsets_mm.get(st.work_offset, (0.0, 0.0, 0.0))[2]
+        if cy.initial_z_mm != cy.initial_z_mm:
+            cy.initial_z_mm = z0
+        feed = self._need_feed(raw, line)  # an NCError already (outside the ValueError handler)
+        try:
+            if "R" in v:
+                r = float(v["R"]) * scale
+                cy.r_mm = r + oz if st.absolute else cy.initial_z_mm + r
+            if "Z" in v:
+                z = float(v["Z"]) * scale
+                if st.absolute:
+                    cy.z_mm = z + oz
+                elif cy.r_mm == cy.r_mm:
+                    cy.z_mm = cy.r_mm + z
+            if "Q" in v:
+                cy.q_mm = abs(float(v["Q"]) * scale)
+            if "P" in v:
+                p = float(v["P"])
+                cy.dwell_s = p / 1000.0 if self.dialect == "fanuc" else p
+            if cy.r_mm != cy.r_mm:
+                raise ValueError("canned cycle needs the R plane (R word)")
+            if cy.z_mm != cy.z_mm:
+                raise ValueError("canned cycle needs the hole bottom (Z word)")
+            repeats = 1
+            if "L" in v:
+                repeats = float(v["L"])
+                if repeats < 0 or repeats != int(repeats) or repeats > 9999:
+                    raise ValueError(f"repeat count L must be a whole number 0..9999, got {v['L']}")
+                repeats = int(repeats)
+            vxy = {k: v[k] for k in ("X", "Y") if k in v}
+            for _ in range(repeats):
+                x, y, _z = self._target(vxy, scale, False)
+                moves = drill_hole(
+                    st.motion,
+                    st.position_mm,
+                    x,
+                    y,
+                    cy.r_mm,
+                    cy.z_mm,
+                    cy.initial_z_mm,
+                    retract_initial=st.retract_initial,
+                    q_mm=cy.q_mm,
+                    dwell_s=cy.dwell_s,
+                    peck_clearance_mm=self.peck_clearance_mm,
+                )
+                for kind, p0, p1, dwell_s in moves:
+                    f = feed if kind == LINE else NAN
+                    self._seg(out, kind, p0, p1, (NAN, NAN, NAN), f, dwell_s, line, block)
+                    st.position_mm = p1
+        except ValueError as exc:
+            which = next((L for L in "ZRQL" if L in v), 0)
+            raise self._fail(raw, which, str(exc), line) from None

@@ -31,7 +31,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from planning.nc.arcs import _plane_coords, arc_radius_mm, arc_sweep_rad
+from planning.nc.arcs import (
+    _plane_coords,
+    arc_radius_mm,
+    arc_sweep_rad,
+    segment_length_mm,
+    segment_travel,
+)
 from planning.nc.motion import ARC_CW, DWELL, RAPID, Motion
 
 __all__ = ["accel_segment_time_s", "junction_speed_mm_s", "segment_tangents"]
@@ -71,7 +77,6 @@ def _combined_tangents(
     """Unit tangents (m, 6) at the start and end of the moving segments ``rows`` in the combined
     X Y Z A B C space the feed is counted in (mm and degrees alike): the X/Y/Z direction scaled
     by the path's share of the travel, the rotary axes' share constant along the segment."""
-    from planning.nc.arcs import segment_length_mm
 
     t0, t1 = segment_tangents(motion[rows])
     share = (segment_length_mm(motion[rows]) / travel)[:, None]
@@ -132,7 +137,6 @@ def accel_segment_time_s(
             f"accel {accel_mm_s2} mm/s^2 and junction deviation {junction_deviation_mm} mm "
             "must be > 0"
         )
-    from planning.nc.stats import segment_travel  # stats imports this module lazily
 
     length = segment_travel(motion)  # mm and degrees together, as the feed counts them
     kind = motion.kind

@@ -141,6 +141,12 @@ def segment_length_mm(motion: Motion) -> np.ndarray:
     return np.where(motion.is_arc, arc, np.where(motion.kind == DWELL, 0.0, chord))
 
 
+def segment_travel(motion: Motion) -> np.ndarray:
+    """Combined travel (n,) of each segment: hypot(path length mm, rotary travel deg)."""
+    rot = np.linalg.norm(motion.rotary_end_deg - motion.rotary_start_deg, axis=1)
+    return np.hypot(segment_length_mm(motion), rot)
+
+
 def segment_boxes(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     """Exact axis-aligned box of every segment, ``(lo (n, 3), hi (n, 3))``, mm.
 

@@ -9,18 +9,14 @@ One hole at (x, y), with the R plane ``r_mm``, the bottom ``z_mm`` and the initi
    bottom;
 3. rapid out to the initial level (G98, never below R) or to the R plane (G99).
 
-The interpreter turns the words into these absolute parameters (G91: R is measured from the
+The interpreter (``Moves._canned`` in :mod:`planning.nc._moves`) turns the words into these
+absolute parameters (G91: R is measured from the
 initial level, Z from R; L repeats the hole at incremental X/Y steps).
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from planning.nc.motion import DWELL, LINE, RAPID
-
-if TYPE_CHECKING:
-    from planning.nc.interpreter import Interpreter
 
 NAN = float("nan")
 
@@ -87,69 +83,3 @@ def drill_hole(
     top = max(initial_z_mm, r_mm) if retract_initial else r_mm
     go(RAPID, (x_mm, y_mm, top))
     return moves
-
-
-def execute_canned(
-    it: Interpreter, raw: str, v: dict[str, str], scale: float, line: int, block: int, out
-) -> None:
-    """Run one block in a canned-cycle mode: update R/Z/Q/P from its words (G90: absolute;
-    G91: R from the initial level, Z from R) and drill L holes (default 1) at its X/Y.
-
-    ``it`` is the interpreter (state, options, segment output); errors become NCError naming the
-    first of Z R Q L in the block.
-    """
-    st = it.state
-    cy = st.canned
-    x0, y0, z0 = st.position_mm
-    oz = it.work_offsets_mm.get(st.work_offset, (0.0, 0.0, 0.0))[2]
-    if cy.initial_z_mm != cy.initial_z_mm:
-        cy.initial_z_mm = z0
-    feed = it._need_feed(raw, line)  # an NCError already (outside the ValueError handler)
-    try:
-        if "R" in v:
-            r = float(v["R"]) * scale
-            cy.r_mm = r + oz if st.absolute else cy.initial_z_mm + r
-        if "Z" in v:
-            z = float(v["Z"]) * scale
-            if st.absolute:
-                cy.z_mm = z + oz
-            elif cy.r_mm == cy.r_mm:
-                cy.z_mm = cy.r_mm + z
-        if "Q" in v:
-            cy.q_mm = abs(float(v["Q"]) * scale)
-        if "P" in v:
-            p = float(v["P"])
-            cy.dwell_s = p / 1000.0 if it.dialect == "fanuc" else p
-        if cy.r_mm != cy.r_mm:
-            raise ValueError("canned cycle needs the R plane (R word)")
-        if cy.z_mm != cy.z_mm:
-            raise ValueError("canned cycle needs the hole bottom (Z word)")
-        repeats = 1
-        if "L" in v:
-            repeats = float(v["L"])
-            if repeats < 0 or repeats != int(repeats) or repeats > 9999:
-                raise ValueError(f"repeat count L must be a whole number 0..9999, got {v['L']}")
-            repeats = int(repeats)
-        vxy = {k: v[k] for k in ("X", "Y") if k in v}
-        for _ in range(repeats):
-            x, y, _z = it._target(vxy, scale, False)
-            moves = drill_hole(
-                st.motion,
-                st.position_mm,
-                x,
-                y,
-                cy.r_mm,
-                cy.z_mm,
-                cy.initial_z_mm,
-                retract_initial=st.retract_initial,
-                q_mm=cy.q_mm,
-                dwell_s=cy.dwell_s,
-                peck_clearance_mm=it.peck_clearance_mm,
-            )
-            for kind, p0, p1, dwell_s in moves:
-                f = feed if kind == LINE else NAN
-                it._seg(out, kind, p0, p1, (NAN, NAN, NAN), f, dwell_s, line, block)
-                st.position_mm = p1
-    except ValueError as exc:
-        which = next((L for L in "ZRQL" if L in v), 0)
-        raise it._fail(raw, which, str(exc), line) from None

@@ -75,7 +75,6 @@ from planning.nc._codes import (
 )
 from planning.nc._moves import Moves
 from planning.nc._words import WordRules
-from planning.nc.canned import execute_canned
 from planning.nc.errors import NCError, NCWarning
 from planning.nc.motion import Motion, MotionBuilder
 from planning.nc.state import CannedCycle, ModalState
@@ -363,7 +362,7 @@ class Interpreter(WordRules, Moves):
                     line,
                 )
             if mode >= 81:
-                execute_canned(self, raw, v, scale, line, block, out)
+                self._canned(raw, v, scale, line, block, out)
             else:
                 self._move(raw, v, scale, line, block, out, mode, g53)
         elif g53:

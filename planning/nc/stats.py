@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planning.nc.arcs import bounding_box, segment_boxes, segment_length_mm
+from planning.nc.arcs import bounding_box, segment_boxes, segment_length_mm, segment_travel
 from planning.nc.motion import DWELL, RAPID, Motion
 
 if TYPE_CHECKING:
@@ -67,12 +67,6 @@ def _rapid_rate(machine: MachineConfig | None, rapid_mm_min: float | None) -> fl
     return float(machine.rapid_mm_min) if machine is not None else DEFAULT_RAPID_MM_MIN
 
 
-def segment_travel(motion: Motion) -> np.ndarray:
-    """Combined travel (n,) of each segment: hypot(path length mm, rotary travel deg)."""
-    rot = np.linalg.norm(motion.rotary_end_deg - motion.rotary_start_deg, axis=1)
-    return np.hypot(segment_length_mm(motion), rot)
-
-
 def _rotary_rates(machine: MachineConfig | None) -> np.ndarray:
     five = machine.five_axis if machine is not None else None
     if five is None:
@@ -116,6 +110,7 @@ def motion_stats(
     dwell = float(t[motion.kind == DWELL].sum())
     accel_time = None
     if machine is not None and machine.accel_mm_s2 is not None:
+        # lazy: accel compiles with numba, which a machine without accel_mm_s2 never needs
         from planning.nc.accel import accel_segment_time_s
 
         accel_time = float(

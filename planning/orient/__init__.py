@@ -1,1 +1,21 @@
-"""planning.orient.planner."""
+"""Collision-free 5-axis tool orientation (seed 002): the tool system, the orientation search,
+the check between points, and the machine's inverse kinematics to NC.
+"""
+
+from planning.orient.check import verify
+from planning.orient.config import load_orient
+from planning.orient.kinematics import inverse, nc_program, write_cl_csv
+from planning.orient.planner import energy_map, plan_orientation, require_feasible
+from planning.orient.tool import ToolSystem
+
+__all__ = [
+    "ToolSystem",
+    "energy_map",
+    "inverse",
+    "load_orient",
+    "nc_program",
+    "plan_orientation",
+    "require_feasible",
+    "verify",
+    "write_cl_csv",
+]

@@ -16,7 +16,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from planning.orient.tool import ToolSystem, meridian
-from planning.surface.nurbs import NurbsSurface
+from planning.surface import NurbsSurface
 
 PART_NAMES = ("cutter", "holder", "spindle nose")
 

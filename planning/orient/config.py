@@ -26,7 +26,7 @@ from analysis.config import (
     validate,
 )
 from analysis.errors import ConfigError
-from planning.surface.nurbs import NurbsSurface
+from planning.surface import NurbsSurface
 
 
 class SurfaceSpec(Model):

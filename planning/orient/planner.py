@@ -36,7 +36,7 @@ from planning.orient.tool import (
     szende_K,
     tool_axis,
 )
-from planning.surface.nurbs import NurbsSurface
+from planning.surface import NurbsSurface
 
 
 @dataclass(frozen=True)

@@ -25,8 +25,8 @@ from shapely.geometry import LineString, MultiPolygon, Polygon, box
 from shapely.geometry.polygon import orient
 
 from planning.errors import PlanningError
+from planning.surface import FergusonSurface
 from planning.surface.contours import SectionMaker, as_multipolygon
-from planning.surface.ferguson import FergusonSurface
 
 _QUAD_SEGS = 16
 _SAMPLE_MM = 0.5  # spacing of boundary samples for the cover distance

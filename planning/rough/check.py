@@ -24,8 +24,8 @@ from scipy.spatial import cKDTree
 
 from planning.errors import PlanningError
 from planning.nc import DWELL, RAPID, Motion, Program, interpret, linearize
-from planning.stock.zmap import Cutter, ZMap
-from planning.surface.ferguson import FergusonSurface
+from planning.stock import Cutter, ZMap
+from planning.surface import FergusonSurface
 
 
 @dataclass(frozen=True, eq=False)

@@ -19,7 +19,7 @@ from pydantic import Field, model_validator
 
 from analysis.config import EndMill, Model, _find_line, get_tool, load_model
 from analysis.errors import ConfigError
-from planning.surface.ferguson import FergusonSurface
+from planning.surface import FergusonSurface
 
 
 class SurfaceSpec(Model):

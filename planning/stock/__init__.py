@@ -1,1 +1,32 @@
-"""planning.stock."""
+"""Stock and virtual machining (seed 001): the Z-map, starting stocks, the stepped test block,
+simulated machining of programs and operation plans, and the stock's picture.
+"""
+
+from planning.stock.block import SteppedBlock
+from planning.stock.machining import (
+    Operation,
+    OperationPlan,
+    Simulation,
+    check_motion,
+    default_stock,
+    load_plan,
+    load_stock,
+    simulate_motion,
+)
+from planning.stock.plot import save_stock_png
+from planning.stock.zmap import Cutter, ZMap
+
+__all__ = [
+    "Cutter",
+    "Operation",
+    "OperationPlan",
+    "Simulation",
+    "SteppedBlock",
+    "ZMap",
+    "check_motion",
+    "default_stock",
+    "load_plan",
+    "load_stock",
+    "save_stock_png",
+    "simulate_motion",
+]

@@ -56,9 +56,8 @@ from analysis.config import (
     validate,
 )
 from planning.errors import PlanningError
+from planning.nc import DWELL, LINE, RAPID, Motion, segment_time_s
 from planning.nc.arcs import PLANE_AXES, arc_radius_mm, linearize, segment_length_mm
-from planning.nc.motion import DWELL, LINE, RAPID, Motion
-from planning.nc.stats import segment_time_s
 from planning.stock import _kernels as _k
 from planning.stock.starts import (
     _stock_from_model,

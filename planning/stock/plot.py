@@ -4,10 +4,8 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:
-    from planning.stock.zmap import ZMap
+from planning.stock.zmap import ZMap
 
 
 def save_stock_png(stock: ZMap, path: str | Path, title: str = "stock") -> Path:

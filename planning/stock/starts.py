@@ -14,8 +14,7 @@ from pydantic import Field
 
 from analysis.config import Model, read_toml, validate
 from planning.errors import PlanningError
-from planning.nc.arcs import bounding_box
-from planning.nc.motion import Motion
+from planning.nc import Motion, bounding_box
 from planning.stock.zmap import Cutter, ZMap
 
 

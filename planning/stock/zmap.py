@@ -494,11 +494,3 @@ class ZMap:
         # summing a difference array; the rounding is ~1e-16 of the patch's sum)
         removed = max(before - float(h.sum()), 0.0)
         return removed * self.spacing_mm * self.spacing_mm, drop
-
-    # ------------------------------------------------------------------ output
-
-    def save_png(self, path: str | Path, title: str = "stock") -> Path:
-        """Shaded height map of the stock, PNG (matplotlib, Agg)."""
-        from planning.stock.plot import save_stock_png
-
-        return save_stock_png(self, path, title)

@@ -142,7 +142,7 @@ class FergusonSurface:
         """
         import trimesh
 
-        from planning.stock.zmap import ZMap
+        from planning.stock import ZMap
 
         if not np.isfinite(spacing_mm) or not spacing_mm > 0:
             raise PlanningError(f"{path}: spacing_mm = {spacing_mm}: must be > 0 (mm)")

@@ -1,1 +1,23 @@
-"""rig.campaign.runner."""
+"""Campaigns of test cuts: the config, the plan, the programs, a run on the simulated or the real
+rig, the manifest of what was done.
+"""
+
+from rig.campaign.config import load_campaign
+from rig.campaign.runner import (
+    campaign_folder,
+    dry_run,
+    mode_warnings,
+    plan_campaign,
+    run_campaign,
+    run_status,
+)
+
+__all__ = [
+    "campaign_folder",
+    "dry_run",
+    "load_campaign",
+    "mode_warnings",
+    "plan_campaign",
+    "run_campaign",
+    "run_status",
+]

@@ -18,39 +18,8 @@ import numpy as np
 
 from analysis.config import EndMill, FaceMill
 from planning.nc.program import format_number
+from planning.stock import SteppedBlock
 from rig.campaign.config import ProgramSection, RunConditions
-
-
-@dataclass(frozen=True)
-class CutBlock:
-    """The workpiece of one test: a block with a stepped top.
-
-    ``step_x_mm`` (k+1,) are the X edges of k steps, ``step_top_mm`` (k,) their top Z, mm.
-    """
-
-    y_min_mm: float
-    y_max_mm: float
-    step_x_mm: tuple[float, ...]
-    step_top_mm: tuple[float, ...]
-
-    @property
-    def x_min_mm(self) -> float:
-        return self.step_x_mm[0]
-
-    @property
-    def x_max_mm(self) -> float:
-        return self.step_x_mm[-1]
-
-    def top_z(self, x_mm: np.ndarray, y_mm: np.ndarray) -> np.ndarray:
-        """Top of the uncut block at (x, y), mm; -inf outside the block. Any matching shapes."""
-        x = np.asarray(x_mm, dtype=float)
-        y = np.asarray(y_mm, dtype=float)
-        edges = np.asarray(self.step_x_mm)
-        tops = np.append(np.asarray(self.step_top_mm), -np.inf)
-        k = np.searchsorted(edges, x, side="right") - 1
-        k = np.where((k < 0) | (k >= len(self.step_top_mm)), len(tops) - 1, k)
-        inside = (y >= self.y_min_mm) & (y <= self.y_max_mm)
-        return np.where(inside, tops[k], -np.inf)
 
 
 @dataclass(frozen=True)
@@ -58,7 +27,7 @@ class CutProgram:
     """One generated program: text, the block it cuts, the cutting Z and the path X range, mm."""
 
     text: str
-    block: CutBlock
+    block: SteppedBlock
     z_cut_mm: float
     x_start_mm: float
     x_end_mm: float
@@ -94,7 +63,7 @@ class _Writer:
         return "\n".join(self.lines) + "\n"
 
 
-def _exit_x(block_x_max: float, radius_mm: float, y_path: float, block: CutBlock, air: float):
+def _exit_x(block_x_max: float, radius_mm: float, y_path: float, block: SteppedBlock, air: float):
     """X where the cutter centre has left all material along +X (leading half only), mm."""
     half = max(abs(block.y_min_mm - y_path), abs(block.y_max_mm - y_path))
     reach = math.sqrt(max(radius_mm**2 - half**2, 0.0)) if half < radius_mm else 0.0
@@ -125,11 +94,11 @@ def generate_program(
     # default); an end mill cuts a slot (width = D) or a side cut of width w on the +Y side.
     if isinstance(tool, FaceMill):
         y_path = prog.offset_y_mm
-        block = CutBlock(-half_w, half_w, edges, tops)
+        block = SteppedBlock(-half_w, half_w, edges, tops)
     else:
         w = test.width_mm if test.width_mm == test.width_mm else tool.diameter_mm
         y_path = prog.offset_y_mm + (0.0 if w >= tool.diameter_mm else half_w + r - w)
-        block = CutBlock(-half_w, half_w, edges, tops)
+        block = SteppedBlock(-half_w, half_w, edges, tops)
     x_start = -r - prog.approach_mm
     if isinstance(tool, FaceMill):
         x_end = _exit_x(length, r, y_path, block, prog.approach_mm)
@@ -159,30 +128,10 @@ def generate_program(
     return CutProgram(w.text(), block, z_cut, x_start, x_end, y_path, feed)
 
 
-ZMAP_SPACING_MM = 0.25
-
-
-def block_zmap(block: CutBlock, tool: EndMill, spacing_mm: float = ZMAP_SPACING_MM):  # noqa: ANN201
-    """The test block as a ``planning.stock.zmap.ZMap`` (one tool radius of margin around it; the
-    material outside the block sits a flute length below its lowest step)."""
-    from planning.stock.zmap import ZMap
-
-    r = tool.radius_mm
-    s = spacing_mm
-    x = np.arange(block.x_min_mm - r, block.x_max_mm + r, s) + s / 2
-    y = np.arange(block.y_min_mm - r, block.y_max_mm + r, s) + s / 2
-    xx, yy = np.meshgrid(x, y)
-    top = block.top_z(xx, yy)
-    bottom = min(block.step_top_mm) - tool.flute_length_mm
-    heights = np.where(np.isfinite(top), top, bottom)
-    return ZMap.from_heights(heights, x[0] - s / 2, y[0] - s / 2, s, bottom)
-
-
 def campaign_rule(spec: object, tool: EndMill, name: str = "campaign"):  # noqa: ANN201
     """The campaign's ``[feed_rule]`` as an ``analysis.rules.rule.FeedRule`` (reference load: a slot of
     ``reference_depth_mm`` with the campaign's tool, seed 001's load definition)."""
-    from analysis.rules.load import slot_load_percent
-    from analysis.rules.rule import derive_rule
+    from analysis.rules import derive_rule, slot_load_percent
 
     fr = spec.feed_rule  # type: ignore[attr-defined]
     ref = slot_load_percent(
@@ -201,13 +150,13 @@ def post_process_program(
 ) -> tuple[str, dict]:
     """The load-based feed post-processor (``planning.feed.post``, seed 001) over a test program,
     on the Z-map of its block. Returns (program text, the post-processor's summary)."""
-    from planning.feed.post import FeedPostOptions, post_process
+    from planning.feed import FeedPostOptions, post_process
     from planning.nc import Program, interpret
 
     program = Program.parse(cut.text, "<test program>")
     motion = interpret(cut.text, machine)
     res = post_process(
-        program, motion, tool, rule, block_zmap(cut.block, tool), machine,
+        program, motion, tool, rule, cut.block.to_zmap(tool), machine,
         FeedPostOptions(min_piece_mm=min_piece_mm, check_holder=False),
     )  # fmt: skip
     return res.program.text(), res.summary()

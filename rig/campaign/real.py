@@ -20,8 +20,7 @@ import threading
 import time
 from typing import Any
 
-from rig.dnc.errors import DncError, StreamFault
-from rig.dnc.program import Program
+from rig.dnc import DncError, Program, StreamFault
 from rig.dnc.sinks import LoggerSink
 from rig.errors import RigError
 
@@ -96,8 +95,7 @@ class RealSession:
         self.streamer: Any = None
 
     def start(self, program: Program, writer: object) -> None:
-        from rig.dnc.fanuc import FanucStreamer
-        from rig.dnc.grbl import GrblStreamer
+        from rig.dnc import FanucStreamer, GrblStreamer
 
         self._program = program
         cls = GrblStreamer if self.protocol == "grbl" else FanucStreamer

@@ -30,9 +30,9 @@ from typing import Protocol
 import numpy as np
 
 from analysis.runs import file as rf
-from rig.daq.base import SAMPLE_FORMAT_RAW, Daq, DaqEvent, DaqInfo
+from rig.daq import SAMPLE_FORMAT_RAW, Daq, DaqEvent, DaqInfo
 from rig.daq.calibration import Calibration, CalibrationError, compensate, fit_drift
-from rig.dnc.program import Program
+from rig.dnc import Program
 
 STATUS_SUCCESS, STATUS_ABORT, STATUS_FAIL = rf.STATUS_SUCCESS, rf.STATUS_ABORT, rf.STATUS_FAIL
 #: s of run clock added to twice the program's expected time before a run is declared hung.

@@ -49,7 +49,7 @@ from rig.campaign.manifest import (
 )
 from rig.campaign.programs import CutProgram, generate_program
 from rig.campaign.run import RigSession, StopRequest, execute_run
-from rig.daq.calibration import Calibration
+from rig.daq import Calibration
 from rig.errors import RigError
 
 __all__ = [
@@ -121,7 +121,7 @@ def _dialect(campaign: Campaign) -> str:
 def _post_process(text: str, campaign: Campaign, test: RunConditions, cut: CutProgram) -> str:
     """The feed post-processor (planning.feed.post, seed 001) over a generated program."""
     from analysis.config import EndMill
-    from analysis.rules.rule import load_rule
+    from analysis.rules import load_rule
     from rig.campaign.programs import campaign_rule, post_process_program
 
     tool = campaign.tool
@@ -144,7 +144,7 @@ def _post_process(text: str, campaign: Campaign, test: RunConditions, cut: CutPr
 
 def plan_campaign(campaign: Campaign) -> list[PlannedRun]:
     """Generate and check every test's program (an NC error is raised before anything runs)."""
-    from rig.dnc.program import program_from_text
+    from rig.dnc import program_from_text
 
     out = []
     dialect = _dialect(campaign)
@@ -178,7 +178,7 @@ SessionFactory = Callable[[Campaign, PlannedRun, int], RigSession]
 
 def default_session_factory(campaign: Campaign) -> SessionFactory:
     if campaign.spec.campaign.rig == "sim":
-        from rig.sim.session import sim_session
+        from rig.sim import sim_session
 
         return sim_session
     from rig.campaign.real import real_session
@@ -275,7 +275,7 @@ def run_campaign(
     only: Callable[[RunConditions], bool] | None = None,
 ) -> CampaignResult:
     """Run (or resume) a campaign; returns every run's status. See the module docstring."""
-    from rig.log.writer import RunWriter
+    from rig.log import RunWriter
 
     plans = plan_campaign(campaign)
     if campaign.spec.campaign.rig == "real" and session_factory is None:
@@ -318,7 +318,7 @@ def run_campaign(
             earlier = set_aside(path)
             (folder / "programs" / f"{plan.file_stem}.nc").write_text(plan.program_text)
             session = factory(campaign, plan, k)
-            from rig.dnc.program import program_from_text
+            from rig.dnc import program_from_text
 
             program = program_from_text(plan.program_text, f"{plan.file_stem}.nc", check_nc=False)
             manifest.set(
@@ -438,7 +438,7 @@ def dry_run(campaign: Campaign) -> DryRun:
 def mode_warnings(campaign: Campaign) -> list[str]:
     """Tooth-passing harmonics of the planned spindle speeds near a dynamometer mode (seed 003
     3.2: the measured force would be amplified there)."""
-    from analysis.modal.hammer import tooth_passing_warnings
+    from analysis.modal import tooth_passing_warnings
 
     rpms = sorted({t.spindle_rpm for t in campaign.tests})
     return tooth_passing_warnings(campaign.rig.dynamometer.modes, rpms, campaign.teeth)

@@ -1,4 +1,4 @@
-"""Small helpers shared by the command modules: JSON output and human tables."""
+"""Small helpers shared by the command modules: JSON output, human tables, the progress bar."""
 
 from __future__ import annotations
 
@@ -95,3 +95,48 @@ def _number_or_text(text: str) -> int | float | str:
             continue
         return v if math.isfinite(v) else text
     return text
+
+
+class Progress:
+    """One tqdm bar on stderr for every command, made at the first report (nothing shows when
+    the input is refused before work starts) and silent when stderr is not a terminal (CI logs).
+
+    Call it as ``bar(done, total)`` (a count or a position such as seconds recorded) or
+    ``bar.step(note)`` (one more step of unknown count); use it as a context manager.
+    """
+
+    def __init__(self, desc: str, unit: str = "it", total: float | None = None,
+                 quiet: bool = False, **tqdm_kw: Any) -> None:  # fmt: skip
+        self._kw = dict(desc=desc, unit=unit, total=total, file=sys.stderr, leave=False,
+                        disable=True if quiet else None, **tqdm_kw)  # fmt: skip
+        self.bar: Any = None
+
+    def _open(self) -> Any:
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(**self._kw)
+        return self.bar
+
+    def __call__(self, done: float, total: float | None = None) -> None:
+        bar = self._open()
+        if total is not None:
+            bar.total = total
+        bar.n = done
+        bar.refresh()
+
+    def step(self, note: str = "") -> None:
+        bar = self._open()
+        if note:
+            bar.set_postfix_str(note, refresh=False)
+        bar.update()
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+    def __enter__(self) -> Progress:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -19,7 +19,7 @@ from typing import Any
 
 
 def _ci_note() -> str:
-    from analysis.identify._common import CI_NOTE  # inside: `cutlab --help` need not load scipy
+    from analysis.identify import CI_NOTE  # inside: `cutlab --help` need not load scipy
 
     return CI_NOTE
 
@@ -51,9 +51,14 @@ def _load_runs(paths, args, rig, expected_tool: str | None = None, by: str = "--
     """
     from tqdm import tqdm
 
-    from analysis.identify.facemill import RunConditions, reduce_run, reduce_run_file
-    from analysis.identify.importers import import_run, merge_conditions
-    from analysis.runs.steady import NoSteadyCutError
+    from analysis.identify import (
+        RunConditions,
+        import_run,
+        merge_conditions,
+        reduce_run,
+        reduce_run_file,
+    )
+    from analysis.runs import NoSteadyCutError
 
     given = _condition_overrides(args)
     avgs, rejected, tool_names = [], [], set()
@@ -62,7 +67,7 @@ def _load_runs(paths, args, rig, expected_tool: str | None = None, by: str = "--
     for p in tqdm(paths, desc="reducing runs", unit="run", disable=quiet):
         try:
             if str(p).lower().endswith((".h5", ".hdf5")):
-                from analysis.runs.file import load_run
+                from analysis.runs import load_run
 
                 meta = load_run(p, samples=False)
                 where = f"{p} (conditions" + (" and --conditions)" if given else ")")
@@ -93,8 +98,7 @@ def _teeth(name: str) -> int:
 def _forces(args: argparse.Namespace) -> int:
     from analysis.config import EndMill, FaceMill, get_tool, load_rig
     from analysis.errors import AnalysisError, ConfigError
-    from analysis.identify.endmill import fit_endmill
-    from analysis.identify.facemill import fit_facemill
+    from analysis.identify import fit_endmill, fit_facemill
     from rig.cli._common import print_json, print_table, status
 
     if not 0.0 < args.steady_tolerance < 1.0:
@@ -156,7 +160,7 @@ def _forces(args: argparse.Namespace) -> int:
         ],
     }
     if fit.success and (args.validate or args.plot):
-        from analysis.identify.validate import compare_runs, plot_comparison
+        from analysis.identify import compare_runs, plot_comparison
 
         targets = avgs
         if args.validate:
@@ -171,7 +175,7 @@ def _forces(args: argparse.Namespace) -> int:
         if args.plot:
             pngs = plot_comparison(cmp, args.plot)
             if model == "facemill":
-                from analysis.identify.validate import plot_waveforms
+                from analysis.identify import plot_waveforms
 
                 pngs += plot_waveforms(targets, tool, fit.coefficients, args.plot, rig.dynamometer)
             out["plots"] = [str(p) for p in pngs]
@@ -206,13 +210,13 @@ def _modal(args: argparse.Namespace) -> int:
 
     from analysis.config import load_rig
     from analysis.errors import AnalysisError
-    from analysis.identify.importers import read_force_table
-    from analysis.modal.hammer import ImpactRecord, modal_analysis, tooth_passing_warnings
+    from analysis.identify import read_force_table
+    from analysis.modal import ImpactRecord, modal_analysis, tooth_passing_warnings
     from rig.cli._common import print_json, print_table, status
 
     path = Path(args.file)
     if path.suffix.lower() in (".h5", ".hdf5"):
-        from analysis.runs.file import load_run
+        from analysis.runs import load_run
 
         run = load_run(path)
         data = run.force_n if run.force_n is not None else run.volts
@@ -263,7 +267,7 @@ def _modal(args: argparse.Namespace) -> int:
         "warnings": warn,
     }
     if args.plot:
-        from analysis.modal.hammer import plot_frf
+        from analysis.modal import plot_frf
 
         out["plot"] = str(plot_frf(res, args.plot))
         status(f"analyze modal: wrote {out['plot']}")
@@ -280,7 +284,7 @@ def _modal(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
-    from analysis.runs.steady import IDENTIFY_TOLERANCE
+    from analysis.runs import IDENTIFY_TOLERANCE
 
     p = sub.add_parser("analyze", help="force coefficients from runs, dynamometer modes")
     psub = p.add_subparsers(dest="analyze_command", metavar="ANALYZE_COMMAND")

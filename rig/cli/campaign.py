@@ -42,7 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from rig.campaign.runner import dry_run, load_campaign, run_campaign
+    from rig.campaign import dry_run, load_campaign, run_campaign
 
     campaign = load_campaign(args.config)
     if args.dry_run:
@@ -73,7 +73,7 @@ def _run(args: argparse.Namespace) -> int:
     result = run_campaign(campaign, out_root=args.out, progress=not args.quiet)
     report = None
     if not args.no_report and not result.stopped:
-        from rig.report.base import write_report
+        from rig.report import write_report
 
         report = write_report(result.folder)
     summary = {
@@ -105,7 +105,7 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _status(args: argparse.Namespace) -> int:
-    from rig.campaign.runner import campaign_folder, load_campaign, plan_campaign, run_status
+    from rig.campaign import campaign_folder, load_campaign, plan_campaign, run_status
 
     campaign = load_campaign(args.config)
     folder = campaign_folder(campaign, args.out)
@@ -127,8 +127,8 @@ def _status(args: argparse.Namespace) -> int:
 
 
 def _report(args: argparse.Namespace) -> int:
-    from rig.campaign.runner import campaign_folder, load_campaign
-    from rig.report.base import write_report
+    from rig.campaign import campaign_folder, load_campaign
+    from rig.report import write_report
 
     campaign = load_campaign(args.config)
     rep = write_report(campaign_folder(campaign, args.out))

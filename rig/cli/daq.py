@@ -17,7 +17,7 @@ def _record(args: argparse.Namespace) -> int:
     from analysis.config import load_rig
     from analysis.errors import ConfigError
     from rig.cli._common import print_json, print_table, status
-    from rig.daq.calibration import Calibration
+    from rig.daq import Calibration
     from rig.log.record import aliasing_warning, milling_force_source, record
 
     rig_path = args.rig
@@ -39,8 +39,7 @@ def _record(args: argparse.Namespace) -> int:
         status(f"daq record: {w}")
 
     if args.sim:
-        from rig.sim.clock import SimClock
-        from rig.sim.daq import SimDaq
+        from rig.sim import SimClock, SimDaq
 
         n = int(args.channels or len(rig.daq.channels))
         if not 1 <= n <= 64:

@@ -12,7 +12,7 @@ from typing import Any
 
 def run_summary(path: str) -> dict[str, Any]:
     """What `data info` reports, as a dict (JSON-able)."""
-    from analysis.runs.file import LOSS_KINDS, load_run
+    from analysis.runs import LOSS_KINDS, load_run
 
     run = load_run(path, samples=False)
     ev = run.events
@@ -96,8 +96,7 @@ def _info(args: argparse.Namespace) -> int:
 
 
 def _plot(args: argparse.Namespace) -> int:
-    from analysis.runs.file import load_run
-    from analysis.runs.plot import plot_run
+    from analysis.runs import load_run, plot_run
     from rig.cli._common import print_json, status
 
     run = load_run(args.file, args.start_s, args.stop_s)

@@ -37,9 +37,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _demo(args: argparse.Namespace) -> int:
     from analysis.errors import ConfigError
-    from rig.campaign.runner import campaign_folder, load_campaign, run_campaign
+    from rig.campaign import campaign_folder, load_campaign, run_campaign
     from rig.cli._common import print_json, print_table, status
-    from rig.report.base import write_report
+    from rig.report import write_report
 
     t0 = time.monotonic()
     campaign = load_campaign(args.campaign)

@@ -70,7 +70,7 @@ def _protocol(name: str) -> str:
 
 def _machine(name: str | None, protocol: str):  # noqa: ANN202
     from analysis.config import load_machine
-    from rig.dnc.errors import DncError
+    from rig.dnc import DncError
 
     m = load_machine(name or DEFAULT_MACHINE[protocol])
     if m.dialect != protocol:
@@ -95,9 +95,15 @@ def _serial(machine, port: str | None, baud: int | None, timeout: float | None):
 
 
 def _send(args: argparse.Namespace) -> int:
-    from rig.dnc import FanucStreamer, GrblStreamer, load_program, restart_blocks
-    from rig.dnc.errors import StreamFault
-    from rig.dnc.record import CsvSink, MemorySink
+    from rig.dnc import (
+        CsvSink,
+        FanucStreamer,
+        GrblStreamer,
+        MemorySink,
+        StreamFault,
+        load_program,
+        restart_blocks,
+    )
 
     protocol = _protocol(args.protocol)
     machine = _machine(args.machine, protocol)
@@ -151,7 +157,7 @@ def _serve(args: argparse.Namespace) -> int:
 
 
 def _knobs(items: list[str]) -> dict[str, Any]:
-    from rig.dnc.errors import DncError
+    from rig.dnc import DncError
 
     out: dict[str, Any] = {}
     for it in items:
@@ -173,12 +179,12 @@ def _check_knobs(knobs: dict[str, Any], protocol: str) -> None:
     ``sim_*`` keyword parameters of its ``__init__`` and its bases')."""
     import inspect
 
-    from rig.dnc.errors import DncError
+    from rig.dnc import DncError
 
     if protocol == "fanuc":
-        from rig.sim.fanuc import SimFanuc as cls
+        from rig.sim import SimFanuc as cls
     else:
-        from rig.sim.grbl import SimGrbl as cls
+        from rig.sim import SimGrbl as cls
     valid = sorted(
         {
             name.removeprefix("sim_")
@@ -200,8 +206,8 @@ def _sim_controller(args: argparse.Namespace) -> int:
     import signal
     import threading
 
-    from rig.dnc.errors import DncError
-    from rig.sim.clock import SimClock
+    from rig.dnc import DncError
+    from rig.sim import SimClock
 
     protocol = _protocol(args.protocol)
     machine = _machine(args.machine, protocol)
@@ -213,7 +219,7 @@ def _sim_controller(args: argparse.Namespace) -> int:
         raise DncError(f"--speed = {args.speed}: must be > 0 (simulated s per wall s)")
     try:
         if protocol == "fanuc":
-            from rig.sim.fanuc import SimFanuc
+            from rig.sim import SimFanuc
 
             s = machine.serial
             ctl = SimFanuc(
@@ -227,7 +233,7 @@ def _sim_controller(args: argparse.Namespace) -> int:
                 **knobs,
             )
         else:
-            from rig.sim.grbl import SimGrbl
+            from rig.sim import SimGrbl
 
             ctl = SimGrbl(machine, clock=clock, baudrate=baud, **knobs)
     except TypeError as exc:  # a knob of the right name but an unusable value

@@ -76,12 +76,12 @@ def _tool(name: str | None):
 
 
 def _rule(spec: str, db: Path | None):
-    from analysis.rules.rule import load_rule
+    from analysis.rules import load_rule
 
     p = Path(spec)
     if p.exists() or p.suffix == ".toml":
         return load_rule(p)
-    from analysis.rules.rulebase import RuleBase
+    from analysis.rules import RuleBase
 
     with RuleBase(db, create=False) as base:
         return base.find(spec).rule
@@ -115,8 +115,7 @@ def _load(args: argparse.Namespace):
     from analysis.config import load_machine
     from planning.errors import PlanningError
     from planning.nc import Program, interpret
-    from planning.stock.machining import default_stock, load_stock
-    from planning.stock.zmap import Cutter
+    from planning.stock import Cutter, default_stock, load_stock
 
     machine = load_machine(args.machine)
     tool = _tool(args.tool)
@@ -136,7 +135,7 @@ def _load(args: argparse.Namespace):
 def _feed(args: argparse.Namespace) -> int:
     from analysis.config import get_material
     from planning.errors import PlanningError
-    from planning.feed.post import FeedPostOptions, post_process, write_report
+    from planning.feed import FeedPostOptions, post_process, write_report
     from rig.cli._common import print_json, print_table, status
 
     rule = _rule(args.rules, args.db)
@@ -216,7 +215,11 @@ def _simulate(args: argparse.Namespace) -> int:
         bar.close()
     rows = [summary(r) for r in results]
     if args.png:
-        plan.stock.save_png(args.png, f"stock after {', '.join(r['operation'] for r in rows)}")
+        from planning.stock import save_stock_png
+
+        save_stock_png(
+            plan.stock, args.png, f"stock after {', '.join(r['operation'] for r in rows)}"
+        )
     out = {
         "operations": rows,
         "stock_volume_before_mm3": start_volume,

@@ -47,11 +47,17 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from planning.errors import PlanningError
-    from planning.orient.check import verify
-    from planning.orient.config import load_orient
-    from planning.orient.kinematics import inverse, nc_program, write_cl_csv
-    from planning.orient.planner import energy_map, plan_orientation, require_feasible
-    from planning.orient.tool import ToolSystem
+    from planning.orient import (
+        ToolSystem,
+        energy_map,
+        inverse,
+        load_orient,
+        nc_program,
+        plan_orientation,
+        require_feasible,
+        verify,
+        write_cl_csv,
+    )
     from rig.cli._common import print_json, print_table, status
 
     cfg, tool_cfg, machine = load_orient(args.config)

@@ -63,10 +63,8 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from planning.errors import PlanningError
-    from planning.rough.check import check_program
+    from planning.rough import Part, RoughPlanner, check_program, load_part
     from planning.rough.gcode import MoveSettings, plan_motion, plan_program, plan_totals
-    from planning.rough.part import Part, load_part
-    from planning.rough.planner import RoughPlanner
     from rig.cli._common import print_json, print_table, status
 
     if not args.check_spacing > 0:

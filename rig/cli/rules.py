@@ -91,13 +91,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _open(db: Path | None):
     """The rule base of ``--db`` (default from configs/lab.toml) for every command but ``add``:
     a path that does not exist is an error, not a new empty base (a typo must not read as one)."""
-    from analysis.rules.rulebase import RuleBase
+    from analysis.rules import RuleBase
 
     return RuleBase(db, create=False)
 
 
 def _key(args: argparse.Namespace):
-    from analysis.rules.rulebase import GroupKey
+    from analysis.rules import GroupKey
 
     return GroupKey(
         args.part_family,
@@ -114,8 +114,14 @@ def _key(args: argparse.Namespace):
 def _derive(args: argparse.Namespace) -> int:
     from analysis.config import load_machine
     from analysis.errors import AnalysisError
-    from analysis.rules.basefeed import BaseFeedSettings, find_base_feed, sweep_runs_from_files
-    from analysis.rules.rule import derive_rule, plot_rule, save_rule
+    from analysis.rules import (
+        BaseFeedSettings,
+        derive_rule,
+        find_base_feed,
+        plot_rule,
+        save_rule,
+        sweep_runs_from_files,
+    )
 
     sweep = sweep_runs_from_files(args.runs)
     settings = BaseFeedSettings(args.slope_ratio, args.vibration_ratio, criterion=args.criterion)
@@ -182,7 +188,7 @@ def _derive(args: argparse.Namespace) -> int:
 
 def _add(args: argparse.Namespace) -> int:
     from analysis.errors import AnalysisError
-    from analysis.rules.rulebase import GroupExistsError, RuleBase, default_path
+    from analysis.rules import GroupExistsError, RuleBase, default_path
 
     path = args.db if args.db is not None else default_path()
     if not path.exists():
@@ -214,7 +220,7 @@ def _list(args: argparse.Namespace) -> int:
 
 
 def _show(args: argparse.Namespace) -> int:
-    from analysis.rules.rule import load_rule, plot_rule
+    from analysis.rules import load_rule, plot_rule
 
     p = Path(args.rule)
     if p.suffix == ".toml" and p.exists():

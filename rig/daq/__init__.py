@@ -1,10 +1,14 @@
-"""Dynamometer acquisition: one interface (:class:`Daq`), the NI-DAQmx driver and a simulated DAQ.
+"""Dynamometer acquisition: one interface (:class:`Daq`), the NI-DAQmx driver and the volts-to-N
+calibration.
 
 - :mod:`rig.daq.base` — the interface: :class:`Daq`, :class:`DaqSink`, :class:`DaqInfo`,
   :class:`DaqEvent`, errors.
 - :mod:`rig.daq.ni` — :class:`NiDaq` on the ``nidaqmx`` package (hardware-timed, every-N-samples
   reads into a preallocated array, continuity checked against the device's sample count).
-- :mod:`rig.sim.daq` — :class:`SimDaq` driven by a signal source, with ``sim_`` fault knobs.
+- :mod:`rig.daq.calibration` — :class:`Calibration`: volts to newtons (matrix, offsets, gains).
+
+The simulated DAQ is :class:`rig.sim.SimDaq` (simulated backends live in :mod:`rig.sim`).
+`NiDaq` is not re-exported here: importing it loads ``nidaqmx``.
 """
 
 from rig.daq.base import (
@@ -17,9 +21,10 @@ from rig.daq.base import (
     DaqNotAvailableError,
     DaqSink,
 )
-from rig.sim.daq import PushedSource, SimDaq, ramp_source, sine_source
+from rig.daq.calibration import Calibration
 
 __all__ = [
+    "Calibration",
     "SAMPLE_FORMAT_RAW",
     "SAMPLE_FORMAT_VOLTS",
     "Daq",
@@ -28,8 +33,4 @@ __all__ = [
     "DaqInfo",
     "DaqNotAvailableError",
     "DaqSink",
-    "PushedSource",
-    "SimDaq",
-    "ramp_source",
-    "sine_source",
 ]

@@ -17,8 +17,7 @@ import numpy as np
 
 from analysis import __version__
 from analysis.runs import file as rf
-from rig.daq.base import SAMPLE_FORMAT_RAW, DaqInfo
-from rig.daq.calibration import Calibration
+from rig.daq import SAMPLE_FORMAT_RAW, Calibration, DaqInfo
 from rig.errors import RigError
 
 CHUNK_BYTES = 1 << 20  # 1 MiB chunks: large sequential writes, cheap SWMR tail reads

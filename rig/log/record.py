@@ -15,8 +15,7 @@ from typing import Any
 import numpy as np
 
 from analysis.runs import file as rf
-from rig.daq.base import Daq
-from rig.daq.calibration import Calibration
+from rig.daq import Calibration, Daq
 from rig.log.writer import RunWriter, WriterStats
 
 

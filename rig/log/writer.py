@@ -36,8 +36,7 @@ from typing import Any
 import numpy as np
 
 from analysis.runs import file as rf
-from rig.daq.base import DaqEvent, DaqInfo
-from rig.daq.calibration import Calibration
+from rig.daq import Calibration, DaqEvent, DaqInfo
 from rig.log._file import (
     RunWriterError,
     append_rows,

@@ -33,7 +33,7 @@ CUT_FRACTION = 0.15
 
 def cutting_revolutions(lr: LoadedRun) -> dict[str, Any]:
     """Per-revolution feed-plane force of the cutting part of a run and its statistics."""
-    from analysis.runs.steady import per_revolution
+    from analysis.runs import per_revolution
 
     run = lr.run
     rpm = float(lr.conditions["spindle_rpm"])
@@ -157,7 +157,7 @@ def _feed_limit_bound(
     """The evenness any feeds within the rule's limits can reach (module doc); {} when the
     campaign has no end mill, no end-mill coefficients, no feed rule or no depth steps."""
     from analysis.config import EndMill
-    from analysis.forces.evenness import ForceTable, SteadyCut
+    from analysis.forces import ForceTable, SteadyCut
 
     fr = campaign.spec.feed_rule
     coef = campaign.material.endmill

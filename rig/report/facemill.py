@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import AnalysisError
-from analysis.identify._common import CI_NOTE
+from analysis.identify import CI_NOTE
 from rig.report.base import LoadedRun, Section, md_table
 
 #: The coefficients seed 003 reports, then the axial pair cutlab adds.
@@ -34,8 +34,7 @@ def force_run(lr: LoadedRun) -> Any:
 def _predicted_mean(tool: Any, coef: Any, c: dict[str, Any]) -> np.ndarray:
     """Model mean force (3,) N over one revolution for a run's conditions (the dynamometer's
     modes have unit static gain, so they do not change the mean)."""
-    from analysis.identify.facemill import RunConditions
-    from analysis.identify.validate import predicted_mean
+    from analysis.identify import RunConditions, predicted_mean
 
     return predicted_mean(RunConditions.from_mapping(c, "conditions"), tool, coef)
 
@@ -49,7 +48,7 @@ def _truth(runs: list[LoadedRun]) -> dict[str, float] | None:
 
 
 def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section:
-    from analysis.identify.facemill import fit_facemill_runs
+    from analysis.identify import fit_facemill_runs
 
     spec = campaign.spec.analysis
     ident = [lr for lr in runs if lr.group in spec.identify_groups]

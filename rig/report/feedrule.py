@@ -20,8 +20,13 @@ from rig.report.base import LoadedRun, Section, md_table
 
 
 def feed_rule_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section:
-    from analysis.rules.basefeed import find_base_feed, sweep_runs_from_files
-    from analysis.rules.rule import derive_rule, plot_rule, save_rule
+    from analysis.rules import (
+        derive_rule,
+        find_base_feed,
+        plot_rule,
+        save_rule,
+        sweep_runs_from_files,
+    )
 
     groups = campaign.spec.analysis.identify_groups
     sweep_runs = [lr for lr in runs if not groups or lr.group in groups]

@@ -1,5 +1,13 @@
-"""Simulated devices: physical models behind the same interfaces as the hardware drivers.
-
-Test-only knobs carry a ``sim_`` prefix; each simulator's docstring has a Notes section listing how
-it differs from the real device.
+"""The simulated rig, behind the same interfaces as the hardware: the clock, the DAQ, the machine
+(cutting physics and the dynamometer), the Fanuc and GRBL controllers on pseudo-terminals, and
+the session that ties them together for a campaign.
 """
+
+from rig.sim.clock import SimClock
+from rig.sim.daq import SimDaq
+from rig.sim.fanuc import SimFanuc
+from rig.sim.grbl import SimGrbl
+from rig.sim.machine import SimMachine
+from rig.sim.session import sim_session
+
+__all__ = ["SimClock", "SimDaq", "SimFanuc", "SimGrbl", "SimMachine", "sim_session"]

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.config import Dynamometer
-from analysis.modal.filter import DynamometerFilter
-from rig.daq.calibration import Calibration
+from analysis.modal import DynamometerFilter
+from rig.daq import Calibration
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 

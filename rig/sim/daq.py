@@ -15,7 +15,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from analysis.runs import file as rf
-from rig.daq.base import (
+from rig.daq import (
     SAMPLE_FORMAT_RAW,
     SAMPLE_FORMAT_VOLTS,
     Daq,

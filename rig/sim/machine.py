@@ -9,7 +9,7 @@ spindle angle (:mod:`rig.sim._machine_timeline`), which inserts or flute element
 with the material's *true* coefficients, and passes the summed force through the dynamometer's
 modes and the charge amplifier (:mod:`rig.sim._machine_signal`).
 
-The stock is the test block (:class:`rig.campaign.programs.CutBlock`) for a face mill's single pass, or
+The stock is the test block (:class:`planning.stock.block.SteppedBlock`) for a face mill's single pass, or
 a ``planning.stock.zmap.ZMap`` lowered by every completed segment for end mills, so a later pass sees what
 an earlier one left.
 
@@ -80,7 +80,7 @@ class Chatter:
 
 
 class BlockStock:
-    """An analytic block (``CutBlock``-like: anything with ``top_z(x, y)``) as the stock."""
+    """An analytic block (``SteppedBlock``-like: anything with ``top_z(x, y)``) as the stock."""
 
     def __init__(self, block: object) -> None:
         self.block = block
@@ -100,7 +100,7 @@ class ZMapStock:
     """A ``planning.stock.zmap.ZMap`` lowered by each segment once the clock has passed its end."""
 
     def __init__(self, zmap: object, tool: EndMill) -> None:
-        from planning.stock.zmap import Cutter
+        from planning.stock import Cutter
 
         self.zmap = zmap
         self.cutter = Cutter.from_tool(tool)

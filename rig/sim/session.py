@@ -24,9 +24,7 @@ import threading
 from typing import Any
 
 from analysis.config import EndMill
-from rig.campaign.programs import block_zmap
-from rig.dnc.errors import DncError, StreamFault
-from rig.dnc.program import Program
+from rig.dnc import DncError, Program, StreamFault
 from rig.dnc.sinks import LoggerSink
 from rig.errors import RigError
 from rig.sim.clock import SimClock
@@ -38,7 +36,7 @@ def _make_stock(campaign: Any, plan: Any) -> BlockStock | ZMapStock:
     tool = campaign.tool
     if not isinstance(tool, EndMill):
         return BlockStock(plan.cut.block)
-    return ZMapStock(block_zmap(plan.cut.block, tool), tool)
+    return ZMapStock(plan.cut.block.to_zmap(tool), tool)
 
 
 class SimSession:
@@ -126,8 +124,7 @@ class SimSession:
 
     # -- RigSession ------------------------------------------------------------------------------
     def start(self, program: Program, writer: object) -> None:
-        from rig.dnc.fanuc import FanucStreamer
-        from rig.dnc.grbl import GrblStreamer
+        from rig.dnc import FanucStreamer, GrblStreamer
         from rig.dnc.port import line_bytes_per_s
 
         self._program = program
