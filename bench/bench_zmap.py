@@ -28,8 +28,7 @@ from analysis.config import get_tool, load_machine
 from analysis.rules import derive_rule, slot_load_percent
 from planning.feed import FeedPostOptions, post_process
 from planning.nc import Program, interpret
-from planning.stock import ZMap, simulate_motion
-from planning.stock import _numba as _zmap_numba
+from planning.stock import ZMap, _numba, simulate_motion
 
 
 def dome_mm(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -90,9 +89,9 @@ def main() -> int:
     text, level_mm = roughing_program(args.blocks)
     rule = derive_rule("bench-rough", 150, 400, 1000, slot_load_percent("flat", 10, level_mm, 22))
     tw = time.perf_counter()
-    _zmap_numba.warm_up()  # compile, or load the cached machine code
+    _numba.warm_up()  # compile, or load the cached machine code
     print(
-        f"kernel: {'numba (compiled)' if _zmap_numba.AVAILABLE else 'numpy'}; warm-up "
+        f"kernel: {'numba (compiled)' if _numba.AVAILABLE else 'numpy'}; warm-up "
         f"{time.perf_counter() - tw:.2f} s (not counted below)"
     )
     rss0 = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss

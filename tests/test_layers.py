@@ -24,11 +24,18 @@ FORBIDDEN = {"analysis": {"planning", "rig"}, "planning": {"rig"}, "rig": set()}
 MAY_IMPORT: dict[str, set[str]] = {
     "analysis": {"analysis.errors"},  # the package face: the version only
     "analysis.errors": set(),
-    "analysis.config": {"analysis.errors"},
+    "analysis.validation": {"analysis.errors"},
+    "analysis.config": {"analysis.errors", "analysis.validation"},
     "analysis.runs": {"analysis.errors", "analysis.config"},
     "analysis.forces": {"analysis.errors", "analysis.config", "analysis.runs"},
     "analysis.modal": {"analysis.errors", "analysis.config", "analysis.runs"},
-    "analysis.rules": {"analysis.errors", "analysis.config", "analysis.runs", "analysis.forces"},
+    "analysis.rules": {
+        "analysis.errors",
+        "analysis.validation",
+        "analysis.config",
+        "analysis.runs",
+        "analysis.forces",
+    },
     "analysis.identify": {
         "analysis",
         "analysis.errors",

@@ -142,7 +142,8 @@ def test_the_machine_config_gives_the_stats_their_accel_time() -> None:
 
 
 def test_a_bad_acceleration_is_named(tmp_path) -> None:
-    from analysis.config import MachineConfig, load_model
+    from analysis.config import MachineConfig
+    from analysis.validation import load_model
 
     text = tmp_path / "m.toml"
     base = (

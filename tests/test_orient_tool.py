@@ -8,7 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
-from analysis.config import EndMill, validate
+from analysis.config import EndMill
+from analysis.validation import validate
 from analysis.errors import ConfigError
 from planning.errors import PlanningError
 from planning.orient.tool import (

@@ -12,7 +12,7 @@ from scipy.spatial import cKDTree
 from shapely.geometry import MultiLineString
 from test_rough_parts import bump_grid, part_toml
 
-from analysis.config import validate
+from analysis.validation import validate
 from planning.rough import RoughPlanner
 from planning.rough.part import Part, PartConfig
 

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from planning.errors import PlanningError
 from planning.stock import _kernels as K
-from planning.stock import _numba as _zmap_numba
+from planning.stock import _numba
 from planning.stock.zmap import Cutter, ZMap, split_pieces
 
 
@@ -282,7 +282,7 @@ def test_result_does_not_depend_on_how_a_move_is_split(
     assert cut.removed_mm3.sum() == pytest.approx(v, rel=1e-9, abs=1e-9)
 
 
-@pytest.mark.skipif(not _zmap_numba.AVAILABLE, reason="numba not installed")
+@pytest.mark.skipif(not _numba.AVAILABLE, reason="numba not installed")
 @pytest.mark.parametrize("cutter", [Cutter("flat", 3.0), Cutter("ball", 3.0), Cutter("bull", 3, 1)])
 def test_compiled_kernel_equals_numpy_kernel(cutter: Cutter) -> None:
     rng = np.random.default_rng(3)

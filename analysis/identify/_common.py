@@ -1,8 +1,8 @@
 """Shared pieces of the force-coefficient identification: runs, their conditions, revolution
 averages and a linear least-squares fit with its statistics.
 
-Private to ``analysis.identify.facemill`` / ``analysis.identify.endmill`` / ``analysis.identify.validate``
-(the public names are re-exported there).
+Private to ``analysis.identify.facemill`` / ``analysis.identify.endmill`` /
+``analysis.identify.validate`` (the public names are re-exported there).
 """
 
 from __future__ import annotations

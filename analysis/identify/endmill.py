@@ -1,11 +1,11 @@
 """Identify end-mill cutting and edge coefficients by the average-force method (Altintas).
 
 The mean force over whole revolutions is linear in the feed per tooth: F_mean = F_c f_z + F_e.
-For a flat end mill the closed forms (``analysis.forces.endmill.mean_force_design``, valid for slotting
-and any immersion, up or down milling, any helix) give the mean X, Y, Z force per unit value of
-each of K_tc, K_rc, K_ac, K_te, K_re, K_ae; ball and bull-nose end mills use the same relation
-with the model averaged numerically over a revolution. Stacking every run's three mean forces
-gives one linear least-squares problem for the six coefficients, with standard errors,
+For a flat end mill the closed forms (``analysis.forces.endmill.mean_force_design``, valid for
+slotting and any immersion, up or down milling, any helix) give the mean X, Y, Z force per unit
+value of each of K_tc, K_rc, K_ac, K_te, K_re, K_ae; ball and bull-nose end mills use the same
+relation with the model averaged numerically over a revolution. Stacking every run's three mean
+forces gives one linear least-squares problem for the six coefficients, with standard errors,
 confidence intervals, R^2 and residuals. The mean is untouched by the dynamometer's modes (their
 static gain is one), so no modal correction is needed.
 
@@ -83,7 +83,7 @@ def fit_endmill(
     if not isinstance(tool, EndMill):
         raise AnalysisError(
             f"tool of kind {getattr(tool, 'kind', type(tool).__name__)!r}: the average-force "
-            "method here describes flat, ball and bull end mills (face mills: identify_facemill)"
+            "method here describes flat, ball and bull end mills (face mills: analysis.identify.fit_facemill)"
         )
     check_units(averages)
     names = tuple(a.name for a in averages)

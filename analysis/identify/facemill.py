@@ -4,9 +4,9 @@ Seed 003's method: one feed per tooth, the axial depth of cut varied (0.5 -> 3 m
 grows with the engaged edge length l, chip removal with the chip area S, and a least-squares fit
 over the runs separates them. Here each run is first reduced (``analysis.runs.steady``) to its
 synchronous revolution average with the dynamometer offset removed; the model's regressors
-(``analysis.forces.facemill.facemill_design``: force per unit coefficient over a revolution) are passed
-through the dynamometer's modes (``analysis.modal.filter``) so the ringing after each insert entry
-does not bias the fit; the unknown angular phase of each run is found by a circular
+(``analysis.forces.facemill.facemill_design``: force per unit coefficient over a revolution) are
+passed through the dynamometer's modes (``analysis.modal.filter``) so the ringing after each insert
+entry does not bias the fit; the unknown angular phase of each run is found by a circular
 cross-correlation search refined to a fraction of a bin; then one linear least-squares fit over
 all runs, channels and angle bins gives the six parameters with standard errors, confidence
 intervals, R^2 and residuals. K_R and K_A are ratios (seed 003 prints K_R in N/mm^2; eq 4 makes

@@ -9,8 +9,8 @@ for every other move::
     load = removed volume / (flute length x tool diameter x path length) x 100
 
 i.e. the removed volume against the largest volume the tool could remove along that path. The
-feed post-processor (``planning.feed.post``) and the rule derivation (``analysis.rules.rule``) both use
-:func:`cutting_load_percent`, so there is one definition.
+feed post-processor (``planning.feed.post``) and the rule derivation (``analysis.rules.rule``) both
+use :func:`cutting_load_percent`, so there is one definition.
 """
 
 from __future__ import annotations

@@ -49,7 +49,7 @@ import tomli_w
 from numpy.typing import ArrayLike, NDArray
 from pydantic import Field, model_validator
 
-from analysis.config import Model, read_toml, validate
+from analysis.validation import Model, read_toml, validate
 from analysis.errors import AnalysisError, ConfigError
 
 N_BINS = 20

@@ -2,8 +2,8 @@
 
 ``rig.log.writer.RunWriter`` writes run files using the constants below; everything else reads them
 through :func:`load_run` (whole run, or a time window) or :mod:`analysis.runs.follow` (a run still
-being written). Nothing outside these modules and ``rig.log.writer`` should name an HDF5 path of a run
-file.
+being written). Nothing outside these modules and ``rig.log.writer`` should name an HDF5 path of a
+run file.
 
 Layout (format ``cutlab-run``, version 1; HDF5 >= 1.10 "latest" format so that the file can be read
 while it is written, SWMR)::

@@ -1,4 +1,5 @@
-"""Engagement of each cut piece from the Z-map, and its predicted peak force (analysis.forces.endmill).
+"""Engagement of each cut piece from the Z-map, and its predicted peak force
+(analysis.forces.endmill).
 
 Private helper of :mod:`planning.feed.post` (the optional force limit and the force column of the
 report, a step beyond seed 001).

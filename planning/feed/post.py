@@ -2,8 +2,8 @@
 
 For a program, its tool, a machine and a feed rule:
 
-1. virtual machining on a Z-map (:mod:`planning.stock.machining`) gives the volume each piece of each
-   block removes (pieces no longer than half the minimum piece length);
+1. virtual machining on a Z-map (:mod:`planning.stock.machining`) gives the volume each piece
+   of each block removes (pieces no longer than half the minimum piece length);
 2. the cutting load of each piece is seed 001's relative removal rate
    (:func:`analysis.rules.load.cutting_load_percent`: plunge formula for Z-only moves);
 3. the rule gives each piece a feed, clamped to the rule's and the machine's [min, max] and,
@@ -17,8 +17,9 @@ For a program, its tool, a machine and a feed rule:
    compared with the original's (splits re-joined) before anything is returned: the geometry
    never changes.
 
-The report (:func:`planning.feed.report.write_report`): machining time before and after, the load histogram over the
-rule's bins, load and feed along the path (PNG), the final stock (PNG) and a per-block CSV.
+The report (:func:`planning.feed.report.write_report`): machining time before and after, the
+load histogram over the rule's bins, load and feed along the path (PNG), the final stock (PNG)
+and a per-block CSV.
 """
 
 from __future__ import annotations

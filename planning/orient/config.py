@@ -3,7 +3,7 @@
 One file holds the part (NURBS surfaces: the machined one and its neighbours, e.g. the two impeller
 blades), the CC paths (iso-parameter lines of the machined surface), the tool (by name from the tool
 library), the machine for the NC output, the angle limits and the planner settings. Errors go
-through :func:`analysis.config.validate`, so they name file, line, field, value and unit::
+through :func:`analysis.validation.validate`, so they name file, line, field, value and unit::
 
     configs/orient/impeller.toml:12: limits.alpha_deg = (0.0, 95.0): ... (deg)
 """
@@ -19,13 +19,11 @@ from pydantic import Field, model_validator
 from analysis.config import (
     EndMill,
     MachineConfig,
-    Model,
     get_tool,
     load_machine,
-    read_toml,
-    validate,
 )
 from analysis.errors import ConfigError
+from analysis.validation import Model, read_toml, validate
 from planning.surface import NurbsSurface
 
 

@@ -17,7 +17,8 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from analysis.config import EndMill, Model, _find_line, get_tool, load_model
+from analysis.config import EndMill, get_tool
+from analysis.validation import Model, find_line, load_model
 from analysis.errors import ConfigError
 from planning.surface import FergusonSurface
 
@@ -155,7 +156,7 @@ class Part:
         except ConfigError as exc:
             line = None
             if self.path is not None and self.path.exists():
-                line = _find_line(self.path.read_text(encoding="utf-8"), loc)
+                line = find_line(self.path.read_text(encoding="utf-8"), loc)
             at = f"{self.where}:{line}" if line else self.where
             raise ConfigError(f"{at}: {'.'.join(loc)} = {name!r}: {exc}") from None
 

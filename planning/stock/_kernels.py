@@ -1,7 +1,7 @@
 """Swept-envelope kernels of the Z-map: the lowest cutter point over grid points for one move.
 
-Private to :mod:`planning.stock.zmap`. Every function works on one move from tool tip ``A`` to tool tip
-``B`` and on a rectangular patch of grid points given as broadcastable offsets from ``A``:
+Private to :mod:`planning.stock.zmap`. Every function works on one move from tool tip ``A`` to tool
+tip ``B`` and on a rectangular patch of grid points given as broadcastable offsets from ``A``:
 ``qx`` shape (1, m) and ``qy`` shape (n, 1), mm. They return the envelope, shape (n, m), mm, the
 lowest height any point of the cutter reaches above each grid point during the move, ``+inf`` where
 the cutter never passes over the point.

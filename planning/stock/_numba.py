@@ -1,4 +1,5 @@
-"""Compiled Z-map kernel (numba), used by :meth:`planning.stock.zmap.ZMap.cut_pieces` when available.
+"""Compiled Z-map kernel (numba), used by :meth:`planning.stock.zmap.ZMap.cut_pieces` when
+available.
 
 Why: the numpy kernel evaluates each move on its footprint patch with ~10-20 whole-array
 operations; for the short blocks of real roughing programs (a patch of ~2,000 points) the per-call

@@ -49,12 +49,10 @@ from pydantic import Field
 from analysis.config import (
     EndMill,
     MachineConfig,
-    Model,
     get_tool,
     load_machine,
-    read_toml,
-    validate,
 )
+from analysis.validation import Model, read_toml, validate
 from planning.errors import PlanningError
 from planning.nc import DWELL, LINE, RAPID, Motion, segment_time_s
 from planning.nc.arcs import PLANE_AXES, arc_radius_mm, linearize, segment_length_mm

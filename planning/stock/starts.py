@@ -1,4 +1,5 @@
-"""Starting stocks from specs and files (private to planning.stock.machining, which re-exports them).
+"""Starting stocks from specs and files (private to :mod:`planning.stock.machining`, which
+re-exports them).
 
 Spec: ``box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP`` (mm), a mesh file (``.stl``, ``.obj``, ``.ply``,
 ``.off``), or a TOML file with a ``[stock]`` table (see :mod:`planning.stock.machining`).
@@ -12,7 +13,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from analysis.config import Model, read_toml, validate
+from analysis.validation import Model, read_toml, validate
 from planning.errors import PlanningError
 from planning.nc import Motion, bounding_box
 from planning.stock.zmap import Cutter, ZMap

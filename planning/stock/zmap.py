@@ -32,8 +32,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from planning.errors import PlanningError
 from planning.stock import _kernels as _k
-from planning.stock import _mesh as _zmap_mesh
-from planning.stock import _numba as _zmap_numba
+from planning.stock import _mesh, _numba
 
 _KIND_CODES = {"flat": _k.FLAT, "ball": _k.BALL, "bull": _k.BULL}
 #: grid points beyond this count are refused (8 bytes each: 400 MB)
@@ -273,7 +272,7 @@ class ZMap:
         x0, y0 = lo[0] - margin_mm, lo[1] - margin_mm
         nx = cls._grid_size(hi[0] - lo[0] + 2 * margin_mm, spacing_mm, "x")
         ny = cls._grid_size(hi[1] - lo[1] + 2 * margin_mm, spacing_mm, "y")
-        h = _zmap_mesh.rasterise_top(np.asarray(mesh.triangles), x0, y0, spacing_mm, nx, ny, bottom)
+        h = _mesh.rasterise_top(np.asarray(mesh.triangles), x0, y0, spacing_mm, nx, ny, bottom)
         return cls(np.maximum(h, bottom), x0, y0, spacing_mm, bottom)
 
     def copy(self) -> ZMap:
@@ -404,13 +403,13 @@ class ZMap:
         removed = np.zeros(len(p0))
         kind = _KIND_CODES[cutter.kind]
         r, rc = cutter.radius_mm, cutter.corner_radius_mm
-        if self.compiled and _zmap_numba.AVAILABLE and len(p0):
+        if self.compiled and _numba.AVAILABLE and len(p0):
             pts = np.ascontiguousarray(np.concatenate([p0, p1], axis=1))
             drop = np.zeros(len(p0)) if depth_mm is None else depth_mm
             step = 16384 if progress is not None else len(p0)
             for a in range(0, len(p0), step):
                 b = min(a + step, len(p0))
-                _zmap_numba.cut_pieces(
+                _numba.cut_pieces(
                     self.heights_mm, self.x0_mm, self.y0_mm, self.spacing_mm, self.bottom_mm,
                     kind, float(r), float(rc), pts[a:b], removed[a:b], drop[a:b],
                 )  # fmt: skip

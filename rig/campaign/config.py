@@ -30,17 +30,15 @@ from analysis.config import (
     FaceMill,
     MachineConfig,
     Material,
-    Model,
     RigConfig,
     config_dir,
     get_material,
     get_tool,
     load_machine,
     load_rig,
-    read_toml,
-    validate,
 )
 from analysis.errors import ConfigError
+from analysis.validation import Model, read_toml, validate
 
 FloatOrList = float | list[float]
 

@@ -129,8 +129,8 @@ def generate_program(
 
 
 def campaign_rule(spec: object, tool: EndMill, name: str = "campaign"):  # noqa: ANN201
-    """The campaign's ``[feed_rule]`` as an ``analysis.rules.rule.FeedRule`` (reference load: a slot of
-    ``reference_depth_mm`` with the campaign's tool, seed 001's load definition)."""
+    """The campaign's ``[feed_rule]`` as an ``analysis.rules.rule.FeedRule`` (reference load: a slot
+    of ``reference_depth_mm`` with the campaign's tool, seed 001's load definition)."""
     from analysis.rules import derive_rule, slot_load_percent
 
     fr = spec.feed_rule  # type: ignore[attr-defined]

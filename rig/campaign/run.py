@@ -1,7 +1,7 @@
 """One run of a campaign: arm the DAQ, zero, stream, watch the suspenders, stop, store.
 
-The run talks to the rig only through a :class:`RigSession` (simulated: :mod:`rig.sim.session`, real:
-:mod:`rig.campaign.real`), so the same sequence runs on both::
+The run talks to the rig only through a :class:`RigSession` (simulated: :mod:`rig.sim.session`,
+real: :mod:`rig.campaign.real`), so the same sequence runs on both::
 
     daq.start(tap)            tap = the run writer behind a sink that watches forces and events
     zero                      mean of the first ``zero_s`` of samples (spindle off, no load)

@@ -12,8 +12,8 @@ The chain per channel (Kistler dynamometer + 5070/5080-style charge amplifier)::
 cancels and V = F_meas / R), ``R`` the amplifier's scale in N/V (mechanical units per volt), ``V0``
 the output at zero load after reset/operate and ``d`` the amplifier's linear drift (V/s). The
 inverse, applied to recorded volts, is the affine map ``force = M @ (V - V0 - d (t - t_zero))`` with
-``M = diag(sign) @ inv(C) @ diag(R * S_amp / S)``; ``rig.log.writer`` stores M, V0, t_zero and d in the
-run file (``analysis.runs.file`` documents where) and the raw volts are kept beside it.
+``M = diag(sign) @ inv(C) @ diag(R * S_amp / S)``; ``rig.log.writer`` stores M, V0, t_zero and d in
+the run file (``analysis.runs.file`` documents where) and the raw volts are kept beside it.
 """
 
 from __future__ import annotations

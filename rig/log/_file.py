@@ -1,4 +1,5 @@
-"""Creating a run file for :class:`rig.log.writer.RunWriter`: every object before SWMR is switched on.
+"""Creating a run file for :class:`rig.log.writer.RunWriter`: every object before SWMR is
+switched on.
 
 The layout itself is documented in :mod:`analysis.runs.file`; this module only builds it.
 """

@@ -7,9 +7,9 @@ last cutting revolution); the program's feed-move time from ``planning.nc``. The
 ``cv_ratio`` = CV(adjusted) / CV(constant) (seed 001: force nearly uniform; target <= 1/3) and
 ``time_saving_pct`` = 1 - t(adjusted) / t(constant) (seed 001: about 40 %; target >= 30 %).
 
-Beside the measured figures, the bound of :mod:`analysis.forces.evenness` from the material's end-mill
-coefficients: the least CV ratio any feeds within the rule's limits reach at the measured time
-saving and at the target's, the most time saving at the target CV ratio, and the least maximum
+Beside the measured figures, the bound of :mod:`analysis.forces.evenness` from the material's
+end-mill coefficients: the least CV ratio any feeds within the rule's limits reach at the measured
+time saving and at the target's, the most time saving at the target CV ratio, and the least maximum
 feed at which both targets are reachable. The bound says whether a miss is the post-processor's
 or the feed limits'.
 """

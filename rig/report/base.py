@@ -1,6 +1,7 @@
 """What every report section shares: the loaded runs of a campaign folder, a section, a report,
-and Markdown tables. The writer is :mod:`rig.report.write`; the sections (:mod:`rig.report.facemill`,
-:mod:`rig.report.feedrule`, :mod:`rig.report.afc`) import this module only.
+and Markdown tables. The writer is :mod:`rig.report.write`; the sections
+(:mod:`rig.report.facemill`, :mod:`rig.report.feedrule`, :mod:`rig.report.afc`) import this module
+only.
 """
 
 from __future__ import annotations

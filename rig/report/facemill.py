@@ -53,7 +53,7 @@ def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section
     spec = campaign.spec.analysis
     ident = [lr for lr in runs if lr.group in spec.identify_groups]
     valid = [lr for lr in runs if lr.group in spec.validate_groups]
-    # The library's steady window (analysis.runs.steady.IDENTIFY_TOLERANCE), as `cutlab analyze forces`.
+    # The library's steady window (analysis.runs.IDENTIFY_TOLERANCE), as `cutlab analyze forces`.
     fit = fit_facemill_runs([force_run(lr) for lr in ident], campaign.tool,
                             campaign.rig.dynamometer)  # fmt: skip
     truth = _truth(runs)

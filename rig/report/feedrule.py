@@ -1,9 +1,9 @@
 """Report section for seed 001 4.2: the base feed from a feed sweep and the derived feed rule.
 
-The sweep's runs go to :func:`analysis.rules.basefeed.find_base_feed` (force-slope and vibration jumps);
-the rule is :func:`analysis.rules.rule.derive_rule` with the campaign's ``[feed_rule]`` min and max,
-the base feed found (the configured one if the sweep shows none) and the reference load of the
-sweep's slot. The rule is written as a TOML file the post-processor reads.
+The sweep's runs go to :func:`analysis.rules.basefeed.find_base_feed` (force-slope and vibration
+jumps); the rule is :func:`analysis.rules.rule.derive_rule` with the campaign's ``[feed_rule]`` min
+and max, the base feed found (the configured one if the sweep shows none) and the reference load of
+the sweep's slot. The rule is written as a TOML file the post-processor reads.
 """
 
 from __future__ import annotations

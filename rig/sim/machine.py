@@ -9,9 +9,9 @@ spindle angle (:mod:`rig.sim._machine_timeline`), which inserts or flute element
 with the material's *true* coefficients, and passes the summed force through the dynamometer's
 modes and the charge amplifier (:mod:`rig.sim._machine_signal`).
 
-The stock is the test block (:class:`planning.stock.block.SteppedBlock`) for a face mill's single pass, or
-a ``planning.stock.zmap.ZMap`` lowered by every completed segment for end mills, so a later pass sees what
-an earlier one left.
+The stock is the test block (:class:`planning.stock.block.SteppedBlock`) for a face mill's single
+pass, or a ``planning.stock.zmap.ZMap`` lowered by every completed segment for end mills, so a later
+pass sees what an earlier one left.
 
 Notes
 -----
