@@ -1,5 +1,6 @@
-"""Force coefficients from recorded runs: reduce each run to its revolution average, fit the face-mill
-or end-mill model, validate by prediction; runs from HDF5 files or DynoWare / CSV exports.
+"""Force coefficients from recorded runs: reduce each run to its revolution average, fit the
+face-mill or end-mill model, validate by prediction; runs from HDF5 files or DynoWare / CSV
+exports (:func:`fit_files` does all of it from files).
 """
 
 from analysis.identify._common import CI_NOTE
@@ -12,6 +13,7 @@ from analysis.identify.facemill import (
     reduce_run,
     reduce_run_file,
 )
+from analysis.identify.files import fit_files, reduce_files, tool_teeth
 from analysis.identify.importers import import_run, merge_conditions, read_force_table
 from analysis.identify.validate import compare_runs, plot_comparison, plot_waveforms, predicted_mean
 
@@ -23,12 +25,15 @@ __all__ = [
     "fit_endmill",
     "fit_facemill",
     "fit_facemill_runs",
+    "fit_files",
     "import_run",
     "merge_conditions",
     "plot_comparison",
     "plot_waveforms",
     "predicted_mean",
     "read_force_table",
+    "reduce_files",
     "reduce_run",
     "reduce_run_file",
+    "tool_teeth",
 ]

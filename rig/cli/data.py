@@ -7,53 +7,10 @@ cutlab data plot run.h5 -o forces.png
 from __future__ import annotations
 
 import argparse
-from typing import Any
-
-
-def run_summary(path: str) -> dict[str, Any]:
-    """What `data info` reports, as a dict (JSON-able)."""
-    from analysis.runs import LOSS_KINDS, load_run
-
-    run = load_run(path, samples=False)
-    ev = run.events
-    gaps = ev[ev["kind"].isin(LOSS_KINDS) & (ev["lost"] > 0)]
-    counts = ev["kind"].value_counts().to_dict()
-    return {
-        "file": str(run.path),
-        "status": run.status,
-        "reason": run.reason,
-        "complete": run.complete,
-        "channels": list(run.channel_names),
-        "physical_channels": list(run.physical_channels),
-        "sample_format": run.sample_format,
-        "rate_hz": run.rate_hz,
-        "samples_stored": run.samples_stored,
-        "samples_acquired": run.samples_acquired,
-        "samples_lost": run.samples_lost,
-        "duration_s": run.duration_s,
-        "t0_s": run.t0_s,
-        "events": {str(k): int(v) for k, v in counts.items()},
-        "gaps": [
-            {
-                "kind": r.kind,
-                "sample": int(r.sample),
-                "lost": int(r.lost),
-                "time_s": float(r.sample / run.rate_hz),
-                "message": r.message,
-            }
-            for r in gaps.itertuples()
-        ],
-        "nc_blocks": len(run.blocks),
-        "program": run.program_info,
-        "conditions": run.conditions,
-        "calibration_id": (
-            run.calibration.attrs.get("calibration_id") if run.calibration else None
-        ),
-        "software_version": run.software_version,
-    }
 
 
 def _info(args: argparse.Namespace) -> int:
+    from analysis.runs import run_summary
     from rig.cli._common import print_json, print_table
 
     s = run_summary(args.file)
@@ -66,22 +23,9 @@ def _info(args: argparse.Namespace) -> int:
             f"{s['samples_stored']} samples per channel = {s['duration_s']:.3f} s up to its last "
             "flush"
         )
-    rows = [
-        {"quantity": k, "value": s[k]}
-        for k in (
-            "status",
-            "reason",
-            "sample_format",
-            "rate_hz",
-            "samples_stored",
-            "samples_acquired",
-            "samples_lost",
-            "duration_s",
-            "nc_blocks",
-            "calibration_id",
-            "software_version",
-        )
-    ]
+    keys = ("status reason sample_format rate_hz samples_stored samples_acquired samples_lost "
+            "duration_s nc_blocks calibration_id software_version").split()  # fmt: skip
+    rows = [{"quantity": k, "value": s[k]} for k in keys]
     rows.insert(1, {"quantity": "channels", "value": " ".join(s["channels"])})
     rows.append(
         {"quantity": "events", "value": ", ".join(f"{k} {v}" for k, v in s["events"].items())}

@@ -1,0 +1,53 @@
+"""What a run file holds, as one JSON-able dict (`cutlab data info`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from analysis.runs.file import LOSS_KINDS, load_run
+
+__all__ = ["run_summary"]
+
+
+def run_summary(path: str | Path) -> dict[str, Any]:
+    """Status, channels, rate, sample counts, duration, event counts, data gaps (with their time
+    in s), NC blocks, program, conditions, calibration and software version of a run file; the
+    samples are not read."""
+    run = load_run(path, samples=False)
+    ev = run.events
+    gaps = ev[ev["kind"].isin(LOSS_KINDS) & (ev["lost"] > 0)]
+    counts = ev["kind"].value_counts().to_dict()
+    return {
+        "file": str(run.path),
+        "status": run.status,
+        "reason": run.reason,
+        "complete": run.complete,
+        "channels": list(run.channel_names),
+        "physical_channels": list(run.physical_channels),
+        "sample_format": run.sample_format,
+        "rate_hz": run.rate_hz,
+        "samples_stored": run.samples_stored,
+        "samples_acquired": run.samples_acquired,
+        "samples_lost": run.samples_lost,
+        "duration_s": run.duration_s,
+        "t0_s": run.t0_s,
+        "events": {str(k): int(v) for k, v in counts.items()},
+        "gaps": [
+            {
+                "kind": r.kind,
+                "sample": int(r.sample),
+                "lost": int(r.lost),
+                "time_s": float(r.sample / run.rate_hz),
+                "message": r.message,
+            }
+            for r in gaps.itertuples()
+        ],
+        "nc_blocks": len(run.blocks),
+        "program": run.program_info,
+        "conditions": run.conditions,
+        "calibration_id": (
+            run.calibration.attrs.get("calibration_id") if run.calibration else None
+        ),
+        "software_version": run.software_version,
+    }
