@@ -1,9 +1,11 @@
 """Collision-free 5-axis tool orientation (seed 002): the tool system, the orientation search,
-the check between points, and the machine's inverse kinematics to NC.
+the check between points, the machine's inverse kinematics to NC, and the whole `plan orient`
+job.
 """
 
 from planning.orient.check import verify
 from planning.orient.config import load_orient
+from planning.orient.job import run_orient
 from planning.orient.kinematics import inverse, nc_program, write_cl_csv
 from planning.orient.planner import energy_map, plan_orientation, require_feasible
 from planning.orient.tool import ToolSystem
@@ -16,6 +18,7 @@ __all__ = [
     "nc_program",
     "plan_orientation",
     "require_feasible",
+    "run_orient",
     "verify",
     "write_cl_csv",
 ]

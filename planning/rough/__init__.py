@@ -1,9 +1,10 @@
 """Z-level roughing by bisection (seed 000): the part, the levels, the tool paths and their
-G-code, the check of a program against the part, and plots.
+G-code, the check of a program against the part, plots, and the whole `plan rough` job.
 """
 
 from planning.rough.check import check_program
 from planning.rough.gcode import plan_motion, plan_program
+from planning.rough.job import comparison_pct, run_rough, shorter_pct
 from planning.rough.part import Part, load_part
 from planning.rough.planner import RoughPlan, RoughPlanner
 
@@ -12,7 +13,10 @@ __all__ = [
     "RoughPlan",
     "RoughPlanner",
     "check_program",
+    "comparison_pct",
     "load_part",
     "plan_motion",
     "plan_program",
+    "run_rough",
+    "shorter_pct",
 ]
