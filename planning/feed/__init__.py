@@ -1,8 +1,29 @@
 """The load-based feed post-processor (seed 001): feeds from a rule by the predicted cutting load,
-blocks split where the load changes, and its report.
+blocks split where the load changes, and its report; the ``plan feed`` / ``plan simulate`` jobs.
 """
 
+from planning.feed.job import (
+    Job,
+    end_mill,
+    feed_post_options,
+    feed_program,
+    load_job,
+    resolve_rule,
+    simulate_job,
+)
 from planning.feed.post import FeedPostOptions, FeedPostResult, post_process
 from planning.feed.report import write_report
 
-__all__ = ["FeedPostOptions", "FeedPostResult", "post_process", "write_report"]
+__all__ = [
+    "FeedPostOptions",
+    "FeedPostResult",
+    "Job",
+    "end_mill",
+    "feed_post_options",
+    "feed_program",
+    "load_job",
+    "post_process",
+    "resolve_rule",
+    "simulate_job",
+    "write_report",
+]

@@ -1,0 +1,198 @@
+"""What ``cutlab plan feed`` and ``cutlab plan simulate`` do (seed 001), from files to written
+files and plain data.
+
+* :func:`feed_program` (``cutlab plan feed IN.nc --rules RULE [--machine M] [--tool T]
+  [--stock S] -o OUT.nc``) computes each block's cutting load on a Z-map, picks feeds from the
+  rule (a rule file, or a rule-base name / id), splits blocks where the load changes, clamps to
+  the machine, and writes OUT.nc with only F words and splits changed, plus a report (CSV, PNGs)
+  next to it.
+* :func:`simulate_job` (``cutlab plan simulate IN.nc|PLAN.toml [--tool T] [--stock S]
+  --png stock.png``): virtual machining alone (removed volume, time, holder contacts, final
+  stock PNG). A plan file runs several programs, each with its tool, on the same stock.
+
+Every input problem (missing tool, a rule with gaps, a program outside the stock or the machine's
+travel, an arc the machine cannot cut) is reported before any file is written.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from analysis.config import EndMill, MachineConfig, get_material, get_tool, load_machine, load_tools
+from analysis.rules import FeedRule, RuleBase, load_rule
+from planning.errors import PlanningError
+from planning.feed.post import FeedPostOptions, FeedPostResult, post_process
+from planning.feed.report import write_report
+from planning.nc import Motion, Program, interpret
+from planning.stock import Cutter, ZMap, default_stock, load_stock, save_stock_png
+from planning.stock.machining import Operation, OperationPlan, OperationResult, load_plan, summary
+
+Progress = Callable[[int, int], None]  # (pieces done, pieces in all)
+
+
+@dataclass(frozen=True)
+class Job:
+    """One program ready to machine: its machine, end mill, text, motion and starting stock."""
+
+    machine: MachineConfig
+    tool: EndMill
+    program: Program
+    motion: Motion
+    stock: ZMap
+
+
+def end_mill(name: str | None) -> EndMill:
+    """The end mill ``name`` of configs/tools.toml (the Z-map models end mills only)."""
+    if not name:
+        known = ", ".join(sorted(k for k, t in load_tools().items() if isinstance(t, EndMill)))
+        raise PlanningError(f"--tool is required (an end mill of configs/tools.toml): {known}")
+    tool = get_tool(name)
+    if not isinstance(tool, EndMill):
+        raise PlanningError(f"tool '{name}' is a {tool.kind}: the Z-map models end mills only")
+    return tool
+
+
+def load_job(
+    program_path: str | Path,
+    machine: str | Path,
+    tool_name: str | None,
+    stock_spec: str | None = None,
+    spacing_mm: float | None = None,
+) -> Job:
+    """Read and interpret a program (cutter compensation refused) for ``machine`` and the end
+    mill ``tool_name``; the stock from ``stock_spec`` (see :func:`load_stock`), else a box over
+    the program's feed moves with its top at Z0."""
+    m = load_machine(machine)
+    tool = end_mill(tool_name)
+    program = Program.read(program_path)
+    motion = interpret(program, m, file=str(program_path), cutter_comp="refuse")
+    cutter = Cutter.from_tool(tool)
+    if stock_spec:
+        stock = load_stock(stock_spec, spacing_mm)
+    else:
+        try:
+            stock = default_stock(motion, cutter, spacing_mm)
+        except PlanningError as exc:
+            raise PlanningError(f"{program_path}: {exc}") from None
+    return Job(m, tool, program, motion, stock)
+
+
+def resolve_rule(spec: str, db: str | Path | None = None) -> FeedRule:
+    """A feed rule from a file (an existing path, or any ``.toml``), else by rule name or group
+    id in the rule base ``db`` (default from configs/lab.toml; it must exist)."""
+    p = Path(spec)
+    if p.exists() or p.suffix == ".toml":
+        return load_rule(p)
+    with RuleBase(db, create=False) as base:
+        return base.find(spec).rule
+
+
+def feed_post_options(
+    *,
+    min_piece_mm: float = 5.0,
+    split: bool = True,
+    check_holder: bool = True,
+    force_limit_n: float | None = None,
+    material: str | None = None,
+    spindle_rpm: float | None = None,
+) -> FeedPostOptions:
+    """The post-processor's options; a force limit needs a ``material`` (configs/materials.toml)
+    with end-mill force coefficients."""
+    if force_limit_n is not None and not material:
+        raise PlanningError("--force-limit needs --material (its [endmill] coefficients)")
+    coef = None
+    if material:
+        coef = get_material(material).endmill
+        if coef is None:
+            raise PlanningError(f"material '{material}' has no [endmill] coefficients")
+    return FeedPostOptions(
+        min_piece_mm=min_piece_mm,
+        split=split,
+        check_holder=check_holder,
+        force_limit_n=force_limit_n,
+        coefficients=coef,
+        spindle_rpm=spindle_rpm,
+    )
+
+
+def feed_program(
+    program_path: str | Path,
+    rule_spec: str,
+    output: str | Path,
+    *,
+    db: str | Path | None = None,
+    machine: str | Path = "ace-h63",
+    tool_name: str | None = None,
+    stock_spec: str | None = None,
+    spacing_mm: float | None = None,
+    report_dir: str | Path | None = None,
+    progress: Progress | None = None,
+    warn: Callable[[str], None] | None = None,
+    **options: Any,
+) -> tuple[FeedPostResult, dict[str, Any]]:
+    """``cutlab plan feed``: feeds of a program set by the rule's predicted cutting load,
+    written to ``output`` with its report (``report_dir``, default ``output``'s folder).
+
+    ``options`` go to :func:`feed_post_options`; ``warn`` hears a rule derived with another
+    tool. Returns the result and its summary (with the written paths) as plain data.
+    """
+    rule = resolve_rule(rule_spec, db)
+    job = load_job(program_path, machine, tool_name, stock_spec, spacing_mm)
+    if rule.tool and rule.tool != tool_name and warn is not None:
+        warn(
+            f"warning: rule '{rule.name}' was derived with tool '{rule.tool}', not "
+            f"'{tool_name}': its loads (relative to that tool's size) do not carry over"
+        )
+    opts = feed_post_options(**options)
+    result = post_process(
+        job.program, job.motion, job.tool, rule, job.stock, job.machine, opts, progress=progress
+    )
+    out = Path(output)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    result.program.write(out)
+    report = write_report(result, report_dir or out.parent, out.stem)
+    summ = result.summary()
+    summ.update({"output": str(output), "report": {k: str(v) for k, v in report.items()}})
+    return result, summ
+
+
+def simulate_job(
+    program_path: str | Path,
+    *,
+    machine: str | Path = "ace-h63",
+    tool_name: str | None = None,
+    stock_spec: str | None = None,
+    spacing_mm: float | None = None,
+    check_holder: bool = True,
+    png: str | Path | None = None,
+    progress: Progress | None = None,
+) -> tuple[list[OperationResult], dict[str, Any]]:
+    """``cutlab plan simulate``: virtual machining of an operation plan (a ``.toml``: its own
+    stock, machine and tools) or of one program with ``tool_name`` on its stock; the final
+    stock's picture to ``png``. Returns the operations' results and the summary as plain data.
+    """
+    if Path(program_path).suffix.lower() == ".toml":
+        plan, _ = load_plan(program_path, spacing_mm)
+    else:
+        job = load_job(program_path, machine, tool_name, stock_spec, spacing_mm)
+        op = Operation(Path(program_path).stem, job.motion, job.tool, tool_name, str(program_path))
+        plan = OperationPlan(job.stock, [op], job.machine)
+    start_volume = plan.stock.volume_mm3()
+    cb = None if progress is None else (lambda name, done, total: progress(done, total))
+    results = plan.run(check_holder=check_holder, progress=cb)
+    rows = [summary(r) for r in results]
+    if png:
+        title = f"stock after {', '.join(r['operation'] for r in rows)}"
+        save_stock_png(plan.stock, png, title)
+    out = {
+        "operations": rows,
+        "stock_volume_before_mm3": start_volume,
+        "stock_volume_after_mm3": plan.stock.volume_mm3(),
+        "removed_mm3": sum(r["removed_mm3"] for r in rows),
+        "time_s": sum(r["time_s"] for r in rows),
+        "png": str(png) if png else None,
+    }
+    return results, out
