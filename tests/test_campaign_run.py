@@ -18,7 +18,7 @@ import pytest
 
 from analysis.errors import CutlabError
 from analysis.runs import file as rf
-from rig.campaign import load_campaign, run_campaign
+from rig.campaign import campaign_status, load_campaign, run_campaign
 
 DATA = Path(__file__).parent / "data" / "campaign"
 ROOT = Path(__file__).resolve().parent.parent
@@ -58,6 +58,13 @@ def test_campaign_runs_records_everything_and_resumes(tmp_path: Path) -> None:
     # Running again skips what is finished.
     again = run_campaign(load_campaign(_config(tmp_path)), progress=False)
     assert all(r.skipped for r in again.runs) and again.ok
+
+
+def test_status_of_a_campaign_that_has_not_run_lists_every_run_missing(tmp_path: Path) -> None:
+    c = load_campaign(_config(tmp_path))
+    st = campaign_status(c, tmp_path / "elsewhere")
+    assert st["campaign"] == c.name and st["folder"] == str(tmp_path / "elsewhere" / c.name)
+    assert [(r["run"], r["status"]) for r in st["runs"]] == [(0, "missing"), (1, "missing")]
 
 
 def test_controller_that_stops_answering_fails_the_run_and_resume_reruns_it(

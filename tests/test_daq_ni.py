@@ -307,6 +307,19 @@ def test_channel_names_must_match() -> None:
         NiDaq(_rig(), ("Fx", "Fy"))
 
 
+def test_from_rig_takes_the_command_overrides_and_the_calibration() -> None:
+    """What `cutlab daq record` (no --sim) builds: --rate-hz and --channels over the config."""
+    rig = load_rig()
+    daq = NiDaq.from_rig(rig, rate_hz=5000.0, channels=len(rig.daq.channels))
+    assert daq.config.rate_hz == 5000.0 and daq.info.channel_names == ("Fx", "Fy", "Fz")
+    assert daq.calibration is not None and daq.run_clock is daq.clock
+    assert daq.rig_meta == {"daq": daq.config.model_dump(), "dynamometer": rig.dynamometer.model,
+                            "calibration_id": rig.dynamometer.calibration_id}  # fmt: skip
+    assert NiDaq.from_rig(rig).config == rig.daq
+    with pytest.raises(DaqError, match="--channels = 9: where.toml lists only 3 daq.channels"):
+        NiDaq.from_rig(rig, channels=9, where="where.toml")
+
+
 def test_real_nidaqmx_without_driver_is_reported() -> None:
     """On a machine without NI-DAQmx (CI) the real package's error becomes our clear one."""
     daq = NiDaq(_rig())

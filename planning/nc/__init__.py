@@ -34,7 +34,8 @@ Modules: :mod:`~planning.nc.motion` (Motion, kinds), :mod:`~planning.nc.interpre
 :mod:`~planning.nc.state` (ModalState), :mod:`~planning.nc.program` (Program, editing),
 :mod:`~planning.nc.edit` (feed edits, split moves), :mod:`~planning.nc.writer`,
 :mod:`~planning.nc.arcs`, :mod:`~planning.nc.canned`, :mod:`~planning.nc.stats`,
-:mod:`~planning.nc.restart`, :mod:`~planning.nc.plot`, :mod:`~planning.nc.errors`.
+:mod:`~planning.nc.restart`, :mod:`~planning.nc.plot`, :mod:`~planning.nc.check` (a program
+file checked as ``cutlab nc`` shows it), :mod:`~planning.nc.errors`.
 """
 
 from planning.nc._codes import INCH_MM
@@ -47,6 +48,7 @@ from planning.nc.arcs import (
     segment_length_mm,
     segment_travel,
 )
+from planning.nc.check import CheckedProgram, check_program
 from planning.nc.errors import NCError, NCWarning
 from planning.nc.interpreter import Interpreter
 from planning.nc.motion import (
@@ -77,6 +79,7 @@ __all__ = [
     "LINE",
     "RAPID",
     "CannedCycle",
+    "CheckedProgram",
     "Interpreter",
     "Linearized",
     "ModalState",
@@ -90,6 +93,7 @@ __all__ = [
     "arc_radius_mm",
     "arc_sweep_rad",
     "bounding_box",
+    "check_program",
     "interpret",
     "interpret_file",
     "linearize",

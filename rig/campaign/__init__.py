@@ -4,7 +4,9 @@ rig, the manifest of what was done.
 
 from rig.campaign.config import load_campaign
 from rig.campaign.runner import (
+    CampaignResult,
     campaign_folder,
+    campaign_status,
     dry_run,
     mode_warnings,
     plan_campaign,
@@ -13,7 +15,9 @@ from rig.campaign.runner import (
 )
 
 __all__ = [
+    "CampaignResult",
     "campaign_folder",
+    "campaign_status",
     "dry_run",
     "load_campaign",
     "mode_warnings",

@@ -58,6 +58,7 @@ __all__ = [
     "PlannedRun",
     "RunRecord",
     "campaign_folder",
+    "campaign_status",
     "dry_run",
     "load_campaign",
     "plan_campaign",
@@ -104,12 +105,37 @@ class CampaignResult:
     def ok(self) -> bool:
         return not self.stopped and all(r.status == rf.STATUS_SUCCESS for r in self.runs)
 
+    def summary(self, report: dict[str, Any] | None = None) -> dict[str, Any]:
+        """Name, folder, ok, stopped, status counts, wall time (s), every run, and ``report``
+        (the report's summary, None when none was written)."""
+        return {
+            "campaign": self.name,
+            "folder": str(self.folder),
+            "ok": self.ok,
+            "stopped": self.stopped,
+            "counts": self.counts,
+            "wall_s": round(self.wall_s, 2),
+            "runs": [r.__dict__ for r in self.runs],
+            "report": report,
+        }
+
 
 def campaign_folder(campaign: Campaign, out_root: str | Path | None = None) -> Path:
     root = Path(out_root) if out_root is not None else Path(campaign.spec.campaign.output_dir)
     if not root.is_absolute() and out_root is None:
         root = Path.cwd() / root
     return root / campaign.name
+
+
+def campaign_status(campaign: Campaign, out_root: str | Path | None = None) -> dict[str, Any]:
+    """Where the campaign's folder is and each planned run's status and reason there (a run
+    without a file is ``missing``)."""
+    folder = campaign_folder(campaign, out_root)
+    rows = []
+    for p in plan_campaign(campaign):
+        st, reason = run_status(folder / "runs" / f"{p.file_stem}.h5")
+        rows.append({"run": p.test.index, "name": p.test.name, "status": st, "reason": reason})
+    return {"campaign": campaign.name, "folder": str(folder), "runs": rows}
 
 
 def _dialect(campaign: Campaign) -> str:
@@ -415,6 +441,11 @@ class DryRun:
     @property
     def ok(self) -> bool:
         return not self.problems
+
+    def as_dict(self) -> dict[str, Any]:
+        """Every field, the expected machine time rounded to 0.1 s, and ``ok``."""
+        return asdict(self) | {"expected_machine_s": round(self.expected_machine_s, 1),
+                               "ok": self.ok}  # fmt: skip
 
 
 def dry_run(campaign: Campaign) -> DryRun:

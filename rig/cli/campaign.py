@@ -9,6 +9,7 @@ cutlab campaign report facemill-ploughing         # (re)write the report folder
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from rig.cli._common import print_json, print_table, status
 
@@ -27,75 +28,47 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--json", action="store_true", help="machine-readable summary on stdout")
     r.add_argument("--quiet", action="store_true", help="no progress display")
     r.set_defaults(func=_run)
-
     s = csub.add_parser("status", help="each run's status and reason")
-    s.add_argument("config")
-    s.add_argument("--out")
-    s.add_argument("--json", action="store_true")
-    s.set_defaults(func=_status)
-
     rep = csub.add_parser("report", help="analyse a campaign's runs and write its report folder")
-    rep.add_argument("config")
-    rep.add_argument("--out")
-    rep.add_argument("--json", action="store_true")
-    rep.set_defaults(func=_report)
+    for q, func in ((s, _status), (rep, _report)):
+        q.add_argument("config")
+        q.add_argument("--out")
+        q.add_argument("--json", action="store_true")
+        q.set_defaults(func=func)
+
+
+def _dry_run(campaign, as_json: bool) -> int:
+    from rig.campaign import dry_run
+
+    d = dry_run(campaign)
+    if as_json:
+        print_json(d.as_dict())
+        return 0 if d.ok else 2
+    print(f"campaign {d.campaign}: {d.tests} tests, programs checked, rig = {d.rig}")
+    print(f"expected machine time: {d.expected_machine_s / 60:.1f} min")
+    for prefix, lines in (("ok", d.hardware), ("PROBLEM", d.problems), ("warning", d.warnings)):
+        for line in lines:
+            print(f"  {prefix}: {line}")
+    return 0 if d.ok else 2
 
 
 def _run(args: argparse.Namespace) -> int:
-    from rig.campaign import dry_run, load_campaign, run_campaign
+    from rig.campaign import load_campaign, run_campaign
 
     campaign = load_campaign(args.config)
     if args.dry_run:
-        d = dry_run(campaign)
-        out = {
-            "campaign": d.campaign,
-            "rig": d.rig,
-            "tests": d.tests,
-            "programs_checked": d.programs_checked,
-            "expected_machine_s": round(d.expected_machine_s, 1),
-            "hardware": d.hardware,
-            "problems": d.problems,
-            "warnings": d.warnings,
-            "ok": d.ok,
-        }
-        if args.json:
-            print_json(out)
-        else:
-            print(f"campaign {d.campaign}: {d.tests} tests, programs checked, rig = {d.rig}")
-            print(f"expected machine time: {d.expected_machine_s / 60:.1f} min")
-            for h in d.hardware:
-                print(f"  ok: {h}")
-            for p in d.problems:
-                print(f"  PROBLEM: {p}")
-            for w in d.warnings:
-                print(f"  warning: {w}")
-        return 0 if d.ok else 2
+        return _dry_run(campaign, args.json)
     result = run_campaign(campaign, out_root=args.out, progress=not args.quiet)
     report = None
     if not args.no_report and not result.stopped:
         from rig.report import write_report
 
         report = write_report(result.folder)
-    summary = {
-        "campaign": result.name,
-        "folder": str(result.folder),
-        "ok": result.ok,
-        "stopped": result.stopped,
-        "counts": result.counts,
-        "wall_s": round(result.wall_s, 2),
-        "runs": [r.__dict__ for r in result.runs],
-        "report": report.summary if report is not None else None,
-    }
     if args.json:
-        print_json(summary)
+        print_json(result.summary(report.summary if report is not None else None))
     else:
-        print_table(
-            [
-                {"run": r.index, "name": r.name, "status": r.status,
-                 "peak_N": r.peak_force_n, "reason": r.reason[:60]}
-                for r in result.runs
-            ]
-        )  # fmt: skip
+        print_table([{"run": r.index, "name": r.name, "status": r.status, "peak_N":
+                      r.peak_force_n, "reason": r.reason[:60]} for r in result.runs])  # fmt: skip
         if report is not None:
             print(f"report: {report.folder}")
     if result.stopped:
@@ -105,24 +78,18 @@ def _run(args: argparse.Namespace) -> int:
 
 
 def _status(args: argparse.Namespace) -> int:
-    from rig.campaign import campaign_folder, load_campaign, plan_campaign, run_status
+    from rig.campaign import campaign_status, load_campaign
 
-    campaign = load_campaign(args.config)
-    folder = campaign_folder(campaign, args.out)
-    rows = []
-    for p in plan_campaign(campaign):
-        st, reason = run_status(folder / "runs" / f"{p.file_stem}.h5")
-        rows.append({"run": p.test.index, "name": p.test.name, "status": st, "reason": reason})
+    st = campaign_status(load_campaign(args.config), args.out)
+    folder = Path(st["folder"])
     if args.json:
-        print_json({"campaign": campaign.name, "folder": str(folder), "runs": rows})
-    else:
-        print(f"campaign folder: {folder.resolve()}")
-        print_table(rows)
-        if not folder.exists():
-            status(
-                f"note: {folder} does not exist: the campaign has not run from here, or its runs "
-                "are elsewhere (--out FOLDER; `cutlab demo` writes to out/demo)"
-            )
+        print_json(st)
+        return 0
+    print(f"campaign folder: {folder.resolve()}")
+    print_table(st["runs"])
+    if not folder.exists():
+        status(f"note: {folder} does not exist: the campaign has not run from here, or its runs "
+               "are elsewhere (--out FOLDER; `cutlab demo` writes to out/demo)")  # fmt: skip
     return 0
 
 
@@ -130,8 +97,7 @@ def _report(args: argparse.Namespace) -> int:
     from rig.campaign import campaign_folder, load_campaign
     from rig.report import write_report
 
-    campaign = load_campaign(args.config)
-    rep = write_report(campaign_folder(campaign, args.out))
+    rep = write_report(campaign_folder(load_campaign(args.config), args.out))
     if args.json:
         print_json(rep.summary)
     else:

@@ -12,137 +12,54 @@ from __future__ import annotations
 import argparse
 import sys
 
-
-def _machine(name: str | None):
-    if not name:
-        return None
-    from analysis.config import load_machine
-
-    return load_machine(name)
-
-
-def _progress_lines(path: str):
-    """The file's lines, with a tqdm bar on stderr (by bytes) for big files."""
-    import os
-
-    from planning.nc.run import file_lines
-
-    try:
-        size = os.path.getsize(path)
-    except OSError:
-        size = 0
-    if size < 2_000_000:
-        yield from file_lines(path)
-        return
-    from tqdm import tqdm
-
-    with tqdm(total=size, unit="B", unit_scale=True, desc="interpreting", disable=None) as bar:
-        done = 0
-        for i, raw in enumerate(file_lines(path)):
-            done += len(raw)
-            if i % 20_000 == 0:  # update rarely: the loop does ~200k lines/s
-                bar.update(done - bar.n)
-            yield raw
-        bar.update(size - bar.n)
+from rig.cli._common import Progress, print_json, print_table, status
 
 
 def _interpret(args: argparse.Namespace, *, warn: bool = True):
-    """(interpreter, motion, machine) of ``args.file``; the warnings go to stderr unless
-    ``warn`` is False (the caller reports them itself)."""
-    from planning.nc import Interpreter
+    """``args.file`` interpreted; its warnings go to stderr unless ``warn`` is False."""
+    from planning.nc import check_program
 
-    machine = _machine(args.machine)
-    it = Interpreter(machine, strict=not args.lenient, file=args.file)
-    motion = it.run(_progress_lines(args.file))
-    if warn:
-        for w in it.warnings:
-            print(f"warning: {w}", file=sys.stderr)
-    return it, motion, machine
-
-
-def _add_common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("file", help="NC program (RS-274 / Fanuc style)")
-    p.add_argument(
-        "--machine",
-        default=None,
-        help="machine config name or path (rapid rate, arc tolerance, dialect)",
-    )
-    p.add_argument(
-        "--lenient", action="store_true", help="report unknown codes as warnings instead of errors"
-    )
+    with Progress("interpreting", "B", unit_scale=True) as bar:
+        run = check_program(args.file, args.machine, strict=not args.lenient, progress=bar)
+    for w in run.warnings if warn else ():
+        status(f"warning: {w}")
+    return run
 
 
 def _check(args: argparse.Namespace) -> int:
-    from planning.nc import motion_stats
-    from planning.nc.stats import axis_limit_problems
-    from rig.cli._common import print_json, print_table, status
-
-    it, motion, machine = _interpret(args, warn=not args.json)
-    st = motion_stats(motion, machine)
-    limits = [f"{args.file}: {p}" for p in axis_limit_problems(motion, machine)]
-    if not args.json:
-        for p in limits:
-            status("warning: " + p)
-    out = {
-        "file": args.file,
-        "blocks": it.blocks_seen,
-        "motions": len(motion),
-        "cutting_length_mm": st.cutting_length_mm,
-        "rapid_length_mm": st.rapid_length_mm,
-        "time_s": st.time_s,
-        "time_with_accel_s": st.accel_time_s,
-        "feed_time_s": st.feed_time_s,
-        "rapid_time_s": st.rapid_time_s,
-        "dwell_s": st.dwell_s,
-        "rapid_mm_min": st.rapid_mm_min,
-        "bbox": {"min_mm": list(st.bbox_min_mm), "max_mm": list(st.bbox_max_mm)},
-        "warnings": [str(w) for w in it.warnings] + limits,
-    }
-    rotary = motion.has_rotary_travel.any() or any(st.rotary_min_deg) or any(st.rotary_max_deg)
-    if rotary:
-        out["rotary_range_deg"] = {
-            c: [st.rotary_min_deg[i], st.rotary_max_deg[i]] for i, c in enumerate("ABC")
-        }
+    run = _interpret(args, warn=not args.json)
+    out = run.summary()
     if args.json:
         print_json(out)
         return 0
+    for p in out["warnings"][len(run.warnings) :]:  # the machine's travel limits
+        status("warning: " + p)
     skip = ("bbox", "warnings", "rotary_range_deg")
     rows = [{"quantity": k, "value": v} for k, v in out.items() if k not in skip and v is not None]
     for c, (lo, hi) in out.get("rotary_range_deg", {}).items():
         rows.append({"quantity": f"{c}_range_deg", "value": f"{lo:.4g} {hi:.4g}"})
-    rows.append({"quantity": "bbox_min_mm", "value": " ".join(f"{c:.4g}" for c in st.bbox_min_mm)})
-    rows.append({"quantity": "bbox_max_mm", "value": " ".join(f"{c:.4g}" for c in st.bbox_max_mm)})
+    for end in ("min", "max"):
+        xyz = " ".join(f"{c:.4g}" for c in out["bbox"][f"{end}_mm"])
+        rows.append({"quantity": f"bbox_{end}_mm", "value": xyz})
     print_table(rows)
     return 0
 
 
 def _motions(args: argparse.Namespace) -> int:
-    from rig.cli._common import print_table
-
-    _, motion, _ = _interpret(args)
-    df = motion.to_dataframe()
-    if not (motion.rotary_start_deg.any() or motion.rotary_end_deg.any()):
-        df = df.drop(columns=["a0", "b0", "c0", "a1", "b1", "c1"])  # a 3-axis program
+    df = _interpret(args).motion_table()
     if args.csv or args.output:
-        if args.output:
-            df.to_csv(args.output, index=False, float_format="%.6g")
-        else:
-            df.to_csv(sys.stdout, index=False, float_format="%.6g")
-        return 0
-    if args.json:
-        from rig.cli._common import print_json
-
+        df.to_csv(args.output or sys.stdout, index=False, float_format="%.6g")
+    elif args.json:
         print_json(df.to_dict(orient="records"))
-        return 0
-    print_table(df.to_dict(orient="records"))
+    else:
+        print_table(df.to_dict(orient="records"))
     return 0
 
 
 def _plot(args: argparse.Namespace) -> int:
     from planning.nc.plot import plot_motion
-    from rig.cli._common import print_json, status
 
-    _, motion, _ = _interpret(args)
+    motion = _interpret(args).motion
     path = plot_motion(motion, args.output, title=args.file)
     if args.json:
         print_json({"file": args.file, "plot": str(path), "motions": len(motion)})
@@ -151,26 +68,29 @@ def _plot(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_parser(nsub, name: str, text: str, func) -> argparse.ArgumentParser:
+    p = nsub.add_parser(name, help=text)
+    p.add_argument("file", help="NC program (RS-274 / Fanuc style)")
+    machine_help = "machine config name or path (rapid rate, arc tolerance, dialect)"
+    p.add_argument("--machine", default=None, help=machine_help)
+    lenient_help = "report unknown codes as warnings instead of errors"
+    p.add_argument("--lenient", action="store_true", help=lenient_help)
+    p.set_defaults(func=func)
+    return p
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
     nc = sub.add_parser("nc", help="check, list and plot NC programs")
     nsub = nc.add_subparsers(dest="nc_command", metavar="NC_COMMAND")
     nsub.required = True
-
-    p = nsub.add_parser("check", help="parse + interpret; print lengths, time, bbox (or the error)")
-    _add_common(p)
+    p = _add_parser(nsub, "check", "parse + interpret; print lengths, time, bbox (or the error)",
+                    _check)  # fmt: skip
     p.add_argument("--json", action="store_true", help="machine-readable output")
-    p.set_defaults(func=_check)
-
-    p = nsub.add_parser("motions", help="one row per canonical motion segment")
-    _add_common(p)
+    p = _add_parser(nsub, "motions", "one row per canonical motion segment", _motions)
     p.add_argument("--csv", action="store_true", help="CSV to stdout (or to -o)")
     p.add_argument("-o", "--output", default=None, help="write CSV to this file")
     p.add_argument("--json", action="store_true", help="JSON records")
-    p.set_defaults(func=_motions)
-
-    p = nsub.add_parser("plot", help="PNG of the tool path (3-D and top views)")
-    _add_common(p)
+    p = _add_parser(nsub, "plot", "PNG of the tool path (3-D and top views)", _plot)
     p.add_argument("-o", "--output", required=True, help="PNG path")
     p.add_argument("--json", action="store_true", help="machine-readable output")
-    p.set_defaults(func=_plot)

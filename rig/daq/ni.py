@@ -41,7 +41,7 @@ from nidaqmx.constants import (
 from nidaqmx.error_codes import DAQmxErrors
 from nidaqmx.stream_readers import AnalogMultiChannelReader, AnalogUnscaledReader
 
-from analysis.config import DaqConfig
+from analysis.config import DaqConfig, RigConfig
 from analysis.runs import file as rf
 from rig.daq.base import (
     SAMPLE_FORMAT_RAW,
@@ -53,6 +53,7 @@ from rig.daq.base import (
     DaqNotAvailableError,
     DaqSink,
 )
+from rig.daq.calibration import Calibration
 
 # Errors after which the buffer lost samples but the task can keep going.
 OVERFLOW_CODES = frozenset(
@@ -144,6 +145,43 @@ class NiDaq(Daq):
         self._running = False
         self._stopped = False
         self.samples_read = 0  # device index of the next sample to read
+
+    #: set by :meth:`from_rig`: the calibration and rig metadata a recording stores
+    calibration: Calibration | None = None
+    rig_meta: dict[str, Any] | None = None
+
+    @classmethod
+    def from_rig(
+        cls,
+        rig: RigConfig,
+        *,
+        rate_hz: float | None = None,
+        channels: int | None = None,
+        where: str = "configs/rig.toml",
+    ) -> NiDaq:
+        """The NI DAQ of a rig config's [daq] (read from ``where``), with ``rate_hz`` (Hz per
+        channel) and the first ``channels`` channels instead of the config's when given, the
+        dynamometer's calibration and the rig metadata to store (:attr:`rig_meta`)."""
+        cfg = rig.daq
+        if rate_hz:
+            cfg = cfg.model_copy(update={"rate_hz": float(rate_hz)})
+        if channels:
+            if channels > len(cfg.channels):
+                raise DaqError(
+                    f"--channels = {channels}: {where} lists only {len(cfg.channels)} daq.channels"
+                )
+            cfg = cfg.model_copy(update={"channels": cfg.channels[:channels]})
+        cal = Calibration.from_dynamometer(rig.dynamometer, len(cfg.channels), where)
+        daq = cls(cfg, cal.channel_names)
+        daq.calibration = cal
+        daq.rig_meta = {"daq": cfg.model_dump(), "dynamometer": rig.dynamometer.model,
+                        "calibration_id": cal.calibration_id}  # fmt: skip
+        return daq
+
+    @property
+    def run_clock(self) -> Callable[[], float]:
+        """The run clock (monotonic s) of the recording."""
+        return self.clock
 
     # -- setup ---------------------------------------------------------------------------------
 

@@ -17,10 +17,12 @@ thread, DC1/DC3 gate, pacing), :mod:`~rig.dnc.fanuc`, :mod:`~rig.dnc.eia` (EIA t
 :mod:`~rig.dnc.grbl`, :mod:`~rig.dnc.sinks` (the record into a run file),
 :mod:`~rig.dnc.restart`, :mod:`~rig.dnc.remote` (remote program request),
 :mod:`~rig.dnc.record` (the block record and its sinks), :mod:`~rig.dnc.progress`,
-:mod:`~rig.dnc.program`, :mod:`~rig.dnc.errors`. The simulated controllers that speak these
+:mod:`~rig.dnc.program`, :mod:`~rig.dnc.connect` (machine, settings and streamer from a
+command's options), :mod:`~rig.dnc.errors`. The simulated controllers that speak these
 protocols on a pseudo-terminal are :mod:`rig.sim.fanuc` and :mod:`rig.sim.grbl`.
 """
 
+from rig.dnc.connect import SendJob, dnc_machine, prepare_send, remote_server, serial_settings
 from rig.dnc.errors import DncError, StreamFault
 from rig.dnc.fanuc import FanucStreamer
 from rig.dnc.grbl import GrblStatus, GrblStreamer, parse_status
@@ -42,12 +44,17 @@ __all__ = [
     "MemorySink",
     "Program",
     "RemoteServer",
+    "SendJob",
     "StreamFault",
     "StreamResult",
+    "dnc_machine",
     "load_program",
     "parse_request",
     "parse_status",
+    "prepare_send",
     "program_from_text",
     "read_csv_record",
+    "remote_server",
     "restart_blocks",
+    "serial_settings",
 ]

@@ -46,3 +46,12 @@ class StreamResult:
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+    def summary_line(self) -> str:
+        """One line: blocks and bytes sent, time (s), rate (B/s) beside the line's, and the last
+        acknowledged block."""
+        return (
+            f"sent {self.blocks_sent} blocks, {self.bytes_sent} bytes in {self.seconds:.1f} s "
+            f"({self.bytes_per_s:,.0f} B/s of {self.line_bytes_per_s:,.0f}); last acknowledged "
+            f"block {self.last_acknowledged_block}"
+        )

@@ -1,7 +1,9 @@
 """Record one run: a DAQ into a :class:`rig.log.writer.RunWriter` for a given time.
 
-Used by ``cutlab daq record``; the campaign runner can use it too. Also holds the synthetic
-milling-force source that ``--sim`` records when no simulated machine drives the DAQ.
+Used by ``cutlab daq record`` (:func:`plan_recording` checks its options, ``NiDaq.from_rig`` /
+``SimDaq.from_rig`` make the DAQ, :func:`record_rig` records); the campaign runner can use
+:func:`record` too. Also holds the synthetic milling-force source that ``--sim`` records when no
+simulated machine drives the DAQ.
 """
 
 from __future__ import annotations
@@ -10,13 +12,17 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from analysis.runs import file as rf
-from rig.daq import Calibration, Daq
+from rig.daq import Calibration, Daq, DaqInfo
+from rig.errors import RigError
 from rig.log.writer import RunWriter, WriterStats
+
+if TYPE_CHECKING:
+    from analysis.config import RigConfig
 
 
 def milling_force_source(
@@ -64,12 +70,72 @@ def aliasing_warning(rate_hz: float, dynamometer: Any) -> str | None:
 
 
 @dataclass(frozen=True)
+class RecordPlan:
+    """The checked options of one recording on the rig of ``rig`` (read from ``where``)."""
+
+    rig: RigConfig
+    where: str
+    path: Path
+    seconds: float
+    rate_hz: float
+    overwrite: bool
+    conditions: dict[str, Any]
+    notes: list[str]  # warnings to show and store as note events (aliasing)
+
+
+def plan_recording(
+    rig_path: str | Path | None,
+    path: str | Path,
+    seconds: float,
+    *,
+    rate_hz: float | None = None,
+    overwrite: bool = False,
+    conditions: Mapping[str, Any] | None = None,
+) -> RecordPlan:
+    """Check a recording before any device is opened: the rig config (None: configs/rig.toml),
+    ``seconds`` > 0, ``rate_hz`` in (0, 1e7] Hz (None or 0: the config's), ``path`` new unless
+    ``overwrite``; ``notes`` gets the aliasing warning of the rate."""
+    from analysis.config import load_rig
+
+    rig = load_rig(rig_path)
+    if not seconds > 0:
+        raise RigError(f"--seconds = {seconds}: must be > 0 (s)")
+    rate = float(rate_hz or rig.daq.rate_hz)
+    if not 0 < rate <= 10_000_000:
+        raise RigError(f"--rate-hz = {rate}: must be in (0, 1e7] Hz")
+    out = Path(path)
+    if out.exists() and not overwrite:
+        raise RigError(f"{out}: file exists; --force overwrites it")
+    notes = [w for w in [aliasing_warning(rate, rig.dynamometer)] if w]
+    where = str(rig_path or "configs/rig.toml")
+    return RecordPlan(rig, where, out, seconds, rate, overwrite, dict(conditions or {}), notes)
+
+
+@dataclass(frozen=True)
 class RecordResult:
     path: Path
     status: str
     reason: str
     samples_acquired: int
     writer: WriterStats
+    info: DaqInfo | None = None  # the DAQ's
+
+    def summary(self) -> dict[str, Any]:
+        """File, status, channels, rate (Hz), samples acquired/written/dropped/missing and the
+        duration (s) acquired, as ``cutlab daq record`` prints them."""
+        rate_hz = self.info.rate_hz if self.info is not None else float("nan")
+        return {
+            "file": str(self.path),
+            "status": self.status,
+            "reason": self.reason,
+            "channels": list(self.info.channel_names) if self.info is not None else [],
+            "rate_hz": rate_hz,
+            "samples_acquired": self.samples_acquired,
+            "samples_written": self.writer.samples_written,
+            "samples_dropped": self.writer.samples_dropped,
+            "samples_missing": self.writer.samples_missing,
+            "duration_s": self.samples_acquired / rate_hz,
+        }
 
 
 def record(
@@ -132,4 +198,28 @@ def record(
         raise
     daq.close()
     stats = writer.close(status, reason)
-    return RecordResult(Path(path), status, reason, int(daq.samples_acquired), stats)
+    return RecordResult(Path(path), status, reason, int(daq.samples_acquired), stats, daq.info)
+
+
+def record_rig(
+    daq: Daq,
+    plan: RecordPlan,
+    *,
+    flush_interval_s: float = 1.0,
+    progress: Callable[[float], None] | None = None,
+) -> RecordResult:
+    """:func:`record` of ``plan`` with a DAQ made by ``NiDaq.from_rig`` or ``SimDaq.from_rig``,
+    which carries the ``calibration``, ``run_clock`` and ``rig_meta`` to record with;
+    ``progress(seconds_acquired)``, capped at ``plan.seconds``, ends with the total acquired."""
+
+    def report(t_s: float) -> None:
+        if progress is not None:
+            progress(round(min(t_s, plan.seconds), 3))
+
+    res = record(
+        daq, plan.path, plan.seconds, calibration=daq.calibration, clock=daq.run_clock,
+        flush_interval_s=flush_interval_s, overwrite=plan.overwrite, conditions=plan.conditions,
+        rig=daq.rig_meta, progress=report, notes=plan.notes,
+    )  # fmt: skip
+    report(res.samples_acquired / daq.info.rate_hz)
+    return res

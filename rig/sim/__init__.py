@@ -4,10 +4,21 @@ the session that ties them together for a campaign.
 """
 
 from rig.sim.clock import SimClock
+from rig.sim.controllers import controller_summary, run_controller, sim_controller
 from rig.sim.daq import SimDaq
 from rig.sim.fanuc import SimFanuc
 from rig.sim.grbl import SimGrbl
 from rig.sim.machine import SimMachine
 from rig.sim.session import sim_session
 
-__all__ = ["SimClock", "SimDaq", "SimFanuc", "SimGrbl", "SimMachine", "sim_session"]
+__all__ = [
+    "SimClock",
+    "SimDaq",
+    "SimFanuc",
+    "SimGrbl",
+    "SimMachine",
+    "controller_summary",
+    "run_controller",
+    "sim_controller",
+    "sim_session",
+]

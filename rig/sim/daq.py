@@ -11,6 +11,7 @@ from __future__ import annotations
 import threading
 from collections import deque
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -18,13 +19,18 @@ from analysis.runs import file as rf
 from rig.daq import (
     SAMPLE_FORMAT_RAW,
     SAMPLE_FORMAT_VOLTS,
+    Calibration,
     Daq,
     DaqError,
     DaqEvent,
     DaqInfo,
     DaqSink,
 )
+from rig.log.record import milling_force_source
 from rig.sim.clock import SimClock
+
+if TYPE_CHECKING:
+    from analysis.config import RigConfig
 
 Source = Callable[[float, int, float], np.ndarray]
 ADC_BITS = 16
@@ -194,6 +200,66 @@ class SimDaq(Daq):
         self._codes = np.empty((c, block), np.int16) if coeff is not None else None
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+
+    #: set by :meth:`from_rig`: the calibration and rig metadata a recording stores
+    calibration: Calibration | None = None
+    rig_meta: dict[str, Any] | None = None
+
+    @classmethod
+    def from_rig(
+        cls,
+        rig: RigConfig,
+        *,
+        rate_hz: float,
+        seconds: float,
+        channels: int | None = None,
+        speed: float = 1.0,
+        raw: bool = False,
+        noise_v: float = 0.002,
+        overflow_at: Sequence[int] = (),
+        where: str = "configs/rig.toml",
+        warn: Callable[[str], None] | None = None,
+    ) -> SimDaq:
+        """A simulated DAQ standing in for the rig's: ``channels`` (default the config's) of
+        the synthetic milling force (:func:`rig.log.record.milling_force_source`) at ``rate_hz``
+        for ``seconds``, ``speed`` simulated s per wall s (0: as fast as possible), int16 codes
+        if ``raw``. Calibrated by the dynamometer when the channel counts match; otherwise
+        ``warn(message)`` says the run is in volts. Sets :attr:`calibration`, :attr:`rig_meta`."""
+        n = int(channels or len(rig.daq.channels))
+        if not 1 <= n <= 64:
+            raise DaqError(f"--channels = {n}: must be 1..64")
+        cal = None
+        if n == len(rig.dynamometer.channels):
+            cal = Calibration.from_dynamometer(rig.dynamometer, n, where)
+        elif warn is not None:
+            has = len(rig.dynamometer.channels)
+            warn(
+                f"{n} channels but the dynamometer in {where} has {has}: recording volts "
+                "without a calibration"
+            )
+        daq = cls(
+            milling_force_source(cal, n),
+            rate_hz=rate_hz,
+            channels=tuple(f"sim/ai{i}" for i in range(n)),
+            channel_names=cal.channel_names if cal else None,
+            clock=SimClock(speed) if speed > 0 else None,
+            read_interval_s=rig.daq.read_interval_s,
+            seconds=seconds,
+            sample_format=SAMPLE_FORMAT_RAW if raw else SAMPLE_FORMAT_VOLTS,
+            input_range_v=rig.daq.input_range_v,
+            sim_noise_v=noise_v,
+            sim_overflow_at=overflow_at,
+        )
+        daq.calibration = cal
+        daq.rig_meta = {"daq": "simulated", "dynamometer": rig.dynamometer.model}
+        if cal is not None:
+            daq.rig_meta["calibration_id"] = cal.calibration_id
+        return daq
+
+    @property
+    def run_clock(self) -> Callable[[], float]:
+        """The run clock (s) of a recording: the SimClock's, or 0 without one."""
+        return self.clock.now if self.clock is not None else (lambda: 0.0)
 
     def start(self, sink: DaqSink) -> None:
         if self._thread is not None:

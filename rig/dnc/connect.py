@@ -1,0 +1,129 @@
+"""What ``cutlab dnc send|serve`` set up from their options: the machine of a protocol, its serial
+settings with the command's overrides, and a streamer ready to send a program (restart preamble
+included) or a remote-request server.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from rig.dnc.errors import DncError
+from rig.dnc.fanuc import FanucStreamer
+from rig.dnc.grbl import GrblStreamer
+from rig.dnc.port import check_protocol, check_settings
+from rig.dnc.program import Block, Program, load_program
+from rig.dnc.record import CsvSink, MemorySink
+from rig.dnc.remote import RemoteServer
+from rig.dnc.restart import restart_blocks
+from rig.dnc.result import StreamResult
+
+if TYPE_CHECKING:
+    from analysis.config import MachineConfig, SerialConfig
+
+#: the machine each protocol uses when none is named
+DEFAULT_MACHINE = {"fanuc": "ace-h63", "grbl": "lab-grbl"}
+
+
+def dnc_machine(protocol: str, name: str | None = None) -> tuple[str, MachineConfig]:
+    """(checked protocol, machine): ``name`` (a config name or TOML path; None: the protocol's
+    :data:`DEFAULT_MACHINE`) loaded and checked to speak ``protocol``."""
+    from analysis.config import load_machine
+
+    protocol = check_protocol(protocol)
+    m = load_machine(name or DEFAULT_MACHINE[protocol])
+    if m.dialect != protocol:
+        raise DncError(
+            f"machine {m.name!r} has dialect = {m.dialect!r} but --protocol is {protocol!r}; "
+            f"pick a {protocol} machine (e.g. --machine {DEFAULT_MACHINE[protocol]})"
+        )
+    return protocol, m
+
+
+def serial_settings(
+    machine: MachineConfig,
+    port: str | None = None,
+    baud: int | None = None,
+    timeout_s: float | None = None,
+) -> SerialConfig:
+    """The machine's serial settings with a command's overrides (None: the machine's)."""
+    from analysis.config import SerialConfig
+    from analysis.validation import validate
+
+    data: dict[str, Any] = machine.serial.model_dump()
+    if port is not None:
+        data["port"] = port
+    if baud is not None:
+        data["baudrate"] = baud
+    if timeout_s is not None:
+        data["timeout_s"] = timeout_s
+    return validate(SerialConfig, data, f"machine {machine.name} serial (with command options)")
+
+
+@dataclass(frozen=True)
+class SendJob:
+    """A program checked and a streamer set up to send it from ``start_block`` (after the
+    restart ``preamble``); :meth:`send` streams it."""
+
+    protocol: str
+    program: Program
+    settings: SerialConfig
+    streamer: FanucStreamer | GrblStreamer
+    start_block: int
+    preamble: list[Block]
+
+    def send(self) -> StreamResult:
+        """Stream the program; a fault raises :class:`~rig.dnc.errors.StreamFault`."""
+        return self.streamer.send(self.program, self.start_block, self.preamble)
+
+
+def prepare_send(
+    file: str | Path,
+    protocol: str,
+    *,
+    machine: str | None = None,
+    port: str | None = None,
+    baud: int | None = None,
+    timeout_s: float | None = None,
+    start_block: int = 0,
+    safe_z_mm: float | None = None,
+    record_csv: str | Path | None = None,
+    progress: bool = False,
+    grbl_mode: str = "char-counting",
+    grbl_unlock: bool = False,
+    fanuc_wait_dc1: bool = True,
+) -> SendJob:
+    """Everything ``cutlab dnc send`` checks before the port is opened: protocol, machine,
+    serial settings, the program (NC errors raise here) and the restart preamble; the block
+    record goes to ``record_csv`` (None: kept in memory)."""
+    protocol, m = dnc_machine(protocol, machine)
+    cfg = serial_settings(m, port, baud, timeout_s)
+    check_settings(cfg, protocol)
+    program = load_program(file)
+    pre = restart_blocks(program, start_block, protocol, m, safe_z_mm)
+    sink = CsvSink(record_csv) if record_csv else MemorySink()
+    if protocol == "fanuc":
+        st: FanucStreamer | GrblStreamer = FanucStreamer(
+            cfg, sink=sink, progress=progress, wait_for_dc1=fanuc_wait_dc1
+        )
+    else:
+        st = GrblStreamer(cfg, sink=sink, progress=progress, mode=grbl_mode, unlock=grbl_unlock)
+    return SendJob(protocol, program, cfg, st, start_block, pre)
+
+
+def remote_server(
+    machine: str | None = None,
+    port: str | None = None,
+    folder: str | Path | None = None,
+    on_listening: Callable[[str, Path], None] | None = None,
+) -> RemoteServer:
+    """A :class:`~rig.dnc.remote.RemoteServer` on a Fanuc machine's port (``port`` overrides it);
+    ``on_listening(port, folder)`` is called each time it waits for a request."""
+    _, m = dnc_machine("fanuc", machine)
+    cfg = serial_settings(m, port)
+    srv = RemoteServer(cfg, folder, machine=m)
+    if on_listening is not None:
+        srv.on_listening = lambda: on_listening(cfg.port, srv.folder)
+    return srv

@@ -1,0 +1,129 @@
+"""A simulated controller as ``cutlab dnc sim-controller`` runs it: built from fault knobs given as
+``KNOB=VALUE`` text, run on its pseudo-terminal until a duration, SIGTERM or Ctrl-C, and summed
+up in a dict.
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
+
+from rig.dnc import DncError
+from rig.sim.clock import SimClock
+from rig.sim.fanuc import SimFanuc
+from rig.sim.grbl import SimGrbl
+
+if TYPE_CHECKING:
+    from analysis.config import MachineConfig
+
+_CLASSES: dict[str, type[SimFanuc] | type[SimGrbl]] = {"fanuc": SimFanuc, "grbl": SimGrbl}
+
+
+def parse_knobs(items: Sequence[str]) -> dict[str, Any]:
+    """``["alarm_at_block=50,2", "stop_answering_at_s=3"]`` -> ``{"sim_alarm_at_block": (50, 2),
+    "sim_stop_answering_at_s": 3.0}``: ints, the first number of a ``*_s`` knob a float (s)."""
+    out: dict[str, Any] = {}
+    for it in items:
+        key, sep, val = it.partition("=")
+        key = key.strip().removeprefix("sim_")
+        if not sep or not val:
+            raise DncError(f"--sim {it!r}: expected KNOB=VALUE, e.g. alarm_at_block=50,2")
+        try:
+            nums = tuple(float(v) if key.endswith("_s") and i == 0 else int(v)
+                         for i, v in enumerate(val.split(",")))  # fmt: skip
+        except ValueError:
+            raise DncError(f"--sim {it!r}: value must be a number or two (k,code)") from None
+        out[f"sim_{key}"] = nums[0] if len(nums) == 1 else nums
+    return out
+
+
+def valid_knobs(protocol: str) -> list[str]:
+    """The fault knobs of the ``protocol`` controller: the ``sim_*`` keyword parameters of its
+    ``__init__`` and its bases', without the prefix."""
+    return sorted(
+        {
+            name.removeprefix("sim_")
+            for klass in _CLASSES[protocol].__mro__
+            if "__init__" in vars(klass)
+            for name in inspect.signature(klass.__init__).parameters
+            if name.startswith("sim_")
+        }
+    )
+
+
+def sim_controller(
+    protocol: str,
+    machine: MachineConfig,
+    *,
+    speed: float = 1.0,
+    baud: int | None = None,
+    knobs: Sequence[str] = (),
+) -> SimFanuc | SimGrbl:
+    """The simulated ``protocol`` controller of ``machine`` at ``speed`` simulated s per wall s
+    and ``baud`` (None: the machine's serial.baudrate), with the fault ``knobs`` (KNOB=VALUE
+    text, see :func:`parse_knobs`); a Fanuc takes the machine's character framing."""
+    kw = parse_knobs(knobs)
+    valid = valid_knobs(protocol)
+    bad = [k.removeprefix("sim_") for k in kw if k.removeprefix("sim_") not in valid]
+    if bad:
+        raise DncError(
+            f"--sim {bad[0]}: unknown knob for the {protocol} controller; valid knobs: "
+            + ", ".join(valid)
+        )
+    if not speed > 0:
+        raise DncError(f"--speed = {speed}: must be > 0 (simulated s per wall s)")
+    kw |= {"clock": SimClock(speed), "baudrate": baud or machine.serial.baudrate}
+    if protocol == "fanuc":
+        s = machine.serial
+        kw |= {"bytesize": s.bytesize, "parity": s.parity, "stopbits": s.stopbits,
+               "flow_control": s.flow_control}  # fmt: skip
+    try:
+        return _CLASSES[protocol](machine, **kw)
+    except TypeError as exc:  # a knob of the right name but an unusable value
+        raise DncError(f"--sim: the {protocol} controller refused the knobs ({exc})") from None
+
+
+def controller_summary(ctl: SimFanuc | SimGrbl) -> dict[str, Any]:
+    """What the controller received and did: bytes, SHA-256, blocks, alarms, flow control."""
+    out = {
+        "path": ctl.path,
+        "bytes_received": len(ctl.received),
+        "sha256": ctl.received_sha256(),
+        "blocks_executed": len(ctl.executed),
+        "last_completed_block": ctl.last_completed_block,
+        "starved_fraction": ctl.starved_fraction,
+        "overruns": ctl.overruns,
+        "framing_errors": ctl.framing_errors,
+        "alarm": ctl.alarm,
+    }
+    if isinstance(ctl, SimFanuc):
+        return out | {"xoff_count": ctl.xoff_count, "max_chars_after_xoff": ctl.max_after_xoff}
+    return out | {"planner_full_waits": ctl.planner_waits, "errors": len(ctl.errors)}
+
+
+def run_controller(
+    ctl: SimFanuc | SimGrbl,
+    duration_s: float | None = None,
+    on_started: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    """Run ``ctl`` on its pseudo-terminal for ``duration_s`` wall s (None: until SIGTERM or
+    Ctrl-C), calling ``on_started(path)`` once the path exists; returns
+    :func:`controller_summary`. Call it from the main thread (it handles SIGTERM)."""
+    import signal
+    import threading
+
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())  # before the path is out: a script
+    path = ctl.start()  # may stop us as soon as it has read it
+    if on_started is not None:
+        on_started(path)
+    try:
+        stop.wait(duration_s)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        ctl.stop()
+    summary = controller_summary(ctl)
+    summary["path"] = path
+    return summary
