@@ -94,7 +94,7 @@ def _resolve(name: str) -> str:
 @cache
 def _imports(module: str) -> frozenset[str]:
     """Modules of this house that ``module`` imports (``from P import x`` counts as P.x when x
-    is a module, else as P)."""
+    is a module, else as P; a face's ``_LAZY`` table counts as importing its modules)."""
     path = _modules()[module]
     out: set[str] = set()
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
@@ -103,6 +103,10 @@ def _imports(module: str) -> frozenset[str]:
             names = [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             names = [f"{node.module}.{a.name}" for a in node.names]
+        if isinstance(node, ast.Assign) and any(
+            isinstance(tg, ast.Name) and tg.id == "_LAZY" for tg in node.targets
+        ):  # a face's modules loaded on first use (PEP 562 __getattr__): imports all the same
+            names = [k.value for k in node.value.keys if isinstance(k, ast.Constant)]
         for n in names:
             if n.split(".")[0] in PACKAGES:
                 out.add(_resolve(n))

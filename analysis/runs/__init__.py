@@ -6,17 +6,9 @@ The file layout is a namespace of its own (``from analysis.runs import file as r
 ``rf.load_run``, the dataset names); the names most callers need are here.
 """
 
-from analysis.runs import file
-from analysis.runs.file import (
-    LOSS_KINDS,
-    SAMPLE_FORMAT_RAW,
-    SAMPLE_FORMAT_VOLTS,
-    Run,
-    RunFileError,
-    load_run,
-)
-from analysis.runs.follow import RunFollower, follow
-from analysis.runs.plot import plot_run
+from importlib import import_module
+from typing import Any
+
 from analysis.runs.steady import (
     IDENTIFY_TOLERANCE,
     NoSteadyCutError,
@@ -24,8 +16,27 @@ from analysis.runs.steady import (
     per_revolution,
     steady_window,
 )
-from analysis.runs.summary import run_summary
-from analysis.runs.table import FORCE_UNIT_TO_N, ForceTable, read_force_table
+
+# Loaded on first use (PEP 562): the run file needs h5py and pandas (~0.3 s), which `cutlab --help`
+# and every command that only needs the steady-cut constants should not pay for.
+_LAZY = {
+    "analysis.runs.file": ("LOSS_KINDS", "SAMPLE_FORMAT_RAW", "SAMPLE_FORMAT_VOLTS", "Run",
+                           "RunFileError", "load_run"),
+    "analysis.runs.follow": ("RunFollower", "follow"),
+    "analysis.runs.plot": ("plot_run",),
+    "analysis.runs.summary": ("run_summary",),
+    "analysis.runs.table": ("FORCE_UNIT_TO_N", "ForceTable", "read_force_table"),
+}  # fmt: skip
+_WHERE = {name: module for module, names in _LAZY.items() for name in names}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _WHERE:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(_WHERE[name]), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "FORCE_UNIT_TO_N",

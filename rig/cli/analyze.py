@@ -67,11 +67,16 @@ def _modal(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
-    from analysis.runs import IDENTIFY_TOLERANCE
-
     p = sub.add_parser("analyze", help="force coefficients from runs, dynamometer modes")
     psub = p.add_subparsers(dest="analyze_command", metavar="ANALYZE_COMMAND")
     psub.required = True
+    _register_forces(psub)
+    _register_modal(psub)
+
+
+def _register_forces(psub: argparse._SubParsersAction) -> None:
+    from analysis.runs import IDENTIFY_TOLERANCE
+
     f = psub.add_parser("forces", help="fit cutting-force coefficients to recorded runs")
     f.add_argument("runs", nargs="+", help="run files (.h5) or DynoWare/CSV exports")
     f.add_argument("--model", choices=("facemill", "endmill"), default=None,
@@ -94,6 +99,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--plot", default=None, metavar="DIR", help="write validation PNGs here")
     f.add_argument("--json", action="store_true", help="JSON on stdout")
     f.set_defaults(func=_forces)
+
+
+def _register_modal(psub: argparse._SubParsersAction) -> None:
     m = psub.add_parser("modal", help="dynamometer modes from an impulse-hammer record")
     m.add_argument("file", help="CSV/DynoWare export or run file with a hammer channel")
     m.add_argument("--hammer", default="hammer", help="name of the hammer force channel")
