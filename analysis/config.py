@@ -112,7 +112,10 @@ class MachineConfig(Model):
 
     name: str = Field(min_length=1)
     description: str = ""
-    dialect: Literal["fanuc", "grbl"] = Field("fanuc", description="controller dialect")
+    dialect: Literal["fanuc", "grbl", "linuxcnc"] = Field("fanuc", description="controller dialect")
+    tool_changer: bool = Field(
+        True, description="M6 changes tools (false: a manual change, as on most GRBL mills)"
+    )
     x: AxisTravel
     y: AxisTravel
     z: AxisTravel
