@@ -3,17 +3,22 @@
 G-codes are keyed by ten times their number so ``G90.1`` (901) and ``G91.1`` (911) are distinct
 integers; groups follow RS-274 numbering (0 = non-modal), except that G80 has a group of its own
 (9, as on Fanuc) so the common ``G80 G0 Z..`` is legal: it cancels the cycle, then G0 applies.
+
+Some codes exist in one dialect only (:data:`DIALECT_ONLY_G`, :data:`DIALECT_ONLY_M`): in the
+others they are unknown codes, as on the real control.
 """
 
 from __future__ import annotations
 
 INCH_MM = 25.4  # mm per inch (G20)
+DIALECTS = ("fanuc", "grbl", "linuxcnc")
 
 # G-code (times 10, so G90.1 is 901) -> modal group (RS-274 numbering; 0 = non-modal)
 G_GROUP = {
     0: 1, 10: 1, 20: 1, 30: 1, 810: 1, 820: 1, 830: 1,
     800: 9,
-    40: 0, 280: 0, 290: 0, 300: 0, 530: 0,
+    40: 0, 100: 0, 280: 0, 281: 0, 290: 0, 300: 0, 301: 0, 520: 0, 530: 0,
+    920: 0, 921: 0, 922: 0, 923: 0,
     170: 2, 180: 2, 190: 2,
     900: 3, 910: 3,
     901: 4, 911: 4,
@@ -22,16 +27,42 @@ G_GROUP = {
     400: 7, 410: 7, 420: 7,
     430: 8, 490: 8,
     980: 10, 990: 10,
-    540: 12, 550: 12, 560: 12, 570: 12, 580: 12, 590: 12,
+    540: 12, 550: 12, 560: 12, 570: 12, 580: 12, 590: 12, 591: 12, 592: 12, 593: 12,
+    610: 13, 611: 13, 640: 13,
+    970: 14,
+    80: 15,
 }  # fmt: skip
+# codes one dialect has and the others do not (G28.1/G30.1: GRBL and LinuxCNC)
+DIALECT_ONLY_G = {
+    290: ("fanuc", "grbl"),  # G29 (GRBL refuses it with its own message)
+    281: ("grbl", "linuxcnc"),
+    301: ("grbl", "linuxcnc"),
+    611: ("linuxcnc",),  # G61.1 exact stop
+    922: ("linuxcnc",),
+    923: ("linuxcnc",),
+    591: ("linuxcnc",),
+    592: ("linuxcnc",),
+    593: ("linuxcnc",),
+    970: ("linuxcnc",),  # G97 spindle rpm mode (the only one)
+    80: ("linuxcnc",),  # G8 lathe radius mode (the default: X is a radius)
+}
 MOTION_MODE = {0: 0, 10: 1, 20: 2, 30: 3, 800: 80, 810: 81, 820: 82, 830: 83}
-M_GROUP = {0: "stop", 1: "stop", 2: "stop", 30: "stop", 3: "spindle", 4: "spindle",
-           5: "spindle", 6: "tool change", 7: "coolant", 8: "coolant", 9: "coolant"}  # fmt: skip
+# work offset G code key -> index in ModalState.work_offsets_mm (LinuxCNC's P1..P9 minus one)
+OFFSET_INDEX = {540: 0, 550: 1, 560: 2, 570: 3, 580: 4, 590: 5, 591: 6, 592: 7, 593: 8}
+OFFSET_CODES: tuple[int | float, ...] = (54, 55, 56, 57, 58, 59, 59.1, 59.2, 59.3)
+M_GROUP = {0: "stop", 1: "stop", 2: "stop", 30: "stop", 60: "stop", 3: "spindle", 4: "spindle",
+           5: "spindle", 6: "tool change", 61: "tool change", 7: "coolant", 8: "coolant",
+           9: "coolant", 48: "override", 49: "override", 50: "override", 51: "override",
+           52: "override", 53: "override", 62: "output", 63: "output", 64: "output",
+           65: "output"}  # fmt: skip
 KNOWN_M = set(M_GROUP)
+# LinuxCNC's overrides (M48-M53), pallet stop M60, M61 Q (set the tool number without a change)
+# and digital outputs M62-M65 P
+DIALECT_ONLY_M = {m: ("linuxcnc",) for m in (48, 49, 50, 51, 52, 53, 60, 61, 62, 63, 64, 65)}
 # What GRBL 1.1 refuses (error:20) of what this interpreter knows: cutter compensation, G43 (it
-# has only G43.1), canned cycles and their return modes, absolute arc centres, tool change, and
-# the O, D, H, Q and rotary words (3 axes).
-GRBL_UNSUPPORTED_G = frozenset({410, 420, 430, 810, 820, 830, 980, 990, 901})
+# has only G43.1), canned cycles and their return modes, absolute arc centres, path modes other
+# than G61, G52, tool change, and the O, D, H, Q and rotary words (3 axes).
+GRBL_UNSUPPORTED_G = frozenset({410, 420, 430, 810, 820, 830, 980, 990, 901, 640, 520})
 GRBL_UNSUPPORTED_M = frozenset({6})
 GRBL_UNSUPPORTED_LETTERS = frozenset("ODHQABC")
 LETTERS = frozenset("ABCDFHIJKLNOPQRSTXYZ")
@@ -51,3 +82,18 @@ def gkey(num: str) -> int:
 
 def gname(key: int) -> str:
     return f"G{key // 10}" if key % 10 == 0 else f"G{key / 10:g}"
+
+
+def g_groups(dialect: str) -> dict[int, int]:
+    """The G-code -> group table of one dialect (its own codes only)."""
+    return {k: g for k, g in G_GROUP.items() if dialect in DIALECT_ONLY_G.get(k, DIALECTS)}
+
+
+def known_m(dialect: str) -> frozenset[int]:
+    """The M-codes one dialect knows."""
+    return frozenset(m for m in KNOWN_M if dialect in DIALECT_ONLY_M.get(m, DIALECTS))
+
+
+def offset_code(index: int) -> int | float:
+    """G code number of work offset ``index`` (0 -> 54, 6 -> 59.1)."""
+    return OFFSET_CODES[index]

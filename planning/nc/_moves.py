@@ -1,5 +1,5 @@
 """Moves of the interpreter (private): segment output, targets, feeds (G94 and G93), lines, arcs,
-dwells and G28/G30 reference returns.
+dwells, G28/G30 reference returns, canned cycles and the settings of group 0 (G10, G92 ...).
 
 :class:`Moves` is a mixin of :class:`~planning.nc.interpreter.Interpreter`; it uses the
 interpreter's ``state``, options and the error helpers of :class:`~planning.nc._words.WordRules`.
@@ -12,13 +12,25 @@ from __future__ import annotations
 import math
 
 from planning.nc import _lexer
-from planning.nc._codes import gname
-from planning.nc.arcs import PLANE_AXES, arc_length_mm, center_from_r, check_radius
-from planning.nc.canned import drill_hole
+from planning.nc._codes import INCH_MM, gname
+from planning.nc.arcs import (
+    LINUXCNC_CENTER_TOL_INCH,
+    LINUXCNC_CENTER_TOL_MM,
+    LINUXCNC_RADIUS_TOL_MM,
+    PLANE_AXES,
+    TWO_PI,
+    arc_length_mm,
+    center_from_r,
+    check_radius,
+    check_radius_linuxcnc,
+)
+from planning.nc.canned import drill_hole, drill_hole_linuxcnc
 from planning.nc.motion import ARC_CCW, ARC_CW, DWELL, LINE, RAPID
 from planning.nc.state import ModalState
 
 NAN = math.nan
+_NOWHERE = (NAN, NAN, NAN)
+_TINY_UNITS = 1e-7  # LinuxCNC: an axis moves if it moves more than this (program units)
 
 
 class Moves:
@@ -27,21 +39,24 @@ class Moves:
     state: ModalState
     dialect: str
     arc_tolerance_mm: float
-    work_offsets_mm: dict[int, tuple[float, float, float]]
-    _reference_mm: dict[int, tuple[float, float, float] | None]
+    _spiral_tol_mm: float | None
+    _lcnc: bool
     _reference_warned: bool
     _inverse_f: float
     _feed_max_mm_min: float
     _rotary_to: tuple[float, float, float] | None
     peck_clearance_mm: float
+    _peck_default: bool
 
     def _seg(
         self, out, kind: int, p0, p1, c, feed: float, dwell_s: float, line: int, block: int,
-        r1=None,
+        r1=None, r0=None,
     ) -> None:  # fmt: skip
-        """One segment; the rotary axes go from the state's position to ``r1`` (None: stay)."""
+        """One segment; the rotary axes go from ``r0`` (None: the state's) to ``r1`` (None:
+        stay)."""
         st = self.state
-        r0 = st.rotary_deg
+        if r0 is None:
+            r0 = st.rotary_deg
         out.fbuf.extend((*p0, *p1, *c, feed, st.spindle_dir * st.spindle_speed_rpm, dwell_s,
                          *r0, *(r0 if r1 is None else r1)))  # fmt: skip
         out.ibuf.extend((kind, st.plane, st.tool, st.coolant, line, block))
@@ -51,14 +66,16 @@ class Moves:
             t = float(v["P"])
             t = t / 1000.0 if self.dialect == "fanuc" else t
             letter = "P"
-        elif "X" in v:
+        elif "X" in v and not self._lcnc:
             t, letter = float(v["X"]), "X"
+        elif self._lcnc:
+            raise self._fail(raw, 0, "G4 dwell needs P (s)", line)
         else:
             raise self._fail(raw, 0, "G4 dwell needs P (ms on Fanuc, s on GRBL) or X (s)", line)
         if t < 0:
             raise self._fail(raw, letter, "dwell time must be >= 0 s", line)
         p = self.state.position_mm
-        self._seg(out, DWELL, p, p, (NAN, NAN, NAN), NAN, t, line, block)
+        self._seg(out, DWELL, p, p, _NOWHERE, NAN, t, line, block)
 
     def _target(self, v: dict[str, str], scale: float, g53: bool) -> tuple[float, float, float]:
         st = self.state
@@ -66,7 +83,7 @@ class Moves:
         if g53:
             ox = oy = oz = 0.0
         else:
-            ox, oy, oz = self.work_offsets_mm.get(st.work_offset, (0.0, 0.0, 0.0))
+            ox, oy, oz = st.origin_mm
         if st.absolute or g53:
             if "X" in v:
                 x = float(v["X"]) * scale + ox
@@ -83,9 +100,13 @@ class Moves:
                 z += float(v["Z"]) * scale
         return x, y, z
 
-    def _need_feed(self, raw: str, line: int, length_mm: float | None = None) -> float:
+    def _need_feed(
+        self, raw: str, line: int, length_mm: float | None = None, lcnc_len=None
+    ) -> float:
         """The feed of a feed move, mm/min; under G93 from the move's ``length_mm`` (None: a
-        canned cycle, which G93 does not allow)."""
+        canned cycle, which G93 does not allow). LinuxCNC (``lcnc_len``: its length of the move
+        and mm per its unit): its rate is at least 0.1 units/min, so a short move may take longer
+        than 1/F."""
         if self.state.feed_mode != 93:
             f = self.state.feed_mm_min
             if f != f:
@@ -97,7 +118,13 @@ class Moves:
             raise self._fail(
                 raw, 0, "under inverse-time feed G93 every feed move needs its own F (1/min)", line
             )
-        if not length_mm > 0.0:
+        if lcnc_len is not None:
+            length, unit = lcnc_len
+            rate = max(0.1, length / unit * self._inverse_f)  # LinuxCNC's, units/min
+            if not (length > 0.0 and length_mm > 0.0):
+                return rate * unit  # it moves nowhere at that rate
+            f = length_mm * rate * unit / length  # the travel in LinuxCNC's time
+        elif not length_mm > 0.0:
             raise self._fail(
                 raw,
                 0,
@@ -105,7 +132,8 @@ class Moves:
                 "represented",
                 line,
             )
-        f = length_mm * self._inverse_f
+        else:
+            f = length_mm * self._inverse_f
         if f > self._feed_max_mm_min:
             self._note(
                 raw,
@@ -116,37 +144,112 @@ class Moves:
             )
         return f
 
+    def _lcnc_length(self, p0, p1, r0, r1) -> tuple[float, float]:
+        """LinuxCNC's length of a straight move (``find_straight_length``): along X Y Z if they
+        move, else the rotary degrees; with the mm per its unit."""
+        unit = INCH_MM if self.state.inch else 1.0
+        tiny = _TINY_UNITS * unit
+        if abs(p1[0] - p0[0]) > tiny or abs(p1[1] - p0[1]) > tiny or abs(p1[2] - p0[2]) > tiny:
+            return math.dist(p0, p1), unit
+        return math.dist(r0, r1), 1.0
+
+    def _linuxcnc_rotary_feed(self, feed: float, lin_mm: float, r0, r1, p0, p1) -> float:
+        """LinuxCNC's G94 feed of a move that turns a rotary axis, as the Motion's feed along
+        the combined travel: F is along X Y Z when they move (the rotary axes follow), else in
+        degrees/min, whatever the length units."""
+        rot = math.dist(r0, r1)
+        unit = INCH_MM if self.state.inch else 1.0
+        tiny = _TINY_UNITS * unit
+        if abs(p1[0] - p0[0]) > tiny or abs(p1[1] - p0[1]) > tiny or abs(p1[2] - p0[2]) > tiny:
+            return feed * math.hypot(lin_mm, rot) / lin_mm
+        return self.state.feed_word  # the F number, deg/min (travel = the rotary degrees)
+
     def _move(self, raw, v, scale, line, block, out, mode: int, g53: bool) -> None:
         st = self.state
         p0 = st.position_mm
         p1 = self._target(v, scale, g53)
         r0 = st.rotary_deg
         r1 = r0 if self._rotary_to is None else self._rotary_to
-        if g53 and mode not in (0, 1):
-            raise self._fail(raw, 0, "G53 needs G0 or G1 in force", line)
+        if g53:
+            if mode not in (0, 1):
+                raise self._fail(raw, 0, "G53 needs G0 or G1 in force", line)
+            if self._lcnc and not st.absolute:
+                raise self._fail(raw, 0, "G53 cannot be used in incremental mode G91", line)
         if mode <= 1:  # inlined _seg: this is the hot path of big programs
             if mode == 0:
                 kind, feed = RAPID, NAN
             else:
                 kind, feed = LINE, st.feed_mm_min
                 if feed != feed:
-                    feed = self._need_feed(raw, line, math.dist((*p0, *r0), (*p1, *r1)))
+                    lcnc = self._lcnc_length(p0, p1, r0, r1) if self._lcnc else None
+                    feed = self._need_feed(raw, line, math.dist((*p0, *r0), (*p1, *r1)), lcnc)
+                elif r1 is not r0 and self._lcnc:
+                    feed = self._linuxcnc_rotary_feed(feed, math.dist(p0, p1), r0, r1, p0, p1)
             rpm = st.spindle_dir * st.spindle_speed_rpm
             out.fbuf.extend((*p0, *p1, NAN, NAN, NAN, feed, rpm, 0.0, *r0, *r1))
             out.ibuf.extend((kind, st.plane, st.tool, st.coolant, line, block))
         else:
-            c = self._arc_center(raw, v, scale, line, p0, p1, mode == 2)
-            length = None
-            if st.feed_mode == 93:
-                length = math.hypot(
-                    arc_length_mm(p0, p1, c, st.plane, mode == 2), math.dist(r0, r1)
-                )
-            feed = self._need_feed(raw, line, length)
-            kind = ARC_CW if mode == 2 else ARC_CCW
-            self._seg(out, kind, p0, p1, c, feed, 0.0, line, block, r1)
+            cw = mode == 2
+            c = self._arc_center(raw, v, scale, line, p0, p1, cw)
+            kind = ARC_CW if cw else ARC_CCW
+            if self._lcnc or st.feed_mode == 93:
+                self._arc(raw, v, line, block, out, kind, p0, p1, c, r0, r1)
+            else:  # the common arc
+                feed = self._need_feed(raw, line)
+                self._seg(out, kind, p0, p1, c, feed, 0.0, line, block, r1)
         st.position_mm = p1
         st.rotary_deg = r1
 
+    def _arc(self, raw, v, line: int, block: int, out, kind: int, p0, p1, c, r0, r1) -> None:
+        """An arc under G93 or LinuxCNC's rules: its length for the inverse-time feed, the feed
+        of a move with rotary axes, and LinuxCNC's P turns (full circles first, then the arc)."""
+        st = self.state
+        cw = kind == ARC_CW
+        turns = self._turns(raw, v, line) if self._lcnc and "P" in v else 1
+        arc = arc_length_mm(p0, p1, c, st.plane, cw)
+        ia, ib, ic = PLANE_AXES[st.plane]
+        total = 1.0
+        if turns > 1:  # helix over (turns - 1) full circles and the arc itself
+            r = math.hypot(p0[ia] - c[ia], p0[ib] - c[ib])
+            sweep = math.sqrt(max(arc * arc - (p1[ic] - p0[ic]) ** 2, 0.0)) / r
+            total = sweep + TWO_PI * (turns - 1)
+            arc = math.hypot(r * total, p1[ic] - p0[ic])
+        length = math.hypot(arc, math.dist(r0, r1))
+        if st.feed_mode == 93:
+            unit = INCH_MM if st.inch else 1.0
+            feed = self._need_feed(raw, line, length, (arc, unit) if self._lcnc else None)
+        else:
+            feed = self._need_feed(raw, line)
+        if r1 != r0 and self._lcnc and st.feed_mode != 93 and arc > 0.0:
+            feed *= length / arc  # LinuxCNC's F is along the arc, the rotary axes follow
+        if turns == 1:
+            self._seg(out, kind, p0, p1, c, feed, 0.0, line, block, r1)
+            return
+        ends = [TWO_PI * k / total for k in range(1, turns)] + [1.0]
+        f0, a = 0.0, p0
+        for f1 in ends:
+            b = p1 if f1 == 1.0 else list(p0)
+            if f1 != 1.0:
+                b[ic] = p0[ic] + f1 * (p1[ic] - p0[ic])
+                b = (b[0], b[1], b[2])
+            ca = list(c)
+            ca[ic] = a[ic]
+            ra = tuple(x0 + f0 * (x1 - x0) for x0, x1 in zip(r0, r1))
+            rb = tuple(x0 + f1 * (x1 - x0) for x0, x1 in zip(r0, r1))
+            self._seg(out, kind, a, b, tuple(ca), feed, 0.0, line, block, rb, ra)
+            f0, a = f1, b
+
+    def _turns(self, raw: str, v: dict[str, str], line: int) -> int:
+        """LinuxCNC's G2/G3 P: the number of turns (a whole number >= 1)."""
+        p = float(v["P"])
+        n = round(p)
+        if abs(n - p) > 0.001:
+            raise self._fail(raw, "P", f"G2/G3 P (turns) must be whole, got {v['P']}", line)
+        if n < 1:
+            raise self._fail(raw, "P", f"G2/G3 P (turns) must be 1 or more, got {v['P']}", line)
+        return n
+
+    # ------------------------------------------------------------------ G28 / G30 / G29
     def _home(self, raw, v, scale, line, block, out, key: int, k: int) -> None:
         """G28 / G30 (word ``k`` of the block): the named axes rapid to the intermediate point,
         then to the reference point (machine coordinates); the others stay. G29: back from the
@@ -161,15 +264,18 @@ class Moves:
                 raw, "P", "only the second reference point (G30 P2) is configured", line
             )
         named = [a for a in range(3) if "XYZ"[a] in v]
-        if named:
+        rot_mid = self._rotary_to  # LinuxCNC: A B C words name rotary axes to return too
+        if named or rot_mid is not None:
             mid = self._target(v, scale, False)
-        elif self.dialect == "grbl":  # GRBL: no axis word = all axes straight to the point
+        elif self.dialect != "fanuc":  # no axis word = all axes straight to the point
             named, mid = [0, 1, 2], st.position_mm
+            if self._lcnc:
+                rot_mid = st.rotary_deg
         else:
             raise self._fail(
                 raw, k, f"{code} needs the axes to return (X, Y, Z), e.g. G91 {code} Z0", line
             )
-        ref = self._reference_mm[key]
+        ref = st.reference_mm if key == 280 else st.second_reference_mm
         if ref is None:
             ref = (0.0, 0.0, 0.0)
             st.reference_assumed = True
@@ -188,15 +294,24 @@ class Moves:
             end[a] = float(ref[a])
             inter[a] = mid[a]
         st.intermediate_mm = (inter[0], inter[1], inter[2])
-        self._two_rapids(mid, tuple(end), line, block, out)
+        rot_end = None
+        if rot_mid is not None:  # LinuxCNC: the rotary axes have reference points too
+            rref = st.reference_rotary_deg if key == 280 else st.second_reference_rotary_deg
+            named_rot = [i for i, c in enumerate("ABC") if c in v] or range(3)
+            rot_end = tuple(rref[i] if i in named_rot else rot_mid[i] for i in range(3))
+        self._two_rapids(mid, tuple(end), line, block, out, rot_mid, rot_end)
 
-    def _two_rapids(self, mid, end, line, block, out) -> None:
-        p0 = self.state.position_mm
-        nowhere = (NAN, NAN, NAN)
-        for a, b in ((p0, mid), (mid, end)):
-            if a != b:
-                self._seg(out, RAPID, a, b, nowhere, NAN, 0.0, line, block)
-        self.state.position_mm = end
+    def _two_rapids(self, mid, end, line, block, out, rot_mid=None, rot_end=None) -> None:
+        st = self.state
+        p0 = st.position_mm
+        r0 = st.rotary_deg
+        r_mid = r0 if rot_mid is None else rot_mid
+        r_end = r_mid if rot_end is None else rot_end
+        for a, b, ra, rb in ((p0, mid, r0, r_mid), (mid, end, r_mid, r_end)):
+            if a != b or ra != rb:
+                self._seg(out, RAPID, a, b, _NOWHERE, NAN, 0.0, line, block, rb, ra)
+        st.position_mm = end
+        st.rotary_deg = r_end
 
     def _from_reference(self, raw, v, scale, line, block, out, k: int) -> None:
         """G29 (Fanuc): the named axes rapid to the last G28/G30 intermediate point, then to the
@@ -224,10 +339,141 @@ class Moves:
             )
         self._two_rapids(tuple(mid), tuple(end), line, block, out)
 
+    # ------------------------------------------------------------------ G10 / G92 / G28.1
+    def _setting(self, raw, v, scale, line, key: int, k: int) -> None:
+        """The group-0 codes that set something from the block's words (no motion): G10,
+        G28.1 / G30.1, G52, G92, G92.1 / G92.2 / G92.3."""
+        st = self.state
+        code = gname(key)
+        if key == 100:
+            self._g10(raw, v, scale, line, k)
+            return
+        axes = [a for a in range(3) if "XYZ"[a] in v]
+        rot = [c for c in "ABC" if c in v]
+        if key in (281, 301, 921, 922, 923):
+            if axes or rot:
+                raise self._fail(
+                    raw, ("XYZ"[axes[0]] if axes else rot[0]), f"{code} takes no axis words", line
+                )
+            if key == 281:
+                st.reference_mm = st.position_mm
+                st.reference_rotary_deg = st.rotary_deg
+            elif key == 301:
+                st.second_reference_mm = st.position_mm
+                st.second_reference_rotary_deg = st.rotary_deg
+            elif key == 921:
+                st.g92_offset_mm = st.g92_saved_mm = (0.0, 0.0, 0.0)
+            elif key == 922:
+                st.g92_offset_mm = (0.0, 0.0, 0.0)
+            else:
+                st.g92_offset_mm = st.g92_saved_mm
+            self._set_origin()
+            return
+        # G92 / G52
+        if not axes and not rot:
+            raise self._fail(raw, k, f"{code} needs at least one axis word", line)
+        for c in rot:  # the rotary axes have no offsets here: only what leaves them as they are
+            now = st.rotary_deg["ABC".index(c)]
+            if float(v[c]) != (now if key == 920 else 0.0):
+                raise self._fail(raw, c, f"{code}: rotary axis offsets are not supported", line)
+        off = list(st.g92_offset_mm)
+        work = st.work_offsets_mm[st.work_offset_index]
+        for a in axes:
+            val = float(v["XYZ"[a]]) * scale
+            off[a] = st.position_mm[a] - work[a] - val if key == 920 else val
+        st.g92_offset_mm = st.g92_saved_mm = (off[0], off[1], off[2])
+        self._set_origin()
+
+    def _g10(self, raw, v, scale, line, k: int) -> None:
+        """G10 L2 / L20 (work offsets) and L1 / L10 / L11 (tool table)."""
+        st = self.state
+        if "L" not in v:
+            raise self._fail(raw, k, "G10 needs L (L2/L20 work offset, L1/L10 tool table)", line)
+        lf = float(v["L"])
+        ell = round(lf)
+        grbl = self.dialect == "grbl"
+        fanuc = self.dialect == "fanuc"
+        known = (2, 20) if grbl else (2, 1, 10, 11, 12, 13) if fanuc else (0, 1, 2, 10, 11, 20)
+        if ell != lf or ell not in known:
+            raise self._fail(
+                raw, "L", f"G10 L{v['L']} is not one of L{', L'.join(map(str, known))} "
+                f"({self.dialect})", line,
+            )  # fmt: skip
+        if ell == 0:  # LinuxCNC: reload the tool table (from the file: nothing known here)
+            return
+        if "P" not in v:
+            raise self._fail(raw, k, f"G10 L{ell} needs P", line)
+        pf = float(v["P"])
+        p = round(pf)
+        if abs(pf - p) > 0.0002:
+            raise self._fail(raw, "P", f"G10 P must be a whole number, got {v['P']}", line)
+        axes = [a for a in range(3) if "XYZ"[a] in v]
+        if ell in (2, 20):
+            top = 6 if (grbl or fanuc) else 9
+            if not (0 if not fanuc else 1) <= p <= top:
+                why = " (the external offset P0 is not supported)" if fanuc and p == 0 else ""
+                raise self._fail(raw, "P", f"G10 L{ell} P must be in 0..{top}, got {p}{why}", line)
+            for c in "IJ":
+                if c in v:
+                    raise self._fail(raw, c, f"G10 L{ell} takes no {c} word", line)
+            if "R" in v and float(v["R"]) != 0.0:
+                raise self._fail(
+                    raw, "R", "G10 L2 R: rotated coordinate systems are not supported", line
+                )
+            for c in "ABC":
+                if c in v and float(v[c]) != (st.rotary_deg["ABC".index(c)] if ell == 20 else 0.0):
+                    raise self._fail(raw, c, "offsets of the rotary axes are not supported", line)
+            idx = st.work_offset_index if p == 0 else p - 1
+            off = list(st.work_offsets_mm[idx])
+            for a in axes:
+                val = float(v["XYZ"[a]]) * scale
+                if ell == 20:  # the current position reads val in system idx
+                    off[a] = st.position_mm[a] - st.g92_offset_mm[a] - val
+                elif fanuc and not st.absolute:
+                    off[a] += val
+                else:
+                    off[a] = val
+            table = list(st.work_offsets_mm)
+            table[idx] = (off[0], off[1], off[2])
+            st.work_offsets_mm = tuple(table)
+            st.work_offsets_set = st.work_offsets_set | {idx}
+            if idx == st.work_offset_index:
+                self._set_origin()
+            return
+        if fanuc:  # L1 / L10..L13: Fanuc's tool offset memories (not modelled)
+            return
+        # LinuxCNC L1 (direct), L10 (the current position reads the values), L11 (in G59.3)
+        if p < 1:
+            raise self._fail(raw, "P", f"G10 L{ell} P (tool number) must be 1 or more", line)
+        if not axes and not any(c in v for c in "ABCRQIJ"):
+            raise self._fail(raw, k, f"G10 L{ell} without offsets has no effect", line)
+        entry = list(st.tool_table.get(p, (0.0, 0.0, 0.0, 0.0)))
+        if ell == 1:
+            for a in axes:
+                entry[a] = float(v["XYZ"[a]]) * scale
+        else:
+            tlo = 0.0
+            if st.tool_length == 43:
+                tlo = st.tool_table.get(st.tool_length_h or st.tool, (0.0, 0.0, 0.0, 0.0))[2]
+            work = st.work_offsets_mm[8 if ell == 11 else st.work_offset_index]
+            g92 = (0.0, 0.0, 0.0) if ell == 11 else st.g92_offset_mm
+            for a in axes:
+                here = st.position_mm[a] + (tlo if a == 2 else 0.0) - work[a] - g92[a]
+                entry[a] = here - float(v["XYZ"[a]]) * scale
+        if "R" in v:
+            entry[3] = float(v["R"]) * scale
+        table = dict(st.tool_table)
+        table[p] = (entry[0], entry[1], entry[2], entry[3])
+        st.tool_table = table
+
+    # ------------------------------------------------------------------ arcs
     def _arc_center(self, raw, v, scale, line, p0, p1, cw: bool) -> tuple[float, float, float]:
         st = self.state
         ia, ib, ic = PLANE_AXES[st.plane]
         tol = self.arc_tolerance_mm
+        lcnc = self._lcnc
+        if lcnc:
+            tol = LINUXCNC_RADIUS_TOL_MM
         ijk = "IJK"
         la, lb, ln = ijk[ia], ijk[ib], ijk[ic]
         has_r = "R" in v
@@ -250,13 +496,21 @@ class Moves:
                 if st.arc_absolute:
                     if not (la in v and lb in v):
                         raise ValueError(f"G90.1 (absolute centre) needs both {la} and {lb}")
-                    off = self.work_offsets_mm.get(st.work_offset, (0.0, 0.0, 0.0))
+                    off = st.origin_mm
                     ca = float(v[la]) * scale + off[ia]
                     cb = float(v[lb]) * scale + off[ib]
                 else:
                     ca = a0 + float(v.get(la, "0")) * scale
                     cb = b0 + float(v.get(lb, "0")) * scale
-                check_radius(a0, b0, a1, b1, ca, cb, tol)
+                if lcnc:
+                    spiral = self._spiral_tol_mm
+                    if spiral is None:
+                        spiral = LINUXCNC_CENTER_TOL_MM
+                        if st.inch:
+                            spiral = LINUXCNC_CENTER_TOL_INCH * INCH_MM
+                    check_radius_linuxcnc(a0, b0, a1, b1, ca, cb, spiral, tol)
+                else:
+                    check_radius(a0, b0, a1, b1, ca, cb, tol)
             else:
                 raise ValueError(f"arc needs its centre ({la}, {lb}) or a radius R")
         except ValueError as exc:
@@ -266,66 +520,144 @@ class Moves:
         c[ia], c[ib], c[ic] = ca, cb, p0[ic]
         return c[0], c[1], c[2]
 
+    # ------------------------------------------------------------------ canned cycles
     def _canned(
         self, raw: str, v: dict[str, str], scale: float, line: int, block: int, out
     ) -> None:
         """Run one block in a canned-cycle mode: update R/Z/Q/P from its words (G90: absolute;
-        G91: R from the initial level, Z from R) and drill L holes (default 1) at its X/Y.
+        G91: R from the initial level, Z from R) and drill L holes (default 1) at its X/Y. In G18
+        and G19 the drilling axis is Y and X (the plane's normal), the hole position the other
+        two words.
 
         Errors become NCError naming the first of Z R Q L in the block.
         """
         st = self.state
         cy = st.canned
-        x0, y0, z0 = st.position_mm
-        oz = self.work_offsets_mm.get(st.work_offset, (0.0, 0.0, 0.0))[2]
-        if cy.initial_z_mm != cy.initial_z_mm:
-            cy.initial_z_mm = z0
+        ia, ib, ic = PLANE_AXES[st.plane]
+        drill = "XYZ"[ic]
+        pos = st.position_mm
+        oc = st.origin_mm[ic]
+        lcnc = self._lcnc
         feed = self._need_feed(raw, line)  # an NCError already (outside the ValueError handler)
+        if lcnc and st.motion != cy.mode:  # LinuxCNC: a new cycle needs its words again
+            for letter, why in (("R", "the R plane"), (drill, "the hole bottom")):
+                if letter not in v:
+                    raise self._fail(raw, 0, f"G{st.motion} needs {why} ({letter} word) when "
+                                     "the cycle starts", line)  # fmt: skip
+            if st.motion == 82 and "P" not in v:
+                raise self._fail(raw, 0, "G82 needs the dwell time P when it starts", line)
+            if st.motion == 83 and "Q" not in v:
+                raise self._fail(raw, 0, "G83 needs the peck depth Q when it starts", line)
+        if cy.initial_z_mm != cy.initial_z_mm:
+            cy.initial_z_mm = pos[ic]
+            # LinuxCNC keeps it in program units (rounded: our position carries float noise)
+            cy.initial_number = round((pos[ic] - oc) / scale, 10)
         try:
             if "R" in v:
-                r = float(v["R"]) * scale
-                cy.r_mm = r + oz if st.absolute else cy.initial_z_mm + r
-            if "Z" in v:
-                z = float(v["Z"]) * scale
+                cy.r_number = float(v["R"])
+                r = cy.r_number * scale
+                cy.r_mm = r + oc if st.absolute else cy.initial_z_mm + r
+            if drill in v:
+                cy.z_number = float(v[drill])
+                z = cy.z_number * scale
                 if st.absolute:
-                    cy.z_mm = z + oz
+                    cy.z_mm = z + oc
                 elif cy.r_mm == cy.r_mm:
                     cy.z_mm = cy.r_mm + z
             if "Q" in v:
-                cy.q_mm = abs(float(v["Q"]) * scale)
+                cy.q_number = float(v["Q"])
+                if lcnc and not cy.q_number > 0.0:
+                    raise ValueError(f"G83 needs a peck depth Q > 0, got {v['Q']}")
+                cy.q_mm = abs(cy.q_number * scale)
             if "P" in v:
                 p = float(v["P"])
                 cy.dwell_s = p / 1000.0 if self.dialect == "fanuc" else p
             if cy.r_mm != cy.r_mm:
                 raise ValueError("canned cycle needs the R plane (R word)")
             if cy.z_mm != cy.z_mm:
-                raise ValueError("canned cycle needs the hole bottom (Z word)")
+                raise ValueError(f"canned cycle needs the hole bottom ({drill} word)")
             repeats = 1
             if "L" in v:
                 repeats = float(v["L"])
-                if repeats < 0 or repeats != int(repeats) or repeats > 9999:
-                    raise ValueError(f"repeat count L must be a whole number 0..9999, got {v['L']}")
+                low = 1 if lcnc else 0
+                if repeats < low or repeats != int(repeats) or repeats > 9999:
+                    raise ValueError(
+                        f"repeat count L must be a whole number {low}..9999, got {v['L']}"
+                    )
                 repeats = int(repeats)
-            vxy = {k: v[k] for k in ("X", "Y") if k in v}
-            for _ in range(repeats):
-                x, y, _z = self._target(vxy, scale, False)
-                moves = drill_hole(
-                    st.motion,
-                    st.position_mm,
-                    x,
-                    y,
-                    cy.r_mm,
-                    cy.z_mm,
-                    cy.initial_z_mm,
-                    retract_initial=st.retract_initial,
-                    q_mm=cy.q_mm,
-                    dwell_s=cy.dwell_s,
-                    peck_clearance_mm=self.peck_clearance_mm,
-                )
-                for kind, p0, p1, dwell_s in moves:
-                    f = feed if kind == LINE else NAN
-                    self._seg(out, kind, p0, p1, (NAN, NAN, NAN), f, dwell_s, line, block)
-                    st.position_mm = p1
+            vab = {k: v[k] for k in ("XYZ"[ia], "XYZ"[ib]) if k in v}
+            if lcnc:
+                self._holes_linuxcnc(vab, scale, repeats, feed, line, block, out)
+            else:
+                for _ in range(repeats):
+                    t = self._target(vab, scale, False)
+                    p = st.position_mm
+                    moves = drill_hole(
+                        st.motion, (p[ia], p[ib], p[ic]), t[ia], t[ib], cy.r_mm, cy.z_mm,
+                        cy.initial_z_mm, retract_initial=st.retract_initial, q_mm=cy.q_mm,
+                        dwell_s=cy.dwell_s, peck_clearance_mm=self.peck_clearance_mm,
+                    )  # fmt: skip
+                    self._holes(out, moves, feed, line, block, ia, ib, ic)
+            cy.mode = st.motion
         except ValueError as exc:
-            which = next((L for L in "ZRQL" if L in v), 0)
+            which = next((L for L in (drill, "R", "Q", "L") if L in v), 0)
             raise self._fail(raw, which, str(exc), line) from None
+
+    def _holes_linuxcnc(self, vab, scale: float, repeats: int, feed, line, block, out) -> None:
+        """The holes of one block as LinuxCNC's ``convert_cycle_xy`` computes them: along the
+        drilling axis in program units from the words as written (so its comparisons, e.g. the
+        last G83 peck, come out as LinuxCNC's), converted to machine mm at the end."""
+        st = self.state
+        cy = st.canned
+        ia, ib, ic = PLANE_AXES[st.plane]
+        pos = st.position_mm
+        oc = st.origin_mm[ic]
+        old = cy.initial_number
+        if st.absolute:
+            r, bottom = cy.r_number, cy.z_number
+        else:
+            r = cy.r_number + old
+            bottom = r + cy.z_number
+        if r < bottom:
+            raise ValueError(
+                f"hole bottom {bottom:.6g} is above the R plane {r:.6g} (program units)"
+            )
+        # LinuxCNC compares exact program values; ours carry float noise (1e-9: far below any
+        # real difference, far above the noise)
+        here = (pos[ic] - oc) / scale
+        first_above = here - r > 1e-9
+        if r - old > 1e-9:  # below R: straight up to it first
+            up = (pos[ia], pos[ib], r * scale + oc)
+            self._holes(out, [(RAPID, (pos[ia], pos[ib], pos[ic]), up, 0.0)], feed, line, block,
+                        ia, ib, ic)  # fmt: skip
+            old = r
+            first_above = False
+        clear = old if st.retract_initial else r
+        if self._peck_default:  # LinuxCNC's G83_RAPID_DELTA: 0.010 in (times 25.4 in mm)
+            delta = 0.010 if st.inch else 0.010 * 25.4
+        else:
+            delta = self.peck_clearance_mm / scale
+        for n in range(repeats):
+            t = self._target(vab, scale, False)
+            p = st.position_mm
+            moves = drill_hole_linuxcnc(
+                st.motion, (p[ia], p[ib], p[ic]), t[ia], t[ib], r, bottom, clear,
+                approach=here if n == 0 and first_above else None, q=cy.q_number,
+                dwell_s=cy.dwell_s, peck_clearance=delta, scale=scale, offset=oc,
+            )  # fmt: skip
+            self._holes(out, moves, feed, line, block, ia, ib, ic)
+
+    def _holes(self, out, moves, feed: float, line: int, block: int, ia, ib, ic) -> None:
+        """Emit canned-cycle moves given in plane coordinates (a, b, drilling axis)."""
+        st = self.state
+        for kind, q0, q1, dwell_s in moves:
+            f = feed if kind == LINE else NAN
+            if ic == 2:
+                p0, p1 = q0, q1
+            else:
+                a0, a1 = [0.0] * 3, [0.0] * 3
+                a0[ia], a0[ib], a0[ic] = q0
+                a1[ia], a1[ib], a1[ic] = q1
+                p0, p1 = tuple(a0), tuple(a1)
+            self._seg(out, kind, p0, p1, _NOWHERE, f, dwell_s, line, block)
+            st.position_mm = p1

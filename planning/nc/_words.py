@@ -8,9 +8,13 @@ interpreter's ``state``, ``file``, ``strict``, ``warnings`` and machine limits.
 from __future__ import annotations
 
 from planning.nc import _lexer
-from planning.nc._codes import G_GROUP, KNOWN_M, LETTERS, M_GROUP, gkey, gname
+from planning.nc._codes import LETTERS, M_GROUP, gkey, gname
 from planning.nc.errors import NCError, NCWarning
 from planning.nc.state import ModalState
+
+# words a code takes besides the axis words (G4 P, G10 L P R ..., G30 P2, G64 P Q; M61 Q, M62 P)
+_G_LETTERS = {40: "P", 100: "LPRQIJ", 300: "P", 640: "PQ"}
+_M_LETTERS = {50: "P", 51: "P", 52: "P", 53: "P", 61: "Q", 62: "P", 63: "P", 64: "P", 65: "P"}
 
 
 class WordRules:
@@ -23,6 +27,9 @@ class WordRules:
     _feed_max_mm_min: float
     _spindle_max_rpm: float
     _inverse_f: float
+    _g_group: dict[int, int]
+    _known_m: frozenset[int]
+    _lcnc: bool
 
     def _problem(self, raw: str, index: int, reason: str, line: int) -> None:
         """Strict: raise; lenient: record a warning about word ``index`` of the block."""
@@ -53,7 +60,7 @@ class WordRules:
         for k, (letter, num) in enumerate(words):
             if letter == "G":
                 key = gkey(num)
-                if key not in G_GROUP:
+                if key not in self._g_group:
                     self._problem(raw, k, f"unknown G-code {gname(key)}", line)
                 elif gcodes is None:
                     gcodes = [(key, k)]
@@ -61,7 +68,7 @@ class WordRules:
                     gcodes.append((key, k))
             elif letter == "M":
                 key = round(float(num) * 10.0)
-                if key % 10 or key // 10 not in KNOWN_M:
+                if key % 10 or key // 10 not in self._known_m:
                     self._problem(raw, k, f"unknown M-code M{key / 10:g}", line)
                 elif mcodes is None:
                     mcodes = [(key, k)]
@@ -77,12 +84,15 @@ class WordRules:
                 v[letter] = num
         return gcodes, mcodes, v
 
-    def _words(self, raw: str, v: dict[str, str], scale: float, line: int, p_used: bool) -> None:
-        """F S T D H O N P Q L R I J K and A B C: checks and recording (``p_used``: G4 or G30 in
-        the block takes the P word)."""
+    def _words(
+        self, raw: str, v: dict[str, str], scale: float, fscale: float, line: int, gcodes, mcodes
+    ) -> None:
+        """F S T D H O N P Q L R I J K and A B C: checks and recording (``fscale``: mm per unit
+        of F; ``gcodes``, ``mcodes``: the block's codes, for the words G4, G10, G30, G64 and M
+        codes take)."""
         st = self.state
         if "F" in v:
-            self._feed(raw, v, scale, line)
+            self._feed(raw, v, fscale, line)
         if "S" in v:
             s = float(v["S"])
             if s < 0.0:
@@ -118,21 +128,24 @@ class WordRules:
             self._rotary_to = (rot[0], rot[1], rot[2])
             st.rotary_named = "".join(c for c in "ABC" if c in v or c in st.rotary_named)
         mode = st.motion
-        used = set()
+        used = ""
         if mode in (2, 3):
-            used.update("IJKR")
-        if mode >= 81:
-            used.update("RLPQ")
-        if p_used:
-            used.add("P")
+            used = "IJKRP" if self._lcnc else "IJKR"  # LinuxCNC: P turns
+        elif mode >= 81:
+            used = "RLPQ"
+        extra = None
         for letter in "IJKRPQL":
             if letter in v and letter not in used:
-                self._problem(
-                    raw,
-                    _lexer.find_word(raw, letter),
-                    f"word {letter} is not used by any code in force (motion G{mode})",
-                    line,
-                )
+                if extra is None:  # the letters the block's G and M codes take
+                    extra = "".join(_G_LETTERS.get(key, "") for key, _ in gcodes or ())
+                    extra += "".join(_M_LETTERS.get(key // 10, "") for key, _ in mcodes or ())
+                if letter not in extra:
+                    self._problem(
+                        raw,
+                        _lexer.find_word(raw, letter),
+                        f"word {letter} is not used by any code in force (motion G{mode})",
+                        line,
+                    )
 
     def _whole(self, raw: str, v: dict[str, str], letter: str, line: int) -> int:
         """The value of a T D H O N word: a whole number 0..999999999."""
@@ -158,7 +171,8 @@ class WordRules:
                 )
             self._inverse_f = f
             return
-        f = float(v["F"]) * scale
+        word = float(v["F"])
+        f = word * scale
         if not f > 0.0:
             raise self._fail(raw, "F", "feed F must be > 0 (mm/min, or in/min under G20)", line)
         if f > self._feed_max_mm_min:
@@ -170,6 +184,7 @@ class WordRules:
                 line,
             )
         self.state.feed_mm_min = f
+        self.state.feed_word = word
 
     def _check_m_groups(self, raw: str, mcodes: list[tuple[int, int]], line: int) -> None:
         seen: dict[str, int] = {}

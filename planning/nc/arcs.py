@@ -22,6 +22,21 @@ from planning.nc.motion import ARC_CCW, ARC_CW, DWELL, FULL_CIRCLE_TOL_MM, Motio
 PLANE_AXES: dict[int, tuple[int, int, int]] = {17: (0, 1, 2), 18: (2, 0, 1), 19: (1, 2, 0)}
 TWO_PI = 2.0 * math.pi
 
+# LinuxCNC's arc tolerances (src/emc/rs274ngc/interp_internal.hh), in program units:
+#: I/J/K arcs: start and end radius may differ by this much (CENTER_ARC_RADIUS_TOLERANCE_INCH/MM,
+#: the default of the INI settings of the same names) ...
+LINUXCNC_CENTER_TOL_INCH = 2 * 0.001 * math.sqrt(2.0)
+LINUXCNC_CENTER_TOL_MM = 2 * 0.01 * math.sqrt(2.0)
+#: ... or by this fraction of the larger radius (SPIRAL_RELATIVE_TOLERANCE), up to 100 times the
+#: absolute tolerance
+LINUXCNC_SPIRAL_REL_TOL = 0.001
+#: R arcs: the half chord may exceed |R| by this much; also the smallest I/J/K radius
+#: (RADIUS_TOLERANCE_INCH, RADIUS_TOLERANCE_MM = the same length)
+LINUXCNC_RADIUS_TOL_INCH = 0.00005
+LINUXCNC_RADIUS_TOL_MM = LINUXCNC_RADIUS_TOL_INCH * 25.4
+#: R arcs: a half chord above (1 - this) |R| is taken as |R| (TINY)
+LINUXCNC_TINY = 1e-12
+
 
 def center_from_r(
     a0: float, b0: float, a1: float, b1: float, r_mm: float, cw: bool, tol_mm: float
@@ -68,6 +83,39 @@ def check_radius(
         )
     if r0 <= FULL_CIRCLE_TOL_MM:
         raise ValueError("arc centre coincides with the start point (radius 0)")
+    return r0
+
+
+def check_radius_linuxcnc(
+    a0: float,
+    b0: float,
+    a1: float,
+    b1: float,
+    ca: float,
+    cb: float,
+    abs_tol_mm: float,
+    min_radius_mm: float,
+) -> float:
+    """Start radius of an I/J/K arc under LinuxCNC's rule (``arc_data_ijk``); ``ValueError`` if
+    either radius is below ``min_radius_mm`` or the radii differ by more than ``abs_tol_mm`` and
+    by more than :data:`LINUXCNC_SPIRAL_REL_TOL` of the larger one, or by more than 100 times
+    ``abs_tol_mm`` in any case. An accepted arc with unequal radii is cut as a spiral from the
+    start to the programmed end about the programmed centre."""
+    r0 = math.hypot(a0 - ca, b0 - cb)
+    r1 = math.hypot(a1 - ca, b1 - cb)
+    if r0 < min_radius_mm or r1 < min_radius_mm:
+        raise ValueError(
+            f"zero-radius arc: start radius {r0:.6g} mm, end radius {r1:.6g} mm (LinuxCNC "
+            f"needs at least {min_radius_mm:.6g} mm)"
+        )
+    err = abs(r0 - r1)
+    rel = err / max(r0, r1)
+    if err > 100.0 * abs_tol_mm or (rel > LINUXCNC_SPIRAL_REL_TOL and err > abs_tol_mm):
+        raise ValueError(
+            f"arc end radius {r1:.6g} mm differs from start radius {r0:.6g} mm by {err:.3g} mm "
+            f"({100.0 * rel:.3g} %), more than LinuxCNC allows ({abs_tol_mm:.6g} mm, or "
+            f"{100.0 * LINUXCNC_SPIRAL_REL_TOL:g} % up to {100.0 * abs_tol_mm:.6g} mm)"
+        )
     return r0
 
 
@@ -269,6 +317,7 @@ __all__ = [
     "bounding_box",
     "center_from_r",
     "check_radius",
+    "check_radius_linuxcnc",
     "linearize",
     "pieces_per_segment",
     "segment_length_mm",

@@ -1,7 +1,12 @@
-"""Canned drilling cycles G81 / G82 / G83 expanded into rapid, feed and dwell moves (Fanuc rules).
+"""Canned drilling cycles G81 / G82 / G83 expanded into rapid, feed and dwell moves.
 
-One hole at (x, y), with the R plane ``r_mm``, the bottom ``z_mm`` and the initial level
-``initial_z_mm`` (the Z where the cycle started), all absolute mm:
+Points are in plane coordinates ``(a, b, c)``: ``c`` is the drilling axis, the normal of the plane
+(Z in G17, Y in G18, X in G19; :data:`planning.nc.arcs.PLANE_AXES`), "up" is +c. Below, x y z
+stand for a b c.
+
+:func:`drill_hole` (Fanuc and GRBL rules): one hole at (x, y), with the R plane ``r_mm``, the
+bottom ``z_mm`` and the initial level ``initial_z_mm`` (the Z where the cycle started), all
+absolute mm:
 
 1. if below the R plane, rapid up to it; rapid to (x, y); rapid down to R;
 2. G81: feed to the bottom. G82: feed to the bottom, dwell. G83 (peck): feed down by Q, rapid back
@@ -12,6 +17,14 @@ One hole at (x, y), with the R plane ``r_mm``, the bottom ``z_mm`` and the initi
 The interpreter (``Moves._canned`` in :mod:`planning.nc._moves`) turns the words into these
 absolute parameters (G91: R is measured from the
 initial level, Z from R; L repeats the hole at incremental X/Y steps).
+
+:func:`drill_hole_linuxcnc` follows LinuxCNC's ``convert_cycle_xy`` and ``CYCLE_MACRO``: before
+the holes of a block, if the initial level is below R the tool rapids straight up to R; every
+hole is approached at the clearance level (R under G99, the initial level or R, whichever is
+higher, under G98) — diagonally if the tool is elsewhere — except the first hole of a block
+that starts above R, approached at the height the block starts at; G83 pecks from R by Q,
+retracting to R and re-entering ``peck_clearance_mm`` (0.010 in) above the last depth; G82
+dwells even for P0.
 """
 
 from __future__ import annotations
@@ -82,4 +95,67 @@ def drill_hole(
             go(DWELL, p, dwell_s)
     top = max(initial_z_mm, r_mm) if retract_initial else r_mm
     go(RAPID, (x_mm, y_mm, top))
+    return moves
+
+
+def drill_hole_linuxcnc(
+    cycle: int,
+    start: Point,
+    x_mm: float,
+    y_mm: float,
+    r: float,
+    bottom: float,
+    clear: float,
+    *,
+    approach: float | None,
+    q: float = 0.0,
+    dwell_s: float = 0.0,
+    peck_clearance: float = 0.254,
+    scale: float = 1.0,
+    offset: float = 0.0,
+) -> list[Move]:
+    """The moves of one hole as LinuxCNC makes them, from ``start`` (mm).
+
+    The drilling-axis values ``r``, ``bottom``, ``clear`` (the level the hole is left at, and
+    approached at), ``approach`` (the height of the approach of a block's first hole when the
+    block starts above R, else None), ``q`` and ``peck_clearance`` are in program units, as
+    LinuxCNC computes with them; machine mm = value * ``scale`` + ``offset``. Zero-length moves
+    are left out.
+    """
+    if bottom > r:
+        raise ValueError(f"hole bottom {bottom:.6g} is above the R plane {r:.6g}")
+    if cycle == 83 and not q > 0.0:
+        raise ValueError(f"G83 needs a peck depth Q > 0, got {q:.6g}")
+    if cycle == 83 and (r - bottom) / q > MAX_PECKS:
+        raise ValueError(
+            f"G83 peck depth Q {q:.6g} would need more than {MAX_PECKS} pecks for {r - bottom:.6g}"
+        )
+    moves: list[Move] = []
+    p = start
+
+    def go(kind: int, c: float, dwell: float = 0.0) -> None:
+        nonlocal p
+        q1 = (x_mm, y_mm, c * scale + offset)
+        if q1 != p or kind == DWELL:
+            moves.append((kind, p, q1, dwell))
+        p = q1
+
+    if approach is not None:
+        go(RAPID, approach)
+        go(RAPID, r)
+    else:
+        go(RAPID, clear)
+        if clear > r:
+            go(RAPID, r)
+    if cycle == 83:
+        depth = r - q
+        while depth > bottom:
+            go(LINE, depth)
+            go(RAPID, r)
+            go(RAPID, depth + peck_clearance)
+            depth -= q
+    go(LINE, bottom)
+    if cycle == 82:
+        go(DWELL, bottom, dwell_s)
+    go(RAPID, clear)
     return moves

@@ -9,14 +9,25 @@ Two ways in:
   segments as a (small) Motion and updates ``it.state`` (a :class:`~planning.nc.ModalState`, copy
   it with ``it.state.copy()``). The simulated controllers use this as blocks arrive over serial.
 
-Semantics (RS-274 / Fanuc flavour; ``dialect`` only changes G4/G82 ``P``: milliseconds on Fanuc,
-seconds on GRBL):
+Semantics (RS-274 / Fanuc flavour by default; ``dialect`` "grbl" and "linuxcnc" change what is
+listed below, "linuxcnc" follows LinuxCNC's interpreter ``rs274`` to the canonical move):
 
 * Within a block: G-codes first (plane, units, distance modes, ...), then F S T, M6, M3/M4/M5,
-  M7/M8/M9, dwell, motion, then M0/M1/M2/M30. Units switched in a block apply to that block's words.
+  M7/M8/M9, dwell, motion, then M0/M1/M2/M30. Units switched in a block apply to that block's words
+  (LinuxCNC: except F, which its order of execution reads before G20/G21, so ``G21 ... G20 F6``
+  sets 6 mm/min; G94 always clears the feed there, as in LinuxCNC).
 * Positions and feeds are converted to mm and mm/min; positions are in the machine frame, i.e.
-  program coordinates plus the active work offset G54..G59 (zero unless ``work_offsets_mm`` is
-  given). G53 moves to machine coordinates for one block.
+  program coordinates plus the active work offset G54..G59 (LinuxCNC also G59.1..G59.3; zero
+  unless ``work_offsets_mm`` is given or a G10 L2/L20 sets them) plus the G92 / G52 offset. G53
+  moves to machine coordinates for one block.
+* G10 L2 Pn (P1..P9 = G54..G59.3, P0 the active one; absolute values whatever G90/G91, as in
+  LinuxCNC; Fanuc: G91 adds) sets a work offset, G10 L20 sets it so that the current position
+  reads the given values. G10 L1/L10/L11 write the tool table (``state.tool_table``: recorded only,
+  tool length is not applied). G92 makes the current position read the given values (the offset
+  applies to every work offset), G92.1 cancels and forgets it, G92.2 cancels and keeps it, G92.3
+  restores it; G52 sets it directly (a local offset). G10 R (rotation) is refused.
+* G61 / G61.1 / G64 (with P blending tolerance, Q naive-CAM tolerance) are recorded in the state:
+  the motion is the programmed path in every mode.
 * G40/G41/G42 (with D) and G43/G49 (with H) are recorded in the state; the motion is the
   programmed tool-tip path (no cutter or length compensation applied). A G41/G42 gives a warning
   (the path is not the tool centre's), or an error with ``cutter_comp="refuse"`` (what the Z-map
@@ -24,27 +35,45 @@ seconds on GRBL):
 * A/B/C words move the rotary axes (degrees; G90 absolute, G91 incremental; no unit or offset
   conversion) together with X/Y/Z in a G0/G1/G2/G3 block: Motion carries each segment's rotary
   start and end. Under G94 the feed F applies to the combined move (mm and degrees together, as
-  on Fanuc); under G93 the move takes 1/F min whatever its axes. A/B/C in a dwell, reference
-  return or canned-cycle block are errors.
-* G80..G83 with G98/G99 expand to rapid/feed/dwell moves (:mod:`planning.nc.canned`).
+  on Fanuc; LinuxCNC: see G93 below); under G93 the move takes 1/F min whatever its axes. A/B/C
+  in a dwell, reference return (LinuxCNC: allowed, the rotary axes return too) or canned-cycle
+  block are errors.
+* G80..G83 with G98/G99 expand to rapid/feed/dwell moves (:mod:`planning.nc.canned`), drilling
+  along the normal of the plane (Z in G17, Y in G18, X in G19); LinuxCNC's own rules (positioning
+  at the clearance level, 0.254 mm G83 re-entry, R/Z/P/Q required when a cycle starts) there.
 * G28 / G30 (return to the reference / second reference point, P2 only), as on Fanuc: the axes
   named rapid to the intermediate point their words give (program coordinates, G90 or G91; ``G91
   G28 Z0`` goes straight up), then to the reference point, which is in machine coordinates (the
   work offset does not apply, as with G53). Axes not named do not move. The points come from the
   machine config (``reference_point_mm`` / ``second_reference_point_mm``) or the
   ``reference_mm`` / ``second_reference_mm`` options; with neither, machine zero = work zero
-  (0, 0, 0) is used and a warning says so. GRBL dialect: a G28/G30 with no axis word moves all
-  axes straight to the point (Fanuc: an error). Tool length compensation is not applied, so the
-  point is where the programmed tool tip goes.
-* G29 (Fanuc; GRBL has none): the named axes rapid to the intermediate point of the last G28/G30
-  that named them, then to the programmed point (G91: relative to the intermediate point).
+  (0, 0, 0) is used and a warning says so. GRBL and LinuxCNC: a G28/G30 with no axis word moves
+  all axes straight to the point (Fanuc: an error; LinuxCNC: the rotary axes too, to 0 degrees
+  unless stored); G28.1 / G30.1 store the current position as the point. Tool length
+  compensation is not applied, so the point is where the programmed tool tip goes.
+* G29 (Fanuc; GRBL and LinuxCNC have none): the named axes rapid to the intermediate point of
+  the last G28/G30 that named them, then to the programmed point (G91: relative to the
+  intermediate point).
 * G93 inverse-time feed: every feed move (G1/G2/G3) needs its own F, and takes 1/F minutes; the
-  Motion gets ``feed_mm_min = path length * F``. F is not modal under G93, and switching between
-  G93 and G94 leaves no feed set (program F again), as in RS-274/NGC. Canned cycles and feed moves
-  with no travel at all under G93 are errors.
+  Motion gets ``feed_mm_min = path length * F``. LinuxCNC: under G94 F is along X Y Z when they
+  move (the rotary axes follow), in degrees/min for a rotary-only move; the Motion's feed is
+  scaled so that the time along the combined travel is LinuxCNC's. F is not modal under G93, and
+  switching between G93 and G94 leaves no feed set (program F again), as in RS-274/NGC. Canned
+  cycles and feed moves with no travel at all under G93 are errors (LinuxCNC: the latter take no
+  time; its G93 rate is at least 0.1 units/min, which slows very short moves).
+* Arc radius tolerance: the machine's ``arc_radius_tolerance_mm`` (default 0.002 mm) for Fanuc
+  and GRBL; LinuxCNC's rule for "linuxcnc" (:func:`planning.nc.arcs.check_radius_linuxcnc`: I/J/K
+  end radius within 0.0283 mm / 0.00283 in, or within 0.1 % up to 100 times that, the arc then
+  being a spiral from start to end; R arcs whose chord exceeds 2R by 0.00127 mm at most).
+  LinuxCNC's ``G2/G3 P``: P turns, as P - 1 full circles (segments whose start and end coincide
+  in the plane) and then the arc, the helix spread evenly over the whole angle.
+* LinuxCNC also knows M48/M49 and M50-M53 (overrides), M60 (pallet stop: like M0), M61 Q (the
+  tool in the spindle is Q, no change), M62-M65 (digital outputs), G8 and G97 (the only lathe
+  radius and spindle modes there are): none changes the motion.
+* G4 / G82 ``P``: milliseconds on Fanuc, seconds on GRBL and LinuxCNC (which takes no ``G4 X``).
 * GRBL dialect: what GRBL 1.1 answers ``error:20`` to (G41/G42, G43, G81-G83, G98/G99, G90.1,
-  M6, O D H Q and A/B/C words) is an error (lenient: a warning), so ``dnc send`` refuses it before
-  anything is sent.
+  G52, G64, G10 other than L2/L20, M6, O D H Q and A/B/C words) is an error (lenient: a
+  warning), so ``dnc send`` refuses it before anything is sent.
 * After M2/M30 or the closing ``%`` nothing more is executed; blocks with words there give a
   warning.
 * Strict mode (default) raises :class:`~planning.nc.NCError` for unknown G/M codes, unknown
@@ -56,22 +85,25 @@ seconds on GRBL):
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 from planning.nc import _lexer
 from planning.nc._codes import (
+    DIALECTS,
     FAST_LETTERS,
-    G_GROUP,
     GRBL_UNSUPPORTED_G,
     GRBL_UNSUPPORTED_LETTERS,
     GRBL_UNSUPPORTED_M,
     INCH_MM,
-    KNOWN_M,
     LETTERS_GM,
     MOTION_MODE,
+    OFFSET_CODES,
+    OFFSET_INDEX,
+    g_groups,
     gkey,
     gname,
+    known_m,
 )
 from planning.nc._moves import Moves
 from planning.nc._words import WordRules
@@ -84,6 +116,10 @@ if TYPE_CHECKING:
 
 DEFAULT_ARC_TOLERANCE_MM = 0.002  # MachineConfig's default
 NAN = math.nan
+# group-0 codes that set something from the block's words (no motion): G10, G28.1, G30.1, G52,
+# G92, G92.1, G92.2, G92.3
+SETTING_CODES = frozenset({100, 281, 301, 520, 920, 921, 922, 923})
+HOME_CODES = frozenset({280, 290, 300})
 
 
 class _NullSink:
@@ -107,16 +143,17 @@ class Interpreter(WordRules, Moves):
         Unknown codes/letters and unused words raise (True) or become warnings (False).
     file : str
         Name used in error messages.
-    dialect : {"fanuc", "grbl"}, optional
-        Overrides the machine's; only the unit of G4/G82 ``P`` depends on it.
+    dialect : {"fanuc", "grbl", "linuxcnc"}, optional
+        Overrides the machine's (see the module docstring for what it changes).
     block_delete : bool
         The block-delete switch: True skips blocks starting with ``/``.
     arc_tolerance_mm : float, optional
-        Overrides the machine's arc radius tolerance, mm.
-    work_offsets_mm : mapping {54..59: (x, y, z)}, optional
-        Work offsets added to program coordinates; default all zero.
-    peck_clearance_mm : float
-        G83 re-entry clearance above the previous peck, mm.
+        Overrides the machine's arc radius tolerance, mm (LinuxCNC: its absolute spiral
+        tolerance, the INI's ``CENTER_ARC_RADIUS_TOLERANCE_MM``; default LinuxCNC's).
+    work_offsets_mm : mapping {54..59, 59.1..59.3: (x, y, z)}, optional
+        Work offsets added to program coordinates; default all zero (G10 L2/L20 can set them).
+    peck_clearance_mm : float, optional
+        G83 re-entry clearance above the previous peck, mm (default 0.1; LinuxCNC 0.254).
     reference_mm, second_reference_mm : (x, y, z), optional
         Machine coordinates of the G28 / G30 points, mm; override the machine's.
     state : ModalState, optional
@@ -143,8 +180,8 @@ class Interpreter(WordRules, Moves):
         dialect: str | None = None,
         block_delete: bool = True,
         arc_tolerance_mm: float | None = None,
-        work_offsets_mm: dict[int, Sequence[float]] | None = None,
-        peck_clearance_mm: float = 0.1,
+        work_offsets_mm: Mapping[int | float, Sequence[float]] | None = None,
+        peck_clearance_mm: float | None = None,
         reference_mm: Sequence[float] | None = None,
         second_reference_mm: Sequence[float] | None = None,
         state: ModalState | None = None,
@@ -157,31 +194,58 @@ class Interpreter(WordRules, Moves):
         self._comp_warned = False
         self.file = str(file)
         self.dialect = dialect or (machine.dialect if machine is not None else "fanuc")
-        if self.dialect not in ("fanuc", "grbl"):
-            raise NCError(f"dialect must be 'fanuc' or 'grbl', got {self.dialect!r}", file=file)
+        if self.dialect not in DIALECTS:
+            raise NCError(
+                f"dialect must be one of {', '.join(DIALECTS)}, got {self.dialect!r}", file=file
+            )
+        self._lcnc = self.dialect == "linuxcnc"
+        self._g_group = g_groups(self.dialect)
+        self._known_m = known_m(self.dialect)
         self.block_delete = block_delete
         tol = arc_tolerance_mm
-        if tol is None:
-            tol = machine.arc_radius_tolerance_mm if machine is not None else None
+        if tol is None and machine is not None:
+            # LinuxCNC has its own default: only a tolerance the machine file sets overrides it
+            if not self._lcnc or "arc_radius_tolerance_mm" in machine.model_fields_set:
+                tol = machine.arc_radius_tolerance_mm
+        self._spiral_tol_mm = None if tol is None else float(tol)  # LinuxCNC: None = its own
         self.arc_tolerance_mm = DEFAULT_ARC_TOLERANCE_MM if tol is None else float(tol)
-        self.work_offsets_mm = {
-            k: tuple(float(c) for c in v) for k, v in (work_offsets_mm or {}).items()
-        }
+        self._peck_default = peck_clearance_mm is None
+        if peck_clearance_mm is None:
+            peck_clearance_mm = 0.010 * INCH_MM if self._lcnc else 0.1
         self.peck_clearance_mm = float(peck_clearance_mm)
         if reference_mm is None and machine is not None:
             reference_mm = machine.reference_point_mm
         if second_reference_mm is None and machine is not None:
             second_reference_mm = machine.second_reference_point_mm
-        # None: machine zero = work zero, said once in a warning when a G28/G30 needs it
-        self._reference_mm = {280: reference_mm, 300: second_reference_mm or reference_mm}
         self._reference_warned = False
         self._inverse_f = NAN  # this block's F under G93 (1/min)
         inf = math.inf
         self._feed_max_mm_min = machine.feed_max_mm_min if machine is not None else inf
         self._spindle_max_rpm = machine.spindle_max_rpm if machine is not None else inf
-        self.state = state.copy() if state is not None else ModalState()
+        st = self.state = state.copy() if state is not None else ModalState()
+        if work_offsets_mm:
+            table = list(st.work_offsets_mm)
+            for code, off in work_offsets_mm.items():
+                key = round(float(code) * 10.0)
+                if key not in OFFSET_INDEX:
+                    raise ValueError(f"work_offsets_mm: no work offset G{code}")
+                table[OFFSET_INDEX[key]] = (float(off[0]), float(off[1]), float(off[2]))
+            st.work_offsets_mm = tuple(table)
+        # None: machine zero = work zero, said once in a warning when a G28/G30 needs it
+        if reference_mm is not None and (state is None or st.reference_mm is None):
+            st.reference_mm = _point(reference_mm)
+        second = second_reference_mm if second_reference_mm is not None else reference_mm
+        if second is not None and (state is None or st.second_reference_mm is None):
+            st.second_reference_mm = _point(second)
+        self._set_origin()
         self.warnings: list[NCWarning] = []
         self.blocks_seen = 0
+
+    @property
+    def work_offsets_mm(self) -> dict[int | float, tuple[float, float, float]]:
+        """The work offsets in force, ``{54: (x, y, z), ..., 59.3: ...}`` mm (G10 may have set
+        them; the G92 offset is not included: see ``state.origin_mm``)."""
+        return dict(zip(OFFSET_CODES, self.state.work_offsets_mm))
 
     # ------------------------------------------------------------------ public API
     def execute(self, text: str, *, line: int | None = None, block: int | None = None) -> Motion:
@@ -249,6 +313,13 @@ class Interpreter(WordRules, Moves):
             self._comp_warned = True
             self._note(raw, k, reason + " (said once)", line)
 
+    def _set_origin(self) -> None:
+        """``state.origin_mm`` from the active work offset and the G92 offset."""
+        st = self.state
+        w = st.work_offsets_mm[st.work_offset_index]
+        g = st.g92_offset_mm
+        st.origin_mm = (w[0] + g[0], w[1] + g[1], w[2] + g[2])
+
     def _execute(self, raw: str, line: int, block: int, out: MotionBuilder | _NullSink) -> None:
         words, flag = _lexer.block_words(raw, self.file, line)
         st = self.state
@@ -280,14 +351,14 @@ class Interpreter(WordRules, Moves):
             g = v.pop("G", None)
             if g is not None:
                 key = gkey(g)
-                if key not in G_GROUP:
+                if key not in self._g_group:
                     v = None  # let the slow path report it
                 else:
                     gcodes = [(key, words.index(("G", g)))]
             m = v.pop("M", None) if v is not None else None
             if m is not None:
                 key = round(float(m) * 10.0)
-                if key % 10 or key // 10 not in KNOWN_M:
+                if key % 10 or key // 10 not in self._known_m:
                     v = None
                 else:
                     mcodes = [(key, words.index(("M", m)))]
@@ -304,65 +375,42 @@ class Interpreter(WordRules, Moves):
         if gcodes is None:
             explicit_motion = dwell = g53 = False
             home = None
+            scale = fscale = INCH_MM if st.inch else 1.0
         else:
-            explicit_motion, dwell, g53, home = self._gcodes(raw, gcodes, line)
-
-        scale = INCH_MM if st.inch else 1.0
+            inch_before = st.inch
+            explicit_motion, dwell, g53, home, path = self._gcodes(raw, gcodes, line)
+            scale = INCH_MM if st.inch else 1.0
+            # LinuxCNC reads F before G20/G21 (its order of execution), the others after
+            fscale = scale if inch_before == st.inch or not self._lcnc else INCH_MM / scale
+            if path is not None:
+                self._path_control(raw, v, scale, line, path)
         # ---- other words
         if not v.keys() <= FAST_LETTERS:
-            self._words(raw, v, scale, line, dwell or (home is not None and home[0] == 300))
+            self._words(raw, v, scale, fscale, line, gcodes, mcodes)
         else:  # only X Y Z F N: the common block
             if "F" in v:
-                self._feed(raw, v, scale, line)
+                self._feed(raw, v, fscale, line)
             if "N" in v:
                 st.sequence_number = self._whole(raw, v, "N", line)
 
         # ---- M codes before motion (tool change, spindle, coolant)
-        end = mcodes is not None and self._mcodes(raw, mcodes, line)
+        end = mcodes is not None and self._mcodes(raw, mcodes, v, line)
 
-        # ---- dwell
+        # ---- dwell (LinuxCNC: then the block's move, if it has one)
         if dwell:
-            if "Y" in v or "Z" in v or ("X" in v and "P" in v):
-                raise self._fail(
-                    raw,
-                    next(L for L in "YZX" if L in v),
-                    "G4 dwell cannot share its block with a move",
-                    line,
-                )
-            self._dwell(raw, v, line, block, out)
+            self._dwell_block(raw, v, line, block, out, explicit_motion)
 
         # ---- motion
         rotary = self._rotary_to is not None
-        has_axes = ("X" in v or "Y" in v or "Z" in v or rotary) and not dwell
+        has_axes = ("X" in v or "Y" in v or "Z" in v or rotary) and (not dwell or self._lcnc)
         mode = st.motion
-        if rotary and (dwell or home is not None or mode >= 80):
-            why = "G4" if dwell else gname(home[0]) if home is not None else f"G{mode}"
-            raise self._fail(
-                raw, next(L for L in "ABC" if L in v), f"A/B/C words cannot move in a {why} "
-                "block (program the rotary move in its own G0/G1 block)", line,
-            )  # fmt: skip
         if home is not None:
-            if explicit_motion and mode >= 81:
-                raise _lexer.word_error(
-                    raw,
-                    home[1],
-                    f"{gname(home[0])} and G{mode} cannot share a block",
-                    self.file,
-                    line,
-                )
-            self._home(raw, v, scale, line, block, out, *home)
+            self._group0(raw, v, scale, line, block, out, home, has_axes, explicit_motion)
         elif has_axes or (
             explicit_motion and mode >= 2 and mode <= 3 and ("I" in v or "J" in v or "K" in v)
         ):
-            if mode == 80:
-                raise self._fail(
-                    raw,
-                    next(L for L in "XYZABC" if L in v),
-                    "axis word with no motion mode in force (G80 cancelled it; program G0/G1)",
-                    line,
-                )
-            if mode >= 81:
-                self._canned(raw, v, scale, line, block, out)
+            if mode >= 80:
+                self._cycle_block(raw, v, scale, line, block, out, rotary)
             else:
                 self._move(raw, v, scale, line, block, out, mode, g53)
         elif g53:
@@ -370,18 +418,81 @@ class Interpreter(WordRules, Moves):
         if end:
             st.ended = True
 
+    def _dwell_block(self, raw, v, line: int, block: int, out, explicit_motion: bool) -> None:
+        """G4: the dwell (Fanuc / GRBL: alone; LinuxCNC: before the block's move)."""
+        if self._lcnc:
+            if explicit_motion and self.state.motion in (2, 3):
+                raise self._fail(raw, "P", "G4 and G2/G3 cannot share a block (both use P)", line)
+        else:
+            if "A" in v or "B" in v or "C" in v:
+                raise self._fail(
+                    raw, next(L for L in "ABC" if L in v), "A/B/C words cannot move in a G4 "
+                    "block (program the rotary move in its own G0/G1 block)", line,
+                )  # fmt: skip
+            if "Y" in v or "Z" in v or ("X" in v and "P" in v):
+                raise self._fail(
+                    raw,
+                    next(L for L in "YZX" if L in v),
+                    "G4 dwell cannot share its block with a move",
+                    line,
+                )
+        self._dwell(raw, v, line, block, out)
+
+    def _group0(self, raw, v, scale, line, block, out, home, has_axes, explicit_motion) -> None:
+        """A block with G10, G28, G28.1, G29, G30, G30.1, G52 or a G92 code."""
+        key, k = home
+        mode = self.state.motion
+        if key in SETTING_CODES:
+            if has_axes and explicit_motion and mode != 80:
+                raise _lexer.word_error(
+                    raw, k, f"{gname(key)} and G{mode} both use the axis words and cannot "
+                    "share a block", self.file, line,
+                )  # fmt: skip
+            self._setting(raw, v, scale, line, key, k)
+            return
+        if self._rotary_to is not None and not (self._lcnc and key != 290):
+            raise self._fail(
+                raw, next(L for L in "ABC" if L in v), f"A/B/C words cannot move in a "
+                f"{gname(key)} block (program the rotary move in its own G0/G1 block)", line,
+            )  # fmt: skip
+        if explicit_motion and mode >= 81:
+            raise _lexer.word_error(
+                raw, k, f"{gname(key)} and G{mode} cannot share a block", self.file, line
+            )
+        self._home(raw, v, scale, line, block, out, key, k)
+
+    def _cycle_block(self, raw, v, scale, line: int, block: int, out, rotary: bool) -> None:
+        """A block with axis words under G80 (an error) or a canned cycle."""
+        mode = self.state.motion
+        if rotary:
+            raise self._fail(
+                raw, next(L for L in "ABC" if L in v), f"A/B/C words cannot move in a G{mode} "
+                "block (program the rotary move in its own G0/G1 block)", line,
+            )  # fmt: skip
+        if mode == 80:
+            raise self._fail(
+                raw,
+                next(L for L in "XYZABC" if L in v),
+                "axis word with no motion mode in force (G80 cancelled it; program G0/G1)",
+                line,
+            )
+        self._canned(raw, v, scale, line, block, out)
+
     def _gcodes(self, raw: str, gcodes: list[tuple[int, int]], line: int):
         """Apply the block's G codes to the state (one per modal group). Returns
-        ``(explicit_motion, dwell, g53, home)``: whether a group-1/G80 code was given, G4, G53,
-        and ``(key, word index)`` of a G28/G30 or None."""
+        ``(explicit_motion, dwell, g53, group0, path)``: whether a group-1/G80 code was given, G4,
+        G53, ``(key, word index)`` of another group-0 code (G10, G28, G92 ...) or None, and the
+        key of a G61/G61.1/G64 or None (applied once the P and Q words are read)."""
         st = self.state
         explicit_motion = False
         dwell = g53 = False
         home: tuple[int, int] | None = None
+        path = None
         prev_motion = st.motion
+        table = self._g_group
         groups: dict[int, int] = {}
         for key, k in gcodes:
-            grp = G_GROUP[key]
+            grp = table[key]
             if grp in groups:
                 other = groups[grp]
                 raise _lexer.word_error(
@@ -425,9 +536,10 @@ class Interpreter(WordRules, Moves):
             elif grp == 4:
                 st.arc_absolute = key == 901
             elif grp == 5:
-                if key // 10 != st.feed_mode:  # F means something else now: set it again
+                # F means something else now: set it again (LinuxCNC: G94 always clears it)
+                if key // 10 != st.feed_mode or (key == 940 and self._lcnc):
                     st.feed_mode = key // 10
-                    st.feed_mm_min = NAN
+                    st.feed_mm_min = st.feed_word = NAN
             elif grp == 7:
                 st.cutter_comp = key // 10
                 if st.cutter_comp != 40:
@@ -436,21 +548,48 @@ class Interpreter(WordRules, Moves):
                 st.tool_length = key // 10
             elif grp == 10:
                 st.retract_initial = key == 980
-            else:  # 12, work offsets
-                st.work_offset = key // 10
+            elif grp == 12:  # work offsets
+                st.work_offset = OFFSET_CODES[OFFSET_INDEX[key]]
+                self._set_origin()
+            elif grp == 13:  # G61 / G61.1 / G64
+                path = key
+            # 14 (G97) and 15 (G8): the only modes there are, nothing to record
         if explicit_motion and (st.motion >= 81) != (prev_motion >= 81):
-            # leaving a cycle, or starting one: its initial level is the Z here
-            st.canned = CannedCycle(initial_z_mm=st.position_mm[2])
-        return explicit_motion, dwell, g53, home
+            # leaving a cycle, or starting one: its initial level is taken at its first hole
+            st.canned = CannedCycle()
+        if home is not None and dwell:
+            raise _lexer.word_error(
+                raw, home[1], f"G4 and {gname(home[0])} cannot share a block", self.file, line
+            )
+        return explicit_motion, dwell, g53, home, path
 
-    def _mcodes(self, raw: str, mcodes: list[tuple[int, int]], line: int) -> bool:
+    def _path_control(self, raw: str, v: dict[str, str], scale: float, line: int, key: int) -> None:
+        """G61 / G61.1 / G64 P Q: recorded (P: blending tolerance, Q: naive-CAM tolerance; a Q
+        not given is P, as in LinuxCNC)."""
+        st = self.state
+        st.path_control = key // 10 if key % 10 == 0 else key / 10
+        if key != 640:
+            return
+        tol = {}
+        for letter in "PQ":
+            if letter in v:
+                x = float(v[letter])
+                if x < 0:
+                    raise self._fail(raw, letter, f"G64 {letter} must be >= 0", line)
+                tol[letter] = x * scale
+        st.path_tolerance_mm = tol.get("P", 0.0)
+        st.naive_cam_tolerance_mm = tol.get("Q", st.path_tolerance_mm)
+
+    def _mcodes(
+        self, raw: str, mcodes: list[tuple[int, int]], v: dict[str, str], line: int
+    ) -> bool:
         """Apply the block's M codes (tool change, spindle, coolant, stops); True if it ends the
         program (M2/M30), which takes effect after the block's motion."""
         st = self.state
         if len(mcodes) > 1:
             self._check_m_groups(raw, mcodes, line)
         end = False
-        for key, _k in mcodes:
+        for key, k in mcodes:
             m = key // 10
             if m == 6:
                 st.tool = st.tool_selected
@@ -464,8 +603,17 @@ class Interpreter(WordRules, Moves):
                 st.coolant = True
             elif m == 9:
                 st.coolant = False
-            elif m == 0 or m == 1:
+            elif m == 0 or m == 1 or m == 60:
                 st.stopped = True
-            else:
+            elif m == 2 or m == 30:
                 end = True
+            elif m == 61:  # LinuxCNC: the tool in the spindle is Q, no change
+                if "Q" not in v:
+                    raise _lexer.word_error(raw, k, "M61 needs the tool number Q", self.file, line)
+                st.tool = self._whole(raw, v, "Q", line)
+            # M48-M53 overrides, M62-M65 outputs: no effect on the motion
         return end
+
+
+def _point(p: Sequence[float]) -> tuple[float, float, float]:
+    return (float(p[0]), float(p[1]), float(p[2]))

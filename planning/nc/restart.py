@@ -4,7 +4,8 @@ A DNC streamer resuming at block N sends ``restart_preamble(state_at_block(progr
 blocks N, N+1, ... The preamble
 
 1. sets units, plane, arc-centre mode, G94, work offset and G98/G99, cancelling cutter and
-   length compensation and any canned cycle;
+   length compensation and any canned cycle (and the path control mode when not G64 P0), then
+   writes back the work offsets the program's G10 L2/L20 set (``G90 G10 L2 Pn``);
 2. changes to the tool in the spindle (``T M6``) and preselects the next tool;
 3. starts the spindle (``S M3/M4``) and sets the coolant;
 4. rapids up to the safe Z (with ``G43 H`` when length compensation was on), turns the rotary axes
@@ -16,6 +17,11 @@ blocks N, N+1, ... The preamble
 
 The position is wherever the blocks before N left the tool, including a G28/G30 return to the
 reference point: it is written back in the work frame like any other position.
+
+Positions are written in the program's frame: the state's work offsets and G92 offset
+(``state.origin_mm``) unless ``work_offsets_mm`` is given. A restart while a G92 / G52 offset is
+in force is refused: it was set relative to where the tool was, which the preamble cannot
+re-create.
 
 A restart inside a run of canned-cycle blocks is refused: re-establishing the cycle would drill a
 hole where the tool stands. Restart at the block that starts the cycle instead. So is a restart
@@ -43,7 +49,8 @@ def restart_preamble(
 
     ``safe_z_mm`` is the machine-frame Z from which X/Y are approached, default
     ``max(state Z, 0)``. Positions are written in the state's units and work frame
-    (``work_offsets_mm`` subtracted, default zero), with ``style`` (default 4 decimals).
+    (``work_offsets_mm`` subtracted, default the state's ``origin_mm``), with ``style`` (default
+    4 decimals).
     """
     if state.reference_assumed:
         raise NCError(
@@ -55,9 +62,17 @@ def restart_preamble(
             f"cannot restart inside a canned cycle (G{state.motion} in force): restart at the "
             "block that starts the cycle"
         )
+    if any(state.g92_offset_mm):
+        raise NCError(
+            "cannot restart while a G92/G52 offset is in force: restart at or before the block "
+            "that set it (or after a G92.1)"
+        )
     fmt = (style or NumberStyle()).format
     scale = 1.0 / INCH_MM if state.inch else 1.0
-    off = (work_offsets_mm or {}).get(state.work_offset, (0.0, 0.0, 0.0))
+    if work_offsets_mm is None:
+        off = state.origin_mm
+    else:
+        off = work_offsets_mm.get(state.work_offset, (0.0, 0.0, 0.0))
     x, y, z = (c - o for c, o in zip(state.position_mm, off))
     safe = max(z, 0.0) if safe_z_mm is None else safe_z_mm - off[2]
     modes = [
@@ -71,7 +86,16 @@ def restart_preamble(
         "G98" if state.retract_initial else "G99",
         "G80",
     ]
+    if state.path_control != 64:
+        modes.append(f"G{state.path_control}")
+    elif state.path_tolerance_mm or state.naive_cam_tolerance_mm:
+        p, q = state.path_tolerance_mm * scale, state.naive_cam_tolerance_mm * scale
+        modes.append(f"G64 P{fmt(p)} Q{fmt(q)}")
     out = [" ".join(modes)]
+    for idx in sorted(state.work_offsets_set):
+        w = state.work_offsets_mm[idx]
+        xyz = " ".join(f"{a}{fmt(c * scale)}" for a, c in zip("XYZ", w))
+        out.append(f"G90 G10 L2 P{idx + 1} {xyz}")
     if state.tool:
         out.append(f"T{state.tool} M6")
     if state.tool_selected != state.tool:
