@@ -294,3 +294,14 @@ def test_split_refuses_canned_cycles_and_bad_plans():
         split_moves(prog, {seg: [(0.5, 50.0), (0.4, 60.0), (1.0, 70.0)]})
     with pytest.raises(NCError, match="not a feed move"):
         split_moves(prog, {0: [(1.0, 50.0)]})
+
+
+def test_split_points_are_written_in_the_g92_frame() -> None:
+    # G92 X100 at machine X0: the move X100 -> X140 (machine 0 -> 40) split at half is X120 in the
+    # program's frame (the written word), not the machine's X20.
+    from planning.nc.edit import split_moves
+
+    text = "G21 G90 G17\nG0 X0 Y0 Z5\nG92 X100 Y0 Z5\nG1 Z-1 F100\nG1 X140 F200\nM30\n"
+    prog = Program.parse(text)
+    new = split_moves(prog, {2: [(0.5, 400.0), (1.0, 650.0)]})
+    assert new.text().splitlines()[4:6] == ["G1 X120 F400", "X140 F650"]

@@ -189,7 +189,7 @@ def _pieces(
                 word=t.text.strip(),
             )
     scale = INCH_MM if st.inch else 1.0
-    off = np.array(it.work_offsets_mm.get(st.work_offset, (0.0, 0.0, 0.0)))
+    off = np.array(st.origin_mm)  # active work offset plus G92 / G52 (G10 set by program too)
     p0, p1 = motion.start[seg], motion.end[seg]
     kind = int(motion.kind[seg])
     moving = [a for a in range(3) if p1[a] != p0[a] or "XYZ"[a] in letters]
