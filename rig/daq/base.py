@@ -18,12 +18,15 @@ import math
 import threading
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
 from analysis.runs.file import SAMPLE_FORMAT_RAW, SAMPLE_FORMAT_VOLTS  # the run file's names
 from rig.errors import RigError
+
+if TYPE_CHECKING:
+    from rig.daq.calibration import Calibration
 
 
 class DaqError(RigError):
@@ -105,6 +108,9 @@ class Daq(ABC):
     """One continuous acquisition: ``start(sink)``, then ``stop()``; ``close()`` frees it."""
 
     info: DaqInfo
+    #: set by a driver's ``from_rig``: the calibration and rig metadata a recording stores
+    calibration: Calibration | None = None
+    rig_meta: dict[str, Any] | None = None
 
     def __init__(self) -> None:
         self._done = threading.Event()

@@ -146,10 +146,6 @@ class NiDaq(Daq):
         self._stopped = False
         self.samples_read = 0  # device index of the next sample to read
 
-    #: set by :meth:`from_rig`: the calibration and rig metadata a recording stores
-    calibration: Calibration | None = None
-    rig_meta: dict[str, Any] | None = None
-
     @classmethod
     def from_rig(
         cls,

@@ -11,7 +11,7 @@ from __future__ import annotations
 import threading
 from collections import deque
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -200,10 +200,6 @@ class SimDaq(Daq):
         self._codes = np.empty((c, block), np.int16) if coeff is not None else None
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
-
-    #: set by :meth:`from_rig`: the calibration and rig metadata a recording stores
-    calibration: Calibration | None = None
-    rig_meta: dict[str, Any] | None = None
 
     @classmethod
     def from_rig(
