@@ -84,8 +84,9 @@ listed below, "linuxcnc" follows LinuxCNC's interpreter ``rs274`` to the canonic
 
 from __future__ import annotations
 
+import itertools
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 from planning.nc import _lexer
@@ -264,6 +265,29 @@ class Interpreter(WordRules, Moves):
         out = MotionBuilder()
         self._run(lines, first_line, out)
         return out.build()
+
+    def iter_chunks(
+        self, lines: Iterable[str], *, chunk_blocks: int = 65_536, first_line: int = 1
+    ) -> Iterator[Motion]:
+        """Execute many blocks as :meth:`run` does, yielding their segments chunk by chunk: one
+        Motion per ``chunk_blocks`` blocks (empty chunks are not yielded), so memory is bounded
+        by the chunk, not the program. ``blocks_seen`` is up to date after each chunk."""
+        if chunk_blocks < 1:
+            raise ValueError(f"chunk_blocks must be >= 1, got {chunk_blocks}")
+        block = first_line - 1
+        execute = self._execute
+        it = iter(lines)
+        while True:
+            out = MotionBuilder()
+            start = block
+            for raw in itertools.islice(it, chunk_blocks):
+                execute(raw, block + 1, block, out)
+                block += 1
+            self.blocks_seen = block
+            if len(out.ibuf):
+                yield out.build()
+            if block - start < chunk_blocks:
+                return
 
     def skip(self, lines: Iterable[str], *, first_line: int = 1) -> None:
         """Execute blocks for their modal effect only (no segments are kept)."""

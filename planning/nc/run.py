@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import itertools
 import os
+import re
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -50,31 +51,124 @@ def interpret(
     return it.run(_lines_of(source))
 
 
+def iter_motion_chunks(
+    source: str | os.PathLike | Program | Iterable[str],
+    machine: MachineConfig | None = None,
+    *,
+    strict: bool = True,
+    file: str | None = None,
+    chunk_blocks: int = 65_536,
+    interpreter: Interpreter | None = None,
+    **options,
+) -> Iterator[Motion]:
+    """Interpret a program as :func:`interpret` does, streaming: a generator of Motion chunks
+    (one per ``chunk_blocks`` blocks, empty ones left out) whose concatenation is
+    ``interpret(source, ...)``. A ``pathlib.Path`` is read in bounded chunks
+    (:func:`file_lines`), so memory is bounded by the chunk, not the program.
+
+    Give ``interpreter`` (built by the caller, e.g. to read its ``warnings`` and
+    ``blocks_seen`` afterwards) instead of ``machine``/``strict``/``options``.
+    """
+    if interpreter is None:
+        name = file or getattr(source, "file", None) or _path_name(source) or "<program>"
+        interpreter = Interpreter(machine, strict=strict, file=name, **options)
+    elif options:
+        raise TypeError("give either an interpreter or interpreter options, not both")
+    yield from interpreter.iter_chunks(_lines_of(source), chunk_blocks=chunk_blocks)
+
+
 def _path_name(source: object) -> str | None:
     return os.fspath(source) if isinstance(source, os.PathLike) else None
 
 
-def file_lines(path: str | Path) -> Iterator[str]:
-    """Lines of a program file, read lazily (LF, CR LF or CR line ends; a UTF-8 BOM is dropped).
+#: longest line (characters, line end excluded) a program file may have. LinuxCNC's own limit
+#: is 256 characters (LINELEN); this one is generous and only keeps a single-line 50 MB file
+#: (a binary, a program without line ends) from being read into memory whole.
+MAX_LINE_CHARS = 65_536
+#: bytes read from a program file at a time
+READ_BYTES = 1 << 20
 
-    NCError names the line and column of bytes that are not UTF-8/ASCII text, or why the file
-    cannot be read.
+
+def file_lines(path: str | Path, *, max_line_chars: int = MAX_LINE_CHARS) -> Iterator[str]:
+    """Lines of a program file, read lazily in bounded binary chunks (LF, CR LF or CR line ends;
+    a UTF-8 BOM is dropped). LF-ended lines keep their ``"\n"``; memory stays bounded by
+    :data:`READ_BYTES` plus one line.
+
+    NCError names the line and column of bytes that are not UTF-8/ASCII text, a line longer
+    than ``max_line_chars`` (as soon as it is seen, without reading the rest of it), or why the
+    file cannot be read.
     """
+    name = str(path)
     try:
-        with open(path, "rb") as fh:
-            for n, data in enumerate(fh, 1):
-                try:
-                    raw = data.decode("utf-8")
-                except UnicodeDecodeError as exc:
-                    raise _lexer.undecodable(str(path), data, exc, n) from None
-                if n == 1 and raw.startswith("\ufeff"):
-                    raw = raw[1:]
-                if "\r" in raw and "\r" in raw.rstrip("\r\n"):  # CR-only line ends
-                    yield from _lexer.split_lines(raw)
-                else:
-                    yield raw
+        fh = open(path, "rb")
     except OSError as exc:
-        raise NCError(f"cannot read the program: {exc.strerror}", file=str(path)) from None
+        raise NCError(f"cannot read the program: {exc.strerror}", file=name) from None
+    with fh:
+        yield from _chunked_lines(fh, name, max_line_chars)
+
+
+def _too_long(name: str, line: int, limit: int) -> NCError:
+    return NCError(
+        f"line longer than {limit} characters (the limit for a block; is this a program file?)",
+        file=name,
+        line=line,
+    )
+
+
+def _chunked_lines(fh, name: str, limit: int) -> Iterator[str]:
+    carry = b""
+    n = 0  # lines yielded so far
+    first = True
+    split_cr = _lexer.split_lines
+    while True:
+        try:
+            data = fh.read(READ_BYTES)
+        except OSError as exc:
+            raise NCError(f"cannot read the program: {exc.strerror}", file=name) from None
+        if first and data:
+            first = False
+            if data.startswith(b"\xef\xbb\xbf"):
+                data = data[3:]
+        if not data:
+            if not carry:
+                return
+            buf, carry = carry, b""
+        else:
+            buf = carry + data if carry else data
+            cut = buf.rfind(b"\n") + 1
+            if cut == 0:  # no LF: CR-only line ends, or one long line
+                cut = buf.rfind(b"\r", 0, len(buf) - 1) + 1  # a final CR may precede an LF
+            carry = buf[cut:]
+            buf = buf[:cut]
+            # bytes >= characters: 4 bytes per character at most in UTF-8
+            if len(carry) > 4 * limit + 2:
+                raise _too_long(name, n + 1 + buf.count(b"\n"), limit)
+            if not buf:
+                continue
+        try:
+            text = buf.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise _lexer.undecodable(name, buf, exc, n + 1) from None
+        lines = text.split("\n")
+        last = lines.pop()
+        if "\r" in text:
+            out = []
+            for raw in lines:
+                if "\r" in raw and "\r" in raw.rstrip("\r"):  # CR-only line ends
+                    out.extend(split_cr(raw))
+                else:
+                    out.append(raw + "\n")
+            if last:
+                out.extend(split_cr(last))
+        else:
+            out = [raw + "\n" for raw in lines]
+            if last:
+                out.append(last)
+        for raw in out:
+            n += 1
+            if len(raw) > limit and len(raw.rstrip("\r\n")) > limit:
+                raise _too_long(name, n, limit)
+            yield raw
 
 
 def interpret_file(
@@ -111,3 +205,25 @@ def state_at_block(
             file=name,
         )
     return it.state
+
+
+_COMMENT_B = re.compile(rb"\([^()\n\r]*\)|;[^\n\r]*")
+_ROTARY_B = re.compile(rb"[ABCabc][ \t]*[-+.0-9]")
+
+
+def file_mentions_rotary(path: str | Path) -> bool:
+    """Whether the program file has an A, B or C word outside comments (a fast byte scan, in
+    bounded chunks): the streamed motion table shows the a0..c1 columns only then. Conservative:
+    True for a program whose A/B/C words never turn an axis."""
+    try:
+        with open(path, "rb") as fh:
+            carry = b""
+            while data := fh.read(READ_BYTES):
+                buf = carry + data
+                cut = max(buf.rfind(b"\n"), buf.rfind(b"\r")) + 1
+                carry = buf[cut:][-4 * MAX_LINE_CHARS :]
+                if _ROTARY_B.search(_COMMENT_B.sub(b" ", buf[:cut])):
+                    return True
+            return bool(_ROTARY_B.search(_COMMENT_B.sub(b" ", carry)))
+    except OSError as exc:
+        raise NCError(f"cannot read the program: {exc.strerror}", file=str(path)) from None

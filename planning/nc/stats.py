@@ -98,44 +98,192 @@ def motion_stats(
 ) -> MotionStats:
     """Lengths, time and bounding box of ``motion`` (vectorised).
 
-    ``rapid_mm_min`` overrides the machine's rapid rate.
+    ``rapid_mm_min`` overrides the machine's rapid rate. Sums are exact (correctly rounded), so
+    :class:`StreamStats` over any split of the motion into chunks gives the same numbers.
     """
-    rapid = _rapid_rate(machine, rapid_mm_min)
-    length = segment_length_mm(motion)
-    feed = motion.is_feed
-    rap = motion.kind == RAPID
-    t = segment_time_s(motion, machine, rapid_mm_min=rapid)
-    feed_time = float(t[feed].sum())
-    rapid_time = float(t[rap].sum())
-    dwell = float(t[motion.kind == DWELL].sum())
-    accel_time = None
-    if machine is not None and machine.accel_mm_s2 is not None:
-        # lazy: accel compiles with numba, which a machine without accel_mm_s2 never needs
+    acc = StreamStats(machine, rapid_mm_min=rapid_mm_min)
+    acc.add(motion)
+    return acc.result()
+
+
+class ExactSum:
+    """A correctly rounded running sum of float arrays, whatever their split (vectorised: each
+    float is cut into two 27-bit integer halves summed per binary exponent, exactly in
+    float64; the per-exponent sums are combined in a Python int)."""
+
+    __slots__ = ("_n", "_other")
+    _SHIFT = 1126  # 2**-1126 is below the smallest float64 mantissa unit (2**-1074 / 2**52)
+    _STEP = 1 << 25  # values per bincount: sums of 27-bit halves stay exact in float64
+
+    def __init__(self) -> None:
+        self._n = 0
+        self._other = 0.0  # inf / nan
+
+    def add(self, x: np.ndarray) -> None:
+        x = np.asarray(x, dtype=np.float64).ravel()
+        if not x.size:
+            return
+        fin = np.isfinite(x)
+        if not fin.all():
+            self._other += float(x[~fin].sum())
+            x = x[fin]
+        for k in range(0, x.size, self._STEP):
+            part = x[k : k + self._STEP]
+            m, e = np.frexp(part)
+            big = np.ldexp(m, 53)  # integers, |big| < 2**53
+            hi = np.floor(big * (1.0 / 2**27))
+            lo = big - hi * 2**27
+            emin = int(e.min())
+            idx = e - emin
+            hs = np.bincount(idx, weights=hi)
+            ls = np.bincount(idx, weights=lo)
+            n = 0
+            for j in np.flatnonzero((hs != 0) | (ls != 0)):
+                n += ((int(hs[j]) << 27) + int(ls[j])) << (int(j) + emin - 53 + self._SHIFT)
+            self._n += n
+
+    def value(self) -> float:
+        v = self._n / (1 << self._SHIFT) if self._n else 0.0
+        return v + self._other if self._other else v
+
+
+class StreamStats:
+    """:func:`motion_stats` accumulated chunk by chunk: ``add`` each Motion chunk of a program in
+    order, then ``result()`` gives the MotionStats of the whole (the same numbers as
+    ``motion_stats`` of the concatenation). Memory: a few chunks at most (the acceleration
+    estimate keeps neighbouring chunks as look-ahead, only for a machine with ``accel_mm_s2``).
+    """
+
+    def __init__(
+        self, machine: MachineConfig | None = None, *, rapid_mm_min: float | None = None
+    ) -> None:
+        self.machine = machine
+        self.rapid = _rapid_rate(machine, rapid_mm_min)
+        self.segments = 0
+        self._cut, self._rap = ExactSum(), ExactSum()
+        self._tfeed, self._trap, self._tdwell = ExactSum(), ExactSum(), ExactSum()
+        nan = np.full(3, np.nan)
+        self._lo, self._hi, self._clo, self._chi = nan, nan, nan, nan
+        self._rlo = self._rhi = None
+        self._accel = None
+        if machine is not None and machine.accel_mm_s2 is not None:
+            self._accel = _AccelWindow(machine, self.rapid)
+
+    def add(self, motion: Motion) -> None:
+        n = len(motion)
+        if not n:
+            return
+        self.segments += n
+        length = segment_length_mm(motion)
+        feed = motion.is_feed
+        rap = motion.kind == RAPID
+        t = segment_time_s(motion, self.machine, rapid_mm_min=self.rapid)
+        self._cut.add(length[feed])
+        self._rap.add(length[rap])
+        self._tfeed.add(t[feed])
+        self._trap.add(t[rap])
+        self._tdwell.add(t[motion.kind == DWELL])
+        lo, hi = bounding_box(motion)
+        self._lo, self._hi = np.fmin(self._lo, lo), np.fmax(self._hi, hi)
+        if feed.any():
+            clo, chi = bounding_box(motion[feed])
+            self._clo, self._chi = np.fmin(self._clo, clo), np.fmax(self._chi, chi)
+        both_lo = np.minimum(motion.rotary_start_deg.min(axis=0), motion.rotary_end_deg.min(axis=0))
+        both_hi = np.maximum(motion.rotary_start_deg.max(axis=0), motion.rotary_end_deg.max(axis=0))
+        if self._rlo is None:
+            self._rlo, self._rhi = both_lo, both_hi
+        else:
+            self._rlo, self._rhi = np.minimum(self._rlo, both_lo), np.maximum(self._rhi, both_hi)
+        if self._accel is not None:
+            self._accel.add(motion, t)
+
+    def result(self) -> MotionStats:
+        feed_time, rapid_time, dwell = self._tfeed.value(), self._trap.value(), self._tdwell.value()
+        rot = {}
+        if self._rlo is not None:
+            rot = {
+                "rotary_min_deg": tuple(map(float, self._rlo)),
+                "rotary_max_deg": tuple(map(float, self._rhi)),
+            }
+        return MotionStats(
+            segments=self.segments,
+            cutting_length_mm=self._cut.value(),
+            rapid_length_mm=self._rap.value(),
+            time_s=feed_time + rapid_time + dwell,
+            feed_time_s=feed_time,
+            rapid_time_s=rapid_time,
+            dwell_s=dwell,
+            bbox_min_mm=tuple(map(float, self._lo)),
+            bbox_max_mm=tuple(map(float, self._hi)),
+            cutting_bbox_min_mm=tuple(map(float, self._clo)),
+            cutting_bbox_max_mm=tuple(map(float, self._chi)),
+            rapid_mm_min=float(self.rapid),
+            accel_time_s=None if self._accel is None else self._accel.finish(),
+            **rot,
+        )
+
+
+class _AccelWindow:
+    """The look-ahead planner of :mod:`planning.nc.accel` over a stream of chunks, exactly: a
+    chunk is planned inside a window of its neighbours long enough (path travel at least
+    v_max^2 / 2a on each side, v_max the chunk's fastest segment) that the window's ends, where
+    the planner stops, cannot limit any of the chunk's junction speeds."""
+
+    def __init__(self, machine: MachineConfig, rapid: float) -> None:
+        self.a = float(machine.accel_mm_s2)
+        self.dev = float(machine.junction_deviation_mm)
+        self.total = ExactSum()
+        self.buf: list[tuple[Motion, np.ndarray, float, float]] = []  # motion, t, travel, vmax
+        self.done = 0  # chunks of buf already planned (the left context)
+
+    def add(self, motion: Motion, t: np.ndarray) -> None:
+        travel = segment_travel(motion)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            v = np.where(motion.kind == RAPID, travel / t, motion.feed_mm_min / 60.0)
+        v = v[(travel > 0) & (motion.kind != DWELL) & np.isfinite(v)]
+        vmax = float(v.max()) if v.size else 0.0
+        self.buf.append((motion, t, float(travel.sum()), vmax))
+        self._plan(final=False)
+
+    def finish(self) -> float:
+        self._plan(final=True)
+        return self.total.value()
+
+    def _reach(self, k: int) -> float:
+        return self.buf[k][3] ** 2 / (2.0 * self.a) * 1.01 + 1e-9
+
+    def _plan(self, final: bool) -> None:
         from planning.nc.accel import accel_segment_time_s
 
-        accel_time = float(
-            accel_segment_time_s(
-                motion, machine.accel_mm_s2, machine.junction_deviation_mm, t
-            ).sum()
-        )
-    lo, hi = bounding_box(motion)
-    clo, chi = bounding_box(motion[motion.is_feed])
-    return MotionStats(
-        segments=len(motion),
-        cutting_length_mm=float(length[feed].sum()),
-        rapid_length_mm=float(length[rap].sum()),
-        time_s=feed_time + rapid_time + dwell,
-        feed_time_s=feed_time,
-        rapid_time_s=rapid_time,
-        dwell_s=dwell,
-        bbox_min_mm=tuple(map(float, lo)),
-        bbox_max_mm=tuple(map(float, hi)),
-        cutting_bbox_min_mm=tuple(map(float, clo)),
-        cutting_bbox_max_mm=tuple(map(float, chi)),
-        rapid_mm_min=float(rapid),
-        accel_time_s=accel_time,
-        **_rotary_range(motion),
-    )
+        while self.done < len(self.buf):
+            k = self.done
+            need = self._reach(k)
+            right, got = k + 1, 0.0
+            while right < len(self.buf) and got < need:
+                got += self.buf[right][2]
+                right += 1
+            if got < need and not final:
+                return
+            left, got = k, 0.0
+            while left > 0 and got < need:
+                left -= 1
+                got += self.buf[left][2]
+            parts = self.buf[left:right]
+            m = Motion.concatenate([p[0] for p in parts]) if len(parts) > 1 else parts[0][0]
+            t = np.concatenate([p[1] for p in parts]) if len(parts) > 1 else parts[0][1]
+            ta = accel_segment_time_s(m, self.a, self.dev, t)
+            off = sum(len(p[0]) for p in self.buf[left:k])
+            self.total.add(ta[off : off + len(self.buf[k][0])])
+            self.done += 1
+            # drop chunks no later window can need (kept: travel >= the largest reach seen)
+            keep = max(self._reach(j) for j in range(len(self.buf)))
+            got, j = 0.0, self.done
+            while j > 0 and got < keep:
+                j -= 1
+                got += self.buf[j][2]
+            if j > 0:
+                del self.buf[:j]
+                self.done -= j
 
 
 def _rotary_range(motion: Motion) -> dict[str, tuple[float, float, float]]:
