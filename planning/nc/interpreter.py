@@ -86,8 +86,11 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING
+
+import numpy as np
 
 from planning.nc import _lexer
 from planning.nc._codes import (
@@ -121,6 +124,69 @@ NAN = math.nan
 # G92, G92.1, G92.2, G92.3
 SETTING_CODES = frozenset({100, 281, 301, 520, 920, 921, 922, 923})
 HOME_CODES = frozenset({280, 290, 300})
+
+
+def _fast_line_re(upper_only: bool) -> re.Pattern[str]:
+    """One line of a chunk joined with NUL separators: either a plain G0/G1 block (groups N G X
+    Y Z F, in that order, each optional; spaces and ``( )`` / ``;`` comments as the lexer takes
+    them) or anything else (all groups empty). Lines the lexer would reject never match the
+    first alternative, so they take the per-block path, which reports them."""
+    ws = "[ \t\r\n\f\v]"
+    sep = ws + "*+(?:\\([^()\x00]*+\\)" + ws + "*+)*+"  # spaces and comments
+
+    def letter(c: str) -> str:
+        return c if upper_only else f"[{c}{c.lower()}]"
+
+    number = "([-+]?(?:[0-9]{1,12}(?:\\.[0-9]*+)?|\\.[0-9]++))"
+    body = (
+        sep
+        + f"(?:{letter('N')}{ws}*+([0-9]{{1,9}}){sep})?+"
+        + f"(?:{letter('G')}{ws}*+0?([01]){sep})?+"
+        + "".join(f"(?:{letter(c)}{ws}*+{number}{sep})?+" for c in "XYZF")
+        + "(?:;[^\x00]*+)?+"
+    )
+    return re.compile("(?:" + body + "|[^\x00]*+)\x00")
+
+
+_FAST_UPPER = _fast_line_re(True)  # for ASCII chunks, upper-cased as the lexer does
+_FAST_ANY_CASE = _fast_line_re(False)
+FAST_MIN_RUN = 8  # shorter runs of plain G0/G1 blocks take the per-block path
+FAST_CHUNK = 65_536  # lines read at a time by run()
+
+
+def _worth_it(lines: list[str], probe: int = 256) -> bool:
+    """Whether the first ``probe`` lines are mostly in runs of plain moves that the fast path
+    takes (else the chunk goes block by block: the scan would cost more than it saves)."""
+    text = "\x00".join(lines[:probe]).upper() + "\x00"
+    if text.count("\x00") != min(len(lines), probe):
+        return False
+    covered = run = 0
+    for r in _FAST_UPPER.findall(text):
+        if r[2] or r[3] or r[4]:
+            run += 1
+        else:
+            covered += run if run >= FAST_MIN_RUN else 0
+            run = 0
+    covered += run if run >= FAST_MIN_RUN else 0
+    return 2 * covered >= min(len(lines), probe)
+
+
+def _present(col: tuple[str, ...], n: int) -> np.ndarray:
+    """Mask of the non-empty texts of ``col`` (often all or none: counted in C first)."""
+    empty = col.count("")
+    if empty == 0:
+        return np.ones(n, bool)
+    if empty == n:
+        return np.zeros(n, bool)
+    return np.fromiter(map(bool, col), bool, n)
+
+
+def _numbers(col: tuple[str, ...]) -> np.ndarray:
+    """The non-empty number texts of ``col`` as float64 (Python's ``float``, as the lexer's
+    words are read)."""
+    if "" in col:
+        col = filter(None, col)
+    return np.fromiter(map(float, col), np.float64)
 
 
 class _NullSink:
@@ -161,6 +227,10 @@ class Interpreter(WordRules, Moves):
         Start from this state (copied), e.g. to resume a program at a block.
     cutter_comp : {"warn", "refuse"}
         G41/G42 cutter radius compensation is not applied: warn once (default) or raise.
+    fast : bool
+        :meth:`run` and :meth:`iter_chunks` execute runs of plain ``G0``/``G1`` blocks (only N
+        G0/G1 X Y Z F words) vectorised, with the same result bit for bit (default); False
+        executes every block on its own.
 
     Attributes
     ----------
@@ -187,8 +257,10 @@ class Interpreter(WordRules, Moves):
         second_reference_mm: Sequence[float] | None = None,
         state: ModalState | None = None,
         cutter_comp: str = "warn",
+        fast: bool = True,
     ) -> None:
         self.strict = strict
+        self.fast = bool(fast)
         if cutter_comp not in ("warn", "refuse"):
             raise ValueError(f"cutter_comp must be 'warn' or 'refuse', got {cutter_comp!r}")
         self.cutter_comp = cutter_comp
@@ -275,18 +347,16 @@ class Interpreter(WordRules, Moves):
         if chunk_blocks < 1:
             raise ValueError(f"chunk_blocks must be >= 1, got {chunk_blocks}")
         block = first_line - 1
-        execute = self._execute
         it = iter(lines)
         while True:
             out = MotionBuilder()
-            start = block
-            for raw in itertools.islice(it, chunk_blocks):
-                execute(raw, block + 1, block, out)
-                block += 1
+            chunk = list(itertools.islice(it, chunk_blocks))
+            self._execute_lines(chunk, block, out)
+            block += len(chunk)
             self.blocks_seen = block
             if len(out.ibuf):
                 yield out.build()
-            if block - start < chunk_blocks:
+            if len(chunk) < chunk_blocks:
                 return
 
     def skip(self, lines: Iterable[str], *, first_line: int = 1) -> None:
@@ -296,11 +366,173 @@ class Interpreter(WordRules, Moves):
     # ------------------------------------------------------------------ internals
     def _run(self, lines: Iterable[str], first_line: int, out: MotionBuilder | _NullSink) -> None:
         block = first_line - 1
+        if self.fast and isinstance(out, MotionBuilder):
+            it = iter(lines)
+            while chunk := list(itertools.islice(it, FAST_CHUNK)):
+                self._execute_lines(chunk, block, out)
+                block += len(chunk)
+            self.blocks_seen = block
+            return
         execute = self._execute
         for raw in lines:
             execute(raw, block + 1, block, out)
             block += 1
         self.blocks_seen = block
+
+    def _execute_lines(self, lines: list[str], block: int, out: MotionBuilder) -> None:
+        """Execute ``lines`` (blocks ``block``, ``block + 1`` ...): runs of plain G0/G1 blocks
+        at once (:meth:`_fast_run`) when ``fast`` is on, the others one by one."""
+        execute = self._execute
+        n = len(lines)
+        rows = None
+        if self.fast and n >= FAST_MIN_RUN and (n < 4096 or _worth_it(lines)):
+            text = "\x00".join(lines)
+            if text.count("\x00") == n - 1:  # no NUL in the lines: one row per line
+                if text.isascii():
+                    rows = _FAST_UPPER.findall(text.upper() + "\x00")
+                else:
+                    rows = _FAST_ANY_CASE.findall(text + "\x00")
+                if len(rows) != n:  # cannot happen; be safe
+                    rows = None
+        if rows is None:
+            for k, raw in enumerate(lines, block):
+                execute(raw, k + 1, k, out)
+            return
+        cols = tuple(zip(*rows))
+        del rows
+        has = [None, *(_present(c, n) for c in cols[1:])]  # N: read where needed
+        moves = has[2] | has[3] | has[4]
+        # runs of plain moves: [starts[i], ends[i])
+        edges = np.flatnonzero(np.diff(moves.view(np.int8), prepend=0, append=0))
+        starts, ends = edges[0::2].tolist(), edges[1::2].tolist()
+        i = 0
+        for a, b in zip(starts, ends):
+            if b - a < FAST_MIN_RUN:
+                continue
+            for k in range(i, a):
+                execute(lines[k], block + k + 1, block + k, out)
+            self._fast_run(lines, cols, has, a, b, block, out)
+            i = b
+        for k in range(i, n):
+            execute(lines[k], block + k + 1, block + k, out)
+
+    def _fast_run(self, lines, cols, has, a: int, b: int, block: int, out: MotionBuilder) -> None:
+        """Execute lines ``a:b`` of a chunk, all plain G0/G1 blocks with an axis word
+        (``cols``: their N G X Y Z F number texts, "" where absent), vectorised. A block whose
+        outcome is not a pure function of its words and the state (modes, missing feed, bad or
+        too high F) goes through :meth:`_execute`, which also raises the errors."""
+        execute = self._execute
+        while a < b:
+            st = self.state
+            if (
+                st.ended
+                or st.tape_marks >= 2
+                or st.feed_mode != 94
+                or (st.motion != 0 and st.motion != 1)
+            ):
+                execute(lines[a], block + a + 1, block + a, out)
+                a += 1
+                continue
+            m = b - a
+            scale = INCH_MM if st.inch else 1.0
+            # ---- motion mode (G0 / G1 words, carried forward)
+            gcol = cols[1][a:b]
+            has_g = has[1][a:b]
+            idx = np.where(has_g, np.arange(m), -1)
+            np.maximum.accumulate(idx, out=idx)
+            gval = np.zeros(m, np.int8)
+            if has_g.any():
+                gval[has_g] = np.fromiter(map(int, filter(None, gcol)), np.int8)
+            mode = np.where(idx >= 0, gval[idx], np.int8(st.motion)).astype(np.int8)
+            # ---- feed (F words, carried forward)
+            fcol = cols[5][a:b]
+            has_f = has[5][a:b]
+            bad = np.zeros(m, bool)
+            if has_f.any():
+                fword = np.full(m, NAN)
+                fword[has_f] = _numbers(fcol)
+                fmm = fword * scale
+                with np.errstate(invalid="ignore"):
+                    bad |= has_f & ~(fmm > 0.0)
+                    bad |= has_f & (fmm > self._feed_max_mm_min)
+                idx = np.where(has_f, np.arange(m), -1)
+                np.maximum.accumulate(idx, out=idx)
+                feed = np.where(idx >= 0, fmm[idx], st.feed_mm_min)
+            else:
+                fword = fmm = None
+                feed = np.full(m, st.feed_mm_min)
+            bad |= (mode == 1) & np.isnan(feed)
+            if bad.any():
+                k = int(np.argmax(bad))
+                if k == 0:  # the per-block path raises or warns
+                    execute(lines[a], block + a + 1, block + a, out)
+                    a += 1
+                    continue
+                m, b2 = k, a + k
+                mode, feed, has_f = mode[:k], feed[:k], has_f[:k]
+                if fword is not None:
+                    fword, fmm = fword[:k], fmm[:k]
+            else:
+                b2 = b
+            # ---- positions
+            f = np.empty((m, 18))
+            p0 = st.position_mm
+            origin = st.origin_mm
+            for ax in range(3):
+                col = cols[2 + ax][a:b2]
+                hx = has[2 + ax][a:b2]
+                end = f[:, 3 + ax]
+                if st.absolute:
+                    if hx.all():
+                        np.add(_numbers(col) * scale, origin[ax], out=end)
+                    elif hx.any():
+                        full = np.empty(m)
+                        full[hx] = _numbers(col) * scale + origin[ax]
+                        idx = np.where(hx, np.arange(m), -1)
+                        np.maximum.accumulate(idx, out=idx)
+                        end[:] = np.where(idx >= 0, full[idx], p0[ax])
+                    else:
+                        end.fill(p0[ax])
+                else:
+                    # -0.0 is the additive identity (x + 0.0 turns -0.0 into 0.0)
+                    step = np.full(m + 1, -0.0)
+                    step[0] = p0[ax]
+                    if hx.any():
+                        step[1:][hx] = _numbers(col) * scale
+                    end[:] = np.add.accumulate(step)[1:]
+                f[0, ax] = p0[ax]
+                f[1:, ax] = end[:-1]
+            f[:, 6:9] = NAN
+            f[:, 9] = np.where(mode == 1, feed, NAN)
+            f[:, 10] = st.spindle_dir * st.spindle_speed_rpm
+            f[:, 11] = 0.0
+            f[:, 12:15] = st.rotary_deg
+            f[:, 15:18] = st.rotary_deg
+            ii = np.empty((m, 6), np.int32)
+            ii[:, 0] = mode
+            ii[:, 1] = st.plane
+            ii[:, 2] = st.tool
+            ii[:, 3] = 1 if st.coolant else 0
+            ii[:, 5] = np.arange(block + a, block + b2, dtype=np.int32)
+            ii[:, 4] = ii[:, 5] + 1
+            out.fbuf.frombytes(f.tobytes())
+            out.ibuf.frombytes(ii.tobytes())
+            # ---- the state after the run
+            st.position_mm = (float(f[-1, 3]), float(f[-1, 4]), float(f[-1, 5]))
+            st.motion = int(mode[-1])
+            if has_f.any():
+                last = int(np.flatnonzero(has_f)[-1])
+                st.feed_mm_min = float(fmm[last])
+                st.feed_word = float(fword[last])
+            ncol = cols[0][a:b2]
+            for k in range(m - 1, -1, -1):
+                if ncol[k]:
+                    st.sequence_number = int(ncol[k])
+                    break
+            st.stopped = False
+            self._inverse_f = NAN
+            self._rotary_to = None
+            a = b2
 
     def _execute_safe(self, raw: str, line: int, block: int, out: MotionBuilder) -> None:
         saved = self.state.copy()

@@ -24,7 +24,8 @@ if TYPE_CHECKING:
 
 def _lines_of(source: str | os.PathLike | Program | Iterable[str]) -> Iterable[str]:
     if isinstance(source, os.PathLike):
-        return file_lines(source)
+        # a C-level chain over lists of lines: no generator frame per line
+        return itertools.chain.from_iterable(_file_line_lists(source))
     if isinstance(source, str):
         return _lexer.split_lines(source)
     lines = getattr(source, "lines", None)
@@ -98,6 +99,13 @@ def file_lines(path: str | Path, *, max_line_chars: int = MAX_LINE_CHARS) -> Ite
     than ``max_line_chars`` (as soon as it is seen, without reading the rest of it), or why the
     file cannot be read.
     """
+    for lines in _file_line_lists(path, max_line_chars):
+        yield from lines
+
+
+def _file_line_lists(path: str | Path, max_line_chars: int = MAX_LINE_CHARS) -> Iterator[list[str]]:
+    """:func:`file_lines` a list of lines (one read) at a time; an error comes after the lines
+    before it, as with :func:`file_lines`."""
     name = str(path)
     try:
         fh = open(path, "rb")
@@ -115,7 +123,7 @@ def _too_long(name: str, line: int, limit: int) -> NCError:
     )
 
 
-def _chunked_lines(fh, name: str, limit: int) -> Iterator[str]:
+def _chunked_lines(fh, name: str, limit: int) -> Iterator[list[str]]:
     carry = b""
     n = 0  # lines yielded so far
     first = True
@@ -164,11 +172,15 @@ def _chunked_lines(fh, name: str, limit: int) -> Iterator[str]:
             out = [raw + "\n" for raw in lines]
             if last:
                 out.append(last)
-        for raw in out:
-            n += 1
-            if len(raw) > limit and len(raw.rstrip("\r\n")) > limit:
-                raise _too_long(name, n, limit)
-            yield raw
+        if out and max(map(len, out)) > limit:
+            for k, raw in enumerate(out):
+                if len(raw) > limit and len(raw.rstrip("\r\n")) > limit:
+                    if k:
+                        yield out[:k]
+                    raise _too_long(name, n + k + 1, limit)
+        n += len(out)
+        if out:
+            yield out
 
 
 def interpret_file(
