@@ -25,7 +25,9 @@ import sys
 import time
 
 from analysis.config import SerialConfig
+from planning.nc.dialect import grbl_send_text
 from rig.dnc import FanucStreamer, GrblStreamer, MemorySink, program_from_text
+from rig.dnc.grbl import HANDSHAKE
 from rig.sim import SimClock, SimFanuc, SimGrbl
 
 BAUD = 115200
@@ -41,10 +43,17 @@ def program(n: int, step_mm: float, feed_mm_min: float = FEED, grbl: bool = Fals
     return program_from_text("\n".join(head + body + ["G0 Z50", "M5", "M30", "%"]) + "\n", "b.nc")
 
 
-def expected_bytes(prog, protocol: str, leader: int) -> bytes:
-    body = b"".join(b.text.encode() + b"\n" for b in prog.blocks)
+def sent_texts(prog, protocol: str) -> list[str]:
+    """The lines as the streamer sends them (GRBL: stripped of comments and spaces)."""
     if protocol == "grbl":
-        return b"\n" + body
+        return [t for t in (grbl_send_text(b.text) for b in prog.blocks) if t]
+    return [b.text for b in prog.blocks]
+
+
+def expected_bytes(prog, protocol: str, leader: int) -> bytes:
+    body = b"".join(t.encode() + b"\n" for t in sent_texts(prog, protocol))
+    if protocol == "grbl":
+        return HANDSHAKE + body
     lead = b"\0" * leader
     return lead + b"%\n" + body + b"%" + lead
 
@@ -101,7 +110,7 @@ def run(protocol: str, prog, speed: float) -> dict:
         "max_chars_after_xoff": getattr(ctl, "max_after_xoff", None),
         "planner_full_waits": getattr(ctl, "planner_waits", None),
         "overruns": ctl.overruns,
-        "executed_all": ctl.executed_texts() == [b.text for b in prog.blocks],
+        "executed_all": ctl.executed_texts() == sent_texts(prog, protocol),
     }
 
 
@@ -155,7 +164,7 @@ def run_subprocess(protocol: str, prog) -> dict:
         "max_chars_after_xoff": sim.get("max_chars_after_xoff"),
         "planner_full_waits": sim.get("planner_full_waits"),
         "overruns": sim["overruns"],
-        "executed_all": sim["blocks_executed"] == len(prog),
+        "executed_all": sim["blocks_executed"] == len(sent_texts(prog, protocol)),
     }
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import threading
 
 from analysis.config import SerialConfig
+from planning.nc.dialect import grbl_send_text
 from rig.dnc import Program, program_from_text
 from rig.dnc.grbl import HANDSHAKE
 from rig.sim import SimClock, SimFanuc
@@ -61,10 +62,25 @@ def fanuc_bytes(program: Program, cfg: SerialConfig, preamble: list[str] | None 
     return lead + b"%" + eob + body + b"%" + lead
 
 
-def grbl_bytes(program: Program, preamble: list[str] | None = None, start: int = 0) -> bytes:
-    """What a GRBL stream puts on the wire (the handshake's "$I" first)."""
+def grbl_sent(texts: list[str], strip: bool = True) -> list[str]:
+    """The lines a GRBL stream sends for ``texts`` (by default stripped of comments, spaces, N
+    and lone O words; lines left empty are not sent)."""
+    out = [grbl_send_text(t) if strip else t for t in texts]
+    return [t for t in out if t]
+
+
+def grbl_texts(program: Program, preamble: list[str] | None = None, start: int = 0,
+               strip: bool = True) -> list[str]:  # fmt: skip
+    """The lines a GRBL stream sends: ``preamble``, then the program from block ``start``."""
     blocks = [b.text for b in program.blocks if b.index >= start]
-    return HANDSHAKE + b"".join(t.encode() + b"\n" for t in (preamble or []) + blocks)
+    return grbl_sent((preamble or []) + blocks, strip)
+
+
+def grbl_bytes(program: Program, preamble: list[str] | None = None, start: int = 0,
+               strip: bool = True) -> bytes:  # fmt: skip
+    """What a GRBL stream puts on the wire (the handshake's "$G" first)."""
+    texts = grbl_texts(program, preamble, start, strip)
+    return HANDSHAKE + b"".join(t.encode() + b"\n" for t in texts)
 
 
 class EventWaiter:

@@ -11,7 +11,7 @@ import subprocess
 import sys
 
 import pytest
-from _dnc_helpers import grbl_bytes, line_program
+from _dnc_helpers import grbl_bytes, grbl_texts, line_program
 
 from rig.cli import main
 from rig.dnc import read_csv_record, restart_blocks
@@ -55,8 +55,10 @@ def test_send_to_sim_controller_with_restart_and_record(tmp_path, capsys) -> Non
         sim = _stop_sim(proc)
     assert rc == 0
     pre = restart_blocks(prog, start, "grbl")
-    n = len(pre) + len(prog.blocks) - 10
+    n = len(grbl_texts(prog, pre, start))  # the preamble's comment is not sent
     assert summary["blocks_sent"] == n and summary["ok"]
+    assert summary["last_executed_block"] == prog.blocks[-1].index
+    assert summary["transform"] and summary["controller_state"] == "Idle"
     assert summary["last_acknowledged_block"] == prog.blocks[-1].index
     assert summary["bytes_sent"] == len(grbl_bytes(prog, pre, start))
     assert 0.0 <= summary["starved_fraction"] <= 1.0 and summary["seconds"] > 0
@@ -66,7 +68,8 @@ def test_send_to_sim_controller_with_restart_and_record(tmp_path, capsys) -> Non
     assert sim["sha256"] == hashlib.sha256(grbl_bytes(prog, pre, start)).hexdigest()
     assert sim["blocks_executed"] == n
     rows = read_csv_record(rec)
-    assert [r.text for r in rows] == pre + [b.text for b in prog.blocks[10:]]
+    assert [r.text for r in rows] == grbl_texts(prog, pre, start)
+    assert all(r.exec_time_s >= r.send_time_s for r in rows)
 
 
 @pytest.mark.parametrize(
@@ -80,7 +83,7 @@ def test_send_to_sim_controller_with_restart_and_record(tmp_path, capsys) -> Non
 )
 def test_bad_input_exits_2_with_one_line(argv, match, tmp_path, capsys) -> None:
     nc = tmp_path / "p.nc"
-    nc.write_text(line_program(3).text)
+    nc.write_text(line_program(3, grbl=True).text)  # a program GRBL takes (no O, no M6)
     rc = main(["dnc", "send", str(nc), *argv])
     err = capsys.readouterr().err
     assert rc == 2 and match in err
@@ -102,14 +105,24 @@ def test_sim_controller_rejects_unknown_knob(capsys) -> None:
     assert rc == 2 and "unknown knob" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize(("protocol", "extra"), [("fanuc", ""), ("grbl", "error_at_block, ")])
-def test_unknown_knob_lists_the_valid_ones(capsys, protocol, extra) -> None:
+GRBL_KNOBS = (
+    "alarm_at_block, alarm_at_s, drop_ok_at_line, drop_port_after_block, error_at_block, "
+    "garble_ok_at_line, overrun_at_byte, reset_at_block, stop_answering_after_block, "
+    "stop_answering_at_s"
+)
+FANUC_KNOBS = (
+    "alarm_at_block, alarm_at_s, drop_port_after_block, overrun_at_byte, "
+    "stop_answering_after_block, stop_answering_at_s"
+)
+
+
+@pytest.mark.parametrize(("protocol", "knobs"), [("fanuc", FANUC_KNOBS), ("grbl", GRBL_KNOBS)])
+def test_unknown_knob_lists_the_valid_ones(capsys, protocol, knobs) -> None:
     rc = main(["dnc", "sim-controller", "--protocol", protocol, "--sim", "foo=1"])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and err == (
         f"cutlab: error: --sim foo: unknown knob for the {protocol} controller; valid knobs: "
-        f"alarm_at_block, alarm_at_s, drop_port_after_block, {extra}overrun_at_byte, "
-        "stop_answering_after_block, stop_answering_at_s"
+        f"{knobs}"
     )
 
 

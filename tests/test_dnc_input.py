@@ -122,7 +122,8 @@ def test_grbl_line_too_long_is_refused_before_sending() -> None:
     prog = program_from_text(f"{long}\n", "long.nc", check_nc=False)
     ctl = SimGrbl(clock=SimClock(10.0))
     with ctl:
-        with pytest.raises(DncError, match=r"block 0 \(line 1\): .* GRBL's line buffer holds 79"):
+        want = r"long.nc:1:1: GRBL error:11: line overflow: .* GRBL's line buffer holds 79"
+        with pytest.raises(DncError, match=want):
             GrblStreamer(grbl_cfg(ctl.path)).send(prog)
         assert ctl.received == b""
 
@@ -163,11 +164,21 @@ def test_restart_preamble_restores_the_modal_state() -> None:
     assert any(t.startswith("G1 Z") and "F5" in t for t in pre)
 
 
-def test_restart_refuses_canned_cycles_and_ended_programs() -> None:
-    cyc = program_from_text("G21 G90\nG0 Z5\nG81 X1 Y1 Z-2 R1 F100\nX2\nX3\nG80\n", "c.nc")
-    canned = r"restart at block 3 .*inside a canned cycle \(G81 in force\)"
-    with pytest.raises(DncError, match=canned):
-        restart_blocks(cyc, 3, "fanuc")
+def test_restart_completes_canned_cycles_and_refuses_ended_programs() -> None:
+    from rig.dnc import restart_plan
+
+    text = "G21 G90\nG0 Z5\nG81 X1 Y1 Z-2 R1 F100\nX2\nX3\nG80\n"
+    cyc = program_from_text(text, "c.nc")
+    plan = restart_plan(cyc, 3, "fanuc")  # the hole at X2: sent as a complete cycle block
+    assert plan.replaced == {3: "G98 G81 X2 Z-2 R1 F100"}
+    assert "G81" not in " ".join(plan.preamble)
+    rest = [plan.replaced.get(i, t) for i, t in enumerate(text.splitlines()) if i >= 3]
+    full, part = interpret(text), interpret("\n".join(plan.preamble + rest) + "\n")
+    a, b = full[full.block >= 3], part[part.block >= len(plan.preamble)]
+    np.testing.assert_allclose(b.end, a.end, atol=1e-9)
+    inc = program_from_text("G21 G90\nG0 Z5\nG91 G81 X1 Y1 Z-2 R-4 F100\nX2\nG80\n", "i.nc")
+    with pytest.raises(DncError, match=r"restart at block 3 .*incremental \(G91\) canned cycle"):
+        restart_blocks(inc, 3, "fanuc")
     ended = program_from_text("G21\nG0 X1\nM30\nG0 X2\n", "e.nc", check_nc=False)
     with pytest.raises(DncError, match="program ended"):
         restart_blocks(ended, 3, "fanuc")
@@ -242,7 +253,7 @@ def test_remote_request_for_a_missing_program(tmp_path) -> None:
 
 
 def test_csv_record_round_trip(tmp_path) -> None:
-    rows = [BlockRow(3, 4, "G1 X1", 6, 1.5), BlockRow(-1, 0, "(x, y)", 7, 2.0, 2.5, "ok")]
+    rows = [BlockRow(3, 4, "G1 X1", 6, 1.5), BlockRow(-1, 0, "(x, y)", 7, 2.0, 2.5, "ok", 2.75)]
     sink = CsvSink(tmp_path / "r.csv")
     sink.append_blocks(rows)
     sink.event("fault:timeout", 3.0, "no answer")
@@ -274,9 +285,11 @@ def test_block_record_in_a_real_run_file_after_a_fault(tmp_path) -> None:
     run = load_run(tmp_path / "run.h5")
     assert run.status == "fail" and "error:33" in run.reason
     acked = run.blocks[np.isfinite(run.blocks["ack_s"])]
-    # 30 blocks answered ok, the 31st answered error:33 (its answer time is its ack time)
-    assert list(acked["block"]) == [b.index for b in prog.blocks[:31]]
-    assert f"for block {prog.blocks[30].index} " in str(ei.value)
+    # 30 lines answered ok, the 31st answered error:33 (its answer time is its ack time); the
+    # comment line is not sent
+    sent = [b.index for b in prog.blocks if not b.text.startswith("(")]
+    assert list(acked["block"]) == sent[:31]
+    assert f"for block {sent[30]} " in str(ei.value)
     assert (acked["ack_s"] >= acked["send_s"]).all()
     assert (run.events["kind"] == "fault").any()
 

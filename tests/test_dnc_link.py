@@ -84,7 +84,7 @@ def test_grbl_dollar_lines_are_left_alone() -> None:
     assert [r.status for r in sink.rows] == ["ok"] * 6
     assert "$110=500.000" in st.messages
     assert ctl.settings[110] == 800.0
-    assert ctl.executed_texts() == ["G21 G90", "G1 X1 F600", "G1 X2"]
+    assert ctl.executed_texts() == ["G21G90", "G1X1F600", "G1X2"]  # as sent: no spaces
 
 
 def test_alarm_at_simulated_time() -> None:

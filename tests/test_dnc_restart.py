@@ -60,3 +60,68 @@ def test_preamble_then_rest_moves_like_the_original(lines, data) -> None:
     approach = part[part.block < len(pre)]
     if len(approach) and len(a):
         np.testing.assert_allclose(approach.end[-1], a.start[0], atol=tol, rtol=0)
+
+
+# -- arcs and the Fanuc drip feed -------------------------------------------------------------
+
+ARCS = """%
+G21 G90 G17
+S1000 M3
+G0 X0 Y0 Z5
+G1 Z-1 F300
+G1 X10
+G2 X20 Y0 I5 J0
+X30 I5
+G91 G3 X-10 Y0 I-5
+X-10 I-5
+G90 G1 X0 Y0
+G0 Z5
+M5
+M30
+%
+"""
+
+
+def test_restart_at_arcs_completes_the_block_for_both_protocols() -> None:
+    from rig.dnc import restart_plan
+
+    prog = program_from_text(ARCS, "a.nc")
+    lines = ARCS.splitlines()
+    full = interpret(ARCS)
+    for n in range(6, 11):
+        for protocol in ("fanuc", "grbl"):
+            plan = restart_plan(prog, n, protocol)
+            assert plan.preamble[-1].split()[-1] not in ("G2", "G3")
+            rest = [plan.replaced.get(i, t) for i, t in enumerate(lines) if i >= n]
+            part = interpret("\n".join(plan.preamble + rest) + "\n")
+            a, b = full[full.block >= n], part[part.block >= len(plan.preamble)]
+            np.testing.assert_allclose(b.end, a.end, atol=1e-9)
+            np.testing.assert_array_equal(b.kind, a.kind)
+    assert restart_plan(prog, 7, "fanuc").replaced == {7: "G17 G90 G2 X30 Y0 Z-1 I5 J0 F300"}
+
+
+def test_fanuc_restart_at_an_arc_and_the_predicted_execution() -> None:
+    """Drip feed to the simulated Fanuc from an arc: the control runs the original path; the
+    record's predicted execution starts follow the control's within the line's slack."""
+    from _dnc_helpers import FANUC_LINE_B_S, EventWaiter, fanuc_cfg, fanuc_sim
+
+    from rig.dnc import FanucStreamer, MemorySink, restart_plan
+
+    prog = program_from_text(ARCS, "a.nc")
+    plan = restart_plan(prog, 7, "fanuc")
+    ctl = fanuc_sim(4.0)
+    done = EventWaiter(ctl, "program_end")
+    with ctl:
+        sink = MemorySink()
+        st = FanucStreamer(fanuc_cfg(ctl.path), sink=sink, clock=ctl.clock.now,
+                           pace_bytes_per_s=FANUC_LINE_B_S * 4)  # fmt: skip
+        res = st.send(prog, 7, plan.preamble, replaced=plan.replaced)
+        assert done.wait(60)
+    assert res.ok and ctl.alarm == ""
+    sent = [r.text for r in sink.rows]
+    assert ctl.executed_texts() == sent and plan.replaced[7] in sent
+    ex = np.array([b.t_start_s for b in ctl.executed])
+    got = np.array([r.exec_time_s for r in sink.rows])
+    assert np.all(np.isfinite(got))
+    assert np.max(np.abs(got - ex)) < 0.2  # predicted from the time model, no acceleration
+    assert res.last_executed_block <= prog.blocks[-1].index

@@ -17,6 +17,7 @@ from _dnc_helpers import (
     fanuc_sim,
     grbl_bytes,
     grbl_cfg,
+    grbl_texts,
     line_program,
 )
 
@@ -91,13 +92,22 @@ def _check_grbl(prog, ctl, res, sink) -> None:
     want = grbl_bytes(prog)
     assert hashlib.sha256(bytes(ctl.received)).hexdigest() == hashlib.sha256(want).hexdigest()
     assert ctl.overruns == 0 and ctl.errors == []
-    assert ctl.executed_texts() == [b.text for b in prog.blocks]
+    sent = grbl_texts(prog)  # the comment line is not sent
+    assert ctl.executed_texts() == sent
     # flow control exercised: the planner was full and lines waited many times
     assert ctl.planner_waits >= 10
     assert res.last_acknowledged_block == prog.blocks[-1].index
+    assert res.last_executed_block == prog.blocks[-1].index
+    assert res.transform and res.bytes_stripped > 0
     rows = sink.rows
-    assert sink.closed and [r.block for r in rows] == [b.index for b in prog.blocks]
+    assert sink.closed and [r.text for r in rows] == sent
+    assert [r.block for r in rows] == [b.index for b in prog.blocks if b.text != "(cutlab test)"]
     assert all(r.status == "ok" and r.ack_time_s >= r.send_time_s for r in rows)
+    # every row has its execution start, in order, close to when the controller started it
+    ex = np.array([b.t_start_s for b in ctl.executed])
+    got = np.array([r.exec_time_s for r in rows])
+    assert np.all(np.isfinite(got)) and np.all(np.diff(got) >= -1e-9)
+    assert np.median(np.abs(got - ex)) < 0.5
 
 
 def test_grbl_char_counting_is_byte_exact(tmp_path) -> None:
@@ -116,9 +126,9 @@ def test_grbl_char_counting_12000_blocks_byte_exact() -> None:
 def test_grbl_send_response(tmp_path) -> None:
     prog, ctl, res, sink = _grbl_run(300, 10.0, mode="send-response")
     assert bytes(ctl.received) == grbl_bytes(prog)
-    assert ctl.executed_texts() == [b.text for b in prog.blocks]
+    assert ctl.executed_texts() == grbl_texts(prog)
     # one line at a time: the receive buffer never held more than the longest line
-    assert ctl.max_fill <= max(len(b.text) for b in prog.blocks) + 1
+    assert ctl.max_fill <= max(len(t) for t in grbl_texts(prog)) + 1
 
 
 def test_controller_runs_blocks_at_programmed_feed() -> None:
@@ -160,7 +170,7 @@ def test_grbl_program_end_and_next_program() -> None:
         for _ in range(2):
             GrblStreamer(grbl_cfg(ctl.path), pace_bytes_per_s=GRBL_LINE_B_S * 10).send(prog)
     assert len(ends) == 2
-    assert ctl.executed_texts() == 2 * [b.text for b in prog.blocks]
+    assert ctl.executed_texts() == 2 * grbl_texts(prog)
     assert ctl.interp.state.spindle_dir == 0 and not ctl.interp.state.ended
 
 
@@ -223,7 +233,9 @@ def test_grbl_stream_connects_to_a_held_controller() -> None:
             s.write(b"G21 G90 G1 X20 F600\n")  # 2 s of motion, 0.1 s wall
             s.flush()
             assert s.readline().strip() == b"ok"
-            ctl.feed_hold()
+            ctl.feed_hold()  # decelerates (Hold:1), then stands (Hold:0)
+            assert ctl.state_name() in ("Hold:1", "Hold:0")
+            assert ctl.clock.sleep_until(ctl.clock.now() + 1.0)
             assert ctl.state_name() == "Hold:0"
             s.write(b"$I\n")
             assert s.readline().strip() == b"error:8"
@@ -236,5 +248,5 @@ def test_grbl_stream_connects_to_a_held_controller() -> None:
         threading.Timer(0.5, ctl.cycle_start).start()  # the operator resumes
         th.join(30)
         assert out and out[0].ok
-        texts = [b.text for b in prog.blocks]
+        texts = grbl_texts(prog)
         assert ctl.executed_texts()[-len(texts) :] == texts

@@ -1,6 +1,7 @@
 """A program file checked as ``cutlab nc check|motions|plot`` see it: interpreted (streamed, with a
 progress callback by bytes for big files), its summary (lengths, times, bounding box, warnings)
-and its motion table.
+and its motion table; and (``cutlab nc check --dialect``) what a controller would refuse in it
+(:func:`dialect_problems`, :mod:`planning.nc.dialect`).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from planning.nc.dialect import DialectProblem, check_dialect
 from planning.nc.interpreter import Interpreter
 from planning.nc.motion import Motion
 from planning.nc.run import file_lines
@@ -112,3 +114,10 @@ def check_program(
     it = Interpreter(cfg, strict=strict, file=path)
     motion = it.run(progress_lines(path, progress))
     return CheckedProgram(path, it, motion, cfg)
+
+
+def dialect_problems(path: str, dialect: str, *, strip: bool = True) -> list[DialectProblem]:
+    """What the ``dialect`` controller (grbl, fanuc, linuxcnc) would refuse or run differently in
+    the program file ``path``, with file:line:column (``strip``: GRBL lines as the streamer sends
+    them, without comments, spaces and N words). NCError if the file cannot be read."""
+    return check_dialect(list(file_lines(path)), dialect, file=str(path), strip=strip)

@@ -1,4 +1,5 @@
-"""`cutlab dnc` commands: stream a program to a controller, run a simulated controller."""
+"""`cutlab dnc` commands: stream a program to a controller, unlock or reset a GRBL, run a simulated
+controller."""
 
 from __future__ import annotations
 
@@ -9,18 +10,20 @@ from rig.cli._common import print_json, status
 
 
 def _send(args: argparse.Namespace) -> int:
-    from rig.dnc import StreamFault, prepare_send
+    from rig.dnc import StreamFault, halt_on_signals, prepare_send
 
     job = prepare_send(
         args.file, args.protocol, machine=args.machine, port=args.port, baud=args.baud,
         timeout_s=args.timeout, start_block=args.start_block, safe_z_mm=args.safe_z,
         record_csv=args.record, progress=not args.no_progress and sys.stderr.isatty(),
-        grbl_mode=args.mode, grbl_unlock=args.unlock, fanuc_wait_dc1=not args.no_wait_dc1,
+        grbl_mode=args.mode, grbl_unlock=args.unlock, grbl_strip=not args.no_strip,
+        fanuc_wait_dc1=not args.no_wait_dc1, guard=True,
     )  # fmt: skip
     p = job.program
     status(f"sending {p.name} ({len(p)} blocks) to {job.settings.port} [{job.protocol}]")
     try:
-        res = job.send()
+        with halt_on_signals(job.streamer):  # Ctrl-C, SIGTERM, SIGHUP: feed hold, clean halt
+            res = job.send()
     except StreamFault as exc:
         if args.json:
             print_json(exc.result.as_dict())
@@ -48,6 +51,21 @@ def _serve(args: argparse.Namespace) -> int:
             status(f"sent {req.program} from block {req.start_block}: {res.blocks_sent} blocks")
         if args.once:
             return 0
+
+
+def _grbl(args: argparse.Namespace) -> int:
+    from rig.dnc import dnc_machine, grbl_command, serial_settings
+
+    _, machine = dnc_machine("grbl", args.machine)
+    cfg = serial_settings(machine, args.port, args.baud, args.timeout)
+    reply = grbl_command(cfg, args.dnc_command)
+    if args.json:
+        print_json(reply.as_dict())
+    else:
+        for line in reply.lines:
+            status(f"grbl: {line}")
+        status(reply.summary)
+    return 0 if reply.state_after not in ("", "Alarm") or args.dnc_command == "status" else 1
 
 
 def _sim_controller(args: argparse.Namespace) -> int:
@@ -82,6 +100,8 @@ def _add_send(dsub: argparse._SubParsersAction) -> None:
     s.add_argument("--safe-z", type=float, help="restart: Z to approach from, mm")
     s.add_argument("--mode", default="char-counting", help="GRBL: char-counting | send-response")
     s.add_argument("--unlock", action="store_true", help="GRBL: send $X if it is in Alarm")
+    strip = "GRBL: send lines as written (default: no comments, spaces, N and O words)"
+    s.add_argument("--no-strip", action="store_true", help=strip)
     s.add_argument("--no-wait-dc1", action="store_true", help="Fanuc: send without waiting for DC1")
     s.add_argument("--record", help="write the block record to this CSV file")
     s.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
@@ -96,6 +116,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     dsub = p.add_subparsers(dest="dnc_command", metavar="DNC_COMMAND")
     dsub.required = True
     _add_send(dsub)
+    for name, text in (
+        ("unlock", "GRBL: leave the Alarm state ($X) after checking the machine"),
+        ("reset", "GRBL: clean soft reset (feed hold and Hold:0 first if it moves)"),
+    ):
+        g = dsub.add_parser(name, help=text)
+        g.add_argument("--port", help="port name or pyserial URL (default: the machine config's)")
+        g.add_argument("--machine", help="machine name or TOML (default lab-grbl)")
+        g.add_argument("--baud", type=int, help="override serial.baudrate")
+        g.add_argument("--timeout", type=float, help="override serial.timeout_s, s")
+        g.add_argument("--json", action="store_true", help="a JSON reply on stdout")
+        g.set_defaults(func=_grbl)
     r = dsub.add_parser("serve", help="answer remote program requests from a Fanuc control")
     r.add_argument("--port", help="port name or pyserial URL (default: the machine config's)")
     r.add_argument("--machine", help="machine name or TOML (default ace-h63)")

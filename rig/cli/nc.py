@@ -1,7 +1,9 @@
 """`cutlab nc` — check, list and plot NC programs (planning.nc).
 
-* ``cutlab nc check FILE [--json] [--machine NAME] [--lenient]``: errors (exit 2, one line), or
-  blocks, motions, cutting_length_mm, rapid_length_mm, time_s, bbox and warnings.
+* ``cutlab nc check FILE [--json] [--machine NAME] [--lenient] [--dialect grbl|fanuc|linuxcnc]``:
+  errors (exit 2, one line), or blocks, motions, cutting_length_mm, rapid_length_mm, time_s, bbox
+  and warnings; with ``--dialect`` also what that controller would refuse (file:line:column, the
+  controller's answer; ``--json`` key ``dialect_problems``; exit 2 if it would refuse a line).
 * ``cutlab nc motions FILE [--csv] [-o OUT]``: one row per canonical segment (line, kind,
   x0 y0 z0 x1 y1 z1, arc centre, feed, ...).
 * ``cutlab nc plot FILE -o path.png``: tool path, rapids dashed, feeds solid, 3-D and top views.
@@ -27,14 +29,28 @@ def _interpret(args: argparse.Namespace, *, warn: bool = True):
 
 
 def _check(args: argparse.Namespace) -> int:
+    problems = None
+    if args.dialect:
+        from planning.nc.check import dialect_problems
+
+        problems = dialect_problems(args.file, args.dialect)
+        if not args.json:
+            for p in problems:
+                status(f"{p.severity}: {p}")
     run = _interpret(args, warn=not args.json)
     out = run.summary()
+    refused = sum(p.severity == "error" for p in problems or ())
+    if problems is not None:
+        out["dialect"] = args.dialect
+        out["dialect_problems"] = [p.as_dict() for p in problems]
     if args.json:
         print_json(out)
-        return 0
+        return 2 if refused else 0
+    if refused:
+        status(f"{args.file}: {args.dialect} would refuse {refused} line(s)")
     for p in out["warnings"][len(run.warnings) :]:  # the machine's travel limits
         status("warning: " + p)
-    skip = ("bbox", "warnings", "rotary_range_deg")
+    skip = ("bbox", "warnings", "rotary_range_deg", "dialect_problems")
     rows = [{"quantity": k, "value": v} for k, v in out.items() if k not in skip and v is not None]
     for c, (lo, hi) in out.get("rotary_range_deg", {}).items():
         rows.append({"quantity": f"{c}_range_deg", "value": f"{lo:.4g} {hi:.4g}"})
@@ -42,7 +58,7 @@ def _check(args: argparse.Namespace) -> int:
         xyz = " ".join(f"{c:.4g}" for c in out["bbox"][f"{end}_mm"])
         rows.append({"quantity": f"bbox_{end}_mm", "value": xyz})
     print_table(rows)
-    return 0
+    return 2 if refused else 0
 
 
 def _motions(args: argparse.Namespace) -> int:
@@ -87,6 +103,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = _add_parser(nsub, "check", "parse + interpret; print lengths, time, bbox (or the error)",
                     _check)  # fmt: skip
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument("--dialect", choices=("grbl", "fanuc", "linuxcnc"), default=None,
+                   help="also list what this controller would refuse (exit 2 if any)")  # fmt: skip
     p = _add_parser(nsub, "motions", "one row per canonical motion segment", _motions)
     p.add_argument("--csv", action="store_true", help="CSV to stdout (or to -o)")
     p.add_argument("-o", "--output", default=None, help="write CSV to this file")

@@ -9,8 +9,8 @@ Quick tour::
     program = load_program("part.nc")              # NC errors raise here, before sending
     st = FanucStreamer(machine.serial, sink=CsvSink("blocks.csv"))
     result = st.send(program)                      # StreamResult; StreamFault on a fault
-    pre = restart_blocks(program, 120, "fanuc", machine)
-    st.send(program, start_block=120, preamble=pre)
+    plan = restart_plan(program, 120, "fanuc", machine)   # arcs, cycles made complete
+    st.send(program, start_block=120, preamble=plan.preamble, replaced=plan.replaced)
 
 Modules: :mod:`~rig.dnc.port` (settings per protocol, opening), :mod:`~rig.dnc.link` (reader
 thread, DC1/DC3 gate, pacing), :mod:`~rig.dnc.fanuc`, :mod:`~rig.dnc.eia` (EIA tape code),
@@ -18,18 +18,23 @@ thread, DC1/DC3 gate, pacing), :mod:`~rig.dnc.fanuc`, :mod:`~rig.dnc.eia` (EIA t
 :mod:`~rig.dnc.restart`, :mod:`~rig.dnc.remote` (remote program request),
 :mod:`~rig.dnc.record` (the block record and its sinks), :mod:`~rig.dnc.progress`,
 :mod:`~rig.dnc.program`, :mod:`~rig.dnc.connect` (machine, settings and streamer from a
-command's options), :mod:`~rig.dnc.errors`. The simulated controllers that speak these
-protocols on a pseudo-terminal are :mod:`rig.sim.fanuc` and :mod:`rig.sim.grbl`.
+command's options), :mod:`~rig.dnc.execution` (the block executing, from status reports or
+timing), :mod:`~rig.dnc.guard` (signals and a watchdog hold the feed),
+:mod:`~rig.dnc.console` (GRBL unlock / reset / status), :mod:`~rig.dnc.errors`. The simulated
+controllers that speak these protocols on a pseudo-terminal are :mod:`rig.sim.fanuc` and
+:mod:`rig.sim.grbl`.
 """
 
 from rig.dnc.connect import SendJob, dnc_machine, prepare_send, remote_server, serial_settings
+from rig.dnc.console import GrblReply, grbl_command
 from rig.dnc.errors import DncError, StreamFault
 from rig.dnc.fanuc import FanucStreamer
 from rig.dnc.grbl import GrblStatus, GrblStreamer, parse_status
+from rig.dnc.guard import HoldGuard, halt_on_signals
 from rig.dnc.program import Block, Program, load_program, program_from_text
 from rig.dnc.record import BlockRow, BlockSink, CsvSink, MemorySink, read_csv_record
 from rig.dnc.remote import RemoteServer, parse_request
-from rig.dnc.restart import restart_blocks
+from rig.dnc.restart import RestartPlan, restart_blocks, restart_plan
 from rig.dnc.result import StreamResult
 
 __all__ = [
@@ -39,15 +44,20 @@ __all__ = [
     "CsvSink",
     "DncError",
     "FanucStreamer",
+    "GrblReply",
     "GrblStatus",
     "GrblStreamer",
+    "HoldGuard",
     "MemorySink",
     "Program",
     "RemoteServer",
+    "RestartPlan",
     "SendJob",
     "StreamFault",
     "StreamResult",
     "dnc_machine",
+    "grbl_command",
+    "halt_on_signals",
     "load_program",
     "parse_request",
     "parse_status",
@@ -56,5 +66,6 @@ __all__ = [
     "read_csv_record",
     "remote_server",
     "restart_blocks",
+    "restart_plan",
     "serial_settings",
 ]

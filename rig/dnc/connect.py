@@ -14,10 +14,10 @@ from rig.dnc.errors import DncError
 from rig.dnc.fanuc import FanucStreamer
 from rig.dnc.grbl import GrblStreamer
 from rig.dnc.port import check_protocol, check_settings
-from rig.dnc.program import Block, Program, load_program
+from rig.dnc.program import Program, load_program
 from rig.dnc.record import CsvSink, MemorySink
 from rig.dnc.remote import RemoteServer
-from rig.dnc.restart import restart_blocks
+from rig.dnc.restart import RestartPlan, restart_plan
 from rig.dnc.result import StreamResult
 
 if TYPE_CHECKING:
@@ -65,18 +65,22 @@ def serial_settings(
 @dataclass(frozen=True)
 class SendJob:
     """A program checked and a streamer set up to send it from ``start_block`` (after the
-    restart ``preamble``); :meth:`send` streams it."""
+    restart ``preamble``, with the blocks a restart completes ``replaced``); :meth:`send`
+    streams it."""
 
     protocol: str
     program: Program
     settings: SerialConfig
     streamer: FanucStreamer | GrblStreamer
     start_block: int
-    preamble: list[Block]
+    preamble: list[str]
+    replaced: dict[int, str] | None = None
 
     def send(self) -> StreamResult:
         """Stream the program; a fault raises :class:`~rig.dnc.errors.StreamFault`."""
-        return self.streamer.send(self.program, self.start_block, self.preamble)
+        return self.streamer.send(
+            self.program, self.start_block, self.preamble, replaced=self.replaced
+        )
 
 
 def prepare_send(
@@ -93,24 +97,30 @@ def prepare_send(
     progress: bool = False,
     grbl_mode: str = "char-counting",
     grbl_unlock: bool = False,
+    grbl_strip: bool = True,
     fanuc_wait_dc1: bool = True,
+    guard: bool = False,
 ) -> SendJob:
     """Everything ``cutlab dnc send`` checks before the port is opened: protocol, machine,
-    serial settings, the program (NC errors raise here) and the restart preamble; the block
-    record goes to ``record_csv`` (None: kept in memory)."""
+    serial settings, the program (NC errors raise here) and the restart preamble (arcs and
+    canned cycles completed); the block record goes to ``record_csv`` (None: kept in memory).
+    ``guard``: GRBL, a watchdog process holds the feed if this process dies mid-stream."""
     protocol, m = dnc_machine(protocol, machine)
     cfg = serial_settings(m, port, baud, timeout_s)
     check_settings(cfg, protocol)
     program = load_program(file)
-    pre = restart_blocks(program, start_block, protocol, m, safe_z_mm)
+    plan: RestartPlan = restart_plan(program, start_block, protocol, m, safe_z_mm)
     sink = CsvSink(record_csv) if record_csv else MemorySink()
     if protocol == "fanuc":
         st: FanucStreamer | GrblStreamer = FanucStreamer(
-            cfg, sink=sink, progress=progress, wait_for_dc1=fanuc_wait_dc1
+            cfg, sink=sink, progress=progress, wait_for_dc1=fanuc_wait_dc1, machine=m
         )
     else:
-        st = GrblStreamer(cfg, sink=sink, progress=progress, mode=grbl_mode, unlock=grbl_unlock)
-    return SendJob(protocol, program, cfg, st, start_block, pre)
+        st = GrblStreamer(
+            cfg, sink=sink, progress=progress, mode=grbl_mode, unlock=grbl_unlock,
+            strip=grbl_strip, guard=guard, machine=m,
+        )  # fmt: skip
+    return SendJob(protocol, program, cfg, st, start_block, plan.preamble, plan.replaced)
 
 
 def remote_server(

@@ -17,11 +17,13 @@ class DncError(RigError):
 
 class StreamFault(DncError):
     """Streaming stopped part-way: the port disappeared, the controller stopped answering, an
-    overrun, ``error:N`` or an alarm.
+    overrun, ``error:N``, an alarm, a reset, a lost answer, or the operator.
 
     ``result`` is the summary up to the fault (``result.last_acknowledged_block`` is the block to
     resume after, ``result.reason`` says why); the record sink has been closed before raising.
-    ``kind`` is one of ``"port-lost"``, ``"timeout"``, ``"error"``, ``"alarm"``, ``"stopped"``.
+    ``kind`` is one of ``"port-lost"``, ``"timeout"``, ``"error"``, ``"alarm"``, ``"stopped"``,
+    ``"interrupted"`` (Ctrl-C, SIGTERM, SIGHUP: held and reset first), ``"reset"`` (GRBL reset
+    itself mid-stream), ``"lost-ok"`` (GRBL processed every line but an answer never came).
     """
 
     def __init__(self, message: str, kind: str, result: StreamResult) -> None:

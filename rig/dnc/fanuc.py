@@ -29,6 +29,13 @@ request in it is answered by :mod:`rig.dnc.remote`.
 Drip feed has no acknowledgement: each block's record row has its send time, ``ack_time_s`` NaN
 and status ``"sent"``. A timeout (XOFF held, write blocked, no DC1) or a lost port stops the stream
 with a :class:`~rig.dnc.errors.StreamFault` naming the last fully sent block.
+
+The block the control executes is estimated (:class:`rig.dnc.execution.TimedTracker`): the
+control holds what it has read in its buffer and runs each block for its predicted time
+(planning.nc's time model, ``machine``'s rapid rate), a block starting when the one before ended
+or, if the control had to wait for it, when it arrived. The record's ``exec_time_s`` and the
+result's ``executing_block`` / ``last_executed_block`` come from it (a prediction: a Fanuc
+reports nothing over the line; the control's screen shows the truth).
 """
 
 from __future__ import annotations
@@ -39,15 +46,18 @@ from typing import Any
 from analysis.config import SerialConfig
 from rig.dnc import eia
 from rig.dnc._stream import Fault, Item, StreamerBase
+from rig.dnc.execution import TimedTracker, line_paths
 from rig.dnc.link import DC2, DC4, SerialLink
 from rig.dnc.port import EOB_BYTES
+from rig.dnc.program import Program
 from rig.dnc.record import BlockRow
 
 
 class FanucStreamer(StreamerBase):
     """Drip-feed a program to a Fanuc-style control (see the module docstring).
 
-    ``stream_kw``: sink, clock, pace_bytes_per_s, progress of :class:`StreamerBase`.
+    ``machine``: for the predicted execution (rapid rate); ``stream_kw``: sink, clock,
+    pace_bytes_per_s, progress of :class:`StreamerBase`.
     """
 
     protocol = "fanuc"
@@ -58,9 +68,12 @@ class FanucStreamer(StreamerBase):
         *,
         wait_for_dc1: bool = True,
         record_batch: int = 32,
+        machine: Any = None,
         **stream_kw: Any,
     ) -> None:
         super().__init__(cfg, **stream_kw)
+        self.machine = machine
+        self.tracker: TimedTracker | None = None
         self.eob = EOB_BYTES[cfg.end_of_block]
         self.wait_for_dc1 = wait_for_dc1
         self.record_batch = record_batch
@@ -70,13 +83,30 @@ class FanucStreamer(StreamerBase):
         self._line_free.set()
         self._stop = threading.Event()
 
-    def stop(self) -> None:
-        """Ask a running stream to stop before its next block (it ends with fault ``stopped``)."""
-        self._stop.set()
+    def _on_interrupt(self) -> None:
+        self._stop.set()  # a Fanuc has no feed hold over the line: stop feeding it
+
+    def _check_interrupt(self) -> None:
+        try:
+            super()._check_interrupt()
+        except Fault as f:
+            if f.kind == "interrupted":
+                f.reason += (
+                    "; feeding stopped (a Fanuc takes no feed hold over the line: it runs what "
+                    "it has buffered; press FEED HOLD or RESET on the control)"
+                )
+            raise
 
     def _begin(self) -> None:
         self._stop.clear()
         self.punched.clear()
+        self.tracker = None
+
+    def _prepare(self, program: Program, items: list[Item]) -> list[Item]:
+        rapid = getattr(self.machine, "rapid_mm_min", None) or 10_000.0
+        paths = line_paths([it.text for it in items], dialect="fanuc", rapid_mm_min=rapid)
+        self.tracker = TimedTracker([p.duration_s for p in paths])
+        return items
 
     def _make_link(self) -> SerialLink:
         soft = self.cfg.flow_control == "xonxoff" and self.cfg.xonxoff_in_streamer
@@ -136,21 +166,20 @@ class FanucStreamer(StreamerBase):
                 )
         lead = b"\0" * self.cfg.leader_nuls
         self._write(lead + opening)
-        pending: list[BlockRow] = []
-        try:
-            for it, data in zip(items, encoded):
-                if self._stop.is_set():
-                    raise Fault("stopped", "stopped by the operator")
-                t_send = self.clock()
-                self._write(data)
-                pending.append(BlockRow(it.block, it.line, it.text, len(data), t_send))
-                self.blocks_sent += 1
-                if it.block >= 0:
-                    self.last_sent_block = self.last_ack_block = it.block
-                if len(pending) >= self.record_batch:
-                    self._record(pending)
-                    pending = []
-            self._write(closing + lead)
-        finally:
-            if pending:
-                self._record(pending)
+        tr = self.tracker
+        for pos, (it, data) in enumerate(zip(items, encoded)):
+            if self._stop.is_set():
+                self._check_interrupt()
+                raise Fault("stopped", "stopped by the operator")
+            t_send = self.clock()
+            self._write(data)
+            self._answered(pos, BlockRow(it.block, it.line, it.text, len(data), t_send))
+            self.blocks_sent += 1
+            if it.block >= 0:
+                self.last_sent_block = self.last_ack_block = it.block
+            if tr is not None:
+                now = self.clock()
+                tr.arrived(pos, now)
+                tr.update(now)
+                self._executing(tr.pop_started(), tr.current, tr.done)
+        self._write(closing + lead)

@@ -1,32 +1,53 @@
-"""GRBL 1.1 streaming: send-response or character counting, real-time commands, status reports.
+"""GRBL 1.1 streaming: send-response or character counting, real-time commands, status reports,
+the executing block, lost answers, clean halts.
+
+Before the first byte (nothing is sent if any line would be refused):
+
+- every line is sent as :func:`planning.nc.dialect.grbl_send_text` leaves it (``strip``, default
+  on): comments, spaces, the N word and a lone O program number are left out, as GRBL discards
+  them anyway (it counts them in its 128-byte receive buffer but not in its 80-character line
+  buffer; a ``!`` ``~`` ``?`` in a comment would even act as a real-time command). What was left
+  out is in the result (``transform``, ``bytes_stripped``) and the record's ``stream_start``
+  event;
+- the whole program and the lines as they will be sent are checked against GRBL 1.1h
+  (:func:`planning.nc.dialect.check_dialect`, gcode.c's rules): a line GRBL would answer
+  ``error:N`` (O word, M6, G41, a long line, ``G2`` without axis words...) refuses the program,
+  with the full list of such lines.
 
 Modes:
 
 - ``"send-response"``: one line out, wait for its ``ok``/``error:N``; simple, slower.
 - ``"char-counting"`` (default): keep as many lines in flight as GRBL's serial receive buffer holds
-  (``rx_buffer_bytes``, 127 usable bytes on an Arduino Uno), counting the bytes of every line not
-  yet answered; each ``ok``/``error`` frees its line's bytes. The buffer never overflows.
+  (``rx_buffer_bytes``, 127 of its 128 bytes), counting the bytes of every line not yet answered.
 
-Every line is answered, in order, by ``ok``, ``error:N`` or (when GRBL stops) ``ALARM:N``. Status
-reports ``<State|MPos:x,y,z|Bf:planner_free,rx_free|FS:feed,rpm>`` answer the real-time ``?``;
-the streamer polls ``?`` (``status_hz``) to tell a busy controller from a dead one (``timeout_s``
-of silence is a fault) and to measure starvation (reports in state ``Idle`` while blocks remain).
-Real-time commands go out at once, outside the count: :meth:`GrblStreamer.feed_hold` ``!``,
-:meth:`~GrblStreamer.cycle_start` ``~``, :meth:`~GrblStreamer.status` ``?``,
-:meth:`~GrblStreamer.soft_reset` 0x18. ``$`` lines in the program (settings, ``$H``, ``$X``) are
-sent like any line and left alone.
+``ok`` means *planned*: the acknowledged line runs up to 15 planner blocks ahead of the one the
+machine cuts. The status reports (``?`` polled ``status_hz`` times a second) are parsed
+(:func:`parse_status`: state, MPos/WPos, WCO, Bf, Ln, FS, Ov, Pn, A) and give the *executing*
+block (:class:`rig.dnc.execution.ExecTracker`: the position against each line's path, bounded
+by the planner count Bf when ``$10`` reports it). The record's rows carry the acknowledgement
+time and the execution start; the result both blocks; the progress bar both.
 
-On ``error:N`` or ``ALARM:N`` the streamer stops sending; with ``halt_on_error`` (default) it also
-sends feed hold and soft reset, so lines already in GRBL's buffers after the failing one do not
-run (character counting would otherwise let them execute). Record rows get the ``ok`` time as
-``ack_time_s`` and status ``ok``/``error:N``; lines still in flight at a fault are
-``unacknowledged``.
+A lost or garbled ``ok`` (line noise) leaves the character count short forever. When GRBL reports
+Idle with nothing in its planner and its receive buffer empty (Bf ``15,128``; without Bf, Idle
+alone) for ``lost_ok_confirm_s`` while lines are unanswered, every line has been processed and
+the answer is not coming: the stream stops (fault ``lost-ok``) naming the last block known
+executed. Silence (no status report either) for ``timeout_s`` is a ``timeout``. A dwell's time
+is allowed for.
+
+Halting: :meth:`GrblStreamer.halt` sends feed hold ``!``, waits for ``Hold:0`` (the motion has
+stopped), then, with ``reset``, soft reset 0x18: GRBL ends Idle, without the ``ALARM:3`` a reset
+in motion gives. It runs on ``error:N`` (``halt_on_error``) and when the stream is interrupted
+(:meth:`~GrblStreamer.interrupt`, from Ctrl-C / SIGTERM / SIGHUP via
+:func:`rig.dnc.guard.halt_on_signals`, which sends ``!`` at once). A crash of the streamer sends
+``!`` on its way out; ``guard`` adds a watchdog process that sends it if this process dies.
+
+``ALARM:N`` mid-stream stops the stream with the alarm's name and what to do (hard/soft limits:
+GRBL answers nothing until a soft reset, ``cutlab dnc reset``, then ``cutlab dnc unlock``).
 """
 
 from __future__ import annotations
 
 import queue
-import re
 import threading
 import time
 from collections import deque
@@ -35,23 +56,45 @@ from dataclasses import dataclass
 from typing import Any
 
 from analysis.config import SerialConfig
+from planning.nc.dialect import (
+    GRBL_ERRORS,
+    GRBL_PLANNER_BLOCKS,
+    GrblParser,
+    check_dialect,
+    grbl_alarm_text,
+    grbl_filter,
+    grbl_send_text,
+    refused,
+)
 from rig.dnc._stream import Fault, Item, StreamerBase
 from rig.dnc.errors import DncError
+from rig.dnc.execution import ExecTracker, line_paths
 from rig.dnc.link import LinkLost, LinkTimeout, SerialLink
+from rig.dnc.program import Program
 from rig.dnc.record import BlockRow
 
 FEED_HOLD, CYCLE_START, STATUS, SOFT_RESET = b"!", b"~", b"?", b"\x18"
 HANDSHAKE = b"$G\n"  # what a stream sends first (see GrblStreamer._handshake)
 MODES = ("char-counting", "send-response")
-GRBL_RX_BUFFER_BYTES = 127
+GRBL_RX_BUFFER_BYTES = 127  # of RX_BUFFER_SIZE 128: one byte of margin
 GRBL_LINE_CHARS = 79  # LINE_BUFFER_SIZE 80 incl. the terminating NUL
-
-_COMMENT = re.compile(r"\([^)]*\)|;.*$")
+TRANSFORM = "stripped comments, spaces, N words and lone O program numbers"
+SILENT_HINT = (
+    " (wrong port or baud rate? or GRBL is halted after a hard/soft limit alarm: it then answers "
+    "nothing until a soft reset, cutlab dnc reset)"
+)
 
 
 @dataclass(frozen=True)
 class GrblStatus:
-    """A parsed status report. Missing fields are None."""
+    """A parsed status report. Missing fields are None.
+
+    state : Idle, Run, Hold, Jog, Alarm, Door, Check, Home, Sleep; substate : the ``:n`` of
+    ``Hold:0`` / ``Door:1`` ("" if none); mpos_mm / wpos_mm : one of them per report ($10);
+    wco_mm : work coordinate offset (sent every 10-30 reports); planner_free, rx_free : Bf;
+    line : Ln; feed_mm_min, spindle_rpm : FS (or F); overrides : Ov (feed, rapid, spindle %);
+    pins : Pn letters; accessories : A letters
+    """
 
     state: str
     mpos_mm: tuple[float, float, float] | None = None
@@ -60,27 +103,55 @@ class GrblStatus:
     feed_mm_min: float | None = None
     spindle_rpm: float | None = None
     line: int | None = None
+    substate: str = ""
+    wpos_mm: tuple[float, float, float] | None = None
+    wco_mm: tuple[float, float, float] | None = None
+    overrides: tuple[int, ...] | None = None
+    pins: str = ""
+    accessories: str = ""
+
+    @property
+    def full_state(self) -> str:
+        return f"{self.state}:{self.substate}" if self.substate else self.state
+
+
+def _xyz(nums: list[str]) -> tuple[float, float, float]:
+    return (float(nums[0]), float(nums[1]), float(nums[2]))
 
 
 def parse_status(text: str) -> GrblStatus:
-    """``<Run|MPos:1.000,2.000,0.000|Bf:12,100|FS:600,10000|Ln:42>`` -> GrblStatus."""
+    """``<Run|MPos:1.000,2.000,0.000|Bf:12,100|FS:600,10000|Ln:42>`` -> GrblStatus (report.c's
+    fields, any order; unknown fields are ignored)."""
     body = text.strip().removeprefix("<").removesuffix(">")
     parts = body.split("|")
     if not parts or not parts[0]:
         raise DncError(f"GRBL status report {text!r}: no state")
-    kw: dict = {"state": parts[0].split(":")[0]}
+    state, _, sub = parts[0].partition(":")
+    kw: dict = {"state": state, "substate": sub}
     for p in parts[1:]:
         key, _, val = p.partition(":")
         nums = val.split(",")
         try:
             if key == "MPos" and len(nums) >= 3:
-                kw["mpos_mm"] = (float(nums[0]), float(nums[1]), float(nums[2]))
+                kw["mpos_mm"] = _xyz(nums)
+            elif key == "WPos" and len(nums) >= 3:
+                kw["wpos_mm"] = _xyz(nums)
+            elif key == "WCO" and len(nums) >= 3:
+                kw["wco_mm"] = _xyz(nums)
             elif key == "Bf" and len(nums) == 2:
                 kw["planner_free"], kw["rx_free"] = int(nums[0]), int(nums[1])
             elif key == "FS" and len(nums) == 2:
                 kw["feed_mm_min"], kw["spindle_rpm"] = float(nums[0]), float(nums[1])
+            elif key == "F" and len(nums) == 1:
+                kw["feed_mm_min"] = float(nums[0])
             elif key == "Ln":
                 kw["line"] = int(val)
+            elif key == "Ov":
+                kw["overrides"] = tuple(int(v) for v in nums)
+            elif key == "Pn":
+                kw["pins"] = val
+            elif key == "A":
+                kw["accessories"] = val
         except ValueError:
             raise DncError(f"GRBL status report {text!r}: bad field {p!r}") from None
     return GrblStatus(**kw)
@@ -93,24 +164,35 @@ def check_line(text: str, where: str, rx_buffer_bytes: int) -> None:
             f"{where}: line is {len(text) + 1} bytes with its LF; GRBL's receive buffer holds "
             f"{rx_buffer_bytes} (expected <= {rx_buffer_bytes} bytes)"
         )
-    stripped = _COMMENT.sub("", text).replace(" ", "")
-    if len(stripped) > GRBL_LINE_CHARS:
+    f = grbl_filter(text, limit=10**9)
+    if len(f.text) > GRBL_LINE_CHARS:
         raise DncError(
-            f"{where}: {len(stripped)} characters without spaces and comments; GRBL's line "
+            f"{where}: {len(f.text)} characters without spaces and comments; GRBL's line "
             f"buffer holds {GRBL_LINE_CHARS} (error:11)"
         )
+
+
+def _is_answer(line: str) -> bool:
+    return line == "ok" or line.startswith("error:")
 
 
 class GrblStreamer(StreamerBase):
     """Stream a program to GRBL (see the module docstring).
 
     mode : ``"char-counting"`` or ``"send-response"``
-    rx_buffer_bytes : GRBL's usable serial receive buffer, bytes (127 on an Uno)
-    status_hz : status polls per wall second while streaming (0: none; then no starvation figure
-        and silence while GRBL waits with a full planner can look like a dead controller)
+    rx_buffer_bytes : what character counting may have in GRBL's receive buffer (127)
+    status_hz : status polls per wall second (0: none; then no executing block, no lost-answer
+        detection: silence for ``timeout_s`` is the only limit)
     wait_idle : after the last ``ok``, wait until GRBL reports ``Idle`` (the motion has run)
     unlock : if GRBL is in ``Alarm`` at the start, send ``$X`` (else that is a fault)
-    halt_on_error : on ``error:N``, send feed hold + soft reset so nothing after it runs
+    halt_on_error : on ``error:N``, halt (feed hold, Hold:0, soft reset) so nothing after it runs
+    strip : send lines without comments, spaces, N words and lone O words (see the module doc)
+    lost_ok_confirm_s : how long GRBL must stay Idle with empty buffers while lines are unanswered
+        before the answers count as lost (wall s)
+    halt_timeout_s : how long a halt waits for Hold:0 and for the reset's banner (wall s)
+    reset_after_halt : a halt ends with a soft reset (GRBL Idle, buffers flushed); False: held
+    guard : a watchdog process sends ``!`` if this process dies while streaming (device ports)
+    machine : for the executing-block paths (rapid rate, arc tolerance); optional
     stream_kw : sink, clock, pace_bytes_per_s, progress of :class:`StreamerBase`
     """
 
@@ -126,6 +208,12 @@ class GrblStreamer(StreamerBase):
         wait_idle: bool = True,
         unlock: bool = False,
         halt_on_error: bool = True,
+        strip: bool = True,
+        lost_ok_confirm_s: float = 1.0,
+        halt_timeout_s: float = 10.0,
+        reset_after_halt: bool = True,
+        guard: bool = False,
+        machine: Any = None,
         **stream_kw: Any,
     ) -> None:
         if mode not in MODES:
@@ -139,16 +227,22 @@ class GrblStreamer(StreamerBase):
         self.wait_idle = wait_idle
         self.unlock = unlock
         self.halt_on_error = halt_on_error
+        self.strip = strip
+        self.lost_ok_confirm_s = lost_ok_confirm_s
+        self.halt_timeout_s = halt_timeout_s
+        self.reset_after_halt = reset_after_halt
+        self.guard = guard
+        self.machine = machine
         self.last_status: GrblStatus | None = None
         self.messages: list[str] = []
+        self.garbled: list[str] = []
+        self.halt_report = ""
+        self.tracker: ExecTracker | None = None
         self._lines: queue.Queue[tuple[float, str]] = queue.Queue()
         self._partial = bytearray()
-        self._stop = threading.Event()
         self._streaming = threading.Event()
-        self._reports = 0
-        self._starved_reports = 0
-        self._heard_any = False
-        self._seen_run = False
+        self._guard_proc: Any = None
+        self._begin()
 
     # -- real-time commands (any thread) ---------------------------------------------------------
     def _rt(self, cmd: bytes) -> None:
@@ -158,6 +252,15 @@ class GrblStreamer(StreamerBase):
             self.link.write_now(cmd)
         except (LinkLost, LinkTimeout) as exc:
             raise DncError(f"GRBL real-time command {cmd!r} not sent: {exc}") from None
+
+    def _rt_safe(self, cmd: bytes) -> bool:
+        try:
+            if self.link is not None:
+                self.link.write_now(cmd)
+                return True
+        except (LinkLost, LinkTimeout, OSError):
+            pass
+        return False
 
     def feed_hold(self) -> None:
         self._rt(FEED_HOLD)
@@ -171,22 +274,92 @@ class GrblStreamer(StreamerBase):
     def soft_reset(self) -> None:
         self._rt(SOFT_RESET)
 
-    def stop(self) -> None:
-        """Stop sending before the next line (ends with fault ``stopped``)."""
-        self._stop.set()
+    def _on_interrupt(self) -> None:
+        self._rt_safe(FEED_HOLD)  # first of all: the machine stops
 
     def _begin(self) -> None:
-        self._stop.clear()
         self._partial.clear()
         while not self._lines.empty():
             self._lines.get_nowait()
         self._reports = self._starved_reports = 0
         self._heard_any = self._seen_run = False
         self.last_status = None
+        self.garbled = []
+        self.halt_report = ""
+        self._wco: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        self._planner_cap: int | None = None
+        self._rx_cap: int | None = None
+        self._acked_pos = -1
+        self._sent_pos = -1
+        self._last_io = time.perf_counter()
+        self._lost_since: float | None = None
+        self._lost_reports = 0
+        self._results: list[Any] = []
+        self.tracker = None
+        self._tracking = True
+        self._suspect = ""  # why the answers no longer match the lines (sending paused)
+        self._drift_reports = 0
+
+    # -- before the port opens ---------------------------------------------------------------------
+    def _prepare(self, program: Program, items: list[Item]) -> list[Item]:
+        out: list[Item] = []
+        stripped = 0
+        for it in items:
+            sent = grbl_send_text(it.text) if self.strip else it.text.strip()
+            stripped += len(it.text) - len(sent)
+            if sent:
+                out.append(Item(it.block, it.line, sent, it.source or it.text))
+        if self.strip:
+            self.transform, self.bytes_stripped = TRANSFORM, stripped
+        problems = refused(check_dialect(program.text, "grbl", file=program.name, strip=self.strip))
+        listed = {p.line for p in problems}
+        lines: list[str] = [str(p) for p in problems]
+        parser = GrblParser()
+        self._results = []
+        for k, it in enumerate(out):
+            where = f"{program.name}:{it.line}"
+            if it.block < 0:
+                where = f"restart preamble line {k + 1}"
+            if len(it.text) + 1 > self.rx_buffer_bytes and (it.line not in listed or it.block < 0):
+                lines.append(
+                    f"{where}: {len(it.text) + 1} bytes with its LF: more than the "
+                    f"{self.rx_buffer_bytes} bytes GRBL's receive buffer may hold"
+                )
+            if it.text.startswith("$"):
+                self._results.append(None)
+                continue
+            f = grbl_filter(it.text)
+            if f.overflow:
+                if it.line not in listed or it.block < 0:
+                    n = len(grbl_filter(it.text, 10**9).text)
+                    lines.append(
+                        f"{where}: GRBL error:11: line overflow: {n} characters without spaces "
+                        f"and comments; GRBL's line buffer holds {GRBL_LINE_CHARS}"
+                    )
+                self._results.append(None)
+                continue
+            res = parser.parse(f.text)
+            self._results.append(res if res.ok else None)
+            if not res.ok and (it.line not in listed or it.block < 0):
+                lines.append(
+                    f"{where}: {res.word}: GRBL error:{res.code} "
+                    f"{GRBL_ERRORS.get(res.code, '')} (as sent: {it.text})"
+                )
+        if lines:
+            raise DncError(
+                f"{program.name}: GRBL 1.1h would refuse {len(lines)} line(s); nothing was sent:\n"
+                + "\n".join(lines)
+            )
+        return out
 
     # -- link --------------------------------------------------------------------------------------
     def _make_link(self) -> SerialLink:
-        return SerialLink(self._serial(), pace_bytes_per_s=self.pace, on_data=self._on_data)
+        ser = self._serial()
+        if self.guard:
+            from rig.dnc.guard import HoldGuard
+
+            self._guard_proc = HoldGuard.start_for(ser)
+        return SerialLink(ser, pace_bytes_per_s=self.pace, on_data=self._on_data)
 
     def _on_data(self, data: bytes) -> None:
         self._partial.extend(data)
@@ -199,58 +372,37 @@ class GrblStreamer(StreamerBase):
             if raw:
                 self._lines.put((self.clock(), raw.decode("ascii", "replace")))
 
-    def _get(self, heard: list[float]) -> tuple[float, str]:
-        """Next line from GRBL, whatever it is; faults on silence or a lost port."""
+    def _get(self, heard: list[float], timeout: float = 0.05) -> tuple[float, str] | None:
+        """Next line from GRBL or None after ``timeout``; faults on silence or a lost port."""
         link = self.link
         assert link is not None
-        while True:
-            if link.lost.is_set():
-                raise Fault("port-lost", link.lost_reason)
+        if link.lost.is_set():
+            raise Fault("port-lost", link.lost_reason)
+        try:
+            item = self._lines.get(timeout=timeout)
+        except queue.Empty:
+            if time.perf_counter() - heard[0] > self.cfg.timeout_s:
+                hint = SILENT_HINT if not self._heard_any else ""
+                why = f"no answer from GRBL for {self.cfg.timeout_s:g} s{hint}"
+                raise Fault("timeout", why) from None
+            return None
+        heard[0] = time.perf_counter()
+        self._heard_any = True
+        if item[1].startswith("<"):
             try:
-                item = self._lines.get(timeout=0.05)
-            except queue.Empty:
-                if time.perf_counter() - heard[0] > self.cfg.timeout_s:
-                    hint = "" if self._heard_any else " (wrong port or baud rate?)"
-                    why = f"no answer from GRBL for {self.cfg.timeout_s:g} s{hint}"
-                    raise Fault("timeout", why) from None
-                continue
-            heard[0] = time.perf_counter()
-            self._heard_any = True
-            if item[1].startswith("<"):
                 st = parse_status(item[1])
-                self.last_status = st
-                self._seen_run = self._seen_run or st.state in ("Run", "Hold")
-                if self._streaming.is_set() and self._seen_run:
-                    self._reports += 1
-                    self._starved_reports += st.state == "Idle"
-            return item
-
-    def _next(self, heard: list[float]) -> tuple[float, str]:
-        """Next answer line (``ok``, ``error:N``, ``ALARM:N``, the banner); status reports,
-        ``[...]`` messages, ``$n=v`` setting dumps and echoes are kept in ``messages``."""
-        while True:
-            t, line = self._get(heard)
-            if line.startswith("<"):
-                continue
-            if line == "ok" or line.startswith(("error:", "ALARM:", "Grbl")):
-                return t, line
-            self.messages.append(line)
-
-    def _wait_state(self, heard: list[float], ok: Callable[[GrblStatus], bool]) -> None:
-        """Poll until a fresh status report satisfies ``ok``."""
-        self.last_status = None
-        self.status()
-        while True:
-            _, line = self._get(heard)
-            if line.startswith("<") and self.last_status is not None:
-                if ok(self.last_status):
-                    return
-                if self.status_hz <= 0:
-                    self.status()
-            elif line.startswith("ALARM"):
-                raise Fault("alarm", f"{line} while finishing the motion")
-            elif not line.startswith("<"):
-                self.messages.append(line)
+            except DncError:
+                self.garbled.append(item[1])
+                return None
+            self.last_status = st
+            self.controller_state = st.full_state
+            if st.wco_mm is not None:
+                self._wco = st.wco_mm
+            self._seen_run = self._seen_run or st.state in ("Run", "Hold")
+            if self._streaming.is_set() and self._seen_run:
+                self._reports += 1
+                self._starved_reports += st.state == "Idle"
+        return item
 
     def _poll_status(self) -> None:
         period = 1.0 / self.status_hz
@@ -260,25 +412,44 @@ class GrblStreamer(StreamerBase):
             except (LinkLost, LinkTimeout):
                 return
 
+    def _work_pos(self, st: GrblStatus) -> tuple[float, float, float] | None:
+        if st.wpos_mm is not None:
+            return st.wpos_mm
+        if st.mpos_mm is not None:
+            return (
+                st.mpos_mm[0] - self._wco[0],
+                st.mpos_mm[1] - self._wco[1],
+                st.mpos_mm[2] - self._wco[2],
+            )
+        return None
+
     # -- the stream --------------------------------------------------------------------------------
     def _run(self, link: SerialLink, items: list[Item]) -> None:
-        for it in items:
-            where = f"block {it.block} (line {it.line})" if it.block >= 0 else "restart preamble"
-            check_line(it.text, where, self.rx_buffer_bytes)
         self._poll_stop = threading.Event()
         poller = None
         if self.status_hz > 0:
             poller = threading.Thread(target=self._poll_status, name="grbl-status", daemon=True)
             poller.start()
+        clean = False
         try:
             self._handshake()
+            self._make_tracker(items)
             self._stream(items)
+            clean = True
+        except Fault:
+            clean = True  # the fault path has halted as it should
+            raise
         finally:
+            if not clean:  # a crash of the streamer itself (or a second Ctrl-C): hold first
+                self._rt_safe(FEED_HOLD)
             self._poll_stop.set()
             if poller is not None:
                 poller.join(timeout=2.0)
             if self._reports:
                 self.starved_fraction = self._starved_reports / self._reports
+            if self._guard_proc is not None:
+                self._guard_proc.release(hold=not clean)
+                self._guard_proc = None
 
     def _handshake(self) -> None:
         heard = [time.perf_counter()]
@@ -287,94 +458,373 @@ class GrblStreamer(StreamerBase):
         # stream (error:9 for lines that arrived after an alarm, late oks) come before "[GC:" and
         # are dropped here: taken as this stream's, they would let the character counting
         # overfill GRBL's receive buffer.
+        self._check_interrupt()
         self._write(HANDSHAKE)
         while True:
-            _, line = self._get(heard)
+            ev = self._get(heard)
+            if ev is None:
+                self._check_interrupt()
+                continue
+            line = ev[1]
             if line.startswith("[GC:"):
                 break
-            if not line.startswith("<"):
+            if line.startswith("ALARM:"):
                 self.messages.append(line)
-        _, line = self._next(heard)
+            elif not line.startswith("<"):
+                self.messages.append(line)
+        while True:
+            ev = self._get(heard)
+            if ev is None:
+                self._check_interrupt()
+                continue
+            line = ev[1]
+            if line.startswith("<"):
+                continue
+            if _is_answer(line):
+                break
+            self.messages.append(line)
         if line != "ok":
             raise Fault("error", f"GRBL answered $G (parser state) with {line}")
-        self._wait_state(heard, lambda st: True)
-        assert self.last_status is not None
-        if self.last_status.state.startswith("Alarm"):
+        st = self._wait_status(heard, lambda s: True)
+        if st.planner_free is not None and st.state == "Idle":
+            self._planner_cap = st.planner_free
+            self._rx_cap = st.rx_free
+        if st.state == "Alarm":
             if not self.unlock:
                 raise Fault(
                     "alarm",
-                    "GRBL is in its Alarm state; check the machine, then unlock ($X, or --unlock)",
+                    "GRBL is in its Alarm state (after an alarm or a reset in motion); check the "
+                    "machine and its position, then unlock (cutlab dnc unlock, or --unlock)",
                 )
             self._write(b"$X\n")
-            _, line = self._next(heard)
-            if line != "ok":
-                raise Fault("alarm", f"GRBL refused to unlock: {line}")
+            while True:
+                ev = self._get(heard)
+                if ev is None or ev[1].startswith("<"):
+                    continue
+                if _is_answer(ev[1]):
+                    break
+                self.messages.append(ev[1])
+            if ev[1] != "ok":
+                raise Fault("alarm", f"GRBL refused to unlock: {ev[1]}")
+
+    def _wait_status(
+        self,
+        heard: list[float],
+        ok: Callable[[GrblStatus], bool],
+        deadline: float | None = None,
+        on_line: Callable[[float, str], None] | None = None,
+    ) -> GrblStatus:
+        """Poll until a fresh status report satisfies ``ok``; lines that are not status reports
+        go to ``on_line`` (default: kept in ``messages``; ALARM and a reset banner are faults).
+        TimeoutError after ``deadline`` (perf_counter)."""
+        self.last_status = None
+        self._rt_safe(STATUS)
+        last_poll = time.perf_counter()
+        while True:
+            if deadline is not None and time.perf_counter() > deadline:
+                raise TimeoutError
+            ev = self._get(heard)
+            now = time.perf_counter()
+            if ev is None:
+                if self.status_hz <= 0 or now - last_poll > 1.0:
+                    self._rt_safe(STATUS)
+                    last_poll = now
+                continue
+            t, line = ev
+            if line.startswith("<"):
+                st = self.last_status
+                if st is None:
+                    continue
+                self._track(t, st)
+                if ok(st):
+                    return st
+                if self.status_hz <= 0:
+                    self._rt_safe(STATUS)
+                continue
+            if on_line is not None:
+                on_line(t, line)
+            elif line.startswith("ALARM:"):
+                raise Fault("alarm", self._alarm_reason(line, "while finishing the motion"))
+            else:
+                self.messages.append(line)
+
+    def _make_tracker(self, items: list[Item]) -> None:
+        start = (0.0, 0.0, 0.0)
+        if self.last_status is not None:
+            p = self._work_pos(self.last_status)
+            if p is not None:
+                start = p
+        rapid = getattr(self.machine, "rapid_mm_min", None) or 5000.0
+        paths = line_paths([it.text for it in items], start, rapid_mm_min=rapid)
+        blocks = [r.planner_blocks if r is not None else 0 for r in self._results]
+        if len(blocks) != len(items):
+            blocks = None  # type: ignore[assignment]
+        cap = self._planner_cap if self._planner_cap is not None else GRBL_PLANNER_BLOCKS
+        self.tracker = ExecTracker(paths, blocks, cap)
+
+    def _track(self, t: float, st: GrblStatus) -> None:
+        tr = self.tracker
+        if tr is None or not self._tracking:  # after a reset Idle means flushed, not done
+            return
+        tr.update(t, st.state, self._work_pos(st), self._acked_pos, st.planner_free,
+                  self._sent_pos)  # fmt: skip
+        self._executing(tr.pop_started(), tr.current, tr.done)
 
     def _stream(self, items: list[Item]) -> None:
-        inflight: deque[tuple[Item, int, float]] = deque()
+        inflight: deque[tuple[int, int, float]] = deque()  # (position, bytes, send time)
         used = 0
         i = 0
         heard = [time.perf_counter()]
-        done: list[BlockRow] = []
         counting = self.mode == "char-counting"
         self._streaming.set()
+        self._last_io = time.perf_counter()
         try:
             while i < len(items) or inflight:
-                while i < len(items):
-                    if self._stop.is_set():
-                        raise Fault("stopped", "stopped by the operator")
+                self._check_interrupt()
+                while i < len(items) and not self._suspect:
                     data = items[i].text.encode("ascii") + b"\n"
                     fits = used + len(data) <= self.rx_buffer_bytes if counting else not inflight
                     if not fits:
                         break
+                    self._check_interrupt()
                     t = self.clock()
                     self._write(data)
-                    inflight.append((items[i], len(data), t))
+                    inflight.append((i, len(data), t))
                     used += len(data)
                     self.blocks_sent += 1
+                    self._sent_pos = i
+                    self._last_io = time.perf_counter()
+                    self._lost_since = None
                     if items[i].block >= 0:
                         self.last_sent_block = items[i].block
                     i += 1
-                t_ack, line = self._next(heard)
+                ev = self._get(heard)
+                if ev is None:
+                    continue
+                t_ans, line = ev
+                if line.startswith("<"):
+                    if self.last_status is not None:
+                        self._track(t_ans, self.last_status)
+                        self._check_lost(inflight, items, self.last_status, used)
+                    continue
+                if _is_answer(line):
+                    self._lost_since = None
+                    self._last_io = time.perf_counter()
+                    if not inflight:
+                        self.messages.append(line)
+                        continue
+                    pos, n, t_send = inflight.popleft()
+                    used -= n
+                    it = items[pos]
+                    status = line if line.startswith("error") else "ok"
+                    self._answered(pos, BlockRow(it.block, it.line, it.text, n, t_send, t_ans,
+                                                 status))  # fmt: skip
+                    if status != "ok":
+                        code = int(line.split(":")[1]) if line[6:].isdigit() else -1
+                        why = GRBL_ERRORS.get(code, "")
+                        where = f"block {it.block} (line {it.line})" if it.block >= 0 else (
+                            "the restart preamble")  # fmt: skip
+                        reason = f"{line} ({why}) for {where}: {it.text}"
+                        if self.halt_on_error:
+                            reason += "; " + self.halt(reset=self.reset_after_halt, heard=heard)
+                        raise Fault("error", reason)
+                    self._acked_pos = pos
+                    if self.tracker is not None:
+                        self.tracker.set_origin(t_ans)
+                    if it.block >= 0:
+                        self.last_ack_block = it.block
+                    continue
+                if line.startswith(("ALARM:", "Grbl")):
+                    self._tracking = False
+                if line.startswith("ALARM:"):
+                    raise Fault("alarm", self._alarm_reason(line, "mid-stream"))
                 if line.startswith("Grbl"):
-                    raise Fault("alarm", f"GRBL reset itself mid-stream ({line!r})")
-                if line.startswith("ALARM"):
-                    raise Fault("alarm", f"{line} (GRBL stopped; lines in flight are lost)")
-                if not inflight:
+                    raise Fault(
+                        "reset",
+                        f"GRBL was reset mid-stream (banner {line!r}): the lines in its buffers "
+                        "were discarded",
+                    )
+                if line.startswith(("[", "$", ">")):
                     self.messages.append(line)
                     continue
-                it, n, t_send = inflight.popleft()
-                used -= n
-                status = line if line.startswith("error") else "ok"
-                done.append(BlockRow(it.block, it.line, it.text, n, t_send, t_ack, status))
-                if status != "ok":
-                    if self.halt_on_error:
-                        self._halt()
-                    raise Fault("error", f"{line} for block {it.block} (line {it.line}): {it.text}")
-                if it.block >= 0:
-                    self.last_ack_block = it.block
-                if len(done) >= 32:
-                    self._record(done)
-                    done = []
+                self.garbled.append(line)  # not a GRBL answer: line noise
+                self.messages.append(line)
+                if inflight and not self._suspect:  # maybe an answer: stop sending, let it drain
+                    self._suspect = f"received {line!r}, not a GRBL answer (line noise)"
             self._streaming.clear()
             if self.wait_idle:
                 self._wait_idle(heard)
+        except Fault as f:
+            if f.kind in ("interrupted", "stopped"):
+                f.reason += "; " + self.halt(reset=self.reset_after_halt, heard=heard)
+            elif f.kind == "timeout":
+                self._rt_safe(FEED_HOLD)  # whatever it is doing, it should not go on
+            raise
         finally:
             self._streaming.clear()
-            done.extend(
-                BlockRow(it.block, it.line, it.text, n, t, status="unacknowledged")
-                for it, n, t in inflight
-            )
-            if done:
-                self._record(done)
+            for pos, n, t in inflight:
+                it = items[pos]
+                self._answered(pos, BlockRow(it.block, it.line, it.text, n, t,
+                                             status="unacknowledged"))  # fmt: skip
 
-    def _halt(self) -> None:
+    def _alarm_reason(self, line: str, when: str) -> str:
         try:
-            self.link.write_now(FEED_HOLD)  # type: ignore[union-attr]
-            self.link.write_now(SOFT_RESET)  # type: ignore[union-attr]
-        except (LinkLost, LinkTimeout):
-            pass
+            code = int(line.split(":")[1])
+        except (IndexError, ValueError):
+            return f"{line} {when}"
+        return f"{grbl_alarm_text(code)} ({line} {when}; GRBL discarded the lines in its buffers)"
 
+    # -- lost answers ------------------------------------------------------------------------------
+    def _check_lost(
+        self, inflight: deque, items: list[Item], st: GrblStatus, used: int = 0
+    ) -> None:
+        """Answers lost: GRBL's receive buffer (Bf) holds less than is unanswered, beyond the
+        line it is busy with, report after report (sending then pauses); or GRBL is Idle with
+        empty buffers while lines are unanswered, for long enough (the fault)."""
+        now = time.perf_counter()
+        if st.rx_free is not None and self._rx_cap and len(inflight) >= 2 and not self._suspect:
+            # unanswered = in GRBL's receive buffer + the line it is busy with (if any) + bytes
+            # still on their way to it (now and then); more than that in every one of 8 reports
+            # in a row: an answer is lost
+            drift = used - (self._rx_cap - st.rx_free) - inflight[0][1]
+            if drift > 0:
+                self._drift_reports += 1
+                if self._drift_reports >= 8:
+                    self._suspect = (
+                        f"GRBL's receive buffer holds {self._rx_cap - st.rx_free} bytes but "
+                        f"{used} are unanswered: an answer was lost"
+                    )
+            else:
+                self._drift_reports = 0
+        empty = (
+            st.state == "Idle"
+            and (st.planner_free is None or self._planner_cap is None
+                 or st.planner_free >= self._planner_cap)
+            and (st.rx_free is None or st.rx_free >= (self._rx_cap or 128) - 1)
+        )  # fmt: skip
+        if not inflight or not empty:
+            self._lost_since = None
+            return
+        # the line time of what is outstanding, and a dwell under way, are allowed for
+        wait = self.lost_ok_confirm_s
+        nbytes = sum(n for _, n, _ in inflight)
+        wait += nbytes * 10.0 / max(self.cfg.baudrate, 1)
+        res = self._results[inflight[0][0]] if self._results else None
+        if res is not None and res.dwell_s:
+            wait += res.dwell_s
+        if now - self._last_io < wait:
+            return
+        if self._lost_since is None:
+            self._lost_since = now
+            self._lost_reports = 0
+        self._lost_reports += 1
+        if now - self._lost_since < self.lost_ok_confirm_s or self._lost_reports < 3:
+            return
+        self._lost_answers(inflight, items, st)
+
+    def _lost_answers(self, inflight: deque, items: list[Item], st: GrblStatus) -> None:
+        last = items[self._sent_pos]
+        tr = self.tracker
+        pos = self._work_pos(st)
+        known = -1
+        if tr is not None and pos is not None:
+            # GRBL processed every line sent: the last one whose move ends where the machine
+            # stands, and all before it, ran (an answer lost might have been an error:N)
+            j = tr.line_ending_at(pos, range(self._sent_pos + 1))
+            if j >= 0:
+                known = j
+                tr.finish_all(j, self.clock())
+                self._executing(tr.pop_started(), tr.current, tr.done)
+        why = f" ({self._suspect})" if self._suspect else ""
+        where = ""
+        if pos is not None:
+            where = f"; the machine stands at X{pos[0]:.3f} Y{pos[1]:.3f} Z{pos[2]:.3f}"
+            if known >= 0:
+                b = items[known].block
+                where += f", the end of block {b}" if b >= 0 else ", the end of the preamble"
+        upto = f"up to block {last.block}" if last.block >= 0 else "of the restart preamble"
+        raise Fault(
+            "lost-ok",
+            f"GRBL is Idle with empty buffers, so it has processed every line sent ({upto}), but "
+            f"{len(inflight)} answer(s) never came: lost or garbled on the line{why}; which "
+            f"line they belonged to cannot be told{where}; nothing more was sent",
+        )
+
+    # -- ending --------------------------------------------------------------------------------
     def _wait_idle(self, heard: list[float]) -> None:
         """After the last ok: wait for a status report saying Idle (the motion has run)."""
-        self._wait_state(heard, lambda st: st.state == "Idle")
+
+        def on_line(t: float, line: str) -> None:
+            if line.startswith(("ALARM:", "Grbl")):
+                self._tracking = False
+            if line.startswith("ALARM:"):
+                raise Fault("alarm", self._alarm_reason(line, "while finishing the motion"))
+            if line.startswith("Grbl"):
+                raise Fault("reset", f"GRBL was reset while finishing the motion ({line!r})")
+            self.messages.append(line)
+
+        def idle(st: GrblStatus) -> bool:
+            self._check_interrupt()
+            return st.state == "Idle"
+
+        self._wait_status(heard, idle, on_line=on_line)
+        if self.tracker is not None:
+            self.tracker.finish_all(self._acked_pos, self.clock())
+            tr = self.tracker
+            self._executing(tr.pop_started(), tr.current, tr.done)
+
+    def halt(self, reset: bool = True, heard: list[float] | None = None) -> str:
+        """Feed hold, wait for Hold:0 (motion stopped), then with ``reset`` a soft reset (GRBL
+        Idle, its buffers flushed, no alarm). Returns what happened, for the fault message; it
+        never raises for GRBL's behaviour (only for a lost port, as a Fault)."""
+        heard = heard if heard is not None else [time.perf_counter()]
+        self._rt_safe(FEED_HOLD)
+        deadline = time.perf_counter() + self.halt_timeout_s
+        lines: list[str] = []
+
+        def keep(t: float, line: str) -> None:
+            lines.append(line)
+
+        try:
+            st = self._wait_status(
+                heard,
+                lambda s: s.full_state == "Hold:0" or s.state in ("Idle", "Alarm", "Door"),
+                deadline,
+                on_line=keep,
+            )
+        except TimeoutError:
+            self.halt_report = (
+                f"feed hold sent; GRBL did not report Hold:0 within {self.halt_timeout_s:g} s "
+                "(not reset, to keep it from ALARM:3)"
+            )
+            return self.halt_report
+        except Fault as f:
+            if f.kind == "port-lost":
+                raise
+            self.halt_report = f"feed hold sent; then {f.reason}"
+            return self.halt_report
+        self.messages.extend(lines)
+        if st.state == "Alarm":
+            self.halt_report = "GRBL is in Alarm"
+            return self.halt_report
+        if not reset:
+            self.halt_report = f"machine held ({st.full_state}); resume with cycle start (~)"
+            return self.halt_report
+        lines.clear()
+        self._tracking = False  # what the reset flushes was not executed
+        self._rt_safe(SOFT_RESET)
+        try:
+            st = self._wait_status(
+                heard, lambda s: any(x.startswith("Grbl") for x in lines), deadline, on_line=keep
+            )
+        except (TimeoutError, Fault):
+            self.halt_report = "feed hold, Hold:0, soft reset sent; no banner came back"
+            return self.halt_report
+        alarms = [x for x in lines if x.startswith("ALARM:")]
+        self.messages.extend(lines)
+        state = st.full_state
+        if alarms:
+            self.halt_report = f"feed hold, Hold:0, then reset: {alarms[0]} ({state})"
+        else:
+            self.halt_report = f"feed hold, Hold:0, then soft reset: GRBL {state}, no alarm"
+        return self.halt_report

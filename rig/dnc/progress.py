@@ -1,4 +1,5 @@
-"""Progress display of a stream on stderr: blocks, bytes/s and ETA (tqdm)."""
+"""Progress display of a stream on stderr: blocks, bytes/s, ETA and (GRBL) the block
+acknowledged beside the block executing (tqdm)."""
 
 from __future__ import annotations
 
@@ -24,13 +25,16 @@ class Progress:
         self._t0 = time.perf_counter()
         self._last = self._t0  # first rate after half a second, not from one block
 
-    def update(self, n_blocks: int, bytes_sent: int) -> None:
+    def update(self, n_blocks: int, bytes_sent: int, extra: str = "") -> None:
+        """``n_blocks`` more recorded, ``bytes_sent`` so far; ``extra`` shown after the rate
+        (GRBL: the block acknowledged and the block executing)."""
         self._bar.update(n_blocks)
         now = time.perf_counter()
         if now - self._last > 0.5:
             self._last = now
             rate = bytes_sent / max(now - self._t0, 1e-9)
-            self._bar.set_postfix_str(f"{rate:,.0f} B/s", refresh=False)
+            tail = f", {extra}" if extra else ""
+            self._bar.set_postfix_str(f"{rate:,.0f} B/s{tail}", refresh=False)
 
     def close(self) -> None:
         self._bar.close()

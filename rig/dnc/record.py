@@ -7,8 +7,11 @@ simulated rig) and :class:`CsvSink` (the CLI's ``--record FILE``). The HDF5 run 
 
 Rows are appended in block order. Times are seconds on the streamer's clock (Unix time by default,
 the :class:`rig.sim.clock.SimClock` in the simulated rig). ``ack_time_s`` is NaN where the protocol
-gives no acknowledgement (Fanuc drip feed) or the block was sent but never acknowledged. Preamble
-blocks of a restart carry ``block = -1`` and ``line = 0``.
+gives no acknowledgement (Fanuc drip feed) or the block was sent but never acknowledged;
+``exec_time_s`` is when the control started executing the block (GRBL: from its status reports;
+Fanuc: predicted from the time model), NaN where that is not known. A row is appended once its
+execution start is known (or the stream has ended), so rows come some blocks behind the sending.
+Preamble blocks of a restart carry ``block = -1`` and ``line = 0``.
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ class BlockRow:
     ack_time_s : s, when the controller acknowledged it (NaN: no acknowledgement)
     status : ``"sent"`` (no acknowledgement in the protocol), ``"ok"``, ``"error:N"``,
         ``"unacknowledged"`` (sent, but the stream stopped before its answer)
+    exec_time_s : s, when the control started executing it (estimated; NaN: not known / never)
     """
 
     block: int
@@ -45,6 +49,7 @@ class BlockRow:
     send_time_s: float
     ack_time_s: float = math.nan
     status: str = "sent"
+    exec_time_s: float = math.nan
 
 
 COLUMNS: tuple[str, ...] = tuple(f.name for f in fields(BlockRow))
@@ -124,10 +129,11 @@ class CsvSink:
 
 
 def read_csv_record(path: str | Path) -> list[BlockRow]:
-    """Rows of a :class:`CsvSink` file back as :class:`BlockRow` (for checks and tests)."""
+    """Rows of a :class:`CsvSink` file back as :class:`BlockRow` (for checks and tests); a record
+    written before ``exec_time_s`` existed reads with it NaN."""
     with Path(path).open(newline="", encoding="utf-8") as f:
         r = csv.DictReader(f)
-        if tuple(r.fieldnames or ()) != COLUMNS:
+        if tuple(r.fieldnames or ()) not in (COLUMNS, COLUMNS[:-1]):
             raise DncError(f"{path}: not a block record (columns {r.fieldnames})")
         return [
             BlockRow(
@@ -138,6 +144,7 @@ def read_csv_record(path: str | Path) -> list[BlockRow]:
                 float(d["send_time_s"]),
                 float(d["ack_time_s"]),
                 d["status"],
+                float(d.get("exec_time_s") or math.nan),
             )
             for d in r
         ]

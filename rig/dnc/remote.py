@@ -26,7 +26,7 @@ from rig.dnc.errors import DncError
 from rig.dnc.fanuc import FanucStreamer
 from rig.dnc.program import Program, load_program
 from rig.dnc.record import BlockSink
-from rig.dnc.restart import restart_blocks
+from rig.dnc.restart import restart_plan
 from rig.dnc.result import StreamResult
 
 _PRG = re.compile(r"\(\s*PRG\s*=\s*([A-Za-z0-9_.\-]+)\s*\)", re.IGNORECASE)
@@ -120,9 +120,12 @@ class RemoteServer:
             self.request = parse_request(punched[0].decode("ascii", "replace"))
             path = find_program(self.folder, self.request.program)
             self.program = load_program(path)
-            pre = restart_blocks(self.program, self.request.start_block, "fanuc", self.machine)
+            plan = restart_plan(self.program, self.request.start_block, "fanuc", self.machine)
             link.dc1_seen.clear()  # wait for the control to start reading again
-            return st.send(self.program, self.request.start_block, pre, link=link)
+            return st.send(
+                self.program, self.request.start_block, plan.preamble, link=link,
+                replaced=plan.replaced,
+            )  # fmt: skip
         finally:
             self.listening.clear()
             link.close()

@@ -26,6 +26,15 @@ class StreamResult:
         block sent, in which the controller was Idle waiting for blocks (None where the controller
         does not report it: Fanuc, or no report in that span)
     fault : ``""`` or the :class:`~rig.dnc.errors.StreamFault` kind; ``reason`` says why
+    executing_block : program index of the block the control was executing at the end (GRBL:
+        from its status reports; Fanuc: predicted; -1 none / unknown)
+    last_executed_block : program index of the last block known executed to its end (-1: none);
+        resume with ``start_block`` = the block after it
+    transform : what the streamer changed in the lines it sent (GRBL: ``"stripped comments,
+        spaces, N and O words"``; ``""`` as written)
+    bytes_stripped : characters left out by ``transform``
+    controller_state : the control's state when the stream ended (GRBL: Idle, Hold:0, Alarm, ...;
+        ``""`` unknown)
     """
 
     protocol: str
@@ -43,15 +52,23 @@ class StreamResult:
     starved_fraction: float | None
     fault: str = ""
     reason: str = ""
+    executing_block: int = -1
+    last_executed_block: int = -1
+    transform: str = ""
+    bytes_stripped: int = 0
+    controller_state: str = ""
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
 
     def summary_line(self) -> str:
-        """One line: blocks and bytes sent, time (s), rate (B/s) beside the line's, and the last
-        acknowledged block."""
-        return (
+        """One line: blocks and bytes sent, time (s), rate (B/s) beside the line's, the last
+        acknowledged and the last executed block."""
+        out = (
             f"sent {self.blocks_sent} blocks, {self.bytes_sent} bytes in {self.seconds:.1f} s "
             f"({self.bytes_per_s:,.0f} B/s of {self.line_bytes_per_s:,.0f}); last acknowledged "
-            f"block {self.last_acknowledged_block}"
+            f"block {self.last_acknowledged_block}, last executed {self.last_executed_block}"
         )
+        if self.transform:
+            out += f"; {self.transform} ({self.bytes_stripped} characters)"
+        return out

@@ -130,6 +130,7 @@ class SimControllerBase(ExecutorMixin):
         self._seg_t1 = 0.0
         self._seg_frac0 = 0.0  # fraction of the current segment done before a resume
         self._hold_t = 0.0
+        self._hold_stop_at: float | None = None  # a feed hold decelerating: motion stops then
         self._block_t0 = 0.0
         self._spindle = 0.0
         self._pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -347,6 +348,8 @@ class SimControllerBase(ExecutorMixin):
             t = min(t, self._wire[0][0])
         if self._cur is not None and not self.held and not self.alarm:
             t = min(t, self._seg_t1)
+        if self._hold_stop_at is not None:
+            t = min(t, self._hold_stop_at)
         return max(t, now)
 
     def advance_to(self, t_s: float) -> None:

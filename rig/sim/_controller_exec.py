@@ -79,6 +79,9 @@ class _Planned:
     t_ready: float
     n_number: int = -1
     ends_program: bool = False  # M2/M30 in this block
+    blocks: int = 0  # planner blocks the line takes (GRBL: one per straight move, arc segments)
+    pause: bool = False  # M0: hold when it has run (GRBL)
+    done: bool = False  # executed to its end
 
 
 _N_WORD = re.compile(r"\s*/?\s*[Nn]\s*(\d+)")
@@ -107,8 +110,25 @@ class ExecutorMixin:
 
         A block starts when the previous one ended or, if it was not ready then (its last byte
         had not arrived, or the planner had not taken it), when it became ready; that gap, after
-        the first block of a program, is counted as starvation.
+        the first block of a program, is counted as starvation. A feed hold being carried out
+        (``_hold_stop_at``, GRBL's deceleration) stops the motion at that time.
         """
+        stop_at = self._hold_stop_at
+        if stop_at is not None:
+            self._run_until(min(now, stop_at))
+            if now >= stop_at and not self.alarm and not self.silent:
+                self._hold_stop_at = None
+                self.held = True
+                self._hold_t = stop_at
+                self._interrupt(stop_at, "hold")
+            return
+        self._run_until(now)
+
+    def _before_block(self, b: _Planned, t0: float) -> bool:
+        """Protocol hook: False keeps ``b`` from starting (an injected fault took over)."""
+        return True
+
+    def _run_until(self, now: float) -> None:
         while not self.held and not self.alarm and not self.silent:
             if self._cur is None:
                 nxt = self._next_block(now)
@@ -139,6 +159,8 @@ class ExecutorMixin:
             self._plan.appendleft(b)
             self._raise_alarm(self.sim_alarm_at_block[1], f"injected at block {b.seq}", t0)
             self.sim_alarm_at_block = None
+            return
+        if not self._before_block(b, t0):
             return
         self._cur = b
         self._seg_i = 0
@@ -203,6 +225,7 @@ class ExecutorMixin:
         b = self._cur
         assert b is not None
         self.executed.append(ExecutedBlock(b.seq, b.text, self._block_t0, t_end, len(b.motion)))
+        b.done = True
         self._cur = None
         self._seg_t1 = t_end
         self._on_block_done(b)
@@ -261,19 +284,22 @@ class ExecutorMixin:
     def _on_alarm(self, code: int) -> None:
         """Protocol hook: tell the streamer (GRBL) or hold the line (Fanuc)."""
 
-    def reset(self) -> None:
+    def reset(self, clear_wire: bool = True) -> None:
         """RESET: stop motion, clear buffers and the alarm (protocols refine this). The machine
-        stays where it stopped: the next program starts from there."""
+        stays where it stopped: the next program starts from there. ``clear_wire`` False: bytes
+        still on their way over the line arrive after the reset (a serial soft reset)."""
         with self._lock:
             now = self.clock.now()
-            if self._cur is not None:
+            if self._cur is not None and not self.held:
                 self._interrupt(now, "reset")
             else:
                 self._event("reset", "", now)
             self._cur = None
             self._plan.clear()
-            self._wire.clear()
+            if clear_wire:
+                self._wire.clear()
             self.held = False
+            self._hold_stop_at = None
             self.alarm = ""
             self.silent = False
             self._started = False

@@ -99,7 +99,12 @@ def controller_summary(ctl: SimFanuc | SimGrbl) -> dict[str, Any]:
     }
     if isinstance(ctl, SimFanuc):
         return out | {"xoff_count": ctl.xoff_count, "max_chars_after_xoff": ctl.max_after_xoff}
-    return out | {"planner_full_waits": ctl.planner_waits, "errors": len(ctl.errors)}
+    return out | {
+        "planner_full_waits": ctl.planner_waits,
+        "errors": len(ctl.errors),
+        "oks": ctl.oks,
+        "state": ctl.state_name(),
+    }
 
 
 def run_controller(
