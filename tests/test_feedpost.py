@@ -617,3 +617,50 @@ def test_shipped_operation_plan_machines_its_programs_in_order(capsys) -> None:
                      "box:-50,50,-45,45,-20,0", "--spacing", "0.5", "--json"], capsys)  # fmt: skip
     assert rc == 0
     assert 0 < ops["inch-features"]["removed_mm3"] < json.loads(so)["removed_mm3"]
+
+
+@pytest.mark.parametrize("dialect", ["grbl", "linuxcnc"])
+def test_cli_feed_writes_the_adjusted_program_for_a_dialect(
+    files: Path, capsys, dialect: str
+) -> None:
+    args = ["plan", "feed", str(files / "step.nc"), "--rules", str(files / "rule.toml"),
+            "--tool", "phi30-ball", "--stock", "box:0,200,0,60,-10,0", "--spacing", "0.5",
+            "--json"]  # fmt: skip
+    base, out = files / "fanuc.nc", files / f"{dialect}.nc"
+    rc, so, err = cli([*args, "-o", str(base)], capsys)
+    assert rc == 0, err
+    assert json.loads(so)["dialect"] == "fanuc"  # ace-h63's
+    rc, so, err = cli([*args, "-o", str(out), "--dialect", dialect], capsys)
+    assert rc == 0, err
+    assert json.loads(so)["dialect"] == dialect
+    text, fanuc = out.read_text(), base.read_text()
+    assert F_WORD.findall(text) == F_WORD.findall(fanuc)  # the adjusted feeds, split and all
+    assert len(F_WORD.findall(text)) > 3
+    assert "O0431" not in text
+    lines = text.splitlines()
+    if dialect == "grbl":
+        assert "%" not in lines and all(len(ln) <= 80 for ln in lines)
+    else:
+        assert lines[0] == lines[-1] == "%"
+    a, b = interpret(fanuc), interpret(text, dialect=dialect)
+    np.testing.assert_allclose(b.end, a.end, atol=1e-6, rtol=0)
+    np.testing.assert_allclose(b.feed_mm_min, a.feed_mm_min, rtol=1e-12)
+
+
+def test_cli_feed_writes_for_the_machines_dialect(files: Path, capsys) -> None:
+    grbl_step = files / "grbl-step.nc"  # what a GRBL machine takes: no O number
+    grbl_step.write_text(
+        STEP.replace("O0431 (seed 001 4.3: depth of cut 0.1 -> 0.7 mm in 5 steps)\n", "")
+    )
+    out = files / "lab.nc"
+    rc, so, err = cli(
+        ["plan", "feed", str(grbl_step), "--rules", str(files / "rule.toml"), "--machine",
+         "lab-grbl", "--tool", "phi30-ball", "--stock", "box:0,200,0,60,-10,0", "--spacing",
+         "0.5", "-o", str(out), "--json"],
+        capsys,
+    )  # fmt: skip
+    assert rc == 0, err
+    assert json.loads(so)["dialect"] == "grbl"
+    lines = out.read_text().splitlines()
+    assert "%" not in lines and lines[0] == "N10 G21 G90 G17"
+    assert len(F_WORD.findall(out.read_text())) > 3

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -61,3 +62,33 @@ def test_bad_config_is_one_line_and_exit_2(tmp_path, capsys):
     assert code == 2
     assert err.startswith("cutlab: error: ") and "rough.cusp_mm = -1.0" in err
     assert "Traceback" not in err
+
+
+def test_the_program_for_each_controller_dialect(small_part, tmp_path, capsys):
+    texts = {}
+    for dialect in ("fanuc", "linuxcnc", "grbl"):
+        out = tmp_path / f"{dialect}.nc"
+        code = main(["plan", "rough", str(small_part), "-o", str(out), "--json", "--no-png",
+                     "--no-check", "--dialect", dialect])  # fmt: skip
+        res = json.loads(capsys.readouterr().out)
+        assert code == 0 and res["dialect"] == dialect
+        texts[dialect] = out.read_text()
+    fanuc, lcnc, grbl = (texts[d].splitlines() for d in ("fanuc", "linuxcnc", "grbl"))
+    assert fanuc[0] == "%" and fanuc[1].startswith("O0001 (cutlab plan rough")
+    assert lcnc[0] == lcnc[-1] == "%" and lcnc[-2] == "M30"
+    assert not any(ln.startswith("O") for ln in lcnc + grbl)
+    assert all(len(ln) <= 80 for ln in grbl) and "%" not in grbl
+    assert not any(re.search(r"M0?6\b|G4[123]\b|G8[1-9]\b|G9[89]\b", ln) for ln in grbl)
+    assert grbl[0].startswith("(cutlab plan rough")  # the title comment, wrapped to fit
+    ref = interpret(texts["fanuc"])
+    for dialect in ("linuxcnc", "grbl"):
+        m = interpret(texts[dialect], dialect=dialect)
+        assert len(m) == len(ref)
+        np.testing.assert_allclose(m.end, ref.end, atol=1e-6, rtol=0)
+        np.testing.assert_allclose(m.feed_mm_min, ref.feed_mm_min, rtol=1e-12)
+    # the default is the machine's dialect
+    out = tmp_path / "lab.nc"
+    code = main(["plan", "rough", str(small_part), "-o", str(out), "--json", "--no-png",
+                 "--no-check", "--machine", "lab-grbl"])  # fmt: skip
+    assert code == 0 and json.loads(capsys.readouterr().out)["dialect"] == "grbl"
+    assert out.read_text() == texts["grbl"]

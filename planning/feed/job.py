@@ -2,10 +2,11 @@
 files and plain data.
 
 * :func:`feed_program` (``cutlab plan feed IN.nc --rules RULE [--machine M] [--tool T]
-  [--stock S] -o OUT.nc``) computes each block's cutting load on a Z-map, picks feeds from the
-  rule (a rule file, or a rule-base name / id), splits blocks where the load changes, clamps to
-  the machine, and writes OUT.nc with only F words and splits changed, plus a report (CSV, PNGs)
-  next to it.
+  [--stock S] [--dialect D] -o OUT.nc``) computes each block's cutting load on a Z-map, picks
+  feeds from the rule (a rule file, or a rule-base name / id), splits blocks where the load
+  changes, clamps to the machine, and writes OUT.nc with only F words and splits changed, for the
+  ``dialect`` controller (default the machine's: :func:`planning.nc.output.for_dialect`), plus a
+  report (CSV, PNGs) next to it.
 * :func:`simulate_job` (``cutlab plan simulate IN.nc|PLAN.toml [--tool T] [--stock S]
   --png stock.png``): virtual machining alone (removed volume, time, holder contacts, final
   stock PNG). A plan file runs several programs, each with its tool, on the same stock.
@@ -27,6 +28,7 @@ from planning.errors import PlanningError
 from planning.feed.post import FeedPostOptions, FeedPostResult, post_process
 from planning.feed.report import write_report
 from planning.nc import Motion, Program, interpret
+from planning.nc.output import DIALECTS, default_dialect, for_dialect
 from planning.stock import Cutter, ZMap, default_stock, load_stock, save_stock_png
 from planning.stock.machining import Operation, OperationPlan, OperationResult, load_plan, summary
 
@@ -131,14 +133,19 @@ def feed_program(
     report_dir: str | Path | None = None,
     progress: Progress | None = None,
     warn: Callable[[str], None] | None = None,
+    dialect: str | None = None,
     **options: Any,
 ) -> tuple[FeedPostResult, dict[str, Any]]:
     """``cutlab plan feed``: feeds of a program set by the rule's predicted cutting load,
-    written to ``output`` with its report (``report_dir``, default ``output``'s folder).
+    written to ``output`` for the ``dialect`` controller (default: the machine's; the program is
+    read in the machine's) with its report (``report_dir``, default ``output``'s folder).
 
     ``options`` go to :func:`feed_post_options`; ``warn`` hears a rule derived with another
-    tool. Returns the result and its summary (with the written paths) as plain data.
+    tool. Returns the result (its program in the machine's dialect) and its summary (with the
+    written paths and the dialect) as plain data.
     """
+    if dialect is not None and dialect not in DIALECTS:
+        raise PlanningError(f"dialect = {dialect!r}: expected one of {', '.join(DIALECTS)}")
     rule = resolve_rule(rule_spec, db)
     job = load_job(program_path, machine, tool_name, stock_spec, spacing_mm)
     if rule.tool and rule.tool != tool_name and warn is not None:
@@ -150,12 +157,17 @@ def feed_program(
     result = post_process(
         job.program, job.motion, job.tool, rule, job.stock, job.machine, opts, progress=progress
     )
+    dialect = dialect or default_dialect(job.machine)
+    written = for_dialect(result.program, dialect, job.machine)  # the F edits and splits kept
     out = Path(output)
     out.parent.mkdir(parents=True, exist_ok=True)
-    result.program.write(out)
+    written.write(out)
     report = write_report(result, report_dir or out.parent, out.stem)
     summ = result.summary()
-    summ.update({"output": str(output), "report": {k: str(v) for k, v in report.items()}})
+    summ.update(
+        {"output": str(output), "dialect": dialect,
+         "report": {k: str(v) for k, v in report.items()}}
+    )  # fmt: skip
     return result, summ
 
 

@@ -27,14 +27,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from planning.nc import LINE, RAPID, Motion, MotionBuilder, NumberStyle, Program
 from planning.nc import motion_to_program as _write
+from planning.nc.output import for_dialect
 from planning.rough._arcs import fit_arcs
 from planning.rough.part import Part
 from planning.rough.planner import RoughPlan
+
+if TYPE_CHECKING:
+    from analysis.config import MachineConfig
 
 _DECIMALS = 3  # written precision (mm); arc fits work on vertices rounded to it
 
@@ -163,12 +168,21 @@ def plan_totals(plan: RoughPlan, part: Part, motion: Motion | None = None) -> di
     }
 
 
-def plan_program(plan: RoughPlan, part: Part, motion: Motion | None = None) -> Program:
-    """The NC program of a plan, written by :func:`planning.nc.motion_to_program`."""
+def plan_program(
+    plan: RoughPlan,
+    part: Part,
+    motion: Motion | None = None,
+    dialect: str = "fanuc",
+    machine: MachineConfig | None = None,
+) -> Program:
+    """The NC program of a plan, written by :func:`planning.nc.motion_to_program` (Fanuc style)
+    and then for the ``dialect`` controller (:func:`planning.nc.output.for_dialect`; ``machine``
+    says whether a GRBL mill has a tool changer)."""
     m = plan_motion(plan, part) if motion is None else motion
     heights = " ".join(f"{lv.z_mm:.2f}" for lv in plan.levels)
     comment = (
         f"cutlab plan rough {part.config.name} method {plan.method}: {len(plan.levels)} levels "
         f"{heights} tool {part.config.tool.name}"
     )
-    return _write(m, style=NumberStyle(decimals=_DECIMALS), program_number=1, comment=comment)
+    prog = _write(m, style=NumberStyle(decimals=_DECIMALS), program_number=1, comment=comment)
+    return for_dialect(prog, dialect, machine, source="fanuc")

@@ -1,5 +1,6 @@
-"""The whole `cutlab plan rough` job: plan a part by every method, write the chosen program,
-check it on a Z-map, draw the pictures, and return the JSON-ready result."""
+"""The whole `cutlab plan rough` job: plan a part by every method, write the chosen program for
+the controller's dialect, check it on a Z-map, draw the pictures, and return the JSON-ready
+result."""
 
 from __future__ import annotations
 
@@ -7,7 +8,9 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from analysis.config import MachineConfig, load_machine
 from planning.errors import PlanningError
+from planning.nc.output import DIALECTS, default_dialect, for_dialect
 from planning.rough.check import check_program
 from planning.rough.gcode import MoveSettings, plan_motion, plan_program, plan_totals
 from planning.rough.part import Part, load_part
@@ -39,15 +42,24 @@ def run_rough(
     png: bool = True,
     progress: Callable[[str], None] | None = None,
     status: Callable[[str], None] | None = None,
+    dialect: str | None = None,
+    machine: str | Path | MachineConfig | None = None,
 ) -> dict:
     """Plan ``config`` (a part file or name) by all four methods, write ``method``'s program to
-    ``output``, cut it on a Z-map of ``check_spacing_mm`` (unless not ``check``), draw the
-    pictures next to ``output`` (if ``png``) and return the JSON-ready result. ``progress`` gets
-    one note per planning step, ``status`` one line per finished stage."""
+    ``output`` for the ``dialect`` controller (default: ``machine``'s, a machine config name,
+    path or object; else Fanuc), cut it on a Z-map of ``check_spacing_mm`` (unless not
+    ``check``), draw the pictures next to ``output`` (if ``png``) and return the JSON-ready
+    result. ``progress`` gets one note per planning step, ``status`` one line per finished
+    stage."""
     if not check_spacing_mm > 0:
         raise PlanningError(f"--check-spacing = {check_spacing_mm}: must be > 0 (mm)")
     if method not in METHODS:
         raise PlanningError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
+    if dialect is not None and dialect not in DIALECTS:
+        raise PlanningError(f"dialect = {dialect!r}: expected one of {', '.join(DIALECTS)}")
+    if machine is not None and not isinstance(machine, MachineConfig):
+        machine = load_machine(machine)
+    dialect = dialect or default_dialect(machine)
     say = status or (lambda msg: None)
     output = Path(output)
     part = load_part(config)
@@ -62,16 +74,17 @@ def run_rough(
     motions = {m: plan_motion(p, part) for m, p in plans.items()}
     totals = {m: plan_totals(p, part, motions[m]) for m, p in plans.items()}
     chosen = plans[method]
-    program = plan_program(chosen, part, motions[method])
+    fanuc = plan_program(chosen, part, motions[method])
+    program = for_dialect(fanuc, dialect, machine, source="fanuc")  # moves as fanuc does
     output.parent.mkdir(parents=True, exist_ok=True)
     program.write(output)
-    say(f"wrote {output} ({len(program.lines)} lines)")
+    say(f"wrote {output} ({len(program.lines)} lines, {dialect})")
 
     result = None
     if check:
         st = part.config.stock
-        result = check_program(
-            program.text(),
+        result = check_program(  # the Fanuc text: tool numbers even where GRBL has no M6
+            fanuc.text(),
             planner.offset_surface,
             (st.x_min_mm, st.x_max_mm, st.y_min_mm, st.y_max_mm, st.z_min_mm, st.z_max_mm),
             {1: part.tool.radius_mm, 2: part.lee_tool.radius_mm},
@@ -91,6 +104,7 @@ def run_rough(
     return {
         "part": part.config.name,
         "method": method,
+        "dialect": dialect,
         "cusp_model": part.config.rough.cusp_model,
         "cusp_mm": part.config.rough.cusp_mm,
         "max_depth_mm": planner.L,

@@ -15,6 +15,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--db", type=Path, help="rule base for a name / id (default from lab.toml)")
     _common(f)
     f.add_argument("-o", "--output", type=Path, required=True, help="adjusted program to write")
+    f.add_argument("--dialect", choices=("fanuc", "linuxcnc", "grbl"), default=None,
+                   help="controller to write for (default: the machine's)")  # fmt: skip
     f.add_argument("--report", type=Path, help="report folder (default: OUT's folder)")
     f.add_argument("--min-piece", type=float, default=5.0, help="shortest split block, mm")
     f.add_argument("--no-split", action="store_true", help="one feed per block, no splits")
@@ -53,12 +55,13 @@ def _feed(a: argparse.Namespace) -> int:
             stock_spec=a.stock, spacing_mm=a.spacing, report_dir=a.report, progress=bar,
             warn=status, min_piece_mm=a.min_piece, split=not a.no_split,
             check_holder=not a.no_holder_check, force_limit_n=a.force_limit,
-            material=a.material, spindle_rpm=a.spindle,
+            material=a.material, spindle_rpm=a.spindle, dialect=a.dialect,
         )  # fmt: skip
     if a.json:
         print_json(s)
         return 0
-    status(f"wrote {a.output} and report {Path(s['report']['csv']).parent}/{a.output.stem}-*")
+    status(f"wrote {a.output} ({s['dialect']}) and report "
+           f"{Path(s['report']['csv']).parent}/{a.output.stem}-*")  # fmt: skip
     for c in result.simulation.contacts:
         status("warning: " + c.message(str(a.program)))
     for n in s["notes"]:

@@ -1,12 +1,14 @@
-"""`cutlab plan rough CONFIG [--method M] -o OUT.nc [--json]`: Z-level roughing (seed 000).
+"""`cutlab plan rough CONFIG [--method M] [--dialect D] [--machine M] -o OUT.nc [--json]`: Z-level
+roughing (seed 000).
 
 Plans the part by every method (bisection, equal, lee, optimal) under the same cusp and depth
-limits, writes the chosen method's program to OUT.nc (through planning.nc's writer), prints the
-per-level table of the chosen method (as seed 000 Table 1) and the totals of all methods side by
-side, then cuts the written program on a Z-map and reports the material left above the offset
-surface and any gouge. Pictures (unless --no-png), next to OUT.nc: OUT.levels.png (levels of all
-methods in a side view), OUT.paths.png (passes of the chosen method), OUT.roughed.png (the
-roughed Z-map and the material left).
+limits, writes the chosen method's program to OUT.nc (through planning.nc's writer) for the
+controller's dialect (--dialect fanuc|linuxcnc|grbl; default the --machine's, else fanuc),
+prints the per-level table of the chosen method (as seed 000 Table 1) and the totals of all
+methods side by side, then cuts the program on a Z-map and reports the material left above the
+offset surface and any gouge. Pictures (unless --no-png), next to OUT.nc: OUT.levels.png
+(levels of all methods in a side view), OUT.paths.png (passes of the chosen method),
+OUT.roughed.png (the roughed Z-map and the material left).
 """
 
 from __future__ import annotations
@@ -28,6 +30,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--method", choices=("bisection", "equal", "lee", "optimal"), default="bisection"
     )
     p.add_argument("-o", "--output", type=Path, required=True, help="NC program to write")
+    p.add_argument("--dialect", choices=("fanuc", "linuxcnc", "grbl"), default=None,
+                   help="controller to write for (default: the machine's)")  # fmt: skip
+    p.add_argument("--machine", default=None, help="machine config name or path: its dialect "
+                   "and tool changer (default: none, fanuc)")  # fmt: skip
     p.add_argument("--json", action="store_true", help="print everything as JSON")
     p.add_argument("--cusp-model", choices=("paper", "exact"), default=None,
                    help="override rough.cusp_model (paper: (h1-h2)cos(beta); exact: measured "
@@ -57,14 +63,15 @@ def run(args: argparse.Namespace) -> int:
 
         res = run_rough(args.config, args.output, args.method, args.cusp_model,
                         check=not args.no_check, check_spacing_mm=args.check_spacing,
-                        png=not args.no_png, progress=bar.step, status=note)  # fmt: skip
+                        png=not args.no_png, progress=bar.step, status=note,
+                        dialect=args.dialect, machine=args.machine)  # fmt: skip
     c = res["check"]
     code = 0 if c is None or c["ok"] else 1
     if args.json:
         print_json(res)
         return code
     print(f"{res['part']}: {args.method} levels (seed 000 Table 1 columns), cusp model "
-          f"{res['cusp_model']}")  # fmt: skip
+          f"{res['cusp_model']}, program for {res['dialect']}")  # fmt: skip
     print_table([{k: r[v] for k, v in LEVEL_COLUMNS.items()} for r in res["levels"]], ".2f")
     print("\ntotals by method (same cusp limit and depth limit)")
     print_table([{"method": m, **{k: v for k, v in t.items() if k != "heights_mm"}}

@@ -1,0 +1,559 @@
+"""A program written out for one controller dialect: Fanuc, LinuxCNC or GRBL 1.1.
+
+:func:`for_dialect` takes a program as it reads in its ``source`` dialect (what the planners write
+is Fanuc-style) and returns the same program for the ``dialect`` controller, block by block, so
+that the controller moves exactly as the source interprets: the result is interpreted back
+(:mod:`planning.nc.interpreter`, in the target dialect) and compared segment by segment with the
+source (end points within 1e-6 mm, same feeds, dwells, spindle); a mismatch or a block the target
+cannot take raises :class:`~planning.nc.NCError` instead of writing a program that would move
+otherwise. A GRBL program is also run through :func:`planning.nc.dialect.check_dialect` (GRBL
+1.1h's own parser rules, lines sent as written): nothing it refuses is written.
+
+What changes, per target (blocks the target takes as written stay byte for byte):
+
+* ``fanuc``: O number, N words and ``%`` as they are; ISO code: a decimal point in every length
+  and angle word (``Z87.``: on a Fanuc without DPI ``Z87`` is 87 least increments, 0.087 mm),
+  upper-case words, ``( )`` comments (``;`` is the end of block there); no ``G90.1``/``G91.1``
+  (a Fanuc's arc centres are always relative: centres under G90.1 are rewritten relative). From
+  GRBL/LinuxCNC: ``G4 P<s>`` becomes ``G4 X<s>``, canned cycles are expanded (their rules differ).
+* ``linuxcnc``: ``%`` on the first and last line only (LinuxCNC's wrapping; nothing after the
+  end), no O word (an O word at the start of a line is a LinuxCNC subroutine call), M30 appended
+  when the program has no M2/M30; dwells in seconds (``G4 P<s>``, Fanuc's ``G4 X`` and ``P`` ms
+  converted); canned cycles expanded (LinuxCNC positions and pecks otherwise: see
+  :mod:`planning.nc.canned`); G29 expanded; ``G80`` left out of a block that names another
+  motion code (one modal group in LinuxCNC); a ``G94`` that would clear the feed (LinuxCNC
+  clears F on every G94) left out when the feed mode is already G94.
+* ``grbl`` (GRBL 1.1): no ``%`` lines, blank lines or blocks after the end; no O word; no M6
+  unless the machine has a tool changer (``tool_changer``): a change of tool becomes ``M5`` (if
+  the spindle runs), ``M0`` with a comment naming the tool (the operator changes it, then cycle
+  start) and the spindle restarted; the first tool's ``M6`` is left out (load it before the
+  start); no G43/H (tool length offsets are the operator's: GRBL has G43.1 only), no D, no
+  G98/G99, no G64 (GRBL has G61 only); canned cycles G81-G83 and G29 expanded into
+  ``G0``/``G1``/``G4`` moves; ``G90.1`` becomes ``G91.1`` with the arc centres rewritten
+  relative; dwells ``G4 P<s>``; block-delete (``/``) blocks left out (GRBL ignores the ``/``:
+  they would run). Every line is at most :data:`GRBL_LINE_CHARS` characters comments included
+  (GRBL's 80-byte line buffer holds 79 and a NUL; comments count in its 128-byte serial buffer):
+  a longer comment moves to comment lines of its own, word-wrapped. G41/G42 cutter compensation
+  and A/B/C words cannot be written for GRBL (an error says so).
+
+Expanded moves are the interpreter's own (``it.execute`` of the block: for canned cycles
+:func:`planning.nc.canned.drill_hole` with the modal state of the block), written in absolute
+program coordinates (a ``G90`` ... ``G91`` pair around them under G91) in the program's units,
+6 decimals in mm, 8 in inches; the block's N word, F, S, T, M words and modal codes go on the
+line before them, M0/M1/M2/M30 on the line after.
+"""
+
+from __future__ import annotations
+
+import textwrap
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from planning.nc import _lexer
+from planning.nc._codes import INCH_MM, gkey
+from planning.nc.arcs import PLANE_AXES
+from planning.nc.dialect import check_dialect, refused
+from planning.nc.errors import NCError
+from planning.nc.interpreter import Interpreter
+from planning.nc.motion import ARC_CCW, ARC_CW, DWELL, LINE, RAPID, Motion
+from planning.nc.program import Program, format_number
+from planning.nc.run import interpret
+
+if TYPE_CHECKING:
+    from analysis.config import MachineConfig
+
+DIALECTS = ("fanuc", "linuxcnc", "grbl")
+GRBL_LINE_CHARS = 79  # GRBL 1.1's LINE_BUFFER_SIZE 80 holds 79 characters and the NUL
+LINE_CHARS = {"grbl": GRBL_LINE_CHARS, "linuxcnc": 255}  # LinuxCNC reads 255 characters a line
+MOTION_TOL_MM = 1e-6  # the written program moves like the source within this
+
+_CYCLES = frozenset(range(730, 900, 10)) - {800}  # G73, G74, G76, G81..G89 (G80 cancels)
+_RETURN_MODES = frozenset({980, 990})  # G98 / G99
+# group-0 codes: a block with one is not a canned-cycle hole even in a cycle mode
+_NON_MODAL = frozenset({40, 100, 280, 281, 290, 300, 301, 520, 530, 920, 921, 922, 923})
+_GROUP1 = frozenset({0, 10, 20, 30}) | _CYCLES
+_STOPS = frozenset({0, 1, 2, 30})  # M codes that act after the block's motion
+_POINT_LETTERS = frozenset("XYZIJKRQUVWABC")  # lengths and angles: Fanuc wants the point
+
+
+def default_dialect(machine: MachineConfig | None) -> str:
+    """The machine's controller dialect, or ``"fanuc"`` without a machine."""
+    return machine.dialect if machine is not None else "fanuc"
+
+
+def for_dialect(
+    program: Program,
+    dialect: str,
+    machine: MachineConfig | None = None,
+    *,
+    source: str | None = None,
+    tool_changer: bool | None = None,
+) -> Program:
+    """``program`` (read in the ``source`` dialect, default the machine's, else Fanuc) written
+    for a ``dialect`` controller (see the module docstring); a new Program, ``program`` is not
+    changed.
+
+    ``tool_changer`` (default: the machine config's ``tool_changer``, else False) keeps M6 for
+    GRBL. Raises NCError when a block cannot be written for ``dialect`` (with its file and
+    line) or, as an internal check, when the result would not move like the source.
+    """
+    dialect = _dialect(dialect, program.file)
+    source = _dialect(source or default_dialect(machine), program.file)
+    if tool_changer is None:
+        tool_changer = bool(getattr(machine, "tool_changer", False))
+    lines = _Rewriter(program, dialect, source, machine, tool_changer).run()
+    out = _copy(program, lines)
+    if dialect == "grbl":  # what GRBL 1.1h would refuse line by line (planning.nc.dialect)
+        bad = grbl_problems(out, tool_changer=tool_changer)
+        bad += [
+            str(p) for p in refused(check_dialect(out, "grbl", strip=False))
+            if not (tool_changer and _is_m6(p.word))
+        ]  # fmt: skip
+        if bad:
+            raise NCError(f"cannot be written for grbl: {bad[0]}", file=program.file)
+    _verify(program, out, dialect, source, machine, keeps_tools=dialect != "grbl" or tool_changer)
+    return out
+
+
+def grbl_problems(program: Program | str, *, tool_changer: bool = False) -> list[str]:
+    """What keeps GRBL 1.1 from taking a program line by line: lines over
+    :data:`GRBL_LINE_CHARS` characters (comments included), O words, M6 (unless
+    ``tool_changer``), canned cycles G73-G89, G41/G42/G43. Empty when it can be streamed."""
+    lines = program.lines if isinstance(program, Program) else _lexer.split_lines(program)
+    out: list[str] = []
+    for n, raw in enumerate(lines, 1):
+        if len(raw) > GRBL_LINE_CHARS:
+            out.append(f"line {n}: {len(raw)} characters (GRBL takes {GRBL_LINE_CHARS})")
+        for t in _lexer.word_tokens(raw):
+            v = float(t.number)
+            if t.letter == "O":
+                out.append(f"line {n}: O word {t.text!r} (GRBL: error:20)")
+            elif t.letter == "M" and v == 6 and not tool_changer:
+                out.append(f"line {n}: {t.text!r} tool change (GRBL: error:20)")
+            elif t.letter == "G" and round(v * 10) in _CYCLES | {410, 420, 430}:
+                out.append(f"line {n}: {t.text!r} (GRBL: error:20)")
+    return out
+
+
+# ---------------------------------------------------------------------------------- internals
+
+
+def _dialect(name: str, file: str) -> str:
+    if name not in DIALECTS:
+        raise NCError(f"dialect must be one of {', '.join(DIALECTS)}, got {name!r}", file=file)
+    return name
+
+
+def _copy(program: Program, lines: list[str]) -> Program:
+    out = Program(lines, program.file, program.newline, True)
+    out._style = program.style  # noqa: SLF001 - same number style as the source
+    return out
+
+
+def _num(value: float, inch: bool, trailing_dot: bool = False) -> str:
+    return format_number(value, 8 if inch else 6, trailing_dot)
+
+
+def _seconds(value: float) -> str:
+    return format_number(value, 6)
+
+
+class _Rewriter:
+    """One pass over the source blocks with an interpreter alongside (the modal state before and
+    after each block, and the segments of the blocks that are expanded)."""
+
+    def __init__(
+        self, program: Program, dialect: str, source: str, machine, tool_changer: bool
+    ) -> None:
+        self.program = program
+        self.dialect = dialect
+        self.source = source
+        self.grbl = dialect == "grbl"
+        self.tool_changer = tool_changer
+        self.fanuc = dialect == "fanuc"
+        # 10. (Fanuc: without the point 10 is read in least increments, 0.01 mm) or as the
+        # program writes it
+        self.dot = self.fanuc or program.style.trailing_dot
+        self.limit = LINE_CHARS.get(dialect)
+        # canned cycles differ between dialects (LinuxCNC's positioning, GRBL has none)
+        self.expand_cycles = self.grbl or dialect != source
+        self.it = Interpreter(
+            machine, strict=True, file=program.file, dialect=source,
+            cutter_comp="refuse" if self.grbl else "warn",
+        )  # fmt: skip
+
+    # ------------------------------------------------------------------ the pass
+    def run(self) -> list[str]:
+        out: list[str] = []
+        it = self.it
+        for i, raw in enumerate(self.program.lines):
+            toks = _lexer.tokenize(raw)
+            st0 = it.state.copy()
+            gs = {gkey(t.number) for t in toks if t.kind == "word" and t.letter == "G"}
+            seg = None
+            if self._needs_segments(gs, st0):
+                seg = it.execute(raw, line=i + 1, block=i)
+            else:
+                it.skip([raw], first_line=i + 1)
+            out += self._block(i, raw, toks, gs, st0, it.state, seg)
+        if self.dialect == "linuxcnc":
+            if not it.state.ended:
+                out.append("M30")
+            out = ["%", *out, "%"]
+        if self.limit is not None:
+            out = [piece for line in out for piece in self._fit(line, self.limit)]
+        return out
+
+    def _needs_segments(self, gs: set[int], st0) -> bool:
+        if 290 in gs and not self.fanuc:
+            return True
+        if (self.grbl or self.fanuc) and (st0.arc_absolute or 901 in gs):
+            return True
+        return self.expand_cycles and (st0.motion >= 81 or bool(gs & _CYCLES))
+
+    def _fail(self, i: int, raw: str, reason: str) -> NCError:
+        return NCError(
+            f"cannot be written for {self.dialect}: {reason}", file=self.program.file,
+            line=i + 1, word=raw.strip()[:40],
+        )  # fmt: skip
+
+    def _block(self, i, raw, toks, gs, st0, st1, seg: Motion | None) -> list[str]:
+        fanuc = self.fanuc
+        if st0.ended or st0.tape_marks >= 2:  # after the end: the controller ignores it too
+            return [raw] if fanuc else []
+        kinds = [t.kind for t in toks if t.kind != "space"]
+        if "percent" in kinds:
+            return [raw] if fanuc else []
+        words = [t for t in toks if t.kind == "word"]
+        if not words:
+            if self.grbl and not raw.strip():
+                return []
+            return [_Block(toks).iso().text()] if fanuc else [raw]
+        if kinds[0] == "delete":  # skipped with block delete on (GRBL ignores the '/': drop)
+            if self.grbl:
+                return []
+            return [_Block(toks).iso().text()] if fanuc else [raw]
+        b = _Block(toks)
+        pre: list[str] = []
+        post: list[str] = []
+        if self.grbl or fanuc:
+            self._arc_centres(b, gs, st1, seg)
+        if not fanuc:
+            b.drop(lambda t: t.letter == "O")
+            if 800 in gs and gs & _GROUP1:
+                b.drop(lambda t: t.letter == "G" and gkey(t.number) == 800)
+        if self.expand_cycles:
+            b.drop(lambda t: t.letter == "G" and gkey(t.number) in _RETURN_MODES)
+        if 40 in gs:
+            self._dwell(b)
+        if self.dialect == "linuxcnc" and 940 in gs:
+            if st0.feed_mode == 94 and st0.feed_mm_min == st0.feed_mm_min and not b.has("F"):
+                b.drop(lambda t: t.letter == "G" and gkey(t.number) == 940)
+        if self.grbl:
+            self._grbl_words(i, raw, b, gs, st0, st1, seg, pre, post)
+        if fanuc:
+            b.iso()
+        cycle = self.expand_cycles and st1.motion >= 81 and not gs & _NON_MODAL
+        if cycle or (290 in gs and not fanuc):
+            if cycle:
+                b.drop(lambda t: t.letter in "XYZRQPL" or (t.letter == "G" and gkey(t.number)
+                                                             in _CYCLES))  # fmt: skip
+            else:
+                b.drop(lambda t: t.letter in "XYZ" or (t.letter == "G" and gkey(t.number) == 290))
+            return pre + self._expand(i, raw, b, st0, st1, seg) + post
+        text = b.text()
+        if not text.strip():
+            return pre + post
+        return [*pre, text, *post]
+
+    # ------------------------------------------------------------------ word rewrites
+    def _dwell(self, b: _Block) -> None:
+        """G4: P in ms (Fanuc) or s (GRBL, LinuxCNC), X in s; written as the target reads."""
+        for k, t in b.words():
+            if t.letter not in "PX":
+                continue
+            s = float(t.number)
+            if t.letter == "P" and self.source == "fanuc":
+                s /= 1000.0
+            if self.dialect == "fanuc":
+                if t.letter == "P" and self.source != "fanuc":
+                    b.set(k, "X" + _seconds(s))
+            elif t.letter == "X" or self.source == "fanuc":
+                b.set(k, "P" + _seconds(s))
+
+    def _grbl_words(self, i, raw, b: _Block, gs, st0, st1, seg, pre, post) -> None:
+        b.drop(lambda t: t.letter == "G" and gkey(t.number) == 430)
+        b.drop(lambda t: t.letter in "HD")  # G43 H is gone; D only with G41/G42 (refused)
+        if 640 in gs:  # G64 P/Q: blending tolerances; GRBL has G61 only
+            b.drop(lambda t: t.letter == "G" and gkey(t.number) == 640)
+            if 40 not in gs and st1.motion < 81:
+                b.drop(lambda t: t.letter in "PQ")
+        m6 = [k for k, t in b.words() if t.letter == "M" and float(t.number) == 6]
+        if m6 and not self.tool_changer:
+            b.drop(lambda t: t.letter == "M" and float(t.number) == 6)
+            if st0.tool != 0 and st1.tool != st0.tool:
+                if st0.spindle_dir:
+                    pre.append("M5")
+                pre.append(f"M0 (change to tool T{st1.tool}, then cycle start)")
+                spindle_m = any(t.letter == "M" and float(t.number) in (3, 4, 5)
+                                for _, t in b.words())  # fmt: skip
+                if st0.spindle_dir and not spindle_m:
+                    post.append("M3" if st1.spindle_dir > 0 else "M4")
+        for _, t in b.words():
+            if t.letter in "ABC":
+                raise self._fail(i, raw, f"GRBL 1.1 has 3 axes: no {t.letter} word")
+
+    def _arc_centres(self, b: _Block, gs, st1, seg: Motion | None) -> None:
+        """GRBL and Fanuc have no G90.1 (absolute arc centres): GRBL gets G91.1 instead, Fanuc
+        neither (its centres are always relative); the centres of arcs under G90.1 are written
+        relative to the arc's start."""
+        if gs & {901, 911}:
+            for k, t in reversed(b.words()):
+                key = gkey(t.number) if t.letter == "G" else 0
+                if key == 901 and self.grbl:
+                    b.set(k, "G91.1")
+                elif key in (901, 911) and self.fanuc:
+                    b.drop_at(k)
+        if not st1.arc_absolute or seg is None or not len(seg):
+            return
+        if int(seg.kind[0]) not in (ARC_CW, ARC_CCW):
+            return
+        scale = INCH_MM if st1.inch else 1.0
+        ia, ib, _ = PLANE_AXES[int(seg.plane[0])]
+        for ax in (ia, ib):
+            letter = "IJK"[ax]
+            value = (float(seg.center[0, ax]) - float(seg.start[0, ax])) / scale
+            b.put(letter, letter + _num(value, st1.inch, self.dot))
+
+    # ------------------------------------------------------------------ expansion
+    def _expand(self, i, raw, b: _Block, st0, st1, seg: Motion | None) -> list[str]:
+        """The block's own moves (canned-cycle holes, G29) as G0 / G1 / G4 lines after a line
+        with what else the block says; stops and ends after them."""
+        n_word = b.take(lambda t: t.letter == "N")
+        stops = b.take(lambda t: t.letter == "M" and float(t.number) in _STOPS)
+        head = " ".join(t.text for t in n_word)
+        rest = b.text()
+        lines = [f"{head} {rest}".strip()] if rest or not seg else []
+        moves = self._moves(i, raw, seg, st0, st1)
+        if moves and not st1.absolute:
+            moves[0] = "G90 " + moves[0]
+            moves.append("G91")
+        if moves and not lines:
+            moves[0] = f"{head} {moves[0]}".strip()
+        lines = [x for x in lines if x] + moves
+        if stops:
+            lines.append(" ".join(t.text for t in stops))
+        return lines
+
+    def _moves(self, i, raw, seg: Motion | None, st0, st1) -> list[str]:
+        if seg is None or not len(seg):
+            return []
+        inch = st1.inch
+        scale = INCH_MM if inch else 1.0
+        org = st1.origin_mm
+        cur = [_num((st0.position_mm[a] - org[a]) / scale, inch, self.dot) for a in range(3)]
+        out: list[str] = []
+        for k in range(len(seg)):
+            kind = int(seg.kind[k])
+            if kind == DWELL:
+                t = float(seg.dwell_s[k])
+                fanuc = self.fanuc
+                out.append(f"G4 X{format_number(t, 6, True)}" if fanuc else f"G4 P{_seconds(t)}")
+                continue
+            if kind not in (RAPID, LINE):
+                raise self._fail(i, raw, "an arc in an expanded block (internal)")
+            words = ["G0" if kind == RAPID else "G1"]
+            for a in range(3):
+                txt = _num((float(seg.end[k, a]) - org[a]) / scale, inch, self.dot)
+                if txt != cur[a]:
+                    words.append("XYZ"[a] + txt)
+                    cur[a] = txt
+            if len(words) == 1:  # a move of no length still moves (the interpreter keeps it)
+                words.append("Z" + cur[2])
+            out.append(" ".join(words))
+        return out
+
+    # ------------------------------------------------------------------ line length
+    def _fit(self, line: str, limit: int) -> list[str]:
+        """A line of at most ``limit`` characters: its comments moved to comment lines of their
+        own (word-wrapped) when it is longer; the words without spaces if they still do not
+        fit."""
+        if len(line) <= limit:
+            return [line]
+        toks = _lexer.tokenize(line)
+        comments = [t.text for t in toks if t.kind == "comment"]
+        code = " ".join("".join(t.text for t in toks if t.kind != "comment").split())
+        if len(code) > limit:
+            code = "".join(code.split())  # spaces are not needed between words
+        if len(code) > limit:
+            raise NCError(
+                f"cannot be written for {self.dialect}: the block is {len(code)} characters "
+                f"without spaces and comments (the controller takes {limit})",
+                file=self.program.file, word=line[:40],
+            )  # fmt: skip
+        out = [piece for c in comments for piece in _wrap_comment(c, limit)]
+        return [*out, code] if code else out
+
+
+def _comment_text(text: str) -> str:
+    """The text of a ``( )`` or ``;`` comment, safe inside ( ): no parentheses, one line."""
+    body = text[1:-1] if text.startswith("(") else text[1:]
+    return " ".join(body.replace("(", "[").replace(")", "]").split())
+
+
+def _wrap_comment(text: str, limit: int) -> list[str]:
+    return [f"({piece})" for piece in textwrap.wrap(_comment_text(text), limit - 2)]
+
+
+class _Block:
+    """A block's tokens, edited word by word (spacing kept: a dropped word takes one space)."""
+
+    def __init__(self, toks: list[_lexer.Token]) -> None:
+        self.toks = list(toks)
+
+    def words(self) -> list[tuple[int, _lexer.Token]]:
+        return [(k, t) for k, t in enumerate(self.toks) if t.kind == "word"]
+
+    def has(self, letter: str) -> bool:
+        return any(t.letter == letter for _, t in self.words())
+
+    def iso(self) -> _Block:
+        """Fanuc's ISO code: upper-case words, a decimal point in every length or angle word
+        (``X10`` is 10 least increments on a Fanuc without DPI; ``X10.`` is 10 mm everywhere),
+        ``( )`` comments (``;`` is the end of block there)."""
+        for k, t in enumerate(self.toks):
+            if t.kind == "word":
+                num = t.number
+                if t.letter in _POINT_LETTERS and "." not in num:
+                    num += "."
+                text = t.letter + num
+                if text != t.text:
+                    self.toks[k] = _lexer.Token("word", text, t.column, t.letter, num)
+            elif t.kind == "comment" and t.text.startswith(";"):
+                body = _comment_text(t.text)
+                self.toks[k] = _lexer.Token("comment", f"({body})" if body else "", t.column)
+        return self
+
+    def drop_at(self, k: int) -> None:
+        t = self.toks[k]
+        self.drop(lambda x: x is t)
+
+    def set(self, k: int, text: str) -> None:
+        t = self.toks[k]
+        self.toks[k] = _lexer.Token("word", text, t.column, text[0], text[1:])
+
+    def put(self, letter: str, text: str) -> None:
+        """Replace the ``letter`` word, or add it after the last word."""
+        for k, t in self.words():
+            if t.letter == letter:
+                self.set(k, text)
+                return
+        last = max(k for k, _ in self.words())
+        self.toks[last + 1 : last + 1] = [
+            _lexer.Token("space", " ", 0),
+            _lexer.Token("word", text, 0, text[0], text[1:]),
+        ]
+
+    def take(self, pred) -> list[_lexer.Token]:
+        taken = [t for _, t in self.words() if pred(t)]
+        self.drop(pred)
+        return taken
+
+    def drop(self, pred) -> None:
+        toks = self.toks
+        k = 0
+        while k < len(toks):
+            t = toks[k]
+            if t.kind == "word" and pred(t):
+                del toks[k]
+                if k > 0 and toks[k - 1].kind == "space":
+                    del toks[k - 1]
+                    k -= 1
+                elif k < len(toks) and toks[k].kind == "space":
+                    del toks[k]
+                continue
+            k += 1
+
+    def text(self) -> str:
+        return "".join(t.text for t in self.toks).strip()
+
+
+# ---------------------------------------------------------------------------------- the check
+
+
+def _reader(dialect: str, machine, program: Program, **kw) -> Motion:
+    return interpret(program, machine, strict=True, dialect=dialect, file=program.file, **kw)
+
+
+def _verify(
+    source_prog: Program, out: Program, dialect: str, source: str, machine, *, keeps_tools: bool
+) -> None:
+    """The written program must move like the source (internal check)."""
+    comp = {"cutter_comp": "refuse"} if dialect == "grbl" else {}
+    before = _reader(source, machine, source_prog, **comp)
+    if dialect == "grbl" and not keeps_tools:
+        after = _reader(dialect, machine, out)
+    elif dialect == "grbl":  # M6 kept for a tool changer: GRBL 1.1 itself would refuse it
+        it = Interpreter(machine, strict=False, file=out.file, dialect="grbl")
+        after = it.run(out.lines)
+        bad = [w for w in it.warnings if not _is_m6(w.word)]
+        known = {w.reason for w in _warnings(source_prog, machine, source)}
+        bad = [w for w in bad if w.reason not in known]
+        if bad:
+            raise NCError(f"GRBL output: {bad[0]}", file=out.file)
+    else:
+        after = _reader(dialect, machine, out)
+    if not keeps_tools:
+        before = replace(before, tool=after.tool) if len(before) == len(after) else before
+    k = _first_difference(before, after)
+    if k is not None:
+        line = int(before.line[k]) if k < len(before) else 0
+        raise NCError(
+            f"the {dialect} program would not move like the source from segment {k} (internal "
+            "check failed); nothing written", file=source_prog.file, line=line,
+        )  # fmt: skip
+
+
+def _is_m6(word: str) -> bool:
+    w = word.strip().upper()
+    try:
+        return w[:1] == "M" and float(w[1:]) == 6.0
+    except ValueError:
+        return False
+
+
+def _warnings(program: Program, machine, dialect: str):
+    it = Interpreter(machine, strict=True, file=program.file, dialect=dialect)
+    it.skip(program.lines)
+    return it.warnings
+
+
+def _first_difference(a: Motion, b: Motion) -> int | None:
+    """Index of the first segment that moves otherwise (None: the same motion)."""
+    n = min(len(a), len(b))
+    bad = []
+    for name in ("kind", "plane", "tool", "coolant"):
+        bad.append(getattr(a, name)[:n] != getattr(b, name)[:n])
+    for name in ("start", "end", "center", "rotary_start_deg", "rotary_end_deg"):
+        x, y = getattr(a, name)[:n], getattr(b, name)[:n]
+        bad.append(~(_close(x, y, MOTION_TOL_MM)).all(axis=1))
+    bad.append(~_close(a.dwell_s[:n], b.dwell_s[:n], MOTION_TOL_MM))
+    bad.append(~_close(a.spindle_rpm[:n], b.spindle_rpm[:n], 1e-9))
+    fa, fb = a.feed_mm_min[:n], b.feed_mm_min[:n]
+    bad.append(~_close(fa, fb, 1e-9 * max(1.0, _finite_max(fa))))
+    mask = np.logical_or.reduce(bad) if bad else np.zeros(n, bool)
+    hits = np.nonzero(mask)[0]
+    if len(hits):
+        return int(hits[0])
+    return None if len(a) == len(b) else n
+
+
+def _close(x, y, tol: float):
+    return np.isclose(x, y, rtol=0.0, atol=tol, equal_nan=True)
+
+
+def _finite_max(x) -> float:
+    f = x[np.isfinite(x)]
+    return float(np.abs(f).max()) if len(f) else 0.0
