@@ -140,6 +140,12 @@ def arc_length_mm(
 
 def _plane_coords(motion: Motion) -> tuple[np.ndarray, ...]:
     """Per segment in-plane coordinates (a0, b0, a1, b1, ca, cb) and normal start/end (n0, n1)."""
+    s, e, c = motion.start, motion.end, motion.center
+    plane = motion.plane
+    if plane.size and plane[0] == plane[-1] and (plane == plane[0]).all():  # one plane: slices
+        ia, ib, ic = PLANE_AXES.get(min(max(int(plane[0]), 0), 19), (0, 1, 2))
+        idx = np.broadcast_to(np.array([ia, ib, ic]), (plane.size, 3))
+        return s[:, ia], s[:, ib], e[:, ia], e[:, ib], c[:, ia], c[:, ib], s[:, ic], e[:, ic], idx
     axes = np.array([PLANE_AXES.get(int(p), (0, 1, 2)) for p in range(20)])
     idx = axes[np.clip(motion.plane.astype(int), 0, 19)]
     rows = np.arange(len(motion))

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planning.nc.arcs import bounding_box, segment_boxes, segment_length_mm, segment_travel
+from planning.nc.arcs import segment_boxes, segment_length_mm, segment_travel
 from planning.nc.motion import DWELL, RAPID, Motion
 
 if TYPE_CHECKING:
@@ -177,16 +177,33 @@ class StreamStats:
         length = segment_length_mm(motion)
         feed = motion.is_feed
         rap = motion.kind == RAPID
-        t = segment_time_s(motion, self.machine, rapid_mm_min=self.rapid)
+        dw = motion.kind == DWELL
+        # segment_time_s, with the lengths computed once (every figure is per segment, so the
+        # same numbers as segment_time_s gives)
+        t = np.zeros(n)
+        if feed.any():
+            travel = length[feed]
+            r0, r1 = motion.rotary_start_deg[feed], motion.rotary_end_deg[feed]
+            if not np.array_equal(r0, r1):
+                travel = np.hypot(travel, np.linalg.norm(r1 - r0, axis=1))
+            with np.errstate(invalid="ignore", divide="ignore"):
+                t[feed] = travel / motion.feed_mm_min[feed] * 60.0
+        if rap.any():
+            linear = np.abs(motion.end[rap] - motion.start[rap]).max(axis=1) / self.rapid
+            turn = np.abs(motion.rotary_end_deg[rap] - motion.rotary_start_deg[rap])
+            rates = _rotary_rates(self.machine)
+            t[rap] = np.maximum(linear, (turn / rates).max(axis=1)) * 60.0
+        t[dw] = motion.dwell_s[dw]
         self._cut.add(length[feed])
         self._rap.add(length[rap])
         self._tfeed.add(t[feed])
         self._trap.add(t[rap])
-        self._tdwell.add(t[motion.kind == DWELL])
-        lo, hi = bounding_box(motion)
-        self._lo, self._hi = np.fmin(self._lo, lo), np.fmax(self._hi, hi)
+        self._tdwell.add(t[dw])
+        lo, hi = segment_boxes(motion)  # bounding_box of the whole and of the feed moves
+        self._lo = np.fmin(self._lo, lo.min(axis=0))
+        self._hi = np.fmax(self._hi, hi.max(axis=0))
         if feed.any():
-            clo, chi = bounding_box(motion[feed])
+            clo, chi = lo[feed].min(axis=0), hi[feed].max(axis=0)
             self._clo, self._chi = np.fmin(self._clo, clo), np.fmax(self._chi, chi)
         both_lo = np.minimum(motion.rotary_start_deg.min(axis=0), motion.rotary_end_deg.min(axis=0))
         both_hi = np.maximum(motion.rotary_start_deg.max(axis=0), motion.rotary_end_deg.max(axis=0))
