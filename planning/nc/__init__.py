@@ -48,7 +48,8 @@ from planning.nc.arcs import (
     segment_length_mm,
     segment_travel,
 )
-from planning.nc.check import CheckedProgram, check_program
+from planning.nc.check import CheckedProgram, check_program, write_motions_csv
+from planning.nc.dialect import DialectProblem, check_dialect
 from planning.nc.errors import NCError, NCWarning
 from planning.nc.interpreter import Interpreter
 from planning.nc.motion import (
@@ -62,26 +63,35 @@ from planning.nc.motion import (
     Motion,
     MotionBuilder,
 )
+from planning.nc.output import for_dialect
 from planning.nc.program import NumberStyle, Program
 from planning.nc.restart import restart_preamble
-from planning.nc.run import interpret, interpret_file, state_at_block
+from planning.nc.run import (
+    MAX_LINE_CHARS,
+    interpret,
+    interpret_file,
+    iter_motion_chunks,
+    state_at_block,
+)
 from planning.nc.state import CannedCycle, ModalState
-from planning.nc.stats import MotionStats, motion_stats, segment_time_s
+from planning.nc.stats import MotionStats, StreamStats, motion_stats, segment_time_s
+from planning.nc.table import write_motion_csv
 from planning.nc.writer import motion_to_program
 
 __all__ = [
-    "INCH_MM",
     "ARC_CCW",
     "ARC_CW",
-    "DWELL",
-    "FULL_CIRCLE_TOL_MM",
-    "KIND_NAMES",
-    "LINE",
-    "RAPID",
     "CannedCycle",
     "CheckedProgram",
+    "DWELL",
+    "DialectProblem",
+    "FULL_CIRCLE_TOL_MM",
+    "INCH_MM",
     "Interpreter",
+    "KIND_NAMES",
+    "LINE",
     "Linearized",
+    "MAX_LINE_CHARS",
     "ModalState",
     "Motion",
     "MotionBuilder",
@@ -90,12 +100,17 @@ __all__ = [
     "NCWarning",
     "NumberStyle",
     "Program",
+    "RAPID",
+    "StreamStats",
     "arc_radius_mm",
     "arc_sweep_rad",
     "bounding_box",
+    "check_dialect",
     "check_program",
+    "for_dialect",
     "interpret",
     "interpret_file",
+    "iter_motion_chunks",
     "linearize",
     "motion_stats",
     "motion_to_program",
@@ -104,4 +119,6 @@ __all__ = [
     "segment_time_s",
     "segment_travel",
     "state_at_block",
+    "write_motion_csv",
+    "write_motions_csv",
 ]

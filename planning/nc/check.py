@@ -1,7 +1,8 @@
-"""A program file checked as ``cutlab nc check|motions|plot`` see it: interpreted (streamed, with a
-progress callback by bytes for big files), its summary (lengths, times, bounding box, warnings)
-and its motion table; and (``cutlab nc check --dialect``) what a controller would refuse in it
-(:func:`dialect_problems`, :mod:`planning.nc.dialect`).
+"""A program file checked as ``cutlab nc check|motions|plot`` see it: interpreted (streamed in
+chunks, with a progress callback by bytes for big files), its summary (lengths, times, bounding
+box, warnings) accumulated chunk by chunk so memory is bounded by the chunk, not the program, and
+its motion table (streamed to CSV); and (``cutlab nc check --dialect``) what a controller would
+refuse in it (:func:`dialect_problems`, :mod:`planning.nc.dialect`).
 """
 
 from __future__ import annotations
@@ -10,13 +11,14 @@ import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any
 
 from planning.nc.dialect import DialectProblem, check_dialect
 from planning.nc.interpreter import Interpreter
 from planning.nc.motion import Motion
-from planning.nc.run import file_lines
-from planning.nc.stats import axis_limit_problems, motion_stats
+from planning.nc.run import file_lines, file_mentions_rotary
+from planning.nc.stats import MotionStats, StreamStats, axis_limit_problems
+from planning.nc.table import write_motion_csv
 
 if TYPE_CHECKING:
     from analysis.config import MachineConfig
@@ -47,14 +49,21 @@ def progress_lines(
     progress(size_bytes, size_bytes)
 
 
+_AXES = "XYZABC"
+
+
 @dataclass(frozen=True)
 class CheckedProgram:
-    """An interpreted program file: its interpreter (warnings, blocks seen), motion and machine."""
+    """An interpreted program file: its interpreter (warnings, blocks seen), its statistics and
+    travel-limit problems, the machine, and its motion (None when only checked)."""
 
     file: str
     interpreter: Interpreter
-    motion: Motion
+    stats: MotionStats
+    limits: list[str]
+    rotary: bool
     machine: MachineConfig | None
+    motion: Motion | None = None
 
     @property
     def warnings(self) -> list[str]:
@@ -65,12 +74,12 @@ class CheckedProgram:
         """``cutlab nc check``'s result: blocks, motions, lengths (mm), times (s), bbox (mm),
         the rotary ranges (deg) of a program that turns an axis, and every warning (the
         interpreter's, then the machine's travel limits)."""
-        motion, st = self.motion, motion_stats(self.motion, self.machine)
-        limits = [f"{self.file}: {p}" for p in axis_limit_problems(motion, self.machine)]
+        st = self.stats
+        limits = [f"{self.file}: {p}" for p in self.limits]
         out: dict[str, Any] = {
             "file": self.file,
             "blocks": self.interpreter.blocks_seen,
-            "motions": len(motion),
+            "motions": st.segments,
             "cutting_length_mm": st.cutting_length_mm,
             "rapid_length_mm": st.rapid_length_mm,
             "time_s": st.time_s,
@@ -82,14 +91,15 @@ class CheckedProgram:
             "bbox": {"min_mm": list(st.bbox_min_mm), "max_mm": list(st.bbox_max_mm)},
             "warnings": self.warnings + limits,
         }
-        if motion.has_rotary_travel.any() or any(st.rotary_min_deg) or any(st.rotary_max_deg):
+        if self.rotary or any(st.rotary_min_deg) or any(st.rotary_max_deg):
             out["rotary_range_deg"] = {
                 c: [st.rotary_min_deg[i], st.rotary_max_deg[i]] for i, c in enumerate("ABC")
             }
         return out
 
     def motion_table(self) -> Any:
-        """One row per segment (a pandas DataFrame); a 3-axis program has no a0..c1 columns."""
+        """One row per segment (a pandas DataFrame; needs the kept motion); a 3-axis program has
+        no a0..c1 columns."""
         df = self.motion.to_dataframe()
         if not (self.motion.rotary_start_deg.any() or self.motion.rotary_end_deg.any()):
             df = df.drop(columns=_ROTARY_COLUMNS)
@@ -102,18 +112,61 @@ def check_program(
     *,
     strict: bool = True,
     progress: Callable[[float, float], None] | None = None,
+    keep_motion: bool = False,
 ) -> CheckedProgram:
     """Interpret the program file ``path`` on ``machine`` (a config name or TOML path; None: no
-    machine). ``strict`` False reports unknown codes as warnings; ``progress`` see
-    :func:`progress_lines`. NC errors raise :class:`~planning.nc.errors.NCError`."""
-    cfg = None
-    if machine:
-        from analysis.config import load_machine
-
-        cfg = load_machine(machine)
+    machine), chunk by chunk. ``strict`` False reports unknown codes as warnings; ``progress`` see
+    :func:`progress_lines`; ``keep_motion`` keeps the whole motion (for a plot or a table).
+    NC errors raise :class:`~planning.nc.errors.NCError`."""
+    cfg = _machine(machine)
     it = Interpreter(cfg, strict=strict, file=path)
-    motion = it.run(progress_lines(path, progress))
-    return CheckedProgram(path, it, motion, cfg)
+    acc, first_limit, rotary, kept = StreamStats(cfg), {}, False, []
+    for part in it.iter_chunks(progress_lines(path, progress)):
+        acc.add(part)
+        rotary |= bool(part.has_rotary_travel.any())
+        for problem in axis_limit_problems(part, cfg):  # "line N: X goes to ...": first per axis
+            first_limit.setdefault(problem.split()[2], problem)
+        if keep_motion:
+            kept.append(part)
+    limits = [first_limit[a] for a in _AXES if a in first_limit]
+    motion = (Motion.concatenate(kept) if kept else Motion.empty()) if keep_motion else None
+    return CheckedProgram(path, it, acc.result(), limits, rotary, cfg, motion)
+
+
+def write_motions_csv(
+    path: str,
+    out: str | Path | IO[str],
+    machine: str | None = None,
+    *,
+    strict: bool = True,
+    progress: Callable[[float, float], None] | None = None,
+) -> Interpreter:
+    """``cutlab nc motions --csv``: one row per segment of the program file ``path`` written to
+    ``out`` (a stream, or a file path: written whole or not at all) as it is interpreted (bounded
+    memory; floats that read back unchanged); the a0..c1 columns when the file has A/B/C words.
+    Returns the interpreter (its warnings)."""
+    it = Interpreter(_machine(machine), strict=strict, file=path)
+    rotary = file_mentions_rotary(path)
+    if not isinstance(out, str | Path):
+        write_motion_csv(it.iter_chunks(progress_lines(path, progress)), out, rotary=rotary)
+        return it
+    target = Path(out)
+    part = target.with_name(target.name + ".part")
+    try:
+        with open(part, "w", newline="") as fh:
+            write_motion_csv(it.iter_chunks(progress_lines(path, progress)), fh, rotary=rotary)
+        part.replace(target)
+    finally:
+        part.unlink(missing_ok=True)
+    return it
+
+
+def _machine(machine: str | None) -> MachineConfig | None:
+    if not machine:
+        return None
+    from analysis.config import load_machine
+
+    return load_machine(machine)
 
 
 def dialect_problems(path: str, dialect: str, *, strip: bool = True) -> list[DialectProblem]:

@@ -17,12 +17,13 @@ import sys
 from rig.cli._common import Progress, print_json, print_table, status
 
 
-def _interpret(args: argparse.Namespace, *, warn: bool = True):
+def _interpret(args: argparse.Namespace, *, warn: bool = True, keep_motion: bool = False):
     """``args.file`` interpreted; its warnings go to stderr unless ``warn`` is False."""
     from planning.nc import check_program
 
     with Progress("interpreting", "B", unit_scale=True) as bar:
-        run = check_program(args.file, args.machine, strict=not args.lenient, progress=bar)
+        run = check_program(args.file, args.machine, strict=not args.lenient, progress=bar,
+                            keep_motion=keep_motion)  # fmt: skip
     for w in run.warnings if warn else ():
         status(f"warning: {w}")
     return run
@@ -62,10 +63,17 @@ def _check(args: argparse.Namespace) -> int:
 
 
 def _motions(args: argparse.Namespace) -> int:
-    df = _interpret(args).motion_table()
     if args.csv or args.output:
-        df.to_csv(args.output or sys.stdout, index=False, float_format="%.6g")
-    elif args.json:
+        from planning.nc.check import write_motions_csv
+
+        with Progress("interpreting", "B", unit_scale=True) as bar:
+            it = write_motions_csv(args.file, args.output or sys.stdout, args.machine,
+                                   strict=not args.lenient, progress=bar)  # fmt: skip
+        for w in it.warnings:
+            status(f"warning: {w}")
+        return 0
+    df = _interpret(args, keep_motion=True).motion_table()
+    if args.json:
         print_json(df.to_dict(orient="records"))
     else:
         print_table(df.to_dict(orient="records"))
@@ -75,7 +83,7 @@ def _motions(args: argparse.Namespace) -> int:
 def _plot(args: argparse.Namespace) -> int:
     from planning.nc.plot import plot_motion
 
-    motion = _interpret(args).motion
+    motion = _interpret(args, keep_motion=True).motion
     path = plot_motion(motion, args.output, title=args.file)
     if args.json:
         print_json({"file": args.file, "plot": str(path), "motions": len(motion)})
