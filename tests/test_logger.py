@@ -351,3 +351,15 @@ def test_any_delivery_pattern_round_trips(tmp_path: Path, pattern) -> None:
     np.testing.assert_array_equal(run.volts, _expected(idx))
     assert run.samples_acquired == dev
     assert run.samples_lost == dev - len(idx)
+
+
+def test_forces_are_tied_to_the_executing_block_not_the_acknowledged_one(tmp_path) -> None:
+    # GRBL acknowledges blocks when it plans them: block 1 is acked at 0.1 s but starts cutting at
+    # 2.0 s; block 0 cuts from 0.5 s. A sample at 1.0 s belongs to block 0, at 2.5 s to block 1.
+    path = tmp_path / "run.h5"
+    with RunWriter(path, _info()) as w:
+        w.append_blocks([0, 1], [3, 4], ["G1 X10 F100", "G1 X20"], [0.0, 0.05], [0.05, 0.1],
+                        exec_s=[0.5, 2.0])  # fmt: skip
+    run = rf.load_run(path, samples=False)
+    assert list(run.blocks["exec_s"]) == [0.5, 2.0]
+    assert list(run.executing_block(np.array([0.2, 1.0, 2.5]))) == [-1, 0, 1]

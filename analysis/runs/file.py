@@ -41,7 +41,9 @@ while it is written, SWMR)::
                                          kind S16 (EVENT_KINDS), message S200
     /nc/blocks           compound (b,)   block int64 (0-based), line int64 (1-based source line),
                                          send_s, ack_s float64 (run clock; ack NaN until acked),
-                                         text S256 (the block as sent; full text in meta/program)
+                                         exec_s float64 (run clock: the control started executing
+                                         it; NaN if unknown; format 2), text S256 (the block as
+                                         sent; full text in meta/program)
     /meta/<name>         uint8 (bytes,)  UTF-8 text, resizable so it can change during the run:
                                          conditions (JSON), rig (JSON), program (NC text),
                                          program_info (JSON: name, sha256, lines),
@@ -82,7 +84,7 @@ import pandas as pd
 from analysis.errors import AnalysisError
 
 FORMAT_NAME = "cutlab-run"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 2: /nc/blocks has exec_s (format 1 files read with exec_s NaN)
 
 # Root attributes.
 ATTR_FORMAT = "cutlab_format"
@@ -127,6 +129,7 @@ BLOCK_DTYPE = np.dtype(
         ("line", "<i8"),
         ("send_s", "<f8"),
         ("ack_s", "<f8"),
+        ("exec_s", "<f8"),
         ("text", f"S{BLOCK_TEXT_BYTES}"),
     ]
 )
@@ -294,6 +297,16 @@ class Run:
         df.index = pd.Index(self.time_s, name="time_s")
         return df
 
+    def executing_block(self, time_s: np.ndarray | None = None) -> np.ndarray:
+        """The NC block the control was executing at each time (default: each sample's), from
+        the blocks' ``exec_s`` (not their ack: an ack means planned, not cutting); -1 before the
+        first block started or where no block records its execution start."""
+        t = self.time_s if time_s is None else np.asarray(time_s, dtype=float)
+        rows = self.blocks[np.isfinite(self.blocks["exec_s"])].sort_values("exec_s")
+        k = np.searchsorted(rows["exec_s"].to_numpy(), t, side="right") - 1
+        blocks = np.append(rows["block"].to_numpy(dtype=np.int64), -1)
+        return blocks[np.where(k >= 0, k, len(rows))]
+
 
 def open_run_file(path: str | Path) -> h5py.File:
     """Open a run file for reading with errors that say what is wrong with it."""
@@ -371,9 +384,16 @@ def _json(f: h5py.File, name: str) -> dict[str, Any]:
 
 
 def _table(f: h5py.File, path: str) -> np.ndarray:
+    dtype = EVENT_DTYPE if path == EVENTS else BLOCK_DTYPE
     if path not in f:
-        return np.zeros(0, dtype=EVENT_DTYPE if path == EVENTS else BLOCK_DTYPE)
-    return f[path][()]
+        return np.zeros(0, dtype=dtype)
+    rows = f[path][()]
+    if rows.dtype == dtype:
+        return rows
+    out = np.zeros(len(rows), dtype=dtype)  # an older format: fields it lacks are NaN
+    for name in dtype.names:
+        out[name] = rows[name] if name in rows.dtype.names else np.nan
+    return out
 
 
 def events_frame(rows: np.ndarray) -> pd.DataFrame:

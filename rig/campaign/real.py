@@ -136,9 +136,9 @@ class RealSession:
         return min(sent, n), n
 
     def executed_blocks(self) -> list[tuple[int, float, float, str]]:
-        """A real control does not report when it executes a block (send and acknowledgement
-        times are in the block record)."""
-        return []
+        """Blocks known to have started executing (GRBL: from its status reports; Fanuc:
+        predicted from the buffer and the time model), as the streamer tracks them."""
+        return self.streamer.executed_blocks() if self.streamer is not None else []
 
     def feed_hold(self) -> None:
         if self.protocol == "grbl" and self.streamer is not None:
@@ -155,12 +155,9 @@ class RealSession:
     def stop(self) -> None:
         if self.streamer is None:
             return
-        if self.protocol == "grbl":
-            self.streamer.feed_hold()
-            self.streamer.soft_reset()
-        else:
+        if self.protocol != "grbl":
             print("cutlab: press RESET on the control (spindle stop)", file=sys.stderr, flush=True)
-        self.streamer.stop()
+        self.streamer.stop()  # GRBL: feed hold, wait for Hold:0, then soft reset (no ALARM:3)
 
     def close(self) -> None:
         if self.streamer is not None and not self._done.is_set():

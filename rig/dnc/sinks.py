@@ -1,36 +1,20 @@
 """The block record into a run file: :class:`LoggerSink` adapts ``rig.log.writer.RunWriter``.
 
-Rows go to ``RunWriter.append_blocks`` (block, line, text, send time, ack time; both on the clock
-the writer and the streamer share), stream events to ``RunWriter.event`` (``fault`` for a fault,
-``note`` otherwise). ``close()`` waits until the writer has taken what was queued; with
+Rows go to ``RunWriter.append_blocks`` (block, line, text, send time, ack time and the time the
+control started executing the block, what ties the force samples to the block cutting them; all
+on the clock the writer and the streamer share), stream events to ``RunWriter.event`` (``fault``
+for a fault, ``note`` otherwise). ``close()`` waits until the writer has taken what was queued; with
 ``close_writer=True`` it also closes the run file, status ``fail`` with the reason after a fault,
 ``success`` otherwise, so the file is closed and valid after every fault.
-
-When the control started executing each block (``BlockRow.exec_time_s``, what ties the force
-samples to the block cutting them): passed as ``exec_s`` when the writer's ``append_blocks`` takes
-it (a ``/nc/blocks`` field), otherwise written as one ``note`` event per executed block, ``dnc
-exec block B line L``, at that time on the run clock (the format stays as it is).
 """
 
 from __future__ import annotations
 
-import inspect
-import math
 from collections.abc import Sequence
 from typing import Any
 
 from analysis.runs import file as rf
 from rig.dnc.record import BlockRow
-
-#: the event message of an execution start (block, line), when the writer has no exec_s field
-EXEC_EVENT = "dnc exec block {block} line {line}"
-
-
-def _takes_exec(writer: Any) -> bool:
-    try:
-        return "exec_s" in inspect.signature(writer.append_blocks).parameters
-    except (TypeError, ValueError, AttributeError):
-        return False
 
 
 class LoggerSink:
@@ -41,26 +25,18 @@ class LoggerSink:
         self.close_writer = close_writer
         self.fault = ""
         self.closed = False
-        self._exec_field = _takes_exec(writer)
 
     def append_blocks(self, rows: Sequence[BlockRow]) -> None:
         if not rows:
             return
-        args = (
+        self.writer.append_blocks(
             [r.block for r in rows],
             [r.line for r in rows],
             [r.text for r in rows],
             [r.send_time_s for r in rows],
             [r.ack_time_s for r in rows],
+            exec_s=[r.exec_time_s for r in rows],
         )
-        if self._exec_field:
-            self.writer.append_blocks(*args, exec_s=[r.exec_time_s for r in rows])
-            return
-        self.writer.append_blocks(*args)
-        for r in rows:
-            if not math.isnan(r.exec_time_s):
-                msg = EXEC_EVENT.format(block=r.block, line=r.line)
-                self.writer.event(rf.EV_NOTE, msg, time_s=r.exec_time_s)
 
     def event(self, kind: str, time_s: float, detail: str = "") -> None:
         # The writer cuts the message to the run file's field (rf.EVENT_MESSAGE_BYTES).

@@ -265,11 +265,13 @@ class RunWriter:
         text: str | Sequence[str],
         send_s: float | Sequence[float],
         ack_s: float | Sequence[float] | None = None,
+        exec_s: float | Sequence[float] | None = None,
     ) -> None:
         """Append NC blocks sent by the DNC streamer (scalars or equal-length sequences).
 
         block : 0-based block index; line : 1-based source line; text : the block as sent;
-        send_s, ack_s : run-clock times, s (ack NaN/None until acknowledged, see ack_blocks).
+        send_s, ack_s : run-clock times, s (ack NaN/None until acknowledged, see ack_blocks);
+        exec_s : run-clock time the control started executing the block, s (NaN/None: unknown).
         """
         blocks = np.atleast_1d(np.asarray(block, dtype=np.int64))
         n = len(blocks)
@@ -283,6 +285,9 @@ class RunWriter:
             raise RunWriterError(f"append_blocks: {n} block indices but {len(texts)} texts")
         rows = np.zeros(n, dtype=rf.BLOCK_DTYPE)
         rows["block"], rows["line"], rows["send_s"], rows["ack_s"] = blocks, lines, sends, acks
+        rows["exec_s"] = np.broadcast_to(
+            np.asarray(np.nan if exec_s is None else exec_s, dtype=np.float64), (n,)
+        )
         for i, t in enumerate(texts):
             b = t.encode("utf-8")
             if len(b) > rf.BLOCK_TEXT_BYTES:
