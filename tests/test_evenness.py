@@ -1,4 +1,4 @@
-"""The evenness bound of analysis.forces.evenness against a global optimiser and direct force sums."""
+"""The evenness bound (analysis.forces.evenness) against a global optimiser and force sums."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Identification from real HDF5 run files written by rig.log.writer.RunWriter, streamed in chunks."""
+"""Identification from real HDF5 run files written by rig.log.RunWriter, streamed in chunks."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""planning.orient.kinematics: AC inverse kinematics round trips, limits, CL CSV and G-code read back."""
+"""planning.orient.kinematics: AC inverse kinematics: round trips, limits, CL CSV, G-code."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""planning.surface.nurbs: NURBS evaluation (rational via splipy + quotient rule), normals, curvature."""
+"""planning.surface.nurbs: NURBS evaluation (splipy + quotient rule), normals, curvature."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""planning.orient._energy: eq 7 is zero exactly when nothing collides; its gradient; the descent."""
+"""planning.orient._energy: eq 7 is zero exactly when nothing collides; gradient; descent."""
 
 from __future__ import annotations
 

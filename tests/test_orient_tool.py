@@ -9,8 +9,8 @@ from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
 from analysis.config import EndMill
-from analysis.validation import validate
 from analysis.errors import ConfigError
+from analysis.validation import validate
 from planning.errors import PlanningError
 from planning.orient.tool import (
     ToolSystem,

@@ -1,4 +1,4 @@
-"""analysis.runs.file: the loader's errors, device-index bookkeeping, windows, the layout contract."""
+"""analysis.runs.file: the loader's errors, device-index bookkeeping, windows, layout contract."""
 
 from __future__ import annotations
 

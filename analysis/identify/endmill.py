@@ -83,7 +83,7 @@ def fit_endmill(
     if not isinstance(tool, EndMill):
         raise AnalysisError(
             f"tool of kind {getattr(tool, 'kind', type(tool).__name__)!r}: the average-force "
-            "method here describes flat, ball and bull end mills (face mills: analysis.identify.fit_facemill)"
+            "method here describes flat, ball and bull end mills (face mills: fit_facemill)"
         )
     check_units(averages)
     names = tuple(a.name for a in averages)

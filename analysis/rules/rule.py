@@ -49,8 +49,8 @@ import tomli_w
 from numpy.typing import ArrayLike, NDArray
 from pydantic import Field, model_validator
 
-from analysis.validation import Model, read_toml, validate
 from analysis.errors import AnalysisError, ConfigError
+from analysis.validation import Model, read_toml, validate
 
 N_BINS = 20
 

@@ -26,9 +26,9 @@ from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 from analysis.config import REPO_ROOT, config_dir
-from analysis.validation import read_toml
 from analysis.errors import AnalysisError, ConfigError
 from analysis.rules.rule import FeedRule, rule_from_toml, rule_to_toml
+from analysis.validation import read_toml
 
 SCHEMA_VERSION = 1
 

@@ -18,8 +18,8 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from analysis.config import EndMill, get_tool
-from analysis.validation import Model, find_line, load_model
 from analysis.errors import ConfigError
+from analysis.validation import Model, find_line, load_model
 from planning.surface import FergusonSurface
 
 
