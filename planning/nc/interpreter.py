@@ -160,6 +160,7 @@ _FAST_ANY_CASE = _fast_line_re(False)
 FAST_MIN_RUN = 8  # shorter runs of plain G0..G3 blocks take the per-block path
 _COL_F = 9  # column of the F words in the fast regex's groups (N G X Y Z I J K R F)
 FAST_CHUNK = 65_536  # lines read at a time by run()
+CHUNK_BLOCKS = 8_192  # streamed chunk: faster than 65,536 (cache), ~55 MB peak for 1 M blocks
 
 
 def _worth_it(lines: list[str], probe: int = 256) -> bool:
@@ -347,7 +348,7 @@ class Interpreter(WordRules, Moves):
         return out.build()
 
     def iter_chunks(
-        self, lines: Iterable[str], *, chunk_blocks: int = 65_536, first_line: int = 1
+        self, lines: Iterable[str], *, chunk_blocks: int = CHUNK_BLOCKS, first_line: int = 1
     ) -> Iterator[Motion]:
         """Execute many blocks as :meth:`run` does, yielding their segments chunk by chunk: one
         Motion per ``chunk_blocks`` blocks (empty chunks are not yielded), so memory is bounded

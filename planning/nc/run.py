@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 from planning.nc import _lexer
 from planning.nc.errors import NCError
-from planning.nc.interpreter import Interpreter
+from planning.nc.interpreter import CHUNK_BLOCKS, Interpreter
 from planning.nc.motion import Motion
 from planning.nc.state import ModalState
 
@@ -58,7 +58,7 @@ def iter_motion_chunks(
     *,
     strict: bool = True,
     file: str | None = None,
-    chunk_blocks: int = 65_536,
+    chunk_blocks: int = CHUNK_BLOCKS,
     interpreter: Interpreter | None = None,
     **options,
 ) -> Iterator[Motion]:
