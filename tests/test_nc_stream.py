@@ -146,3 +146,117 @@ def test_a_line_too_long_is_refused_at_once(tmp_path) -> None:
 def test_chunk_size_must_be_positive() -> None:
     with pytest.raises(ValueError):
         list(iter_motion_chunks(["G0 X1"], chunk_blocks=0))
+
+
+def _reference_rows(m: Motion, rotary: bool) -> str:
+    """The CSV rows as the first writer made them: ``repr`` per float, '' for NaN."""
+    from planning.nc.motion import KIND_NAMES
+
+    def floats(a):
+        return ["" if x != x else repr(x) for x in a.tolist()]
+
+    def ints(a):
+        return list(map(repr, a.tolist()))
+
+    s, e, c = m.start, m.end, m.center
+    cols = [
+        ints(m.line), ints(m.block), [KIND_NAMES[k] for k in m.kind.tolist()],
+        *[floats(a[:, i]) for a in (s, e, c) for i in range(3)],
+        ints(m.plane), floats(m.feed_mm_min), floats(m.spindle_rpm), ints(m.tool),
+        [str(bool(x)) for x in m.coolant.tolist()], floats(m.dwell_s),
+    ]  # fmt: skip
+    if rotary:
+        cols += [floats(a[:, i]) for a in (m.rotary_start_deg, m.rotary_end_deg) for i in range(3)]
+    return "".join(",".join(row) + "\n" for row in zip(*cols))
+
+
+_HARD = [
+    0.0, -0.0, math.nan, math.inf, -math.inf, 10.0, -10.0, 3554.8655, 274.9999, 0.1 + 0.2,
+    25.4 * 0.1234, 25.4 * -3.0001, 1 / 25.4, 1e-4, 1e-5, 9.999999999999999e-05, 1e15, 1e16,
+    9999999999999998.0, 123456789012345.67, 2.0**49, 2.0**50, 2.0**53, 5e-324, 1e308, -1e-300,
+    4.440892098500626e-16, 1 / 3, 0.5, 0.05, 0.0005, 999999999999999.9, 12345.678901234567,
+    12000.0, 1e22, 1.5e-7, -0.0001,
+]  # fmt: skip
+
+
+def _random_floats(rng, n: int) -> np.ndarray:
+    kinds = rng.integers(0, 8, n)
+    x = np.select(
+        [kinds == 0, kinds == 1, kinds == 2, kinds == 3, kinds == 4, kinds == 5, kinds == 6],
+        [
+            np.round(rng.uniform(-500, 500, n), 4),
+            np.round(rng.uniform(-20, 20, n), 4) * 25.4,
+            rng.uniform(-1, 1, n) * 10.0 ** rng.integers(-25, 25, n),
+            np.asarray(_HARD)[rng.integers(0, len(_HARD), n)],
+            rng.integers(-1000, 1000, n).astype(float),
+            rng.integers(0, 2**63, n, dtype=np.uint64).view(np.float64),  # any bits
+            np.round(rng.uniform(-1, 1, n), 3) / 10.0 ** rng.integers(0, 6, n),
+        ],
+        default=rng.uniform(-1000, 1000, n),
+    )
+    return x
+
+
+def _random_motion(rng, n: int) -> Motion:
+    """Rows like a program's (a start is mostly the end before it, runs of equal values) with
+    values that are hard to write."""
+    end = _random_floats(rng, 3 * n).reshape(n, 3)
+    end[rng.random((n, 3)) < 0.3] = 0.0  # runs of one value
+    start = np.empty_like(end)
+    start[1:] = end[:-1]
+    start[0] = _random_floats(rng, 3)
+    jump = rng.random(n) < 0.05
+    start[jump] = _random_floats(rng, 3 * int(jump.sum())).reshape(-1, 3)
+
+    def col(p_new: float) -> np.ndarray:
+        v = _random_floats(rng, n)
+        keep = rng.random(n) > p_new
+        keep[0] = False
+        idx = np.maximum.accumulate(np.where(keep, 0, np.arange(n)))
+        return v[idx]  # runs
+
+    rot_end = np.stack([col(0.3) for _ in range(3)], axis=1)
+    rot_start = np.empty_like(rot_end)
+    rot_start[1:] = rot_end[:-1]
+    rot_start[0] = _random_floats(rng, 3)
+    centre = np.stack([col(0.5) for _ in range(3)], axis=1)
+    centre[rng.random(n) < 0.5] = np.nan
+    line = np.cumsum(rng.integers(0, 3, n)).astype(np.int32) + int(rng.integers(0, 10**9))
+    return Motion(
+        kind=rng.integers(0, 5, n).astype(np.int8),
+        start=start, end=end, center=centre,
+        plane=rng.choice(np.array([17, 18, 19], np.int8), n),
+        feed_mm_min=col(0.2), spindle_rpm=col(0.05),
+        tool=np.where(rng.random(n) < 0.9, 1, rng.integers(-5, 100_000, n)).astype(np.int32),
+        coolant=rng.random(n) < 0.5, line=line, block=(line - 1).astype(np.int32),
+        dwell_s=col(0.1), rotary_start_deg=rot_start, rotary_end_deg=rot_end,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_csv_rows_equal_repr_of_every_value(seed) -> None:
+    from planning.nc.table import ROWS_PER_WRITE, motion_rows
+
+    rng = np.random.default_rng(seed)
+    sizes = [1, 2, 3, 25, 100, 3000, ROWS_PER_WRITE + 77]
+    chunks = [_random_motion(rng, int(k)) for k in sizes]
+    for rotary in (False, True):
+        for m in chunks:
+            assert motion_rows(m, rotary) == _reference_rows(m, rotary)
+        fh = io.StringIO()
+        assert write_motion_csv(chunks, fh, rotary=rotary) == sum(sizes)
+        lines = fh.getvalue().splitlines(keepends=True)
+        assert "".join(lines[1:]) == "".join(_reference_rows(m, rotary) for m in chunks)
+    assert motion_rows(Motion.empty(), False) == ""
+
+
+def test_csv_floats_as_repr_writes_them() -> None:
+    from planning.nc.table import _float_text
+
+    rng = np.random.default_rng(11)
+    v = np.concatenate([np.asarray(_HARD * 3), _random_floats(rng, 100_000)])
+    with np.errstate(invalid="ignore"):
+        v = np.concatenate([v, np.nextafter(v, np.inf), np.nextafter(v, -np.inf), -v])
+    for part in (v, v[:5], v[:40], v[np.isfinite(v)]):
+        text = [row.tobytes().replace(b"\0", b"").decode() for row in _float_text(part)]
+        assert text == ["" if x != x else repr(x) for x in part.tolist()]
