@@ -9,8 +9,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from planning.nc._fast import FAST_MIN_RUN
 from planning.nc.errors import NCError
-from planning.nc.interpreter import FAST_MIN_RUN, Interpreter
+from planning.nc.interpreter import Interpreter
 from planning.nc.motion import Motion
 from planning.nc.run import interpret, iter_motion_chunks
 
