@@ -25,7 +25,7 @@ import sys
 import time
 
 from analysis.config import SerialConfig
-from planning.nc.dialect import grbl_send_text
+from planning.nc.grbl import grbl_send_text
 from rig.dnc import FanucStreamer, GrblStreamer, MemorySink, program_from_text
 from rig.dnc.grbl import HANDSHAKE
 from rig.sim import SimClock, SimFanuc, SimGrbl

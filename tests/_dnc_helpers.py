@@ -5,7 +5,7 @@ from __future__ import annotations
 import threading
 
 from analysis.config import SerialConfig
-from planning.nc.dialect import grbl_send_text
+from planning.nc.grbl import grbl_send_text
 from rig.dnc import Program, program_from_text
 from rig.dnc.grbl import HANDSHAKE
 from rig.sim import SimClock, SimFanuc

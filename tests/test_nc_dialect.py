@@ -8,14 +8,8 @@ import json
 
 import pytest
 
-from planning.nc.dialect import (
-    GRBL_LINE_CHARS,
-    GrblParser,
-    check_dialect,
-    grbl_filter,
-    grbl_send_text,
-    refused,
-)
+from planning.nc.dialect import check_dialect, refused
+from planning.nc.grbl import GRBL_LINE_CHARS, GrblParser, grbl_filter, grbl_send_text
 from rig.cli import main
 
 

@@ -2,7 +2,7 @@
 
 The written program is interpreted here in its own dialect and compared with the source segment by
 segment (independently of the module's own check), and its text is held to the controller's rules
-with plain string checks (and, where it exists, planning.nc.dialect's checker).
+with plain string checks and planning.nc.dialect's checker.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import pytest
 
 from analysis.config import REPO_ROOT, load_machine
 from planning.nc import NCError, Program, interpret
+from planning.nc.dialect import check_dialect
 from planning.nc.output import GRBL_LINE_CHARS, for_dialect, grbl_problems
 
 PROGRAMS = REPO_ROOT / "data" / "programs"
@@ -58,14 +59,6 @@ def assert_grbl_rules(out: Program, m6: bool = False) -> None:
             assert m6 or (letter, v) != ("M", 6), line
             if letter == "G":
                 assert v not in (41, 42, 43, 98, 99, 90.1) and not (73 <= v <= 89 and v != 80), line
-
-
-def check_dialect_or_none():
-    try:
-        from planning.nc.dialect import check_dialect
-    except ImportError:
-        return None
-    return check_dialect
 
 
 @pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.name)
@@ -250,21 +243,15 @@ def test_block_delete_and_blank_lines_are_left_out_for_grbl() -> None:
 @pytest.mark.parametrize("path", SHIPPED, ids=lambda p: p.name)
 @pytest.mark.parametrize("dialect", ["grbl", "linuxcnc", "fanuc"])
 def test_the_dialect_checker_finds_nothing_to_refuse(path, dialect) -> None:
-    check = check_dialect_or_none()
-    if check is None:
-        pytest.skip("planning.nc.dialect has no checker yet")
     out = for_dialect(Program.read(path), dialect)
     for strip in (True, False):
-        problems = check(out, dialect, strip=strip)
+        problems = check_dialect(out, dialect, strip=strip)
         assert not problems, "\n".join(map(str, problems))
 
 
 @pytest.mark.parametrize("cycle,ret,dist,inch", CYCLES[::3])
 def test_the_dialect_checker_takes_the_expanded_cycles(cycle, ret, dist, inch) -> None:
-    check = check_dialect_or_none()
-    if check is None:
-        pytest.skip("planning.nc.dialect has no checker yet")
     src = Program.parse(_cycle_program(cycle, ret, dist, inch), "cycles.nc")
     for dialect in ("grbl", "linuxcnc"):
-        problems = check(for_dialect(src, dialect), dialect, strip=False)
+        problems = check_dialect(for_dialect(src, dialect), dialect, strip=False)
         assert not problems, "\n".join(map(str, problems))

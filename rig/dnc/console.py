@@ -20,7 +20,7 @@ import time
 from dataclasses import dataclass, field
 
 from analysis.config import SerialConfig
-from planning.nc.dialect import grbl_alarm_text
+from planning.nc.grbl import grbl_alarm_text
 from rig.dnc.errors import DncError
 from rig.dnc.grbl import FEED_HOLD, SOFT_RESET, STATUS, GrblStatus, parse_status
 from rig.dnc.link import LinkLost, SerialLink

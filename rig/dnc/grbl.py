@@ -3,7 +3,7 @@ the executing block, lost answers, clean halts.
 
 Before the first byte (nothing is sent if any line would be refused):
 
-- every line is sent as :func:`planning.nc.dialect.grbl_send_text` leaves it (``strip``, default
+- every line is sent as :func:`planning.nc.grbl.grbl_send_text` leaves it (``strip``, default
   on): comments, spaces, the N word and a lone O program number are left out, as GRBL discards
   them anyway (it counts them in its 128-byte receive buffer but not in its 80-character line
   buffer; a ``!`` ``~`` ``?`` in a comment would even act as a real-time command). What was left
@@ -56,15 +56,14 @@ from dataclasses import dataclass
 from typing import Any
 
 from analysis.config import SerialConfig
-from planning.nc.dialect import (
+from planning.nc.dialect import check_dialect, refused
+from planning.nc.grbl import (
     GRBL_ERRORS,
     GRBL_PLANNER_BLOCKS,
     GrblParser,
-    check_dialect,
     grbl_alarm_text,
     grbl_filter,
     grbl_send_text,
-    refused,
 )
 from rig.dnc._stream import Fault, Item, StreamerBase
 from rig.dnc.errors import DncError

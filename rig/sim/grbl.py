@@ -18,7 +18,7 @@ Behaviour (GRBL 1.1h's source is the reference: ``grbl/serial.c``, ``protocol.c`
   feed hold, ``~`` cycle start, 0x18 soft reset.
 - A line is read out of the receive buffer only when the previous one is done, filtered as
   protocol.c does (spaces, comments, ``/`` dropped, upper case; more than 79 characters left:
-  ``error:11``) and checked by :class:`planning.nc.dialect.GrblParser`, gcode.c's checks, so each
+  ``error:11``) and checked by :class:`planning.nc.grbl.GrblParser`, gcode.c's checks, so each
   error code is the firmware's (``error:20`` O/M6/G41/G43/G81/G98/G90.1..., ``error:26`` G2
   without axis words, ``error:22`` no feed, ``error:9`` in Alarm, ...).
 - ``ok`` means *planned*, not done: a straight move takes one planner block, an arc its
@@ -75,7 +75,7 @@ import numpy as np
 
 from analysis.config import MachineConfig
 from planning.nc import DWELL, NCError
-from planning.nc.dialect import (
+from planning.nc.grbl import (
     GRBL_MSG_ALARM_LOCK,
     GRBL_MSG_PGM_END,
     GRBL_MSG_RESET_TO_CONTINUE,
