@@ -6,49 +6,16 @@ the arcs the per-block path refuses (radius mismatch, R too small, words of the 
 from __future__ import annotations
 
 import math
-from dataclasses import fields
 
 import pytest
+from _fastpath import check_fast_is_slow
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from planning.nc.arcs import PLANE_AXES
 from planning.nc.errors import NCError
 from planning.nc.interpreter import Interpreter
-from planning.nc.motion import Motion
 from planning.nc.run import interpret
-
-
-def _same_motion(a: Motion, b: Motion) -> None:
-    for f in fields(Motion):
-        x, y = getattr(a, f.name), getattr(b, f.name)
-        assert x.dtype == y.dtype and x.shape == y.shape, f.name
-        assert x.tobytes() == y.tobytes(), f.name
-
-
-def _outcome(lines: list[str], fast: bool, chunk: int | None = None, **options):
-    it = Interpreter(file="p.ngc", fast=fast, **options)
-    try:
-        if chunk is None:
-            motion = it.run(lines)
-        else:
-            motion = Motion.concatenate(list(it.iter_chunks(lines, chunk_blocks=chunk)))
-    except NCError as exc:
-        return ("error", str(exc), exc.line, exc.column, it.state), it
-    return ("ok", motion, it.state), it
-
-
-def _check(lines: list[str], chunk: int | None = None, **options) -> None:
-    fast, it_fast = _outcome(lines, True, chunk, **options)
-    slow, it_slow = _outcome(lines, False, chunk, **options)
-    assert fast[0] == slow[0], (fast[:2], slow[:2])
-    if fast[0] == "ok":
-        _same_motion(fast[1], slow[1])
-    else:
-        assert fast[1:4] == slow[1:4]
-    assert repr(fast[-1]) == repr(slow[-1])  # the whole modal state
-    assert [repr(w) for w in it_fast.warnings] == [repr(w) for w in it_slow.warnings]
-    assert it_fast.blocks_seen == it_slow.blocks_seen
 
 
 def _fmt(v: float, digits: int) -> str:
@@ -164,20 +131,20 @@ _SETTINGS = settings(max_examples=300, deadline=None, suppress_health_check=[Hea
 @_SETTINGS
 @given(_arc_programs(), st.sampled_from(["fanuc", "linuxcnc", "grbl"]), st.booleans())
 def test_generated_arc_programs_same_with_and_without_the_fast_path(lines, dialect, strict):
-    _check(lines, dialect=dialect, strict=strict)
+    check_fast_is_slow(lines, dialect=dialect, strict=strict)
 
 
 @_SETTINGS
 @given(_arc_programs(), st.integers(1, 40))
 def test_generated_arc_programs_same_in_chunks(lines, chunk):
-    _check(lines, chunk=chunk)
+    check_fast_is_slow(lines, chunk=chunk)
 
 
 @settings(max_examples=100, deadline=None)
 @given(_arc_programs(), st.sampled_from([0.0005, 0.01, 0.5]))
 def test_arc_tolerance_option(lines, tol):
-    _check(lines, arc_tolerance_mm=tol)
-    _check(lines, arc_tolerance_mm=tol, dialect="linuxcnc")
+    check_fast_is_slow(lines, arc_tolerance_mm=tol)
+    check_fast_is_slow(lines, arc_tolerance_mm=tol, dialect="linuxcnc")
 
 
 def _zigzag(n: int) -> list[str]:
@@ -203,9 +170,9 @@ def _zigzag(n: int) -> list[str]:
 
 def test_bench_arcs_identical_and_fast_path_taken():
     lines = _zigzag(2000)
-    _check(lines)
-    _check(lines, chunk=333)
-    _check(lines, dialect="linuxcnc")
+    check_fast_is_slow(lines)
+    check_fast_is_slow(lines, chunk=333)
+    check_fast_is_slow(lines, dialect="linuxcnc")
     calls = []
     it = Interpreter()
     execute = it._execute
@@ -232,8 +199,8 @@ def test_bench_arcs_identical_and_fast_path_taken():
 def test_refused_arcs_same_error_in_a_run(bad, strict):
     lines = ["G21 G90 G17 G1 F100\n", *_zigzag(40)[3:-1], "G0 X0 Y0\n", bad + "\n"]
     lines += _zigzag(40)[3:]
-    _check(lines, strict=strict)
-    _check(lines, strict=strict, dialect="linuxcnc")
+    check_fast_is_slow(lines, strict=strict)
+    check_fast_is_slow(lines, strict=strict, dialect="linuxcnc")
 
 
 def test_arc_error_names_the_block():

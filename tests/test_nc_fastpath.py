@@ -3,9 +3,8 @@ gives bit for bit the Motion, state, warnings and errors of the block-by-block p
 
 from __future__ import annotations
 
-from dataclasses import fields
-
 import pytest
+from _fastpath import check_fast_is_slow, same_motion
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -14,39 +13,6 @@ from planning.nc.errors import NCError
 from planning.nc.interpreter import Interpreter
 from planning.nc.motion import Motion
 from planning.nc.run import interpret, iter_motion_chunks
-
-
-def _same_motion(a: Motion, b: Motion) -> None:
-    for f in fields(Motion):
-        x, y = getattr(a, f.name), getattr(b, f.name)
-        assert x.dtype == y.dtype and x.shape == y.shape, f.name
-        assert x.tobytes() == y.tobytes(), f.name
-
-
-def _outcome(lines: list[str], fast: bool, chunk: int | None = None, **options):
-    it = Interpreter(file="p.ngc", fast=fast, **options)
-    try:
-        if chunk is None:
-            motion = it.run(lines)
-        else:
-            motion = Motion.concatenate(list(it.iter_chunks(lines, chunk_blocks=chunk)))
-    except NCError as exc:
-        return ("error", str(exc), exc.line, exc.column, it.state), it
-    return ("ok", motion, it.state), it
-
-
-def _check(lines: list[str], chunk: int | None = None, **options) -> None:
-    fast, it_fast = _outcome(lines, True, chunk, **options)
-    slow, it_slow = _outcome(lines, False, chunk, **options)
-    assert fast[0] == slow[0], (fast[:2], slow[:2])
-    if fast[0] == "ok":
-        _same_motion(fast[1], slow[1])
-    else:
-        assert fast[1:4] == slow[1:4]
-    assert repr(fast[-1]) == repr(slow[-1])  # the whole modal state
-    assert [repr(w) for w in it_fast.warnings] == [repr(w) for w in it_slow.warnings]
-    assert it_fast.blocks_seen == it_slow.blocks_seen
-
 
 # ---------------------------------------------------------------- generated programs
 _num = st.one_of(
@@ -115,13 +81,13 @@ _SETTINGS = settings(max_examples=300, deadline=None, suppress_health_check=[Hea
 @_SETTINGS
 @given(_programs(), st.sampled_from(["fanuc", "linuxcnc", "grbl"]), st.booleans())
 def test_generated_programs_same_with_and_without_the_fast_path(lines, dialect, strict):
-    _check(lines, dialect=dialect, strict=strict)
+    check_fast_is_slow(lines, dialect=dialect, strict=strict)
 
 
 @_SETTINGS
 @given(_programs(), st.integers(1, 40))
 def test_generated_programs_same_in_chunks(lines, chunk):
-    _check(lines, chunk=chunk)
+    check_fast_is_slow(lines, chunk=chunk)
 
 
 @settings(max_examples=100, deadline=None)
@@ -135,8 +101,8 @@ def test_plain_runs_under_offsets(lines, inch, incremental):
         "G91" if incremental else "G90",
         "G1 F100",
     ]
-    _check(head + lines)
-    _check(head + lines, chunk=7)
+    check_fast_is_slow(head + lines)
+    check_fast_is_slow(head + lines, chunk=7)
 
 
 # ---------------------------------------------------------------- specific cases
@@ -153,8 +119,8 @@ def test_fast_path_used_and_identical_for_a_long_run():
         *_plain_lines(300, "X{i} Z{j}\n"),
         "M2\n",
     ]
-    _check(lines)
-    _check(lines, chunk=64)
+    check_fast_is_slow(lines)
+    check_fast_is_slow(lines, chunk=64)
     m = interpret(lines)
     assert len(m) == 800 and m.line[0] == 3 and m.block[-1] == 802
 
@@ -166,12 +132,12 @@ def test_feed_move_with_no_feed_same_error():
     with pytest.raises(NCError) as slow:
         interpret(lines, file="a.ngc", fast=False)
     assert str(fast.value) == str(slow.value) and fast.value.line == 42
-    _check(lines)
+    check_fast_is_slow(lines)
 
 
 def test_bad_feed_in_a_run_same_error():
     lines = ["G1 F100\n", *_plain_lines(20), "G1 X1 Y2 F-3\n", *_plain_lines(20)]
-    _check(lines)
+    check_fast_is_slow(lines)
 
 
 def test_feed_above_machine_max_warns_the_same():
@@ -180,14 +146,14 @@ def test_feed_above_machine_max_warns_the_same():
     it_f._feed_max_mm_min = 5000.0
     it_s = Interpreter(fast=False)
     it_s._feed_max_mm_min = 5000.0
-    _same_motion(it_f.run(lines), it_s.run(lines))
+    same_motion(it_f.run(lines), it_s.run(lines))
     assert len(it_f.warnings) == 1 and repr(it_f.warnings) == repr(it_s.warnings)
 
 
 def test_negative_zero_positions_kept():
     lines = ["G10 L2 P1 X-0 Y-0 Z-0\n", "G54 G91 G1 F100\n", "G90 G0 X-0 Y-0 Z-0\n", "G91\n"]
     lines += ["G1 X-0\n", "G1 Y0\n", "G1 Z-0.0\n"] * 10
-    _check(lines)
+    check_fast_is_slow(lines)
 
 
 def test_stream_of_a_file_same(tmp_path):
@@ -200,5 +166,5 @@ def test_stream_of_a_file_same(tmp_path):
     path.write_text("G21 G90 G94\nG1 F500\n" + body + "M30\n")
     fast = Motion.concatenate(list(iter_motion_chunks(path, chunk_blocks=1000)))
     slow = Motion.concatenate(list(iter_motion_chunks(path, chunk_blocks=1000, fast=False)))
-    _same_motion(fast, slow)
+    same_motion(fast, slow)
     assert len(fast) == 6001
