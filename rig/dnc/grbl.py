@@ -467,9 +467,7 @@ class GrblStreamer(StreamerBase):
             line = ev[1]
             if line.startswith("[GC:"):
                 break
-            if line.startswith("ALARM:"):
-                self.messages.append(line)
-            elif not line.startswith("<"):
+            if not line.startswith("<"):  # alarms and messages; status reports are not kept
                 self.messages.append(line)
         while True:
             ev = self._get(heard)
