@@ -148,3 +148,21 @@ def test_bad_input():
         immersion_angles(12.0, 10.0, "down")
     with pytest.raises(AnalysisError, match="mode"):
         immersion_angles(2.0, 10.0, "sideways")
+
+
+def test_runout_thickens_the_chip_of_the_tooth_after_the_short_one():
+    # Hand-worked: 3 straight flutes, runout e = 0.01 mm towards 0 deg, so the radii are
+    # R + e cos(-k 120 deg): +e, -e/2, -e/2 for teeth 0, 1, 2. Tooth k sits at phi + k 120 deg, so
+    # tooth k + 1 passes a point a tooth period before tooth k and cut the surface it meets:
+    # h_k = fz sin(theta) + r_k - r_(k+1): h0 = fz + 1.5 e, h1 = fz, h2 = fz - 1.5 e at theta 90.
+    # At theta = 90 deg the tangential force on the workpiece is -Y, the radial +X:
+    # Fx = (Krc h + Kre) b, Fy = -(Ktc h + Kte) b, b = 2 mm (only that tooth is in the slot).
+    tool = FLAT.model_copy(update={"helix_deg": 0.0, "runout_mm": 0.01})
+    cut = EndMillCut(0.05, 2.0, 0.0, 180.0)
+    phi = np.radians([90.0, 330.0, 210.0])  # tooth 0, 1, 2 at 90 deg
+    f = endmill_forces(phi, tool, COEF, cut)
+    expect_x = [168 * 0.065 * 2 + 30.8 * 2, 168 * 0.05 * 2 + 30.8 * 2, 168 * 0.035 * 2 + 30.8 * 2]
+    expect_y = [-(796 * 0.065 * 2 + 27.7 * 2), -(796 * 0.05 * 2 + 27.7 * 2),
+                -(796 * 0.035 * 2 + 27.7 * 2)]  # fmt: skip
+    np.testing.assert_allclose(f[:, 0], expect_x, rtol=1e-9)
+    np.testing.assert_allclose(f[:, 1], expect_y, rtol=1e-9)

@@ -21,7 +21,8 @@ Conventions (shared with :mod:`analysis.forces.facemill` so the rig and the iden
   down (climb) milling: on its -Y side, exit at phi = pi. ``immersion_angles`` gives both.
 - Runout: the tool axis is offset by ``runout_mm`` (amplitude, from the tool config or the cut)
   towards ``runout_angle_deg``; tooth k's radius is R + e cos(runout_angle - k 2 pi / N) and its
-  chip changes by its radius minus that of tooth k - 1. A tooth whose chip becomes <= 0 does not
+  chip changes by its radius minus that of the tooth that passed before it, k + 1 (tooth k sits
+  at phi + k 2 pi / N, so tooth k + 1 leads it by a pitch). A tooth whose chip becomes <= 0 does not
   cut (no multi-tooth skipping beyond that).
 
 Public API (shapes: ``phi_rad`` any shape ``(...)``; conditions broadcast with it):
@@ -165,7 +166,9 @@ def endmill_design(
     e = tool.runout_mm if cut.runout_mm is None else cut.runout_mm
     lam = np.radians(cut.runout_angle_deg)
     radius_k = e * np.cos(lam - k * pitch)
-    d_radius = radius_k - np.roll(radius_k, 1)
+    # The tooth that cut the surface tooth k now meets is the one a pitch ahead, k + 1 (it
+    # reached this angle a tooth period earlier): its radius, not tooth k - 1's, sets the chip.
+    d_radius = radius_k - np.roll(radius_k, -1)
     sk, ck = sin_k[..., None, :], cos_k[..., None, :]
     h = (fz[..., None, None] * np.sin(ang) + d_radius[:, None]) * sk
     st = np.radians(np.asarray(cut.entry_deg, float))
