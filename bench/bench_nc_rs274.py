@@ -67,28 +67,30 @@ def write_lines(path: Path, n: int, seed: int = 1) -> None:
         fh.write("M2\n")
 
 
+def arc_lines(n: int) -> list[str]:
+    """Semicircles by I J, quarter arcs by R and lines, in a zig-zag that stays near the origin
+    (also the program tests/test_nc_arcfast.py checks the arc fast path on)."""
+    rows, x, y = ["G21 G90 G17 G94\n", "G0 X0 Y0 Z1\n", "G1 Z-1 F400\n"], 0.0, 0.0
+    for i in range(n):
+        k = i % 4
+        if k == 0:
+            d = 10.0 if (i // 4) % 2 == 0 else -10.0
+            rows.append(f"G2 X{x + d:.3f} Y{y:.3f} I{d / 2:.3f} J0\n")
+            x += d
+        elif k == 1:
+            rows.append(f"G3 X{x - 5:.3f} Y{y + 5:.3f} R5\n")
+            x, y = x - 5, y + 5
+        elif k == 2:
+            rows.append(f"G1 X{x:.3f} Y{y - 5:.3f}\n")
+            y -= 5
+        else:
+            rows.append(f"G1 X{x + 5:.3f} Y{y:.3f} F600\n")
+            x += 5
+    return rows + ["M2\n"]
+
+
 def write_arcs(path: Path, n: int) -> None:
-    """Semicircles by I J, quarter arcs by R and lines, in a zig-zag that stays near the origin."""
-    with open(path, "w") as fh:
-        fh.write("G21 G90 G17 G94\nG0 X0 Y0 Z1\nG1 Z-1 F400\n")
-        x, y, rows = 0.0, 0.0, []
-        for i in range(n):
-            k = i % 4
-            if k == 0:
-                d = 10.0 if (i // 4) % 2 == 0 else -10.0
-                rows.append(f"G2 X{x + d:.3f} Y{y:.3f} I{d / 2:.3f} J0\n")
-                x += d
-            elif k == 1:
-                rows.append(f"G3 X{x - 5:.3f} Y{y + 5:.3f} R5\n")
-                x, y = x - 5, y + 5
-            elif k == 2:
-                rows.append(f"G1 X{x:.3f} Y{y - 5:.3f}\n")
-                y -= 5
-            else:
-                rows.append(f"G1 X{x + 5:.3f} Y{y:.3f} F600\n")
-                x += 5
-        fh.write("".join(rows))
-        fh.write("M2\n")
+    path.write_text("".join(arc_lines(n)))
 
 
 def write_one_line(path: Path, n_bytes: int) -> None:

@@ -5,7 +5,9 @@ the arcs the per-block path refuses (radius mismatch, R too small, words of the 
 
 from __future__ import annotations
 
+import importlib.util
 import math
+from pathlib import Path
 
 import pytest
 from _fastpath import check_fast_is_slow
@@ -148,24 +150,13 @@ def test_arc_tolerance_option(lines, tol):
 
 
 def _zigzag(n: int) -> list[str]:
-    """The bench's mixed arcs (bench/bench_nc_rs274.py)."""
-    rows, x, y = ["G21 G90 G17 G94\n", "G0 X0 Y0 Z1\n", "G1 Z-1 F400\n"], 0.0, 0.0
-    for i in range(n):
-        k = i % 4
-        if k == 0:
-            d = 10.0 if (i // 4) % 2 == 0 else -10.0
-            rows.append(f"G2 X{x + d:.3f} Y{y:.3f} I{d / 2:.3f} J0\n")
-            x += d
-        elif k == 1:
-            rows.append(f"G3 X{x - 5:.3f} Y{y + 5:.3f} R5\n")
-            x, y = x - 5, y + 5
-        elif k == 2:
-            rows.append(f"G1 X{x:.3f} Y{y - 5:.3f}\n")
-            y -= 5
-        else:
-            rows.append(f"G1 X{x + 5:.3f} Y{y:.3f} F600\n")
-            x += 5
-    return rows + ["M2\n"]
+    """The bench's mixed arcs (bench/bench_nc_rs274.py, imported by path: bench is no package)."""
+    spec = importlib.util.spec_from_file_location(
+        "bench_nc_rs274", Path(__file__).parents[1] / "bench" / "bench_nc_rs274.py"
+    )
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    return bench.arc_lines(n)
 
 
 def test_bench_arcs_identical_and_fast_path_taken():
