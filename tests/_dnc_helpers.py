@@ -97,3 +97,20 @@ class EventWaiter:
 
     def wait(self, timeout_s: float = 60.0) -> bool:
         return self.hit.wait(timeout_s)
+
+
+#: full and incremental arcs, modal G2/G3 and a G91 stretch: what a restart must make complete
+ARCS = """G21 G90 G17
+S1000 M3
+G0 X0 Y0 Z5
+G1 Z-1 F300
+G1 X10
+G2 X20 Y0 I5 J0
+X30 I5
+G91 G3 X-10 Y0 I-5
+X-10 I-5
+G90 G1 X0 Y0
+G0 Z5
+M5
+M30
+"""

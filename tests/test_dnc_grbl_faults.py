@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 import pytest
-from _dnc_helpers import GRBL_LINE_B_S, grbl_cfg, grbl_sent, grbl_texts, line_program
+from _dnc_helpers import ARCS, GRBL_LINE_B_S, grbl_cfg, grbl_sent, grbl_texts, line_program
 
 from planning.nc import interpret
 from rig.dnc import (
@@ -189,21 +189,6 @@ def test_soft_limit_alarm_names_the_remedy_and_reset_unlock_recover() -> None:
 
 
 # -- restart at an arc --------------------------------------------------------------------------
-
-ARCS = """G21 G90 G17
-S1000 M3
-G0 X0 Y0 Z5
-G1 Z-1 F300
-G1 X10
-G2 X20 Y0 I5 J0
-X30 I5
-G91 G3 X-10 Y0 I-5
-X-10 I-5
-G90 G1 X0 Y0
-G0 Z5
-M5
-M30
-"""
 
 
 @pytest.mark.parametrize("start", [5, 6, 7, 8])

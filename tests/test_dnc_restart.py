@@ -4,6 +4,7 @@ whole program from block N on, whatever modal state N inherits."""
 from __future__ import annotations
 
 import numpy as np
+from _dnc_helpers import ARCS as ARCS_BODY
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -64,22 +65,7 @@ def test_preamble_then_rest_moves_like_the_original(lines, data) -> None:
 
 # -- arcs and the Fanuc drip feed -------------------------------------------------------------
 
-ARCS = """%
-G21 G90 G17
-S1000 M3
-G0 X0 Y0 Z5
-G1 Z-1 F300
-G1 X10
-G2 X20 Y0 I5 J0
-X30 I5
-G91 G3 X-10 Y0 I-5
-X-10 I-5
-G90 G1 X0 Y0
-G0 Z5
-M5
-M30
-%
-"""
+ARCS = "%\n" + ARCS_BODY + "%\n"  # as a Fanuc program is framed
 
 
 def test_restart_at_arcs_completes_the_block_for_both_protocols() -> None:
