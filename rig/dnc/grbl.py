@@ -371,6 +371,21 @@ class GrblStreamer(StreamerBase):
             if raw:
                 self._lines.put((self.clock(), raw.decode("ascii", "replace")))
 
+    def _next_line(self, heard: list[float]) -> str:
+        """The next line GRBL sends that is not a status report; messages and alarms among them
+        are kept in ``messages`` (answers are not)."""
+        while True:
+            ev = self._get(heard)
+            if ev is None:
+                self._check_interrupt()
+                continue
+            line = ev[1]
+            if line.startswith("<"):
+                continue
+            if not line.startswith("[GC:") and not _is_answer(line):
+                self.messages.append(line)
+            return line
+
     def _get(self, heard: list[float], timeout: float = 0.05) -> tuple[float, str] | None:
         """Next line from GRBL or None after ``timeout``; faults on silence or a lost port."""
         link = self.link
@@ -459,27 +474,10 @@ class GrblStreamer(StreamerBase):
         # overfill GRBL's receive buffer.
         self._check_interrupt()
         self._write(HANDSHAKE)
-        while True:
-            ev = self._get(heard)
-            if ev is None:
-                self._check_interrupt()
-                continue
-            line = ev[1]
-            if line.startswith("[GC:"):
-                break
-            if not line.startswith("<"):  # alarms and messages; status reports are not kept
-                self.messages.append(line)
-        while True:
-            ev = self._get(heard)
-            if ev is None:
-                self._check_interrupt()
-                continue
-            line = ev[1]
-            if line.startswith("<"):
-                continue
-            if _is_answer(line):
-                break
-            self.messages.append(line)
+        while not (line := self._next_line(heard)).startswith("[GC:"):
+            pass  # stale answers of an earlier stream are dropped; alarms and messages are kept
+        while not _is_answer(line := self._next_line(heard)):
+            pass
         if line != "ok":
             raise Fault("error", f"GRBL answered $G (parser state) with {line}")
         st = self._wait_status(heard, lambda s: True)
