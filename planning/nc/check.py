@@ -7,6 +7,7 @@ refuse in it (:func:`dialect_problems`, :mod:`planning.nc.dialect`).
 
 from __future__ import annotations
 
+import itertools
 import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -16,7 +17,7 @@ from typing import IO, TYPE_CHECKING, Any
 from planning.nc.dialect import DialectProblem, check_dialect
 from planning.nc.interpreter import Interpreter
 from planning.nc.motion import Motion
-from planning.nc.run import file_lines, file_mentions_rotary
+from planning.nc.run import file_line_lists, file_lines, file_mentions_rotary
 from planning.nc.stats import MotionStats, StreamStats, axis_limit_problems
 from planning.nc.table import write_motion_csv
 
@@ -32,20 +33,24 @@ def progress_lines(
     path: str | Path, progress: Callable[[float, float], None] | None = None
 ) -> Iterator[str]:
     """The file's lines; for a file of :data:`PROGRESS_MIN_BYTES` or more, ``progress(bytes_done,
-    bytes_total)`` is called every 20 000 lines and once at the end."""
+    bytes_total)`` is called after each read (about a MB) and once at the end."""
     try:
         size_bytes = os.path.getsize(path)
     except OSError:
         size_bytes = 0
     if progress is None or size_bytes < PROGRESS_MIN_BYTES:
-        yield from file_lines(path)
-        return
+        return file_lines(path)
+    return itertools.chain.from_iterable(_reporting(file_line_lists(path), size_bytes, progress))
+
+
+def _reporting(
+    lists: Iterator[list[str]], size_bytes: int, progress: Callable[[float, float], None]
+) -> Iterator[list[str]]:
     done_bytes = 0
-    for i, raw in enumerate(file_lines(path)):
-        done_bytes += len(raw)
-        if i % 20_000 == 0:  # report rarely: the loop does ~200k lines/s
-            progress(done_bytes, size_bytes)
-        yield raw
+    for lines in lists:
+        done_bytes += sum(map(len, lines))  # characters: bytes for the ASCII of a program
+        progress(min(done_bytes, size_bytes), size_bytes)
+        yield lines
     progress(size_bytes, size_bytes)
 
 

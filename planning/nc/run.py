@@ -24,8 +24,7 @@ if TYPE_CHECKING:
 
 def _lines_of(source: str | os.PathLike | Program | Iterable[str]) -> Iterable[str]:
     if isinstance(source, os.PathLike):
-        # a C-level chain over lists of lines: no generator frame per line
-        return itertools.chain.from_iterable(_file_line_lists(source))
+        return file_lines(source)
     if isinstance(source, str):
         return _lexer.split_lines(source)
     lines = getattr(source, "lines", None)
@@ -99,11 +98,11 @@ def file_lines(path: str | Path, *, max_line_chars: int = MAX_LINE_CHARS) -> Ite
     than ``max_line_chars`` (as soon as it is seen, without reading the rest of it), or why the
     file cannot be read.
     """
-    for lines in _file_line_lists(path, max_line_chars):
-        yield from lines
+    # a C-level chain over lists of lines: no generator frame per line
+    return itertools.chain.from_iterable(file_line_lists(path, max_line_chars))
 
 
-def _file_line_lists(path: str | Path, max_line_chars: int = MAX_LINE_CHARS) -> Iterator[list[str]]:
+def file_line_lists(path: str | Path, max_line_chars: int = MAX_LINE_CHARS) -> Iterator[list[str]]:
     """:func:`file_lines` a list of lines (one read) at a time; an error comes after the lines
     before it, as with :func:`file_lines`."""
     name = str(path)
