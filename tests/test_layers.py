@@ -28,7 +28,12 @@ MAY_IMPORT: dict[str, set[str]] = {
     "analysis.config": {"analysis.errors", "analysis.validation"},
     "analysis.runs": {"analysis.errors", "analysis.config"},
     "analysis.forces": {"analysis.errors", "analysis.config", "analysis.runs"},
-    "analysis.modal": {"analysis.errors", "analysis.config", "analysis.runs"},
+    "analysis.modal": {
+        "analysis.errors",
+        "analysis.validation",
+        "analysis.config",
+        "analysis.runs",
+    },
     "analysis.rules": {
         "analysis.errors",
         "analysis.validation",
