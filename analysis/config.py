@@ -355,6 +355,17 @@ class DynoChannel(Model):
     sensitivity_pc_n: float = Field(description="pC/N (Kistler 9257B: about -7.5 x/y, -3.7 z)")
     range_n_v: float = Field(gt=0, le=1e6, description="N/V, amplifier scale (range / 10 V)")
 
+    @model_validator(mode="before")
+    @classmethod
+    def _signed_axis(cls, data: Any) -> Any:
+        # axis = "-y": the channel is cutlab's y with its sign flipped (same as sign = -1).
+        if isinstance(data, dict) and isinstance(data.get("axis"), str):
+            axis = data["axis"].strip()
+            if axis[:1] in "+-" and axis[1:].strip():
+                flip = -1 if axis[0] == "-" else 1
+                data = {**data, "axis": axis[1:].strip(), "sign": flip * data.get("sign", 1)}
+        return data
+
     @model_validator(mode="after")
     def _nonzero(self) -> DynoChannel:
         if self.sensitivity_pc_n == 0:
@@ -372,6 +383,11 @@ class Dynamometer(Model):
     modes: tuple[Mode, ...] = ()
     modes_without_workpiece: tuple[Mode, ...] = ()
     calibration_id: str = Field("", description="identity of the calibration sheet")
+    axes: str | None = Field(
+        None,
+        pattern=r"^\s*[xyzXYZ]\s*=\s*[+-]?[^,=]+(,\s*[xyzXYZ]\s*=\s*[+-]?[^,=]+){2}$",
+        description="export columns for cutlab's x, y, z, e.g. 'x=-Fy,y=Fx,z=Fz' (imports)",
+    )
 
     @model_validator(mode="after")
     def _shape(self) -> Dynamometer:

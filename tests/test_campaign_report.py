@@ -31,9 +31,17 @@ def test_facemill_campaign_identifies_the_truth_and_writes_the_report(tmp_path: 
     s = rep.summary["facemill-coefficients"]
     assert s["success"], s["message"]
     truth = get_material("al6061-t6").facemill
-    got = {r["coefficient"]: r["identified"] for r in s["coefficients"]}
-    for name in ("K_T_n_mm2", "K_R", "P_T_n_mm", "P_R_n_mm"):
-        assert got[name] == pytest.approx(getattr(truth, name), rel=0.02), name
+    # The noise is seeded ([sim] seed + run index). The record's start (when the streamed program
+    # reaches the control) varies with the machine's load and moves the revolution grid against
+    # the cut; it used to move the face mill's long entry and exit tails into the "air" that the
+    # offset line is drawn through (P_R off by 13.7 %, or a run rejected). Now the tails count
+    # as cutting; what the grid's phase still moves (a partly engaged revolution in or out of
+    # the window, ~1 %) is what the bootstrap over runs and revolutions measures, so the truth
+    # lies in its 95 % interval; the noise-only standard error (0.3 % on P_R) would not hold it.
+    for r in s["coefficients"][:4]:
+        truth_value = getattr(truth, r["coefficient"])
+        assert r["boot_ci_low"] <= truth_value <= r["boot_ci_high"], r
+        assert r["identified"] == pytest.approx(truth_value, rel=0.02), r
     assert s["max_error_pct_seed003"] < 2.0
     assert s["validation_max_abs_error_pct"] < 3.0
     for f in ("report.md", "summary.json", "runs.csv", "coefficients.csv", "validation.csv",

@@ -98,3 +98,41 @@ def test_tooth_peaks_and_runout():
     np.testing.assert_allclose(tp.mean_peak_n, heights, rtol=1e-3)
     assert tp.runout_ratio == pytest.approx(20 / 95, rel=1e-2)
     assert tp.peaks_n.shape == (20, 4)
+
+
+def test_a_record_without_air_cuts_throughout():
+    """The air trimmed off: every revolution cuts. Not 'no cutting found' but NoAirError (no
+    offset to take), and with the record's zero as the offset all revolutions count."""
+    from analysis.runs.steady import NoAirError
+
+    f, cut = _record(n_rev=40, offset=(0.0, 0.0, 0.0))
+    f = f[cut]
+    with pytest.raises(NoAirError):
+        find_steady(f, RATE, RPM)
+    part = find_steady(f, RATE, RPM, offset_n=np.zeros(3))
+    assert part.steady_revs >= 36 and part.air_revs == 0
+    assert part.kept.startswith(f"kept {part.steady_revs} of {part.cutting_revs}")
+
+
+def test_a_noisy_revolution_does_not_halve_the_steady_part():
+    """One revolution 5 % high in the middle of the cut: kept (bridged), not a split."""
+    f, cut = _record(n_rev=60)
+    k = 8 + 30  # a revolution in the middle of the cut
+    rev = slice(k * 200, (k + 1) * 200)
+    f[rev] += 0.05 * (f[rev] - [5, -3, 1])
+    part = find_steady(f, RATE, RPM, tolerance=0.02)
+    assert part.steady_revs >= 56 and part.outlier_revs == 1
+    assert "1 kept outside the band" in part.kept
+
+
+def test_slow_entry_and_exit_tails_do_not_count_as_air():
+    """A cut ramping in and out over 15 revolutions: the revolutions cutting little beside the
+    cut are not air, so the offset (5, -3, 1) N is not pulled towards them."""
+    f, cut = _record(n_rev=60, noise=0.2)
+    t = np.arange(len(f)) / RATE
+    first, last = t[cut][[0, -1]]
+    ramp = np.clip(np.minimum(t - first, last - t) / 1.5, 0, 1)
+    f = (f - [5, -3, 1]) * ramp[:, None] + [5, -3, 1]
+    part = find_steady(f, RATE, RPM)
+    np.testing.assert_allclose(part.offset_n, [5, -3, 1], atol=0.05)
+    assert part.entry_revs >= 14 and part.exit_revs >= 14

@@ -1,9 +1,12 @@
 """Force coefficients from recorded runs: reduce each run to its revolution average, fit the
 face-mill or end-mill model, validate by prediction; runs from HDF5 files or DynoWare / CSV
-exports (:func:`fit_files` does all of it from files).
+exports (:func:`fit_files` does all of it from files; :func:`load_export` reads one export with
+its axis mapping, offset and conditions table row).
 """
 
 from analysis.identify._common import CI_NOTE
+from analysis.identify.axes import AxisMap, check_axes, parse_axes
+from analysis.identify.conditions import ConditionsTable, load_conditions_table
 from analysis.identify.endmill import fit_endmill
 from analysis.identify.facemill import (
     ForceRun,
@@ -13,21 +16,44 @@ from analysis.identify.facemill import (
     reduce_run,
     reduce_run_file,
 )
-from analysis.identify.files import fit_files, reduce_files, tool_teeth
-from analysis.identify.importers import import_run, merge_conditions, read_force_table
+from analysis.identify.files import (
+    ImportOptions,
+    find_tool,
+    fit_files,
+    load_exports,
+    reduce_files,
+    tool_teeth,
+)
+from analysis.identify.importers import (
+    Export,
+    import_run,
+    load_export,
+    merge_conditions,
+    read_force_table,
+)
 from analysis.identify.validate import compare_runs, plot_comparison, plot_waveforms, predicted_mean
 
 __all__ = [
+    "AxisMap",
     "CI_NOTE",
+    "ConditionsTable",
+    "Export",
     "ForceRun",
+    "ImportOptions",
     "RunConditions",
+    "check_axes",
     "compare_runs",
+    "find_tool",
     "fit_endmill",
     "fit_facemill",
     "fit_facemill_runs",
     "fit_files",
     "import_run",
+    "load_conditions_table",
+    "load_export",
+    "load_exports",
     "merge_conditions",
+    "parse_axes",
     "plot_comparison",
     "plot_waveforms",
     "predicted_mean",

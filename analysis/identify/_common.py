@@ -19,6 +19,7 @@ from scipy import linalg, stats
 from analysis.errors import AnalysisError
 from analysis.runs.steady import (
     IDENTIFY_TOLERANCE,
+    NoAirError,
     RevolutionStats,
     SyncAverager,
     find_steady,
@@ -132,7 +133,10 @@ class RunAverage:
     ``waveform_n`` (n_bins, 3) synchronous average over ``revolutions`` revolutions (offset
     removed; bin 0 starts at the steady window's first sample, phase unknown); ``mean_n`` (3,)
     mean force over those revolutions; ``period_s`` revolution period; ``window`` the steady part
-    in samples; ``tooth_peak_n`` (teeth,) mean per-tooth peak resultant and ``runout_ratio``.
+    in samples; ``tooth_peak_n`` (teeth,) mean per-tooth peak resultant and ``runout_ratio``;
+    ``steady`` how many revolutions were kept and why the rest were dropped;
+    ``revolution_means_n`` (revolutions, 3) each kept revolution's mean force (the bootstrap
+    resamples them).
     """
 
     name: str
@@ -147,6 +151,15 @@ class RunAverage:
     tooth_peak_n: np.ndarray = field(default_factory=lambda: np.zeros(0))
     runout_ratio: float = 0.0
     force_unit: str = "N"
+    steady: str = ""
+    revolution_means_n: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+
+def _revolution_means(seg: np.ndarray, rate_hz: float, period_s: float) -> np.ndarray:
+    """Mean force of each whole revolution (refined period) of an offset-corrected segment."""
+    stats = RevolutionStats(rate_hz, 60.0 / period_s, len(seg), seg.shape[1])
+    stats.add(seg, 0)
+    return stats.sums / np.maximum(stats.counts, 1)[:, None]
 
 
 #: Said under every coefficient table: what the intervals do and do not cover.
@@ -187,7 +200,11 @@ def reduce_run(
         raise AnalysisError(f"run {run.name}: forces hold NaN or inf samples")
     c = run.conditions
     try:
-        part = find_steady(x, run.rate_hz, c.spindle_rpm, tolerance=tolerance)
+        try:
+            part = find_steady(x, run.rate_hz, c.spindle_rpm, tolerance=tolerance)
+        except NoAirError:
+            # Cut from start to end (the operator trimmed the air): the record's own zero.
+            part = find_steady(x, run.rate_hz, c.spindle_rpm, tolerance, offset_n=np.zeros(3))
     except AnalysisError as exc:
         raise type(exc)(f"run {run.name}: {exc}") from None  # keeps NoSteadyCutError
     seg = part.corrected(x[part.window], part.window.start, run.rate_hz)
@@ -210,6 +227,8 @@ def reduce_run(
         tooth_peak_n=peaks.mean_peak_n,
         runout_ratio=peaks.runout_ratio,
         force_unit=run.force_unit,
+        steady=part.kept,
+        revolution_means_n=_revolution_means(seg, run.rate_hz, part.period_s),
     )
 
 
@@ -320,19 +339,83 @@ class LinearFit:
     dof: int
     confidence: float
     condition_number: float
+    boot_low: np.ndarray | None = None
+    boot_high: np.ndarray | None = None
 
     def as_dict(self) -> dict[str, dict[str, float]]:
+        nan = np.full(len(self.names), math.nan)
+        blo = nan if self.boot_low is None else self.boot_low
+        bhi = nan if self.boot_high is None else self.boot_high
         return {
             n: {
                 "value": float(v),
                 "std_error": float(s),
                 "ci_low": float(lo),
                 "ci_high": float(hi),
+                "boot_ci_low": float(bl),
+                "boot_ci_high": float(bh),
             }
-            for n, v, s, lo, hi in zip(
-                self.names, self.values, self.std_errors, self.ci_low, self.ci_high
+            for n, v, s, lo, hi, bl, bh in zip(
+                self.names, self.values, self.std_errors, self.ci_low, self.ci_high, blo, bhi
             )
         }
+
+
+@dataclass(frozen=True)
+class RunBlock:
+    """One run's share of a least-squares fit's normal equations: ``xtx`` (p, p), ``xty`` (p,),
+    ``shift`` (p, c) how ``xty`` moves when the run's force level moves by (c,) N, and the
+    run's ``revolution_means_n`` (revolutions, c) to resample."""
+
+    xtx: np.ndarray
+    xty: np.ndarray
+    shift: np.ndarray
+    revolution_means_n: np.ndarray
+
+    @classmethod
+    def of(cls, X: np.ndarray, y: np.ndarray, rev_means: np.ndarray) -> RunBlock:
+        """From a run's regressors X (m, c, p) against its data y (m, c)."""
+        X2 = X.reshape(-1, X.shape[-1])
+        return cls(X2.T @ X2, X2.T @ y.reshape(-1), X.sum(axis=0).T, np.asarray(rev_means))
+
+
+#: Bootstrap replicates for the intervals (the percentiles settle to ~0.3 % of the width).
+N_BOOT = 400
+
+
+def bootstrap_intervals(
+    blocks: Sequence[RunBlock], derived: Callable[[np.ndarray], np.ndarray] | None = None,
+    confidence: float = 0.95, n_boot: int = N_BOOT, seed: int = 0,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Percentile bootstrap intervals (low, high) of the fitted parameters (or of
+    ``derived(p)``): resample the runs, and within each drawn run its revolutions' mean forces
+    (which moves that run's force level). Covers what differs from run to run and revolution to
+    revolution in a real cut (material, depth, spindle), which the noise-only intervals miss.
+    Replicates that cannot determine the parameters (too few distinct runs drawn) are skipped.
+    A fixed ``seed``: the same data give the same intervals."""
+    rng = np.random.default_rng(seed)
+    n = len(blocks)
+    rev_mean = [b.revolution_means_n.mean(axis=0) if len(b.revolution_means_n) else 0.0
+                for b in blocks]  # fmt: skip
+    out = []
+    for _ in range(n_boot):
+        A = 0.0
+        v = 0.0
+        for i in rng.integers(0, n, n):
+            b = blocks[i]
+            r = b.revolution_means_n
+            delta = r[rng.integers(0, len(r), len(r))].mean(axis=0) - rev_mean[i] if len(r) else 0
+            A = A + b.xtx
+            v = v + b.xty + b.shift @ np.broadcast_to(delta, b.shift.shape[1:])
+        if np.linalg.matrix_rank(A) < A.shape[0]:
+            continue
+        p = np.linalg.solve(A, v)
+        out.append(derived(p) if derived else p)
+    if len(out) < n_boot // 4:
+        nan = np.full(len(derived(blocks[0].xty) if derived else blocks[0].xty), math.nan)
+        return nan, nan.copy()
+    q = 50 * (1 - confidence)
+    return np.percentile(out, q, axis=0), np.percentile(out, 100 - q, axis=0)
 
 
 def linear_fit(
@@ -444,7 +527,10 @@ def reduce_run_file(
         if progress:
             progress(len(idx))
     try:
-        part = steady_from_stats(stats, rate, c.spindle_rpm, tolerance)
+        try:
+            part = steady_from_stats(stats, rate, c.spindle_rpm, tolerance)
+        except NoAirError:
+            part = steady_from_stats(stats, rate, c.spindle_rpm, tolerance, np.zeros(3))
     except AnalysisError as exc:
         raise type(exc)(f"run {name}: {exc}") from None
     lo = part.window.start
@@ -459,9 +545,11 @@ def reduce_run_file(
     )
     nb = n_bins or default_bins(rate, part.period_s)
     avg = SyncAverager(rate, part.period_s, nb)
+    revs = RevolutionStats(rate, 60.0 / part.period_s, part.window.stop - lo, 3)
     for idx, f in iter_run_chunks(path, chunk_samples, part.window.start, part.window.stop):
         t = (idx - lo) / rate
         avg.add(f - part.offset_n - t[:, None] * part.drift_n_s, idx - lo)
+        revs.add(f - part.offset_n - t[:, None] * part.drift_n_s, idx - lo)
         if progress:
             progress(len(idx))
     wave = avg.mean()
@@ -474,5 +562,6 @@ def reduce_run_file(
         name=name, conditions=c, rate_hz=rate, waveform_n=wave, mean_n=wave.mean(axis=0),
         period_s=part.period_s, revolutions=part.steady_revs,
         window=(part.window.start, part.window.stop), offset_n=part.offset_n,
-        tooth_peak_n=peaks.mean_peak_n, runout_ratio=peaks.runout_ratio,
+        tooth_peak_n=peaks.mean_peak_n, runout_ratio=peaks.runout_ratio, steady=part.kept,
+        revolution_means_n=revs.sums / np.maximum(revs.counts, 1)[:, None],
     )  # fmt: skip

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -35,7 +35,9 @@ from analysis.identify._common import (
     ForceRun,
     LinearFit,
     RunAverage,
+    RunBlock,
     RunConditions,
+    bootstrap_intervals,
     check_units,
     linear_fit,
     reduce_runs,
@@ -43,6 +45,7 @@ from analysis.identify._common import (
     too_few_runs,
     with_rejected,
 )
+from analysis.identify.adequacy import Adequacy, runs_adequacy
 from analysis.runs import IDENTIFY_TOLERANCE
 
 __all__ = ["EndMillFit", "fit_endmill", "fit_endmill_runs", "synthetic_endmill_run"]
@@ -65,7 +68,9 @@ def _cut(tool: EndMill, c: RunConditions) -> EndMillCut:
 class EndMillFit:
     """Result of :func:`fit_endmill`: ``success``/``message``; ``coefficients``
     (EndMillCoefficients); ``fit`` (LinearFit over :data:`analysis.forces.endmill.PARAMETERS`);
-    ``residuals_n`` (runs, 3) N mean-force residuals; ``runs``; ``rejected`` (name, reason)."""
+    ``residuals_n`` (runs, 3) N mean-force residuals; ``runs``; ``rejected`` (name, reason);
+    ``adequacy`` whether the data support the edge coefficients (linear model against a size
+    effect, :mod:`analysis.identify.adequacy`)."""
 
     success: bool
     message: str
@@ -74,6 +79,7 @@ class EndMillFit:
     residuals_n: np.ndarray | None = None
     runs: tuple[str, ...] = ()
     rejected: tuple[tuple[str, str], ...] = ()
+    adequacy: Adequacy | None = None
 
 
 def fit_endmill(
@@ -94,21 +100,26 @@ def fit_endmill(
     )  # fmt: skip
     if few:
         return EndMillFit(False, few, runs=names)
-    X = np.concatenate([mean_force_design(tool, _cut(tool, a.conditions)) for a in averages])
+    Xr = [mean_force_design(tool, _cut(tool, a.conditions)) for a in averages]
+    X = np.concatenate(Xr)
     y = np.concatenate([a.mean_n for a in averages])
     try:
         fit, resid = linear_fit(X, y, PARAMETERS, confidence)
     except AnalysisError as exc:
         return EndMillFit(False, str(exc), runs=names)
+    blocks = [RunBlock.of(x[None], a.mean_n[None], a.revolution_means_n)
+              for x, a in zip(Xr, averages)]  # fmt: skip
+    lo, hi = bootstrap_intervals(blocks, confidence=confidence)
+    fit = replace(fit, boot_low=lo, boot_high=hi)
+    adequacy = runs_adequacy(averages)
     try:
         coef = coefficients_from_vector(fit.values)
     except Exception as exc:  # pydantic range check (e.g. a negative K_tc): report it
         return EndMillFit(False, f"fitted coefficients out of range: {exc}", fit=fit, runs=names)
-    return EndMillFit(
-        True,
-        f"fitted {len(averages)} runs ({len(y)} mean forces), R^2 = {fit.r_squared:.5f}",
-        coef, fit, resid.reshape(-1, 3), names,
-    )  # fmt: skip
+    msg = f"fitted {len(averages)} runs ({len(y)} mean forces), R^2 = {fit.r_squared:.5f}"
+    if not adequacy.edge_identified:
+        msg += f"; edge coefficients Kte, Kre, Kae not identified: {adequacy.reason}"
+    return EndMillFit(True, msg, coef, fit, resid.reshape(-1, 3), names, adequacy=adequacy)
 
 
 def fit_endmill_runs(

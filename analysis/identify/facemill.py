@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -39,8 +39,10 @@ from analysis.identify._common import (
     ForceRun,
     LinearFit,
     RunAverage,
+    RunBlock,
     RunConditions,
     axis_order,
+    bootstrap_intervals,
     check_units,
     linear_fit,
     ratio_with_error,
@@ -51,6 +53,7 @@ from analysis.identify._common import (
     too_few_runs,
     with_rejected,
 )
+from analysis.identify.adequacy import Adequacy, runs_adequacy
 from analysis.modal import DynamometerFilter
 from analysis.runs import IDENTIFY_TOLERANCE
 
@@ -92,7 +95,9 @@ class FaceMillFit:
     ``coefficients``: the identified FaceMillCoefficients (K_R, K_A ratios). ``fit``: the linear
     fit of :data:`analysis.forces.facemill.PARAMETERS` (values, std_errors, ci, r_squared, ...).
     ``summary``: per coefficient name (K_T_n_mm2, K_R, P_T_n_mm, P_R_n_mm, K_A, P_A_n_mm) its
-    value, std_error, ci_low, ci_high. ``phases_rad`` (runs,) angle of bin 0 of each run;
+    value, std_error, ci_low, ci_high and the bootstrap's boot_ci_low, boot_ci_high (runs and
+    revolutions resampled); ``adequacy`` whether the data support the ploughing coefficients
+    (:mod:`analysis.identify.adequacy`). ``phases_rad`` (runs,) angle of bin 0 of each run;
     ``residuals_n`` per run (n_bins, 3) N; ``runs`` names used; ``rejected`` (name, reason).
     """
 
@@ -105,6 +110,16 @@ class FaceMillFit:
     residuals_n: tuple[np.ndarray, ...] = ()
     runs: tuple[str, ...] = ()
     rejected: tuple[tuple[str, str], ...] = ()
+    adequacy: Adequacy | None = None
+
+
+#: The summary's coefficients from the fitted vector (PARAMETERS order: P_T, K_T, P_R, K_R K_T,
+#: P_A, K_A K_T): K_R and K_A are ratios.
+SUMMARY = ("K_T_n_mm2", "K_R", "P_T_n_mm", "P_R_n_mm", "K_A", "P_A_n_mm")
+
+
+def _summary_values(p: np.ndarray) -> np.ndarray:
+    return np.array([p[1], p[3] / p[1], p[0], p[2], p[5] / p[1], p[4]])
 
 
 def _cut(c: RunConditions) -> FaceMillCut:
@@ -221,7 +236,7 @@ def fit_facemill(
     )  # fmt: skip
     if few:
         return FaceMillFit(False, few, runs=names)
-    Xs, ys, phases = [], [], []
+    Xs, ys, phases, blocks = [], [], [], []
     filters: dict[float, DynamometerFilter | None] = {}
     for a in averages:
         if a.rate_hz not in filters:
@@ -229,7 +244,9 @@ def fit_facemill(
         filt = filters[a.rate_hz]
         ph = _phase(a, tool, filt)
         phases.append(ph)
-        Xs.append(_regressors(a, tool, filt, ph).reshape(-1, 6))
+        Xr = _regressors(a, tool, filt, ph)
+        blocks.append(RunBlock.of(Xr, a.waveform_n, a.revolution_means_n))
+        Xs.append(Xr.reshape(-1, 6))
         ys.append(a.waveform_n.reshape(-1))
     X, y = np.vstack(Xs), np.concatenate(ys)
     try:
@@ -242,14 +259,16 @@ def fit_facemill(
             False, f"fitted K_T = {p[1]:.4g} N/mm^2 is not positive: the runs do not show chip "
             "removal growing with the chip area", fit=fit, runs=names,
         )  # fmt: skip
+    lo, hi = bootstrap_intervals(blocks, confidence=confidence)
+    fit = replace(fit, boot_low=lo, boot_high=hi)
+    blo, bhi = bootstrap_intervals(blocks, _summary_values, confidence)
+    rows = (_row(fit, 1), _ratio_row(fit, 3, 1), _row(fit, 0), _row(fit, 2),
+            _ratio_row(fit, 5, 1), _row(fit, 4))  # fmt: skip
     summary = {
-        "K_T_n_mm2": _row(fit, 1),
-        "K_R": _ratio_row(fit, 3, 1),
-        "P_T_n_mm": _row(fit, 0),
-        "P_R_n_mm": _row(fit, 2),
-        "K_A": _ratio_row(fit, 5, 1),
-        "P_A_n_mm": _row(fit, 4),
+        name: {**row, "boot_ci_low": float(bl), "boot_ci_high": float(bh)}
+        for name, row, bl, bh in zip(SUMMARY, rows, blo, bhi)
     }
+    adequacy = runs_adequacy(averages)
     try:
         coef = coefficients_from_vector(p)
     except Exception as exc:  # pydantic range check: report, do not crash
@@ -257,11 +276,11 @@ def fit_facemill(
                            summary=summary, runs=names)  # fmt: skip
     n_per = [len(a.waveform_n) * 3 for a in averages]
     res_runs = tuple(r.reshape(-1, 3) for r in np.split(resid, np.cumsum(n_per)[:-1]))
-    return FaceMillFit(
-        True,
-        f"fitted {len(averages)} runs ({len(y)} points), R^2 = {fit.r_squared:.5f}",
-        coef, fit, summary, tuple(phases), res_runs, names,
-    )  # fmt: skip
+    msg = f"fitted {len(averages)} runs ({len(y)} points), R^2 = {fit.r_squared:.5f}"
+    if not adequacy.edge_identified:
+        msg += f"; ploughing coefficients P_T, P_R, P_A not identified: {adequacy.reason}"
+    return FaceMillFit(True, msg, coef, fit, summary, tuple(phases), res_runs, names,
+                       adequacy=adequacy)  # fmt: skip
 
 
 def _row(fit: LinearFit, i: int) -> dict[str, float]:

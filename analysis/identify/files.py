@@ -2,42 +2,118 @@
 (HDF5 run or DynoWare / CSV export) to its revolution average, choose the tool and the model,
 fit, and optionally predict other runs and plot.
 
-Each run's conditions are its own (the run file's conditions or the export's header) overridden
-key by key by the given ones; a run that records another tool than the fit's is refused.
+Each run's conditions are its own (the run file's conditions or the export's header), then its
+row of a conditions table, a file-name pattern, then the given ones, key by key; a run that
+records another tool than the fit's is refused. ``axes`` maps columns (exports) or channels (run
+files) to cutlab's x, y, z; the end-mill fit is checked against the other plausible mappings
+(:func:`analysis.identify.axes.check_axes`). Tools come from a user catalogue (``tools_path``)
+before the shipped ``configs/tools.toml``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from analysis.config import Dynamometer, EndMill, FaceMill, get_tool, load_rig
+from analysis.config import (
+    Dynamometer,
+    EndMill,
+    FaceMill,
+    get_material,
+    get_tool,
+    load_rig,
+    load_tools,
+)
 from analysis.errors import AnalysisError, ConfigError
 from analysis.identify._common import (
     CI_NOTE,
     RunAverage,
-    RunConditions,
+    axis_order,
     reduce_run,
     reduce_run_file,
 )
+from analysis.identify.axes import AxisMap, check_axes, parse_axes, remap
+from analysis.identify.conditions import (
+    ConditionsTable,
+    load_conditions_table,
+    normalize,
+    pattern_conditions,
+    resolve_conditions,
+)
 from analysis.identify.endmill import fit_endmill
 from analysis.identify.facemill import fit_facemill
-from analysis.identify.importers import import_run, merge_conditions
+from analysis.identify.importers import NO_AIR_ZEROED, Export, load_export
 from analysis.identify.validate import compare_runs, plot_comparison, plot_waveforms
 from analysis.runs import IDENTIFY_TOLERANCE, NoSteadyCutError, load_run
 
-__all__ = ["fit_files", "reduce_files", "tool_teeth"]
+__all__ = ["ImportOptions", "find_tool", "fit_files", "load_exports", "reduce_files",
+           "tool_teeth"]  # fmt: skip
 
 Progress = Callable[[int, int], None]
+#: End-mill coefficients by their short names (the JSON result's ``Ktc`` ... ``Kae``) and unit.
+SHORT_NAMES = {"Ktc": ("Ktc_n_mm2", "N/mm^2"), "Krc": ("Krc_n_mm2", "N/mm^2"),
+               "Kac": ("Kac_n_mm2", "N/mm^2"), "Kte": ("Kte_n_mm", "N/mm"),
+               "Kre": ("Kre_n_mm", "N/mm"), "Kae": ("Kae_n_mm", "N/mm")}  # fmt: skip
 
 
-def tool_teeth(name: str) -> int:
+def find_tool(name: str, tools_path: str | Path | None = None) -> EndMill | FaceMill:
+    """A tool from the user's catalogue ``tools_path`` (if given and it has it), else from the
+    shipped ``configs/tools.toml``."""
+    if tools_path is not None and name in load_tools(tools_path):
+        return get_tool(name, tools_path)
+    try:
+        return get_tool(name)
+    except ConfigError as exc:
+        if tools_path is None:
+            raise
+        raise ConfigError(
+            f"{tools_path}: tool {name!r} not found (nor in the shipped catalogue); known "
+            f"tools: {', '.join(sorted(load_tools(tools_path)))}; {exc}"
+        ) from None
+
+
+def tool_teeth(name: str, tools_path: str | Path | None = None) -> int:
     """Flutes of a named end mill, inserts of a face mill; 1 for no name."""
     if not name:
         return 1
-    tool = get_tool(name)
+    tool = find_tool(name, tools_path)
     return tool.flutes if isinstance(tool, EndMill) else tool.inserts
+
+
+@dataclass(frozen=True)
+class ImportOptions:
+    """How to read each file: ``axes`` (``x=-Fy,y=Fx,z=-Fz`` or None for the rig config's /
+    the files' own), a conditions ``table`` (path or loaded), a file-name ``pattern``, a
+    ``zero_file`` or ``zeroed`` (exports), the user's ``tools_path`` and ``materials_path``."""
+
+    axes: AxisMap | str | None = None
+    table: ConditionsTable | str | Path | None = None
+    pattern: str | None = None
+    zero_file: str | Path | None = None
+    zeroed: bool = False
+    tools_path: str | Path | None = None
+    materials_path: str | Path | None = None
+
+    def loaded(self) -> ImportOptions:
+        """Parsed once: the mapping and the table."""
+        axes = parse_axes(self.axes) if isinstance(self.axes, str) else self.axes
+        table = self.table
+        if table is not None and not isinstance(table, ConditionsTable):
+            table = load_conditions_table(table)
+        return ImportOptions(axes, table, self.pattern, self.zero_file, self.zeroed,
+                             self.tools_path, self.materials_path)  # fmt: skip
+
+    def layers(self, path: Any) -> list[tuple[str, Mapping[str, Any]]]:
+        """The conditions from the table row and the file-name pattern of ``path``."""
+        out = []
+        if isinstance(self.table, ConditionsTable):
+            out.append(self.table.row(path))
+        if self.pattern:
+            out.append((f"{Path(str(path)).name} (--conditions-pattern)",
+                        pattern_conditions(self.pattern, path)))  # fmt: skip
+        return out
 
 
 def _check_tool(path: Any, recorded: str, expected: str | None, by: str) -> None:
@@ -50,19 +126,107 @@ def _check_tool(path: Any, recorded: str, expected: str | None, by: str) -> None
         )
 
 
+def _check_material(path: Any, name: str, materials_path: str | Path | None) -> None:
+    if materials_path is None or not name:
+        return
+    try:
+        get_material(name, materials_path)
+    except ConfigError:
+        try:
+            get_material(name)
+        except ConfigError:
+            raise ConfigError(
+                f"{path}: material {name!r} is neither in {materials_path} nor in the shipped "
+                "catalogue"
+            ) from None
+
+
 def _reduce_file(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer | None,
                  rate_hz: float | None, expected_tool: str | None, by: str,
-                 tolerance: float) -> RunAverage:  # fmt: skip
+                 tolerance: float, opts: ImportOptions) -> tuple[RunAverage, dict[str, str]]:
+    """The run's revolution average and its notes (``axes``, ``zero``)."""  # fmt: skip
+
+    def teeth_of(name: str) -> int:
+        return tool_teeth(name, opts.tools_path)
+
     if str(path).lower().endswith((".h5", ".hdf5")):
+        layers = [*opts.layers(path), (f"{path} (--conditions)", given)]
         meta = load_run(path, samples=False)
-        where = f"{path} (conditions" + (" and --conditions)" if given else ")")
-        cond = RunConditions.from_mapping(merge_conditions(meta.conditions, given), where)
+        recorded = normalize(meta.conditions, f"{path} (conditions)", "skip")
+        if "fz_mm" in recorded:  # campaigns record both feeds; fz_mm is the one fitted
+            recorded.pop("feed_mm_min", None)
+        cond = resolve_conditions([(f"{path} (conditions)", recorded), *layers], teeth_of,
+                                  expected_tool)  # fmt: skip
         _check_tool(path, cond.tool, expected_tool, by)
-        teeth = tool_teeth(expected_tool or cond.tool)
-        return reduce_run_file(path, teeth, cond, tolerance=tolerance)
-    run = import_run(path, given, dynamometer, rate_hz)
-    _check_tool(path, run.conditions.tool, expected_tool, by)
-    return reduce_run(run, tool_teeth(expected_tool or run.conditions.tool), tolerance=tolerance)
+        _check_material(path, cond.material, opts.materials_path)
+        avg = reduce_run_file(path, teeth_of(expected_tool or cond.tool), cond,
+                              tolerance=tolerance)  # fmt: skip
+        names = [meta.channel_names[i] for i in axis_order(meta.channel_names)]
+        axes = opts.axes or AxisMap(tuple(names))  # type: ignore[arg-type]
+        if opts.axes is not None:
+            avg = remap(avg, axes.matrix(names, str(path)))  # type: ignore[union-attr]
+        zero = (meta.rig or {}).get("import", {}).get("zero", "air or the amplifier's zero")
+        return avg, {"axes": axes.text, "zero": zero}  # type: ignore[union-attr]
+    ex = _load_export(path, given, dynamometer, rate_hz, expected_tool, by, opts)
+    avg = reduce_run(ex.run, teeth_of(expected_tool or ex.run.conditions.tool),
+                     tolerance=tolerance)  # fmt: skip
+    return avg, {"axes": ex.axes, "zero": ex.zero}
+
+
+def _load_export(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer | None,
+                 rate_hz: float | None, expected_tool: str | None, by: str,
+                 opts: ImportOptions) -> Export:  # fmt: skip
+    def teeth_of(name: str) -> int:
+        return tool_teeth(name, opts.tools_path)
+
+    layers = [*opts.layers(path), (f"{path} (--conditions)", given)]
+    ex = load_export(path, None, dynamometer, rate_hz, axes=opts.axes, layers=layers,
+                     zero_file=opts.zero_file, zeroed=opts.zeroed, teeth_of=teeth_of,
+                     expected_tool=expected_tool)  # fmt: skip
+    _check_tool(path, ex.run.conditions.tool, expected_tool, by)
+    _check_material(path, ex.run.conditions.material, opts.materials_path)
+    return ex
+
+
+def load_exports(
+    paths: Sequence[str | Path],
+    overrides: Mapping[str, Any] | None = None,
+    rig_path: str | Path | None = None,
+    rate_hz: float | None = None,
+    tool: str | None = None,
+    options: ImportOptions | None = None,
+) -> Iterator[Export]:
+    """Each export as :func:`fit_files` reads it (conditions merged, axes mapped, offset
+    decided), one at a time; ``tool`` as ``--tool``. Run files (.h5) are refused."""
+    given = normalize(overrides or {}, "--conditions")
+    opts = (options or ImportOptions()).loaded()
+    dyno = load_rig(rig_path or None).dynamometer
+    for p in paths:
+        if str(p).lower().endswith((".h5", ".hdf5")):
+            raise AnalysisError(f"{p}: already a run file; import reads DynoWare / CSV exports")
+        yield _load_export(p, given, dyno, rate_hz, tool, "--tool", opts)
+
+
+def _reduce_all(paths, overrides, dynamometer, rate_hz, expected_tool, by, tolerance, progress,
+                opts: ImportOptions):  # fmt: skip
+    given = normalize(overrides or {}, "--conditions")
+    opts = opts.loaded()
+    avgs: list[RunAverage] = []
+    notes: dict[str, dict[str, str]] = {}
+    rejected: list[tuple[str, str]] = []
+    tool_names: set[str] = set()
+    for k, p in enumerate(paths):
+        try:
+            avg, note = _reduce_file(p, given, dynamometer, rate_hz, expected_tool, by,
+                                     tolerance, opts)  # fmt: skip
+            avgs.append(avg)
+            notes[avg.name] = note
+            tool_names.add(expected_tool or avg.conditions.tool)
+        except NoSteadyCutError as exc:  # a run to leave out; other bad input stops
+            rejected.append((Path(p).stem, str(exc)))
+        if progress:
+            progress(k + 1, len(paths))
+    return avgs, rejected, tool_names, notes
 
 
 def reduce_files(
@@ -74,41 +238,44 @@ def reduce_files(
     by: str = "--tool",
     tolerance: float = IDENTIFY_TOLERANCE,
     progress: Progress | None = None,
+    options: ImportOptions | None = None,
 ) -> tuple[list[RunAverage], list[tuple[str, str]], set[str]]:
     """Each run file reduced to its revolution average: (averages, rejected (name, reason),
     tool names). ``overrides`` replace each file's own conditions key by key; ``expected_tool``
     (given by ``by``, for messages) must match the tool a run records; ``rate_hz`` for exports
-    without a rate. A run without steady cutting is rejected; other bad input raises.
-    ``progress(done, total)`` after each file."""
-    given = dict(overrides or {})
-    avgs: list[RunAverage] = []
-    rejected: list[tuple[str, str]] = []
-    tool_names: set[str] = set()
-    for k, p in enumerate(paths):
-        try:
-            avgs.append(_reduce_file(p, given, dynamometer, rate_hz, expected_tool, by, tolerance))
-            tool_names.add(expected_tool or avgs[-1].conditions.tool)
-        except NoSteadyCutError as exc:  # a run to leave out; other bad input stops
-            rejected.append((Path(p).stem, str(exc)))
-        if progress:
-            progress(k + 1, len(paths))
-    return avgs, rejected, tool_names
+    without a rate; ``options`` the axes, conditions table... (:class:`ImportOptions`). A run
+    without steady cutting is rejected; other bad input raises. ``progress(done, total)`` after
+    each file."""
+    opts = options or ImportOptions()
+    avgs, rejected, tools, _ = _reduce_all(
+        paths, overrides, dynamometer, rate_hz, expected_tool, by, tolerance, progress, opts
+    )
+    return avgs, rejected, tools
 
 
-def _fit(avgs: list[RunAverage], tool_name: str, model: str | None, dynamometer: Dynamometer):
+def _fit(avgs: list[RunAverage], tool_name: str, model: str | None, dynamometer: Dynamometer,
+         tools_path: str | Path | None = None):  # fmt: skip
     """(model, tool, fit, statistics) with the model from the tool's kind unless given."""
-    tool = get_tool(tool_name)
+    tool = find_tool(tool_name, tools_path)
     model = model or ("facemill" if isinstance(tool, FaceMill) else "endmill")
     if model == "facemill":
         fit = fit_facemill(avgs, tool, dynamometer)
-        return model, tool, fit, fit.summary or {}
+        return model, tool, fit, _identified(fit, fit.summary or {}, "P_")
     if not isinstance(tool, EndMill):
         raise AnalysisError(
             f"--model endmill with tool {tool_name!r} of kind {tool.kind!r}: the end-mill "
             "model describes flat, ball and bull end mills"
         )
     fit = fit_endmill(avgs, tool)
-    return model, tool, fit, fit.fit.as_dict() if fit.fit else {}
+    return model, tool, fit, _identified(fit, fit.fit.as_dict() if fit.fit else {}, "K", "e_n_mm")
+
+
+def _identified(fit: Any, stats: dict, prefix: str, suffix: str = "") -> dict:
+    """Statistics rows marked ``identified``: the edge (ploughing) rows only when the data
+    support the linear edge-force model (fit.adequacy)."""
+    edge_ok = fit.adequacy is None or fit.adequacy.edge_identified
+    return {k: {**v, "identified": edge_ok or not (k.startswith(prefix) and k.endswith(suffix))}
+            for k, v in stats.items()}  # fmt: skip
 
 
 def _per_run(a: RunAverage) -> dict[str, Any]:
@@ -117,6 +284,7 @@ def _per_run(a: RunAverage) -> dict[str, Any]:
         "fz_mm": a.conditions.fz_mm,
         "depth_mm": a.conditions.depth_mm,
         "revolutions": a.revolutions,
+        "steady": a.steady,
         "mean_force_n": a.mean_n,
         "tooth_peak_n": a.tooth_peak_n,
         "runout_ratio": a.runout_ratio,
@@ -134,39 +302,47 @@ def fit_files(
     validate: Sequence[str | Path] | None = None,
     plot_dir: str | Path | None = None,
     progress: Progress | None = None,
+    options: ImportOptions | None = None,
 ) -> dict[str, Any]:
     """Fit the force model (``model`` 'facemill' / 'endmill', default from the tool's kind) to
     run files; the tool is ``tool`` or the one the runs record. With a successful fit,
     ``validate`` runs (or the fitted ones when only ``plot_dir`` is given) are predicted and
-    ``plot_dir`` gets the PNGs. Returns the JSON-able result: model, tool, success, message,
-    coefficients, statistics (+ note), r_squared, residual_rms_n, dof, runs, rejected, per_run,
-    and validation (max_error_pct, rows) / plots when made."""
+    ``plot_dir`` gets the PNGs. ``options``: axes, conditions table, zero, user catalogues
+    (:class:`ImportOptions`). Returns the JSON-able result: model, tool, success, message,
+    coefficients (end mill: also ``Ktc`` ... ``Kae``, units in ``coefficient_units``),
+    statistics (+ note), r_squared, residual_rms_n, dof, runs, rejected, per_run (with each
+    run's ``axes`` and ``zero``), axes, axes_check (end mill), warnings, and validation
+    (max_error_pct, rows) / plots when made."""
     if not 0.0 < tolerance < 1.0:
         raise ConfigError(
             f"--steady-tolerance {tolerance}: expected a fraction of the steady "
             "force level, 0 < value < 1 (e.g. 0.02)"
         )
+    opts = (options or ImportOptions()).loaded()
     rig = load_rig(rig_path or None)
     dyno = rig.dynamometer
-    avgs, rejected, tool_names = reduce_files(paths, overrides, dyno, rate_hz, tool,
-                                              tolerance=tolerance, progress=progress)  # fmt: skip
+    avgs, rejected, tool_names, notes = _reduce_all(
+        paths, overrides, dyno, rate_hz, tool, "--tool", tolerance, progress, opts
+    )
     names = {t for t in tool_names if t}
     if not tool and len(names) != 1:
         raise AnalysisError(
             f"runs name tools {sorted(names) or 'none'}: give --tool NAME (one tool per fit)"
         )
     tool_name = tool or names.pop()
-    model, tool_cfg, fit, stats = _fit(avgs, tool_name, model, dyno)
+    model, tool_cfg, fit, stats = _fit(avgs, tool_name, model, dyno, opts.tools_path)
     message = fit.message
     if rejected:
         message += " (rejected: " + "; ".join(f"{n}: {m}" for n, m in rejected) + ")"
     lin = fit.fit
+    coefficients = fit.coefficients.model_dump() if fit.coefficients else None
+    mappings = sorted({n["axes"] for n in notes.values()})
     out: dict[str, Any] = {
         "model": model,
         "tool": tool_name,
         "success": fit.success,
         "message": message,
-        "coefficients": fit.coefficients.model_dump() if fit.coefficients else None,
+        "coefficients": coefficients,
         "statistics": stats,
         "statistics_note": CI_NOTE,
         "r_squared": lin.r_squared if lin else None,
@@ -174,15 +350,28 @@ def fit_files(
         "dof": lin.dof if lin else None,
         "runs": [a.name for a in avgs],
         "rejected": [{"run": n, "reason": m} for n, m in rejected],
-        "per_run": [_per_run(a) for a in avgs],
+        "per_run": [{**_per_run(a), **notes[a.name]} for a in avgs],
+        "axes": mappings[0] if len(mappings) == 1 else mappings,
+        "warnings": [f"{n}: {note['zero']}" for n, note in notes.items()
+                     if note["zero"] == NO_AIR_ZEROED],  # fmt: skip
     }
+    adequacy = getattr(fit, "adequacy", None)
+    out["adequacy"] = (
+        {**adequacy.as_dict(), "summary": adequacy.line()} if adequacy is not None else None
+    )
+    if model == "endmill" and coefficients:
+        coefficients.update({k: coefficients[v] for k, (v, _) in SHORT_NAMES.items()})
+        out["coefficient_units"] = {k: u for k, (_, u) in SHORT_NAMES.items()}
+    if model == "endmill" and len(mappings) == 1 and lin is not None:
+        check = check_axes(avgs, tool_cfg, parse_axes(mappings[0]))
+        out["axes_check"] = check["candidates"]
+        out["warnings"] += check["warnings"]
     if fit.success and (validate or plot_dir):
         targets = avgs
         if validate:
             by = "the fitted runs' tool"
-            targets, rej2, _ = reduce_files(
-                validate, overrides, dyno, rate_hz, tool_name, by, tolerance, progress
-            )
+            targets, rej2, _, _ = _reduce_all(validate, overrides, dyno, rate_hz, tool_name, by,
+                                              tolerance, progress, opts)  # fmt: skip
             out["rejected"] += [{"run": n, "reason": m} for n, m in rej2]
         out.update(_validate(targets, model, tool_cfg, fit.coefficients, dyno, plot_dir))
     return out

@@ -19,7 +19,7 @@ between. Everything here works on whole spindle revolutions:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -93,21 +93,45 @@ def per_revolution(
     return means, peaks
 
 
-def _longest_steady(level: np.ndarray, cutting: np.ndarray, tolerance: float) -> tuple[int, int]:
-    """Longest run of cutting revolutions within ``tolerance`` of the cutting median."""
+#: Steady revolutions may differ from the median by this many robust standard deviations of
+#: their scatter (when that is wider than the tolerance): a real cut's level wanders by a few per
+#: cent (spindle-speed wobble, material), and a fixed window would keep only its quietest stretch.
+SCATTER_SIGMAS = 4.0
+#: Up to this many consecutive revolutions outside the window inside a steady stretch are kept
+#: (a noisy revolution does not cut the stretch in two); a longer excursion ends the stretch.
+MAX_GAP_REVS = 2
+
+
+def _steady_stretch(
+    level: np.ndarray, cutting: np.ndarray, tolerance: float
+) -> tuple[int, int, int]:
+    """(start, stop, outliers): the longest stretch of cutting revolutions within the window
+    around the steady level, bridging gaps of up to MAX_GAP_REVS cutting revolutions;
+    ``outliers`` counts the bridged revolutions."""
     if not cutting.any():
-        return 0, 0
-    med = np.median(level[cutting])
-    ok = cutting & (np.abs(level - med) <= tolerance * abs(med))
-    best, start, run_start = (0, 0), None, 0
-    for i, good in enumerate(np.append(ok, False)):
-        if good and start is None:
-            run_start, start = i, i
-        elif not good and start is not None:
-            if i - run_start > best[1] - best[0]:
-                best = (run_start, i)
-            start = None
-    return best
+        return 0, 0, 0
+    # The steady level is where the revolutions crowd (the mode), not the median of all cutting
+    # revolutions: a face mill's entry and exit can take as many revolutions as its steady cut.
+    lv = np.sort(level[cutting])
+    width = 2 * tolerance * np.abs(lv) + 1e-12
+    counts = np.searchsorted(lv, lv + width, side="right") - np.arange(len(lv))
+    i = int(np.argmax(counts))
+    med = float(np.median(lv[i : i + counts[i]]))
+    near = cutting & (np.abs(level - med) <= 0.1 * abs(med))
+    sigma = 1.4826 * float(np.median(np.abs(level[near] - med))) if near.any() else 0.0
+    ok = cutting & (np.abs(level - med) <= max(tolerance * abs(med), SCATTER_SIGMAS * sigma))
+    idx = np.flatnonzero(ok)
+    if len(idx) == 0:
+        return 0, 0, 0
+    # Split where more than MAX_GAP_REVS revolutions (or any air) separate two steady ones.
+    gaps = np.diff(idx) - 1
+    air_between = np.array([not cutting[i:j].all() for i, j in zip(idx[:-1], idx[1:])], bool)
+    breaks = np.flatnonzero((gaps > MAX_GAP_REVS) | air_between)
+    starts = np.concatenate([[0], breaks + 1])
+    stops = np.concatenate([breaks, [len(idx) - 1]])
+    k = int(np.argmax(idx[stops] - idx[starts]))
+    lo, hi = int(idx[starts[k]]), int(idx[stops[k]]) + 1
+    return lo, hi, int((hi - lo) - ok[lo:hi].sum())
 
 
 def steady_window(
@@ -138,7 +162,9 @@ class SteadyPart:
     ``window`` sample slice of the steady part (whole revolutions); ``offset_n`` (c,) offset at
     the window's start and ``drift_n_s`` (c,) its change per second (0 without air on both sides);
     ``period_s`` the revolution period (refined from the data when asked); ``cutting_revs`` and
-    ``steady_revs`` counts; ``air_revs`` how many revolutions the offset came from.
+    ``steady_revs`` counts; ``air_revs`` how many revolutions the offset came from;
+    ``entry_revs``/``exit_revs`` the cutting revolutions before/after the window (entering,
+    leaving, trimmed), ``outlier_revs`` revolutions inside it outside the window's band.
     """
 
     window: slice
@@ -148,6 +174,19 @@ class SteadyPart:
     cutting_revs: int
     steady_revs: int
     air_revs: int
+    entry_revs: int = 0
+    exit_revs: int = 0
+    outlier_revs: int = 0
+
+    @property
+    def kept(self) -> str:
+        """How many cutting revolutions were kept and why the rest were dropped, one line."""
+        why = f"dropped {self.entry_revs} entry, {self.exit_revs} exit"
+        if self.outlier_revs:
+            why += f"; {self.outlier_revs} kept outside the band (isolated)"
+        if not self.air_revs:
+            why += "; no air: offset from the record's zero"
+        return f"kept {self.steady_revs} of {self.cutting_revs} cutting revolutions; {why}"
 
     def with_period(self, period_s: float, rate_hz: float) -> SteadyPart:
         """The same part with a refined period, cut to whole revolutions of it."""
@@ -155,10 +194,7 @@ class SteadyPart:
         # always has the trimmed revolution after it to spare the fraction of a sample).
         n_whole = int((self.window.stop - self.window.start) / (period_s * rate_hz) + 0.01)
         stop = self.window.start + int(round(n_whole * period_s * rate_hz))
-        return SteadyPart(
-            slice(self.window.start, stop), self.offset_n, self.drift_n_s, period_s,
-            self.cutting_revs, self.steady_revs, self.air_revs,
-        )  # fmt: skip
+        return replace(self, window=slice(self.window.start, stop), period_s=period_s)
 
     def corrected(self, force_n: np.ndarray, first_sample: int, rate_hz: float) -> np.ndarray:
         """Subtract offset and drift from samples starting at absolute index ``first_sample``."""
@@ -189,6 +225,13 @@ class RevolutionStats:
         self.sums = np.zeros((self.n_rev, channels))
         self.sumsq = np.zeros((self.n_rev, channels))
         self.counts = np.zeros(self.n_rev)
+        self._hf_noise: list[float] = []
+
+    @property
+    def hf_noise_n(self) -> float:
+        """Noise level (N, norm over channels) from the record's second differences: the median
+        absolute value, which a cut's smooth waveform and its few entry jumps hardly move."""
+        return float(np.median(self._hf_noise)) if self._hf_noise else 0.0
 
     def add(self, chunk: ArrayLike, first_sample: int | np.ndarray) -> None:
         """``first_sample``: index of the chunk's first sample, or every sample's index (n,),
@@ -202,6 +245,10 @@ class RevolutionStats:
             rev, x = rev[ok], x[ok]
         if len(rev) == 0:
             return
+        if len(x) >= 16:
+            # white noise: second differences have std sqrt(6) sigma, median |.| 0.6745 of it
+            d2 = np.median(np.abs(np.diff(x, 2, axis=0)), axis=0) / (0.6745 * np.sqrt(6))
+            self._hf_noise.append(float(np.linalg.norm(d2)))
         # rev is non-decreasing: sum each revolution's run of samples with reduceat.
         starts = np.flatnonzero(np.diff(rev, prepend=rev[0] - 1))
         k = rev[starts]
@@ -257,6 +304,10 @@ def steady_from_stats(
     channels = means.shape[1]
     quiet = int(np.argmin(spread.sum(axis=1)))
     noise = np.linalg.norm(spread[quiet]) + 1e-12
+    # Even the quietest revolution carries a periodic force far above the sample noise and
+    # comparable to the others': the record cuts throughout (the operator trimmed the air).
+    spread_n = np.linalg.norm(spread, axis=1)
+    cuts_throughout = noise > max(3 * stats.hf_noise_n, 0.2 * float(spread_n.max()))
     dist = np.linalg.norm(means - means[quiet], axis=1) + np.linalg.norm(
         spread - spread[quiet], axis=1
     )
@@ -267,38 +318,32 @@ def steady_from_stats(
         # records that cut from start to end).
         dist = np.linalg.norm(means - np.asarray(offset_n, float), axis=1)
         floor = 8 * noise / np.sqrt(spr)
-    cutting = dist > max(floor, 0.2 * dist.max())
-    if dist.max() <= floor:
+    elif cuts_throughout:
+        raise NoAirError(
+            f"no air revolutions to take the dynamometer offset from (all {n_rev} revolutions "
+            "cut: the quietest varies by "
+            f"{noise:.3g} N against {stats.hf_noise_n:.3g} N of noise); record some air before "
+            "the cut or give offset_n"
+        )
+    if dist.max() <= floor and not (offset_n is not None and cuts_throughout):
         raise NoSteadyCutError(
             f"no cutting found: all {n_rev} revolutions look alike (spread {noise:.3g} N, "
             f"largest change {dist.max():.3g} N); is this an air run?"
         )
-    air = ~cutting
+    cutting = dist > max(floor, 0.2 * dist.max())
+    if offset_n is not None and cuts_throughout:
+        cutting = dist > min(floor, 0.2 * dist.max())
     t_rev = 0.5 * (edges[:-1] + edges[1:]) / rate_hz
     if offset_n is not None:
         off_at0 = np.broadcast_to(np.asarray(offset_n, float), (channels,)).copy()
         drift = np.zeros(channels)
         n_air = 0
     else:
+        off_at0, drift, air = _air_line(means, cutting, t_rev, floor)
         n_air = int(air.sum())
-        if n_air == 0:
-            raise NoAirError(
-                "no air revolutions to take the dynamometer offset from (the record cuts from "
-                "start to end); record some air before the cut or give offset_n"
-            )
-        first_cut, last_cut = np.flatnonzero(cutting)[[0, -1]]
-        before = air & (np.arange(n_rev) < first_cut)
-        after = air & (np.arange(n_rev) > last_cut)
-        if before.any() and after.any():
-            # Air on both sides: a straight line through them removes slow amplifier drift.
-            tt = t_rev[before | after]
-            A = np.column_stack([np.ones_like(tt), tt])
-            coef, *_ = np.linalg.lstsq(A, means[before | after], rcond=None)
-            off_at0, drift = coef[0], coef[1]
-        else:
-            off_at0, drift = means[air].mean(axis=0), np.zeros(channels)
+        cutting = ~air
     level = np.linalg.norm(means - off_at0 - t_rev[:, None] * drift, axis=1)
-    lo, hi = _longest_steady(level, cutting, tolerance)
+    lo, hi, outliers = _steady_stretch(level, cutting, tolerance)
     lo, hi = lo + 1, hi - 1  # the first and last steady revolutions may hold the transition
     if hi - lo < 3:
         raise NoSteadyCutError(
@@ -310,7 +355,54 @@ def steady_from_stats(
     return SteadyPart(
         slice(start, stop), np.asarray(off0, float), np.asarray(drift, float),
         60.0 / abs(spindle_rpm), int(cutting.sum()), hi - lo, n_air,
+        int(cutting[:lo].sum()), int(cutting[hi:].sum()),
+        int(outliers),
     )  # fmt: skip
+
+
+def _air_line(
+    means: np.ndarray, core: np.ndarray, t_rev: np.ndarray, floor: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(offset at t = 0, drift per s, air mask): the dynamometer offset from the air revolutions.
+
+    ``core`` marks the clearly cutting revolutions; the rest are air candidates, but a face
+    mill's slow entry and exit leave revolutions that cut a little (below the core's threshold)
+    beside the cut: a robust line (medians of the air before and after) finds them, as
+    revolutions off it by more than ``floor``, so they count as cutting, not as offset.
+    """
+    channels = means.shape[1]
+    n_rev = len(means)
+    if core.all():
+        raise NoAirError(
+            "no air revolutions to take the dynamometer offset from (the record cuts from "
+            "start to end); record some air before the cut or give offset_n"
+        )
+    first_cut, last_cut = np.flatnonzero(core)[[0, -1]] if core.any() else (n_rev, -1)
+    before = ~core & (np.arange(n_rev) < first_cut)
+    after = ~core & (np.arange(n_rev) > last_cut)
+    air = ~core
+    for _ in range(3):
+        if (air & before).any() and (air & after).any():
+            # Air on both sides: a straight line through them removes slow amplifier drift.
+            b, a = air & before, air & after
+            tb, ta = np.median(t_rev[b]), np.median(t_rev[a])
+            mb, ma = np.median(means[b], axis=0), np.median(means[a], axis=0)
+            drift = (ma - mb) / (ta - tb)
+            off_at0 = mb - drift * tb
+        else:
+            off_at0, drift = np.median(means[air], axis=0), np.zeros(channels)
+        off = np.linalg.norm(means - off_at0 - t_rev[:, None] * drift, axis=1)
+        new_air = ~core & (off <= floor)
+        if not new_air.any() or (new_air == air).all():
+            break
+        air = new_air
+    b, a = air & before, air & after
+    if b.any() and a.any():
+        tt = t_rev[air]
+        A = np.column_stack([np.ones_like(tt), tt])
+        coef, *_ = np.linalg.lstsq(A, means[air], rcond=None)
+        return coef[0], coef[1], air
+    return means[air].mean(axis=0), np.zeros(channels), air
 
 
 def refine_period(

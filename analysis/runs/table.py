@@ -8,7 +8,9 @@ with tab or semicolon separators. A plain CSV is the same without the header blo
 column optional; the rate then comes from a ``rate_hz`` header line or the caller).
 
 ``read_force_table(path) -> ForceTable``: the columns as found, with their units, the sampling
-rate (header or time column) and the header's ``key: value`` lines. Turning the columns into the
+rate (header or time column) and the header's ``key: value`` lines (also ``key:,value``,
+``key:<tab>value``, ``key;value``). ``table_summary`` and ``plot_table`` are `cutlab data info`
+and `cutlab data plot` on an export. Turning the columns into the
 dynamometer's X, Y, Z forces is :func:`analysis.identify.import_run`'s job.
 """
 
@@ -19,13 +21,14 @@ import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from analysis.errors import AnalysisError
 
-__all__ = ["FORCE_UNIT_TO_N", "ForceTable", "read_force_table"]
+__all__ = ["FORCE_UNIT_TO_N", "ForceTable", "plot_table", "read_force_table", "table_summary"]
 
 _TIME_NAMES = ("time", "zeit", "t", "time_s", "temps", "tiempo", "tempo")
 #: Force units (lower case) to N.
@@ -104,7 +107,8 @@ def _detect(lines: list[str]) -> tuple[int, str]:
 
 def _looks_like_units(cells: list[str]) -> bool:
     u = [c.strip("[]() ").lower() for c in cells if c.strip()]
-    return bool(u) and all(x in FORCE_UNIT_TO_N or x in ("s", "ms", "sec", "v", "hz") for x in u)
+    other = ("s", "ms", "sec", "v", "mv", "hz", "pc", "nm", "n·m", "n*m", "n m")
+    return bool(u) and all(x in FORCE_UNIT_TO_N or x in other for x in u)
 
 
 def _unit_of(name: str) -> tuple[str, str]:
@@ -152,11 +156,7 @@ def read_force_table(path: str | Path) -> ForceTable:
         raise AnalysisError(
             f"{p}:{data_start + r + 1}: column {names[c]} = {df.iat[r, c]!r}: not a number"
         )
-    header: dict[str, str] = {}
-    for ln in lines[:hdr_i]:
-        m = re.match(r"^\s*#?\s*([^:=\t;]+?)\s*[:=\t;]\s*(.*?)\s*$", ln)
-        if m and m.group(1):
-            header[m.group(1).strip().lower()] = m.group(2).strip().strip('"').rstrip(";\t ")
+    header = _header(lines[:hdr_i])
     data = df.to_numpy(float)
     rate = math.nan
     for k in _RATE_KEYS:
@@ -184,8 +184,90 @@ def read_force_table(path: str | Path) -> ForceTable:
     return ForceTable(p, data, tuple(names), tuple(units), rate, header, decimal, sep)
 
 
+# ``key: value``, ``key:,value`` (DynoWare CSV), ``key:\tvalue``, ``key;value``, ``key = value``;
+# a unit in brackets after the key ("Sampling rate [Hz]") goes after the value.
+_HEADER_LINE = re.compile(
+    r"^\s*#?\s*(?P<key>[^:=\t;,\[(]+?)\s*(?:[\[(](?P<unit>[^\])]*)[\])])?\s*"
+    r"(?::[\s,;]*|[=\t;,]\s*)(?P<value>.*?)\s*$"
+)
+
+
+def _header(lines: list[str]) -> dict[str, str]:
+    """The header block's ``key<sep>value`` lines, keys in lower case."""
+    header: dict[str, str] = {}
+    for ln in lines:
+        m = _HEADER_LINE.match(ln)
+        if not m or not m.group("key").strip():
+            continue
+        value = m.group("value").strip().strip('"').rstrip(";,\t ").strip('"').strip()
+        if m.group("unit") and value:
+            value += f" {m.group('unit').strip()}"
+        header[m.group("key").strip().lower()] = value
+    return header
+
+
 def _time_column(names) -> int | None:
     for k, n in enumerate(names):
         if n.strip().lower() in _TIME_NAMES:
             return k
     return None
+
+
+def table_summary(path: str | Path, rate_hz: float | None = None) -> dict[str, Any]:
+    """What an export holds (`cutlab data info` on a DynoWare / CSV file): columns and units,
+    rate, samples, duration, the header lines, decimal mark and separator."""
+    t = read_force_table(path)
+    rate = rate_hz if rate_hz is not None else t.rate_hz
+    known = math.isfinite(rate) and rate > 0
+    return {
+        "file": str(t.path),
+        "format": "export",
+        "columns": list(t.columns),
+        "units": list(t.units),
+        "rate_hz": rate if known else None,
+        "rate_reason": None if known else "no rate in the header and no time column; give --rate",
+        "samples": len(t.data),
+        "duration_s": len(t.data) / rate if known else None,
+        "decimal": t.decimal,
+        "separator": {"\t": "tab", " ": "space"}.get(t.separator, t.separator),
+        "header": dict(t.header),
+    }
+
+
+def plot_table(t: ForceTable, out: str | Path, rate_hz: float | None = None,
+               max_points: int = 4000) -> Path:  # fmt: skip
+    """Write ``out`` (PNG): each column of a parsed export but the time against time (s)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from analysis.runs.plot import _envelope
+
+    rate = rate_hz if rate_hz is not None else t.rate_hz
+    if not (math.isfinite(rate) and rate > 0):
+        raise AnalysisError(f"{t.path}: no sampling rate (no rate in the header and no time "
+                            "column); give --rate HZ")  # fmt: skip
+    t_col = _time_column(t.columns)
+    cols = [k for k in range(len(t.columns)) if k != t_col]
+    time_s = np.arange(len(t.data)) / rate
+    fig, axes = plt.subplots(len(cols), 1, sharex=True, figsize=(10, 1.8 + 1.6 * len(cols)),
+                             squeeze=False)  # fmt: skip
+    bins = max(1, max_points // 2)
+    for ax, k in zip(axes[:, 0], cols):
+        if len(time_s) > max_points:
+            tt, yy = _envelope(time_s, t.data[:, k], bins)
+        else:
+            tt, yy = time_s, t.data[:, k]
+        ax.plot(tt, yy, lw=0.6, color="tab:blue")
+        ax.set_ylabel(f"{t.columns[k]} ({t.units[k] or '?'})")
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("time since first sample (s)")
+    fig.suptitle(f"{t.path.name}: {len(cols)} columns at {rate:g} Hz, "
+                 f"{len(time_s) / rate:.3f} s (export)", fontsize=10)  # fmt: skip
+    fig.tight_layout()
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out

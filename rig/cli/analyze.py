@@ -1,12 +1,15 @@
 """`cutlab analyze` commands: force coefficients from runs, dynamometer modes from a hammer test.
 
 cutlab analyze forces RUN... [--model facemill|endmill] [--tool NAME] [--validate RUN...]
-                             [--conditions KEY=VALUE...] [--steady-tolerance FRACTION]
-                             [--plot DIR] [--json]
+                             [--conditions KEY=VALUE...|TABLE] [--conditions-pattern PATTERN]
+                             [--axes x=-Fy,y=Fx,z=-Fz] [--zero FILE | --zeroed] [--tools FILE]
+                             [--materials FILE] [--steady-tolerance FRACTION] [--plot DIR]
+                             [--json]
 cutlab analyze modal FILE [--hammer NAME] [--rpm RPM...] [--teeth N] [--json]
 
 RUN is an HDF5 run file (conditions from the file) or a DynoWare/plain CSV export (conditions
-from its header lines); --conditions overrides them key by key for every run. A run that records
+from its header lines), then a conditions table's row and the file-name pattern;
+--conditions KEY=VALUE overrides them key by key for every run. A run that records
 another tool than --tool is refused. A fit that the runs cannot support prints its reason and
 exits with status 1; bad input exits with status 2.
 """
@@ -17,30 +20,62 @@ import argparse
 
 
 def _forces(args: argparse.Namespace) -> int:
-    from analysis.identify import fit_files
-    from rig.cli._common import Progress, parse_conditions, print_json, print_table, status
+    from analysis.identify import ImportOptions, fit_files
+    from rig.cli._common import Progress, print_json, print_table, status
 
+    pairs, table = _conditions_arg(args.conditions)
+    opts = ImportOptions(axes=args.axes, table=table, pattern=args.conditions_pattern,
+                         zero_file=args.zero, zeroed=args.zeroed, tools_path=args.tools,
+                         materials_path=args.materials)  # fmt: skip
     with Progress("reducing runs", "run", quiet=args.json or len(args.runs) < 2) as bar:
         out = fit_files(
-            args.runs, args.model, args.tool, parse_conditions(args.conditions), rig_path=args.rig,
-            rate_hz=args.rate, tolerance=args.steady_tolerance, validate=args.validate,
-            plot_dir=args.plot, progress=bar,
+            args.runs, args.model, args.tool, pairs, rig_path=args.rig, rate_hz=args.rate,
+            tolerance=args.steady_tolerance, validate=args.validate, plot_dir=args.plot,
+            progress=bar, options=opts,
         )  # fmt: skip
     if "plots" in out:
         status(f"analyze forces: wrote {', '.join(out['plots'])}")
+    for w in out["warnings"]:
+        status(f"analyze forces: warning: {w}")
     if args.json:
         print_json(out)
         return 0 if out["success"] else 1
     print(f"{out['model']} fit of {len(out['runs'])} run(s), tool {out['tool']}: {out['message']}")
+    axes = out["axes"] if isinstance(out["axes"], str) else "; ".join(out["axes"])
+    print(f"axes: {axes} (x feed, y cross-feed, z tool axis)")
     if out["statistics"]:
         print_table([{"coefficient": k, **v} for k, v in out["statistics"].items()])
         print(out["statistics_note"])
+    if out["adequacy"]:
+        print(out["adequacy"]["summary"])
+    for r in out["per_run"]:
+        print(f"{r['run']}: {r['steady']}")
     if "validation" in out:
         print()
         keys = ("run", "fz_mm", "depth_mm", "measured_resultant_n", "predicted_resultant_n")
         print_table([{**{k: r[k] for k in keys}, "error_pct": r["resultant_error_pct"]}
                      for r in out["validation"]["rows"]])  # fmt: skip
     return 0 if out["success"] else 1
+
+
+def _conditions_arg(items: list[str] | None) -> tuple[dict, str | None]:
+    """``--conditions``: KEY=VALUE pairs (or one JSON object), or one conditions table (.csv,
+    .toml, or any existing file)."""
+    from pathlib import Path
+
+    from rig.cli._common import parse_conditions
+
+    if (
+        items
+        and len(items) == 1
+        and "=" not in items[0]
+        and (
+            Path(items[0]).suffix.lower() in (".csv", ".toml", ".tsv", ".txt")
+            or Path(items[0]).is_file()
+        )
+    ):
+        return {}, items[0]
+    return parse_conditions(items or []), None
 
 
 def _modal(args: argparse.Namespace) -> int:
@@ -50,10 +85,12 @@ def _modal(args: argparse.Namespace) -> int:
     out = modal_file(
         args.file, args.hammer, rate_hz=args.rate, record_s=args.record_s,
         window_end=args.window_end, spindle_rpm=args.rpm, teeth=args.teeth, rig_path=args.rig,
-        plot_png=args.plot,
+        plot_png=args.plot, response=args.response, stabilisation_png=args.stabilisation,
+        save=args.save,
     )  # fmt: skip
-    if "plot" in out:
-        status(f"analyze modal: wrote {out['plot']}")
+    for key in ("plot", "stabilisation_plot", "saved"):
+        if key in out:
+            status(f"analyze modal: wrote {out[key]}")
     for w in out["warnings"]:
         status(f"analyze modal: warning: {w}")
     if args.json:
@@ -84,11 +121,13 @@ def _register_forces(psub: argparse._SubParsersAction) -> None:
     f.add_argument("--tool", default=None, help="tool name in configs/tools.toml")
     f.add_argument("--rig", default=None, help="rig config (default configs/rig.toml)")
     f.add_argument(
-        "--conditions", nargs="*", metavar="KEY=VALUE",
+        "--conditions", nargs="*", metavar="KEY=VALUE|TABLE",
         help="conditions applied over each run's own (file header or run file), key by key "
-        "(spindle_rpm=600 depth_mm=2 mode=slot ...)",
+        "(spindle_rpm=600 depth_mm=2 mode=slot ...), or a table (.csv/.toml, one row per file: "
+        "file,spindle_rpm,feed_mm_min|fz_mm,ap_mm,ae_mm[,teeth,tool,mode])",
     )  # fmt: skip
     f.add_argument("--rate", type=float, default=None, help="Hz, for exports without a rate")
+    add_import_options(f)
     f.add_argument(
         "--steady-tolerance", type=float, default=IDENTIFY_TOLERANCE, metavar="FRACTION",
         help="revolutions whose mean force is within this fraction of the steady level (median) "
@@ -101,18 +140,69 @@ def _register_forces(psub: argparse._SubParsersAction) -> None:
     f.set_defaults(func=_forces)
 
 
+def add_import_options(p: argparse.ArgumentParser) -> None:
+    """Options for reading exports, shared with `cutlab data import`."""
+    p.add_argument(
+        "--axes", default=None, metavar="x=COL,y=COL,z=COL",
+        help="file columns (or run-file channels) for cutlab's x (feed), y (cross-feed), z (tool "
+        "axis), a '-' flips the sign: x=-Fy,y=Fx,z=-Fz (default: the rig config's dynamometer, "
+        "else columns named Fx, Fy, Fz)",
+    )  # fmt: skip
+    p.add_argument(
+        "--conditions-pattern",
+        default=None,
+        metavar="PATTERN",
+        help="conditions from file names: 'cut_{spindle_rpm}rpm_f{feed_mm_min}.txt'",
+    )
+    p.add_argument(
+        "--zero",
+        default=None,
+        metavar="FILE",
+        help="an export of the same channels at rest: its mean is the offset",
+    )
+    p.add_argument(
+        "--zeroed", action="store_true", help="the exports are already zeroed: subtract no offset"
+    )
+    p.add_argument(
+        "--tools",
+        default=None,
+        metavar="FILE",
+        help="your tool catalogue (TOML, [tools.NAME]), before configs/tools.toml",
+    )
+    p.add_argument(
+        "--materials",
+        default=None,
+        metavar="FILE",
+        help="your material catalogue (TOML), before configs/materials.toml",
+    )
+
+
 def _register_modal(psub: argparse._SubParsersAction) -> None:
-    m = psub.add_parser("modal", help="dynamometer modes from an impulse-hammer record")
+    m = psub.add_parser("modal", help="modes from an impulse-hammer record (dynamometer, tool)")
     m.add_argument("file", help="CSV/DynoWare export or run file with a hammer channel")
     m.add_argument("--hammer", default="hammer", help="name of the hammer force channel")
     m.add_argument("--rate", type=float, default=None, help="Hz, for files without a rate")
-    m.add_argument("--record-s", type=float, default=0.08, help="s of record per hit")
+    m.add_argument("--record-s", type=float, default=0.08,
+                   help="s of record per hit (at least 0.01 s and 128 samples)")  # fmt: skip
     m.add_argument("--window-end", type=float, default=0.05,
                    help="exponential window value at the record's end")  # fmt: skip
+    m.add_argument(
+        "--response", choices=("force", "disp", "accel"), default=None,
+        help="what response columns without a unit in their name measure: force (N, a "
+        "dynamometer; the default), disp (m) or accel (m/s^2); a unit in the column name "
+        "(ax [g], dx [mm]) decides by itself",
+    )  # fmt: skip
     m.add_argument("--rpm", type=float, nargs="*", default=None,
                    help="planned spindle speeds to check against the modes")  # fmt: skip
     m.add_argument("--teeth", type=int, default=1, help="teeth of the planned cutter")
     m.add_argument("--rig", default=None, help="rig config (default configs/rig.toml)")
     m.add_argument("--plot", default=None, metavar="PNG", help="write the FRF and coherence")
+    m.add_argument("--stabilisation", default=None, metavar="PNG",
+                   help="write the stabilisation diagram (LSCF poles by model order)")  # fmt: skip
+    m.add_argument(
+        "--save", default=None, metavar="MODES.toml",
+        help="write the modes per direction (frequency, damping, modal stiffness and mass) for "
+        "a stability calculation; .toml or .json",
+    )  # fmt: skip
     m.add_argument("--json", action="store_true", help="JSON on stdout")
     m.set_defaults(func=_modal)

@@ -1,7 +1,14 @@
-"""`cutlab data` commands: look at recorded HDF5 run files.
+"""`cutlab data` commands: look at run files and exports; import exports as run files.
 
-cutlab data info run.h5 [--json]     channels, rate, duration, samples, events, gaps, status
-cutlab data plot run.h5 -o forces.png
+cutlab data info FILE [--rate HZ] [--json]     a run file: channels, rate, duration, samples,
+                                               events, gaps, status; an export: columns, units,
+                                               rate, samples, header
+cutlab data plot FILE -o forces.png            force traces of a run file or an export
+cutlab data import FILE... -o DIR [--conditions TABLE|KEY=VALUE...] [--axes x=-Fy,y=Fx,z=-Fz]
+                           [--rate HZ] [--zero FILE | --zeroed] [--tool NAME] [--tools FILE]
+                           [--force] [--json]
+    DynoWare / CSV exports into ordinary run files (DIR/<name>.h5), conditions and all, so every
+    command that reads run files reads them.
 """
 
 from __future__ import annotations
@@ -9,9 +16,29 @@ from __future__ import annotations
 import argparse
 
 
+def _is_run_file(path: str) -> bool:
+    return path.lower().endswith((".h5", ".hdf5"))
+
+
 def _info(args: argparse.Namespace) -> int:
-    from analysis.runs import run_summary
     from rig.cli._common import print_json, print_table
+
+    if not _is_run_file(args.file):
+        from analysis.runs.table import table_summary
+
+        s = table_summary(args.file, args.rate)
+        if args.json:
+            print_json(s)
+            return 0
+        keys = ("format", "rate_hz", "samples", "duration_s", "decimal", "separator")
+        rows = [{"quantity": k, "value": s[k]} for k in keys]
+        rows.insert(1, {"quantity": "columns", "value": " ".join(
+            f"{c} [{u}]" if u else c for c, u in zip(s["columns"], s["units"]))})  # fmt: skip
+        rows += [{"quantity": f"header: {k}", "value": v} for k, v in s["header"].items()]
+        print_table(rows)
+        return 0
+
+    from analysis.runs import run_summary
 
     s = run_summary(args.file)
     if args.json:
@@ -40,32 +67,82 @@ def _info(args: argparse.Namespace) -> int:
 
 
 def _plot(args: argparse.Namespace) -> int:
-    from analysis.runs import load_run, plot_run
     from rig.cli._common import print_json, status
 
-    run = load_run(args.file, args.start_s, args.stop_s)
-    png = plot_run(run, args.output)
+    if _is_run_file(args.file):
+        from analysis.runs import load_run, plot_run
+
+        run = load_run(args.file, args.start_s, args.stop_s)
+        png, samples = plot_run(run, args.output), len(run.time_s)
+    else:
+        from analysis.runs.table import plot_table, read_force_table
+
+        table = read_force_table(args.file)
+        png, samples = plot_table(table, args.output, args.rate), len(table.data)
     status(f"data plot: wrote {png}")
     if args.json:
-        print_json({"file": args.file, "plot": str(png), "samples": len(run.time_s)})
+        print_json({"file": args.file, "plot": str(png), "samples": samples})
     else:
         print(png)
     return 0
 
 
+def _import(args: argparse.Namespace) -> int:
+    from analysis.identify import ImportOptions
+    from rig.cli._common import Progress, print_json, print_table, status
+    from rig.cli.analyze import _conditions_arg
+    from rig.log import import_exports
+
+    pairs, table = _conditions_arg(args.conditions)
+    opts = ImportOptions(axes=args.axes, table=table, pattern=args.conditions_pattern,
+                         zero_file=args.zero, zeroed=args.zeroed, tools_path=args.tools,
+                         materials_path=args.materials)  # fmt: skip
+    with Progress("importing", "file", quiet=args.json or len(args.files) < 2) as bar:
+        written = import_exports(args.files, args.output, pairs, opts, rig_path=args.rig,
+                                 rate_hz=args.rate, tool=args.tool, overwrite=args.force,
+                                 progress=bar)  # fmt: skip
+    for w in written:
+        status(f"data import: {w['source']} -> {w['file']}: axes {w['axes']}; offset: {w['zero']}")
+    if args.json:
+        print_json({"written": written})
+        return 0
+    print_table([{"run file": w["file"], "samples": w["samples"], "rate_hz": w["rate_hz"],
+                  "axes": w["axes"], "offset": w["zero"]} for w in written])  # fmt: skip
+    return 0
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
-    p = sub.add_parser("data", help="inspect and plot recorded run files")
+    from rig.cli.analyze import add_import_options
+
+    p = sub.add_parser("data", help="inspect and plot run files and exports; import exports")
     psub = p.add_subparsers(dest="data_command", metavar="DATA_COMMAND")
     psub.required = True
-    i = psub.add_parser("info", help="channels, rate, duration, samples, events and gaps of a run")
-    i.add_argument("file", help="run file (.h5)")
+    i = psub.add_parser("info", help="what a run file or a DynoWare/CSV export holds")
+    i.add_argument("file", help="run file (.h5) or DynoWare/CSV export")
+    i.add_argument("--rate", type=float, default=None, help="Hz, for exports without a rate")
     i.add_argument("--json", action="store_true", help="JSON on stdout")
     i.set_defaults(func=_info)
-    g = psub.add_parser("plot", help="force traces of a run as a PNG")
-    g.add_argument("file", help="run file (.h5)")
+    g = psub.add_parser("plot", help="force traces of a run file or an export as a PNG")
+    g.add_argument("file", help="run file (.h5) or DynoWare/CSV export")
     g.add_argument("-o", "--output", default="forces.png", help="PNG to write")
     g.add_argument("--start-s", type=float, default=None, help="s after the first sample")
     g.add_argument("--stop-s", type=float, default=None, help="s after the first sample")
+    g.add_argument("--rate", type=float, default=None, help="Hz, for exports without a rate")
     g.add_argument("--json", action="store_true", help="JSON on stdout")
     g.set_defaults(func=_plot)
+    m = psub.add_parser("import", help="DynoWare/CSV exports into run files (.h5)")
+    m.add_argument("files", nargs="+", help="DynoWare/CSV exports")
+    m.add_argument("-o", "--output", required=True, metavar="DIR", help="folder for the runs")
+    m.add_argument(
+        "--conditions", nargs="*", metavar="KEY=VALUE|TABLE",
+        help="a conditions table (.csv/.toml, one row per file: file,spindle_rpm,"
+        "feed_mm_min|fz_mm,ap_mm,ae_mm[,teeth,tool,mode]) or KEY=VALUE pairs for every file",
+    )  # fmt: skip
+    m.add_argument("--tool", default=None, help="tool name (configs/tools.toml or --tools)")
+    m.add_argument("--rate", type=float, default=None, help="Hz, for exports without a rate")
+    m.add_argument("--rig", default=None, help="rig config (default configs/rig.toml)")
+    add_import_options(m)
+    m.add_argument("--force", action="store_true", help="replace existing run files")
+    m.add_argument("--json", action="store_true", help="JSON on stdout")
+    m.set_defaults(func=_import)

@@ -1,7 +1,9 @@
 """Recording: the HDF5 run writer (crash-safe, flushed in steps) and ``record`` (a DAQ into a run
-file for N seconds; ``plan_recording`` + ``record_rig`` as ``cutlab daq record`` does it).
+file for N seconds; ``plan_recording`` + ``record_rig`` as ``cutlab daq record`` does it);
+``import_exports`` (DynoWare / CSV exports into run files, ``cutlab data import``).
 """
 
+from rig.log.importer import import_exports, write_export_run
 from rig.log.record import RecordPlan, RecordResult, plan_recording, record, record_rig
 from rig.log.writer import RunWriter, RunWriterError, WriterStats
 
@@ -11,7 +13,9 @@ __all__ = [
     "RunWriter",
     "RunWriterError",
     "WriterStats",
+    "import_exports",
     "plan_recording",
     "record",
     "record_rig",
+    "write_export_run",
 ]

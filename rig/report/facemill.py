@@ -16,6 +16,12 @@ from analysis.errors import AnalysisError
 from analysis.identify import CI_NOTE
 from rig.report.base import LoadedRun, Section, md_table
 
+#: Said under the table: what the bootstrap intervals are.
+BOOT_NOTE = (
+    "boot_ci_low/boot_ci_high: 95 % bootstrap intervals, the runs and each run's revolutions "
+    "resampled (what differs from run to run and revolution to revolution is in them)."
+)
+
 #: The coefficients seed 003 reports, then the axial pair cutlab adds.
 COEFFS = ("K_T_n_mm2", "K_R", "P_T_n_mm", "P_R_n_mm", "K_A", "P_A_n_mm")
 
@@ -72,7 +78,8 @@ def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section
     for name in COEFFS:
         s = fit.summary[name]
         row = {"coefficient": name, "identified": s["value"], "std_error": s["std_error"],
-               "ci_low": s["ci_low"], "ci_high": s["ci_high"]}  # fmt: skip
+               "ci_low": s["ci_low"], "ci_high": s["ci_high"],
+               "boot_ci_low": s["boot_ci_low"], "boot_ci_high": s["boot_ci_high"]}  # fmt: skip
         if truth is not None:
             tv = float(truth[name])
             row["truth"] = tv
@@ -81,9 +88,10 @@ def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section
     pd.DataFrame(rows).to_csv(out / "coefficients.csv", index=False)
     summary["coefficients"] = rows
     summary["r_squared"] = fit.fit.r_squared
+    summary["adequacy"] = fit.adequacy.as_dict()
     if truth is not None:
         summary["max_error_pct_seed003"] = max(abs(r["error_pct"]) for r in rows[:4])
-    md += ["", md_table(rows), "", CI_NOTE]
+    md += ["", md_table(rows), "", CI_NOTE, BOOT_NOTE, "", fit.adequacy.line()]
     # Validation: predicted vs measured mean forces of every run (identification runs too).
     vrows = []
     for lr in ident + valid:

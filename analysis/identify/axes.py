@@ -1,0 +1,225 @@
+"""Which file column is cutlab's x, y and z force, and whether the end-mill fit agrees.
+
+cutlab's frame (Altintas, Manufacturing Automation): x the feed direction, y cross-feed, z along
+the tool axis; forces are those on the workpiece (a table dynamometer's). A mapping
+``x=-Fy,y=Fx,z=-Fz`` names, for each axis, a column of the file (case-insensitive, a unit
+suffix such as ``[N]`` ignored) with an optional minus sign.
+
+:func:`check_axes` refits the end-mill model under the plausible alternatives (x and y swapped,
+the signs of x and y flipped) and warns, with the figures, when the given mapping yields a
+negative cutting coefficient, when another mapping fits clearly better, or when the runs cannot
+tell the mapping from one that gives K_tc > K_rc while the given one gives K_rc > K_tc.
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from analysis.config import Dynamometer, EndMill
+from analysis.errors import AnalysisError
+from analysis.forces.endmill import PARAMETERS, mean_force_design
+from analysis.identify._common import RunAverage, linear_fit
+from analysis.identify.endmill import _cut
+
+__all__ = ["AxisMap", "check_axes", "column_key", "parse_axes"]
+
+#: Another mapping is "clearly better" when its residual RMS is below this fraction of the given's.
+BETTER_RESIDUAL_RATIO = 0.5
+_SHORT = ("Ktc", "Krc", "Kac", "Kte", "Kre", "Kae")
+
+
+def column_key(name: str) -> str:
+    """A column name compared without case, spaces and a unit suffix: 'Fx [N]' -> 'fx'."""
+    base = re.sub(r"\s*[\[(][^\])]*[\])]\s*$", "", name.strip())
+    return re.sub(r"[\s_]+", " ", base).strip().lower()
+
+
+# Default names of the force columns per axis (after column_key), e.g. 'Fx', 'Kraft X', 'x'.
+_DEFAULT = re.compile(r"^(?:f|force|kraft|force |kraft )?(?P<axis>[xyz])(?: n)?$")
+
+
+@dataclass(frozen=True)
+class AxisMap:
+    """For cutlab's x, y, z: the source column name and its sign (+1 or -1)."""
+
+    sources: tuple[str, str, str]
+    signs: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+    @property
+    def text(self) -> str:
+        return ",".join(
+            f"{ax}={'-' if s < 0 else ''}{src}"
+            for ax, src, s in zip("xyz", self.sources, self.signs)
+        )
+
+    def columns(self, names: Sequence[str], where: str) -> list[tuple[int, float]]:
+        """(column index, sign) for x, y, z among ``names``; an unknown column is an error."""
+        keys = [column_key(n) for n in names]
+        out = []
+        for ax, src, s in zip("xyz", self.sources, self.signs):
+            k = column_key(src)
+            if k not in keys:
+                raise AnalysisError(
+                    f"{where}: axes {self.text}: {ax} = {src!r} is not a column "
+                    f"(columns: {', '.join(names)})"
+                )
+            out.append((keys.index(k), s))
+        return out
+
+    def matrix(self, names: Sequence[str], where: str) -> np.ndarray:
+        """(3, len(names)) signed selection: cutlab forces = M @ the columns' values."""
+        m = np.zeros((3, len(names)))
+        for ax, (k, s) in enumerate(self.columns(names, where)):
+            m[ax, k] = s
+        return m
+
+    @classmethod
+    def default(cls, names: Sequence[str], dyno: Dynamometer | None = None) -> AxisMap | None:
+        """The rig config's mapping (``axes`` or its channels' name, axis, sign) when its names
+        are columns, else columns named like Fx, Fy, Fz ('Fx [N]', 'Kraft X', 'x'); None when
+        neither gives all three axes."""
+        keys = [column_key(n) for n in names]
+        if dyno is not None:
+            if dyno.axes:
+                m = parse_axes(dyno.axes, "rig config: dynamometer.axes")
+                if all(column_key(s) in keys for s in m.sources):
+                    return m
+            found: dict[int, tuple[str, float]] = {}
+            for ch in dyno.channels:
+                if column_key(ch.name) in keys:
+                    found["xyz".index(ch.axis)] = (ch.name, float(ch.sign))
+            if len(found) == 3:
+                return cls(tuple(found[i][0] for i in range(3)),
+                           tuple(found[i][1] for i in range(3)))  # fmt: skip
+        by_axis: dict[str, str] = {}
+        for n, k in zip(names, keys):
+            m = _DEFAULT.match(k)
+            if m and m.group("axis") not in by_axis:
+                by_axis[m.group("axis")] = n
+        if len(by_axis) == 3:
+            return cls((by_axis["x"], by_axis["y"], by_axis["z"]))
+        return None
+
+    def composed(self, perm: Sequence[int], flips: Sequence[float]) -> AxisMap:
+        """This mapping with x, y, z taken from ``perm`` of its own axes, signs times ``flips``."""
+        return AxisMap(
+            tuple(self.sources[p] for p in perm),  # type: ignore[arg-type]
+            tuple(self.signs[p] * f for p, f in zip(perm, flips)),  # type: ignore[arg-type]
+        )
+
+
+_ITEM = re.compile(r"^\s*([xyzXYZ])\s*=\s*([+-]?)\s*(\S(?:.*\S)?)\s*$")
+
+
+def parse_axes(text: str, where: str = "--axes") -> AxisMap:
+    """``x=-Fy,y=Fx,z=-Fz`` -> AxisMap; each of x, y, z exactly once."""
+    got: dict[str, tuple[str, float]] = {}
+    for item in str(text).split(","):
+        m = _ITEM.match(item)
+        if not m:
+            raise AnalysisError(
+                f"{where} {text!r}: {item.strip()!r} is not AXIS=COLUMN; expected e.g. "
+                "x=-Fy,y=Fx,z=-Fz (x feed, y cross-feed, z tool axis; '-' flips the sign)"
+            )
+        ax = m.group(1).lower()
+        if ax in got:
+            raise AnalysisError(f"{where} {text!r}: {ax} given twice")
+        got[ax] = (m.group(3), -1.0 if m.group(2) == "-" else 1.0)
+    missing = [a for a in "xyz" if a not in got]
+    if missing:
+        raise AnalysisError(
+            f"{where} {text!r}: no column for {', '.join(missing)}; expected x=..,y=..,z=.."
+        )
+    return AxisMap(
+        (got["x"][0], got["y"][0], got["z"][0]), (got["x"][1], got["y"][1], got["z"][1])
+    )
+
+
+def remap(avg: RunAverage, m: np.ndarray) -> RunAverage:
+    """A revolution average with its forces taken through the (3, 3) matrix ``m`` (the average
+    and the offsets are linear in the forces; the steady window depends on the resultant only,
+    which a signed permutation keeps)."""
+    return replace(avg, waveform_n=avg.waveform_n @ m.T, mean_n=m @ avg.mean_n,
+                   offset_n=m @ avg.offset_n,
+                   revolution_means_n=avg.revolution_means_n @ m.T)  # fmt: skip
+
+
+def _fmt(c: dict[str, float]) -> str:
+    return ", ".join(f"{k} {v:.4g}" for k, v in c.items())
+
+
+def check_axes(averages: Sequence[RunAverage], tool: EndMill, axes: AxisMap) -> dict[str, Any]:
+    """Fit the end-mill model under ``axes`` and the 7 alternatives (x, y swapped or not, each
+    sign flipped or not; z kept). Returns ``{"axes", "candidates": [{axes, r_squared,
+    residual_rms_n, coefficients}], "warnings": [...]}`` (no candidates when the runs cannot be
+    fitted at all)."""
+    out: dict[str, Any] = {"axes": axes.text, "candidates": [], "warnings": []}
+    if not averages:
+        return out
+    # The design does not depend on the mapping; only the measured means move.
+    X = np.concatenate([mean_force_design(tool, _cut(tool, a.conditions)) for a in averages])
+    y = np.stack([a.mean_n for a in averages])
+    cands = out["candidates"]
+    for perm, fx, fy in itertools.product(((0, 1, 2), (1, 0, 2)), (1.0, -1.0), (1.0, -1.0)):
+        m = np.zeros((3, 3))
+        for ax, (p, f) in enumerate(zip(perm, (fx, fy, 1.0))):
+            m[ax, p] = f
+        try:
+            fit, _ = linear_fit(X, (y @ m.T).ravel(), PARAMETERS)
+        except AnalysisError:  # too few runs, rank-deficient: nothing to check
+            return out
+        cands.append({
+            "axes": axes.composed(perm, (fx, fy, 1.0)).text,
+            "r_squared": float(fit.r_squared),
+            "residual_rms_n": float(fit.residual_rms),
+            "coefficients": {s: float(v) for s, v in zip(_SHORT, fit.values)},
+        })  # fmt: skip
+    given = cands[0]
+
+    def plausible(c: dict[str, Any]) -> bool:
+        return c["coefficients"]["Ktc"] > 0 and c["coefficients"]["Krc"] > 0
+
+    def describe(c: dict[str, Any]) -> str:
+        return (f"{c['axes']}: {_fmt(c['coefficients'])}, R^2 {c['r_squared']:.5f}, "
+                f"residual {c['residual_rms_n']:.3g} N")  # fmt: skip
+
+    others = [c for c in cands[1:] if plausible(c)]
+    floor = min((c["residual_rms_n"] for c in others), default=0.0)
+    # Best: the smallest residual; among mappings that fit as well, one with Ktc > Krc.
+    others.sort(key=lambda c: (c["residual_rms_n"] > 1.05 * floor,
+                               c["coefficients"]["Ktc"] <= c["coefficients"]["Krc"],
+                               c["residual_rms_n"]))  # fmt: skip
+    best = others[0] if others else None
+    warn = out["warnings"]
+    if not plausible(given):
+        neg = [k for k in ("Ktc", "Krc") if given["coefficients"][k] <= 0]
+        msg = (
+            f"axes {axes.text} give a negative cutting coefficient ({', '.join(neg)}), so a "
+            f"force axis is probably swapped or of the wrong sign; under {describe(given)}"
+        )
+        if best:
+            msg += f"; under {describe(best)}"
+        warn.append(msg + "; check --axes")
+    elif best and best["residual_rms_n"] < BETTER_RESIDUAL_RATIO * given["residual_rms_n"]:
+        warn.append(
+            f"axes {axes.text} fit clearly worse than another mapping: under {describe(given)}; "
+            f"under {describe(best)}; check --axes"
+        )
+    elif given["coefficients"]["Krc"] > given["coefficients"]["Ktc"]:
+        # Slots cannot tell x = F1, y = F2 from x = -F2, y = F1 (same residual, K_tc and K_rc
+        # trade places); K_rc above K_tc is unusual for metal cutting, so say which is which.
+        twin = [c for c in others if c["coefficients"]["Ktc"] > c["coefficients"]["Krc"]
+                and c["residual_rms_n"] <= 1.05 * given["residual_rms_n"]]  # fmt: skip
+        if twin:
+            warn.append(
+                f"axes {axes.text} give Krc > Ktc (unusual: Krc/Ktc is mostly 0.2-0.7 in metal "
+                f"cutting) and the runs fit another mapping as well: under {describe(given)}; "
+                f"under {describe(twin[0])}; check --axes"
+            )
+    return out
