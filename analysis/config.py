@@ -189,8 +189,23 @@ class Holder(Model):
     spindle_nose_length_mm: float = Field(100.0, gt=0, le=2000, description="mm")
 
 
+class ToolMode(Model):
+    """One bending mode of the tool (with holder and spindle) at its tip, in one machine direction:
+    what an impact test on the tool gives. The simulated rig's regenerative twin uses them."""
+
+    axis: Literal["x", "y"]
+    f_hz: float = Field(gt=0, le=50_000, description="Hz, natural frequency")
+    zeta: float = Field(gt=0, lt=1, description="damping ratio (typically 0.01..0.1)")
+    k_N_m: float = Field(gt=0, le=1e10, description="N/m, modal stiffness at the tip")
+
+
 class EndMill(Model):
-    """A flat, ball or bull-nose end mill. Ball: corner radius = D/2; flat: 0; bull: in between."""
+    """A flat, ball or bull-nose end mill. Ball: corner radius = D/2; flat: 0; bull: in between.
+
+    ``max_chip_mm`` is the upper end of the edge's chip-thickness range (the catalogue's largest
+    h_ex); above it the chip jams in the chip breaker and the cutting pressures rise by
+    ``overload_gain`` per unit relative excess (rig.sim._regen). ``modes``: see :class:`ToolMode`.
+    """
 
     kind: Literal["flat", "ball", "bull"]
     description: str = ""
@@ -204,6 +219,13 @@ class EndMill(Model):
     runout_mm: float = Field(0.0, ge=0, le=1, description="mm, radial runout of the cutter")
     material: str = Field("carbide", description="cutter material")
     holder: Holder = Holder()
+    modes: tuple[ToolMode, ...] = Field((), description="tool-tip modes (x, y)")
+    max_chip_mm: float | None = Field(
+        None, gt=0, le=2, description="mm, largest chip thickness h_ex the edge takes cleanly"
+    )
+    overload_gain: float = Field(
+        3.0, ge=0, le=100, description="cutting-pressure rise per unit relative excess of h_ex"
+    )
 
     @model_validator(mode="after")
     def _geometry(self) -> EndMill:

@@ -41,6 +41,7 @@ MAY_IMPORT: dict[str, set[str]] = {
         "analysis.runs",
         "analysis.forces",
     },
+    "analysis.chatter": {"analysis.errors", "analysis.runs"},
     "analysis.identify": {
         "analysis",
         "analysis.errors",

@@ -313,3 +313,86 @@ def test_zmap_stock_remembers_earlier_passes() -> None:
     # nothing.
     assert stock.removed_mm3[0] == pytest.approx(10.0 * 2.0 * 40.0, rel=0.01)
     assert stock.removed_mm3[1] == pytest.approx(0.0, abs=1.0)
+
+
+def _slot_machine(tool: EndMill, mat, rpm: float, fz: float, depth: float, **kw):
+    from rig.sim.machine import SignalSettings, SimMachine
+
+    feed = fz * tool.flutes * rpm
+    stock = BlockStock(SteppedBlock(-40, 40, (0.0, 400.0), (0.0,)))
+    quiet = SignalSettings(noise_n=0.0, drift_n_s=0.0, hum_n=0.0, modes=False)
+    m = SimMachine(tool, mat, _dyno(), stock, 20_000.0, quiet, **kw)
+    m.on_segment(_line(20, 390, 0.0, -depth, feed, rpm))
+    return m
+
+
+def test_chip_breaker_overload_scales_the_cutting_pressures() -> None:
+    # A flat end mill's h_ex is fz (kappa = 90 deg): above max_chip_mm the chip terms rise by
+    # 1 + gain (fz / max_chip - 1); without edge terms the whole force does.
+    from analysis.config import EndMillCoefficients, Material
+
+    coef = EndMillCoefficients(
+        Ktc_n_mm2=800, Krc_n_mm2=300, Kac_n_mm2=100, Kte_n_mm=0, Kre_n_mm=0, Kae_n_mm=0
+    )
+    mat = Material(density_kg_m3=2700, endmill=coef)
+    limited = FLAT.model_copy(update={"max_chip_mm": 0.1, "overload_gain": 3.0})
+    rpm = 3000.0
+    t = 0.5 + np.arange(400) / 20_000.0  # one revolution, well inside the block
+    for fz, factor in ((0.08, 1.0), (0.1, 1.0), (0.15, 2.5)):
+        free = _slot_machine(FLAT, mat, rpm, fz, 2.0).cutting_force(t)
+        lim = _slot_machine(limited, mat, rpm, fz, 2.0).cutting_force(t)
+        assert np.allclose(lim, factor * free, atol=1e-9 * np.abs(free).max()), fz
+
+
+def test_regenerative_kernel_with_a_stiff_tool_is_the_quasi_static_force() -> None:
+    # The kernel's own force law and chip against element_forces on the same engagement: a ball
+    # (kappa varies over the slices) in a 0.7 mm slot, tool modes so stiff they do not move.
+    from analysis.config import ToolMode, get_material
+
+    mat = get_material("gm241")
+    stiff = tuple(ToolMode(axis=a, f_hz=1500.0, zeta=0.03, k_N_m=1e9) for a in ("x", "y"))
+    rpm, fz = 2000.0, 0.2
+    t = 0.3 + np.arange(int(0.1 * 20_000)) / 20_000.0
+    ref = _slot_machine(BALL, mat, rpm, fz, 0.7).cutting_force(t)
+    m = _slot_machine(BALL, mat, rpm, fz, 0.7, tool_modes=stiff)
+    m.cutting_force(np.arange(int(0.3 * 20_000)) / 20_000.0)  # memory filled by the earlier teeth
+    got = m.cutting_force(t)
+    err = np.abs(got - ref).max(axis=1)
+    # Where the teeth switch, the edge forces jump: a sample there may fall on either side.
+    jump = np.abs(np.diff(ref[:, 0], prepend=ref[0, 0])) > 0.2 * np.abs(ref).max()
+    jump |= np.roll(jump, -1)
+    assert err[~jump].max() < 0.01 * np.abs(ref).max() and jump.mean() < 0.01
+
+
+@pytest.mark.parametrize("max_chip", [0.05, None])
+def test_feed_sweep_base_feed_comes_from_the_chip_limit(max_chip: float | None) -> None:
+    # Seed 001 4.2 on the twin (quasi-static): phi 30 ball, 0.3 mm slot, 2000 rpm. With the
+    # edge's chip limit (h_ex = fz sin kappa = 0.05 mm at 0.255 mm/tooth) the base-feed analysis
+    # finds 1000 mm/min from the forces alone; without it there is no change to find.
+    from analysis.config import get_material, get_tool
+    from analysis.rules.basefeed import SweepRun, find_base_feed
+
+    tool = get_tool("phi30-ball").model_copy(update={"max_chip_mm": max_chip})
+    rng = np.random.default_rng(3)
+    runs = []
+    for feed in range(400, 2201, 200):
+        m = _slot_machine(tool, get_material("gm241"), 2000.0, feed / 4000.0, 0.3)
+        t = 1.0 + np.arange(int(0.3 * 20_000)) / 20_000.0  # 10 revolutions of steady slot
+        f = m.cutting_force(t)[:, :2] + rng.normal(0.0, 2.0, (t.size, 2))
+        runs.append(SweepRun(float(feed), f, 20_000.0, 2000.0, 2))
+    res = find_base_feed(runs)
+    assert res.found == (max_chip is not None), res.message
+    if max_chip is not None:
+        assert res.base_feed_mm_min == 1000.0
+
+
+def test_the_stand_in_chatter_keys_are_refused_saying_what_replaced_them(tmp_path) -> None:
+    from analysis.config import config_dir
+    from analysis.errors import ConfigError
+    from rig.campaign import load_campaign
+
+    text = (config_dir() / "campaigns" / "feed-sweep.toml").read_text()
+    p = tmp_path / "old.toml"
+    p.write_text(text.replace("[sim]\n", "[sim]\nchatter_fz_mm = 0.27\n"))
+    with pytest.raises(ConfigError, match="chatter_fz_mm.*tool's modes.*max_chip_mm"):
+        load_campaign(p)

@@ -31,6 +31,7 @@ from analysis.config import (
     MachineConfig,
     Material,
     RigConfig,
+    ToolMode,
     config_dir,
     get_material,
     get_tool,
@@ -125,11 +126,27 @@ class SimSection(Model):
         None, gt=0, description="s after streaming starts: the door interlock trips"
     )
     sim_fault_run: int = Field(0, ge=0, description="index of the run the sim_ faults hit")
-    chatter_fz_mm: float | None = Field(
-        None, gt=0, le=10, description="mm/tooth above which the simulated cut chatters"
+    tool_modes: tuple[ToolMode, ...] | None = Field(
+        None, description="the tool's modes for the regenerative twin (default: the tool's)"
     )
-    chatter_gain: float = Field(3.0, ge=0, le=100, description="force rise per unit fz excess")
-    chatter_hz: float = Field(913.0, gt=0, le=20_000, description="Hz, chatter frequency")
+    tool_max_chip_mm: float | None = Field(
+        None, gt=0, le=2, description="mm, the fitted edge's max_chip_mm (default: the tool's)"
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _no_stand_in_chatter(cls, data: Any) -> Any:
+        old = sorted(k for k in data if k in _REMOVED_CHATTER) if isinstance(data, dict) else []
+        if old:
+            raise ValueError(
+                f"{old[0]} is no longer a setting: the simulated rig chatters where the tool's "
+                "modes make the cut unstable ([[tools.NAME.modes]] or [[sim.tool_modes]]: axis, "
+                "f_hz, zeta, k_N_m) and the feed limit is the tool's max_chip_mm"
+            )
+        return data
+
+
+_REMOVED_CHATTER = ("chatter_fz_mm", "chatter_gain", "chatter_hz")
 
 
 class SuspenderSection(Model):

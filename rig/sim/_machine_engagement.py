@@ -49,17 +49,24 @@ class EndMillEngagement:
     theta_rad immersion angle, h_mm uncut chip thickness normal to the edge (0 out of the cut),
     engaged bool; dz_mm (slices,) slice heights, z_mm (slices,) slice centres above the tip,
     kappa_rad (slices,) axial immersion angle of the edge (pi/2 on a flat flank); fz_mm (n,),
-    feed_angle_rad (n,).
+    feed_angle_rad (n,); edge_rad (n, teeth, slices) the edge's absolute angle in machine XY (its
+    outward normal is (cos, sin)).
     """
 
     theta_rad: np.ndarray
-    h_mm: np.ndarray
     engaged: np.ndarray
     dz_mm: np.ndarray
     z_mm: np.ndarray
     kappa_rad: np.ndarray
     fz_mm: np.ndarray
     feed_angle_rad: np.ndarray
+    edge_rad: np.ndarray
+
+    @property
+    def h_mm(self) -> np.ndarray:
+        """Nominal chip (n, teeth, slices) mm (the regenerative twin does without it)."""
+        h = self.fz_mm[:, None, None] * np.sin(self.theta_rad) * np.sin(self.kappa_rad)
+        return np.where(self.engaged, h, 0.0)
 
 
 def _feed_frame(state: TimelineState, teeth: int) -> tuple[np.ndarray, np.ndarray]:
@@ -159,14 +166,16 @@ def endmill_engagement(
         + tooth[None, :, None]
         + sgn[:, None, None] * lag[None, None, :]
     )  # (n, t, s)
-    rr = (radius + margin_mm)[None, None, :]
-    x = state.position_mm[:, 0, None, None] + rr * np.cos(edge)
-    y = state.position_mm[:, 1, None, None] + rr * np.sin(edge)
-    top = stock.top_z(x, y)
-    zabs = state.position_mm[:, 2, None, None] + z[None, None, :]
     n = state.position_mm.shape[0]
     theta = _theta(edge.reshape(n, -1), beta, state.spindle_rpm).reshape(edge.shape)
     spinning = (state.spindle_rpm != 0)[:, None, None]
-    engaged = (theta > 0) & (theta < np.pi) & (zabs < top) & spinning
-    h = np.where(engaged, fz[:, None, None] * np.sin(theta) * np.sin(kappa)[None, None, :], 0.0)
-    return EndMillEngagement(theta, h, engaged, dz, z, kappa, fz, beta)
+    engaged = (theta > 0) & (theta < np.pi) & spinning
+    # The stock is looked up on the leading half only (the other half never cuts).
+    i, k, s = np.nonzero(engaged)
+    rr = radius[s] + margin_mm
+    top = stock.top_z(
+        state.position_mm[i, 0] + rr * np.cos(edge[i, k, s]),
+        state.position_mm[i, 1] + rr * np.sin(edge[i, k, s]),
+    )
+    engaged[i, k, s] = state.position_mm[i, 2] + z[s] < top
+    return EndMillEngagement(theta, engaged, dz, z, kappa, fz, beta, edge)

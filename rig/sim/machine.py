@@ -19,10 +19,13 @@ How the twin differs from a real machine and dynamometer:
 
 - Engagement is the leading half of the cutter in uncut stock; a reversing path inside one DAQ
   read (0.1 s) sees the stock as it was at the start of that read.
-- Forces are quasi-static (no tool deflection, no regeneration); only the dynamometer's modes
-  add dynamics. Chatter, where a campaign asks for it, is a phenomenological rise and
-  oscillation above a feed per tooth (:class:`Chatter`), not a stability model. Runout, tool
-  wear and built-up edge are not modelled.
+- An end mill with tool modes (``[[tools.NAME.modes]]`` or the campaign's ``[[sim.tool_modes]]``)
+  cuts regeneratively (:mod:`rig.sim._regen`: tool deflection, the chip left by the earlier
+  teeth, chatter where the stability lobes say); without modes, and for face mills, forces are
+  quasi-static and only the dynamometer's modes add dynamics. An end mill's ``max_chip_mm``
+  limits the feed: above it the chip jams in the chip breaker and the force rises sharply
+  (:func:`rig.sim._regen.overload_factor`). Runout, tool wear and built-up edge are not
+  modelled.
 - Noise is white and Gaussian, drift linear, hum one sinusoid; the amplifier never saturates here
   (the simulated DAQ's ``sim_`` knobs do that).
 """
@@ -36,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis.config import Dynamometer, EndMill, FaceMill, Material
+from analysis.config import Dynamometer, EndMill, FaceMill, Material, ToolMode
 from rig.errors import RigError
 from rig.sim._machine_engagement import (
     EndMillEngagement,
@@ -46,6 +49,7 @@ from rig.sim._machine_engagement import (
 )
 from rig.sim._machine_signal import DynoChain
 from rig.sim._machine_timeline import ExecutedSegment, MotionTimeline
+from rig.sim._regen import RegenEndMill, overload_factor
 
 
 @dataclass(frozen=True)
@@ -58,25 +62,6 @@ class SignalSettings:
     hum_hz: float = 50.0
     seed: int = 2003
     modes: bool = True
-
-
-@dataclass(frozen=True)
-class Chatter:
-    """A stand-in for the stability limit: above ``fz_onset_mm`` per tooth the force grows by
-    ``gain`` x the relative excess and oscillates at ``frequency_hz`` (seed 001 4.2 saw the force
-    rise sharply, with vibration, above the base feed; the linear force models have no such
-    limit, so the twin adds one where a campaign asks for it)."""
-
-    fz_onset_mm: float
-    gain: float = 3.0
-    frequency_hz: float = 900.0
-
-    def apply(self, f: np.ndarray, fz_mm: np.ndarray, t_s: np.ndarray) -> np.ndarray:
-        excess = np.maximum(fz_mm / self.fz_onset_mm - 1.0, 0.0)
-        if not excess.any():
-            return f
-        wobble = 1.0 + np.sin(2 * np.pi * self.frequency_hz * t_s)
-        return f * (1.0 + self.gain * excess * wobble)[:, None]
 
 
 class BlockStock:
@@ -175,10 +160,12 @@ def endmill_forces(eng: EndMillEngagement, tool: EndMill, material: Material) ->
     from analysis.forces import endmill
 
     coef = _truth(material, "endmill")
+    # The chip-breaker overload scales the cutting pressures, i.e. the chip in the linear law.
+    h = eng.h_mm * overload_factor(eng, tool)[:, :, None]
     return _summed(
         eng,
         lambda idx: endmill.element_forces(
-            eng.theta_rad[idx], eng.h_mm[idx], eng.dz_mm[idx[2]], eng.kappa_rad[idx[2]], coef
+            eng.theta_rad[idx], h[idx], eng.dz_mm[idx[2]], eng.kappa_rad[idx[2]], coef
         ),
     )
 
@@ -193,6 +180,7 @@ class SimMachine:
     stock : :class:`BlockStock` or :class:`ZMapStock`.
     rate_hz : the DAQ's sample rate, Hz.
     signal : disturbances; ``n_slices`` axial slices per flute for end mills.
+    tool_modes : the tool's modes for the regenerative twin (default: the tool's own ``modes``).
     """
 
     def __init__(
@@ -204,7 +192,7 @@ class SimMachine:
         rate_hz: float,
         signal: SignalSettings = SignalSettings(),
         n_slices: int = 16,
-        chatter: Chatter | None = None,
+        tool_modes: tuple[ToolMode, ...] | None = None,
     ) -> None:
         self.tool = tool
         self.material = material
@@ -216,7 +204,12 @@ class SimMachine:
             signal.seed, signal.modes,
         )  # fmt: skip
         self.n_slices = n_slices
-        self.chatter = chatter
+        modes = tool.modes if tool_modes is None and isinstance(tool, EndMill) else tool_modes
+        self.regen = (
+            RegenEndMill(tool, _truth(material, "endmill"), modes, rate_hz, n_slices)
+            if modes and isinstance(tool, EndMill)
+            else None
+        )
         self._lock = threading.Lock()
         self.peak_force_n = 0.0
 
@@ -241,6 +234,8 @@ class SimMachine:
         t = np.asarray(t_s, dtype=float)
         if t.size:
             self.stock.advance(float(t[0]), self.timeline)
+        if self.regen is not None:
+            return self.regen.forces(t, self.timeline, self.stock)
         st = self.timeline.state(t)
         if isinstance(self.tool, FaceMill):
             eng = facemill_engagement(st, self.tool, self.stock)
@@ -251,8 +246,6 @@ class SimMachine:
                 return np.zeros((t.size, 3))
             eng = endmill_engagement(st, self.tool, self.stock, depth, self.n_slices)
             f = endmill_forces(eng, self.tool, self.material)
-        if self.chatter is not None:
-            f = self.chatter.apply(f, eng.fz_mm, t)
         return f
 
     def source(self, t0_s: float, n: int, rate_hz: float) -> np.ndarray:

@@ -29,7 +29,7 @@ from rig.dnc.sinks import LoggerSink
 from rig.errors import RigError
 from rig.sim.clock import SimClock
 from rig.sim.daq import SimDaq
-from rig.sim.machine import BlockStock, Chatter, SignalSettings, SimMachine, ZMapStock
+from rig.sim.machine import BlockStock, SignalSettings, SimMachine, ZMapStock
 
 
 def _make_stock(campaign: Any, plan: Any) -> BlockStock | ZMapStock:
@@ -51,16 +51,18 @@ class SimSession:
         rate = campaign.spec.daq.rate_hz or rig.daq.rate_hz
         read_s = campaign.spec.daq.read_interval_s or rig.daq.read_interval_s
         faults = run_index == sim.sim_fault_run
+        tool = campaign.tool
+        if sim.tool_max_chip_mm is not None and isinstance(tool, EndMill):
+            tool = tool.model_copy(update={"max_chip_mm": sim.tool_max_chip_mm})
         self.machine = SimMachine(
-            campaign.tool,
+            tool,
             campaign.material,
             rig.dynamometer,
             _make_stock(campaign, plan),
             rate,
             SignalSettings(sim.noise_n, sim.drift_n_s, sim.hum_n, sim.hum_hz,
                            sim.seed + run_index),
-            chatter=Chatter(sim.chatter_fz_mm, sim.chatter_gain, sim.chatter_hz)
-            if sim.chatter_fz_mm is not None else None,
+            tool_modes=sim.tool_modes,
         )  # fmt: skip
         self.controller = self._make_controller(campaign, faults)
         self.controller.add_listener(

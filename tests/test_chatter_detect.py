@@ -1,0 +1,86 @@
+"""Chatter detection (analysis.chatter) on synthetic signals and on the regenerative twin."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from analysis.chatter import ChatterSettings, detect_chatter, indicators
+from analysis.errors import AnalysisError
+from tests.test_regen_twin import RATE, slot, zoa_slot
+
+RPM = 3000.0
+
+
+def _tooth_force(t: np.ndarray, rpm: float = RPM, amp: float = 200.0) -> np.ndarray:
+    """A stable 2-flute cut: tooth-passing harmonics plus a runout line at the spindle speed."""
+    w = 2 * math.pi * rpm / 60
+    fx = amp * (0.5 + 0.4 * np.sin(2 * w * t) + 0.2 * np.sin(4 * w * t + 1)) + 8 * np.sin(w * t)
+    fy = amp * (0.3 + 0.3 * np.cos(2 * w * t))
+    return np.column_stack([fx, fy])
+
+
+def _noise(n: int, sigma: float = 2.0, seed: int = 1) -> np.ndarray:
+    return np.random.default_rng(seed).normal(0.0, sigma, (n, 2))
+
+
+def test_stable_periodic_cut_with_noise_and_hum_is_not_chatter() -> None:
+    t = np.arange(int(2 * RATE)) / RATE
+    f = _tooth_force(t) + _noise(t.size) + 0.5 * np.sin(2 * math.pi * 50 * t)[:, None]
+    v = indicators(f, RATE, RPM)
+    assert v.judged and not v.chatter
+    assert v.energy_ratio < 0.01 and v.opr_ratio < 0.01
+
+
+def test_a_growing_component_off_the_harmonics_is_chatter_at_its_frequency() -> None:
+    t = np.arange(int(2 * RATE)) / RATE
+    grow = 60 * np.minimum(np.exp(3 * (t - 1.0)), 1.5) * np.sin(2 * math.pi * 931.0 * t)
+    f = _tooth_force(t) + _noise(t.size) + np.column_stack([grow, 0.5 * grow])
+    v = indicators(f, RATE, RPM)
+    assert v.chatter and v.frequency_hz == pytest.approx(931.0, abs=1.0)
+    assert v.energy_ratio > 0.1 and v.opr_ratio > 0.1
+
+
+def test_light_noisy_cut_entry_and_exit_are_not_chatter() -> None:
+    t = np.arange(int(2 * RATE)) / RATE
+    ramp = np.clip((t - 0.3) / 0.05, 0, 1) * np.clip((1.7 - t) / 0.05, 0, 1)
+    f = _tooth_force(t, amp=20.0) * ramp[:, None] + _noise(t.size, 2.0)
+    assert not indicators(f, RATE, RPM).chatter
+
+
+def test_too_short_a_stretch_is_not_judged_and_bad_input_is_refused() -> None:
+    t = np.arange(200) / RATE
+    v = indicators(_tooth_force(t), RATE, RPM)
+    assert not v.judged and not v.chatter and "cutting revolutions" in v.reason
+    with pytest.raises(AnalysisError, match="spindle speed 0"):
+        indicators(_tooth_force(t), RATE, 0.0)
+    with pytest.raises(AnalysisError, match="energy_ratio"):
+        ChatterSettings(energy_ratio=1.5)
+
+
+@pytest.mark.parametrize("rpm", [6000.0, 10000.0, 15000.0])
+def test_twin_runs_every_chattering_cut_flagged_no_stable_one(rpm: float) -> None:
+    a = zoa_slot(rpm)[0]
+    for scale, chatters in ((0.5, False), (0.8, False), (1.3, True), (1.8, True)):
+        f, _ = slot(rpm, scale * a)
+        f = f[:, :2] + _noise(len(f), 1.0)
+        r = detect_chatter(f, RATE, rpm)
+        assert r.chatter == chatters, (rpm, scale, r.whole)
+        if chatters:  # near the mode, or one of its tooth-passing sidebands
+            ft = rpm / 60 * 2
+            folded = r.frequency_hz - round((r.frequency_hz - 922.0) / ft) * ft
+            assert folded == pytest.approx(922.0, rel=0.12)
+
+
+def test_per_block_verdicts_mark_the_chattering_block_only() -> None:
+    rpm = 10000.0
+    a = zoa_slot(rpm)[0]
+    stable, _ = slot(rpm, 0.6 * a)
+    chatter, _ = slot(rpm, 1.5 * a)
+    f = np.vstack([stable[:, :2], chatter[:, :2]])
+    blocks = np.repeat([7, 8], [len(stable), len(chatter)])
+    r = detect_chatter(f, RATE, rpm, blocks=blocks)
+    assert r.chatter and r.chattering_blocks() == [8]
+    assert [b.block for b in r.blocks] == [7, 8] and all(b.judged for b in r.blocks)
