@@ -6,7 +6,8 @@ manifest in the folder) and every run file through :mod:`analysis.runs.file`, th
     report/
         report.md            the summary people read (tables in Markdown)
         summary.json         the same figures for scripts
-        runs.csv             one row per run: conditions, status, reason, steady mean forces
+        runs.csv             one row per run: conditions, status, reason, steady mean forces,
+                             the chatter verdict (analysis.chatter)
         <analysis>.csv/json  the analysis' own tables (coefficients, validation, rule, ...)
         *.png                force traces, fits, predicted vs measured, load and feed
 
@@ -26,6 +27,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from analysis.errors import AnalysisError
 from rig.campaign import load_campaign, mode_warnings
 from rig.report.afc import afc_section
 from rig.report.base import LoadedRun, Report, Section, load_runs, md_table
@@ -57,8 +59,27 @@ def _run_rows(runs: list[LoadedRun], entries: list[dict[str, Any]]) -> list[dict
             row.update(lr.steady_means)
             if lr.run.force_n is not None:
                 row["peak_N"] = float(np.max(np.linalg.norm(lr.run.force_n, axis=1)))
+            row.update(_chatter_columns(lr))
         rows.append(row)
     return rows
+
+
+def _chatter_columns(lr: LoadedRun) -> dict[str, Any]:
+    """The run's chatter verdict (:func:`analysis.chatter.detect_run`): whether, at what
+    frequency, in which blocks, and the two indicators of the whole run."""
+    from analysis.chatter import detect_run
+
+    try:
+        rc = detect_run(lr.run)
+    except AnalysisError as exc:  # no forces in N, no spindle speed: nothing to judge
+        return {"chatter": "", "chatter_reason": str(exc)}
+    return {
+        "chatter": rc.chatter,
+        "chatter_hz": rc.frequency_hz if rc.chatter else math.nan,
+        "chatter_blocks": " ".join(map(str, rc.chattering_blocks())),
+        "chatter_energy_ratio": rc.whole.energy_ratio,
+        "chatter_opr_ratio": rc.whole.opr_ratio,
+    }
 
 
 def write_report(campaign_folder: str | Path) -> Report:
@@ -102,9 +123,14 @@ def write_report(campaign_folder: str | Path) -> Report:
           f"{len(entries)} runs ({', '.join(f'{v} {k}' for k, v in counts.items())}).\n",
           "![force traces](force_traces.png)\n"]  # fmt: skip
     md += [f"Warning: {w}\n" for w in warnings]
+    chatter = [r for r in rows if r.get("chatter") is True]
+    summary["chatter_runs"] = [r["name"] for r in chatter]
+    md += [f"Chatter in run {r['name']} at {r['chatter_hz']:.0f} Hz (blocks "
+           f"{r['chatter_blocks'] or 'whole run'}).\n" for r in chatter]  # fmt: skip
     for s in sections:
         md += [f"## {s.title}\n", s.markdown]
-    cols = ["run", "name", "status", "fz_mm", "depth_mm", "Fx_mean_N", "Fy_mean_N", "Fz_mean_N"]
+    cols = ["run", "name", "status", "fz_mm", "depth_mm", "Fx_mean_N", "Fy_mean_N", "Fz_mean_N",
+            "chatter"]  # fmt: skip
     md += ["## Runs\n", md_table([{k: r.get(k, "") for k in cols} for r in rows])]
     text = "\n".join(md)
     (out / "report.md").write_text(text)
