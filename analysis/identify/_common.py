@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy import linalg, stats
+from scipy import linalg
 
 from analysis.errors import AnalysisError
 from analysis.runs.steady import (
@@ -437,6 +437,8 @@ def linear_fit(
     xtx_inv = linalg.pinvh(X.T @ X)
     cov = sigma2 * xtx_inv
     se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    from scipy import stats  # on first use: importing scipy.stats costs ~0.3 s
+
     tq = stats.t.ppf(0.5 + confidence / 2, dof)
     tss = float(((y - y.mean()) ** 2).sum())
     r2 = 1.0 - rss / tss if tss > 0 else math.nan
@@ -454,6 +456,8 @@ def ratio_with_error(fit: LinearFit, num: int, den: int) -> tuple[float, float, 
     g = np.zeros(len(fit.values))
     g[num], g[den] = 1 / b, -a / b**2
     se = float(math.sqrt(max(g @ fit.covariance @ g, 0.0)))
+    from scipy import stats
+
     tq = stats.t.ppf(0.5 + fit.confidence / 2, fit.dof)
     return float(r), se, float(r - tq * se), float(r + tq * se)
 

@@ -16,7 +16,6 @@ dynamometer's X, Y, Z forces is :func:`analysis.identify.import_run`'s job.
 
 from __future__ import annotations
 
-import io
 import math
 import re
 from dataclasses import dataclass, field
@@ -53,16 +52,25 @@ class ForceTable:
     separator: str = ","
 
 
-def _read_text(p: Path) -> str:
+#: bytes of an export read as text to find its header block and column names; the samples
+#: below are parsed by pandas straight from the file (a 100 MB export is never held as text)
+HEAD_BYTES = 1 << 18
+
+
+def _read_head(p: Path) -> tuple[list[str], str]:
+    """The first lines of the file (whole lines, up to :data:`HEAD_BYTES`) and its encoding."""
     try:
-        raw = p.read_bytes()
+        with p.open("rb") as fh:
+            raw = fh.read(HEAD_BYTES + 1)
     except FileNotFoundError:
         raise AnalysisError(f"{p}: file not found") from None
     except OSError as exc:
         raise AnalysisError(f"{p}: cannot read: {exc}") from None
+    if len(raw) > HEAD_BYTES:
+        raw = raw[: raw.rfind(b"\n") + 1]  # whole lines only (and no split character)
     for enc in ("utf-8-sig", "cp1252", "latin-1"):
         try:
-            return raw.decode(enc)
+            return raw.decode(enc).splitlines(), enc
         except UnicodeDecodeError:
             continue
     raise AnalysisError(f"{p}: not a text file")  # pragma: no cover - latin-1 decodes anything
@@ -121,8 +129,7 @@ def _unit_of(name: str) -> tuple[str, str]:
 def read_force_table(path: str | Path) -> ForceTable:
     """Parse a DynoWare export or a plain CSV (see module docstring)."""
     p = Path(path)
-    text = _read_text(p)
-    lines = text.splitlines()
+    lines, encoding = _read_head(p)
     try:
         hdr_i, sep = _detect(lines)
     except AnalysisError as exc:
@@ -138,11 +145,11 @@ def read_force_table(path: str | Path) -> ForceTable:
     # Decimal mark: a comma inside numbers when the separator is not a comma.
     sample = " ".join(lines[data_start : data_start + 50])
     decimal = "," if sep != "," and re.search(r"\d,\d", sample) else "."
-    body = "\n".join(ln for ln in lines[data_start:] if ln.strip())
     try:
         df = pd.read_csv(
-            io.StringIO(body), sep=r"\s+" if sep == " " else sep, header=None,
-            decimal=decimal, engine="python" if sep == " " else "c",
+            p, skiprows=data_start, sep=r"\s+" if sep == " " else sep, header=None,
+            decimal=decimal, engine="python" if sep == " " else "c", encoding=encoding,
+            skip_blank_lines=True,
         )  # fmt: skip
     except (ValueError, pd.errors.ParserError) as exc:
         raise AnalysisError(f"{p}: cannot read the samples: {exc}") from None
@@ -150,14 +157,16 @@ def read_force_table(path: str | Path) -> ForceTable:
         raise AnalysisError(
             f"{p}:{hdr_i + 1}: {len(names)} column names but {df.shape[1]} data columns"
         )
-    bad = df.apply(pd.to_numeric, errors="coerce").isna().to_numpy()
+    numeric = all(pd.api.types.is_numeric_dtype(t) for t in df.dtypes)
+    values = df if numeric else df.apply(pd.to_numeric, errors="coerce")
+    bad = values.isna().to_numpy()
     if bad.any():
         r, c = np.argwhere(bad)[0]
         raise AnalysisError(
             f"{p}:{data_start + r + 1}: column {names[c]} = {df.iat[r, c]!r}: not a number"
         )
     header = _header(lines[:hdr_i])
-    data = df.to_numpy(float)
+    data = values.to_numpy(float)
     rate = math.nan
     for k in _RATE_KEYS:
         if k in header:
