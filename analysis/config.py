@@ -74,9 +74,9 @@ class RotaryAxis(Model):
 class FiveAxis(Model):
     """Kinematics of a 5-axis machine for inverse kinematics (seed 002 output)."""
 
-    kind: Literal["table-table-AC", "head-table-AC", "table-table-BC", "head-head-AC"] = Field(
-        description="kinematic chain"
-    )
+    kind: Literal[
+        "table-table-AC", "head-table-AC", "table-table-BC", "head-head-AC", "head-head-BC"
+    ] = Field(description="kinematic chain")
     a: RotaryAxis = RotaryAxis(min_deg=-120.0, max_deg=30.0)
     b: RotaryAxis = RotaryAxis(min_deg=-120.0, max_deg=120.0)
     c: RotaryAxis = RotaryAxis(min_deg=-360.0, max_deg=360.0)

@@ -28,16 +28,21 @@ def test_fan_writes_cl_nc_map_and_summary(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["plan", "orient", str(cfg), "-o", str(out), "--json", "--map-point", "2"]) == 0
     summary = json.loads(capsys.readouterr().out)
-    assert summary["cc_points"] == summary["feasible"] == summary["checked"] == 10
-    assert summary["collisions"] == 0
+    assert summary["cc_points"] == summary["feasible"] == 10
+    n = summary["cl_points"]  # the CC points and those refinement inserted between them
+    assert n == 10 + summary["inserted_points"] == summary["checked"]
+    assert summary["collisions"] == summary["between_collisions"] == 0
+    assert summary["tip_deviation_mm"] <= 0.01 and summary["max_axis_jump_deg"] <= 5.0
+    assert summary["feed_max_mm_min"] <= summary["feed_limit_mm_min"]
+    assert summary["forward_check_mm"] < 1e-6 and summary["forward_check_rad"] < 1e-6
     assert summary["kinematics"] == "table-table-AC"
     cl = pd.read_csv(out / "cl.csv")
-    assert len(cl) == 10
+    assert len(cl) == n
     axis = cl[["axis_i", "axis_j", "axis_k"]].to_numpy()
     assert np.allclose(np.linalg.norm(axis, axis=1), 1.0, atol=1e-5)
     blocks = (out / "program.nc").read_text().splitlines()
     cuts = [b for b in blocks if b.startswith("G01") and " A" in b]
-    assert len(cuts) == 8  # 2 lines x (5 - 1) cuts, each under inverse-time feed
+    assert len(cuts) == n - 2  # 2 lines: all but each line's first point, under G93
     assert sum(b.startswith("G01 G93") for b in cuts) == 2 and all(" F" in b for b in cuts)
     png = (out / "energy_map.png").read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
@@ -106,7 +111,20 @@ def test_tool_with_corner_radius_above_radius_is_refused(tmp_path, capsys, monke
     )
 
 
-@pytest.mark.parametrize("kind", ["head-table-AC"])
+def test_grbl_dialect_is_refused_and_linuxcnc_is_written(tmp_path, capsys):
+    cfg = tmp_path / "fan.toml"
+    cfg.write_text(small(FAN.read_text(), "[0.5]", 3))
+    out = tmp_path / "o"
+    assert main(["plan", "orient", str(cfg), "-o", str(out), "--dialect", "grbl"]) == 2
+    assert "GRBL has no rotary axes" in _err(capsys) and not out.exists()
+    args = ["plan", "orient", str(cfg), "-o", str(out), "--dialect", "linuxcnc", "--no-plot"]
+    assert main([*args, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["dialect"] == "linuxcnc"
+    text = (out / "program.nc").read_text()
+    assert "O1000" not in text and "G93" in text
+
+
+@pytest.mark.parametrize("kind", ["head-table-AC", "head-head-BC"])
 def test_head_table_machine(tmp_path, capsys, kind, monkeypatch):
     conf = tmp_path / "conf"
     (conf / "machines").mkdir(parents=True)

@@ -1,5 +1,8 @@
-"""The whole `cutlab plan orient` job: plan the orientations, re-check them on a fresh mesh,
-write CL data, the NC program, the pictures and summary.json, and return the summary."""
+"""The whole `cutlab plan orient` job: plan the orientations, smooth them, refine the CL points
+until the machine's moves between them are verified (planning.orient.between), re-check every
+posted pose on a fresh mesh, post for the machine (inverse kinematics, singularity, G93 feeds
+within the axis speeds, forward-kinematics check of every block), write CL data, the NC program,
+the pictures and summary.json, and return the summary."""
 
 from __future__ import annotations
 
@@ -11,11 +14,44 @@ from pathlib import Path
 import numpy as np
 
 from planning.errors import PlanningError
+from planning.nc import Program
+from planning.nc.output import default_dialect, for_dialect
+from planning.orient.between import Scene, refine
 from planning.orient.check import verify
 from planning.orient.config import load_orient
-from planning.orient.kinematics import inverse, nc_program, write_cl_csv
-from planning.orient.planner import energy_map, plan_orientation, require_feasible
+from planning.orient.kinematics import (
+    axis_speeds,
+    check_forward,
+    inverse_time_feeds,
+    nc_program,
+    write_cl_csv,
+)
+from planning.orient.planner import (
+    assemble,
+    axis_jumps_deg,
+    build_context,
+    cc_points,
+    energy_map,
+    require_feasible,
+    solve_all,
+)
+from planning.orient.smooth import angles_of, smooth_result
 from planning.orient.tool import ToolSystem
+
+TIP_TOL_MM = 0.01  # tool tip off the chord between CL points, after refinement
+MAX_JUMP_DEG = 5.0  # tool-axis change between neighbouring CL points
+MAX_C_STEP_DEG = 30.0  # C per block
+SINGULAR_CONE_DEG = 3.0  # C held within this angle of the C axis
+
+
+def _jump_stats(axis, cc) -> tuple[float, int, float]:
+    """Largest axis change between neighbours (deg), the later point, largest per mm on the
+    part (deg/mm)."""
+    j = axis_jumps_deg(axis, cc.line)
+    step = np.linalg.norm(np.diff(cc.point, axis=0), axis=1)
+    k = int(np.nanargmax(j)) if np.isfinite(j).any() else -1
+    per_mm = float(np.nanmax(j / np.maximum(step, 1e-9))) if k >= 0 else float("nan")
+    return (float(j[k]) if k >= 0 else float("nan")), k + 1, per_mm
 
 
 def run_orient(
@@ -25,39 +61,73 @@ def run_orient(
     plot: bool = True,
     progress: Callable[[int, int], None] | None = None,
     status: Callable[[str], None] | None = None,
+    dialect: str | None = None,
 ) -> dict:
     """Plan the orientation config ``config``, check every orientation on a dense mesh, write
     cl.csv, program.nc, summary.json (and energy_map.png, orientation.png if ``plot``) to
     ``out_dir`` and return the summary. The energy map is drawn at ``map_point`` (default: the
     CC point that needed most energy evaluations). ``progress(done, total)`` counts CC points;
-    ``status`` gets a line before the energy map. Nothing is written if a point fails."""
+    ``status`` gets a line before the energy map and the reason when refinement stops short.
+    ``dialect`` (fanuc, linuxcnc; default the machine's) is the controller the program is
+    written for; grbl has no rotary axes and is refused. Nothing is written if a point fails."""
     config, out = Path(config), Path(out_dir)
     cfg, tool_cfg, machine = load_orient(config)
-    t0 = time.perf_counter()
-    res = plan_orientation(cfg, tool_cfg, progress)
-    plan_s = time.perf_counter() - t0
-    require_feasible(res)
+    dialect = dialect or default_dialect(machine)
+    if dialect == "grbl":
+        raise PlanningError(
+            f"{config}: --dialect grbl: GRBL has no rotary axes (A, B, C), so it cannot run a "
+            "5-axis program; use fanuc or linuxcnc"
+        )
+    say = status or (lambda msg: None)
     surfaces = [s.build() for s in cfg.surfaces]
+    machined = surfaces[[s.role for s in cfg.surfaces].index("machined")]
+    t0 = time.perf_counter()
+    cc = cc_points(machined, cfg)
+    ctx = build_context(cfg, tool_cfg, surfaces)
+    raw = solve_all(ctx, cc, progress)
+    require_feasible(raw)
+    res = smooth_result(ctx, raw)
+    plan_s = time.perf_counter() - t0
     tool = ToolSystem.from_endmill(tool_cfg, cfg.tool)
     pl = cfg.planner
+    t1 = time.perf_counter()
+    scene = Scene.build(surfaces, tool, pl.check_spacing_mm, pl.gouge_tolerance_mm)
+    theta = np.radians(np.stack([res.alpha_deg, res.beta_deg], 1))
+    ref = refine(
+        ctx, machined, cfg.paths.along, cc, theta, machine, scene, TIP_TOL_MM,
+        MAX_JUMP_DEG, MAX_C_STEP_DEG, SINGULAR_CONE_DEG,
+    )  # fmt: skip
+    verify_s = time.perf_counter() - t1
+    if ref.unresolved:
+        say(f"refinement stopped short: {ref.unresolved}")
     ver = verify(
-        surfaces, tool, res.tip_mm, res.axis, pl.check_spacing_mm / 1.5, pl.gouge_tolerance_mm
+        surfaces, tool, ref.tip_mm, ref.axis, pl.check_spacing_mm / 1.5, pl.gouge_tolerance_mm
     )
     if ver.collisions:
         i, c = ver.worst
         raise PlanningError(
-            f"{ver.collisions} orientations failed the independent check; worst CC point "
+            f"{ver.collisions} orientations failed the independent check; worst CL point "
             f"{i}: {c.part} in {c.surface} by {-c.min_mm:.4f} mm"
         )
-    moves = inverse(machine, res.tip_mm, res.axis, tool.gauge_length_mm)
+    moves = ref.moves
+    fk_mm, fk_rad = check_forward(machine, moves, ref.tip_mm, ref.axis, tool.gauge_length_mm)
+    inv_f, _ = inverse_time_feeds(machine, moves, ref.tip_mm, pl.feed_mm_min)
+    speeds = axis_speeds(machine, moves, inv_f, ref.cc.line)
+    # The CL data of the posted points: angles of the posted (held) axes in their frames.
+    th_post = angles_of(ref.axis, ref.cc.binormal, ref.cc.feed, ref.cc.normal)
+    m_post = len(th_post)
+    final = assemble(
+        ctx, ref.cc, th_post, np.zeros(m_post), ver.min_clearance_mm, (), np.zeros(m_post),
+        np.zeros(m_post, int),
+    )  # fmt: skip
     out.mkdir(parents=True, exist_ok=True)
-    write_cl_csv(out / "cl.csv", res)
-    (out / "program.nc").write_text(
-        nc_program(
-            moves, res.cc.line, pl.feed_mm_min, pl.spindle_rpm, title=cfg.name, tips_mm=res.tip_mm
-        ),  # fmt: skip
-        encoding="utf-8",
+    write_cl_csv(out / "cl.csv", final)
+    fanuc = nc_program(
+        moves, ref.cc.line, pl.feed_mm_min, pl.spindle_rpm, title=cfg.name, inverse_f=inv_f
     )
+    program = for_dialect(Program.parse(fanuc, str(out / "program.nc")), dialect, machine,
+                          source="fanuc")  # fmt: skip
+    program.write(out / "program.nc")
     files = [str(out / "cl.csv"), str(out / "program.nc")]
     idx = int(np.argmax(res.evaluations)) if map_point is None else map_point
     if plot:
@@ -70,6 +140,10 @@ def run_orient(
         plot_axes(surfaces, res, out / "orientation.png", cfg.name)
         files += [str(out / "energy_map.png"), str(out / "orientation.png")]
     jumps_ok = np.isfinite(res.max_jump_deg)
+    before = _jump_stats(raw.axis, cc)
+    smoothed = _jump_stats(res.axis, cc)
+    after = _jump_stats(ref.axis, ref.cc)
+    a_lim = np.asarray(cfg.limits.alpha_deg)
     summary = {
         "config": str(config),
         "name": cfg.name,
@@ -84,15 +158,37 @@ def run_orient(
         "alpha_deg_range": [float(res.alpha_deg.min()), float(res.alpha_deg.max())],
         "beta_deg_range": [float(res.beta_deg.min()), float(res.beta_deg.max())],
         "max_gap_per_mm": float(np.max(res.gap_per_mm)),
-        "max_axis_jump_deg": float(res.max_jump_deg) if jumps_ok else None,
-        "max_axis_jump_at": res.max_jump_at,
+        "max_axis_jump_deg": after[0],
+        "max_axis_jump_at": after[1],
+        "max_axis_jump_per_mm_deg": after[2],
+        "max_axis_jump_cc_deg": {"planned": before[0], "smoothed": smoothed[0]},
+        "max_axis_jump_cc_per_mm_deg": {"planned": before[2], "smoothed": smoothed[2]},
         "max_angle_jump_deg": float(res.max_angle_jump_deg) if jumps_ok else None,
+        "cl_points": len(ref.theta),
+        "inserted_points": ref.inserted,
+        "between_samples": ref.check.samples,
+        "between_collisions": ref.check.collisions,
+        "tip_deviation_mm": float(np.nanmax(ref.check.deviation_mm, initial=0.0)),
+        "refine_unresolved": ref.unresolved,
+        "verify_s": round(verify_s, 3),
+        "posted_alpha_deg_range": [
+            float(np.degrees(th_post[:, 0]).min()),
+            float(np.degrees(th_post[:, 0]).max()),
+        ],  # fmt: skip
+        "posted_within_limits": bool(
+            np.all(np.degrees(th_post[:, 0]) >= a_lim[0] - 1e-6)
+            and np.all(np.degrees(th_post[:, 0]) <= a_lim[1] + 1e-6)
+        ),
         "check_spacing_mm": ver.spacing_mm,
         "checked": ver.checked,
         "collisions": ver.collisions,
         "min_clearance_mm": float(np.nanmin(ver.min_clearance_mm)),
+        "forward_check_mm": fk_mm,
+        "forward_check_rad": fk_rad,
+        "dialect": dialect,
         "a_deg_range": [float(moves.a_deg.min()), float(moves.a_deg.max())],
         "c_deg_range": [float(moves.c_deg.min()), float(moves.c_deg.max())],
+        **speeds,
         "energy_map_point": idx,
         "files": files,
     }

@@ -101,17 +101,23 @@ def cc_points(surface: NurbsSurface, cfg: OrientConfig) -> CCPoints:
         vs.append(v)
         line.append(np.full(len(u), i))
     u, v = np.concatenate(us), np.concatenate(vs)
-    sp = surface.evaluate(u, v)
     sign = np.concatenate(
         [
             np.full(ps.points_per_line, -1.0 if (ps.zigzag and i % 2) else 1.0)
             for i in range(len(ps.lines))
         ]
     )
-    tangent = (sp.su if ps.along == "u" else sp.sv) * sign[:, None]
+    return cc_at(surface, ps.along, u, v, sign, np.concatenate(line))
+
+
+def cc_at(surface: NurbsSurface, along: str, u, v, sign, line) -> CCPoints:
+    """CC points at parameters (u, v), the feed along +-``along`` (``sign`` per point)."""
+    sp = surface.evaluate(np.asarray(u, float), np.asarray(v, float))
+    tangent = (sp.su if along == "u" else sp.sv) * np.asarray(sign, float)[:, None]
     b, f, n = local_frame(sp.normal, tangent)
     kappa = NurbsSurface.normal_curvature(sp, b)
-    return CCPoints(u, v, sp.point, n, f, b, kappa, np.concatenate(line))
+    return CCPoints(np.asarray(u, float), np.asarray(v, float), sp.point, n, f, b, kappa,
+                    np.asarray(line))  # fmt: skip
 
 
 def build_context(cfg: OrientConfig, tool_cfg: EndMill, surfaces: list[NurbsSurface]) -> _Context:
@@ -143,7 +149,8 @@ def plan_orientation(
     tool_cfg: EndMill,
     progress: Callable[[int, int], None] | None = None,
 ) -> OrientResult:
-    """Orientation at every CC point of ``cfg`` (see the module docstring)."""
+    """Orientation at every CC point of ``cfg`` (see the module docstring); the smooth field
+    of :mod:`planning.orient.smooth` is a step of its own (``smooth_result``)."""
     surfaces = [s.build() for s in cfg.surfaces]
     machined = surfaces[[s.role for s in cfg.surfaces].index("machined")]
     cc = cc_points(machined, cfg)
@@ -177,6 +184,12 @@ def solve_all(ctx: _Context, cc: CCPoints, progress=None) -> OrientResult:
             prev = th
         if progress:
             progress(i + 1, m)
+    return assemble(ctx, cc, th_out, U_out, clr, tuple(reasons), secs, nev)
+
+
+def assemble(ctx: _Context, cc: CCPoints, th_out, U_out, clr, reasons, secs, nev) -> OrientResult:
+    """The OrientResult of angles th_out (m, 2) rad (NaN rows: infeasible) at CC points cc."""
+    m = len(cc.u)
     ok = ~np.isnan(th_out[:, 0])
     u = np.full((m, 3), np.nan)
     tip, centre = np.full((m, 3), np.nan), np.full((m, 3), np.nan)
@@ -202,7 +215,7 @@ def solve_all(ctx: _Context, cc: CCPoints, progress=None) -> OrientResult:
         U_out,
         clr,
         ok,
-        tuple(reasons),
+        reasons,
         secs,
         nev,
         float(jumps[j]) if j >= 0 else float("nan"),

@@ -31,6 +31,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "(default: the one that needed most energy evaluations)")  # fmt: skip
     p.add_argument("--no-plot", action="store_true",
                    help="skip both PNGs (energy map and orientation)")  # fmt: skip
+    p.add_argument("--dialect", choices=("fanuc", "linuxcnc", "grbl"), default=None,
+                   help="controller to write for (default: the machine's); grbl has no "
+                   "rotary axes and is refused")  # fmt: skip
     p.set_defaults(func=run)
 
 
@@ -49,7 +52,9 @@ def run(args: argparse.Namespace) -> int:
             bar.close()
             status(msg)
 
-        summary = run_orient(args.config, args.out, args.map_point, not args.no_plot, bar, note)
+        summary = run_orient(
+            args.config, args.out, args.map_point, not args.no_plot, bar, note, args.dialect
+        )
     if args.json:
         print_json(summary)
         return 0

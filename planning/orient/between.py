@@ -1,0 +1,331 @@
+"""Verification between CL points as the machine moves, and refinement until it holds.
+
+The control interpolates every axis linearly between two blocks (X, Y, Z, tilt, C), so between
+two CL points the tool tip leaves the chord and the tool axis sweeps what the rotary axes make of
+it. Each move is sampled in machine-axis space (so that the tip moves at most ``step_mm`` and the
+axis turns at most ``step_deg`` between samples), mapped back to the part by forward kinematics,
+and checked:
+
+* the tool tip's deviation from the intended path, the chord between the two CL tips;
+* collision of the tool system with the part and the fixtures, by an independent mesh check:
+  python-fcl with the part as a BVH of its triangles (trimesh-style mesh of the NURBS surfaces),
+  the cutter as the convex solid of revolution shrunk by the gouge tolerance (a polygon drawn
+  round its outline, so it is never smaller than the true shrunk cutter), the holder and the
+  spindle nose as cylinders, the fixtures as boxes.
+
+:func:`refine` inserts CC points (on the surface, half way in parameter; orientation interpolated
+and re-planned if that collides) into every move that deviates by more than the tolerance,
+collides, turns the axis by more than ``max_jump_deg`` or swings C by more than
+``max_c_step_deg``, until every move passes (or a round limit, reported).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import fcl
+import numpy as np
+import trimesh
+
+from analysis.config import MachineConfig
+from planning.errors import PlanningError
+from planning.orient._energy import Site
+from planning.orient._search import _Context, _free, solve_point
+from planning.orient.kinematics import AxisMoves, forward, hold_c, inverse
+from planning.orient.planner import CCPoints, axis_jumps_deg, cc_at
+from planning.orient.smooth import angles_of
+from planning.orient.tool import ToolSystem, cutter_position, tool_axis
+from planning.surface import NurbsSurface
+
+N_ROUND = 120  # polygon sides round the axis: a 6 mm radius is drawn 0.002 mm too large at most
+
+
+def _rotation_to(axis: np.ndarray) -> np.ndarray:
+    """A rotation matrix taking +Z to the unit ``axis``."""
+    z = np.asarray(axis, float)
+    x = np.cross([0.0, 1.0, 0.0] if abs(z[1]) < 0.9 else [1.0, 0.0, 0.0], z)
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(z, x), z], 1)
+
+
+def _revolved_convex(profile: np.ndarray) -> fcl.Convex:
+    """Convex solid of revolution about +Z through the (rho, z) outline points, circumscribed:
+    every polygon round the axis has its sides tangent to the true circle."""
+    ang = np.linspace(0, 2 * np.pi, N_ROUND, endpoint=False)
+    scale = 1.0 / np.cos(np.pi / N_ROUND)
+    pts = [
+        np.stack([rho * scale * np.cos(ang), rho * scale * np.sin(ang), np.full(N_ROUND, z)], 1)
+        for rho, z in profile
+    ]
+    hull = trimesh.convex.convex_hull(np.concatenate(pts))
+    faces = np.concatenate([np.full((len(hull.faces), 1), 3), hull.faces], 1).ravel()
+    return fcl.Convex(np.asarray(hull.vertices, float), len(hull.faces), faces)
+
+
+def chord_sag_mm(surfaces: Sequence[NurbsSurface], spacing_mm: float) -> float:
+    """Upper estimate of how far a mesh triangle lies off its surface: kappa_max h^2 / 8, h the
+    triangle's diagonal, kappa_max the largest normal curvature on a 60 x 60 grid."""
+    k = 0.0
+    for s in surfaces:
+        sp = s.evaluate(*s.grid(60, 60))
+        for d in (sp.su, sp.sv, sp.su + sp.sv, sp.su - sp.sv):
+            k = max(k, float(np.abs(NurbsSurface.normal_curvature(sp, d)).max()))
+    return k * 2 * spacing_mm**2 / 8
+
+
+@dataclass
+class Scene:
+    """fcl objects: the part (one BVH of all surfaces) and fixtures; the tool system's parts in
+    their own frame (tip at the origin, axis +Z): (name, geometry, z offset of its frame)."""
+
+    part: fcl.CollisionObject
+    fixtures: list[tuple[str, fcl.CollisionObject]]
+    tool: list[tuple[str, fcl.CollisionObject, float]]
+    spacing_mm: float
+    tolerance_mm: float
+
+    @classmethod
+    def build(
+        cls,
+        surfaces: Sequence[NurbsSurface],
+        tool: ToolSystem,
+        spacing_mm: float,
+        tol_mm: float,
+        fixtures: Sequence[tuple[str, Sequence[float], Sequence[float]]] = (),
+    ) -> Scene:
+        """``fixtures``: (name, min corner, max corner) boxes in mm, workpiece frame. The cutter
+        is shrunk by ``tol_mm`` plus the mesh's chord sag (:func:`chord_sag_mm`): a triangle of
+        a concave surface lies that much above it, towards the tool."""
+        tol_mm = tol_mm + chord_sag_mm(surfaces, spacing_mm)
+        verts, faces, off = [], [], 0
+        for s in surfaces:
+            v, f = s.triangulate(spacing_mm)
+            verts.append(v)
+            faces.append(f + off)
+            off += len(v)
+        V, F = np.concatenate(verts), np.concatenate(faces)
+        bvh = fcl.BVHModel()
+        bvh.beginModel(len(V), len(F))
+        bvh.addSubModel(V, F)
+        bvh.endModel()
+        part = fcl.CollisionObject(bvh, fcl.Transform())
+        fix = []
+        for name, lo, hi in fixtures:
+            lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+            box = fcl.Box(*(hi - lo))
+            fix.append((name, fcl.CollisionObject(box, fcl.Transform(0.5 * (lo + hi)))))
+        # The cutter shrunk by the tolerance: ring radius R - r, corner radius r - tol (or a
+        # flat bottom raised by tol), side R - tol.
+        R, r, L = tool.R_mm, tool.r_mm, tool.cutter_length_mm
+        rr = max(r - tol_mm, 0.0)
+        k = 24  # circumscribed arc of 24 points: at most r * 0.0006 outside the true corner
+        t = np.linspace(-np.pi / 2, 0, k)
+        corner = np.stack([(R - r) + rr * np.cos(t), r + rr * np.sin(t)], 1)
+        if r > 0:  # circumscribe the corner arc: scale its offsets from the arc centre
+            c = np.array([R - r, r])
+            corner = c + (corner - c) / np.cos(0.5 * (t[1] - t[0]))
+        prof = np.vstack([[[0.0, tol_mm]], corner, [[R - tol_mm, L]], [[0.0, L]]])
+        prof[:, 1] = np.maximum(prof[:, 1], tol_mm)
+        parts = [("cutter", _revolved_convex(prof), 0.0)]
+        for name, z0, z1, a in tool.parts()[1:]:
+            parts.append((name, fcl.Cylinder(a, z1 - z0), 0.5 * (z0 + z1)))
+        objs = [(n, fcl.CollisionObject(g, fcl.Transform()), dz) for n, g, dz in parts]
+        return cls(part, fix, objs, spacing_mm, tol_mm)
+
+    def hit(self, tip: np.ndarray, axis: np.ndarray) -> str:
+        """'' when the tool placed at ``tip`` along ``axis`` touches nothing, else what hits
+        what (e.g. 'holder hits part')."""
+        R = _rotation_to(axis)
+        for name, obj, dz in self.tool:
+            obj.setTransform(fcl.Transform(R, tip + dz * axis))
+            for other, o2 in (("part", self.part), *self.fixtures):
+                if fcl.collide(obj, o2, fcl.CollisionRequest(), fcl.CollisionResult()):
+                    return f"{name} hits {other}"
+        return ""
+
+
+@dataclass(frozen=True)
+class MoveCheck:
+    """Per move i (CL point i to i + 1; NaN / '' across lines): the tip's largest deviation from
+    the chord (mm), what collides ('' none), the samples taken."""
+
+    deviation_mm: np.ndarray
+    hits: tuple[str, ...]
+    samples: int
+
+    @property
+    def collisions(self) -> int:
+        return sum(bool(h) for h in self.hits)
+
+
+def check_moves(
+    machine: MachineConfig,
+    moves: AxisMoves,
+    tips_mm: np.ndarray,
+    line: np.ndarray,
+    gauge_length_mm: float,
+    scene: Scene,
+    step_mm: float = 0.25,
+    step_deg: float = 0.25,
+) -> MoveCheck:
+    """Sample every move of a line linearly in machine axes and check it (module docstring)."""
+    P = moves.as_array()
+    m = len(P)
+    dev = np.full(max(m - 1, 0), np.nan)
+    hits = [""] * max(m - 1, 0)
+    total = 0
+    for i in range(m - 1):
+        if line[i + 1] != line[i]:
+            continue
+        d = np.abs(P[i + 1] - P[i])
+        n = int(max(2, np.ceil(max(np.linalg.norm(d[:3]) / step_mm, d[3:].max() / step_deg))))
+        s = np.linspace(0.0, 1.0, n + 1)[1:-1, None]  # the CL points themselves: verify()
+        Q = P[i] + s * (P[i + 1] - P[i])
+        mv = AxisMoves(Q[:, 0], Q[:, 1], Q[:, 2], Q[:, 3], Q[:, 4], moves.kind)
+        tips, axes = forward(moves.kind, machine, mv, gauge_length_mm)
+        a, b = tips_mm[i], tips_mm[i + 1]
+        ab = b - a
+        t = np.clip((tips - a) @ ab / max(ab @ ab, 1e-300), 0.0, 1.0)
+        dev[i] = float(np.linalg.norm(tips - (a + t[:, None] * ab), axis=1).max())
+        total += len(s)
+        for tip, u in zip(tips, axes):
+            h = scene.hit(tip, u)
+            if h:
+                hits[i] = h
+                break
+    return MoveCheck(dev, tuple(hits), total)
+
+
+@dataclass(frozen=True)
+class Refined:
+    """The CL points after refinement: CC points, planned angles (m, 2) rad, posted axes and
+    tips (after :func:`planning.orient.kinematics.hold_c`), machine moves, the last check,
+    inserted count, rounds, and the reason refinement stopped short ('' when all passed)."""
+
+    cc: CCPoints
+    theta: np.ndarray
+    axis: np.ndarray
+    tip_mm: np.ndarray
+    moves: AxisMoves
+    check: MoveCheck
+    inserted: int
+    rounds: int
+    unresolved: str
+
+
+def posted(ctx: _Context, cc: CCPoints, theta, machine, cone_deg, start_c_deg=0.0):
+    """Axes held near the singularity, tips for them, machine moves."""
+    u = tool_axis(theta[:, 0], theta[:, 1], cc.binormal, cc.feed, cc.normal)
+    u = hold_c(machine.five_axis.kind, u, cc.line, cone_deg)
+    tip, _ = cutter_position(cc.point, cc.normal, u, ctx.tool.R_mm, ctx.tool.r_mm)
+    moves = inverse(machine, tip, u, ctx.tool.gauge_length_mm, start_c_deg=start_c_deg,
+                    line=cc.line)  # fmt: skip
+    return u, tip, moves
+
+
+def refine(
+    ctx: _Context,
+    surface: NurbsSurface,
+    along: str,
+    cc: CCPoints,
+    theta: np.ndarray,
+    machine: MachineConfig,
+    scene: Scene,
+    tol_mm: float,
+    max_jump_deg: float = 5.0,
+    max_c_step_deg: float = 30.0,
+    cone_deg: float = 3.0,
+    max_rounds: int = 10,
+    min_step_mm: float = 0.02,
+) -> Refined:
+    """Insert CC points until every move passes (see the module docstring); a move shorter than
+    ``min_step_mm`` on the part is not split further (a collision there is the CC point's)."""
+    theta = np.asarray(theta, float)
+    inserted, unresolved = 0, ""
+    for rounds in range(1, max_rounds + 1):
+        u, tip, moves = posted(ctx, cc, theta, machine, cone_deg)
+        chk = check_moves(machine, moves, tip, cc.line, ctx.tool.gauge_length_mm, scene)
+        jump = axis_jumps_deg(u, cc.line)
+        dc = np.abs(np.diff(moves.c_deg))
+        bad = (chk.deviation_mm > tol_mm) | np.array([bool(h) for h in chk.hits], bool)
+        bad |= (jump > max_jump_deg) | ((dc > max_c_step_deg) & (cc.line[1:] == cc.line[:-1]))
+        bad &= cc.line[1:] == cc.line[:-1]
+        short = np.linalg.norm(np.diff(cc.point, axis=0), axis=1) < min_step_mm
+        if (bad & short).any():
+            bad &= short  # report the first move that cannot be split further
+            break
+        if not bad.any():
+            return Refined(cc, theta, u, tip, moves, chk, inserted, rounds, "")
+        if rounds == max_rounds:
+            break
+        # Pieces per bad move: the deviation falls with the square of the step, the turns with it.
+        k = np.flatnonzero(bad)
+        dev = np.nan_to_num(chk.deviation_mm[k])
+        pieces = np.maximum.reduce(
+            [
+                np.ceil(np.sqrt(dev / tol_mm)),
+                np.ceil(np.nan_to_num(jump[k]) / max_jump_deg),
+                np.ceil(dc[k] / max_c_step_deg),
+                np.full(len(k), 2.0),
+            ]
+        )
+        cc, theta, added = _insert(ctx, surface, along, cc, theta, k, np.minimum(pieces, 16))
+        inserted += added
+        if not added:
+            break
+    k = int(np.flatnonzero(bad)[0])
+    unresolved = (
+        f"move {k} -> {k + 1} (line {cc.line[k]}): deviation {chk.deviation_mm[k]:.4f} mm, "
+        f"axis turn {jump[k]:.2f} deg, C step {dc[k]:.2f} deg, {chk.hits[k] or 'no collision'}"
+        f" after {rounds} rounds"
+    )
+    return Refined(cc, theta, u, tip, moves, chk, inserted, rounds, unresolved)
+
+
+def _insert(ctx, surface, along, cc: CCPoints, theta, moves_idx, pieces):
+    """CC points splitting the moves ``moves_idx`` into ``pieces`` equal steps in parameter; the
+    orientation is the blend of the neighbours' axes in the new frame, clipped to the limits,
+    re-planned from there when it collides. Returns the new cc, theta and how many were
+    inserted."""
+    reps = np.asarray(pieces, int) - 1
+    i = np.repeat(np.asarray(moves_idx), reps)
+    w = np.concatenate([np.arange(1, n + 1) / (n + 1) for n in reps])
+    um, vm = cc.u[i] + w * (cc.u[i + 1] - cc.u[i]), cc.v[i] + w * (cc.v[i + 1] - cc.v[i])
+    par = cc.u if along == "u" else cc.v
+    sign = np.where(par[i + 1] >= par[i], 1.0, -1.0)
+    new = cc_at(surface, along, um, vm, sign, cc.line[i])
+    u0 = tool_axis(theta[:, 0], theta[:, 1], cc.binormal, cc.feed, cc.normal)
+    mean = (1 - w[:, None]) * u0[i] + w[:, None] * u0[i + 1]
+    mean /= np.linalg.norm(mean, axis=1)[:, None]
+    th_new = np.clip(angles_of(mean, new.binormal, new.feed, new.normal), *ctx.bounds.T)
+    keep = np.ones(len(i), bool)
+    for k in range(len(i)):
+        site = Site(new.point[k], new.normal[k], new.binormal[k], new.feed[k])
+        kap = float(new.kappa_per_mm[k])
+        if _free(ctx, site, kap, th_new[k]) and ctx.gate(site, th_new[k]).ok:
+            continue
+        th, _, _, _ = solve_point(ctx, site, kap, th_new[k])
+        if th is None:
+            keep[k] = False
+        else:
+            th_new[k] = th
+    if not keep.any():
+        return cc, theta, 0
+    i, th_new, w = i[keep], th_new[keep], w[keep]
+    pos = np.concatenate([np.arange(len(theta)), i + w])
+    order = np.argsort(pos, kind="stable")
+
+    def merged(old, add):
+        return np.concatenate([old, add[keep]])[order]
+
+    cc2 = CCPoints(
+        *(merged(getattr(cc, f), getattr(new, f)) for f in CCPoints.__dataclass_fields__)
+    )
+    return cc2, np.concatenate([theta, th_new])[order], int(keep.sum())
+
+
+def require_refined(ref: Refined) -> None:
+    """PlanningError when refinement could not make every move pass."""
+    if ref.unresolved:
+        raise PlanningError(f"between CL points: {ref.unresolved}")
