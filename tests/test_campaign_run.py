@@ -168,10 +168,14 @@ def test_killed_or_interrupted_campaign_leaves_valid_files_and_resumes(
             p.kill()
     files = sorted((folder / "runs").glob("*.h5"))
     assert files
-    run = rf.load_run(files[0])  # opens after SIGKILL too
+    run = rf.load_run(files[0])  # opens after SIGKILL too (repaired: plain h5py opens it)
     if sig == signal.SIGKILL:
         assert p.returncode == -signal.SIGKILL
-        assert run.status == "running" and not run.complete
+        assert run.status == "interrupted" and not run.complete and run.samples_stored > 0
+        st = campaign_status(load_campaign(cfg))["runs"][0]
+        assert st["status"] == "interrupted" and f"{run.samples_stored} samples" in st["reason"]
+        manifest = json.loads((folder / "campaign.json").read_text())
+        assert manifest["runs"][st["name"]]["status"] == "interrupted"
     else:
         assert p.returncode == 130, err
         assert run.complete and run.status == "abort" and "Ctrl-C" in run.reason

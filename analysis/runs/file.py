@@ -63,16 +63,24 @@ Why the metadata that changes during a run lives in small byte datasets rather t
 under SWMR a writer may not create objects or attributes, so everything is created before SWMR is
 switched on and changed later only by writing into existing datasets.
 
-A file whose writer was killed still opens (HDF5 leaves it marked "open for writing"; the loader
-then opens it in SWMR read mode) and holds everything up to the writer's last flush; its status
-stays ``running`` and :attr:`Run.complete` is False.
+A file whose writer was killed holds everything up to the writer's last flush, but HDF5 leaves it
+marked "open for writing" (the superblock's status flags), so plain h5py and HDFView refuse it
+("file is already open for write", which ``h5clear`` would fix). :func:`load_run` repairs such a
+file when its writer is gone (the status names the writer's process and host): every object is
+copied, the samples cut at ``/forces/flushed`` (what lies past it may be zeros), into a fresh file
+that replaces the original atomically once it verifies (the original is kept as ``.bak`` until
+then), with status ``interrupted``. Where it cannot be rewritten (a read-only folder) it is read in
+SWMR mode and still reported ``interrupted``. :attr:`Run.complete` is False for both.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
+import os
 import re
+import socket
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -185,7 +193,9 @@ STATUS_RUNNING = "running"
 STATUS_SUCCESS = "success"
 STATUS_ABORT = "abort"
 STATUS_FAIL = "fail"
-STATUSES = (STATUS_RUNNING, STATUS_SUCCESS, STATUS_ABORT, STATUS_FAIL)
+STATUS_INTERRUPTED = "interrupted"  # the writer died without closing the file (set on reading)
+STATUSES = (STATUS_RUNNING, STATUS_SUCCESS, STATUS_ABORT, STATUS_FAIL, STATUS_INTERRUPTED)
+CLOSED_STATUSES = (STATUS_SUCCESS, STATUS_ABORT, STATUS_FAIL)  # what a writer closes with
 
 
 class RunFileError(AnalysisError):
@@ -306,6 +316,124 @@ class Run:
         k = np.searchsorted(rows["exec_s"].to_numpy(), t, side="right") - 1
         blocks = np.append(rows["block"].to_numpy(dtype=np.int64), -1)
         return blocks[np.where(k >= 0, k, len(rows))]
+
+
+def writer_identity() -> dict[str, Any]:
+    """The writing process (pid, host), stored in a new run's status so that a reader can tell a
+    live writer from a dead one."""
+    return {"pid": os.getpid(), "host": socket.gethostname()}
+
+
+def writer_alive(status: dict[str, Any]) -> bool:
+    """The writer named in a run's status (:func:`writer_identity`) still runs. A writer on another
+    host cannot be checked and is taken as alive; a file that names none (older files) as dead."""
+    w = status.get("writer") or {}
+    pid = w.get("pid")
+    if not isinstance(pid, int) or pid <= 0:
+        return False
+    if w.get("host") != socket.gethostname():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True  # alive, another user's
+    with contextlib.suppress(OSError, IndexError):  # a killed child its parent has not reaped
+        if Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z":
+            return False
+    return True
+
+
+def _needs_repair(p: Path) -> bool:
+    """HDF5 refuses a plain open: the file is marked open for writing (a live or dead writer), or
+    a writer that failed mid-flush recorded an end of file beyond the bytes it wrote."""
+    try:
+        h5py.File(p, "r").close()
+    except OSError as exc:
+        return "already open for write" in str(exc) or "truncated file" in str(exc)
+    return False
+
+
+def repair_run(
+    path: str | Path,
+    status: str = STATUS_INTERRUPTED,
+    reason: str | None = None,
+    *,
+    writer_gone: bool = False,
+) -> bool:
+    """Make the file of a dead writer open in plain h5py/HDFView again (what ``h5clear`` does,
+    without it): copy every object into a fresh file, samples cut at the last flush, with
+    ``status`` (default ``interrupted``) and ``reason``; replace the original atomically once the
+    copy verifies. ``writer_gone``: the caller is the writer and has given the file up. True if
+    repaired; False (nothing changed) if it needs no repair, its writer is alive, or it cannot be
+    rewritten (no room, a read-only folder).
+    """
+    p = Path(path)
+    if not p.is_file() or not _needs_repair(p):
+        return False
+    tmp = p.with_name(f".{p.name}.repair-{os.getpid()}")
+    bak = p.with_name(f"{p.name}.bak-{os.getpid()}")
+    try:
+        with h5py.File(p, "r", libver="latest", swmr=True) as src:
+            old = _json(src, META_STATUS)
+            dead = writer_gone or not writer_alive(old)
+            if old.get("status", STATUS_RUNNING) != STATUS_RUNNING or not dead:
+                return False
+            kept = _copy_flushed(src, tmp, old, status, reason)
+        with h5py.File(tmp, "r") as chk:  # the copy opens plainly and holds what was kept
+            if int(samples_dataset(chk).shape[0]) != kept:
+                raise OSError(f"copy holds {samples_dataset(chk).shape[0]} samples, not {kept}")
+        os.link(p, bak)  # the original stays reachable until the copy is in place
+        os.replace(tmp, p)
+        bak.unlink()
+        return True
+    except (OSError, KeyError, RunFileError):
+        return False
+    finally:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+
+
+def _copy_flushed(
+    src: h5py.File, dst_path: Path, old: dict[str, Any], status: str, reason: str | None
+) -> int:
+    """Copy ``src`` into a new file at ``dst_path``: samples up to the last flush, ``status``
+    with ``reason`` (also an event at the end of the record). Returns the samples kept."""
+    with h5py.File(dst_path, "w", libver="latest") as dst:
+        for k, v in src.attrs.items():
+            dst.attrs[k] = v
+        for name in src:
+            src.copy(src[name], dst, name=name)
+        ds = samples_dataset(dst)
+        kept = int(ds.shape[0])
+        if FLUSHED in dst:
+            kept = min(kept, int(dst[FLUSHED][0]))
+            ds.resize((kept, ds.shape[1]))
+        why = _interrupted_reason(kept) if reason is None else reason
+        if EVENTS in dst:
+            row = np.zeros(1, dtype=EVENT_DTYPE)
+            row["sample"], row["time_s"] = -1, math.nan
+            row["kind"] = (EV_NOTE if status == STATUS_INTERRUPTED else EV_FAULT).encode()
+            row["message"] = why.encode()[:EVENT_MESSAGE_BYTES]
+            ev = dst[EVENTS]
+            ev.resize((ev.shape[0] + 1,))
+            ev[-1:] = row
+        text = json.dumps(
+            {"status": status, "reason": why, "writer": old.get("writer"),
+             "repaired_by": writer_identity()}
+        ).encode()  # fmt: skip
+        meta = dst[meta_path(META_STATUS)]
+        meta.resize((len(text),))
+        meta[:] = np.frombuffer(text, dtype=np.uint8)
+    return kept
+
+
+def _interrupted_reason(kept: int) -> str:
+    return (
+        f"the writer stopped without closing the file (killed or crashed); {kept} samples per "
+        "channel kept, up to its last flush"
+    )
 
 
 def open_run_file(path: str | Path) -> h5py.File:
@@ -467,6 +595,7 @@ def load_run(
     stop_s: float | None = None,
     *,
     samples: bool = True,
+    repair: bool = True,
 ) -> Run:
     """Load a run file (optionally the samples between ``start_s`` and ``stop_s`` after t0).
 
@@ -474,10 +603,15 @@ def load_run(
     ``samples=False`` only metadata, events and blocks are read (sample arrays have 0 rows; the
     counts are still filled in): cheap for a large run.
 
+    A file whose writer died is repaired first (:func:`repair_run`; ``repair=False`` leaves it
+    as it is) and reads with status ``interrupted``, its samples up to the writer's last flush.
+
     Raises :class:`RunFileError` for a missing file, a non-HDF5 file, another program's HDF5
     file, a newer format version, or a truncated file.
     """
     p = Path(path)
+    if repair:
+        repair_run(p)
     f = open_run_file(p)
     try:
         return _load(f, p, start_s, stop_s, samples)
@@ -492,6 +626,14 @@ def _load(f: h5py.File, p: Path, start_s: float | None, stop_s: float | None, sa
     rate_hz = float(fa["rate_hz"])
     ds = samples_dataset(f)
     n_stored = int(ds.shape[0])
+    status = _json(f, META_STATUS)
+    state = str(status.get("status", STATUS_RUNNING))
+    if state == STATUS_RUNNING and FLUSHED in f:
+        # Past the last flush the extent may hold samples not yet (or never) written: zeros.
+        n_stored = min(n_stored, int(f[FLUSHED][0]))
+    reason = str(status.get("reason", ""))
+    if state == STATUS_RUNNING and not writer_alive(status):
+        state, reason = STATUS_INTERRUPTED, _interrupted_reason(n_stored)
     events = _table(f, EVENTS)
     lo, hi = 0, n_stored
     if start_s is not None:
@@ -520,7 +662,6 @@ def _load(f: h5py.File, p: Path, start_s: float | None, stop_s: float | None, sa
         force_n = volts_to_force(
             volts, time_s, cal.volts_to_n, cal.zero_v, cal.zero_time_s, cal.drift_v_s
         )
-    status = _json(f, META_STATUS)
     lost = int(_holes(events)[1][-1])
     return Run(
         path=p,
@@ -543,9 +684,9 @@ def _load(f: h5py.File, p: Path, start_s: float | None, stop_s: float | None, sa
         rig=_json(f, META_RIG),
         program_text=_text(f, META_PROGRAM),
         program_info=_json(f, META_PROGRAM_INFO),
-        status=str(status.get("status", STATUS_RUNNING)),
-        reason=str(status.get("reason", "")),
-        complete=status.get("status", STATUS_RUNNING) != STATUS_RUNNING,
+        status=state,
+        reason=reason,
+        complete=state in CLOSED_STATUSES,
         software_version=str(_attr_value(f.attrs.get(ATTR_SOFTWARE_VERSION, ""))),
         samples_stored=n_stored,
         samples_acquired=n_stored + lost,

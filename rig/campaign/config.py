@@ -178,8 +178,19 @@ class FeedRuleSection(Model):
     max_feed_mm_min: float = Field(3500.0, gt=0, description="mm/min")
     reference_depth_mm: float = Field(gt=0, description="mm, slot depth loaded at base feed")
     exponent: float = Field(1.0, gt=0, le=5, description="feed ~ load^-exponent")
-    n_bins: int = Field(20, ge=2, le=100, description="count")
+    n_bins: int = Field(20, ge=3, le=100, description="count")
     min_piece_mm: float = Field(2.0, gt=0, le=100, description="mm, shortest split piece")
+
+    @model_validator(mode="after")
+    def _ordered(self) -> FeedRuleSection:
+        # The rule is derived after the cuts (feed-rule analysis): a wrong one must stop here.
+        lo, base, hi = self.min_feed_mm_min, self.base_feed_mm_min, self.max_feed_mm_min
+        if not lo <= base <= hi or lo == hi:
+            raise ValueError(
+                f"min_feed_mm_min = {lo:g}, base_feed_mm_min = {base:g}, max_feed_mm_min = "
+                f"{hi:g}: expected min <= base <= max and min < max (mm/min)"
+            )
+        return self
 
 
 class AnalysisSection(Model):
@@ -477,24 +488,93 @@ def load_campaign(path: str | Path) -> Campaign:
     data, text = read_toml(p)
     spec = validate(CampaignFile, data, str(p), text)
     c = spec.campaign
-    machine = load_machine(c.machine)
-    try:
-        tool = get_tool(c.tool)
-    except ConfigError as exc:
-        raise ConfigError(f"{p}: campaign.tool = {c.tool!r}: {exc}") from None
-    try:
-        material = get_material(c.material)
-    except ConfigError as exc:
-        raise ConfigError(f"{p}: campaign.material = {c.material!r}: {exc}") from None
-    rig = load_rig(c.rig_config)
-    if c.rig == "sim":
+    problems: list[str] = []
+    camp_line = _table_line(text, "campaign")
+
+    def where(table_line: int, field: str) -> str:
+        line = _field_line(text, table_line, field) or table_line
+        return f"{p}:{line}" if line else str(p)
+
+    def load(what: str, fn: Any, name: Any) -> Any:
+        try:
+            return fn(name)
+        except ConfigError as exc:
+            problems.append(f"{where(camp_line, what)}: campaign.{what} = {name!r}: {exc}")
+            return None
+
+    machine = load("machine", load_machine, c.machine)
+    tool = load("tool", get_tool, c.tool)
+    material = load("material", get_material, c.material)
+    rig = load("rig_config", load_rig, c.rig_config)
+    if c.rig == "sim" and tool is not None and material is not None:
         need = "facemill" if isinstance(tool, FaceMill) else "endmill"
         if getattr(material, need) is None:
-            raise ConfigError(
-                f"{p}: campaign.material = {c.material!r} has no [{need}] coefficients; the "
-                f"simulated rig needs them as its truth for tool {c.tool!r}"
+            problems.append(
+                f"{where(camp_line, 'material')}: campaign.material = {c.material!r} has no "
+                f"[{need}] coefficients; the simulated rig needs them as its truth for tool "
+                f"{c.tool!r}"
             )
-    lines = _table_lines(text, "matrix") + _table_lines(text, "tests")
-    tests = expand_matrix(spec.matrix + spec.tests, tool, lines, spec.program.block_width_mm)
-    check_tests(tests, machine, tool, spec.program, str(p), text)
+    if rig is not None:
+        problems += _rate_problems(spec, rig, where(_table_line(text, "daq"), "rate_hz"))
+    problems += _analysis_problems(spec, tool, where(_table_line(text, "analysis"), "kind"))
+    tests: list[RunConditions] = []
+    if tool is not None:
+        lines = _table_lines(text, "matrix") + _table_lines(text, "tests")
+        tests = expand_matrix(spec.matrix + spec.tests, tool, lines, spec.program.block_width_mm)
+        if machine is not None:
+            try:
+                check_tests(tests, machine, tool, spec.program, str(p), text)
+            except ConfigError as exc:
+                problems += str(exc).splitlines()
+    if problems:
+        raise ConfigError("\n".join(problems))
     return Campaign(p, text, spec, machine, tool, material, rig, tuple(tests))
+
+
+def _rate_problems(spec: CampaignFile, rig: RigConfig, where: str) -> list[str]:
+    """The DAQ rate against what the recording needs: above twice the dynamometer's highest mode
+    (below, the mode aliases into the force band), and a rest window of samples."""
+    rate = spec.daq.rate_hz or rig.daq.rate_hz
+    name = "daq.rate_hz" if spec.daq.rate_hz else "rig [daq] rate_hz"
+    out = []
+    if rig.dynamometer.modes:
+        top = max(rig.dynamometer.modes, key=lambda m: m.frequency_hz)
+        if rate < 2 * top.frequency_hz:
+            out.append(
+                f"{where}: {name} = {rate:g}: below twice the highest mode of the "
+                f"{rig.dynamometer.model} ({top.axis} {top.frequency_hz:g} Hz): expected >= "
+                f"{2 * top.frequency_hz:g} Hz"
+            )
+    if rate * spec.daq.rest_s < 100:
+        out.append(f"{where}: {name} = {rate:g} with daq.rest_s = {spec.daq.rest_s:g}: fewer than "
+                   "100 samples at rest for the zero; expected rate x rest >= 100")  # fmt: skip
+    return out
+
+
+_ANALYSIS_TOOL = {"facemill-coefficients": FaceMill, "feed-rule": EndMill, "afc-compare": EndMill}
+
+
+def _analysis_problems(
+    spec: CampaignFile, tool: EndMill | FaceMill | None, where: str
+) -> list[str]:
+    """[analysis] against the rest: its groups exist, its tool kind, its feed rule."""
+    a = spec.analysis
+    groups = {e.group for e in spec.matrix + spec.tests}
+    out = []
+    for field in ("identify_groups", "validate_groups", "compare_groups"):
+        unknown = [g for g in getattr(a, field) if g not in groups]
+        if unknown:
+            out.append(f"{where}: analysis.{field} = {list(getattr(a, field))}: no group "
+                       f"{unknown[0]!r}; expected one of {sorted(groups)}")  # fmt: skip
+    need = _ANALYSIS_TOOL.get(a.kind)
+    if need is not None and tool is not None and not isinstance(tool, need):
+        kind = "a face mill" if need is FaceMill else "an end mill"
+        out.append(f"{where}: analysis.kind = {a.kind!r} needs {kind}, tool "
+                   f"{spec.campaign.tool!r} is not one")  # fmt: skip
+    if a.kind == "afc-compare" and len(a.compare_groups) != 2:
+        out.append(f"{where}: analysis.compare_groups = {list(a.compare_groups)}: expected two "
+                   "groups (constant, adjusted)")  # fmt: skip
+    if a.kind == "feed-rule" and spec.feed_rule is None:
+        out.append(f"{where}: analysis.kind = 'feed-rule' needs a [feed_rule] table (min, base, "
+                   "max feed in mm/min, reference_depth_mm)")  # fmt: skip
+    return out

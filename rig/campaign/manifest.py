@@ -1,5 +1,12 @@
 """The campaign folder's own record: the manifest (``campaign.json``), the lock that stops two
-runners writing one campaign, and which run files count as finished (resume)."""
+runners writing one campaign, and which run files count as finished (resume).
+
+The manifest keeps the SHA-256 of every input the runs depend on (the campaign file, the tool, the
+material, the machine, the rig config; and each run's program): resuming after any of them changed
+would mix cuts of two experiments in one report, so :meth:`Manifest.check_inputs` refuses it,
+naming what changed, unless the operator forces it (the change is then recorded) or starts fresh
+(:func:`start_fresh` moves the earlier runs aside, nothing is deleted).
+"""
 
 from __future__ import annotations
 
@@ -13,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from analysis import __version__
+from analysis.config import config_dir
 from analysis.runs import file as rf
 from rig.campaign.config import Campaign
 from rig.errors import RigError
@@ -20,6 +28,62 @@ from rig.errors import RigError
 
 def utc_now() -> str:
     return dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
+
+
+def _sha256(obj: Any) -> str:
+    text = obj if isinstance(obj, str) else json.dumps(obj, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+#: Campaign fields that do not change what is cut and recorded: how runs are watched and paced,
+#: injected faults, the report, notes. Editing them does not stop a resume.
+_NOT_THE_EXPERIMENT = {
+    "campaign": ("description", "operator", "output_dir"),
+    "sim": ("speed", "link_timeout_s", "sim_"),
+    "suspenders": ("",),
+    "analysis": ("",),
+}
+
+
+def experiment_fields(campaign: Campaign) -> dict[str, Any]:
+    """The campaign file's fields that decide the runs, flattened (``matrix[0].depth_mm``)."""
+    out: dict[str, Any] = {}
+
+    def walk(prefix: str, v: Any) -> None:
+        if isinstance(v, dict):
+            for k, x in v.items():
+                walk(f"{prefix}.{k}" if prefix else k, x)
+        elif isinstance(v, list | tuple) and v and isinstance(v[0], dict):
+            for i, x in enumerate(v):
+                walk(f"{prefix}[{i}]", x)
+        else:
+            out[prefix] = list(v) if isinstance(v, tuple) else v
+
+    for table, value in campaign.spec.model_dump().items():
+        skip = _NOT_THE_EXPERIMENT.get(table, ())
+        if isinstance(value, dict):
+            value = {k: x for k, x in value.items() if not any(k.startswith(p) for p in skip)}
+        walk(table, value)
+    return out
+
+
+def campaign_inputs(campaign: Campaign) -> dict[str, dict[str, Any]]:
+    """Every input the campaign's runs depend on: {input: {sha256, source}} (the config's also
+    with its ``fields``, to name the ones that changed)."""
+    c = campaign.spec.campaign
+    cfg = config_dir()
+    fields = experiment_fields(campaign)
+    return {
+        "config": {"sha256": _sha256(fields), "source": str(campaign.path), "fields": fields},
+        "tool": {"sha256": _sha256(campaign.tool.model_dump()),
+                 "source": f"{cfg / 'tools.toml'} [tools.{c.tool}]"},
+        "material": {"sha256": _sha256(campaign.material.model_dump()),
+                     "source": f"{cfg / 'materials.toml'} [materials.{c.material}]"},
+        "machine": {"sha256": _sha256(campaign.machine.model_dump()),
+                    "source": f"machine '{c.machine}' ({cfg / 'machines'})"},
+        "rig": {"sha256": _sha256(campaign.rig.model_dump()),
+                "source": str(c.rig_config or cfg / "rig.toml")},
+    }  # fmt: skip
 
 
 class Manifest:
@@ -33,9 +97,40 @@ class Manifest:
                 raise RigError(f"{self.path}: campaign manifest unreadable: {exc}") from None
         self.data.setdefault("campaign", campaign.name)
         self.data.setdefault("created_utc", utc_now())
-        self.data["config_sha256"] = hashlib.sha256(campaign.text.encode()).hexdigest()
-        self.data["software_version"] = __version__
         self.data.setdefault("runs", {})
+        self.inputs = campaign_inputs(campaign)
+        self._text = campaign.text
+
+    def changed_inputs(self, programs: dict[str, str]) -> list[str]:
+        """One line per input that differs from what the recorded runs used (``programs``: run
+        name -> its program's SHA-256 now). A manifest of an older cutlab has only the config's."""
+        old = dict(self.data.get("inputs", {}))
+        lines = []
+        for name, now in self.inputs.items():
+            was = old.get(name, {}).get("sha256")
+            if was is not None and was != now["sha256"]:
+                what = _field_changes(old[name].get("fields"), now.get("fields"))
+                lines.append(f"{name} changed: {now['source']}: sha256 {was[:12]} -> "
+                             f"{now['sha256'][:12]}{what}")  # fmt: skip
+        for run, entry in self.data["runs"].items():
+            was, now_sha = entry.get("program_sha256"), programs.get(run)
+            if was and now_sha and was != now_sha:
+                lines.append(f"program of run {entry.get('index', '?')} ({run}) changed: "
+                             f"{entry.get('file', '')}: sha256 {was[:12]} -> {now_sha[:12]}")
+            elif was and now_sha is None:
+                lines.append(f"run {run} ({entry.get('file', '')}) is no longer in the campaign")
+        return lines
+
+    def accept_inputs(self, forced_changes: list[str] = ()) -> None:
+        """Store the current inputs; ``forced_changes`` (a forced resume) are recorded."""
+        if forced_changes:
+            self.data.setdefault("forced_resumes", []).append(
+                {"utc": utc_now(), "changes": list(forced_changes)}
+            )
+        self.data["inputs"] = self.inputs
+        self.data["config_sha256"] = hashlib.sha256(self._text.encode()).hexdigest()
+        self.data["software_version"] = __version__
+        self.save()
 
     def entry(self, name: str) -> dict[str, Any] | None:
         return self.data["runs"].get(name)
@@ -53,26 +148,59 @@ class Manifest:
 @contextlib.contextmanager
 def campaign_lock(folder: Path) -> Iterator[None]:
     lock = folder / "campaign.lock"
-    if lock.exists():
-        try:
-            pid = int(lock.read_text().strip() or 0)
-        except (OSError, ValueError):
-            pid = 0
-        alive = False
-        if pid > 0:
-            try:
-                os.kill(pid, 0)
-                alive = pid != os.getpid()
-            except (ProcessLookupError, PermissionError):
-                alive = False
-        if alive:
-            raise RigError(f"{folder}: campaign already running in process {pid} ({lock})")
+    pid = lock_holder(folder)
+    if pid is not None and pid != os.getpid():
+        raise RigError(f"{folder}: campaign already running in process {pid} ({lock})")
     lock.write_text(str(os.getpid()))
     try:
         yield
     finally:
         with contextlib.suppress(OSError):
             lock.unlink()
+
+
+def _field_changes(old: dict[str, Any] | None, new: dict[str, Any] | None) -> str:
+    """`` (field old -> new, ...)`` for the fields that differ (empty without both)."""
+    if not old or not new:
+        return ""
+    diff = [f"{k} {old.get(k, '(none)')!r} -> {new.get(k, '(none)')!r}"
+            for k in sorted(set(old) | set(new)) if old.get(k) != new.get(k)]  # fmt: skip
+    return f" ({'; '.join(diff[:6])}{'; ...' if len(diff) > 6 else ''})" if diff else ""
+
+
+def start_fresh(folder: Path) -> Path | None:
+    """Move an earlier campaign's runs, programs and manifest into ``folder/before-<utc>/`` (kept,
+    never deleted); the folder to hold them, or None if there was nothing."""
+    names = [n for n in ("runs", "programs", "report", "campaign.json", "campaign.toml")
+             if (folder / n).exists()]  # fmt: skip
+    if not names:
+        return None
+    stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+    dest = folder / f"before-{stamp}"
+    k = 1
+    while dest.exists():
+        dest, k = folder / f"before-{stamp}-{k}", k + 1
+    dest.mkdir()
+    for n in names:
+        os.replace(folder / n, dest / n)
+    return dest
+
+
+def lock_holder(folder: Path) -> int | None:
+    """The pid of a live runner holding the campaign's lock, else None."""
+    try:
+        pid = int((folder / "campaign.lock").read_text().strip() or 0)
+    except (OSError, ValueError):
+        return None
+    if pid <= 0:
+        return None
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return None
+    except PermissionError:
+        return pid
+    return pid
 
 
 def run_status(path: Path) -> tuple[str, str]:

@@ -48,13 +48,23 @@ def check_hardware(campaign: Any) -> tuple[list[str], list[str]]:
     try:
         import nidaqmx
 
-        names = [d.name for d in nidaqmx.system.System.local().devices]
+        devices = {d.name: d for d in nidaqmx.system.System.local().devices}
+        names = list(devices)
     except Exception as exc:  # noqa: BLE001 - the driver-not-found error is not a DaqError
         problems.append(f"DAQ: NI-DAQmx driver not available ({type(exc).__name__}: {exc}). "
                         f"{HOW_TO_CONFIGURE}")  # fmt: skip
     else:
         if daq.device in names:
             found.append(f"DAQ device {daq.device} ({', '.join(daq.channels)})")
+            dev = devices[daq.device]
+            try:  # the device's own limit for this many channels, Hz per channel
+                top = float(dev.ai_max_multi_chan_rate if len(daq.channels) > 1
+                            else dev.ai_max_single_chan_rate)  # fmt: skip
+            except Exception:  # noqa: BLE001 - a device that does not say
+                top = float("inf")
+            if daq.rate_hz > top:
+                problems.append(f"DAQ: rate_hz = {daq.rate_hz:g} is above device {daq.device}'s "
+                                f"limit {top:g} Hz per channel for {len(daq.channels)} channels")
         else:
             problems.append(
                 f"DAQ: device {daq.device!r} (configs/rig.toml [daq] device) not found; present: "

@@ -273,6 +273,10 @@ def execute_run(
             if tap.daq_fault is not None and on_overflow == "fail":
                 status, reason = STATUS_FAIL, tap.daq_fault
                 break
+            medium = getattr(writer, "failure", None)  # disk nearly full, write error
+            if medium is not None:
+                status, reason = STATUS_FAIL, medium
+                break
             if (
                 held_since is None
                 and not stop.event.is_set()

@@ -13,9 +13,13 @@ in order on the rig, each through :func:`rig.campaign.run.execute_run`, and keep
         report/                 written by rig.report.base after the campaign
 
 Resume: running a campaign again skips every test whose run file closed with status
-``success``; a run that ended in abort or fail, or whose process was killed (the file still says
-``running``), is run again and its earlier file is kept beside it as ``.attempt-K.h5``. A lock
-file stops two runners from writing one campaign.
+``success``; a run that ended in abort or fail, or whose process was killed (the file reads
+``interrupted``), is run again and its earlier file is kept beside it as ``.attempt-K.h5``. A lock
+file stops two runners from writing one campaign. A campaign whose inputs changed since its runs
+were recorded (config, tool, material, machine, rig, a program) is not resumed: ``fresh`` moves the
+earlier runs aside and starts over, ``force_resume`` resumes and records the change. A run does not
+start without room on the disk for its expected size plus the writer's margin, and one whose disk
+runs low or fails ends ``fail`` with the reason (see :mod:`rig.log.writer`).
 
 Each run file records the conditions, tool, material, machine, calibration identity, the NC
 program and its SHA-256, the software version, every block with its send time, events (zero,
@@ -36,15 +40,17 @@ from typing import Any
 
 from analysis import __version__
 from analysis.config import FaceMill
-from analysis.errors import ConfigError
+from analysis.errors import ConfigError, CutlabError
 from analysis.runs import file as rf
 from rig.campaign.config import Campaign, RunConditions, load_campaign
 from rig.campaign.manifest import (
     Manifest,
     campaign_lock,
     finished,
+    lock_holder,
     run_status,
     set_aside,
+    start_fresh,
     utc_now,
 )
 from rig.campaign.programs import CutProgram, generate_program
@@ -135,7 +141,19 @@ def campaign_status(campaign: Campaign, out_root: str | Path | None = None) -> d
     for p in plan_campaign(campaign):
         st, reason = run_status(folder / "runs" / f"{p.file_stem}.h5")
         rows.append({"run": p.test.index, "name": p.test.name, "status": st, "reason": reason})
+    _note_interrupted(folder, campaign, rows)
     return {"campaign": campaign.name, "folder": str(folder), "runs": rows}
+
+
+def _note_interrupted(folder: Path, campaign: Campaign, rows: list[dict[str, Any]]) -> None:
+    """A manifest still saying ``running`` for a run whose runner is gone says ``interrupted``."""
+    if not (folder / "campaign.json").exists() or lock_holder(folder) is not None:
+        return
+    manifest = Manifest(folder, campaign)
+    for r in rows:
+        entry = manifest.entry(r["name"])
+        if entry and entry.get("status") == rf.STATUS_RUNNING:
+            manifest.set(r["name"], status=rf.STATUS_INTERRUPTED, reason=r["reason"])
 
 
 def _dialect(campaign: Campaign) -> str:
@@ -169,25 +187,33 @@ def _post_process(text: str, campaign: Campaign, test: RunConditions, cut: CutPr
 
 
 def plan_campaign(campaign: Campaign) -> list[PlannedRun]:
-    """Generate and check every test's program (an NC error is raised before anything runs)."""
-    from rig.dnc import program_from_text
-
-    out = []
+    """Generate and check every test's program; the problems of all of them are raised together
+    (one ConfigError, a line each) before anything runs."""
+    out, problems = [], []
     dialect = _dialect(campaign)
     for t in campaign.tests:
-        cut = generate_program(campaign.spec.program, t, campaign.tool, dialect, t.name)
-        text = cut.text
-        if t.feed_mode == "post-processed":
-            text = _post_process(text, campaign, t, cut)
-        stem = f"{t.index:03d}-{t.name}"
         try:
-            program_from_text(text, f"{stem}.nc")
-        except RigError as exc:
-            raise ConfigError(f"{campaign.path}: test {t.index} ({t.name}): {exc}") from None
-        expected = _expected_seconds(cut, campaign)
-        sha = hashlib.sha256(text.encode()).hexdigest()
-        out.append(PlannedRun(t, cut, text, stem, expected, sha))
+            out.append(_plan_one(campaign, t, dialect))
+        except CutlabError as exc:
+            where = f"{campaign.path}:{t.source_line}" if t.source_line else str(campaign.path)
+            problems += [f"{where}: test {t.index} ({t.name}): {line}"
+                         for line in str(exc).splitlines()]  # fmt: skip
+    if problems:
+        raise ConfigError("\n".join(dict.fromkeys(problems)))
     return out
+
+
+def _plan_one(campaign: Campaign, t: RunConditions, dialect: str) -> PlannedRun:
+    from rig.dnc import program_from_text
+
+    cut = generate_program(campaign.spec.program, t, campaign.tool, dialect, t.name)
+    text = cut.text
+    if t.feed_mode == "post-processed":
+        text = _post_process(text, campaign, t, cut)
+    stem = f"{t.index:03d}-{t.name}"
+    program_from_text(text, f"{stem}.nc")
+    sha = hashlib.sha256(text.encode()).hexdigest()
+    return PlannedRun(t, cut, text, stem, _expected_seconds(cut, campaign), sha)
 
 
 def _expected_seconds(cut: CutProgram, campaign: Campaign) -> float:
@@ -299,9 +325,15 @@ def run_campaign(
     progress: bool = True,
     stop: StopRequest | None = None,
     only: Callable[[RunConditions], bool] | None = None,
+    fresh: bool = False,
+    force_resume: bool = False,
 ) -> CampaignResult:
-    """Run (or resume) a campaign; returns every run's status. See the module docstring."""
-    from rig.log import RunWriter
+    """Run (or resume) a campaign; returns every run's status. See the module docstring.
+
+    ``fresh``: move an earlier run of the campaign aside (``before-<utc>/``) and start over;
+    ``force_resume``: resume although inputs changed (the change is recorded in the manifest).
+    """
+    from rig.log import RunWriter, RunWriterError, free_space_problem
 
     plans = plan_campaign(campaign)
     if campaign.spec.campaign.rig == "real" and session_factory is None:
@@ -324,9 +356,18 @@ def run_campaign(
     cal_sheet = Calibration.from_dynamometer(campaign.rig.dynamometer)
     sus = campaign.spec.suspenders
     bar = _campaign_bar(len(plans), progress, campaign.name)
+    daq_rate_hz = campaign.spec.daq.rate_hz or campaign.rig.daq.rate_hz
+    bytes_per_s = daq_rate_hz * len(campaign.rig.dynamometer.channels) * 8  # float64 bound
     with campaign_lock(folder), _sigint_to(stop):
-        (folder / "campaign.toml").write_text(campaign.text)
+        if fresh and start_fresh(folder) is not None:
+            (folder / "runs").mkdir()
+            (folder / "programs").mkdir()
         manifest = Manifest(folder, campaign)
+        changes = manifest.changed_inputs({p.test.name: p.sha256 for p in plans})
+        if changes and not force_resume:
+            raise RigError(_changed_message(campaign, folder, changes))
+        manifest.accept_inputs(changes)
+        (folder / "campaign.toml").write_text(campaign.text)
         for k, plan in enumerate(plans):
             t = plan.test
             if only is not None and not only(t):
@@ -341,6 +382,10 @@ def run_campaign(
                 continue
             if stopped or stop.event.is_set():
                 break
+            rest_s = 2 * campaign.spec.daq.rest_s + 10.0
+            problem = free_space_problem(folder / "runs", bytes_per_s * (plan.expected_s + rest_s))
+            if problem:
+                raise RigError(f"run {t.index} ({t.name}) not started: {problem}")
             earlier = set_aside(path)
             (folder / "programs" / f"{plan.file_stem}.nc").write_text(plan.program_text)
             session = factory(campaign, plan, k)
@@ -372,10 +417,16 @@ def run_campaign(
                 status, reason = outcome.status, outcome.reason
             except BaseException as exc:
                 status, reason = rf.STATUS_FAIL, f"{type(exc).__name__}: {exc}"[:400]
-                writer.close(status, reason)
+                with contextlib.suppress(RunWriterError):
+                    writer.close(status, reason)
                 manifest.set(t.name, status=status, reason=reason, ended_utc=utc_now())
                 raise
-            writer.close(status, reason)
+            try:
+                writer.close(status, reason)
+            except RunWriterError as exc:  # the medium failed after the program ended
+                status, reason = rf.STATUS_FAIL, str(exc)
+            if writer.failure is not None and status == rf.STATUS_SUCCESS:
+                status, reason = rf.STATUS_FAIL, writer.failure
             manifest.set(
                 t.name, status=status, reason=reason, ended_utc=utc_now(),
                 peak_force_n=outcome.peak_force_n, wall_s=round(outcome.wall_s, 3),
@@ -398,6 +449,16 @@ def run_campaign(
     stopped = stopped or len(records) < sum(1 for p in plans if only is None or only(p.test))
     return CampaignResult(
         campaign.name, folder, tuple(records), stopped, time.monotonic() - wall0, counts
+    )
+
+
+def _changed_message(campaign: Campaign, folder: Path, changes: list[str]) -> str:
+    return (
+        f"{folder}: not resumed: inputs changed since its runs were recorded (a resume would mix "
+        "cuts of both in one report):\n  " + "\n  ".join(changes) + "\n  start over with "
+        f"`cutlab campaign run {campaign.path} --fresh` (the earlier runs are kept in "
+        f"{folder}/before-<time>/), or resume anyway with --force-resume (recorded in "
+        f"{folder / 'campaign.json'})"
     )
 
 
@@ -448,20 +509,33 @@ class DryRun:
                                "ok": self.ok}  # fmt: skip
 
 
-def dry_run(campaign: Campaign) -> DryRun:
-    """Check config, programs and (for ``rig = "real"``) that the hardware is present, without
-    cutting. Problems are listed, not raised, so all of them are seen at once."""
-    plans = plan_campaign(campaign)
-    hardware: list[str] = []
+def dry_run(campaign: Campaign, out_root: str | Path | None = None) -> DryRun:
+    """Check what the campaign will use without cutting: every program (feed rules included),
+    the hardware (``rig = "real"``: the NI device, its rate limit, the serial port) and the room
+    on the disk for its runs. The config itself was checked by :func:`load_campaign`. Problems
+    are listed, not raised, so all of them are seen at once."""
+    from rig.log import free_space_problem
+
     problems: list[str] = []
+    try:
+        plans = plan_campaign(campaign)
+    except ConfigError as exc:
+        plans, problems = [], str(exc).splitlines()
     if campaign.spec.campaign.rig == "real":
         from rig.campaign.real import check_hardware
 
-        hardware, problems = check_hardware(campaign)
+        hardware, missing = check_hardware(campaign)
+        problems += missing
     else:
         hardware = ["simulated rig: controller on a pseudo-terminal, simulated DAQ"]
+    rate_hz = campaign.spec.daq.rate_hz or campaign.rig.daq.rate_hz
+    per_s = rate_hz * len(campaign.rig.dynamometer.channels) * 8
+    need = sum(per_s * (p.expected_s + 2 * campaign.spec.daq.rest_s + 10.0) for p in plans)
+    space = free_space_problem(campaign_folder(campaign, out_root), need)
+    problems += [space] if space else []
+    n = len(campaign.tests)
     return DryRun(
-        campaign.name, campaign.spec.campaign.rig, len(plans), len(plans),
+        campaign.name, campaign.spec.campaign.rig, n, len(plans),
         sum(p.expected_s for p in plans), hardware, problems, mode_warnings(campaign),
     )  # fmt: skip
 

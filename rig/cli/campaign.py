@@ -2,6 +2,7 @@
 
 cutlab campaign run facemill-ploughing            # a name in configs/campaigns, or a path
 cutlab campaign run my.toml --dry-run             # check config, hardware, programs; no cut
+cutlab campaign run my.toml --fresh               # start over (earlier runs moved aside)
 cutlab campaign status facemill-ploughing --json  # every run's status and reason
 cutlab campaign report facemill-ploughing         # (re)write the report folder
 """
@@ -25,6 +26,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--dry-run", action="store_true", help="check config, hardware and programs")
     r.add_argument("--out", help="folder of campaign folders (default: campaign.output_dir)")
     r.add_argument("--no-report", action="store_true", help="skip the analysis and report")
+    r.add_argument(
+        "--fresh",
+        action="store_true",
+        help="start over: earlier runs are moved to <folder>/before-<time>/",
+    )
+    r.add_argument(
+        "--force-resume",
+        action="store_true",
+        help="resume although inputs changed (recorded in campaign.json)",
+    )
     r.add_argument("--json", action="store_true", help="machine-readable summary on stdout")
     r.add_argument("--quiet", action="store_true", help="no progress display")
     r.set_defaults(func=_run)
@@ -37,14 +48,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         q.set_defaults(func=func)
 
 
-def _dry_run(campaign, as_json: bool) -> int:
+def _dry_run(campaign, as_json: bool, out_root: str | None) -> int:
     from rig.campaign import dry_run
 
-    d = dry_run(campaign)
+    d = dry_run(campaign, out_root)
     if as_json:
         print_json(d.as_dict())
         return 0 if d.ok else 2
-    print(f"campaign {d.campaign}: {d.tests} tests, programs checked, rig = {d.rig}")
+    print(f"campaign {d.campaign}: {d.tests} tests, {d.programs_checked} programs checked, "
+          f"rig = {d.rig}")  # fmt: skip
     print(f"expected machine time: {d.expected_machine_s / 60:.1f} min")
     for prefix, lines in (("ok", d.hardware), ("PROBLEM", d.problems), ("warning", d.warnings)):
         for line in lines:
@@ -57,8 +69,9 @@ def _run(args: argparse.Namespace) -> int:
 
     campaign = load_campaign(args.config)
     if args.dry_run:
-        return _dry_run(campaign, args.json)
-    result = run_campaign(campaign, out_root=args.out, progress=not args.quiet)
+        return _dry_run(campaign, args.json, args.out)
+    result = run_campaign(campaign, out_root=args.out, progress=not args.quiet, fresh=args.fresh,
+                          force_resume=args.force_resume)  # fmt: skip
     report = None
     if not args.no_report and not result.stopped:
         from rig.report import write_report

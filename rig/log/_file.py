@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+import os
 from collections.abc import Mapping
 from dataclasses import asdict, is_dataclass
 from pathlib import Path
@@ -107,15 +108,19 @@ def create_run_file(
 ) -> tuple[h5py.File, h5py.Dataset]:
     """Create the file with every group, dataset and attribute, switch SWMR on; return the file
     and its samples dataset. ``compression``: "auto" (gzip 1 + shuffle for int16 codes, none for
-    float64), "gzip" or None."""
+    float64), "gzip" or None.
+
+    The file is built under a hidden name and renamed into place once SWMR is on: a process
+    killed before that leaves no file HDF5 cannot open (not SWMR yet, still marked open)."""
     if path.exists() and not overwrite:
         raise RunWriterError(f"{path}: file exists (overwrite=True replaces it)")
     path.parent.mkdir(parents=True, exist_ok=True)
+    building = path.with_name(f".{path.name}.new")
     c = info.n_channels
     block_bytes = info.block_samples * c * info.dtype.itemsize
     try:
         f = h5py.File(
-            path,
+            building,
             "w",
             libver="latest",
             # Room for the chunks a block spans, so a block ending mid-chunk leaves that chunk
@@ -177,7 +182,15 @@ def create_run_file(
         f.create_dataset(
             rf.meta_path(meta), shape=(0,), maxshape=(None,), chunks=(4096,), dtype=np.uint8
         )
-    write_text(f, rf.META_STATUS, json.dumps({"status": rf.STATUS_RUNNING}))
+    # The writer's process and host: a reader tells a killed writer from a live one by them.
+    status = {"status": rf.STATUS_RUNNING, "writer": rf.writer_identity()}
+    write_text(f, rf.META_STATUS, json.dumps(status))
     f.swmr_mode = True
     f.flush()
+    try:
+        os.replace(building, path)  # the open file keeps its descriptor
+    except OSError as exc:
+        f.close()
+        building.unlink(missing_ok=True)
+        raise RunWriterError(f"{path}: cannot create the run file: {exc}") from None
     return f, ds

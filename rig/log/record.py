@@ -19,7 +19,7 @@ import numpy as np
 from analysis.runs import file as rf
 from rig.daq import Calibration, Daq, DaqInfo
 from rig.errors import RigError
-from rig.log.writer import RunWriter, WriterStats
+from rig.log.writer import RunWriter, WriterStats, free_space_problem
 
 if TYPE_CHECKING:
     from analysis.config import RigConfig
@@ -94,7 +94,8 @@ def plan_recording(
 ) -> RecordPlan:
     """Check a recording before any device is opened: the rig config (None: configs/rig.toml),
     ``seconds`` > 0, ``rate_hz`` in (0, 1e7] Hz (None or 0: the config's), ``path`` new unless
-    ``overwrite``; ``notes`` gets the aliasing warning of the rate."""
+    ``overwrite``, room on its disk for the recording (float64 bound) and the writer's margin;
+    ``notes`` gets the aliasing warning of the rate."""
     from analysis.config import load_rig
 
     rig = load_rig(rig_path)
@@ -106,6 +107,9 @@ def plan_recording(
     out = Path(path)
     if out.exists() and not overwrite:
         raise RigError(f"{out}: file exists; --force overwrites it")
+    problem = free_space_problem(out.parent, seconds * rate * len(rig.daq.channels) * 8)
+    if problem:
+        raise RigError(problem)
     notes = [w for w in [aliasing_warning(rate, rig.dynamometer)] if w]
     where = str(rig_path or "configs/rig.toml")
     return RecordPlan(rig, where, out, seconds, rate, overwrite, dict(conditions or {}), notes)
@@ -156,7 +160,8 @@ def record(
     """Acquire for ``seconds`` of device time (or until the DAQ ends by itself) into ``path``.
 
     ``progress(seconds_acquired)`` is called about ten times a second. Ctrl-C ends the run with
-    status ``abort``; a DAQ error with status ``fail`` (the file keeps what was acquired).
+    status ``abort``; a DAQ error or a failing medium (disk nearly full, write error) with status
+    ``fail`` (the file keeps what was acquired, or flushed).
     ``notes`` (e.g. :func:`aliasing_warning`) are stored as ``note`` events at sample 0.
     """
     writer = RunWriter(
@@ -182,11 +187,13 @@ def record(
             got = daq.samples_acquired
             if progress is not None:
                 progress(got / rate)
-            if got >= seconds * rate - 0.5:
+            if got >= seconds * rate - 0.5 or writer.failure is not None:
                 break
         daq.stop()
         if daq.error is not None:
             status, reason = rf.STATUS_FAIL, f"DAQ error: {daq.error}"
+        elif writer.failure is not None:
+            status, reason = rf.STATUS_FAIL, writer.failure
     except KeyboardInterrupt:
         daq.stop()
         status, reason = rf.STATUS_ABORT, "interrupted (Ctrl-C)"

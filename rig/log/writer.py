@@ -10,6 +10,15 @@ is lost silently. Every dataset is created before SWMR is switched on, so
 ``analysis.runs.follow.RunFollower`` can read the file while it grows, and a writer killed at any
 moment leaves a file that opens and holds everything up to its last flush (default every 1 s).
 
+The medium: the writer thread checks the free space of the file's folder at every flush and, below
+``min_free_mb``, stops recording cleanly (a ``fault`` event, everything so far flushed) before the
+disk is full; :func:`free_space_problem` checks a recording's expected size before it starts. A
+write error (ENOSPC, EIO, EFBIG from HDF5) stops the writer too: HDF5 cannot close a file it failed
+to write (and crashes the process at exit if left to try), so the file is abandoned (its
+descriptor pointed at /dev/null so nothing more reaches the disk) and rewritten at :meth:`close`
+with every flushed sample and status ``fail``. Either way :attr:`RunWriter.failure` says why, for
+the run to end with that reason.
+
 The layout is documented in :mod:`analysis.runs.file` and written here only through its constants.
 
 Other threads (the DNC streamer, the campaign runner) write through thread-safe methods that
@@ -22,10 +31,14 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import errno
 import hashlib
 import json
 import math
+import os
 import queue
+import re
+import shutil
 import threading
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -48,9 +61,44 @@ from rig.log._file import (
     write_zero_and_drift,
 )
 
-__all__ = ["RunWriter", "RunWriterError", "WriterStats"]
+__all__ = ["MIN_FREE_MB", "RunWriter", "RunWriterError", "WriterStats", "free_space_problem"]
 
 _STOP = object()
+#: MB that must stay free on the run file's disk: below it a recording stops (or does not start).
+MIN_FREE_MB = 64.0
+
+
+def free_bytes(folder: Path) -> int:
+    """Free bytes on the file system of ``folder`` (or of its nearest existing parent)."""
+    p = Path(folder).absolute()
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return shutil.disk_usage(p).free
+
+
+def free_space_problem(
+    folder: Path, need_bytes: float, min_free_mb: float = MIN_FREE_MB
+) -> str | None:
+    """Why a recording of about ``need_bytes`` into ``folder`` should not start (None: room
+    enough for it plus the ``min_free_mb`` margin)."""
+    free = free_bytes(folder)
+    need = need_bytes + min_free_mb * 1e6
+    if free >= need:
+        return None
+    return (
+        f"{folder}: {free / 1e6:.0f} MB free, the recording needs about {need_bytes / 1e6:.0f} MB "
+        f"plus the {min_free_mb:g} MB margin: free some space or record elsewhere"
+    )
+
+
+def _write_failure(path: Path, exc: BaseException) -> str:
+    """One line for a failed write, with the OS error HDF5 buried in its message."""
+    text = str(exc)
+    m = re.search(r"errno = (\d+), error message = '([^']*)'", text)
+    code = getattr(exc, "errno", None) or (int(m[1]) if m else None)
+    what = m[2] if m else (os.strerror(code) if code else text.splitlines()[0][:200])
+    name = errno.errorcode.get(code, "") if code else ""
+    return f"write error on {path}: {what}{f' ({name})' if name else ''}"
 
 
 @dataclass(frozen=True)
@@ -80,6 +128,7 @@ class RunWriter:
     flush_interval_s : at most this long between flushes (what a killed run can lose), s.
     queue_blocks : blocks the queue can hold before blocks are dropped (``queue_full`` events).
     compression : "auto" (gzip level 1 + shuffle for int16 codes, none for float64), "gzip", None.
+    min_free_mb : free space (MB) below which recording stops before the disk fills.
     """
 
     def __init__(
@@ -93,6 +142,7 @@ class RunWriter:
         queue_blocks: int = 64,
         compression: str | None = "auto",
         overwrite: bool = False,
+        min_free_mb: float = MIN_FREE_MB,
     ) -> None:
         if not 0 < flush_interval_s <= 60:
             raise RunWriterError(f"flush_interval_s = {flush_interval_s}: must be in (0, 60] s")
@@ -107,6 +157,7 @@ class RunWriter:
         self.info = info
         self.clock = clock
         self.flush_interval_s = float(flush_interval_s)
+        self.min_free_mb = float(min_free_mb)
         self._c = info.n_channels
         self._dtype = info.dtype
         self._f, self._ds = create_run_file(
@@ -142,8 +193,11 @@ class RunWriter:
         self._max_write_s = 0.0
         self._max_flush_s = 0.0
         self.error: BaseException | None = None
+        #: Why recording stopped on its own (disk nearly full, write error); None while it records.
+        self.failure: str | None = None
+        self._abandoned = False  # HDF5 failed a write: the file is left alone, rewritten at close
         self._closed = False
-        self._final_status = ""
+        self._close_as = (rf.STATUS_SUCCESS, "")
         self._thread = threading.Thread(target=self._run, name=f"RunWriter({self.path.name})")
         self._thread.daemon = True
         self._thread.start()
@@ -174,6 +228,8 @@ class RunWriter:
         self._enqueue(first_sample, data, timeout_s)
 
     def _enqueue(self, first_sample: int, data: np.ndarray, wait_s: float | None) -> None:
+        if self.failure is not None:
+            return  # recording has stopped (the reason is an event and ``failure``)
         n = int(data.shape[1])
         with self._lock:
             if first_sample != self._expect:
@@ -375,8 +431,12 @@ class RunWriter:
         )
 
     def close(self, status: str = rf.STATUS_SUCCESS, reason: str = "") -> WriterStats:
-        """Write what is queued, record the exit status and close the file. Idempotent."""
-        if status not in rf.STATUSES or status == rf.STATUS_RUNNING:
+        """Write what is queued, record the exit status and close the file. Idempotent.
+
+        After a :attr:`failure` the status is ``fail`` with that reason (an ``abort`` stays, the
+        failure added to its reason); a caller that closes with ``success`` not having noticed
+        the failure gets a RunWriterError, after the file is closed."""
+        if status not in rf.CLOSED_STATUSES:
             raise RunWriterError(f"status {status!r}: expected success, abort or fail")
         if self._closed:
             return self.stats()
@@ -387,19 +447,29 @@ class RunWriter:
                 self._flush_drop()
         # Written by the writer thread after the last sample is flushed, so a follower that sees
         # a closed status has every sample.
-        self._final_status = json.dumps(
-            {"status": status, "reason": reason, "closed_utc": utc_now()}
-        )
+        self._close_as = (status, reason)
         self._filled.put(_STOP)
         self._thread.join()
-        err = self.error
-        try:
-            self._f.close()
-        except Exception as exc:  # noqa: BLE001 - reported below with the writer's error
-            err = err or exc
-        if err is not None:
-            raise RunWriterError(f"{self.path}: writing the run file failed: {err}") from err
+        final, why = self._final_status_of(status, reason)
+        if self._abandoned:
+            # The flushed samples into a fresh file with the status (needs room for them; if
+            # there is none, the next reader repairs it as interrupted).
+            rf.repair_run(self.path, status=final, reason=why, writer_gone=True)
+        else:
+            try:
+                self._f.close()
+            except Exception as exc:  # noqa: BLE001 - a failed last write is a failure too
+                self.failure = self.failure or _write_failure(self.path, exc)
+        if self.failure is not None and status == rf.STATUS_SUCCESS:
+            raise RunWriterError(self.failure)
         return self.stats()
+
+    def _final_status_of(self, status: str, reason: str) -> tuple[str, str]:
+        if self.failure is None:
+            return status, reason
+        if status == rf.STATUS_SUCCESS:
+            return rf.STATUS_FAIL, self.failure
+        return status, reason if self.failure in reason else f"{reason}; {self.failure}"
 
     def __enter__(self) -> RunWriter:
         return self
@@ -446,15 +516,37 @@ class RunWriter:
                     break
             self._drain_control()
             self._flush()
-            write_text(self._f, rf.META_STATUS, self._final_status)
+            status, reason = self._final_status_of(*self._close_as)
+            closed = {"status": status, "reason": reason, "closed_utc": utc_now()}
+            write_text(self._f, rf.META_STATUS, json.dumps(closed))
             self._f.flush()
-        except BaseException as exc:  # noqa: BLE001 - surfaced by close()
+        except BaseException as exc:  # noqa: BLE001 - surfaced by close() and ``failure``
             self.error = exc
+            self.failure = self.failure or _write_failure(self.path, exc)
+            self._abandon()
+        finally:
+            with self._idle:
+                self._idle.notify_all()
+
+    def _abandon(self) -> None:
+        """Leave a file HDF5 failed to write: point its descriptor at /dev/null, so that closing
+        it (which HDF5 must, or it crashes at exit) writes nothing more to the disk."""
+        self._abandoned = True
+        with contextlib.suppress(Exception):
+            fd = self._f.id.get_vfd_handle()
+            null = os.open(os.devnull, os.O_RDWR)
+            os.dup2(null, fd)
+            os.close(null)
+        with contextlib.suppress(Exception):
+            self._f.close()
 
     def _take(self, item: tuple[int, int, np.ndarray]) -> None:
         """Append the first n rows of a filled pool buffer (n, c) to the samples dataset and
         return the buffer to the pool."""
         _, n, buf = item
+        if self.failure is not None:  # stopped: the buffer goes back, nothing more is written
+            self._free.put(buf)
+            return
         t = time.perf_counter()
         end = self._committed + n
         self._ds.resize((end, self._c))
@@ -476,6 +568,14 @@ class RunWriter:
         flushed.flush()
         self._flushes += 1
         self._max_flush_s = max(self._max_flush_s, time.perf_counter() - t)
+        free = free_bytes(self.path.parent)
+        if self.failure is None and free < self.min_free_mb * 1e6:
+            self.failure = (
+                f"{self.path.parent}: {free / 1e6:.0f} MB free, below the {self.min_free_mb:g} MB "
+                f"margin: recording stopped at sample {self._committed} before the disk fills"
+            )
+            ev = DaqEvent(rf.EV_FAULT, -1, self.failure[-200:], time_s=self.clock())
+            self._control.append(("event", ev))
 
     def _drain_control(self) -> None:
         events: list[DaqEvent] = []
