@@ -124,6 +124,14 @@ class MachineConfig(Model):
     feed_max_mm_min: float = Field(gt=0, le=200_000, description="mm/min")
     spindle_max_rpm: float = Field(gt=0, le=100_000, description="rpm")
     spindle_min_rpm: float = Field(0.0, ge=0, description="rpm")
+    # The spindle's rated curve (planning.limits): constant torque up to the base speed
+    # P / T, constant power above it. Unset: no power or torque limit.
+    spindle_power_kw: float | None = Field(
+        None, gt=0, le=1000, description="kW, rated spindle power (constant-power region)"
+    )
+    spindle_torque_nm: float | None = Field(
+        None, gt=0, le=50_000, description="N m, rated spindle torque (constant-torque region)"
+    )
     arc_radius_tolerance_mm: float = Field(
         0.002, gt=0, le=1, description="mm, arc end radius mismatch"
     )
@@ -225,6 +233,13 @@ class EndMill(Model):
     )
     overload_gain: float = Field(
         3.0, ge=0, le=100, description="cutting-pressure rise per unit relative excess of h_ex"
+    )
+    # Static deflection limit (planning.limits): cantilever of the stick-out, unset: no limit.
+    deflection_tol_mm: float | None = Field(
+        None, gt=0, le=5, description="mm, largest static tool-tip deflection allowed"
+    )
+    youngs_modulus_gpa: float | None = Field(
+        None, gt=0, le=1500, description="GPa, cutter's E (default by material: HSS, carbide)"
     )
 
     @model_validator(mode="after")

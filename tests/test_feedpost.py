@@ -605,16 +605,20 @@ def test_default_stock_reaches_below_an_arc_that_dips_under_its_end_points() -> 
     assert stock.bottom_mm <= -7.0 + 1e-9
 
 
-def test_shipped_operation_plan_machines_its_programs_in_order(capsys) -> None:
+def test_shipped_operation_plan_machines_its_programs_in_order(capsys, tmp_path) -> None:
     plan = Path(__file__).parents[1] / "data" / "plans" / "demo-plan.toml"
     rc, so, _ = cli(["plan", "simulate", str(plan), "--json"], capsys)
     assert rc == 0
     ops = {o["operation"]: o for o in json.loads(so)["operations"]}
     assert list(ops) == ["demo-part", "inch-features"]
-    # The second program meets what the first left: it removes less than it would alone.
+    # The second program meets what the first left: it removes less than it would alone (a
+    # plan of it alone: a program that changes tools is refused with one --tool).
     alone = Path(__file__).parents[1] / "data" / "programs" / "inch-features.nc"
-    rc, so, _ = cli(["plan", "simulate", str(alone), "--tool", "phi10-flat", "--stock",
-                     "box:-50,50,-45,45,-20,0", "--spacing", "0.5", "--json"], capsys)  # fmt: skip
+    text = plan.read_text()
+    one = tmp_path / "alone.toml"
+    op = f'[[operations]]\nname = "inch-features"\nprogram = "{alone}"\ntool = "phi10-flat"\n'
+    one.write_text(text[: text.index("[[operations]]")] + op)
+    rc, so, _ = cli(["plan", "simulate", str(one), "--json"], capsys)
     assert rc == 0
     assert 0 < ops["inch-features"]["removed_mm3"] < json.loads(so)["removed_mm3"]
 

@@ -50,6 +50,15 @@ MAY_IMPORT: dict[str, set[str]] = {
         "analysis.forces",
         "analysis.modal",
     },
+    "analysis.stability": {"analysis.errors", "analysis.validation", "analysis.modal"},
+    "analysis.catalog": {
+        "analysis",
+        "analysis.errors",
+        "analysis.validation",
+        "analysis.config",
+        "analysis.runs",
+        "analysis.identify",
+    },
     "planning": set(),
     "planning.errors": set(),
     "planning.nc": {"planning.errors"},
@@ -58,6 +67,13 @@ MAY_IMPORT: dict[str, set[str]] = {
     "planning.surface": {"planning.errors", "planning.nc", "planning.stock"},
     "planning.rough": {"planning.errors", "planning.nc", "planning.stock", "planning.surface"},
     "planning.orient": {"planning.errors", "planning.nc", "planning.stock", "planning.surface"},
+    "planning.limits": {
+        "planning.errors",
+        "planning.nc",
+        "planning.stock",
+        "planning.feed",
+        "planning.rough",
+    },
     "rig": set(),
     "rig.errors": set(),
     "rig.daq": {"rig.errors"},
@@ -66,6 +82,7 @@ MAY_IMPORT: dict[str, set[str]] = {
     "rig.sim": {"rig.errors", "rig.daq", "rig.dnc", "rig.log"},
     "rig.campaign": {"rig.errors", "rig.daq", "rig.dnc", "rig.log", "rig.sim"},
     "rig.report": {"rig.errors", "rig.daq", "rig.log", "rig.campaign"},
+    "rig.console": {"rig.errors", "rig.daq", "rig.campaign"},
     "rig.cli": {
         "rig",
         "rig.errors",
@@ -75,6 +92,7 @@ MAY_IMPORT: dict[str, set[str]] = {
         "rig.sim",
         "rig.campaign",
         "rig.report",
+        "rig.console",
     },
 }
 

@@ -20,11 +20,11 @@ def test_nan_in_the_grid(tmp_path):
     x, y, z, _ = bump()
     z[3, 4] = np.nan
     text = part_toml(x, y, z, top=45.0)  # TOML writes the NaN as nan
-    with pytest.raises(PlanningError) as e:
+    with pytest.raises(ConfigError) as e:  # refused at load, before any planning sees it
         load_toml(tmp_path, text)
     msg = str(e.value)
-    assert "part.toml: surface: point [3, 4] z = nan" in msg
-    assert "finite number in mm" in msg
+    assert "part.toml:6: surface.z_mm.3.4 = nan" in msg
+    assert "finite number" in msg and "(mm" in msg
 
 
 def test_folded_grid(tmp_path):

@@ -57,7 +57,10 @@ N_BINS = 20
 
 class _BinModel(Model):
     load_min_pct: float = Field(ge=0, description="%, cutting load")
-    load_max_pct: float = Field(gt=0, description="%, cutting load (inf for the last bin)")
+    # inf ends the last bin; gt=0 still refuses NaN
+    load_max_pct: float = Field(
+        gt=0, allow_inf_nan=True, description="%, cutting load (inf for the last bin)"
+    )
     feed_mm_min: float = Field(gt=0, description="mm/min")
 
 

@@ -2,6 +2,7 @@
 blocks split where the load changes, and its report; the ``plan feed`` / ``plan simulate`` jobs.
 """
 
+from planning.feed._write import cap_feeds
 from planning.feed.job import (
     Job,
     end_mill,
@@ -18,6 +19,7 @@ __all__ = [
     "FeedPostOptions",
     "FeedPostResult",
     "Job",
+    "cap_feeds",
     "end_mill",
     "feed_post_options",
     "feed_program",

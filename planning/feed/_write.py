@@ -177,3 +177,18 @@ def verify_geometry(
             f"{file}: the adjusted program would not move like the original (internal check "
             "failed); nothing written"
         )
+
+
+def cap_feeds(
+    program: Program, motion: Motion, machine: MachineConfig | None, caps: dict[int, float]
+) -> Program:
+    """``program`` (interpreted as ``motion``) with each block of ``caps`` run no faster than
+    its cap, mm/min; only F words change (the modal feed of the blocks after is kept)."""
+    fm = motion.is_feed
+    block_feed: dict[int, float] = {}
+    for b, f in zip(motion.block[fm].tolist(), motion.feed_mm_min[fm].tolist()):
+        block_feed[b] = min(block_feed.get(b, math.inf), f)
+    for b, cap in caps.items():
+        if b in block_feed:
+            block_feed[b] = min(block_feed[b], cap)
+    return write_program(program, machine, block_feed, {})[0]

@@ -18,9 +18,11 @@ travel, an arc the machine cannot cut) is reported before any file is written.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from analysis.config import EndMill, MachineConfig, get_material, get_tool, load_machine, load_tools
 from analysis.rules import FeedRule, RuleBase, load_rule
@@ -33,6 +35,8 @@ from planning.stock import Cutter, ZMap, default_stock, load_stock, save_stock_p
 from planning.stock.machining import Operation, OperationPlan, OperationResult, load_plan, summary
 
 Progress = Callable[[int, int], None]  # (pieces done, pieces in all)
+# (adjusted program, starting stock, machine) -> (program, report): planning.limits
+LimitStep = Callable[[Program, ZMap, MachineConfig], tuple[Program, dict[str, Any]]]
 
 
 @dataclass(frozen=True)
@@ -71,6 +75,7 @@ def load_job(
     tool = end_mill(tool_name)
     program = Program.read(program_path)
     motion = interpret(program, m, file=str(program_path), cutter_comp="refuse")
+    _one_tool(motion, program_path, tool_name)
     cutter = Cutter.from_tool(tool)
     if stock_spec:
         stock = load_stock(stock_spec, spacing_mm)
@@ -80,6 +85,23 @@ def load_job(
         except PlanningError as exc:
             raise PlanningError(f"{program_path}: {exc}") from None
     return Job(m, tool, program, motion, stock)
+
+
+def _one_tool(motion: Motion, program_path: str | Path, tool_name: str | None) -> None:
+    """A program is cut with the one end mill named: refuse one that changes tools (M6 to
+    another T number), naming the block, rather than cut its later tools' moves with it."""
+    used = motion.tool[motion.tool != 0]
+    if used.size == 0:
+        return
+    other = np.flatnonzero((motion.tool != 0) & (motion.tool != used[0]))
+    if other.size:
+        i = int(other[0])
+        raise PlanningError(
+            f"{program_path}:{int(motion.line[i])}: block {int(motion.block[i])}: the program "
+            f"changes from T{int(used[0])} to T{int(motion.tool[i])} (M6), and --tool "
+            f"{tool_name} is one end mill: give an operation plan (.toml) with one program per "
+            "tool (see data/plans/demo-plan.toml)"
+        )
 
 
 def resolve_rule(spec: str, db: str | Path | None = None) -> FeedRule:
@@ -100,6 +122,7 @@ def feed_post_options(
     force_limit_n: float | None = None,
     material: str | None = None,
     spindle_rpm: float | None = None,
+    feed_cap: Callable | None = None,
 ) -> FeedPostOptions:
     """The post-processor's options; a force limit needs a ``material`` (configs/materials.toml)
     with end-mill force coefficients."""
@@ -117,6 +140,7 @@ def feed_post_options(
         force_limit_n=force_limit_n,
         coefficients=coef,
         spindle_rpm=spindle_rpm,
+        feed_cap=feed_cap,
     )
 
 
@@ -134,6 +158,7 @@ def feed_program(
     progress: Progress | None = None,
     warn: Callable[[str], None] | None = None,
     dialect: str | None = None,
+    limit_step: LimitStep | None = None,
     **options: Any,
 ) -> tuple[FeedPostResult, dict[str, Any]]:
     """``cutlab plan feed``: feeds of a program set by the rule's predicted cutting load,
@@ -141,8 +166,11 @@ def feed_program(
     read in the machine's) with its report (``report_dir``, default ``output``'s folder).
 
     ``options`` go to :func:`feed_post_options`; ``warn`` hears a rule derived with another
-    tool. Returns the result (its program in the machine's dialect) and its summary (with the
-    written paths and the dialect) as plain data.
+    tool. ``limit_step`` (planning.limits.feed_limiter) checks the adjusted program against the
+    machine's and tool's limits before it is written, and may lower feeds further; its report is
+    the summary's ``limits``, its violations the summary's ``violations``. Returns the result
+    (its program in the machine's dialect) and its summary (with the written paths and the
+    dialect) as plain data.
     """
     if dialect is not None and dialect not in DIALECTS:
         raise PlanningError(f"dialect = {dialect!r}: expected one of {', '.join(DIALECTS)}")
@@ -154,9 +182,14 @@ def feed_program(
             f"'{tool_name}': its loads (relative to that tool's size) do not carry over"
         )
     opts = feed_post_options(**options)
+    start = job.stock.copy() if limit_step is not None else job.stock
     result = post_process(
         job.program, job.motion, job.tool, rule, job.stock, job.machine, opts, progress=progress
     )
+    limits = None
+    if limit_step is not None:
+        program, limits = limit_step(result.program, start, job.machine)
+        result = replace(result, program=program)
     dialect = dialect or default_dialect(job.machine)
     written = for_dialect(result.program, dialect, job.machine)  # the F edits and splits kept
     out = Path(output)
@@ -168,7 +201,28 @@ def feed_program(
         {"output": str(output), "dialect": dialect,
          "report": {k: str(v) for k, v in report.items()}}
     )  # fmt: skip
+    if limits is not None:
+        summ.update(violations=limits["violations"], limits=limits)
+    summ["slower_than_input"] = _slower(summ)
+    if summ["slower_than_input"] and warn is not None:
+        warn(f"warning: {summ['slower_than_input']}")
     return result, summ
+
+
+#: a result slower than its input by more than this is said so (a rule for another tool or
+#: material, or feeds in the wrong unit, can make it several times slower)
+SLOWER_WARN_PCT = 3.0
+
+
+def _slower(summ: dict[str, Any]) -> str | None:
+    before, after = summ["time_before_s"], summ["time_after_s"]
+    if not before > 0 or after <= before * (1 + SLOWER_WARN_PCT / 100):
+        return None
+    return (
+        f"the adjusted program is slower than its input: {before:.1f} s -> {after:.1f} s "
+        f"({after / before:.2f}x): the rule's feeds for these loads are below the program's "
+        "(check the rule, its tool and the program's feeds)"
+    )
 
 
 def simulate_job(

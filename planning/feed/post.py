@@ -25,6 +25,7 @@ and a per-block CSV.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -66,6 +67,8 @@ class FeedPostOptions:
     coefficients : end-mill force coefficients (analysis.config.EndMillCoefficients)
     spindle_rpm : spindle speed for the force prediction when the program has none, rpm
     feed_step_mm_min : written feeds are floored to a multiple of this, mm/min
+    feed_cap : optional f(simulation, rpm per piece) -> highest feed per piece, mm/min (the
+        physical limits of planning.limits; the rule then works below the cap)
     """
 
     min_piece_mm: float = 5.0
@@ -76,6 +79,7 @@ class FeedPostOptions:
     coefficients: EndMillCoefficients | None = None
     spindle_rpm: float | None = None
     feed_step_mm_min: float = 1.0
+    feed_cap: Callable[[Simulation, NDArray], NDArray] | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.min_piece_mm) and self.min_piece_mm > 0):
@@ -225,7 +229,8 @@ def post_process(
     piece_mm = opts.min_piece_mm / 2 if opts.split else math.inf
     sim = simulate_motion(
         stock, tool, motion, chord_tol_mm=opts.chord_tol_mm, piece_mm=piece_mm,
-        check_holder=opts.check_holder, track_depth=opts.coefficients is not None,
+        check_holder=opts.check_holder,
+        track_depth=opts.coefficients is not None or opts.feed_cap is not None,
         progress=progress,
     )  # fmt: skip
     seg = sim.piece_segment
@@ -234,13 +239,21 @@ def post_process(
     load = cutting_load_percent(
         sim.piece_removed_mm3, plen, plunge, tool.diameter_mm, tool.flute_length_mm
     )
-    feed = np.clip(rule.feed_for(load), lo, hi)
     notes: list[str] = []
+    feed = np.clip(rule.feed_for(load), lo, hi)
     force = None
+    rpm = np.abs(motion.spindle_rpm[seg])
+    if opts.spindle_rpm:
+        rpm = np.where(rpm > 0, rpm, opts.spindle_rpm)
+    if opts.feed_cap is not None:
+        capped = np.clip(np.minimum(feed, opts.feed_cap(sim, rpm)), lo, hi)
+        slower = motion.is_feed[seg] & (capped < feed)
+        lost_s = float(np.sum(plen[slower] * 60.0 * (1 / capped[slower] - 1 / feed[slower])))
+        if slower.any():
+            notes.append(f"limits cap the feed of {int(slower.sum())} pieces: {lost_s:.1f} s "
+                         "longer than the rule alone")  # fmt: skip
+        feed = capped
     if opts.coefficients is not None:
-        rpm = np.abs(motion.spindle_rpm[seg])
-        if opts.spindle_rpm:
-            rpm = np.where(rpm > 0, rpm, opts.spindle_rpm)
         if not np.any(rpm[sim.piece_removed_mm3 > 0] > 0):
             raise PlanningError(
                 f"{file}: the force prediction needs the spindle speed: the program cuts with "

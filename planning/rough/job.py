@@ -10,11 +10,15 @@ from pathlib import Path
 
 from analysis.config import MachineConfig, load_machine
 from planning.errors import PlanningError
+from planning.nc import Program
 from planning.nc.output import DIALECTS, default_dialect, for_dialect
 from planning.rough.check import check_program
 from planning.rough.gcode import MoveSettings, plan_motion, plan_program, plan_totals
 from planning.rough.part import Part, load_part
-from planning.rough.planner import METHODS, RoughPlanner
+from planning.rough.planner import METHODS, RoughPlan, RoughPlanner
+
+# (planner, chosen plan, its Fanuc program) -> (plan, program, report): planning.limits
+LimitStep = Callable[[RoughPlanner, RoughPlan, Program], tuple[RoughPlan, Program, dict]]
 
 
 def shorter_pct(a: float, b: float) -> float | None:
@@ -44,13 +48,16 @@ def run_rough(
     status: Callable[[str], None] | None = None,
     dialect: str | None = None,
     machine: str | Path | MachineConfig | None = None,
+    limits: LimitStep | None = None,
 ) -> dict:
     """Plan ``config`` (a part file or name) by all four methods, write ``method``'s program to
     ``output`` for the ``dialect`` controller (default: ``machine``'s, a machine config name,
     path or object; else Fanuc), cut it on a Z-map of ``check_spacing_mm`` (unless not
     ``check``), draw the pictures next to ``output`` (if ``png``) and return the JSON-ready
     result. ``progress`` gets one note per planning step, ``status`` one line per finished
-    stage."""
+    stage. ``limits`` (planning.limits.rough_limiter) checks the chosen program against the
+    machine's and tool's limits, and may split levels or lower feeds: its report is the result's
+    ``limits``, its violations the result's ``violations``."""
     if not check_spacing_mm > 0:
         raise PlanningError(f"--check-spacing = {check_spacing_mm}: must be > 0 (mm)")
     if method not in METHODS:
@@ -75,6 +82,14 @@ def run_rough(
     totals = {m: plan_totals(p, part, motions[m]) for m, p in plans.items()}
     chosen = plans[method]
     fanuc = plan_program(chosen, part, motions[method])
+    limit_report = None
+    if limits is not None:
+        chosen, fanuc, limit_report = limits(planner, chosen, fanuc)
+        if "before" in limit_report:
+            say(f"limits: {limit_report['before']['violations']} violations before, "
+                f"{len(limit_report['violations'])} after")  # fmt: skip
+        else:
+            say(f"limits not checked: {limit_report.get('why', '')}")
     program = for_dialect(fanuc, dialect, machine, source="fanuc")  # moves as fanuc does
     output.parent.mkdir(parents=True, exist_ok=True)
     program.write(output)
@@ -116,4 +131,6 @@ def run_rough(
         "check": None if result is None else result.summary(),
         "program": str(output),
         "png": pngs,
+        "violations": [] if limit_report is None else limit_report["violations"],
+        "limits": limit_report,
     }

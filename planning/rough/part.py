@@ -80,9 +80,12 @@ class Cutting(Model):
     feed_mm_min: float = Field(ge=1, le=100_000, description="mm/min, not mm/tooth")
     spindle_rpm: float = Field(gt=0, le=100_000, description="rpm")
     plunge_feed_mm_min: float | None = Field(
-        None, gt=0, le=100_000, description="mm/min (default: half the feed)"
+        None, ge=1, le=100_000, description="mm/min (default: half the feed)"
     )
     rapid_mm_min: float = Field(10_000.0, gt=0, le=200_000, description="mm/min, for time")
+    material: str | None = Field(
+        None, min_length=1, description="workpiece material (configs/materials.toml): limits"
+    )
 
 
 class Rough(Model):
@@ -90,17 +93,18 @@ class Rough(Model):
 
     finish_allowance_mm: float = Field(gt=0, le=20, description="mm, offset d of the surface")
     cusp_mm: float = Field(gt=0, le=100, description="mm, allowed shoulder (cusp) height")
-    dh_mm: float = Field(0.5, gt=0, le=20, description="mm, candidate level spacing")
+    # lower bounds keep the work finite: candidates, offsets and contour points scale with 1/x
+    dh_mm: float = Field(0.5, ge=0.01, le=20, description="mm, candidate level spacing")
     first_offset_factor: float = Field(
         1.0, ge=1.0, le=5, description="x tool radius, first offset of the reference contour"
     )
     step_factor: float = Field(
-        1.5, gt=0, le=2.0, description="x tool radius, further offsets (<= 2 leaves no ridge)"
+        1.5, ge=0.1, le=2.0, description="x tool radius, further offsets (<= 2 leaves no ridge)"
     )
-    ramp_angle_deg: float = Field(5.0, gt=0, le=90, description="deg, entry ramp angle")
+    ramp_angle_deg: float = Field(5.0, ge=0.5, le=90, description="deg, entry ramp angle")
     clearance_mm: float = Field(5.0, gt=0, le=200, description="mm, above material for moves")
-    contour_tolerance_mm: float = Field(0.01, gt=0, le=1, description="mm, contour accuracy")
-    optimal_dh_mm: float = Field(1.0, gt=0, le=20, description="mm, optimal planner grid")
+    contour_tolerance_mm: float = Field(0.01, ge=0.001, le=1, description="mm, contour accuracy")
+    optimal_dh_mm: float = Field(1.0, ge=0.05, le=20, description="mm, optimal planner grid")
     objective: Literal["path", "time"] = Field("path", description="optimal planner objective")
     cusp_model: Literal["paper", "exact"] = Field(
         "paper", description="shoulder cusp: paper's (h1 - h2) cos(beta), or measured distance"

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -40,6 +40,12 @@ from planning.rough.part import Part
 
 METHODS = ("bisection", "equal", "lee", "optimal")
 _EPS = 1e-9
+#: work bounds: beyond them a plan would allocate gigabytes or run for hours, so the input is
+#: refused naming the fields that set the count
+MAX_CANDIDATES = 20_000  # candidate heights of one method (height / dh_mm)
+MAX_OPTIMAL_CANDIDATES = 2_000  # the optimal planner's n x n tables (5 of them, 32 MB each)
+MAX_OFFSETS = 2_000  # offset rings of one level (footprint / (step_factor x tool radius))
+MAX_CONTOUR_POINTS = 2_000_000  # points of one contour (perimeter / contour_tolerance_mm)
 
 
 @dataclass(frozen=True, eq=False)
@@ -192,6 +198,31 @@ class RoughPlanner:
             raise PlanningError(
                 f"{w}: the tool's maximum depth L = {self.L} mm is below rough.dh_mm = {r.dh_mm} mm"
             )
+        self._check_work(part)
+
+    def _check_work(self, part: Part) -> None:
+        """Refuse inputs whose plan would not finish: counts that scale with 1/spacing."""
+        w, r, st = part.where, self.rough, part.config.stock
+        height = st.z_max_mm - st.z_min_mm
+        span = max(st.x_max_mm - st.x_min_mm, st.y_max_mm - st.y_min_mm)
+        counts = (
+            (height / r.dh_mm, MAX_CANDIDATES,
+             f"stock height {height:g} mm / rough.dh_mm = {r.dh_mm}"),
+            (height / r.optimal_dh_mm, MAX_OPTIMAL_CANDIDATES,
+             f"stock height {height:g} mm / rough.optimal_dh_mm = {r.optimal_dh_mm}"),
+            (span / (r.step_factor * part.tool.radius_mm), MAX_OFFSETS,
+             f"stock span {span:g} mm / (rough.step_factor = {r.step_factor} x tool radius "
+             f"{part.tool.radius_mm} mm)"),
+            (4 * span / r.contour_tolerance_mm, MAX_CONTOUR_POINTS,
+             f"stock perimeter {4 * span:g} mm / rough.contour_tolerance_mm = "
+             f"{r.contour_tolerance_mm}"),
+        )  # fmt: skip
+        for n, limit, what in counts:
+            if n > limit:
+                raise PlanningError(
+                    f"{w}: {what} gives {n:.3g} steps, more than {limit}: raise the spacing or "
+                    "check the units (mm)"
+                )
 
     def _check_cover(self) -> None:
         x0, x1, y0, y1 = self.part.surface.bounds_xy()
@@ -228,6 +259,25 @@ class RoughPlanner:
     def _max_cusp(self, heights: list[float]) -> float:
         edges = [self.bottom, *sorted(heights), self.top]
         return max(self.cusps.cusp(a, b) for a, b in zip(edges[:-1], edges[1:]))
+
+    def split_level(self, plan: RoughPlan, index: int, parts: int) -> RoughPlan:
+        """``plan`` with level ``index`` cut as ``parts`` equal sub-levels, top down, in its
+        place (a depth limit: planning.limits). Each sub-level clears its shoulder's region at
+        its height, A(lo) - C(z), under the material the one above left; the last is the
+        level's own height, so every other level keeps its height, region and paths."""
+        lv = plan.levels[index]
+        step = lv.height_mm / parts
+        subs, hi = [], lv.hi_mm
+        for j in range(1, parts + 1):
+            z = lv.z_mm if j == parts else lv.hi_mm - j * step
+            subs.append(self._level(0, z, lv.lo_mm, hi, lv.tool))
+            hi = z
+        levels = [*plan.levels[:index], *subs, *plan.levels[index + 1 :]]
+        levels = [replace(v, order=i + 1) for i, v in enumerate(levels)]
+        note = (plan.note + "; " if plan.note else "") + (
+            f"level z = {lv.z_mm:.3f} mm ({lv.height_mm:.3f} mm deep) split in {parts}"
+        )
+        return replace(plan, levels=tuple(levels), note=note)
 
     def plan_all(self) -> dict[str, RoughPlan]:
         """Every method on this part; optimal gets the others' heights as extra candidates."""
@@ -271,10 +321,13 @@ class RoughPlanner:
                     best, best_mrr = float(z), m
             self._tick(f"bisection: level {best:.2f} mm in shoulder ({lo_z:.2f}, {hi:.2f})")
             levels.append(self._level(len(levels) + 1, best, lo, hi))
-            split_mrr(best, hi)  # upper shoulder first, as the paper's Table 1
-            split_mrr(lo, best)
+            todo.append((lo, best))
+            todo.append((best, hi))  # popped first: upper shoulder first, as the paper's Table 1
 
-        split_mrr(None, self.top)
+        # depth first, upper shoulder first (the paper's Table 1 order), without recursion
+        todo: list[tuple[float | None, float]] = [(None, self.top)]
+        while todo:
+            split_mrr(*todo.pop())
         while halve:
             lo, hi = halve.popleft()
             c = self.cusp(lo, hi)

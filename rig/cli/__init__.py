@@ -16,12 +16,14 @@ from analysis import __version__
 from analysis.errors import CutlabError
 
 # Top-level groups, in help order. ``plan`` is a group whose subcommands live in plan_*.py.
-GROUPS = ("demo", "nc", "daq", "data", "dnc", "analyze", "rules", "campaign")
-PLAN_COMMANDS = ("plan_rough", "plan_feed", "plan_orient")
+GROUPS = ("demo", "nc", "daq", "data", "dnc", "analyze", "rules", "campaign", "console")
+PLAN_COMMANDS = ("plan_rough", "plan_feed", "plan_orient", "plan_check")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    from rig.cli._common import Parser
+
+    parser = Parser(
         prog="cutlab",
         description="Hardware-in-the-loop machining experiments (run `cutlab demo` to start).",
     )
@@ -44,7 +46,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except CutlabError as exc:
-        print(f"cutlab: error: {exc}", file=sys.stderr)
+        # one line, always: a message with several problems (one per field) joined by "; "
+        msg = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
+        print(f"cutlab: error: {msg}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("cutlab: interrupted", file=sys.stderr)

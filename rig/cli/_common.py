@@ -1,14 +1,93 @@
-"""Small helpers shared by the command modules: JSON output, human tables, the progress bar."""
+"""Small helpers shared by the command modules: JSON output, human tables, the progress bar,
+and the argument types that keep bad numbers at the edge."""
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import sys
-from collections.abc import Mapping, Sequence
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+#: analysis.validation.MAGNITUDE_LIMIT, the bound of every config number (not imported: pydantic
+#: would slow `cutlab --help`; tests/test_faults.py checks the two agree)
+MAGNITUDE_LIMIT = 1e9
+
+# ---------------------------------------------------------------------------- argument types
+
+
+def number(
+    unit: str = "", lo: float | None = None, hi: float = MAGNITUDE_LIMIT, *,
+    lo_open: bool = False, integer: bool = False,
+) -> Callable[[str], float]:  # fmt: skip
+    """An argparse ``type=``: a finite number (an integer if ``integer``) in [lo, hi] (lo
+    excluded if ``lo_open``); anything else is one line naming the value and the range."""
+    kind = "a whole number" if integer else "a finite number"
+    rng = "" if lo is None else f" {'>' if lo_open else '>='} {lo:g}"
+    rng += f"{' and' if rng else ''} <= {hi:g}"
+    what = f"{kind}{rng}{f' ({unit})' if unit else ''}"
+
+    def parse(text: str) -> float:
+        try:
+            v = int(text) if integer else float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+        bad = not math.isfinite(v) or v > hi or (
+            lo is not None and (v <= lo if lo_open else v < lo)
+        )  # fmt: skip
+        if bad:
+            raise argparse.ArgumentTypeError(f"{text!r}: expected {what}")
+        return v
+
+    parse.__name__ = "int" if integer else "float"  # argparse names the type in its messages
+    return parse
+
+
+def positive(unit: str = "", hi: float = MAGNITUDE_LIMIT) -> Callable[[str], float]:
+    """A finite number > 0."""
+    return number(unit, 0, hi, lo_open=True)
+
+
+def nonnegative(unit: str = "", hi: float = MAGNITUDE_LIMIT) -> Callable[[str], float]:
+    """A finite number >= 0."""
+    return number(unit, 0, hi)
+
+
+def count(lo: int = 1, hi: float = MAGNITUDE_LIMIT, unit: str = "") -> Callable[[str], int]:
+    """A whole number >= ``lo``."""
+    return number(unit, lo, hi, integer=True)  # type: ignore[return-value]
+
+
+#: picture suffixes matplotlib writes (checked here so a typo fails before the work, not after)
+IMAGE_SUFFIXES = (".png", ".pdf", ".svg", ".jpg", ".jpeg", ".tif", ".tiff", ".webp", ".eps")
+
+
+def image_file(text: str) -> Path:
+    """An argparse ``type=``: a picture path whose suffix matplotlib can write."""
+    p = Path(text)
+    if p.suffix.lower() not in IMAGE_SUFFIXES:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: a picture needs one of the suffixes {', '.join(IMAGE_SUFFIXES)}"
+        )
+    return p
+
+
+class Parser(argparse.ArgumentParser):
+    """The command's parser: a usage error is one line ``cutlab: error: ...`` (exit 2), like
+    every other error, with the command and a pointer to its --help."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        cmd = self.prog.removeprefix("cutlab").strip() or "cutlab"
+        sys.stderr.write(f"cutlab: error: {cmd}: {message} (see `{self.prog} --help`)\n")
+        sys.exit(2)
+
+
+# ---------------------------------------------------------------------------- output
 
 
 def _default(o: Any) -> Any:
@@ -23,9 +102,47 @@ def _default(o: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
+def finite_json(obj: Any) -> Any:
+    """``obj`` with every NaN or infinite float turned into None (strict JSON has neither).
+
+    Where a mapping's value is replaced and it holds no ``<key>_reason`` yet, one is added
+    saying what the value was (``"r2": null, "r2_reason": "not a number (nan)"``); a producer
+    that knows why (``"one run"``) sets that reason itself. Numpy values become plain ones.
+    """
+    if isinstance(obj, Mapping):
+        out: dict[Any, Any] = {}
+        for k, v in obj.items():
+            out[k] = finite_json(v)
+            if out[k] is None and _nonfinite(v) and f"{k}_reason" not in obj:
+                out[f"{k}_reason"] = _why(v)
+        return out
+    if isinstance(obj, list | tuple):
+        return [finite_json(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return finite_json(obj.tolist())
+    if isinstance(obj, float | np.floating):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, np.generic):
+        return obj.item()
+    if hasattr(obj, "model_dump"):
+        return finite_json(obj.model_dump())
+    return obj
+
+
+def _nonfinite(v: Any) -> bool:
+    return isinstance(v, float | np.floating) and not math.isfinite(v)
+
+
+def _why(v: float) -> str:
+    if math.isnan(v):
+        return "not a number (undefined for this input)"
+    return f"unbounded ({'+' if v > 0 else '-'}infinity)"
+
+
 def print_json(obj: Any) -> None:
-    """Write ``obj`` as JSON to stdout (numpy scalars and arrays allowed)."""
-    json.dump(obj, sys.stdout, indent=2, default=_default, allow_nan=True)
+    """Write ``obj`` as strict JSON to stdout (numpy scalars and arrays allowed; NaN and
+    infinity become null with a ``<key>_reason``, see :func:`finite_json`)."""
+    json.dump(finite_json(obj), sys.stdout, indent=2, default=_default, allow_nan=False)
     sys.stdout.write("\n")
 
 
@@ -98,45 +215,93 @@ def _number_or_text(text: str) -> int | float | str:
 
 
 class Progress:
-    """One tqdm bar on stderr for every command, made at the first report (nothing shows when
-    the input is refused before work starts) and silent when stderr is not a terminal (CI logs).
+    """Progress of a long command on stderr, made at the first report (nothing shows when the
+    input is refused before work starts). On a terminal it is one tqdm bar; otherwise (a log
+    file, CI, a service) a plain line every :attr:`interval_s` seconds, e.g.
+    ``reducing runs: 12/23 run (52 %), 8 s``, and a last one at the end if any was printed.
 
     Call it as ``bar(done, total)`` (a count or a position such as seconds recorded) or
     ``bar.step(note)`` (one more step of unknown count); use it as a context manager.
     """
 
+    #: seconds between the plain lines when stderr is not a terminal
+    interval_s = 5.0
+
     def __init__(self, desc: str, unit: str = "it", total: float | None = None,
                  quiet: bool = False, **tqdm_kw: Any) -> None:  # fmt: skip
+        self.desc, self.unit, self.quiet = desc, unit, quiet
         self._kw = dict(desc=desc, unit=unit, total=total, file=sys.stderr, leave=False,
-                        disable=True if quiet else None, **tqdm_kw)  # fmt: skip
+                        disable=quiet, **tqdm_kw)  # fmt: skip
         self.bar: Any = None
+        self.n: float = 0
+        self.total = total
+        self.note = ""
+        self._plain = not quiet and not _isatty(sys.stderr)
+        self._t0 = time.monotonic()
+        self._last: float | None = None  # when the last plain line went out
 
     def _open(self) -> Any:
-        if self.bar is None:
+        if self.bar is None and not self._plain:
             from tqdm import tqdm
 
             self.bar = tqdm(**self._kw)
         return self.bar
 
     def __call__(self, done: float, total: float | None = None) -> None:
-        bar = self._open()
         if total is not None:
-            bar.total = total
-        bar.n = done
-        bar.refresh()
+            self.total = total
+        self.n = done
+        bar = self._open()
+        if bar is not None:
+            if total is not None:
+                bar.total = total
+            bar.n = done
+            bar.refresh()
+        self._line()
 
     def step(self, note: str = "") -> None:
+        self.n += 1
+        self.note = note or self.note
         bar = self._open()
-        if note:
-            bar.set_postfix_str(note, refresh=False)
-        bar.update()
+        if bar is not None:
+            if note:
+                bar.set_postfix_str(note, refresh=False)
+            bar.update()
+        self._line()
+
+    def _line(self, force: bool = False) -> None:
+        if not self._plain:
+            return
+        now = time.monotonic()
+        if not force and now - (self._last if self._last is not None else self._t0) < (
+            self.interval_s
+        ):
+            return
+        self._last = now
+        n = f"{self.n:g}"
+        if self.total:
+            n += f"/{self.total:g} {self.unit} ({100 * self.n / self.total:.0f} %)"
+        else:
+            n += f" {self.unit}"
+        note = f" [{self.note}]" if self.note else ""
+        print(f"{self.desc}: {n}{note}, {now - self._t0:.0f} s", file=sys.stderr, flush=True)
 
     def close(self) -> None:
         if self.bar is not None:
             self.bar.close()
+        if self._last is not None:  # the log shows where it ended
+            self._line(force=True)
+            self._last = None
 
     def __enter__(self) -> Progress:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _isatty(stream: Any) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False

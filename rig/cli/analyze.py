@@ -1,11 +1,15 @@
-"""`cutlab analyze` commands: force coefficients from runs, dynamometer modes from a hammer test.
+"""`cutlab analyze` commands: force coefficients from runs, modes from a hammer test, stability
+lobes (:mod:`rig.cli.stability`).
 
 cutlab analyze forces RUN... [--model facemill|endmill] [--tool NAME] [--validate RUN...]
                              [--conditions KEY=VALUE...|TABLE] [--conditions-pattern PATTERN]
                              [--axes x=-Fy,y=Fx,z=-Fz] [--zero FILE | --zeroed] [--tools FILE]
                              [--materials FILE] [--steady-tolerance FRACTION] [--plot DIR]
                              [--json]
-cutlab analyze modal FILE [--hammer NAME] [--rpm RPM...] [--teeth N] [--json]
+cutlab analyze modal FILE [--hammer NAME] [--response force|disp|accel] [--record-s S]
+                          [--rpm RPM...] [--teeth N] [--plot PNG] [--stabilisation PNG]
+                          [--save MODES.toml] [--json]
+cutlab analyze stability CONFIG -o lobes.csv [--method sd|zoa] [--steps M] [--plot PNG] [--json]
 
 RUN is an HDF5 run file (conditions from the file) or a DynoWare/plain CSV export (conditions
 from its header lines), then a conditions table's row and the file-name pattern;
@@ -109,6 +113,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     psub.required = True
     _register_forces(psub)
     _register_modal(psub)
+    from rig.cli.stability import register_stability
+
+    register_stability(psub)
 
 
 def _register_forces(psub: argparse._SubParsersAction) -> None:

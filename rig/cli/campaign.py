@@ -10,6 +10,7 @@ cutlab campaign report facemill-ploughing         # (re)write the report folder
 from __future__ import annotations
 
 import argparse
+import contextlib
 from pathlib import Path
 
 from rig.cli._common import print_json, print_table, status
@@ -38,6 +39,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     r.add_argument("--json", action="store_true", help="machine-readable summary on stdout")
     r.add_argument("--quiet", action="store_true", help="no progress display")
+    r.add_argument("--live", action="store_true",
+                   help="serve the live console beside the campaign (--port, --bind)")  # fmt: skip
+    from rig.cli.console import add_server_options
+
+    add_server_options(r)
     r.set_defaults(func=_run)
     s = csub.add_parser("status", help="each run's status and reason")
     rep = csub.add_parser("report", help="analyse a campaign's runs and write its report folder")
@@ -70,8 +76,18 @@ def _run(args: argparse.Namespace) -> int:
     campaign = load_campaign(args.config)
     if args.dry_run:
         return _dry_run(campaign, args.json, args.out)
-    result = run_campaign(campaign, out_root=args.out, progress=not args.quiet, fresh=args.fresh,
-                          force_resume=args.force_resume)  # fmt: skip
+    live_ctx = contextlib.nullcontext(None)
+    if args.live:
+        from rig.cli.console import warn_bind
+        from rig.console import live_console
+
+        warn_bind(args.bind)
+        live_ctx = live_console(campaign, args.out, port=args.port, bind=args.bind)
+    with live_ctx as live:
+        result = run_campaign(
+            campaign, out_root=args.out, progress=not args.quiet, fresh=args.fresh,
+            force_resume=args.force_resume, **(live.run_kwargs() if live else {}),
+        )  # fmt: skip
     report = None
     if not args.no_report and not result.stopped:
         from rig.report import write_report

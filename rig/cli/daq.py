@@ -8,7 +8,16 @@ from __future__ import annotations
 
 import argparse
 
-from rig.cli._common import Progress, parse_conditions, print_json, print_table, status
+from rig.cli._common import (
+    Progress,
+    count,
+    nonnegative,
+    parse_conditions,
+    positive,
+    print_json,
+    print_table,
+    status,
+)
 
 
 def _record(args: argparse.Namespace) -> int:
@@ -53,18 +62,20 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "dynamometer into an HDF5 run file (see `cutlab data info`).")  # fmt: skip
     add = r.add_argument
     add("--sim", action="store_true", help="simulated DAQ instead of the NI device")
-    add("--seconds", type=float, required=True, help="s of acquisition")
-    add("--rate-hz", type=float, default=None, help="Hz per channel (default: config)")
-    add("--channels", type=int, default=None, help="channel count (default: config)")
+    add("--seconds", type=positive("s", 1e6), required=True, help="s of acquisition")
+    add(
+        "--rate-hz", type=positive("Hz", 1e7), default=None, help="Hz per channel (default: config)"
+    )
+    add("--channels", type=count(1, 64), default=None, help="channel count (default: config)")
     add("-o", "--output", required=True, help="run file to write (.h5)")
     add("--rig", default=None, help="rig config TOML (default configs/rig.toml)")
-    add("--speed", type=float, default=1.0,
+    add("--speed", type=nonnegative("x real time", 1e6), default=1.0,
         help="--sim: simulated s per wall s (1 = real time, 0 = as fast as possible)")  # fmt: skip
     add("--raw", action="store_true", help="--sim: store int16 ADC codes")
-    add("--sim-noise-v", type=float, default=0.002, help="--sim: rms noise, V")
-    add("--sim-overflow-at", type=int, nargs="*", default=[],
+    add("--sim-noise-v", type=nonnegative("V", 100), default=0.002, help="--sim: rms noise, V")
+    add("--sim-overflow-at", type=count(0), nargs="*", default=[],
         help="--sim: inject a buffer overflow at these sample indices")  # fmt: skip
-    add("--flush-s", type=float, default=1.0, help="s between flushes (<= 60)")
+    add("--flush-s", type=positive("s", 60), default=1.0, help="s between flushes (<= 60)")
     add("--conditions", nargs="+", default=[], metavar="KEY=VALUE",
         help="cutting conditions as KEY=VALUE pairs (spindle_rpm=600 tool=phi10-flat; numbers "
         "stored as numbers) or one JSON object ('{\"feed_mm_min\": 300}')")  # fmt: skip

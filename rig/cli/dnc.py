@@ -4,9 +4,8 @@ controller."""
 from __future__ import annotations
 
 import argparse
-import sys
 
-from rig.cli._common import print_json, status
+from rig.cli._common import count, number, positive, print_json, status
 
 
 def _send(args: argparse.Namespace) -> int:
@@ -15,7 +14,7 @@ def _send(args: argparse.Namespace) -> int:
     job = prepare_send(
         args.file, args.protocol, machine=args.machine, port=args.port, baud=args.baud,
         timeout_s=args.timeout, start_block=args.start_block, safe_z_mm=args.safe_z,
-        record_csv=args.record, progress=not args.no_progress and sys.stderr.isatty(),
+        record_csv=args.record, progress=not args.no_progress,
         grbl_mode=args.mode, grbl_unlock=args.unlock, grbl_strip=not args.no_strip,
         fanuc_wait_dc1=not args.no_wait_dc1, guard=True,
     )  # fmt: skip
@@ -94,10 +93,12 @@ def _add_send(dsub: argparse._SubParsersAction) -> None:
     s.add_argument("--port", help="port name or pyserial URL (default: the machine config's)")
     s.add_argument("--protocol", required=True, help="fanuc or grbl")
     s.add_argument("--machine", help="machine name or TOML (default ace-h63 / lab-grbl)")
-    s.add_argument("--baud", type=int, help="override serial.baudrate")
-    s.add_argument("--timeout", type=float, help="override serial.timeout_s, s")
-    s.add_argument("--start-block", type=int, default=0, help="restart at this block (0-based)")
-    s.add_argument("--safe-z", type=float, help="restart: Z to approach from, mm")
+    s.add_argument("--baud", type=count(1, 4_000_000, "baud"), help="override serial.baudrate")
+    s.add_argument("--timeout", type=positive("s", 3600), help="override serial.timeout_s, s")
+    s.add_argument(
+        "--start-block", type=count(0), default=0, help="restart at this block (0-based)"
+    )
+    s.add_argument("--safe-z", type=number("mm"), help="restart: Z to approach from, mm")
     s.add_argument("--mode", default="char-counting", help="GRBL: char-counting | send-response")
     s.add_argument("--unlock", action="store_true", help="GRBL: send $X if it is in Alarm")
     strip = "GRBL: send lines as written (default: no comments, spaces, N and O words)"
@@ -123,8 +124,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         g = dsub.add_parser(name, help=text)
         g.add_argument("--port", help="port name or pyserial URL (default: the machine config's)")
         g.add_argument("--machine", help="machine name or TOML (default lab-grbl)")
-        g.add_argument("--baud", type=int, help="override serial.baudrate")
-        g.add_argument("--timeout", type=float, help="override serial.timeout_s, s")
+        g.add_argument("--baud", type=count(1, 4_000_000, "baud"), help="override serial.baudrate")
+        g.add_argument("--timeout", type=positive("s", 3600), help="override serial.timeout_s, s")
         g.add_argument("--json", action="store_true", help="a JSON reply on stdout")
         g.set_defaults(func=_grbl)
     r = dsub.add_parser("serve", help="answer remote program requests from a Fanuc control")
@@ -137,9 +138,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     c = dsub.add_parser("sim-controller", help="run a simulated controller on a pseudo-terminal")
     c.add_argument("--protocol", required=True, help="fanuc or grbl")
     c.add_argument("--machine", help="machine name or TOML (default ace-h63 / lab-grbl)")
-    c.add_argument("--baud", type=int, help="emulated baud rate (default: the machine config's)")
-    c.add_argument("--speed", type=float, default=1.0, help="simulated s per wall s")
-    c.add_argument("--duration", type=float, help="stop after this many wall s (default: Ctrl-C)")
+    c.add_argument(
+        "--baud",
+        type=count(1, 4_000_000, "baud"),
+        help="emulated baud rate (default: the machine config's)",
+    )
+    c.add_argument(
+        "--speed", type=positive("x real time", 1e6), default=1.0, help="simulated s per wall s"
+    )
+    c.add_argument(
+        "--duration", type=positive("s"), help="stop after this many wall s (default: Ctrl-C)"
+    )
     knob = "fault knob, e.g. stop_answering_after_block=100, alarm_at_block=50,2"
     c.add_argument("--sim", action="append", default=[], metavar="KNOB=VALUE", help=knob)
     c.add_argument("--json", action="store_true", help="end with a JSON summary on stdout")

@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from rig.cli._common import Progress, print_json, print_table, status
+from rig.cli._common import Progress, image_file, print_json, print_table, status
 
 
 def _interpret(args: argparse.Namespace, *, warn: bool = True, keep_motion: bool = False):
@@ -118,5 +118,5 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-o", "--output", default=None, help="write CSV to this file")
     p.add_argument("--json", action="store_true", help="JSON records")
     p = _add_parser(nsub, "plot", "PNG of the tool path (3-D and top views)", _plot)
-    p.add_argument("-o", "--output", required=True, help="PNG path")
+    p.add_argument("-o", "--output", type=image_file, required=True, help="PNG path")
     p.add_argument("--json", action="store_true", help="machine-readable output")

@@ -6,6 +6,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from rig.cli._common import image_file, positive
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``feed`` and ``simulate`` to the ``plan`` group."""
@@ -18,18 +20,29 @@ def register(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--dialect", choices=("fanuc", "linuxcnc", "grbl"), default=None,
                    help="controller to write for (default: the machine's)")  # fmt: skip
     f.add_argument("--report", type=Path, help="report folder (default: OUT's folder)")
-    f.add_argument("--min-piece", type=float, default=5.0, help="shortest split block, mm")
+    f.add_argument(
+        "--min-piece", type=positive("mm", 1000), default=5.0, help="shortest split block, mm"
+    )
     f.add_argument("--no-split", action="store_true", help="one feed per block, no splits")
-    f.add_argument("--force-limit", type=float, help="largest predicted peak force, N")
+    f.add_argument("--force-limit", type=positive("N", 1e6), help="largest predicted peak force, N")
     f.add_argument("--material", help="material (configs/materials.toml): predicted peak force "
         "per block, and the coefficients for --force-limit")  # fmt: skip
-    f.add_argument("--spindle", type=float, help="rpm for the force model if the program has no S")
+    f.add_argument(
+        "--spindle",
+        type=positive("rpm", 100_000),
+        help="rpm for the force model if the program has no S",
+    )
+    f.add_argument("--limit", action="store_true", help="cap every feed by the machine's and "
+                   "tool's limits (planning.limits; needs --material)")  # fmt: skip
+    from rig.cli.plan_check import add_limit_options
+
+    add_limit_options(f)
     f.set_defaults(func=_feed)
 
     s = sub.add_parser("simulate", help="Z-map virtual machining of a program or a plan")
     s.add_argument("program", type=Path, help="NC program, or an operation plan (.toml)")
     _common(s)
-    s.add_argument("--png", type=Path, help="final stock PNG")
+    s.add_argument("--png", type=image_file, help="final stock PNG")
     s.set_defaults(func=_simulate)
 
 
@@ -40,26 +53,47 @@ def _common(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--stock", help="box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP | mesh (.stl) | stock TOML "
         "(default: a box over the feed moves, top at Z0)")  # fmt: skip
-    p.add_argument("--spacing", type=float, help="Z-map grid spacing, mm (default 0.25)")
+    p.add_argument(
+        "--spacing", type=positive("mm", 100), help="Z-map grid spacing, mm (default 0.25)"
+    )
     p.add_argument("--no-holder-check", action="store_true", help="skip holder/stock checks")
     p.add_argument("--json", action="store_true", help="machine-readable output on stdout")
 
 
 def _feed(a: argparse.Namespace) -> int:
-    from planning.feed import feed_program
+    from analysis.config import load_machine
+    from planning.errors import PlanningError
+    from planning.feed import end_mill, feed_program
     from rig.cli._common import Progress, print_json, print_table, status
 
+    step, cap = None, None
+    if a.material:  # the limits need the force coefficients
+        from planning.limits import coefficients, feed_limiter, limits_for
+
+        tool = end_mill(a.tool)
+        limits = limits_for(tool, load_machine(a.machine), tool_name=a.tool, lobes=a.lobes,
+                            force_limit_n=a.force_limit)  # fmt: skip
+        cap, step = feed_limiter(tool, coefficients(a.material), limits, fix=a.limit,
+                                 spindle_rpm=a.spindle)  # fmt: skip
+    elif a.limit:
+        raise PlanningError("--limit needs --material (its [endmill] coefficients)")
     with Progress("simulate", unit="piece") as bar:
         result, s = feed_program(
             a.program, a.rules, a.output, db=a.db, machine=a.machine, tool_name=a.tool,
             stock_spec=a.stock, spacing_mm=a.spacing, report_dir=a.report, progress=bar,
             warn=status, min_piece_mm=a.min_piece, split=not a.no_split,
             check_holder=not a.no_holder_check, force_limit_n=a.force_limit,
-            material=a.material, spindle_rpm=a.spindle, dialect=a.dialect,
+            material=a.material, spindle_rpm=a.spindle, dialect=a.dialect, limit_step=step,
+            feed_cap=cap,
         )  # fmt: skip
     if a.json:
+        s.setdefault("violations", [])  # the command contract: always a list
         print_json(s)
         return 0
+    if "limits" in s:
+        from rig.cli.plan_check import print_violations
+
+        print_violations(s["violations"])
     status(f"wrote {a.output} ({s['dialect']}) and report "
            f"{Path(s['report']['csv']).parent}/{a.output.stem}-*")  # fmt: skip
     for c in result.simulation.contacts:

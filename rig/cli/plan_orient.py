@@ -13,6 +13,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from rig.cli._common import count
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``orient`` to the ``plan`` group."""
@@ -27,7 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("-o", "--out", type=Path, required=True, help="output folder")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
-    p.add_argument("--map-point", type=int, default=None, help="CC point for the energy map "
+    p.add_argument("--map-point", type=count(0), default=None, help="CC point for the energy map "
                    "(default: the one that needed most energy evaluations)")  # fmt: skip
     p.add_argument("--no-plot", action="store_true",
                    help="skip both PNGs (energy map and orientation)")  # fmt: skip

@@ -16,6 +16,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from rig.cli._common import positive
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``rough`` to the ``plan`` group."""
@@ -40,8 +42,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "distance)")  # fmt: skip
     p.add_argument("--no-png", action="store_true", help="skip the pictures")
     p.add_argument("--no-check", action="store_true", help="skip the Z-map check")
-    p.add_argument("--check-spacing", type=float, default=0.5,
+    p.add_argument("--check-spacing", type=positive("mm", 100), default=0.5,
                    help="Z-map grid spacing of the check, mm")  # fmt: skip
+    p.add_argument("--limit", action="store_true", help="split levels or lower feeds until "
+                   "every block is within the machine's and tool's limits")  # fmt: skip
+    p.add_argument("--material", help="workpiece material (default: the part's cutting.material)")
+    from rig.cli.plan_check import add_limit_options
+
+    add_limit_options(p)
     p.set_defaults(func=run)
 
 
@@ -52,6 +60,7 @@ LEVEL_COLUMNS = {"order": "order", "z_mm": "z_mm", "area_mm2": "area_mm2", "path
 
 
 def run(args: argparse.Namespace) -> int:
+    from planning.limits import rough_limiter
     from planning.rough import run_rough
     from rig.cli._common import Progress, print_json, print_table, status
 
@@ -64,7 +73,9 @@ def run(args: argparse.Namespace) -> int:
         res = run_rough(args.config, args.output, args.method, args.cusp_model,
                         check=not args.no_check, check_spacing_mm=args.check_spacing,
                         png=not args.no_png, progress=bar.step, status=note,
-                        dialect=args.dialect, machine=args.machine)  # fmt: skip
+                        dialect=args.dialect, machine=args.machine,
+                        limits=rough_limiter(fix=args.limit, machine=args.machine,
+                                             material=args.material, lobes=args.lobes))  # fmt: skip
     c = res["check"]
     code = 0 if c is None or c["ok"] else 1
     if args.json:
@@ -85,6 +96,21 @@ def run(args: argparse.Namespace) -> int:
               f"vertical {c['max_left_vertical_mm']} mm, gouge {c['max_gouge_mm']} mm (at most the "
               f"tolerance), rapids into material {c['rapid_removed_mm3']} mm3: "
               f"{'OK' if c['ok'] else 'FAILED'}")  # fmt: skip
+    lim = res["limits"]
+    if lim is not None and lim.get("before"):
+        from rig.cli.plan_check import print_violations
+
+        b, af = lim["before"], lim["after"]
+        print(f"limits: {b['violations']} violations before, {af['violations']} after; levels "
+              f"{b['levels']} -> {af['levels']}, cutting path {b['cutting_path_mm']} -> "
+              f"{af['cutting_path_mm']} mm, time {b['time_s']} -> {af['time_s']} s "
+              f"(+{lim['time_lost_s']} s)")  # fmt: skip
+        for sp in lim["levels_split"]:
+            print(f"  split level z = {sp['z_mm']} mm ({sp['height_mm']} mm deep) in "
+                  f"{sp['parts']}")  # fmt: skip
+        if lim["feeds_lowered"]:
+            print(f"  lowered the feed of {len(lim['feeds_lowered'])} blocks")
+        print_violations(res["violations"])
     for k, v in res["png"].items():
         print(f"{k}: {v}")
     return code

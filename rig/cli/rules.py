@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import print_json, print_table, status
+from rig.cli._common import count, image_file, positive, print_json, print_table, status
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -21,19 +21,31 @@ def _register_derive(rs: argparse._SubParsersAction) -> None:
     d.add_argument("runs", nargs="+", type=Path, help="HDF5 run files of the feed sweep")
     d.add_argument("-o", "--output", type=Path, required=True, help="rule file to write (TOML)")
     d.add_argument("--name", help="rule name (default: the output file's stem)")
-    d.add_argument("--base-feed", type=float, help="mm/min; skip the detection and use this")
-    d.add_argument("--min-feed", type=float, help="mm/min (default: 0.1 x base, seed 001)")
-    d.add_argument("--max-feed", type=float, help="mm/min (default: 3.5 x base, seed 001)")
+    d.add_argument(
+        "--base-feed",
+        type=positive("mm/min", 200_000),
+        help="mm/min; skip the detection and use this",
+    )
+    d.add_argument(
+        "--min-feed",
+        type=positive("mm/min", 200_000),
+        help="mm/min (default: 0.1 x base, seed 001)",
+    )
+    d.add_argument(
+        "--max-feed",
+        type=positive("mm/min", 200_000),
+        help="mm/min (default: 3.5 x base, seed 001)",
+    )
     d.add_argument("--machine", help="machine config: min/max feeds are clamped to its limits")
-    d.add_argument("--reference-load", type=float,
+    d.add_argument("--reference-load", type=positive("%"),
         help="%%, load of the base-feed cut (default: a slot at the runs' depth)")  # fmt: skip
-    d.add_argument("--exponent", type=float, default=1.0,
+    d.add_argument("--exponent", type=positive("", 5), default=1.0,
         help="p in feed = base (L_ref/L)^p (1: constant removal rate)")  # fmt: skip
-    d.add_argument("--bins", type=int, default=20)
-    d.add_argument("--slope-ratio", type=float, default=1.6)
-    d.add_argument("--vibration-ratio", type=float, default=2.0)
+    d.add_argument("--bins", type=count(3, 200), default=20)
+    d.add_argument("--slope-ratio", type=positive(), default=1.6)
+    d.add_argument("--vibration-ratio", type=positive(), default=2.0)
     d.add_argument("--criterion", choices=["any", "both", "slope", "vibration"], default="any")
-    d.add_argument("--png", type=Path, help="also plot the rule and the sweep here")
+    d.add_argument("--png", type=image_file, help="also plot the rule and the sweep here")
     d.add_argument("--json", action="store_true")
     d.set_defaults(func=_derive)
 
@@ -41,12 +53,12 @@ def _register_derive(rs: argparse._SubParsersAction) -> None:
 def _key_args(q: argparse.ArgumentParser) -> None:
     q.add_argument("--part-family", required=True, help="e.g. trunk/outer/draw/lower-die")
     q.add_argument("--operation", required=True, help="roughing, pencil, rest-roughing, ...")
-    q.add_argument("--tool-diameter", type=float, required=True, help="mm")
-    q.add_argument("--flute-length", type=float, required=True, help="mm")
+    q.add_argument("--tool-diameter", type=positive("mm", 1000), required=True, help="mm")
+    q.add_argument("--flute-length", type=positive("mm", 1000), required=True, help="mm")
     q.add_argument("--material", required=True)
-    q.add_argument("--spindle", type=float, required=True, help="rpm")
-    q.add_argument("--depth", type=float, required=True, help="mm")
-    q.add_argument("--tolerance", type=float, required=True, help="mm")
+    q.add_argument("--spindle", type=positive("rpm", 100_000), required=True, help="rpm")
+    q.add_argument("--depth", type=positive("mm", 1000), required=True, help="mm")
+    q.add_argument("--tolerance", type=positive("mm", 100), required=True, help="mm")
 
 
 def _register_base(rs: argparse._SubParsersAction) -> None:
@@ -65,7 +77,7 @@ def _register_base(rs: argparse._SubParsersAction) -> None:
     sh = rs.add_parser("show", help="one rule: its bins (by rule name, group id or rule file)")
     sh.add_argument("rule", help="rule name or group id in the rule base, or a rule file")
     sh.add_argument("--db", type=Path)
-    sh.add_argument("--png", type=Path, help="plot load vs feed with the bins")
+    sh.add_argument("--png", type=image_file, help="plot load vs feed with the bins")
     sh.add_argument("--json", action="store_true")
     sh.set_defaults(func=_show)
     lk = rs.add_parser("lookup", help="the rule for a job: exact key or nearest match (stated)")

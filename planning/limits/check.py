@@ -1,0 +1,335 @@
+"""The per-block check of a program against the limits (:mod:`planning.limits.model`).
+
+Engagement comes from the Z-map virtual machining ``plan feed`` and ``plan simulate`` do
+(:func:`planning.stock.simulate_motion`, pieces of at most ``piece_mm``): axial depth = a piece's
+deepest height drop, radial width = removed cross-section / depth (capped at D), down milling,
+as :mod:`planning.feed.force` does. Per piece, at its feed and spindle speed:
+
+* force: the largest resultant over a tooth period, and the largest lateral (XY) force for the
+  deflection, of :func:`analysis.forces.endmill_forces` (the material's end-mill coefficients);
+* power P = F_t v and torque T = F_t D / 2 with the mean tangential force F_t summed over the
+  teeth in closed form: F_t v = K_tc Q + K_te v N a (phi_ex - phi_st) / (2 pi), Q the removal rate
+  from the Z-map (mm^3/s);
+* chip: the largest chip thickness fz sin(phi), sin(phi) = 1 from half immersion up;
+* stability: the axial depth against the chatter-free depth at that speed.
+
+A block's value for a limit is its worst piece's (highest value / allowed). Every feed-driven
+quantity grows with the feed, so each piece also gets the feed at which it meets every limit
+(``feed_cap_mm_min``); depth (stability) cannot be cured by feed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from analysis.config import EndMill, EndMillCoefficients
+from planning.errors import PlanningError
+from planning.limits.model import (
+    LIMIT_UNITS,
+    Limits,
+    cutting_speed_mm_s,
+    modal_depth_limit_mm,
+)
+from planning.nc import Motion
+from planning.stock import Simulation, ZMap, simulate_motion
+
+PIECE_MM = 2.5  # pieces of the check's Z-map run, mm (plan feed's default: min piece / 2)
+N_PHI = 36  # tooth-period samples of the peak force
+FEED_LIMITS = ("force", "deflection", "power", "torque", "chip")  # cured by a lower feed
+TOL = 1e-6  # relative: a value this close to its limit holds
+ENGAGEMENT_STEP = 0.02  # relative rounding (up) of depth and width for the force tables
+
+
+class Pieces:
+    """Engagement of each cutting piece of a simulation and its quantities at any feed."""
+
+    def __init__(
+        self,
+        tool: EndMill,
+        coef: EndMillCoefficients,
+        limits: Limits,
+        sim: Simulation,
+        rpm: NDArray,
+    ) -> None:
+        self.tool, self.coef, self.limits = tool, coef, limits
+        length = sim.piece_length_mm
+        feed_move = sim.motion.is_feed[sim.piece_segment]  # a rapid that cuts is a crash
+        self.cutting = (sim.piece_removed_mm3 > 1e-9) & (length > 0) & (rpm > 0) & feed_move
+        c = self.cutting
+        self.rpm = rpm[c]
+        # deeper than the flutes is the shank rubbing: the force model stops at the flutes
+        self.depth_mm = np.clip(sim.piece_depth_mm[c], 1e-3, tool.flute_length_mm)
+        self.area_mm2 = sim.piece_removed_mm3[c] / length[c]  # removed per mm of path
+        self.ae_mm = np.clip(self.area_mm2 / self.depth_mm, 1e-3, tool.diameter_mm)
+        from analysis.forces.endmill import immersion_angles
+
+        st, ex = immersion_angles(self.ae_mm, tool.diameter_mm, "down")
+        self.sweep_rad = np.abs(ex - st)
+        imm = self.ae_mm / tool.diameter_mm
+        self.chip_factor = np.where(imm >= 0.5, 1.0, 2.0 * np.sqrt(imm * (1.0 - imm)))
+        # forces per distinct engagement, depth and width rounded up to ENGAGEMENT_STEP
+        # (relative): on the safe side, and a few hundred force tables instead of thousands
+        step = math.log1p(ENGAGEMENT_STEP)
+        eng = np.ceil(np.log(np.stack([self.depth_mm, self.ae_mm], 1)) / step - 1e-9)
+        uniq, inv = np.unique(eng, axis=0, return_inverse=True)
+        up = np.exp(uniq * step)
+        self._engagement = (np.minimum(up[:, 0], tool.flute_length_mm),
+                            np.minimum(up[:, 1], tool.diameter_mm))  # fmt: skip
+        self._unique = inv.ravel()
+        self._tables: tuple[NDArray, NDArray] | None = None
+        self.depth_allowed_mm = np.full(c.sum(), np.inf)
+        if limits.lobes is not None:
+            self.depth_allowed_mm = limits.lobes.depth_mm(self.rpm)
+        elif limits.stability_modes and c.any():
+            self.depth_allowed_mm = modal_depth_limit_mm(tool, coef, self.rpm, imm)
+        self.depth_allowed_mm = self.depth_allowed_mm * limits.stability_margin
+
+    def _fz(self, feed_mm_min: NDArray) -> NDArray:
+        return np.maximum(feed_mm_min, 1e-9) / (self.tool.flutes * self.rpm)
+
+    def _force_tables(self) -> tuple[NDArray, NDArray]:
+        """Force over a tooth period per distinct engagement, (m, N_PHI, 3) each, as
+        F(fz) = fz A + B: the edge model is affine in the chip thickness, which is affine in fz
+        (fz sin(phi), plus runout). Evaluated once, in chunks, per distinct (depth, ae)."""
+        if self._tables is None:
+            from analysis.forces import EndMillCut, endmill_forces
+
+            phi = np.linspace(0.0, 2 * np.pi / self.tool.flutes, N_PHI, endpoint=False)[:, None]
+            d, ae = self._engagement
+            a_tab = np.empty((len(d), N_PHI, 3))
+            b_tab = np.empty((len(d), N_PHI, 3))
+            for i in range(0, len(d), 1000):
+                sl = slice(i, i + 1000)
+                f0, f1 = (endmill_forces(phi, self.tool, self.coef, EndMillCut.from_width(
+                    self.tool, fz, d[sl], ae[sl], mode="down")) for fz in (0.1, 0.2))  # fmt: skip
+                # two feeds where every tooth in the cut has a chip (at fz = 0 none is cutting)
+                a_tab[sl] = np.moveaxis(f1 - f0, 0, 1) / 0.1
+                b_tab[sl] = np.moveaxis(f0, 0, 1) - 0.1 * a_tab[sl]
+            self._tables = (a_tab, b_tab)
+        return self._tables
+
+    def forces_n(self, fz: NDArray) -> tuple[NDArray, NDArray]:
+        """(peak resultant, peak lateral) force per piece at feeds per tooth ``fz``, N."""
+        a_tab, b_tab = self._force_tables()
+        force = np.empty(len(fz))
+        lateral = np.empty(len(fz))
+        for i in range(0, len(fz), 2000):
+            sl = slice(i, i + 2000)
+            u = self._unique[sl]
+            f = fz[sl, None, None] * a_tab[u] + b_tab[u]
+            force[sl] = np.linalg.norm(f, axis=-1).max(1)
+            lateral[sl] = np.linalg.norm(f[..., :2], axis=-1).max(1)
+        return force, lateral
+
+    def _power_parts_kw(self) -> tuple[NDArray, NDArray]:
+        """Power = a feed + b, kW: a from K_tc x removal rate, b from the edge force."""
+        a = self.coef.Ktc_n_mm2 * self.area_mm2 / 60.0 * 1e-6  # per mm/min of feed
+        v = cutting_speed_mm_s(self.tool.diameter_mm, self.rpm)
+        teeth_in_cut = self.tool.flutes * self.sweep_rad / (2 * np.pi)  # on average
+        edge_n = self.coef.Kte_n_mm * self.depth_mm * teeth_in_cut
+        return a, edge_n * v * 1e-6
+
+    def _torque_per_kw(self) -> NDArray:
+        return 1e3 * 60.0 / (2 * np.pi * self.rpm)  # T (N m) per kW at this speed
+
+    def quantities(self, feed_mm_min: NDArray) -> dict[str, NDArray]:
+        """Value per limit, one per cutting piece (feeds of the cutting pieces)."""
+        fz = self._fz(feed_mm_min)
+        force, lateral = self.forces_n(fz)
+        a, b = self._power_parts_kw()
+        power = a * feed_mm_min + b
+        out = {"force": force, "power": power, "torque": power * self._torque_per_kw(),
+               "chip": fz * self.chip_factor, "stability": self.depth_mm}  # fmt: skip
+        if self.limits.stiffness_n_mm is not None:
+            out["deflection"] = lateral / self.limits.stiffness_n_mm
+        out["lateral_force"] = lateral
+        return out
+
+    def allowed(self) -> dict[str, Any]:
+        """Allowed value per limit that is on (scalars, or per piece for stability)."""
+        lim = self.limits
+        out: dict[str, Any] = {"force": lim.force_n, "deflection": lim.deflection_mm,
+                               "power": lim.power_kw, "torque": lim.torque_nm,
+                               "chip": lim.chip_mm}  # fmt: skip
+        out = {k: v for k, v in out.items() if v is not None}
+        if lim.has_stability:
+            out["stability"] = self.depth_allowed_mm
+        return out
+
+    def feed_cap_mm_min(self) -> NDArray:
+        """Highest feed per cutting piece within every feed-driven limit, mm/min (inf: none;
+        0: not even the smallest feed)."""
+        lim = self.limits
+        k = len(self.rpm)
+        cap = np.full(k, np.inf)
+        per_fz = self.tool.flutes * self.rpm  # mm/min per mm/tooth
+        if lim.chip_mm is not None:
+            cap = np.minimum(cap, lim.chip_mm / self.chip_factor * per_fz)
+        a, b = self._power_parts_kw()
+        for p_lim in (lim.power_kw, None if lim.torque_nm is None else
+                      lim.torque_nm / self._torque_per_kw()):  # fmt: skip
+            if p_lim is not None:
+                cap = np.minimum(cap, np.maximum(p_lim - b, 0.0) / a)
+        f_lim = lim.force_n
+        d_lim = None
+        if lim.deflection_mm is not None and lim.stiffness_n_mm is not None:
+            d_lim = lim.deflection_mm * lim.stiffness_n_mm  # lateral force limit, N
+        if (f_lim is not None or d_lim is not None) and k:
+            cap = np.minimum(cap, self._force_cap_fz(f_lim, d_lim) * per_fz)
+        return cap
+
+    def _force_cap_fz(self, f_lim: float | None, d_lim: float | None) -> NDArray:
+        """Largest fz with peak force <= f_lim and peak lateral force <= d_lim, by bisection in
+        log(fz) (the peak forces grow with fz), from below; 0 where even 1e-5 mm is too much."""
+
+        def ok(fz: NDArray) -> NDArray:
+            force, lateral = self.forces_n(fz)
+            good = np.ones(len(fz), bool)
+            if f_lim is not None:
+                good &= force <= f_lim
+            if d_lim is not None:
+                good &= lateral <= d_lim
+            return good
+
+        lo = np.full(len(self.rpm), math.log(1e-5))
+        hi = np.full(len(self.rpm), math.log(2.0))
+        ok_lo = ok(np.exp(lo))
+        ok_hi = ok(np.exp(hi))
+        for _ in range(18):  # 18 halvings of log(2e5): fz within 0.005 %
+            mid = 0.5 * (lo + hi)
+            good = ok(np.exp(mid))
+            lo, hi = np.where(good, mid, lo), np.where(good, hi, mid)
+        return np.where(ok_hi, np.inf, np.where(ok_lo, np.exp(lo), 0.0))
+
+
+@dataclass(frozen=True)
+class CheckResult:
+    """Per cutting block: the worst value of each quantity; the violations; the pieces."""
+
+    blocks: Any  # pandas DataFrame, one row per cutting block
+    violations: list[dict[str, Any]]
+    limits: Limits
+    pieces: Pieces
+    simulation: Simulation
+    piece_values: dict[str, NDArray] = field(repr=False, default_factory=dict)
+
+    def block_caps(self) -> dict[int, float]:
+        """Block -> the highest feed its pieces allow (blocks with a finite cap only)."""
+        cap = self.pieces.feed_cap_mm_min()
+        blk = self.piece_block
+        out = np.full(int(blk.max(initial=-1)) + 1, np.inf)
+        np.minimum.at(out, blk, cap)
+        return {int(b): float(out[b]) for b in np.unique(blk) if math.isfinite(out[b])}
+
+    @property
+    def piece_block(self) -> NDArray:
+        sim = self.simulation
+        return sim.motion.block[sim.piece_segment][self.pieces.cutting]
+
+    def summary(self) -> dict[str, Any]:
+        worst = {}
+        for k in LIMIT_UNITS:
+            col = f"{k}_ratio"
+            if col in self.blocks and len(self.blocks) and self.blocks[col].notna().any():
+                i = int(self.blocks[col].idxmax())
+                row = self.blocks.loc[i]
+                worst[k] = {"block": int(row["block"]), "value": float(row[k]),
+                            "allowed": float(row[f"{k}_allowed"]),
+                            "margin_pct": round(100 * (1 - float(row[col])), 2)}  # fmt: skip
+        return {
+            "violations": self.violations,
+            "limits": self.limits.to_json(),
+            "cutting_blocks": int(len(self.blocks)),
+            "worst": worst,
+        }
+
+
+def evaluate(
+    sim: Simulation,
+    tool: EndMill,
+    coef: EndMillCoefficients,
+    limits: Limits,
+    spindle_rpm: float | None = None,
+    file: str = "",
+) -> CheckResult:
+    """The check of a simulated program (``sim`` with ``track_depth``) at its own feeds."""
+    import pandas as pd
+
+    motion = sim.motion
+    seg = sim.piece_segment
+    rpm = np.abs(motion.spindle_rpm[seg]).astype(float)
+    if spindle_rpm:
+        rpm = np.where(rpm > 0, rpm, spindle_rpm)
+    cutting = (sim.piece_removed_mm3 > 1e-9) & motion.is_feed[seg]
+    if np.any(cutting & (rpm <= 0)):
+        b = int(motion.block[seg[np.argmax(cutting & (rpm <= 0))]])
+        raise PlanningError(
+            f"{file}:{b + 1}: the block cuts with the spindle stopped (no S/M3): give the "
+            "spindle speed (--spindle RPM)"
+        )
+    pieces = Pieces(tool, coef, limits, sim, rpm)
+    c = pieces.cutting
+    feed = motion.feed_mm_min[seg][c]
+    values = pieces.quantities(feed)
+    allowed = pieces.allowed()
+    blk = motion.block[seg][c]
+    blocks, inv = np.unique(blk, return_inverse=True)
+    cols: dict[str, Any] = {"block": blocks, "line": blocks + 1}
+    feed_b = np.full(len(blocks), np.inf)
+    np.minimum.at(feed_b, inv, feed)
+    rpm_b = np.zeros(len(blocks))
+    np.maximum.at(rpm_b, inv, pieces.rpm)
+    cols |= {"feed_mm_min": feed_b, "spindle_rpm": rpm_b}
+    for name, unit_col in (("depth", pieces.depth_mm), ("ae", pieces.ae_mm)):
+        v = np.zeros(len(blocks))
+        np.maximum.at(v, inv, unit_col)
+        cols[f"{name}_mm"] = v
+    violations: list[dict[str, Any]] = []
+    for k in LIMIT_UNITS:
+        if k not in values:
+            continue
+        v = values[k]
+        if k in allowed:
+            al = np.broadcast_to(np.asarray(allowed[k], float), v.shape)
+            ratio = np.where(np.isfinite(al), v / al, 0.0)
+            # the worst piece of each block: sort by ratio, keep the last per block
+            order = np.lexsort((ratio, inv))
+            last = order[np.r_[inv[order][1:] != inv[order][:-1], True]]
+            cols[k], cols[f"{k}_allowed"], cols[f"{k}_ratio"] = v[last], al[last], ratio[last]
+            bad = np.nonzero(ratio[last] > 1 + TOL)[0]
+            for i in bad.tolist():
+                violations.append({
+                    "block": int(blocks[i]), "line": int(blocks[i]) + 1, "limit": k,
+                    "value": round(float(v[last][i]), 6),
+                    "allowed": round(float(al[last][i]), 6), "unit": LIMIT_UNITS[k],
+                    "margin_pct": round(100 * (1 - float(ratio[last][i])), 2),
+                })  # fmt: skip
+        else:
+            w = np.zeros(len(blocks))
+            np.maximum.at(w, inv, v)
+            cols[k] = w
+    violations.sort(key=lambda d: (d["block"], d["limit"]))
+    return CheckResult(pd.DataFrame(cols), violations, limits, pieces, sim, values)
+
+
+def check_motion(
+    motion: Motion,
+    tool: EndMill,
+    coef: EndMillCoefficients,
+    limits: Limits,
+    stock: ZMap,
+    *,
+    spindle_rpm: float | None = None,
+    piece_mm: float = PIECE_MM,
+    file: str = "",
+    progress: Any = None,
+) -> CheckResult:
+    """Machine ``motion`` on ``stock`` (lowered in place) and check every cutting block."""
+    sim = simulate_motion(stock, tool, motion, piece_mm=piece_mm, check_holder=False,
+                          track_depth=True, progress=progress)  # fmt: skip
+    return evaluate(sim, tool, coef, limits, spindle_rpm, file)

@@ -1,0 +1,246 @@
+"""What ``cutlab plan check`` does, and the limit steps of ``plan feed`` and ``plan rough``.
+
+* :func:`check_job`: a program's blocks against the limits (violations, per-block table, PNG).
+* :func:`feed_limiter`: the feed cap per piece for the post-processor (the load rule works below
+  it) and the check of what it writes; with ``fix``, blocks still over a limit get their feed
+  lowered to the cap.
+* :func:`rough_limiter`: the check of a roughing program; with ``fix``, a level whose depth
+  breaks the stability limit, or a force, deflection, power or torque limit that splitting cures
+  in less time than a lower feed, is split into equal sub-levels (same shoulder, top down), and
+  the blocks still over a limit get their feed lowered. Levels elsewhere are untouched.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from analysis.config import EndMill, EndMillCoefficients, MachineConfig, get_material, load_machine
+from planning.errors import PlanningError
+from planning.feed import cap_feeds, end_mill
+from planning.limits.check import FEED_LIMITS, CheckResult, Pieces, check_motion
+from planning.limits.model import Limits, limits_for
+from planning.nc import Motion, Program, interpret, motion_stats
+from planning.stock import Cutter, ZMap, default_stock, load_stock
+
+SPLIT_SLACK = 1.1  # sub-levels: depth / (needed reduction x this)
+ROUNDS = 4  # split-and-recheck rounds before the remaining blocks get lower feeds
+
+
+def coefficients(material: str | None) -> EndMillCoefficients:
+    """The material's end-mill coefficients (configs/materials.toml)."""
+    if not material:
+        raise PlanningError("--material is required: the force model needs its [endmill] table")
+    coef = get_material(material).endmill
+    if coef is None:
+        raise PlanningError(f"material '{material}' has no [endmill] coefficients")
+    return coef
+
+
+def _check(
+    program: Program, machine: MachineConfig | None, tool: EndMill, coef: EndMillCoefficients,
+    limits: Limits, stock: ZMap, spindle_rpm: float | None, progress: Any = None,
+) -> tuple[Motion, CheckResult]:  # fmt: skip
+    motion = interpret(program, machine, file=program.file, cutter_comp="refuse")
+    res = check_motion(motion, tool, coef, limits, stock.copy(), spindle_rpm=spindle_rpm,
+                       file=program.file, progress=progress)  # fmt: skip
+    return motion, res
+
+
+def _time_s(motion: Motion, machine: MachineConfig | None) -> float:
+    return float(motion_stats(motion, machine).time_s)
+
+
+def _lower_feeds(
+    program: Program, motion: Motion, machine: MachineConfig | None, res: CheckResult
+) -> tuple[Program, list[dict[str, Any]]]:
+    """Blocks over a feed-driven limit run at their cap (floored to 1 mm/min, not below the
+    machine's minimum feed); what was lowered."""
+    bad = {v["block"] for v in res.violations if v["limit"] in FEED_LIMITS}
+    if not bad:
+        return program, []
+    caps = res.block_caps()
+    f_min = machine.feed_min_mm_min if machine is not None else 1.0
+    new = {b: max(math.floor(caps[b]), f_min) for b in bad if b in caps}
+    feeds = res.blocks.set_index("block")["feed_mm_min"]
+    done = [{"block": b, "feed_before_mm_min": float(feeds[b]), "feed_after_mm_min": float(f)}
+            for b, f in sorted(new.items())]  # fmt: skip
+    return cap_feeds(program, motion, machine, new), done
+
+
+def feed_limiter(
+    tool: EndMill, coef: EndMillCoefficients, limits: Limits, *, fix: bool,
+    spindle_rpm: float | None = None,
+) -> tuple[Callable | None, Callable]:  # fmt: skip
+    """(the per-piece feed cap for :class:`planning.feed.FeedPostOptions` (None unless ``fix``),
+    the step that checks the written program: ``(program, start stock, machine) -> (program,
+    report)``)."""
+
+    def cap(sim, rpm):
+        out = np.full(len(sim.piece_segment), np.inf)
+        pieces = Pieces(tool, coef, limits, sim, rpm)
+        out[pieces.cutting] = pieces.feed_cap_mm_min()
+        return out
+
+    def adjust(program: Program, stock: ZMap, machine: MachineConfig | None):
+        motion, res = _check(program, machine, tool, coef, limits, stock, spindle_rpm)
+        found = len(res.violations)
+        lowered: list[dict[str, Any]] = []
+        t0 = t1 = _time_s(motion, machine)
+        if fix and res.violations:
+            program, lowered = _lower_feeds(program, motion, machine, res)
+            motion, res = _check(program, machine, tool, coef, limits, stock, spindle_rpm)
+            t1 = _time_s(motion, machine)
+        return program, {**res.summary(), "violations_found": found, "feeds_lowered": lowered,
+                         "time_added_by_lowering_s": round(t1 - t0, 3)}  # fmt: skip
+
+    return (cap if fix else None), adjust
+
+
+def rough_limiter(
+    *, fix: bool, machine: str | Path | MachineConfig | None = None, material: str | None = None,
+    lobes: str | Path | None = None, spacing_mm: float = 1.0,
+) -> Callable:  # fmt: skip
+    """The limit step of ``plan rough``: ``(planner, plan, program) -> (plan, program, report)``
+    (see the module's docstring), for the part's tool and material (``material`` overrides the
+    part's ``cutting.material``) on ``machine``, on a Z-map of the stock box every
+    ``spacing_mm``."""
+    m = load_machine(machine) if isinstance(machine, (str, Path)) else machine
+
+    def hook(planner, plan, program: Program):
+        part = planner.part
+        mat = material or part.config.cutting.material
+        if not mat:
+            return plan, program, {"violations": [], "checked": False,
+                                   "why": "no material: give cutting.material or --material"}
+        tool, coef = part.tool, coefficients(mat)
+        limits = limits_for(tool, m, tool_name=part.config.tool.name, lobes=lobes)
+        st = part.config.stock
+        stock = ZMap.box(st.x_min_mm, st.x_max_mm, st.y_min_mm, st.y_max_mm, st.z_min_mm,
+                         st.z_max_mm, spacing_mm)  # fmt: skip
+        return _rough(planner, plan, program, tool, coef, limits, stock, m, fix)
+
+    return hook
+
+
+def _level_of_block(plan, part, motion: Motion) -> dict[int, int]:
+    """Program block -> level index: the writer gives every feed segment its own block, in the
+    order of the plan's motion (whose block field is the level)."""
+    from planning.rough import plan_motion
+
+    pm = plan_motion(plan, part)
+    a, b = np.nonzero(pm.is_feed)[0], np.nonzero(motion.is_feed)[0]
+    if len(a) != len(b):
+        raise PlanningError("the rough program does not follow its plan (internal)")
+    return dict(zip(motion.block[b].tolist(), pm.block[a].tolist()))
+
+
+def _rough(planner, plan, program, tool, coef, limits, stock, machine, fix):
+    """The rough limit step proper (see :func:`rough_limiter`)."""
+    from planning.rough import plan_program
+
+    part = planner.part
+
+    def totals(plan, motion, res) -> dict[str, Any]:
+        return {"violations": len(res.violations), "levels": len(plan.levels),
+                "cutting_path_mm": round(plan.path_mm, 2),
+                "time_s": round(_time_s(motion, machine), 2)}  # fmt: skip
+
+    motion, res = _check(program, machine, tool, coef, limits, stock, None)
+    before = totals(plan, motion, res)
+    splits: list[dict[str, Any]] = []
+    lowered: list[dict[str, Any]] = []
+    if fix and res.violations:
+        dh = part.config.rough.dh_mm
+        for _ in range(ROUNDS):
+            need = _split_needs(res, _level_of_block(plan, part, motion), plan)
+            for lv_i in sorted(need, reverse=True):  # from the end: indices stay valid
+                lv = plan.levels[lv_i]
+                parts = min(need[lv_i], max(1, int(lv.height_mm / dh)))  # sub-levels >= dh
+                if parts < 2:
+                    need.pop(lv_i)
+                    continue
+                splits.append({"z_mm": round(lv.z_mm, 3), "height_mm": round(lv.height_mm, 3),
+                               "parts": parts})  # fmt: skip
+                plan = planner.split_level(plan, lv_i, parts)
+            if not need:
+                break
+            program = plan_program(plan, part)
+            motion, res = _check(program, machine, tool, coef, limits, stock, None)
+        program, lowered = _lower_feeds(program, motion, machine, res)
+        if lowered:
+            motion, res = _check(program, machine, tool, coef, limits, stock, None)
+    after = totals(plan, motion, res)
+    report = {**res.summary(), "before": before, "after": after, "levels_split": splits,
+              "feeds_lowered": lowered,
+              "time_lost_s": round(after["time_s"] - before["time_s"], 2),
+              "path_added_mm": round(after["cutting_path_mm"] - before["cutting_path_mm"], 2)}
+    return plan, program, report
+
+
+def _split_needs(res: CheckResult, level_of: dict[int, int], plan) -> dict[int, int]:
+    """Level index -> sub-levels it needs: a stability violation always splits; a force-type
+    one splits when that costs less time than the lower feed (k levels ~ k x the path, against
+    feed / cap x the time)."""
+    caps = res.block_caps()
+    feeds = res.blocks.set_index("block")["feed_mm_min"]
+    need: dict[int, int] = {}
+    slow: dict[int, float] = {}
+    for v in res.violations:
+        lv = level_of.get(v["block"])
+        if lv is None or v["limit"] == "chip":  # a chip limit is the feed's alone
+            continue
+        k = math.ceil(v["value"] / v["allowed"] * SPLIT_SLACK)
+        if v["limit"] == "stability":
+            need[lv] = max(need.get(lv, 1), k)
+            continue
+        cap = caps.get(v["block"], math.inf)
+        slow[lv] = max(slow.get(lv, 1.0), float(feeds[v["block"]]) / max(cap, 1e-9))
+        if k < slow[lv]:
+            need[lv] = max(need.get(lv, 1), k)
+    return {lv: k for lv, k in need.items() if k >= 2 and lv < len(plan.levels)}
+
+
+def check_job(
+    program_path: str | Path,
+    *,
+    tool_name: str | None,
+    material: str | None,
+    machine: str | Path = "ace-h63",
+    stock_spec: str | None = None,
+    spacing_mm: float | None = None,
+    lobes: str | Path | None = None,
+    force_limit_n: float | None = None,
+    spindle_rpm: float | None = None,
+    plot: str | Path | None = None,
+    progress: Any = None,
+) -> tuple[CheckResult, dict[str, Any]]:
+    """``cutlab plan check``: every block of a program against the limits of its tool and
+    machine; the per-block quantities to ``plot`` (PNG)."""
+    m = load_machine(machine)
+    tool = end_mill(tool_name)
+    coef = coefficients(material)
+    limits = limits_for(tool, m, tool_name=tool_name or "", lobes=lobes,
+                        force_limit_n=force_limit_n)  # fmt: skip
+    program = Program.read(program_path)
+    motion = interpret(program, m, file=str(program_path), cutter_comp="refuse")
+    if stock_spec:
+        stock = load_stock(stock_spec, spacing_mm)
+    else:
+        try:
+            stock = default_stock(motion, Cutter.from_tool(tool), spacing_mm)
+        except PlanningError as exc:
+            raise PlanningError(f"{program_path}: {exc}") from None
+    res = check_motion(motion, tool, coef, limits, stock, spindle_rpm=spindle_rpm,
+                       file=str(program_path), progress=progress)  # fmt: skip
+    out = {"program": str(program_path), "tool": tool_name, "material": material,
+           "machine": m.name, **res.summary(), "png": None}  # fmt: skip
+    if plot:
+        from planning.limits.plot import plot_check
+
+        out["png"] = str(plot_check(res, plot, f"{Path(program_path).name}: limits per block"))
+    return res, out

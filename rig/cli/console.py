@@ -1,0 +1,73 @@
+"""`cutlab console [CAMPAIGN_DIR|RUN.h5]` — the live lab console in a local web page.
+
+cutlab console out/quick                  # a campaign folder: live while it runs, then its runs
+cutlab console out/quick/runs/000-a.h5    # browse one run file by block
+cutlab console out/quick --port 9000 --bind 0.0.0.0   # reachable from the network (warns)
+
+`cutlab campaign run CONFIG --live [--port P]` starts the same page beside a campaign.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from rig.cli._common import count, nonnegative, status
+
+DEFAULT_PORT = 8765
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add this group's command to ``sub``."""
+    p = sub.add_parser("console", help="the live lab console in a local web page")
+    p.add_argument(
+        "target",
+        nargs="?",
+        default=".",
+        help="campaign folder or run file (.h5); default: the current folder",
+    )
+    add_server_options(p)
+    p.add_argument(
+        "--linger-s",
+        type=nonnegative("s"),
+        default=None,
+        help="exit this long after the campaign process is gone (default: never)",
+    )
+    p.add_argument("--quiet", action="store_true", help="no address line on stderr")
+    p.set_defaults(func=_console)
+
+
+def add_server_options(p: argparse.ArgumentParser) -> None:
+    """``--port`` and ``--bind`` (shared with ``campaign run --live``)."""
+    p.add_argument(
+        "--port",
+        type=count(1, 65535, "TCP port"),
+        default=DEFAULT_PORT,
+        help=f"TCP port of the page (default {DEFAULT_PORT})",
+    )
+    p.add_argument(
+        "--bind",
+        default="127.0.0.1",
+        help="address to listen on (default 127.0.0.1, this computer only)",
+    )
+
+
+def warn_bind(bind: str) -> None:
+    if bind not in ("127.0.0.1", "localhost", "::1"):
+        status(f"cutlab: warning: the console listens on {bind}: anyone who reaches it can "
+               "hold or abort the machine")  # fmt: skip
+
+
+def _console(args: argparse.Namespace) -> int:
+    from rig.console.live import check_console_extra, check_port
+
+    check_console_extra()
+    from rig.console.server import resolve_target, serve
+
+    resolve_target(args.target)  # bad input: one line before anything listens
+    check_port(args.bind, args.port)
+    warn_bind(args.bind)
+    if not args.quiet:
+        host = "127.0.0.1" if args.bind in ("0.0.0.0", "") else args.bind
+        status(f"cutlab: console at http://{host}:{args.port}/ (Ctrl-C to stop)")
+    serve(args.target, args.port, args.bind, args.linger_s)
+    return 0

@@ -1,0 +1,531 @@
+"""The campaign side of the live console: a tap beside the logger, the state the page shows, and
+the page's hold / resume / abort.
+
+It fits in through the runner's existing entry points (:func:`rig.campaign.run_campaign`'s
+``session_factory`` and ``stop``), so a campaign runs the same with or without it::
+
+    with live_console(campaign, out_root, port=8765) as live:
+        result = run_campaign(campaign, out_root=out_root, **live.run_kwargs())
+
+- Samples: each rig session's DAQ sink is teed: the run writer gets every block first, then the
+  ring (:mod:`rig.console.ring`) gets a copy; an error in the ring is dropped, never raised into
+  the acquisition thread.
+- State, about 25 times a second: the machine as the controller reports it (GRBL status reports;
+  the simulated control's panel; a drip feed reports nothing), the streamer's sent /
+  acknowledged / executing blocks, the executed blocks' spans, run i of N, elapsed and remaining
+  time, events.
+- Commands from the page: hold (feed hold), resume (cycle start), abort (the runner's stop: feed
+  hold, stop, the run closed ``abort``, the campaign ended). The page shows the state read back.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import socket
+import subprocess
+import sys
+import threading
+import time
+import urllib.request
+from collections import deque
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from analysis.errors import ConfigError
+from analysis.runs import file as rf
+from rig.campaign.run import StopRequest
+from rig.campaign.runner import campaign_folder, default_session_factory, plan_campaign
+from rig.console.ring import RingWriter
+from rig.daq import Calibration, DaqEvent, DaqInfo
+
+TICK_S = 0.04  # status 25 times a second
+LIVE_FILE = "live.json"  # in the campaign folder while a live campaign runs
+MAX_EVENTS = 200
+#: s a live campaign's server stays after the campaign process died (the page says so)
+LINGER_S = float(os.environ.get("CUTLAB_CONSOLE_LINGER_S", "600"))
+#: DAQ and runner event kinds the page lists (the others are bookkeeping)
+SHOWN_EVENTS = {rf.EV_OVERFLOW, rf.EV_FAULT, rf.EV_GAP, rf.EV_QUEUE_FULL, rf.EV_INTERLOCK,
+                rf.EV_PAUSE, rf.EV_RESUME, "saturation", "chatter", "alarm", "abort"}  # fmt: skip
+
+
+class LiveSink(Protocol):
+    """What the console needs beside the run writer: the DAQ sink calls, plus runner events.
+    (Wired today by teeing the DAQ sink; ``RunWriter`` may call it directly later.)"""
+
+    def on_start(self, info: DaqInfo, t0_s: float) -> None: ...
+
+    def on_block(self, first_sample: int, data: np.ndarray) -> None: ...
+
+    def on_event(self, event: DaqEvent) -> None: ...
+
+    def note(self, kind: str, message: str, time_s: float | None = None) -> None: ...
+
+
+class _Tee:
+    """The DAQ sink given to the DAQ: the run's own sink first, then the live ring."""
+
+    def __init__(self, sink: Any, live: LiveCampaign) -> None:
+        self.sink, self.live = sink, live
+
+    def on_start(self, info: DaqInfo, t0_s: float) -> None:
+        self.sink.on_start(info, t0_s)
+        self.live.guard(self.live.on_start, info, t0_s)
+
+    def on_block(self, first_sample: int, data: np.ndarray) -> None:
+        self.sink.on_block(first_sample, data)
+        self.live.guard(self.live.on_block, first_sample, data)
+
+    def on_event(self, event: DaqEvent) -> None:
+        self.sink.on_event(event)
+        self.live.guard(self.live.on_event, event)
+
+
+class _LiveDaq:
+    def __init__(self, daq: Any, live: LiveCampaign) -> None:
+        self._daq, self._live = daq, live
+
+    def start(self, sink: Any) -> None:
+        self._daq.start(_Tee(sink, self._live))
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._daq, name)
+
+
+class _LiveSession:
+    """A rig session seen by the console: the runner's calls pass through; the runner's own
+    holds, resumes and stops become events."""
+
+    def __init__(self, inner: Any, live: LiveCampaign) -> None:
+        self.inner = inner
+        self.daq = _LiveDaq(inner.daq, live)
+        self.clock = inner.clock
+        self.writer: Any = None
+        self.program: Any = None
+        self._live = live
+
+    def start(self, program: Any, writer: object) -> None:
+        self.program, self.writer = program, writer
+        self._live.guard(self._live.on_program, program)
+        self.inner.start(program, writer)
+
+    def feed_hold(self) -> None:
+        self.inner.feed_hold()
+        self._live.note(rf.EV_PAUSE, "runner: feed hold")
+
+    def cycle_start(self) -> None:
+        self.inner.cycle_start()
+        self._live.note(rf.EV_RESUME, "runner: cycle start")
+
+    def stop(self) -> None:
+        self.inner.stop()
+        self._live.note("abort", "runner: stop (feed hold, reset)")
+
+    def close(self) -> None:
+        try:
+            self.inner.close()
+        finally:
+            self._live.on_session_closed(self)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)
+
+
+def machine_report(session: Any) -> dict[str, Any]:
+    """The machine as its controller reports it: GRBL's last status report; the simulated
+    control's panel; nothing from a drip feed (state "" and source says so)."""
+    streamer = getattr(session, "streamer", None)
+    st = getattr(streamer, "last_status", None)
+    out: dict[str, Any] = {"state": "", "pos_mm": None, "feed_mm_min": None, "spindle_rpm": None}
+    if st is not None:
+        pos = st.wpos_mm
+        wco = getattr(streamer, "_wco", None)
+        if pos is None and st.mpos_mm is not None:
+            off = wco if wco is not None else (0.0, 0.0, 0.0)
+            pos = tuple(m - o for m, o in zip(st.mpos_mm, off))
+        return out | {"state": st.full_state, "pos_mm": _round(pos), "source": "GRBL status",
+                      "feed_mm_min": st.feed_mm_min, "spindle_rpm": st.spindle_rpm}  # fmt: skip
+    ctrl = getattr(session, "controller", None)  # the simulated rig's control
+    if ctrl is not None:
+        if hasattr(ctrl, "state_name"):
+            state = ctrl.state_name()
+        else:
+            state = "Alarm" if ctrl.alarm else "Hold" if ctrl.held else "Run"
+        pos = ctrl.position_mm() if hasattr(ctrl, "position_mm") else None
+        return out | {"state": state, "pos_mm": _round(pos), "source": "simulated control"}
+    state = getattr(streamer, "controller_state", "") or ""
+    return out | {"state": state, "source": "none: a drip feed reports no state"}
+
+
+def _round(v: Any) -> list[float] | None:
+    return None if v is None else [round(float(x), 3) for x in v]
+
+
+def _jsonable(x: float) -> float | None:
+    return float(x) if x is not None and math.isfinite(x) else None
+
+
+class LiveCampaign:
+    """The live side of one campaign (see the module docstring).
+
+    ``folder``: the campaign's folder (``live.json`` there points servers at the ring).
+    """
+
+    def __init__(self, campaign: Any, folder: Path, ring_path: str | Path | None = None) -> None:
+        self.campaign = campaign
+        self.folder = Path(folder)
+        plans = plan_campaign(campaign)
+        self.n_runs = len(plans)
+        sim = campaign.spec.campaign.rig == "sim"
+        self.speed = float(campaign.spec.sim.speed) if sim and campaign.spec.sim.speed else 1.0
+        self.expected_wall_s = [p.expected_s / self.speed for p in plans]
+        self.run_names = [p.test.name for p in plans]
+        self.cal = Calibration.from_dynamometer(campaign.rig.dynamometer)
+        self.ring = RingWriter(ring_path)
+        self.stop = StopRequest()
+        self.events: deque[dict[str, Any]] = deque(maxlen=MAX_EVENTS)
+        self.phase = "starting"
+        self.message = ""
+        self._lock = threading.Lock()
+        self._session: _LiveSession | None = None
+        self._run_k = -1
+        self._run_wall0 = math.nan
+        self._wall0 = time.monotonic()
+        self._info: DaqInfo | None = None
+        self._t0_s = math.nan
+        self._expect = 0
+        self._meta: dict[str, Any] = {}
+        self._bands: list[list[Any]] = []
+        self._executing = -1
+        self._fault_seen: str | None = None
+        self._cmd_done = self.ring.read_command()[0]
+        self._last_cmd: dict[str, Any] = {}
+        self.tap_errors = 0
+        self._closed = threading.Event()
+        self._thread = threading.Thread(target=self._loop, name="console-live", daemon=True)
+        self._thread.start()
+
+    # -- the runner's entry points -------------------------------------------------------------
+    def run_kwargs(self) -> dict[str, Any]:
+        """What :func:`run_campaign` takes to run with the console."""
+        return {"session_factory": self.session_factory(), "stop": self.stop}
+
+    def session_factory(
+        self, inner: Callable[[Any, Any, int], Any] | None = None
+    ) -> Callable[[Any, Any, int], Any]:
+        make = inner or default_session_factory(self.campaign)
+
+        def factory(campaign: Any, plan: Any, k: int) -> _LiveSession:
+            session = _LiveSession(make(campaign, plan, k), self)
+            with self._lock:
+                self._session, self._run_k = session, k
+                self._run_wall0 = time.monotonic()
+                self._bands, self._fault_seen, self._executing = [], None, -1
+                self.phase = "running"
+            return session
+
+        return factory
+
+    # -- the tap (acquisition thread: quick, and never raises) ---------------------------------
+    def guard(self, fn: Callable[..., None], *args: Any) -> None:
+        try:
+            fn(*args)
+        except Exception:  # noqa: BLE001 - the live view must never endanger the recording
+            self.tap_errors += 1
+
+    def on_start(self, info: DaqInfo, t0_s: float) -> None:
+        self._info, self._t0_s, self._expect = info, float(t0_s), 0
+        self._meta = self._run_meta(info, t0_s)
+        self.ring.begin_run(self._meta, info.n_channels, info.dtype)
+
+    def on_block(self, first_sample: int, data: np.ndarray) -> None:
+        if first_sample > self._expect and self._info is not None:
+            lost = first_sample - self._expect
+            self.note(rf.EV_GAP, f"{lost} samples missing",
+                      self._t0_s + self._expect / self._info.rate_hz)  # fmt: skip
+        self._expect = first_sample + int(data.shape[1])
+        self.ring.write(first_sample, data)
+
+    def on_event(self, event: DaqEvent) -> None:
+        if event.kind in SHOWN_EVENTS:
+            t = event.time_s
+            if not math.isfinite(t) and event.sample >= 0 and self._info is not None:
+                t = self._t0_s + event.sample / self._info.rate_hz
+            self.note(event.kind, event.message, t)
+
+    def note(self, kind: str, message: str, time_s: float | None = None) -> None:
+        if time_s is None and self._session is not None:
+            time_s = self._session.clock()
+        self.events.append({"run": self._run_k + 1, "kind": kind, "message": message[:300],
+                            "t_s": _jsonable(time_s), "wall": time.time()})  # fmt: skip
+
+    # -- run info ------------------------------------------------------------------------------
+    def _run_meta(self, info: DaqInfo, t0_s: float) -> dict[str, Any]:
+        k = self._run_k
+        return {
+            "campaign": self.campaign.name,
+            "run": k + 1,
+            "runs": self.n_runs,
+            "name": self.run_names[k] if 0 <= k < self.n_runs else "",
+            "channels": list(info.channel_names),
+            "rate_hz": info.rate_hz,
+            "t0_s": t0_s,
+            "sample_format": info.sample_format,
+            "scaling_coeff": None if info.scaling_coeff is None else info.scaling_coeff.tolist(),
+            "volts_to_n": self.cal.volts_to_n.tolist(),
+            "zero_v": None,
+            "program": [],
+        }
+
+    def on_program(self, program: Any) -> None:
+        """The program starts: its lines for the program view; the zero from the rest just
+        recorded (the runner zeroes on the same rest before it starts the program)."""
+        meta = dict(self._meta)
+        rows = self.ring.rows_so_far()
+        if len(rows) and self._info is not None:
+            volts = rows.astype(float)
+            if self._info.sample_format == rf.SAMPLE_FORMAT_RAW:
+                volts = rf.raw_to_volts(rows, self._info.scaling_coeff)
+            meta["zero_v"] = volts.mean(axis=0).tolist()
+        meta["program"] = [[b.index, b.line, b.text] for b in program.blocks]
+        meta["program_name"] = program.name
+        self._meta = meta
+        self.ring.put_meta(meta)
+
+    def on_session_closed(self, session: _LiveSession) -> None:
+        self._publish()  # the last executed blocks
+        with self._lock:
+            if self._session is session:
+                self._session = None
+                self.phase = "between runs"
+
+    # -- the publisher thread --------------------------------------------------------------------
+    def _loop(self) -> None:
+        while not self._closed.wait(TICK_S):
+            self.guard(self._command)
+            self.guard(self._publish)
+
+    def _command(self) -> None:
+        seq, cmd = self.ring.read_command()
+        if seq <= self._cmd_done or not isinstance(cmd, dict):
+            return
+        self._cmd_done = seq
+        what = str(cmd.get("cmd", ""))
+        ok, message = self.command(what)
+        self._last_cmd = {"seq": seq, "cmd": what, "ok": ok, "message": message}
+
+    def command(self, what: str) -> tuple[bool, str]:
+        """Hold, resume or abort the run; (done, what was done or why not)."""
+        s = self._session
+        if what == "abort":
+            self.stop.request(kill=True)  # the runner holds, stops, closes the run "abort"
+            if s is not None and s.writer is not None:
+                s.writer.event(rf.EV_NOTE, "console: abort requested by the operator")
+            self.note("abort", "console: abort requested")
+            return True, "abort requested: feed hold, stop, campaign ends"
+        if what not in ("hold", "resume"):
+            return False, f"unknown command {what!r} (expected hold, resume or abort)"
+        if s is None:
+            return False, f"{what}: no run in progress"
+        kind, message = (rf.EV_PAUSE, "console: feed hold") if what == "hold" else (
+            rf.EV_RESUME, "console: cycle start")  # fmt: skip
+        (s.inner.feed_hold if what == "hold" else s.inner.cycle_start)()
+        if s.writer is not None:  # None while the rig zeroes, before the program starts
+            s.writer.event(kind, message)
+        self.note(kind, message)
+        return True, f"{message.removeprefix('console: ')} sent"
+
+    def _publish(self) -> None:
+        self.ring.heartbeat()
+        s = self._session
+        now = time.monotonic()
+        status: dict[str, Any] = {
+            "phase": self.phase,
+            "message": self.message,
+            "campaign": self.campaign.name,
+            "run": self._run_k + 1,
+            "runs": self.n_runs,
+            "run_name": self.run_names[self._run_k] if 0 <= self._run_k < self.n_runs else "",
+            "elapsed_s": round(now - self._wall0, 1),
+            "remaining_s": self._remaining_s(now),
+            "events": list(self.events),
+            "command": self._last_cmd,
+            "tap_errors": self.tap_errors,
+        }
+        if s is not None:
+            status |= self._session_status(s)
+        else:
+            status["machine"] = {"state": "", "source": "no run in progress"}
+            status["bands"] = self._bands
+        self.ring.put_status(status)
+
+    def _remaining_s(self, now: float) -> float:
+        k = self._run_k
+        if self.phase in ("finished", "stopped") or k < 0:
+            return 0.0 if k >= 0 else round(sum(self.expected_wall_s), 1)
+        left = max(0.0, self.expected_wall_s[k] - (now - self._run_wall0))
+        return round(left + sum(self.expected_wall_s[k + 1 :]), 1)
+
+    def _session_status(self, s: _LiveSession) -> dict[str, Any]:
+        st = getattr(s.inner, "streamer", None)
+        done, total = s.inner.progress()
+        now = s.clock()
+        line_of = {b[0]: b[1] for b in self._meta.get("program", [])}
+        fault = s.inner.fault()
+        if fault and fault != self._fault_seen:
+            self._fault_seen = fault
+            kind = next((k for k in ("interlock", "alarm", "overflow") if k in fault), "fault")
+            self.note(kind, fault)
+        if st is not None and hasattr(st, "executed_blocks"):
+            # The streamer's execution starts (GRBL: seen in status reports; drip feed:
+            # predicted, some still ahead): the block executing is the last one started by now.
+            with contextlib.suppress(RuntimeError):  # the streamer's dict changed: next time
+                spans = [x for x in st.executed_blocks()[-2000:] if x[0] >= 0 and x[1] <= now]
+                self._executing = spans[-1][0] if spans else -1
+                self._bands = [[b, round(t0, 4), _jsonable(t1) if t1 <= now else None]
+                               for b, t0, t1, _ in spans]  # fmt: skip
+        executing = self._executing
+        return {
+            "t_now_s": round(s.clock(), 4),
+            "machine": machine_report(s.inner),
+            "stream": {
+                "sent": getattr(st, "last_sent_block", -1),
+                "acknowledged": getattr(st, "last_ack_block", -1),
+                "executing": executing,
+                "executed": getattr(st, "last_executed_block", -1),
+                "blocks_done": done,
+                "blocks_total": total,
+                "protocol": getattr(st, "protocol", ""),
+            },
+            "executing_block": executing,
+            "executing_line": line_of.get(executing),
+            "bands": self._bands,
+        }
+
+    # -- the end ---------------------------------------------------------------------------------
+    def close(self, phase: str = "finished", message: str = "") -> None:
+        """The campaign has ended (``phase``: finished, stopped, failed): say so, then stop."""
+        if self._closed.is_set():
+            return
+        with self._lock:
+            self._session = None
+            self.phase, self.message = phase, message
+            if phase == "finished":
+                self._run_k = self.n_runs - 1
+        self._closed.set()
+        self._thread.join(timeout=2.0)
+        self.guard(self._publish)
+        self.ring.close()
+
+
+# ----------------------------------------------------------------------------------------------
+# The server beside the campaign
+# ----------------------------------------------------------------------------------------------
+
+
+def check_console_extra() -> None:
+    """ConfigError naming the install line when the console's packages are missing."""
+    import importlib.util
+
+    missing = [m for m in ("starlette", "uvicorn", "websockets") if not importlib.util.find_spec(m)]
+    if missing:
+        raise ConfigError(
+            f"the live console needs {', '.join(missing)}: pip install -e '.[console]'"
+        )
+
+
+def check_port(bind: str, port: int) -> None:
+    """ConfigError when ``bind:port`` cannot be listened on (in use, no such address)."""
+    if not 0 < port < 65536:
+        raise ConfigError(f"--port = {port}: expected a TCP port 1..65535")
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind((bind, port))
+        except OSError as exc:
+            raise ConfigError(
+                f"console: cannot listen on {bind}:{port}: {exc.strerror or exc} (another "
+                "console or program uses it? choose another --port)"
+            ) from None
+
+
+def start_server(target: Path, port: int, bind: str, timeout_s: float = 20.0) -> subprocess.Popen:
+    """The console server for ``target`` in its own process (its own session: Ctrl-C at the
+    campaign's terminal is the campaign's); returns once it answers."""
+    cmd = [sys.executable, "-m", "rig.console.server", str(target), "--port", str(port),
+           "--bind", bind, "--linger-s", str(LINGER_S)]  # fmt: skip
+    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, start_new_session=True)
+    url = f"http://{'127.0.0.1' if bind in ('0.0.0.0', '') else bind}:{port}/api/health"
+    t_end = time.monotonic() + timeout_s
+    while time.monotonic() < t_end:
+        if proc.poll() is not None:
+            raise ConfigError(f"console: the server exited at start (status {proc.returncode})")
+        with contextlib.suppress(OSError):
+            with urllib.request.urlopen(url, timeout=1.0) as r:
+                if r.status == 200:
+                    return proc
+        time.sleep(0.1)
+    proc.terminate()
+    raise ConfigError(f"console: the server did not answer on {url} within {timeout_s:.0f} s")
+
+
+def stop_server(proc: subprocess.Popen, grace_s: float = 1.0) -> None:
+    """Let the page see the final state for ``grace_s``, then end the server."""
+    if proc.poll() is None:
+        time.sleep(grace_s)
+        proc.terminate()
+        try:
+            proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+@contextlib.contextmanager
+def live_console(
+    campaign: Any,
+    out_root: str | Path | None = None,
+    *,
+    port: int = 8765,
+    bind: str = "127.0.0.1",
+    serve: bool = True,
+) -> Iterator[LiveCampaign]:
+    """Run a campaign with the console: the ring, ``live.json`` in the campaign folder, and
+    (``serve``) the page server at ``http://bind:port/`` in its own process. The server's death
+    does not stop the campaign; the campaign's end (or death) is shown on the page."""
+    folder = campaign_folder(campaign, out_root)
+    if serve:
+        check_console_extra()
+        check_port(bind, port)
+    folder.mkdir(parents=True, exist_ok=True)
+    live = LiveCampaign(campaign, folder)
+    pointer = folder / LIVE_FILE
+    pointer.write_text(json.dumps({"ring": str(live.ring.path), "pid": os.getpid(),
+                                   "port": port, "bind": bind}))  # fmt: skip
+    proc = None
+    phase, message = "finished", ""
+    try:
+        if serve:
+            proc = start_server(folder, port, bind)
+            host = "127.0.0.1" if bind in ("0.0.0.0", "") else bind
+            print(f"cutlab: live console at http://{host}:{port}/", file=sys.stderr, flush=True)
+        yield live
+        if live.stop.event.is_set():
+            phase, message = "stopped", "the campaign was stopped"
+    except BaseException as exc:
+        phase, message = "failed", f"{type(exc).__name__}: {exc}"[:300]
+        if isinstance(exc, KeyboardInterrupt):
+            phase = "stopped"
+        raise
+    finally:
+        live.close(phase, message)
+        pointer.unlink(missing_ok=True)
+        if proc is not None:
+            stop_server(proc)
+        with contextlib.suppress(OSError):
+            live.ring.path.unlink()

@@ -1,0 +1,256 @@
+"""The live ring: one memory-mapped file shared by the campaign process (the only writer of
+samples, run info and status) and the console server (readers; the only writer of commands).
+
+The HDF5 run file flushes about once a second, too slow for a live view, and reading it would
+compete with the logger; the ring costs the acquisition thread one copy of each block into
+shared memory (``/dev/shm``), and a server that dies or stalls cannot hold anything up.
+
+Layout: a header of int64 fields, three JSON regions (run info, status, command) and a ring of
+samples per channel ``(c, capacity)`` in the DAQ's own dtype (int16 codes or float64 volts): the
+DAQ's ``(c, n)`` blocks go in as one contiguous copy per channel. Each JSON region is
+a seqlock (its sequence number is odd while it is written); samples are copied first and
+``rows_written`` raised after, so a reader that copies and then re-reads ``rows_written`` knows
+which of its rows may have been overwritten meanwhile and drops them.
+"""
+
+from __future__ import annotations
+
+import json
+import mmap
+import os
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from rig.errors import RigError
+
+MAGIC = 0x3145564954554332  # b"2CUTLIVE1" as a little-endian int64 tag
+HEADER_BYTES = 4096
+META_BYTES = 1 << 20  # run info: channels, calibration, the program's lines
+STATUS_BYTES = 1 << 18
+COMMAND_BYTES = 4096
+SAMPLE_BYTES = 32 << 20  # 60 s of 3 channels of float64 at 20 kHz
+
+# header fields (int64 index)
+(_MAGIC, _PID, _HEARTBEAT_NS, _GEN, _ROWS, _CAPACITY, _CHANNELS, _ITEMSIZE, _ROW_TO_SAMPLE,
+ _CLOSED) = range(10)  # fmt: skip
+_SEQ = {"meta": 16, "status": 18, "command": 20}  # seq at k, length at k + 1
+_OFFSET = {
+    "meta": HEADER_BYTES,
+    "status": HEADER_BYTES + META_BYTES,
+    "command": HEADER_BYTES + META_BYTES + STATUS_BYTES,
+}
+_SIZE = {"meta": META_BYTES, "status": STATUS_BYTES, "command": COMMAND_BYTES}
+_SAMPLES_AT = HEADER_BYTES + META_BYTES + STATUS_BYTES + COMMAND_BYTES
+_DTYPES = {2: np.dtype(np.int16), 8: np.dtype(np.float64)}
+
+
+class RingError(RigError):
+    """A live ring that cannot be created or read."""
+
+
+def default_ring_path() -> Path:
+    """A new ring file in shared memory (``/dev/shm``), or the temporary folder without it."""
+    shm = Path("/dev/shm")
+    folder = shm if shm.is_dir() and os.access(shm, os.W_OK) else Path(tempfile.gettempdir())
+    return folder / f"cutlab-live-{os.getpid()}-{time.time_ns() % 10**9}.ring"
+
+
+class _Mapped:
+    def __init__(self, path: Path, mm: mmap.mmap) -> None:
+        self.path = path
+        self._mm = mm
+        self.h = np.frombuffer(mm, np.int64, HEADER_BYTES // 8)
+
+    def _region(self, name: str) -> memoryview:
+        return memoryview(self._mm)[_OFFSET[name] : _OFFSET[name] + _SIZE[name]]
+
+    def _put_json(self, name: str, obj: Any) -> None:
+        data = json.dumps(obj, separators=(",", ":"), allow_nan=False, default=str).encode()
+        if len(data) > _SIZE[name]:
+            raise RingError(f"live ring: {name} is {len(data)} bytes, room for {_SIZE[name]}")
+        k = _SEQ[name]
+        self.h[k] += 1  # odd: being written
+        self._region(name)[: len(data)] = data
+        self.h[k + 1] = len(data)
+        self.h[k] += 1
+
+    def get_json(self, name: str) -> tuple[int, Any]:
+        """(sequence number, the object; None if never written)."""
+        k = _SEQ[name]
+        for _ in range(100):
+            s1 = int(self.h[k])
+            if s1 % 2:
+                time.sleep(0.0005)
+                continue
+            n = int(self.h[k + 1])
+            data = bytes(self._region(name)[:n])
+            if int(self.h[k]) == s1:
+                return s1, (json.loads(data) if n else None)
+        return int(self.h[k]), None
+
+    def seq(self, name: str) -> int:
+        return int(self.h[_SEQ[name]])
+
+    def close(self) -> None:
+        self.h = np.zeros(HEADER_BYTES // 8, np.int64)  # drop the views before the map
+        try:
+            self._mm.close()
+        except BufferError:  # a reader's array still points into it: the GC closes it
+            pass
+
+
+class RingWriter(_Mapped):
+    """The campaign side: creates the file; one thread writes samples, others JSON regions."""
+
+    def __init__(self, path: str | Path | None = None, sample_bytes: int = SAMPLE_BYTES) -> None:
+        p = Path(path) if path is not None else default_ring_path()
+        size = _SAMPLES_AT + int(sample_bytes)
+        try:
+            fd = os.open(p, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o600)
+            try:
+                os.ftruncate(fd, size)  # sparse: pages cost memory only once written
+                mm = mmap.mmap(fd, size)
+            finally:
+                os.close(fd)
+        except OSError as exc:
+            raise RingError(f"live ring {p}: {exc.strerror or exc}") from None
+        super().__init__(p, mm)
+        self._sample_bytes = int(sample_bytes)
+        self._rows: np.ndarray | None = None
+        self.h[_PID] = os.getpid()
+        self.heartbeat()
+        self.h[_MAGIC] = MAGIC
+
+    def heartbeat(self) -> None:
+        self.h[_HEARTBEAT_NS] = time.time_ns()
+
+    def begin_run(self, meta: dict[str, Any], n_channels: int, dtype: np.dtype) -> None:
+        """A new run (a new DAQ start): its info, and an empty sample ring of its shape."""
+        itemsize = np.dtype(dtype).itemsize
+        if itemsize not in _DTYPES:
+            raise RingError(f"live ring: samples of {dtype} (expected int16 or float64)")
+        capacity = self._sample_bytes // (n_channels * itemsize)
+        buf = np.frombuffer(self._mm, np.dtype(dtype), capacity * n_channels, _SAMPLES_AT)
+        self._rows = buf.reshape(n_channels, capacity)
+        self.h[_ROWS] = 0
+        self.h[_ROW_TO_SAMPLE] = 0
+        self.h[_CAPACITY], self.h[_CHANNELS], self.h[_ITEMSIZE] = capacity, n_channels, itemsize
+        self.put_meta(meta)
+        self.h[_GEN] += 1  # last: a reader seeing the new generation sees all of the above
+
+    def put_meta(self, meta: dict[str, Any]) -> None:
+        self._put_json("meta", meta)
+
+    def put_status(self, status: dict[str, Any]) -> None:
+        self._put_json("status", status)
+
+    def write(self, first_sample: int, data: np.ndarray) -> None:
+        """Append a DAQ block ``data`` (c, n) starting at device sample ``first_sample``."""
+        rows = self._rows
+        if rows is None:
+            return
+        n = int(data.shape[1])
+        cap = rows.shape[1]
+        w = int(self.h[_ROWS])
+        if n > cap:  # a block longer than the ring: keep its end
+            data, first_sample, n = data[:, n - cap :], first_sample + n - cap, cap
+        i = w % cap
+        k = min(n, cap - i)
+        np.copyto(rows[:, i : i + k], data[:, :k])
+        if k < n:
+            np.copyto(rows[:, : n - k], data[:, k:])
+        self.h[_ROW_TO_SAMPLE] = first_sample - w  # holes: later rows keep their device time
+        self.h[_ROWS] = w + n
+
+    def rows_so_far(self) -> np.ndarray:
+        """A copy of the current run's rows (n, c) still in the ring (oldest first)."""
+        rows = self._rows
+        if rows is None:
+            return np.zeros((0, 0))
+        w, cap = int(self.h[_ROWS]), rows.shape[1]
+        idx = np.arange(max(0, w - cap), w) % cap
+        return rows[:, idx].T.copy()
+
+    def read_command(self) -> tuple[int, Any]:
+        return self.get_json("command")
+
+    def close(self, unlink: bool = False) -> None:
+        self.h[_CLOSED] = 1
+        self.heartbeat()
+        self._rows = None
+        super().close()
+        if unlink:
+            self.path.unlink(missing_ok=True)
+
+
+class RingReader(_Mapped):
+    """The server side: reads samples, run info and status; writes commands."""
+
+    def __init__(self, path: str | Path) -> None:
+        p = Path(path)
+        try:
+            with open(p, "r+b") as f:
+                mm = mmap.mmap(f.fileno(), 0)
+        except (OSError, ValueError) as exc:
+            raise RingError(f"live ring {p}: cannot open: {exc}") from None
+        if (size := len(mm)) < _SAMPLES_AT:
+            mm.close()
+            raise RingError(f"live ring {p}: {size} bytes, not a cutlab live ring")
+        super().__init__(p, mm)
+        if int(self.h[_MAGIC]) != MAGIC:
+            self.close()
+            raise RingError(f"live ring {p}: not a cutlab live ring (bad magic)")
+
+    @property
+    def generation(self) -> int:
+        return int(self.h[_GEN])
+
+    @property
+    def rows_written(self) -> int:
+        """Rows written in the current generation (run)."""
+        return int(self.h[_ROWS])
+
+    @property
+    def writer_pid(self) -> int:
+        return int(self.h[_PID])
+
+    @property
+    def closed(self) -> bool:
+        return bool(self.h[_CLOSED])
+
+    def heartbeat_age_s(self) -> float:
+        return (time.time_ns() - int(self.h[_HEARTBEAT_NS])) / 1e9
+
+    def rows_since(
+        self, gen: int, cursor: int, most: int | None = None
+    ) -> tuple[int, int, int, np.ndarray]:
+        """Rows (n, c) of run generation ``gen`` from row ``cursor`` on (a new generation: from
+        its oldest row in the ring; ``most``: only the newest that many). Returns (generation,
+        first row, row-to-sample offset, rows)."""
+        for _ in range(10):
+            g = self.generation
+            cap, c, size = int(self.h[_CAPACITY]), int(self.h[_CHANNELS]), int(self.h[_ITEMSIZE])
+            w = int(self.h[_ROWS])
+            if g == 0 or cap <= 0 or size not in _DTYPES:
+                return g, 0, 0, np.zeros((0, max(c, 0)))
+            start = cursor if g == gen else 0
+            start = max(start, w - cap, w - most if most is not None else 0, 0)
+            buf = np.frombuffer(self._mm, _DTYPES[size], cap * c, _SAMPLES_AT).reshape(c, cap)
+            rows = buf[:, np.arange(start, w) % cap].T.copy()
+            offset = int(self.h[_ROW_TO_SAMPLE])
+            w2 = int(self.h[_ROWS])
+            if self.generation != g:
+                continue  # a new run began while copying
+            lost = max(0, w2 - cap - start)  # overwritten while copying
+            return g, start + lost, offset, rows[lost:]
+        return self.generation, cursor, 0, np.zeros((0, 0))
+
+    def send_command(self, command: dict[str, Any]) -> int:
+        """Post a command for the campaign process; returns its sequence number."""
+        seq = self.seq("command") + 2
+        self._put_json("command", {**command, "seq": seq})
+        return seq

@@ -1,0 +1,350 @@
+// cutlab live console: plain JS, no build step. Talks to /ws (frames, status, commands) and
+// /api/* (finished runs). Every value shown comes from the server (the machine state is the one
+// read back from the controller, never the button pressed).
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const COLORS = ["#1e88e5", "#e53935", "#43a047", "#8e24aa", "#fb8c00", "#00897b"];
+const WINDOW_S = 10;
+
+let ws = null;
+let frames = 0;
+let meta = null;
+let status = {};
+let plot = null;
+let plotChannels = "";
+let bins = { t: [], min: [], max: [] };
+let bands = [];
+let execBlock = -1;
+let browsing = null; // run file being browsed, or null: live
+let browseSpans = [];
+let programKey = "";
+let eventsKey = "";
+
+function fmtS(s) {
+  if (s === null || s === undefined || !isFinite(s)) return "-";
+  s = Math.max(0, Math.round(s));
+  const m = Math.floor(s / 60);
+  return m ? `${m} min ${s % 60} s` : `${s} s`;
+}
+
+function plotWidth() {
+  return Math.max(300, $("plot").clientWidth || 900);
+}
+
+// -- the plot: min/max per pixel, one band per channel, NC blocks as shaded spans ------------
+function drawBands(u) {
+  const spans = browsing ? browseSpans : bands;
+  if (!spans.length) return;
+  const ctx = u.ctx;
+  const { left, top, width, height } = u.bbox;
+  const [x0, x1] = [u.scales.x.min, u.scales.x.max];
+  ctx.save();
+  ctx.font = `${11 * devicePixelRatio}px monospace`;
+  spans.forEach((s, i) => {
+    const [blk, t0, t1raw] = s;
+    const t1 = t1raw === null ? x1 : t1raw;
+    if (t1 < x0 || t0 > x1) return;
+    const a = u.valToPos(Math.max(t0, x0), "x", true);
+    const b = u.valToPos(Math.min(t1, x1), "x", true);
+    const exec = !browsing && blk === execBlock;
+    ctx.fillStyle = exec ? "rgba(255,193,7,0.25)" : i % 2 ? "rgba(0,0,0,0.04)" : "rgba(0,0,0,0.0)";
+    ctx.fillRect(a, top, Math.max(1, b - a), height);
+    ctx.fillStyle = "rgba(0,0,0,0.25)";
+    ctx.fillRect(a, top, 1, height);
+    if (b - a > 24 * devicePixelRatio) {
+      ctx.fillStyle = "#555";
+      ctx.fillText(String(blk), a + 3, top + 12 * devicePixelRatio);
+    }
+  });
+  ctx.restore();
+}
+
+function makePlot(channels, unit) {
+  const key = channels.join(",") + unit;
+  if (plot && plotChannels === key) return;
+  if (plot) plot.destroy();
+  plotChannels = key;
+  const series = [{ label: "t, s" }];
+  const bandsOpt = [];
+  channels.forEach((name, c) => {
+    const color = COLORS[c % COLORS.length];
+    series.push({ label: `${name} max, ${unit}`, stroke: color, width: 1 });
+    series.push({ label: `${name} min, ${unit}`, stroke: color, width: 1 });
+    bandsOpt.push({ series: [1 + 2 * c, 2 + 2 * c], fill: color + "55" });
+  });
+  plot = new uPlot(
+    {
+      width: plotWidth(),
+      height: 360,
+      series,
+      bands: bandsOpt,
+      scales: { x: { time: false } },
+      axes: [{ label: "run clock, s" }, { label: unit }],
+      hooks: { drawClear: [drawBands] },
+      legend: { live: false },
+    },
+    [[]].concat(channels.flatMap(() => [[], []])),
+    $("plot"),
+  );
+}
+
+function setPlotData(t, mins, maxs) {
+  if (!plot) return;
+  const data = [t];
+  for (let c = 0; c < mins.length; c++) data.push(maxs[c], mins[c]);
+  plot.setData(data);
+}
+
+// -- live bins: a bin may come again (it was still growing): the newer one wins --------------
+function addBins(b) {
+  if (!b.t.length) return;
+  const first = b.t[0];
+  let keep = bins.t.length;
+  while (keep > 0 && bins.t[keep - 1] >= first - 1e-9) keep--;
+  bins.t = bins.t.slice(0, keep).concat(b.t);
+  for (let c = 0; c < b.min.length; c++) {
+    bins.min[c] = (bins.min[c] || []).slice(0, keep).concat(b.min[c]);
+    bins.max[c] = (bins.max[c] || []).slice(0, keep).concat(b.max[c]);
+  }
+  const tEnd = bins.t[bins.t.length - 1];
+  let drop = 0;
+  while (drop < bins.t.length && bins.t[drop] < tEnd - WINDOW_S) drop++;
+  if (drop) {
+    bins.t = bins.t.slice(drop);
+    bins.min = bins.min.map((a) => a.slice(drop));
+    bins.max = bins.max.map((a) => a.slice(drop));
+  }
+}
+
+// -- the program view ------------------------------------------------------------------------
+function showProgram(lines, name) {
+  const key = name + ":" + lines.length;
+  if (key === programKey) return;
+  programKey = key;
+  $("program-name").textContent = name || "";
+  const ol = $("program");
+  ol.innerHTML = "";
+  for (const [block, line, text] of lines) {
+    const li = document.createElement("li");
+    li.value = line;
+    li.dataset.block = block;
+    li.textContent = text;
+    ol.appendChild(li);
+  }
+}
+
+function highlightBlock(ol, block) {
+  let hit = null;
+  for (const li of ol.children) {
+    const on = Number(li.dataset.block) === block;
+    li.classList.toggle("exec", on);
+    if (on) hit = li;
+  }
+  if (hit) hit.scrollIntoView({ block: "nearest" });
+}
+
+// -- status ----------------------------------------------------------------------------------
+function showStatus(s) {
+  status = s || {};
+  $("campaign").textContent = `cutlab console: ${s.campaign || ""}`;
+  $("run-progress").textContent = s.runs ? `${s.run}/${s.runs}` : "-";
+  $("run-name").textContent = s.run_name || "";
+  $("elapsed").textContent = fmtS(s.elapsed_s);
+  $("remaining").textContent = fmtS(s.remaining_s);
+  $("phase").textContent = s.phase || "";
+  const m = s.machine;
+  if (m) {
+    const st = $("machine-state");
+    st.textContent = m.state || "-";
+    st.className = "state " + (m.state || "").split(":")[0];
+    $("pos").textContent = m.pos_mm ? m.pos_mm.map((v) => v.toFixed(3)).join(", ") : "-";
+    $("feed").textContent = m.feed_mm_min ?? "-";
+    $("spindle").textContent = m.spindle_rpm ?? "-";
+    $("source").textContent = m.source ? `(${m.source})` : "";
+  }
+  const str = s.stream;
+  if (str) {
+    $("protocol").textContent = str.protocol || "";
+    $("sent").textContent = str.sent;
+    $("acked").textContent = str.acknowledged;
+    $("executing").textContent = str.executing;
+    $("executed").textContent = str.executed;
+    $("done").textContent = `${str.blocks_done}/${str.blocks_total}`;
+  }
+  if (s.executing_block !== undefined) {
+    execBlock = s.executing_block;
+    $("executing-block").textContent = execBlock;
+    highlightBlock($("program"), execBlock);
+  }
+  if (s.bands) bands = s.bands;
+  showEvents(s.events || []);
+  if (s.command && s.command.seq) {
+    $("cmd-note").textContent = `${s.command.cmd}: ${s.command.message}`;
+  }
+}
+
+function showEvents(events) {
+  const last = events[events.length - 1];
+  const key = events.length + ":" + (last ? last.wall : "");
+  if (key === eventsKey) return;
+  eventsKey = key;
+  const ul = $("events");
+  ul.innerHTML = "";
+  for (const e of events) {
+    const li = document.createElement("li");
+    li.className = e.kind;
+    const t = e.t_s === null ? "" : ` t=${e.t_s.toFixed(3)} s`;
+    li.textContent = `run ${e.run}${t} ${e.kind}: ${e.message}`;
+    ul.appendChild(li);
+  }
+  ul.scrollTop = ul.scrollHeight;
+}
+
+function showLive(live) {
+  const el = $("ended");
+  if (!live.live) {
+    el.textContent = "no campaign running here: browse its runs";
+  } else if (live.ended === "gone") {
+    el.textContent =
+      "the campaign process has ended without closing (killed or crashed); the last state is shown";
+  } else if (live.ended === "closed") {
+    el.textContent = "the campaign has ended";
+  }
+  el.classList.toggle("hidden", live.live && !live.ended);
+}
+
+function showRuns(runs) {
+  const ul = $("runs");
+  ul.innerHTML = "";
+  for (const r of runs) {
+    const li = document.createElement("li");
+    li.textContent = `${r.file}: ${r.status}${r.reason ? " (" + r.reason.slice(0, 60) + ")" : ""}`;
+    li.title = r.reason || "";
+    li.onclick = () => browse(r.file);
+    ul.appendChild(li);
+  }
+}
+
+// -- the websocket ---------------------------------------------------------------------------
+function onMessage(ev) {
+  const msg = JSON.parse(ev.data);
+  if (msg.type === "cmd") {
+    $("cmd-note").textContent = `${msg.cmd}: ${msg.message}; waiting for the machine's state`;
+    return;
+  }
+  if (msg.type !== "frame") return;
+  frames += 1;
+  $("frame-count").textContent = frames;
+  if (msg.live) showLive(msg.live);
+  if (msg.runs) showRuns(msg.runs);
+  if (msg.meta) {
+    meta = msg.meta;
+    if (msg.reset) bins = { t: [], min: [], max: [] };
+    showProgram(meta.program || [], meta.program_name || meta.name || "");
+    if (!browsing) makePlot(meta.channels, "N");
+  }
+  if (msg.status) showStatus(msg.status);
+  if (msg.bins) addBins(msg.bins);
+  if (!browsing && plot && (msg.bins || msg.status)) setPlotData(bins.t, bins.min, bins.max);
+}
+
+function connect() {
+  const proto = location.protocol === "https:" ? "wss" : "ws";
+  ws = new WebSocket(`${proto}://${location.host}/ws`);
+  ws.onopen = () => {
+    $("overlay").classList.add("hidden");
+    ws.send(JSON.stringify({ type: "hello", px: plotWidth(), window_s: WINDOW_S }));
+  };
+  ws.onmessage = onMessage;
+  ws.onclose = () => {
+    $("overlay").classList.remove("hidden");
+    setTimeout(connect, 1000);
+  };
+}
+
+// -- commands: confirmation first, then the state read back shows what happened --------------
+const QUESTIONS = {
+  hold: "Feed hold now? The axes stop; the spindle keeps turning.",
+  resume: "Resume (cycle start)? The cut continues where it stopped.",
+  abort: "Abort the run and end the campaign? Feed hold, then the program is stopped.",
+};
+
+function ask(cmd) {
+  const dlg = $("confirm");
+  $("confirm-text").textContent = QUESTIONS[cmd];
+  $("confirm-yes").onclick = () => {
+    dlg.close();
+    if (ws && ws.readyState === WebSocket.OPEN) {
+      ws.send(JSON.stringify({ type: "cmd", cmd }));
+      $("cmd-note").textContent = `${cmd}: sending ...`;
+    } else {
+      $("cmd-note").textContent = `${cmd}: not sent, no connection`;
+    }
+  };
+  $("confirm-no").onclick = () => dlg.close();
+  dlg.showModal();
+}
+
+for (const cmd of ["hold", "resume", "abort"]) $(cmd).onclick = () => ask(cmd);
+
+// -- finished runs: the whole trace, then block by block -------------------------------------
+async function getJSON(url) {
+  const r = await fetch(url);
+  const j = await r.json();
+  if (!r.ok) throw new Error(j.error || r.statusText);
+  return j;
+}
+
+async function showTrace(file, t0, t1) {
+  const q = new URLSearchParams({ file, px: String(plotWidth()) });
+  if (t0 !== undefined) q.set("t0", t0);
+  if (t1 !== undefined && t1 !== null) q.set("t1", t1);
+  const tr = await getJSON(`/api/trace?${q}`);
+  makePlot(tr.channels, tr.unit);
+  setPlotData(tr.t, tr.min, tr.max);
+}
+
+async function browse(file) {
+  try {
+    const run = await getJSON(`/api/run?file=${encodeURIComponent(file)}`);
+    browsing = file;
+    browseSpans = run.blocks.filter((b) => b.t0 !== null).map((b) => [b.block, b.t0, b.t1]);
+    $("browse").classList.remove("hidden");
+    $("browse-name").textContent = file;
+    $("browse-info").textContent =
+      `${run.status}${run.reason ? ": " + run.reason : ""}; ${run.duration_s.toFixed(2)} s, ` +
+      `${run.rate_hz} Hz, ${run.events.length} events`;
+    const ol = $("browse-blocks");
+    ol.innerHTML = "";
+    for (const b of run.blocks) {
+      const li = document.createElement("li");
+      li.value = b.line;
+      li.dataset.block = b.block;
+      li.textContent = b.text;
+      li.onclick = () => {
+        highlightBlock(ol, b.block);
+        showTrace(file, b.t0, b.t1);
+      };
+      ol.appendChild(li);
+    }
+    await showTrace(file);
+  } catch (e) {
+    $("browse-info").textContent = `cannot open ${file}: ${e.message}`;
+    $("browse").classList.remove("hidden");
+  }
+}
+
+$("browse-live").onclick = () => {
+  browsing = null;
+  $("browse").classList.add("hidden");
+  if (meta) {
+    plotChannels = "";
+    makePlot(meta.channels, "N");
+    setPlotData(bins.t, bins.min, bins.max);
+  }
+};
+
+window.addEventListener("resize", () => plot && plot.setSize({ width: plotWidth(), height: 360 }));
+makePlot(["Fx", "Fy", "Fz"], "N");
+connect();

@@ -1,0 +1,189 @@
+"""The live console without a browser: the shared-memory ring, the server's frames, commands and
+run browser (Starlette's TestClient), the command line's bad input.
+
+Expected values come from the generators here (a ramp, a sine, hand-made blocks), not from the
+console's own binning.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from analysis.runs import file as rf
+from rig.console.ring import RingError, RingReader, RingWriter
+from rig.daq import DaqInfo
+
+ROOT = Path(__file__).resolve().parent.parent
+RATE_HZ = 1000.0
+
+
+def _meta(c: int = 3, zero: list[float] | None = None) -> dict:
+    return {"campaign": "t", "run": 1, "runs": 2, "name": "a", "channels": ["Fx", "Fy", "Fz"][:c],
+            "rate_hz": RATE_HZ, "t0_s": 5.0, "sample_format": rf.SAMPLE_FORMAT_VOLTS,
+            "scaling_coeff": None, "volts_to_n": (np.eye(c) * 100.0).tolist(), "zero_v": zero,
+            "program": []}  # fmt: skip
+
+
+def test_ring_round_trip_wraps_and_drops_what_was_overwritten(tmp_path: Path) -> None:
+    w = RingWriter(tmp_path / "r.ring", sample_bytes=3 * 8 * 100)  # 100 rows of 3 float64
+    r = RingReader(w.path)
+    w.begin_run(_meta(), 3, np.dtype(np.float64))
+    ramp = np.arange(250, dtype=float)
+    for k in range(0, 250, 30):  # blocks of 30 samples, the ring wraps twice
+        n = min(30, 250 - k)
+        w.write(k, np.vstack([ramp[k : k + n], -ramp[k : k + n], ramp[k : k + n] * 2]))
+    gen, first, offset, rows = r.rows_since(-1, 0)
+    assert gen == 1 and first == 150 and offset == 0  # the last 100 rows are left
+    assert np.array_equal(rows[:, 0], ramp[150:]) and np.array_equal(rows[:, 1], -ramp[150:])
+    gen, first, _, rows = r.rows_since(1, 240)
+    assert first == 240 and np.array_equal(rows[:, 2], 2 * ramp[240:])
+    # a hole in the device samples: later rows keep their device time
+    w.write(300, np.ones((3, 10)))
+    _, first, offset, rows = r.rows_since(1, 250)
+    assert first == 250 and first + offset == 300 and len(rows) == 10
+    # JSON regions and commands
+    w.put_status({"phase": "running", "run": 1})
+    assert r.get_json("status")[1] == {"phase": "running", "run": 1}
+    seq = r.send_command({"cmd": "hold"})
+    assert w.read_command() == (seq, {"cmd": "hold", "seq": seq})
+    assert r.writer_pid == os.getpid() and r.heartbeat_age_s() < 5 and not r.closed
+    w.close()
+    assert r.closed
+    r.close()
+
+
+def test_not_a_ring_is_one_clear_error(tmp_path: Path) -> None:
+    p = tmp_path / "x.ring"
+    p.write_bytes(b"\0" * 10)
+    with pytest.raises(RingError, match="not a cutlab live ring"):
+        RingReader(p)
+    with pytest.raises(RingError, match="cannot open"):
+        RingReader(tmp_path / "missing.ring")
+
+
+def _live_folder(tmp_path: Path) -> tuple[Path, RingWriter]:
+    folder = tmp_path / "camp"
+    (folder / "runs").mkdir(parents=True)
+    w = RingWriter(tmp_path / "live.ring")
+    (folder / "live.json").write_text(json.dumps({"ring": str(w.path), "pid": os.getpid()}))
+    return folder, w
+
+
+def test_websocket_frames_carry_min_max_per_pixel_and_the_status(tmp_path: Path) -> None:
+    from starlette.testclient import TestClient
+
+    from rig.console.server import make_app
+
+    folder, w = _live_folder(tmp_path)
+    w.begin_run(_meta(zero=[0.5, 0.0, 0.0]), 3, np.dtype(np.float64))
+    n = 2000  # 2 s at 1 kHz
+    t = np.arange(n) / RATE_HZ
+    fx = 0.5 + np.sin(2 * np.pi * 3.0 * t)  # volts; zero 0.5 V, 100 N/V
+    w.write(0, np.vstack([fx, np.zeros(n), np.full(n, 0.25)]))
+    w.put_status({"phase": "running", "run": 1, "runs": 2, "executing_block": 7})
+    with TestClient(make_app(folder)) as client:
+        assert client.get("/api/health").json()["live"] is True
+        page = client.get("/")
+        assert page.status_code == 200 and 'data-testid="frame-count"' in page.text
+        assert client.get("/static/uPlot.iife.min.js").status_code == 200
+        with client.websocket_connect("/ws") as ws:
+            ws.send_json({"type": "hello", "px": 100, "window_s": 2.0})  # 20 samples a bin
+            msgs = [ws.receive_json() for _ in range(4)]
+            # the frame after the hello starts over at its resolution
+            bins = [m["bins"] for m in msgs if m.get("reset") and "bins" in m][-1]
+            status = next(m["status"] for m in msgs if "status" in m)
+            assert status["executing_block"] == 7
+            ws.send_json({"type": "cmd", "cmd": "hold"})
+            reply = next(m for m in (ws.receive_json() for _ in range(5)) if m["type"] == "cmd")
+    assert reply["ok"] and w.read_command()[1]["cmd"] == "hold"
+    # Independent reference: 100 bins of 20 samples each over the 2 s, forces in N.
+    ref = 100.0 * (fx - 0.5).reshape(100, 20)
+    k = len(bins["t"]) - 1  # the last bin may still be growing: compare the complete ones
+    assert np.allclose(bins["t"][:k], 5.0 + np.arange(k) * 0.02)
+    assert np.allclose(bins["max"][0][:k], ref.max(axis=1)[:k], atol=0.06)
+    assert np.allclose(bins["min"][0][:k], ref.min(axis=1)[:k], atol=0.06)
+    assert np.allclose(bins["max"][2][:k], 25.0)
+    w.close(unlink=True)
+
+
+def test_a_command_is_refused_when_no_campaign_runs(tmp_path: Path) -> None:
+    from starlette.testclient import TestClient
+
+    from rig.console.server import make_app
+
+    folder, w = _live_folder(tmp_path)
+    w.close()  # the campaign ended
+    with TestClient(make_app(folder)) as client, client.websocket_connect("/ws") as ws:
+        ws.send_json({"type": "cmd", "cmd": "abort"})
+        reply = next(m for m in (ws.receive_json() for _ in range(5)) if m["type"] == "cmd")
+        assert not reply["ok"] and "no campaign" in reply["message"]
+    # a page elsewhere cannot reach the feed hold
+    with TestClient(make_app(folder)) as client:
+        with pytest.raises(Exception):  # noqa: B017 - starlette raises its disconnect
+            with client.websocket_connect("/ws", headers={"origin": "http://evil.example"}) as ws:
+                ws.receive_json()
+
+
+def _run_file(path: Path) -> tuple[np.ndarray, float]:
+    """A run file of one channel: a ramp of 3000 samples at 1 kHz, three blocks."""
+    from rig.log import RunWriter
+
+    info = DaqInfo("test", ("t/ai0",), ("Fx",), RATE_HZ, rf.SAMPLE_FORMAT_VOLTS, 10.0, 500)
+    data = np.arange(3000, dtype=float)[None, :] / 1000.0
+    t0 = 2.0
+    with RunWriter(path, info, clock=lambda: t0) as w:
+        w.on_start(info, t0)
+        for k in range(0, 3000, 500):
+            w.put_block(k, data[:, k : k + 500])
+        w.set_program("G0 X0\nG1 X10 F100\nM30\n", "p.nc")
+        w.append_blocks([0, 1, 2], [1, 2, 3], ["G0 X0", "G1 X10 F100", "M30"],
+                        [2.0, 2.0, 2.0], exec_s=[2.0, 2.5, 4.0])  # fmt: skip
+    return data[0], t0
+
+
+def test_run_browser_lists_runs_and_gives_traces_by_block(tmp_path: Path) -> None:
+    from starlette.testclient import TestClient
+
+    from rig.console.server import make_app
+
+    folder = tmp_path / "camp"
+    (folder / "runs").mkdir(parents=True)
+    volts, t0 = _run_file(folder / "runs" / "000-a.h5")
+    with TestClient(make_app(folder)) as client:
+        runs = client.get("/api/runs").json()["runs"]
+        assert runs == [{"file": "000-a.h5", "status": "success", "reason": ""}]
+        info = client.get("/api/run", params={"file": "000-a.h5"}).json()
+        spans = [(b["block"], b["t0"], b["t1"]) for b in info["blocks"]]
+        assert spans == [(0, 2.0, 2.5), (1, 2.5, 4.0), (2, 4.0, 5.0)]
+        assert info["program"] == ["G0 X0", "G1 X10 F100", "M30"]
+        # block 1 (2.5 .. 4.0 s) in 15 bins of 100 samples: volts ramp 0.5 .. 2.0 V
+        tr = client.get("/api/trace", params={"file": "000-a.h5", "t0": 2.5, "t1": 4.0,
+                                              "px": 15}).json()  # fmt: skip
+        assert tr["unit"] == "V"
+        ref = volts[500:2000].reshape(15, 100)
+        assert np.allclose(tr["min"][0], ref.min(axis=1), atol=0.011)
+        assert np.allclose(tr["max"][0], ref.max(axis=1), atol=0.011)
+        bad = client.get("/api/run", params={"file": "../../etc/passwd"})
+        assert bad.status_code == 404 and "no run file" in bad.json()["error"]
+    # a single run file is a target too
+    with TestClient(make_app(folder / "runs" / "000-a.h5")) as client:
+        assert [r["file"] for r in client.get("/api/runs").json()["runs"]] == ["000-a.h5"]
+
+
+def test_console_command_bad_target_is_one_line(tmp_path: Path) -> None:
+    p = subprocess.run(
+        [sys.executable, "-c", "from rig.cli.console import register, _console; import argparse;"
+         "from rig.cli import main; import sys; sys.exit(main(sys.argv[1:]))",
+         "console", str(tmp_path / "nothing"), "--port", "8765"],
+        cwd=ROOT, capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert p.returncode == 2 and "Traceback" not in p.stderr
+    assert p.stderr.startswith("cutlab: error: console:") and "campaign folder" in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1

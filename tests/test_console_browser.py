@@ -1,0 +1,212 @@
+"""The live console in a real browser: a short simulated campaign run with the console beside it,
+the page driven by headless Chromium over the Chrome DevTools protocol.
+
+The DevTools protocol is spoken over a websocket with the ``websockets`` package the console
+already needs: no selenium, no chromedriver whose version must match the browser.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import time
+import urllib.request
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from analysis.runs import file as rf
+
+DATA = Path(__file__).parent / "data" / "campaign"
+ROOT = Path(__file__).resolve().parent.parent
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+pytestmark = [
+    pytest.mark.browser,
+    pytest.mark.skipif(CHROMIUM is None, reason="no chromium: apt-get install -y chromium "
+                       "chromium-driver"),  # fmt: skip
+]
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+class Page:
+    """A Chromium page over the DevTools protocol (Runtime.evaluate is all this test needs)."""
+
+    def __init__(self, ws_url: str) -> None:
+        from websockets.sync.client import connect
+
+        self.ws = connect(ws_url, max_size=None, open_timeout=20).__enter__()
+        self.n = 0
+
+    def call(self, method: str, **params: Any) -> dict[str, Any]:
+        self.n += 1
+        self.ws.send(json.dumps({"id": self.n, "method": method, "params": params}))
+        while True:
+            msg = json.loads(self.ws.recv(timeout=20))
+            if msg.get("id") == self.n:
+                if "error" in msg:
+                    raise AssertionError(f"{method}: {msg['error']}")
+                return msg.get("result", {})
+
+    def js(self, expr: str) -> Any:
+        r = self.call("Runtime.evaluate", expression=expr, returnByValue=True)
+        if "exceptionDetails" in r:
+            raise AssertionError(f"{expr}: {r['exceptionDetails']}")
+        return r["result"].get("value")
+
+    def text(self, testid: str) -> str:
+        q = f"document.querySelector('[data-testid=\"{testid}\"]')"
+        return self.js(f"{q}?.textContent ?? ''")
+
+    def click(self, testid: str) -> None:
+        self.js(f"document.querySelector('[data-testid=\"{testid}\"]').click()")
+
+    def wait(self, what: str, pred: Callable[[], bool], timeout_s: float = 30.0) -> None:
+        t_end = time.monotonic() + timeout_s
+        while not pred():
+            if time.monotonic() > t_end:
+                seen = {k: self.text(k) for k in ("machine-state", "run-progress", "frame-count")}
+                note = self.js("document.getElementById('cmd-note').textContent")
+                raise AssertionError(f"timed out waiting for {what}: page {seen}, {note!r}")
+            time.sleep(0.05)
+
+
+@contextlib.contextmanager
+def _chromium(tmp_path: Path) -> Iterator[tuple[str, subprocess.Popen]]:
+    profile = tmp_path / "chromium-profile"
+    args = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+            "--no-first-run", "--disable-background-networking", "--disable-component-update",
+            "--disable-sync", f"--user-data-dir={profile}", "--remote-debugging-port=0",
+            "about:blank"]  # fmt: skip
+    proc = subprocess.Popen(args, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        port_file = profile / "DevToolsActivePort"
+        t_end = time.monotonic() + 30
+        while not (port_file.exists() and port_file.read_text().strip()):
+            if time.monotonic() > t_end or proc.poll() is not None:
+                raise AssertionError("chromium did not start its DevTools endpoint")
+            time.sleep(0.05)
+        port = port_file.read_text().split()[0]
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=10) as r:
+            page = next(t for t in json.load(r) if t["type"] == "page")
+        yield page["webSocketDebuggerUrl"], proc
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+
+
+# The campaign the CLI contract runs (`cutlab campaign run CONFIG --live --port P`); until the
+# lead wires --live into rig/cli/campaign.py the same calls are made from this script.
+_SCRIPT = """
+import sys
+from rig.campaign import load_campaign, run_campaign
+from rig.console import live_console
+c = load_campaign(sys.argv[1])
+with live_console(c, port=int(sys.argv[2])) as live:
+    res = run_campaign(c, progress=False, **live.run_kwargs())
+sys.exit(130 if res.stopped else 0)
+"""
+
+
+def _has_live_option() -> bool:
+    p = subprocess.run([sys.executable, "-m", "rig.cli", "campaign", "run", "--help"], cwd=ROOT,
+                       capture_output=True, text=True, timeout=60)  # fmt: skip
+    return "--live" in p.stdout
+
+
+def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path) -> None:
+    pytest.importorskip("starlette")
+    pytest.importorskip("websockets")
+    text = (DATA / "quick.toml").read_text()
+    text = text.replace('"OUT"', json.dumps(str(tmp_path / "out"))).replace("FAULTS", "")
+    cfg = tmp_path / "live.toml"
+    cfg.write_text(text.replace("speed = 50", "speed = 1"))  # slow enough to press buttons
+    port = _free_port()
+    if _has_live_option():
+        cmd = [sys.executable, "-m", "rig.cli", "campaign", "run", str(cfg), "--live", "--port",
+               str(port), "--quiet", "--no-report"]  # fmt: skip
+    else:
+        cmd = [sys.executable, "-c", _SCRIPT, str(cfg), str(port)]
+    # Not a pipe: the console server (the campaign's child) would hold it open. A server left
+    # by a failed test goes 2 s after the campaign process.
+    log = (tmp_path / "campaign.log").open("w")
+    env = {**os.environ, "CUTLAB_CONSOLE_LINGER_S": "2"}
+    camp = subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, env=env)
+    try:
+        url = f"http://127.0.0.1:{port}/"
+        t_end = time.monotonic() + 60
+        while True:
+            with contextlib.suppress(OSError):
+                urllib.request.urlopen(url + "api/health", timeout=1).close()
+                break
+            assert camp.poll() is None, (tmp_path / "campaign.log").read_text()
+            assert time.monotonic() < t_end, "the console did not come up"
+            time.sleep(0.1)
+        with _chromium(tmp_path) as (ws_url, _):
+            page = Page(ws_url)
+            page.call("Page.enable")
+            page.call("Page.navigate", url=url)
+            page.wait("frames", lambda: int(page.text("frame-count") or 0) > 5)
+            n0 = int(page.text("frame-count"))
+            time.sleep(0.5)
+            n1 = int(page.text("frame-count"))
+            assert n1 - n0 >= 8, f"{n1 - n0} frames in 0.5 s"  # 25 a second, some slack
+            seen: set[str] = set()
+
+            def blocks_seen() -> bool:
+                seen.add(page.text("executing-block"))
+                return len(seen - {"-", "-1"}) >= 3
+
+            page.wait("the executing block to change", blocks_seen, 60)
+            page.wait("run 2/2", lambda: page.text("run-progress") == "2/2", 60)
+            page.wait("the cut of run 2", lambda: int(page.text("executing-block")) >= 3)
+            assert page.text("machine-state") == "Run"
+            # hold, with confirmation: the state shown is the one read back from the control
+            page.click("hold")
+            assert page.js("document.getElementById('confirm').open") is True
+            assert page.text("machine-state") == "Run"  # nothing sent before the confirmation
+            page.click("confirm-yes")
+            page.wait("Hold read back", lambda: page.text("machine-state").startswith("Hold"))
+            page.click("resume")
+            page.click("confirm-yes")
+            page.wait("Run read back", lambda: page.text("machine-state") == "Run")
+            page.click("abort")
+            page.click("confirm-yes")
+            events = page.js("[...document.querySelectorAll('[data-testid=events] li')]"
+                             ".map(e => e.textContent)")  # fmt: skip
+            assert any("feed hold" in e for e in events) and any("cycle start" in e for e in events)
+            camp.wait(timeout=60)
+            assert camp.returncode == 130, (tmp_path / "campaign.log").read_text()
+    finally:
+        if camp.poll() is None:
+            camp.terminate()  # SIGTERM: the runner stops safely, the console closes
+            try:
+                camp.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                camp.kill()
+                camp.wait()
+        log.close()
+    runs = sorted((tmp_path / "out" / "quick" / "runs").glob("*.h5"))
+    assert [rf.load_run(p).status for p in runs] == ["success", "abort"]
+    last = rf.load_run(runs[1])
+    kinds = list(last.events["kind"])
+    assert kinds.count("pause") >= 1 and "resume" in kinds
+    messages = " ".join(last.events["message"])
+    assert "console: feed hold" in messages and "console: abort requested" in messages
+    assert not (tmp_path / "out" / "quick" / "live.json").exists()

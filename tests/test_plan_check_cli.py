@@ -1,0 +1,107 @@
+"""`cutlab plan check`, and the limits in `plan feed` / `plan rough` (issue 22): the command
+contract (``violations``: block, limit, value), the seed 000 deep level, --limit."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from analysis.rules import derive_rule, save_rule, slot_load_percent
+
+
+def cli(argv: list[str], capsys) -> tuple[int, str, str]:
+    from rig.cli import main
+
+    rc = main(argv)
+    out = capsys.readouterr()
+    return rc, out.out, out.err
+
+
+# The deepest level of seed 000's bisection plan as one slot: phi20-flat (HSS, 4 teeth) 37.8 mm
+# deep, 300 mm/min at 1000 rpm (fz 0.075 mm) in al6061-t6.
+DEEP = "G21 G90 G17\nS1000 M3\nG0 X-15 Y0 Z5\nG1 Z-37.8 F100\nG1 X100 F300\nG0 Z5\nM30\n"
+
+
+def test_check_flags_the_deep_hss_slot(tmp_path: Path, capsys) -> None:
+    prog = tmp_path / "deep.nc"
+    prog.write_text(DEEP)
+    png = tmp_path / "check.png"
+    rc, so, _ = cli(["plan", "check", str(prog), "--tool", "phi20-flat", "--material",
+                     "al6061-t6", "--stock", "box:-30,110,-20,20,-40,0", "--spacing", "0.5",
+                     "--json", "--plot", str(png)], capsys)  # fmt: skip
+    assert rc == 0 and png.exists()
+    out = json.loads(so)
+    slot = [v for v in out["violations"] if v["block"] == 4]
+    assert {v["limit"] for v in slot} == {"deflection"}
+    v = slot[0]
+    # a full slot of 37.8 mm: about 4.0 kN sideways on a 9383 N/mm stick-out (3 E I / L^3,
+    # HSS 210 GPa, d_e 16 mm, L 60 mm) -> about 0.43 mm against the 0.1 mm allowed
+    assert v["allowed"] == 0.1 and 0.35 < v["value"] < 0.5 and v["margin_pct"] < -200
+    assert out["limits"]["base_rpm"] == pytest.approx(750.3, abs=0.1)  # 11 kW / 140 N m
+
+
+def test_check_refuses_a_bad_lobes_file(tmp_path: Path, capsys) -> None:
+    prog = tmp_path / "deep.nc"
+    prog.write_text(DEEP)
+    lobes = tmp_path / "lobes.csv"
+    lobes.write_text("spindle_rpm,depth_limit_mm\n1000,x\n")
+    rc, _, se = cli(["plan", "check", str(prog), "--tool", "phi20-flat", "--material",
+                     "al6061-t6", "--lobes", str(lobes)], capsys)  # fmt: skip
+    assert rc == 2
+    assert se.strip().splitlines()[-1] == (
+        f"cutlab: error: {lobes}:2: depth_limit_mm = x: expected > 0 (mm) or empty"
+    )
+
+
+STEP = """%
+O0431
+N10 G21 G90 G17
+N15 S2000 M3
+N20 G0 X-20. Y30. Z5.
+N30 G1 Z-0.7 F1000
+N40 G1 X215.
+N50 G0 Z50.
+N60 M30
+%
+"""
+
+
+def test_feed_limit_leaves_no_violation(tmp_path: Path, capsys) -> None:
+    (tmp_path / "step.nc").write_text(STEP)
+    save_rule(derive_rule("r", 100, 1000, 3500, slot_load_percent("ball", 30, 0.7, 30)),
+              tmp_path / "rule.toml")  # fmt: skip
+    base = ["plan", "feed", str(tmp_path / "step.nc"), "--rules", str(tmp_path / "rule.toml"),
+            "--tool", "phi30-ball", "--stock", "box:-30,230,0,60,-10,0", "--spacing", "0.5",
+            "--material", "gm241", "--json"]  # fmt: skip
+    # the 0.7 mm slot of the phi 30 ball in GM241 takes about 0.077 kW at the rule's feed
+    machine = tmp_path / "m.toml"
+    text = (Path(__file__).parents[1] / "configs" / "machines" / "ace-h63.toml").read_text()
+    machine.write_text(text.replace("spindle_power_kw = 11", "spindle_power_kw = 0.05"))
+    rc, so, _ = cli(base + ["-o", str(tmp_path / "a.nc"), "--machine", str(machine)], capsys)
+    free = json.loads(so)
+    assert rc == 0 and free["violations"]
+    assert {v["limit"] for v in free["violations"]} == {"power"}
+    rc, so, _ = cli(base + ["-o", str(tmp_path / "b.nc"), "--machine", str(machine), "--limit"],
+                    capsys)  # fmt: skip
+    capped = json.loads(so)
+    assert rc == 0 and capped["violations"] == []
+    assert capped["time_after_s"] > free["time_after_s"]
+    assert any("limits cap the feed" in n for n in capped["notes"])
+
+
+@pytest.mark.slow
+def test_rough_seed000_deep_level_is_split_within_every_limit(tmp_path: Path, capsys) -> None:
+    """The 37.8 mm level of seed 000 (HSS phi 20) breaks the deflection limit; --limit splits
+    it and the program is then within every limit, at a cost in path and time."""
+    args = ["plan", "rough", "seed000-bump", "--machine", "ace-h63", "--no-png", "--json",
+            "-o", str(tmp_path / "b.nc"), "--limit"]  # fmt: skip
+    rc, so, _ = cli(args, capsys)
+    res = json.loads(so)
+    assert rc == 0 and res["violations"] == []
+    lim = res["limits"]
+    assert lim["before"]["violations"] > 0
+    assert any(s["height_mm"] == pytest.approx(37.795) for s in lim["levels_split"])
+    assert lim["path_added_mm"] > 0 and lim["time_lost_s"] > 0
+    assert res["check"]["ok"]
