@@ -290,10 +290,6 @@ class FileFault:
     marks: list = field(default_factory=list)
 
 
-def _xfail(owner: str) -> list:
-    return [pytest.mark.xfail(strict=True, reason=f"owner: {owner}")]
-
-
 FILE_FAULTS = [
     FileFault("data info truncated h5", _truncated_run, lambda i, f, t: ["data", "info", f]),
     FileFault("data plot truncated h5", _truncated_run,
@@ -347,14 +343,12 @@ FILE_FAULTS = [
     FileFault("nc plot unknown image type", lambda i, t: PROGRAM,
               lambda i, f, t: ["nc", "plot", f, "-o", t / "p.png-x"], names=("png-x",)),
     FileFault("data plot unknown image type", lambda i, t: i.runs[0],
-              lambda i, f, t: ["data", "plot", f, "-o", t / "d.png-x"], names=("png-x",),
-              marks=_xfail("rig/cli/data.py or analysis/runs/plot.py: matplotlib's ValueError "
-                           "for an unknown image suffix is a traceback")),
+              lambda i, f, t: ["data", "plot", f, "-o", t / "d.png-x"], names=("png-x",)),
     FileFault("data info NaN sample", _nan_run, lambda i, f, t: ["data", "info", f], code=0),
-    # the run is rejected with the reason and the fit refused (exit 1), no traceback
+    # the fit is refused naming the sample (exit 2), no traceback
     FileFault("analyze forces NaN sample", _nan_run,
               lambda i, f, t: ["analyze", "forces", f, i.runs[1], "--tool", "seed003-facemill"],
-              code=1),
+              names=("sample", "finite")),
     FileFault("dnc send lost port", lambda i, t: i.slot,
               lambda i, f, t: ["dnc", "send", f, "--port", "/dev/ttyNOPE-cutlab",
                                "--protocol", "grbl", "--no-progress"], names=("ttyNOPE",)),

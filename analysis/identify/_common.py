@@ -197,7 +197,10 @@ def reduce_run(
     if x.ndim != 2 or x.shape[1] != 3:
         raise AnalysisError(f"run {run.name}: forces have shape {x.shape}: expected (n, 3) N")
     if not np.all(np.isfinite(x)):
-        raise AnalysisError(f"run {run.name}: forces hold NaN or inf samples")
+        k = int(np.argmax(~np.isfinite(x).all(axis=1)))
+        raise AnalysisError(
+            f"run {run.name}: sample {k} holds {x[k].tolist()} N: forces must be finite numbers"
+        )
     c = run.conditions
     try:
         try:
@@ -527,6 +530,13 @@ def reduce_run_file(
     del meta
     stats = RevolutionStats(rate, c.spindle_rpm, n, 3)
     for idx, f in iter_run_chunks(path, chunk_samples):
+        bad = ~np.isfinite(f).all(axis=1)
+        if bad.any():  # a gap the writer could not fill, a corrupt file: say where, do not guess
+            k = int(np.argmax(bad))
+            raise AnalysisError(
+                f"{path}: sample {int(idx[k])} (t = {idx[k] / rate:.6g} s) holds "
+                f"{f[k].tolist()} N: forces must be finite numbers"
+            )
         stats.add(f, idx)
         if progress:
             progress(len(idx))

@@ -180,6 +180,8 @@ def plot_waveforms(
         ax.grid(True, alpha=0.3)
     axes[-1, 0].set_xlabel("insert angle, deg")
     axes[0, 0].legend(fontsize=7, ncol=3)
+    if len(runs) < len(averages):
+        fig.suptitle(f"{len(runs)} of {len(averages)} runs shown", fontsize=9)
     path = out / f"{stem}.png"
     fig.savefig(path, dpi=100)
     plt.close(fig)

@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import argparse
 
+from rig.cli._common import count, image_file, number, positive
+
 
 def _forces(args: argparse.Namespace) -> int:
     from analysis.identify import ImportOptions, fit_files
@@ -133,10 +135,12 @@ def _register_forces(psub: argparse._SubParsersAction) -> None:
         "(spindle_rpm=600 depth_mm=2 mode=slot ...), or a table (.csv/.toml, one row per file: "
         "file,spindle_rpm,feed_mm_min|fz_mm,ap_mm,ae_mm[,teeth,tool,mode])",
     )  # fmt: skip
-    f.add_argument("--rate", type=float, default=None, help="Hz, for exports without a rate")
+    f.add_argument("--rate", type=positive("Hz", 10_000_000), default=None,
+                   help="Hz, for exports without a rate")  # fmt: skip
     add_import_options(f)
     f.add_argument(
-        "--steady-tolerance", type=float, default=IDENTIFY_TOLERANCE, metavar="FRACTION",
+        "--steady-tolerance", type=number("fraction", 0, 1, lo_open=True),
+        default=IDENTIFY_TOLERANCE, metavar="FRACTION",
         help="revolutions whose mean force is within this fraction of the steady level (median) "
         f"count as steady cutting; fraction, default {IDENTIFY_TOLERANCE} (0.02 = 2 %%)",
     )  # fmt: skip
@@ -188,10 +192,11 @@ def _register_modal(psub: argparse._SubParsersAction) -> None:
     m = psub.add_parser("modal", help="modes from an impulse-hammer record (dynamometer, tool)")
     m.add_argument("file", help="CSV/DynoWare export or run file with a hammer channel")
     m.add_argument("--hammer", default="hammer", help="name of the hammer force channel")
-    m.add_argument("--rate", type=float, default=None, help="Hz, for files without a rate")
-    m.add_argument("--record-s", type=float, default=0.08,
+    m.add_argument("--rate", type=positive("Hz", 10_000_000), default=None,
+                   help="Hz, for files without a rate")  # fmt: skip
+    m.add_argument("--record-s", type=positive("s", 3600), default=0.08,
                    help="s of record per hit (at least 0.01 s and 128 samples)")  # fmt: skip
-    m.add_argument("--window-end", type=float, default=0.05,
+    m.add_argument("--window-end", type=number("", 0, 1, lo_open=True), default=0.05,
                    help="exponential window value at the record's end")  # fmt: skip
     m.add_argument(
         "--response", choices=("force", "disp", "accel"), default=None,
@@ -199,12 +204,13 @@ def _register_modal(psub: argparse._SubParsersAction) -> None:
         "dynamometer; the default), disp (m) or accel (m/s^2); a unit in the column name "
         "(ax [g], dx [mm]) decides by itself",
     )  # fmt: skip
-    m.add_argument("--rpm", type=float, nargs="*", default=None,
+    m.add_argument("--rpm", type=positive("rpm", 1_000_000), nargs="*", default=None,
                    help="planned spindle speeds to check against the modes")  # fmt: skip
-    m.add_argument("--teeth", type=int, default=1, help="teeth of the planned cutter")
+    m.add_argument("--teeth", type=count(1, 1000), default=1, help="teeth of the planned cutter")
     m.add_argument("--rig", default=None, help="rig config (default configs/rig.toml)")
-    m.add_argument("--plot", default=None, metavar="PNG", help="write the FRF and coherence")
-    m.add_argument("--stabilisation", default=None, metavar="PNG",
+    m.add_argument("--plot", type=image_file, default=None, metavar="PNG",
+                   help="write the FRF and coherence")  # fmt: skip
+    m.add_argument("--stabilisation", type=image_file, default=None, metavar="PNG",
                    help="write the stabilisation diagram (LSCF poles by model order)")  # fmt: skip
     m.add_argument(
         "--save", default=None, metavar="MODES.toml",

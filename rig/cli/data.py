@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import argparse
 
+from rig.cli._common import image_file, nonnegative, positive
+
 
 def _is_run_file(path: str) -> bool:
     return path.lower().endswith((".h5", ".hdf5"))
@@ -120,15 +122,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     psub.required = True
     i = psub.add_parser("info", help="what a run file or a DynoWare/CSV export holds")
     i.add_argument("file", help="run file (.h5) or DynoWare/CSV export")
-    i.add_argument("--rate", type=float, default=None, help="Hz, for exports without a rate")
+    i.add_argument("--rate", type=positive("Hz", 10_000_000), default=None,
+                   help="Hz, for exports without a rate")
     i.add_argument("--json", action="store_true", help="JSON on stdout")
     i.set_defaults(func=_info)
     g = psub.add_parser("plot", help="force traces of a run file or an export as a PNG")
     g.add_argument("file", help="run file (.h5) or DynoWare/CSV export")
-    g.add_argument("-o", "--output", default="forces.png", help="PNG to write")
-    g.add_argument("--start-s", type=float, default=None, help="s after the first sample")
-    g.add_argument("--stop-s", type=float, default=None, help="s after the first sample")
-    g.add_argument("--rate", type=float, default=None, help="Hz, for exports without a rate")
+    g.add_argument("-o", "--output", type=image_file, default="forces.png", help="PNG to write")
+    g.add_argument("--start-s", type=nonnegative("s"), default=None,
+                   help="s after the first sample")  # fmt: skip
+    g.add_argument("--stop-s", type=nonnegative("s"), default=None,
+                   help="s after the first sample")  # fmt: skip
+    g.add_argument("--rate", type=positive("Hz", 10_000_000), default=None,
+                   help="Hz, for exports without a rate")
     g.add_argument("--json", action="store_true", help="JSON on stdout")
     g.set_defaults(func=_plot)
     m = psub.add_parser("import", help="DynoWare/CSV exports into run files (.h5)")
@@ -140,7 +146,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         "feed_mm_min|fz_mm,ap_mm,ae_mm[,teeth,tool,mode]) or KEY=VALUE pairs for every file",
     )  # fmt: skip
     m.add_argument("--tool", default=None, help="tool name (configs/tools.toml or --tools)")
-    m.add_argument("--rate", type=float, default=None, help="Hz, for exports without a rate")
+    m.add_argument("--rate", type=positive("Hz", 10_000_000), default=None,
+                   help="Hz, for exports without a rate")
     m.add_argument("--rig", default=None, help="rig config (default configs/rig.toml)")
     add_import_options(m)
     m.add_argument("--force", action="store_true", help="replace existing run files")

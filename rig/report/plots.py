@@ -19,7 +19,8 @@ def _plt():  # noqa: ANN202 - the pyplot module
 
 
 def plot_traces(runs: Sequence[Any], path: Path, title: str, max_runs: int = 12) -> Path:
-    """Force channels against time of up to ``max_runs`` runs, one panel each (min/max band)."""
+    """Force channels against time of up to ``max_runs`` runs, one panel each (min/max band);
+    the title says how many of how many when it leaves runs out."""
     plt = _plt()
     shown = list(runs)[:max_runs]
     n = max(1, len(shown))
@@ -48,7 +49,8 @@ def plot_traces(runs: Sequence[Any], path: Path, title: str, max_runs: int = 12)
     axes.flat[0].legend(fontsize=6, loc="upper left")
     fig.supxlabel("time in run, s", fontsize=8)
     fig.supylabel("force, N", fontsize=8)
-    fig.suptitle(f"{title}: force traces", fontsize=9)
+    subset = f" ({len(shown)} of {len(runs)} runs shown)" if len(shown) < len(runs) else ""
+    fig.suptitle(f"{title}: force traces{subset}", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
