@@ -7,7 +7,9 @@ A campaign file has these tables (all lengths mm, feeds mm/min or mm/tooth, spee
     [program]       kind = "facemill-pass" | "slot" | "feed-sweep" | "step-depth" and its geometry
     [daq]           optional overrides of configs/rig.toml's DAQ (rate_hz, ...)
     [sim]           the simulated rig: speed, noise, drift, hum, seed and sim_ fault knobs
+    [tap_test]      optional: an impulse-hammer test of the tool before the cuts (its modes)
     [suspenders]    conditions that pause or stop a run on their own
+    [chatter]       optional: how chatter is judged (report and the on_chatter suspender)
     [analysis]      what runs after the campaign (kind and which groups feed it)
     [[matrix]]      one or more groups; every list-valued field is expanded as a product
     [[tests]]       single tests (scalars only), appended after the matrix
@@ -158,6 +160,13 @@ class SuspenderSection(Model):
     )
     hold_timeout_s: float = Field(0.0, ge=0, le=3600, description="s held before aborting")
     on_overflow: Literal["fail", "continue"] = Field("fail", description="DAQ overflow")
+    on_chatter: Literal["none", "hold", "abort"] = Field(
+        "none", description="chatter in the live force (analysis.chatter): none, feed hold "
+        "(then abort after hold_timeout_s) or abort at once"
+    )
+    chatter_floor_n: float = Field(
+        10.0, gt=0, le=1e5, description="N, mean resultant a revolution needs to count as cutting"
+    )
     stop_campaign_on_fail: bool = Field(False, description="stop the campaign after a failed run")
     watchdog_wall_s: float = Field(
         10.0,
@@ -166,6 +175,20 @@ class SuspenderSection(Model):
         description="s of wall time, beyond twice the program's time plus "
         "30 s, before a run whose program has not ended is declared hung",
     )
+
+
+class ChatterSection(Model):
+    """How chatter is judged, in the report's verdicts and by the ``on_chatter`` suspender
+    (:class:`analysis.chatter.ChatterSettings`; defaults: the detector's)."""
+
+    energy_ratio: float = Field(0.1, gt=0, lt=1, description="share of AC energy off harmonics")
+    opr_ratio: float = Field(0.1, gt=0, lt=1, description="once-per-rev variance / variance")
+    cut_fraction: float = Field(0.5, gt=0, lt=1, description="where a revolution counts as cut")
+
+    def settings(self):  # noqa: ANN201 - analysis.chatter.ChatterSettings
+        from analysis.chatter import ChatterSettings
+
+        return ChatterSettings(self.energy_ratio, self.opr_ratio, cut_fraction=self.cut_fraction)
 
 
 class FeedRuleSection(Model):
@@ -193,8 +216,31 @@ class FeedRuleSection(Model):
         return self
 
 
+class TapTestSection(Model):
+    """An impulse-hammer test of the tool, x then y, before the cuts; the stability-sweep
+    analysis takes the tool's modes from it. On the simulated rig the twin's tool modes are
+    tapped (rig.sim.tap); on a real rig give the two records (`analyze modal` files)."""
+
+    response: Literal["disp", "accel"] = Field("disp", description="tool-tip sensor: disp, accel")
+    hits: int = Field(5, ge=2, le=50, description="count of hammer hits per direction")
+    rate_hz: float = Field(51_200.0, ge=5_000, le=1e6, description="Hz, tap record rate")
+    noise: float = Field(0.002, ge=0, le=0.2, description="sim: response noise / its peak")
+    files: dict[str, str] = Field(
+        {}, description="real rig: the records per direction, x and y (paths beside the file)"
+    )
+
+    @model_validator(mode="after")
+    def _directions(self) -> TapTestSection:
+        bad = sorted(set(self.files) - {"x", "y"})
+        if bad:
+            raise ValueError(f"files.{bad[0]}: expected directions x and y")
+        return self
+
+
 class AnalysisSection(Model):
-    kind: Literal["none", "facemill-coefficients", "feed-rule", "afc-compare"] = "none"
+    kind: Literal[
+        "none", "facemill-coefficients", "feed-rule", "afc-compare", "stability-sweep"
+    ] = "none"
     identify_groups: tuple[str, ...] = ()
     validate_groups: tuple[str, ...] = ()
     rule_name: str = Field("derived", description="name of a derived feed rule")
@@ -204,6 +250,12 @@ class AnalysisSection(Model):
     )
     time_saving_target_pct: float = Field(
         30.0, ge=0, lt=100, description="%, afc-compare: cutting time saving at least"
+    )
+    stability_method: Literal["sd", "zoa"] = Field(
+        "sd", description="stability-sweep: lobes by semi-discretization or ZOA"
+    )
+    onset_tolerance_pct: float = Field(
+        10.0, gt=0, le=100, description="%, stability-sweep: observed onset vs prediction"
     )
 
 
@@ -242,7 +294,9 @@ class CampaignFile(Model):
     program: ProgramSection
     daq: DaqOverride = DaqOverride()
     sim: SimSection = SimSection()
+    tap_test: TapTestSection | None = None
     suspenders: SuspenderSection = SuspenderSection()
+    chatter: ChatterSection = ChatterSection()
     analysis: AnalysisSection = AnalysisSection()
     feed_rule: FeedRuleSection | None = None
     matrix: tuple[MatrixEntry, ...] = ()
@@ -551,7 +605,8 @@ def _rate_problems(spec: CampaignFile, rig: RigConfig, where: str) -> list[str]:
     return out
 
 
-_ANALYSIS_TOOL = {"facemill-coefficients": FaceMill, "feed-rule": EndMill, "afc-compare": EndMill}
+_ANALYSIS_TOOL = {"facemill-coefficients": FaceMill, "feed-rule": EndMill, "afc-compare": EndMill,
+                  "stability-sweep": EndMill}  # fmt: skip
 
 
 def _analysis_problems(
@@ -574,6 +629,13 @@ def _analysis_problems(
     if a.kind == "afc-compare" and len(a.compare_groups) != 2:
         out.append(f"{where}: analysis.compare_groups = {list(a.compare_groups)}: expected two "
                    "groups (constant, adjusted)")  # fmt: skip
+    if a.kind == "stability-sweep" and spec.tap_test is None:
+        out.append(f"{where}: analysis.kind = 'stability-sweep' needs a [tap_test] table (the "
+                   "tool's modes come from it)")  # fmt: skip
+    tap = spec.tap_test
+    if tap is not None and spec.campaign.rig == "real" and set(tap.files) != {"x", "y"}:
+        out.append(f"{where}: [tap_test] on a real rig needs files = {{ x = 'FILE', y = 'FILE' "
+                   f"}} (hammer records, `analyze modal`), got {sorted(tap.files)}")  # fmt: skip
     if a.kind == "feed-rule" and spec.feed_rule is None:
         out.append(f"{where}: analysis.kind = 'feed-rule' needs a [feed_rule] table (min, base, "
                    "max feed in mm/min, reference_depth_mm)")  # fmt: skip

@@ -41,6 +41,7 @@ _NOT_THE_EXPERIMENT = {
     "campaign": ("description", "operator", "output_dir"),
     "sim": ("speed", "link_timeout_s", "sim_"),
     "suspenders": ("",),
+    "chatter": ("",),
     "analysis": ("",),
 }
 
@@ -171,7 +172,7 @@ def _field_changes(old: dict[str, Any] | None, new: dict[str, Any] | None) -> st
 def start_fresh(folder: Path) -> Path | None:
     """Move an earlier campaign's runs, programs and manifest into ``folder/before-<utc>/`` (kept,
     never deleted); the folder to hold them, or None if there was nothing."""
-    names = [n for n in ("runs", "programs", "report", "campaign.json", "campaign.toml")
+    names = [n for n in ("runs", "programs", "tap", "report", "campaign.json", "campaign.toml")
              if (folder / n).exists()]  # fmt: skip
     if not names:
         return None

@@ -7,7 +7,8 @@ real: :mod:`rig.campaign.real`), so the same sequence runs on both::
     zero                      mean of the first ``zero_s`` of samples (spindle off, no load)
     session.start(program)    the streamer runs in its own thread; blocks go to the run record
     wait                      until the control has executed the program, watching suspenders:
-                              force above the limit -> feed hold (then abort), DAQ overflow ->
+                              force above the limit or chatter in the last revolutions
+                              (analysis.chatter) -> feed hold (then abort), DAQ overflow ->
                               stop, controller fault or alarm -> stop, operator Ctrl-C -> feed
                               hold, then resume or abort
     tail                      ``zero_s`` more of samples at rest; drift fitted on both rests
@@ -37,6 +38,8 @@ from rig.dnc import Program
 STATUS_SUCCESS, STATUS_ABORT, STATUS_FAIL = rf.STATUS_SUCCESS, rf.STATUS_ABORT, rf.STATUS_FAIL
 #: s of run clock added to twice the program's expected time before a run is declared hung.
 WATCHDOG_MARGIN_S = 30.0
+#: Revolutions of force the chatter suspender judges (indicators keeps all but one at each end).
+CHATTER_WINDOW_REVS = 10
 
 
 class RigSession(Protocol):
@@ -79,6 +82,36 @@ class RunOutcome:
     wall_s: float
 
 
+class _ChatterWatch:
+    """The chatter suspender: the last ``revolutions`` of Fx and Fy (N) of the cut, judged after
+    every DAQ read by :func:`analysis.chatter.indicators` (a live window, as detect_run judges a
+    block); revolutions under ``floor_n`` (air, entry) never count as cutting."""
+
+    def __init__(
+        self, channels: tuple[str, ...], rate_hz: float, spindle_rpm: float, floor_n: float,
+        settings: object = None, revolutions: int = CHATTER_WINDOW_REVS,
+    ) -> None:  # fmt: skip
+        self.settings = settings
+        self.cols = [channels.index(c) for c in ("Fx", "Fy") if c in channels] or [0, 1]
+        self.rate_hz, self.spindle_rpm, self.floor_n = rate_hz, spindle_rpm, floor_n
+        self.n = int(math.ceil(revolutions * 60.0 * rate_hz / spindle_rpm))
+        self.window = np.zeros((0, len(self.cols)))
+
+    def push(self, force_n: np.ndarray) -> str | None:
+        """Add a read's forces (n, c) N; a message when the window chatters, else None."""
+        from analysis.chatter import indicators
+
+        self.window = np.vstack([self.window, force_n[:, self.cols]])[-self.n :]
+        if len(self.window) < self.n:
+            return None
+        v = indicators(self.window, self.rate_hz, self.spindle_rpm, self.settings,
+                       floor_n=self.floor_n)  # fmt: skip
+        if not v.chatter:
+            return None
+        return (f"chatter at {v.frequency_hz:.0f} Hz (energy {v.energy_ratio:.2f}, opr "
+                f"{v.opr_ratio:.2f})")  # fmt: skip
+
+
 class _Tap:
     """DAQ sink in front of the run writer: forwards everything; keeps the rest windows for the
     zero and the drift fit; computes forces to watch the force limit; notes DAQ faults."""
@@ -89,9 +122,12 @@ class _Tap:
         cal: Calibration,
         force_limit_n: float | None,
         on_over_limit: Callable[[str], None] | None = None,
+        chatter: _ChatterWatch | None = None,
     ) -> None:
         self.writer = writer
         self.on_over_limit = on_over_limit
+        self.chatter = chatter
+        self.chatter_found: str | None = None
         self.cal = cal
         self.force_limit_n = force_limit_n
         self.monitor = False
@@ -147,6 +183,12 @@ class _Tap:
                         # would let the cut go on for its polling interval.
                         if self.on_over_limit is not None:
                             self.on_over_limit(self.over_limit)
+                if self.chatter is not None and self.chatter_found is None:
+                    found = self.chatter.push(f)
+                    if found is not None:
+                        self.chatter_found = f"{found} at t = {t[-1]:.3f} s"
+                        if self.on_over_limit is not None:
+                            self.on_over_limit(self.chatter_found)
         with self._progress:
             self.t_last_s = float(t[-1]) if n else self.t_last_s
             self._progress.notify_all()
@@ -220,8 +262,15 @@ def execute_run(
     progress: Callable[[int, int], None] | None = None,
     sim_speed: float = 1.0,
     watchdog_wall_s: float = 10.0,
+    on_chatter: str = "none",
+    spindle_rpm: float = 0.0,
+    chatter_floor_n: float = 10.0,
+    chatter_settings: object = None,
 ) -> RunOutcome:
-    """Run ``program`` on ``session`` into ``writer`` (already holding conditions and program)."""
+    """Run ``program`` on ``session`` into ``writer`` (already holding conditions and program).
+    ``on_chatter`` "hold" or "abort" (with ``spindle_rpm`` > 0) watches the live force for
+    chatter (:class:`_ChatterWatch`, judged with ``chatter_settings``, an
+    ``analysis.chatter.ChatterSettings``) and holds or aborts as the force limit does."""
     wall0 = time.monotonic()
     held_at: list[float] = []
 
@@ -230,10 +279,14 @@ def execute_run(
         held_at.append(time.monotonic())
         writer.event(rf.EV_PAUSE, f"suspender: {why}: feed hold")
 
-    tap = _Tap(writer, cal, force_limit_n, hold_now)
     status, reason = STATUS_SUCCESS, "program completed"
     daq = session.daq
     rate = daq.info.rate_hz
+    watch = None
+    if on_chatter != "none" and spindle_rpm:
+        watch = _ChatterWatch(tuple(cal.channel_names), rate, abs(spindle_rpm), chatter_floor_n,
+                              chatter_settings)  # fmt: skip
+    tap = _Tap(writer, cal, force_limit_n, hold_now, watch)
     n_rest = max(2, int(round(zero_s * rate)))
     wait_rest_s = 10.0 + 3 * zero_s / sim_speed
     catch_up_s = 60.0  # wall s a lagging simulated DAQ may take to deliver what it owes
@@ -297,10 +350,12 @@ def execute_run(
                     status = STATUS_ABORT
                     writer.event(rf.EV_INTERLOCK, fault)
                 break
-            if tap.over_limit is not None and held_at:
+            tripped = tap.over_limit or tap.chatter_found
+            if tripped is not None and held_at:
                 held_since = held_at[0]
-                if on_force == "abort" or time.monotonic() - held_since >= hold_timeout_s:
-                    status, reason = STATUS_ABORT, f"suspender: {tap.over_limit}"
+                act = on_force if tap.over_limit is not None else on_chatter
+                if act == "abort" or time.monotonic() - held_since >= hold_timeout_s:
+                    status, reason = STATUS_ABORT, f"suspender: {tripped}"
                     break
         if status == STATUS_FAIL:
             writer.event(rf.EV_FAULT, reason)

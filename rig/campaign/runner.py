@@ -10,6 +10,7 @@ in order on the rig, each through :func:`rig.campaign.run.execute_run`, and keep
         campaign.toml           the campaign file as run
         runs/NNN-<test name>.h5 one run file per test (layout: analysis.runs.file)
         programs/NNN-<test name>.nc
+        tap/tap_x.csv, tap_y.csv  the tool's impulse-hammer records ([tap_test]), before the cuts
         report/                 written by rig.report.base after the campaign
 
 Resume: running a campaign again skips every test whose run file closed with status
@@ -368,6 +369,7 @@ def run_campaign(
             raise RigError(_changed_message(campaign, folder, changes))
         manifest.accept_inputs(changes)
         (folder / "campaign.toml").write_text(campaign.text)
+        tap_records(campaign, folder)
         for k, plan in enumerate(plans):
             t = plan.test
             if only is not None and not only(t):
@@ -412,7 +414,9 @@ def run_campaign(
                     sim_speed=campaign.spec.sim.speed if campaign.spec.campaign.rig == "sim"
                     else 1.0,
                     progress=_within_run(bar, t.name), watchdog_wall_s=sus.watchdog_wall_s,
-                    zero_s=campaign.spec.daq.rest_s,
+                    zero_s=campaign.spec.daq.rest_s, on_chatter=sus.on_chatter,
+                    spindle_rpm=t.spindle_rpm, chatter_floor_n=sus.chatter_floor_n,
+                    chatter_settings=campaign.spec.chatter.settings(),
                 )  # fmt: skip
                 status, reason = outcome.status, outcome.reason
             except BaseException as exc:
@@ -450,6 +454,39 @@ def run_campaign(
     return CampaignResult(
         campaign.name, folder, tuple(records), stopped, time.monotonic() - wall0, counts
     )
+
+
+def tap_records(campaign: Campaign, folder: Path) -> dict[str, Path]:
+    """The tool's tap-test records per direction in ``folder/tap/`` ([tap_test]; none without
+    one): the simulated rig taps the twin's tool modes (:func:`rig.sim.tap.tap_test_record`), a
+    real rig's records (``files``, beside the campaign file) are copied in. A record already
+    there is kept (a resume does not tap again)."""
+    import shutil
+
+    tap = campaign.spec.tap_test
+    if tap is None:
+        return {}
+    out = {}
+    for axis in ("x", "y"):
+        dest = folder / "tap" / f"tap_{axis}.csv"
+        out[axis] = dest
+        if dest.exists():
+            continue
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        if campaign.spec.campaign.rig == "real":
+            src = campaign.path.parent / tap.files[axis]
+            if not src.exists():
+                raise ConfigError(f"{campaign.path}: tap_test.files.{axis} = "
+                                  f"{tap.files[axis]!r}: file {src} not found")  # fmt: skip
+            shutil.copyfile(src, dest)
+            continue
+        from rig.sim import tap_test_record
+
+        sim = campaign.spec.sim
+        modes = sim.tool_modes if sim.tool_modes is not None else campaign.tool.modes
+        tap_test_record(tuple(modes), axis, dest, tap.response, tap.rate_hz, tap.hits,
+                        tap.noise, sim.seed + (axis == "y"))  # fmt: skip
+    return out
 
 
 def _changed_message(campaign: Campaign, folder: Path, changes: list[str]) -> str:

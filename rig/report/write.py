@@ -13,8 +13,10 @@ manifest in the folder) and every run file through :mod:`analysis.runs.file`, th
 
 The analysis follows ``[analysis] kind``: ``facemill-coefficients`` (seed 003: identification
 and validation, :mod:`rig.report.facemill`), ``feed-rule`` (seed 001 4.2: base feed and the
-derived rule, :mod:`rig.report.feedrule`) or ``afc-compare`` (seed 001 4.3: constant vs
-post-processed feeds, :mod:`rig.report.afc`).
+derived rule, :mod:`rig.report.feedrule`), ``afc-compare`` (seed 001 4.3: constant vs
+post-processed feeds, :mod:`rig.report.afc`) or ``stability-sweep`` (tap test -> modes -> lobes
+-> depth sweeps' chatter onset, :mod:`rig.report.stability`; its per-speed ``onset`` list is also
+at the top level of summary.json).
 """
 
 from __future__ import annotations
@@ -34,9 +36,12 @@ from rig.report.base import LoadedRun, Report, Section, load_runs, md_table
 from rig.report.facemill import facemill_section
 from rig.report.feedrule import feed_rule_section
 from rig.report.plots import plot_traces
+from rig.report.stability import stability_sweep_section
 
 
-def _run_rows(runs: list[LoadedRun], entries: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def _run_rows(
+    runs: list[LoadedRun], entries: list[dict[str, Any]], settings: Any = None
+) -> list[dict[str, Any]]:
     by_name = {r.name: r for r in runs}
     rows = []
     for e in entries:
@@ -59,18 +64,19 @@ def _run_rows(runs: list[LoadedRun], entries: list[dict[str, Any]]) -> list[dict
             row.update(lr.steady_means)
             if lr.run.force_n is not None:
                 row["peak_N"] = float(np.max(np.linalg.norm(lr.run.force_n, axis=1)))
-            row.update(_chatter_columns(lr))
+            row.update(_chatter_columns(lr, settings))
         rows.append(row)
     return rows
 
 
-def _chatter_columns(lr: LoadedRun) -> dict[str, Any]:
-    """The run's chatter verdict (:func:`analysis.chatter.detect_run`): whether, at what
-    frequency, in which blocks, and the two indicators of the whole run."""
+def _chatter_columns(lr: LoadedRun, settings: Any = None) -> dict[str, Any]:
+    """The run's chatter verdict (:func:`analysis.chatter.detect_run` with the campaign's
+    ``[chatter]`` settings): whether, at what frequency, in which blocks, and the two indicators
+    of the whole run."""
     from analysis.chatter import detect_run
 
     try:
-        rc = detect_run(lr.run)
+        rc = detect_run(lr.run, settings)
     except AnalysisError as exc:  # no forces in N, no spindle speed: nothing to judge
         return {"chatter": "", "chatter_reason": str(exc)}
     return {
@@ -92,7 +98,7 @@ def write_report(campaign_folder: str | Path) -> Report:
     out = folder / "report"
     out.mkdir(parents=True, exist_ok=True)
     runs, entries = load_runs(folder)
-    rows = _run_rows(runs, entries)
+    rows = _run_rows(runs, entries, campaign.spec.chatter.settings())
     pd.DataFrame(rows).to_csv(out / "runs.csv", index=False)
     plot_traces(runs, out / "force_traces.png", campaign.name)
     kind = campaign.spec.analysis.kind
@@ -103,6 +109,8 @@ def write_report(campaign_folder: str | Path) -> Report:
         sections.append(feed_rule_section(campaign, runs, out))
     elif kind == "afc-compare":
         sections.append(afc_section(campaign, runs, out))
+    elif kind == "stability-sweep":
+        sections.append(stability_sweep_section(campaign, runs, out, folder))
     counts: dict[str, int] = {}
     for e in entries:
         counts[e.get("status", "?")] = counts.get(e.get("status", "?"), 0) + 1
@@ -117,6 +125,9 @@ def write_report(campaign_folder: str | Path) -> Report:
         "analysis": kind,
         **{s.title: s.summary for s in sections},
     }
+    for s in sections:
+        if "onset" in s.summary:  # the stability sweep's contract: `onset` at the top level
+            summary["onset"] = s.summary["onset"]
     md = [f"# Campaign {campaign.name}\n", f"{campaign.spec.campaign.description}\n",
           f"Rig: {campaign.spec.campaign.rig}; machine {campaign.machine.name}; tool "
           f"{campaign.spec.campaign.tool}; material {campaign.spec.campaign.material}; "

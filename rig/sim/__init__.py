@@ -1,6 +1,6 @@
 """The simulated rig, behind the same interfaces as the hardware: the clock, the DAQ, the machine
 (cutting physics and the dynamometer), the Fanuc and GRBL controllers on pseudo-terminals, and
-the session that ties them together for a campaign.
+the session that ties them together for a campaign; the tool's tap test (:mod:`rig.sim.tap`).
 """
 
 from rig.sim.clock import SimClock
@@ -10,6 +10,7 @@ from rig.sim.fanuc import SimFanuc
 from rig.sim.grbl import SimGrbl
 from rig.sim.machine import SimMachine
 from rig.sim.session import sim_session
+from rig.sim.tap import tap_test_record
 
 __all__ = [
     "SimClock",
@@ -21,4 +22,5 @@ __all__ = [
     "run_controller",
     "sim_controller",
     "sim_session",
+    "tap_test_record",
 ]
