@@ -12,7 +12,7 @@ before the shipped ``configs/tools.toml``.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -48,8 +48,8 @@ from analysis.identify.importers import NO_AIR_ZEROED, Export, load_export
 from analysis.identify.validate import compare_runs, plot_comparison, plot_waveforms
 from analysis.runs import IDENTIFY_TOLERANCE, NoSteadyCutError, load_run
 
-__all__ = ["ImportOptions", "find_tool", "fit_files", "load_exports", "reduce_files",
-           "tool_teeth"]  # fmt: skip
+__all__ = ["FileReducer", "ImportOptions", "Mapper", "find_tool", "fit_files", "load_exports",
+           "reduce_files", "tool_teeth"]  # fmt: skip
 
 Progress = Callable[[int, int], None]
 #: End-mill coefficients by their short names (the JSON result's ``Ktc`` ... ``Kae``) and unit.
@@ -207,25 +207,58 @@ def load_exports(
         yield _load_export(p, given, dyno, rate_hz, tool, "--tool", opts)
 
 
+@dataclass(frozen=True)
+class FileReducer:
+    """One file's reduction as :func:`fit_files` does it, as a picklable callable that a task
+    scheduler (dask) can run anywhere: ``reducer(path)`` -> (revolution average, notes, None),
+    or (None, {}, reason) for a run without steady cutting (other bad input raises). Its repr
+    holds everything besides the file that decides the result (a cache key's part)."""
+
+    given: Mapping[str, Any]
+    dynamometer: Dynamometer | None
+    rate_hz: float | None
+    expected_tool: str | None
+    by: str
+    tolerance: float
+    opts: ImportOptions
+
+    def __call__(self, path: Any) -> tuple[RunAverage | None, dict[str, str], str | None]:
+        try:
+            avg, note = _reduce_file(path, self.given, self.dynamometer, self.rate_hz,
+                                     self.expected_tool, self.by, self.tolerance,
+                                     self.opts)  # fmt: skip
+        except NoSteadyCutError as exc:  # a run to leave out; other bad input stops
+            return None, {}, str(exc)
+        return avg, note, None
+
+
+#: Runs a :class:`FileReducer` over paths, results in the paths' order (default: one by one).
+Mapper = Callable[[FileReducer, Sequence[Any]], Iterable[tuple[Any, dict[str, str], Any]]]
+
+
+def _one_by_one(reducer: FileReducer, paths: Sequence[Any], progress: Progress | None):
+    for k, p in enumerate(paths):
+        yield reducer(p)
+        if progress:
+            progress(k + 1, len(paths))
+
+
 def _reduce_all(paths, overrides, dynamometer, rate_hz, expected_tool, by, tolerance, progress,
-                opts: ImportOptions):  # fmt: skip
+                opts: ImportOptions, mapper: Mapper | None = None):  # fmt: skip
     given = normalize(overrides or {}, "--conditions")
-    opts = opts.loaded()
+    reducer = FileReducer(given, dynamometer, rate_hz, expected_tool, by, tolerance, opts.loaded())
+    results = mapper(reducer, paths) if mapper else _one_by_one(reducer, paths, progress)
     avgs: list[RunAverage] = []
     notes: dict[str, dict[str, str]] = {}
     rejected: list[tuple[str, str]] = []
     tool_names: set[str] = set()
-    for k, p in enumerate(paths):
-        try:
-            avg, note = _reduce_file(p, given, dynamometer, rate_hz, expected_tool, by,
-                                     tolerance, opts)  # fmt: skip
-            avgs.append(avg)
-            notes[avg.name] = note
-            tool_names.add(expected_tool or avg.conditions.tool)
-        except NoSteadyCutError as exc:  # a run to leave out; other bad input stops
-            rejected.append((Path(p).stem, str(exc)))
-        if progress:
-            progress(k + 1, len(paths))
+    for p, (avg, note, reason) in zip(paths, results):
+        if avg is None:
+            rejected.append((Path(p).stem, reason))
+            continue
+        avgs.append(avg)
+        notes[avg.name] = note
+        tool_names.add(expected_tool or avg.conditions.tool)
     return avgs, rejected, tool_names, notes
 
 
@@ -303,12 +336,14 @@ def fit_files(
     plot_dir: str | Path | None = None,
     progress: Progress | None = None,
     options: ImportOptions | None = None,
+    mapper: Mapper | None = None,
 ) -> dict[str, Any]:
     """Fit the force model (``model`` 'facemill' / 'endmill', default from the tool's kind) to
     run files; the tool is ``tool`` or the one the runs record. With a successful fit,
     ``validate`` runs (or the fitted ones when only ``plot_dir`` is given) are predicted and
     ``plot_dir`` gets the PNGs. ``options``: axes, conditions table, zero, user catalogues
-    (:class:`ImportOptions`). Returns the JSON-able result: model, tool, success, message,
+    (:class:`ImportOptions`); ``mapper`` runs the per-file reductions (e.g. as dask tasks; default
+    one by one, calling ``progress``). Returns the JSON-able result: model, tool, success, message,
     coefficients (end mill: also ``Ktc`` ... ``Kae``, units in ``coefficient_units``),
     statistics (+ note), r_squared, residual_rms_n, dof, runs, rejected, per_run (with each
     run's ``axes`` and ``zero``), axes, axes_check (end mill), warnings, and validation
@@ -322,7 +357,7 @@ def fit_files(
     rig = load_rig(rig_path or None)
     dyno = rig.dynamometer
     avgs, rejected, tool_names, notes = _reduce_all(
-        paths, overrides, dyno, rate_hz, tool, "--tool", tolerance, progress, opts
+        paths, overrides, dyno, rate_hz, tool, "--tool", tolerance, progress, opts, mapper
     )
     names = {t for t in tool_names if t}
     if not tool and len(names) != 1:
@@ -371,7 +406,7 @@ def fit_files(
         if validate:
             by = "the fitted runs' tool"
             targets, rej2, _, _ = _reduce_all(validate, overrides, dyno, rate_hz, tool_name, by,
-                                              tolerance, progress, opts)  # fmt: skip
+                                              tolerance, progress, opts, mapper)  # fmt: skip
             out["rejected"] += [{"run": n, "reason": m} for n, m in rej2]
         out.update(_validate(targets, model, tool_cfg, fit.coefficients, dyno, plot_dir))
     return out

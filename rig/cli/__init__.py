@@ -16,7 +16,7 @@ from analysis import __version__
 from analysis.errors import CutlabError
 
 # Top-level groups, in help order. ``plan`` is a group whose subcommands live in plan_*.py.
-GROUPS = ("demo", "nc", "daq", "data", "dnc", "analyze", "rules", "campaign", "console")
+GROUPS = ("demo", "nc", "daq", "data", "dnc", "analyze", "rules", "campaign", "console", "catalog")
 PLAN_COMMANDS = ("plan_rough", "plan_feed", "plan_orient", "plan_check")
 
 

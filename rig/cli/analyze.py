@@ -6,6 +6,7 @@ cutlab analyze forces RUN... [--model facemill|endmill] [--tool NAME] [--validat
                              [--axes x=-Fy,y=Fx,z=-Fz] [--zero FILE | --zeroed] [--tools FILE]
                              [--materials FILE] [--steady-tolerance FRACTION] [--plot DIR]
                              [--json]
+cutlab analyze forces --catalog DIR [--where EXPR] [--scheduler ADDRESS] [options as above]
 cutlab analyze modal FILE [--hammer NAME] [--response force|disp|accel] [--record-s S]
                           [--rpm RPM...] [--teeth N] [--plot PNG] [--stabilisation PNG]
                           [--save MODES.toml] [--json]
@@ -14,8 +15,10 @@ cutlab analyze stability CONFIG -o lobes.csv [--method sd|zoa] [--steps M] [--pl
 RUN is an HDF5 run file (conditions from the file) or a DynoWare/plain CSV export (conditions
 from its header lines), then a conditions table's row and the file-name pattern;
 --conditions KEY=VALUE overrides them key by key for every run. A run that records
-another tool than --tool is refused. A fit that the runs cannot support prints its reason and
-exits with status 1; bad input exits with status 2.
+another tool than --tool is refused. With --catalog the runs are those of a run catalogue
+(`cutlab catalog`) matching --where, each reduced as a dask task (local threads, or the
+dask.distributed scheduler at --scheduler) and cached by file hash. A fit that the runs
+cannot support prints its reason and exits with status 1; bad input exits with status 2.
 """
 
 from __future__ import annotations
@@ -33,12 +36,19 @@ def _forces(args: argparse.Namespace) -> int:
     opts = ImportOptions(axes=args.axes, table=table, pattern=args.conditions_pattern,
                          zero_file=args.zero, zeroed=args.zeroed, tools_path=args.tools,
                          materials_path=args.materials)  # fmt: skip
-    with Progress("reducing runs", "run", quiet=args.json or len(args.runs) < 2) as bar:
-        out = fit_files(
-            args.runs, args.model, args.tool, pairs, rig_path=args.rig, rate_hz=args.rate,
-            tolerance=args.steady_tolerance, validate=args.validate, plot_dir=args.plot,
-            progress=bar, options=opts,
-        )  # fmt: skip
+    kw = dict(model=args.model, tool=args.tool, overrides=pairs, rig_path=args.rig,
+              rate_hz=args.rate, tolerance=args.steady_tolerance, validate=args.validate,
+              plot_dir=args.plot, options=opts)  # fmt: skip
+    if _catalog_args(args):
+        from analysis.catalog import fit_catalog
+
+        out = fit_catalog(args.catalog, args.where, args.scheduler, not args.json, **kw)
+        c = out["catalog"]
+        status(f"analyze forces: {c['runs']} run(s) from {c['index']}: {c['cached']} from the "
+               f"cache, {c['reduced']} reduced")  # fmt: skip
+    else:
+        with Progress("reducing runs", "run", quiet=args.json or len(args.runs) < 2) as bar:
+            out = fit_files(args.runs, progress=bar, **kw)
     if "plots" in out:
         status(f"analyze forces: wrote {', '.join(out['plots'])}")
     for w in out["warnings"]:
@@ -62,6 +72,23 @@ def _forces(args: argparse.Namespace) -> int:
         print_table([{**{k: r[k] for k in keys}, "error_pct": r["resultant_error_pct"]}
                      for r in out["validation"]["rows"]])  # fmt: skip
     return 0 if out["success"] else 1
+
+
+def _catalog_args(args: argparse.Namespace) -> bool:
+    """Whether the runs come from a catalogue (--catalog) rather than files; refuses a mix."""
+    from analysis.errors import ConfigError
+
+    if args.catalog is None:
+        for opt in ("where", "scheduler"):
+            if getattr(args, opt) is not None:
+                raise ConfigError(f"analyze forces: --{opt} needs --catalog DIR")
+        if not args.runs:
+            raise ConfigError("analyze forces: give run files, or --catalog DIR [--where EXPR]")
+        return False
+    if args.runs:
+        raise ConfigError(f"analyze forces: run files ({args.runs[0]} ...) and --catalog "
+                          f"{args.catalog}: give one or the other")  # fmt: skip
+    return True
 
 
 def _conditions_arg(items: list[str] | None) -> tuple[dict, str | None]:
@@ -124,7 +151,17 @@ def _register_forces(psub: argparse._SubParsersAction) -> None:
     from analysis.runs import IDENTIFY_TOLERANCE
 
     f = psub.add_parser("forces", help="fit cutting-force coefficients to recorded runs")
-    f.add_argument("runs", nargs="+", help="run files (.h5) or DynoWare/CSV exports")
+    f.add_argument("runs", nargs="*", help="run files (.h5) or DynoWare/CSV exports")
+    f.add_argument("--catalog", default=None, metavar="DIR|INDEX",
+                   help="the runs of this run catalogue (`cutlab catalog index`) instead of "
+                   "files, reduced as dask tasks and cached by file hash")  # fmt: skip
+    f.add_argument("--where", default=None, metavar="EXPR",
+                   help="with --catalog: the runs to fit, as `cutlab catalog query` takes them "
+                   "(default every run)")  # fmt: skip
+    f.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="with --catalog: a dask.distributed scheduler (tcp://HOST:PORT), or "
+                   "threads / processes / sync (default: the dask config's scheduler-address, "
+                   "else threads)")  # fmt: skip
     f.add_argument("--model", choices=("facemill", "endmill"), default=None,
                    help="force model (default: from the tool's kind)")  # fmt: skip
     f.add_argument("--tool", default=None, help="tool name in configs/tools.toml")

@@ -1,0 +1,192 @@
+"""Force identification over a catalogue query, with the per-run reductions as dask tasks.
+
+The heavy part of ``analyze forces`` is reducing each run file to its revolution average (the
+steady window, the synchronous average, the per-revolution means: every sample is read). Here
+each file's reduction is one dask task that opens the file read-only with h5py in the worker
+and streams it in chunks (:func:`analysis.identify.reduce_run_file`: memory is the chunk, not
+the run); only the small average travels back. The fit then runs on the averages exactly as
+:func:`analysis.identify.fit_files` does, so the coefficients are those of ``analyze forces`` on
+the same files.
+
+Where the tasks run: ``scheduler`` None uses a ``scheduler-address`` from the dask config if
+there is one, else the dask config's ``scheduler``, by default dask's threaded scheduler on this
+machine (h5py reads one at a time, the numpy reduction in parallel); ``"threads"``, ``"processes"``,
+``"sync"`` name a local one; ``tcp://HOST:PORT`` a dask.distributed scheduler, whose workers
+must see the run files under the same paths (a shared file system). A worker that dies is
+replaced and its tasks rerun by the scheduler; a reduction has no side effect, so a rerun gives
+the same result.
+
+The cache: each reduction is kept in ``<index>.cache/`` (beside the index file) as a pickle,
+keyed by the file's SHA-256 (from the index) and name, cutlab's version, the source of the
+reduction's modules and the reduction's parameters; a later query over the same runs reads no
+force data. Delete the folder to drop it. It holds pickles: share it only as you share the
+archive.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import pickle
+import re
+import sys
+from collections.abc import Sequence
+from importlib.util import find_spec
+from pathlib import Path
+from typing import Any
+
+from analysis import __version__
+from analysis.catalog.index import index_file
+from analysis.catalog.query import query_runs
+from analysis.errors import AnalysisError
+from analysis.identify import fit_files
+
+LOCAL_SCHEDULERS = ("threads", "processes", "sync", "synchronous", "single-threaded")
+#: Modules whose code decides a file's reduction: an edit to them invalidates the cache.
+_REDUCTION_CODE = (
+    "analysis.identify._common",
+    "analysis.identify.files",
+    "analysis.identify.facemill",
+    "analysis.identify.conditions",
+    "analysis.identify.axes",
+    "analysis.runs.steady",
+    "analysis.runs.file",
+)
+
+
+def cache_dir(index: Path) -> Path:
+    return index.with_suffix(".cache")
+
+
+def reduction_key(reducer: Any) -> str:
+    """What besides the file decides a reduction: version, the code and the parameters."""
+    code = [Path(find_spec(m).origin).read_text() for m in _REDUCTION_CODE]  # type: ignore
+    return _digest(__version__, repr(reducer), *code)
+
+
+def _digest(*parts: str) -> str:
+    return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
+
+
+def _load(path: Path) -> Any:
+    try:
+        with path.open("rb") as fh:
+            return pickle.load(fh)
+    except FileNotFoundError:
+        return None
+    except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError):
+        return None  # a damaged or foreign entry: reduce again (and overwrite it)
+
+
+def _store(path: Path, value: Any) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    with tmp.open("wb") as fh:
+        pickle.dump(value, fh, protocol=pickle.HIGHEST_PROTOCOL)
+    os.replace(tmp, path)  # readers see the whole entry or none
+
+
+def compute(tasks: Sequence[Any], scheduler: str | None = None, progress: bool = False) -> list:
+    """Compute dask ``tasks`` on ``scheduler`` (see the module docstring), with dask's progress
+    bar on stderr when ``progress``."""
+    import dask
+
+    if not tasks:
+        return []
+    address = scheduler or dask.config.get("scheduler-address", None)
+    if scheduler in LOCAL_SCHEDULERS or not address:
+        from dask.diagnostics import ProgressBar
+
+        bar = ProgressBar(out=sys.stderr) if progress else contextlib.nullcontext()
+        with bar:
+            # None: the dask config's ``scheduler`` (or a default Client), else threads
+            return list(dask.compute(*tasks, scheduler=scheduler))
+    if not re.fullmatch(r"[a-z]+://\S+", str(address)):  # tcp://, tls://, inproc://
+        raise AnalysisError(f"--scheduler {address}: expected {', '.join(LOCAL_SCHEDULERS[:3])} "
+                            "or a dask scheduler's address, tcp://HOST:PORT")  # fmt: skip
+    from distributed import Client
+    from distributed import progress as show_progress
+
+    try:  # waits up to dask's distributed.comm.timeouts.connect (30 s)
+        client = Client(address, set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise AnalysisError(f"--scheduler {address}: cannot reach the dask scheduler "
+                            f"({type(exc).__name__}: {exc})") from None  # fmt: skip
+    with client:
+        futures = client.compute(list(tasks))
+        if progress:
+            with contextlib.redirect_stdout(sys.stderr):  # distributed's bar prints to stdout
+                show_progress(futures)
+        return client.gather(futures)
+
+
+class CachedMapper:
+    """A :data:`analysis.identify.files.Mapper` that answers from the cache where it can and runs
+    the other reductions as dask tasks; counts ``cached`` and ``reduced`` files."""
+
+    def __init__(self, cache: Path, hashes: dict[str, str | None], scheduler: str | None = None,
+                 progress: bool = False) -> None:  # fmt: skip
+        self.cache, self.hashes = cache, hashes
+        self.scheduler, self.progress = scheduler, progress
+        self.cached = self.reduced = 0
+
+    def __call__(self, reducer: Any, paths: Sequence[Any]) -> list:
+        import dask
+
+        key = reduction_key(reducer)
+        # The name too: a run's name, its conditions table row and file-name pattern go by it.
+        entries = [self.cache / f"{h}-{_digest(Path(p).name, key)}.pkl"
+                   if (h := self.hashes.get(str(p))) else None for p in paths]  # fmt: skip
+        results = [_load(e) if e else None for e in entries]
+        todo = [i for i, r in enumerate(results) if r is None]
+        task = dask.delayed(reducer, pure=False)  # one node: the reducer goes to a worker once
+        done = compute([task(str(paths[i])) for i in todo], self.scheduler, self.progress)
+        for i, r in zip(todo, done):
+            results[i] = r
+            if entries[i]:
+                _store(entries[i], r)
+        self.cached += len(paths) - len(todo)
+        self.reduced += len(todo)
+        return results
+
+
+def _check_current(rows: Any) -> dict[str, str | None]:
+    """The rows' files as indexed (else one line saying to re-index): {file: sha256}."""
+    for r in rows.itertuples():
+        if r.status == "running":
+            raise AnalysisError(f"{r.file}: run {r.campaign}/{r.run} is still being written "
+                                "(status running); wait for it, or add status == 'success' "
+                                "to --where")  # fmt: skip
+        try:
+            st = os.stat(r.file)
+        except OSError:
+            raise AnalysisError(f"{r.file}: run file gone since it was indexed; run "
+                                "`cutlab catalog index` again") from None  # fmt: skip
+        if (st.st_size, st.st_mtime_ns) != (r.size_bytes, r.mtime_ns):
+            raise AnalysisError(f"{r.file}: changed since it was indexed (size or mtime); run "
+                                "`cutlab catalog index` again")  # fmt: skip
+    return {r.file: r.sha256 for r in rows.itertuples()}
+
+
+def fit_catalog(
+    index: str | Path | None,
+    where: str | None = None,
+    scheduler: str | None = None,
+    progress: bool = False,
+    **fit_kw: Any,
+) -> dict[str, Any]:
+    """:func:`analysis.identify.fit_files` over the runs of the catalogue ``index`` (its file or
+    folder) that match ``where`` (all without), the reductions on dask (``scheduler``) and
+    cached; ``fit_kw`` as fit_files takes them. The result is fit_files' plus ``catalog``:
+    index, where, runs, cached and reduced counts, scheduler."""
+    ipath = index_file(index)
+    rows = query_runs(where, ipath)
+    if rows.empty:
+        raise AnalysisError(f"{ipath}: no run in the catalogue matches {where!r}")
+    mapper = CachedMapper(cache_dir(ipath), _check_current(rows), scheduler, progress)
+    out = fit_files(list(rows["file"]), mapper=mapper, **fit_kw)
+    out["catalog"] = {"index": str(ipath), "where": where, "runs": len(rows),
+                      "cached": mapper.cached, "reduced": mapper.reduced,
+                      "scheduler": scheduler or "default"}  # fmt: skip
+    return out

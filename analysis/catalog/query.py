@@ -1,0 +1,98 @@
+"""Queries over the run index: pandas' query language, restricted to comparisons.
+
+``DataFrame.query`` evaluates Python: ``@name`` reaches the caller's variables, attribute access
+and calls reach anything (``run.__class__...``). An expression is therefore parsed first and
+refused unless it is only comparisons (``== != < <= > >= in not in``) of known columns with
+numbers, strings, True/False or lists of them, joined by ``and or not & | ~``.
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from analysis.catalog.index import load_index
+from analysis.errors import AnalysisError
+
+#: Columns shown by default (the query's result has them all).
+MAIN_COLUMNS = ("campaign", "run", "group", "status", "tool", "material", "spindle_rpm",
+                "feed_mm_min", "fz_mm", "depth_mm", "width_mm")  # fmt: skip
+#: The syntax an expression may use besides names and constants (checked further below).
+_ALLOWED = (ast.Expression, ast.BoolOp, ast.And, ast.Or, ast.Not, ast.Invert, ast.BitAnd,
+            ast.BitOr, ast.Load, ast.List, ast.Tuple, ast.USub, ast.UAdd, ast.Compare, ast.Eq,
+            ast.NotEq, ast.Lt, ast.LtE, ast.Gt, ast.GtE, ast.In, ast.NotIn)  # fmt: skip
+_HELP = ("use comparisons (== != < <= > >= in, not in) of columns with numbers, strings or "
+         "lists, joined by and / or / not, e.g. \"material == 'GM241' and 0.2 <= fz_mm <= 0.4\"")
+
+
+def check_query(expr: str, columns: Any) -> None:
+    """Raise unless ``expr`` is a plain comparison expression over ``columns`` (one line)."""
+    where = f"query {expr!r}"
+    try:
+        tree = ast.parse(expr.strip(), mode="eval")
+    except SyntaxError as exc:
+        raise AnalysisError(f"{where}: not an expression (column {exc.offset}: {exc.msg}); "
+                            f"{_HELP}") from None  # fmt: skip
+    known = set(columns)
+    for node in ast.walk(tree):
+        ok = isinstance(node, _ALLOWED)
+        if isinstance(node, ast.Constant):
+            ok = isinstance(node.value, str | int | float | bool)
+        elif isinstance(node, ast.Name):
+            if node.id not in known and node.id not in ("True", "False"):
+                raise AnalysisError(f"{where}: unknown column {node.id!r}; known: "
+                                    f"{', '.join(sorted(known))}")  # fmt: skip
+            ok = True
+        elif isinstance(node, ast.UnaryOp):
+            ok = isinstance(node.op, ast.Not | ast.Invert | ast.USub | ast.UAdd)
+        elif isinstance(node, ast.BinOp):  # & and | between comparisons, as pandas writes them
+            ok = isinstance(node.op, ast.BitAnd | ast.BitOr)
+        if not ok:
+            text = ast.get_source_segment(expr.strip(), node) or type(node).__name__
+            raise AnalysisError(f"{where}: {text!r} is not allowed; {_HELP}")
+
+
+def query_runs(expr: str | None, index: str | Path | None = None) -> pd.DataFrame:
+    """The index's runs matching ``expr`` (all without one), one row per run file."""
+    df = load_index(index)
+    if not expr or not expr.strip():
+        return df
+    check_query(expr, df.columns)
+    try:
+        out = df.query(expr, engine="python", local_dict={}, global_dict={})
+    except Exception as exc:  # noqa: BLE001 - a checked expression can still compare badly
+        raise AnalysisError(f"query {expr!r}: {type(exc).__name__}: {exc}") from None
+    if not isinstance(out, pd.DataFrame):
+        raise AnalysisError(f"query {expr!r}: not a condition on the rows; {_HELP}")
+    return out.reset_index(drop=True)
+
+
+def records(df: pd.DataFrame) -> list[dict[str, Any]]:
+    """JSON-able rows (``conditions`` and ``events`` as objects, NaN as None)."""
+    out = []
+    for row in df.astype(object).where(df.notna(), None).to_dict("records"):
+        for key in ("conditions", "events"):
+            if isinstance(row.get(key), str):
+                row[key] = json.loads(row[key])
+        out.append(row)
+    return out
+
+
+def show_run(name: str, index: str | Path | None = None) -> dict[str, Any]:
+    """The index row of one run: ``name`` is a run (file stem), ``CAMPAIGN/RUN`` or a path."""
+    df = load_index(index)
+    campaign, _, run = name.rpartition("/")
+    hit = df[(df["run"] == run) & ((df["campaign"] == campaign) | (campaign == ""))]
+    if hit.empty:
+        hit = df[(df["path"] == name) | (df["file"] == str(Path(name).resolve()))]
+    if len(hit) != 1:
+        what = ", ".join(f"{c}/{r} ({p})" for c, r, p in hit[["campaign", "run", "path"]].values)
+        raise AnalysisError(
+            f"run {name!r}: " + (f"{len(hit)} runs match ({what}); give CAMPAIGN/RUN or the path"
+                                 if len(hit) else "not in the catalogue")  # fmt: skip
+        )
+    return records(hit)[0]

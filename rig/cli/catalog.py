@@ -1,0 +1,96 @@
+"""`cutlab catalog` commands: an index of the run files of an archive, and queries over it.
+
+cutlab catalog index DIR... [--index FILE] [--json]
+    index the run files (.h5) under each DIR (the index lives in DIR/.cutlab-catalog.sqlite, or
+    in FILE): new and changed files are read (metadata only) and hashed, unchanged ones skipped,
+    deleted ones dropped; runs still being written are indexed as running
+cutlab catalog query EXPR [--index FILE|DIR] [--json|--csv] [--all-columns]
+    the runs matching EXPR, one row each: comparisons of columns (campaign, run, group, status,
+    tool, material, spindle_rpm, feed_mm_min, fz_mm, depth_mm, width_mm, ...) joined by
+    and / or / not, e.g. "material == 'GM241' and 0.2 <= fz_mm <= 0.4"; "" for every run
+cutlab catalog show RUN [--index FILE|DIR] [--json]
+    one run's row (RUN: its name, CAMPAIGN/RUN, or its path)
+
+Without --index, query and show use the catalogue of the current folder or its nearest parent.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def _index(args: argparse.Namespace) -> int:
+    from analysis.catalog import update_index
+    from rig.cli._common import Progress, print_json, status
+
+    with Progress("indexing run files", "file", quiet=args.json) as bar:
+        out = update_index(args.dirs, args.index, progress=bar)
+    if args.json:
+        print_json(out)
+        return 0
+    status(f"catalog index: {out['index']}")
+    print(f"{out['files']} run file(s): {out['added']} added, {out['updated']} updated, "
+          f"{out['unchanged']} unchanged, {out['removed']} removed; {out['runs_in_index']} in "
+          f"the index ({', '.join(f'{k} {v}' for k, v in sorted(out['statuses'].items()))}); "
+          f"{out['seconds']:.2f} s")  # fmt: skip
+    return 0
+
+
+def _query(args: argparse.Namespace) -> int:
+    import sys
+
+    from analysis.catalog import MAIN_COLUMNS, query_runs, records
+    from rig.cli._common import print_json, print_table
+
+    df = query_runs(args.expr, args.index)
+    if args.json:
+        print_json(records(df))
+    elif args.csv:
+        df.to_csv(sys.stdout, index=False)
+    else:
+        cols = list(df.columns) if args.all_columns else list(MAIN_COLUMNS)
+        print_table(df[cols].to_dict("records"))
+    return 0
+
+
+def _show(args: argparse.Namespace) -> int:
+    from analysis.catalog import show_run
+    from rig.cli._common import print_json
+
+    row = show_run(args.run, args.index)
+    if args.json:
+        print_json(row)
+        return 0
+    conditions = row.pop("conditions") or {}
+    for k, v in [*row.items(), *((f"conditions.{k}", v) for k, v in conditions.items())]:
+        print(f"{k:<28} {v}")
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add this group's subcommands to ``sub``."""
+    p = sub.add_parser("catalog", help="index an archive of run files; query it")
+    psub = p.add_subparsers(dest="catalog_command", metavar="CATALOG_COMMAND")
+    psub.required = True
+    i = psub.add_parser("index", help="index (or update the index of) the run files under DIRs")
+    i.add_argument("dirs", nargs="+", metavar="DIR", help="folders of run files (.h5)")
+    i.add_argument("--index", default=None, metavar="FILE",
+                   help="the index file (default DIR/.cutlab-catalog.sqlite, the first DIR)")
+    i.add_argument("--json", action="store_true", help="JSON on stdout")
+    i.set_defaults(func=_index)
+    q = psub.add_parser("query", help="the runs matching an expression, one row each")
+    q.add_argument("expr", metavar="EXPR",
+                   help="e.g. \"material == 'GM241' and 0.2 <= fz_mm <= 0.4\" ('' for all)")
+    q.add_argument("--index", default=None, metavar="FILE|DIR",
+                   help="the catalogue (default: the current folder's or a parent's)")
+    fmt = q.add_mutually_exclusive_group()
+    fmt.add_argument("--json", action="store_true", help="JSON on stdout")
+    fmt.add_argument("--csv", action="store_true", help="CSV on stdout (every column)")
+    q.add_argument("--all-columns", action="store_true", help="every column in the text table")
+    q.set_defaults(func=_query)
+    s = psub.add_parser("show", help="one run's catalogue row")
+    s.add_argument("run", metavar="RUN", help="run name, CAMPAIGN/RUN, or path")
+    s.add_argument("--index", default=None, metavar="FILE|DIR",
+                   help="the catalogue (default: the current folder's or a parent's)")
+    s.add_argument("--json", action="store_true", help="JSON on stdout")
+    s.set_defaults(func=_show)
