@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from functools import lru_cache
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -480,23 +482,68 @@ def load_machine(name_or_path: str | Path = "ace-h63") -> MachineConfig:
     return load_model(MachineConfig, _resolve(name_or_path, "machines"))
 
 
+# User catalogues (issue 17): files next to the user's data, consulted before the shipped
+# configs/tools.toml and configs/materials.toml, so that nobody edits the install. A module-level
+# list, not a context variable: campaign runners read tools from worker threads.
+_USER_CATALOGS: dict[str, list[str]] = {"tools": [], "materials": []}
+
+
+@contextmanager
+def user_catalogs(
+    tools: str | Path | None = None, materials: str | Path | None = None
+) -> Iterator[None]:
+    """Within the block, :func:`get_tool` / :func:`load_tools` (and the material ones) look in
+    ``tools`` / ``materials`` first: a name there shadows the shipped one. Each file is read now,
+    so a bad one is one error naming it, before any work."""
+    added = []
+    for kind, path in (("tools", tools), ("materials", materials)):
+        if path is None:
+            continue
+        if "\0" in str(path):  # open() would raise ValueError, not a config error
+            raise ConfigError(f"{str(path)!r}: not a file name (it holds a NUL character)")
+        (_tool_library if kind == "tools" else _material_library)(str(path))
+        _USER_CATALOGS[kind].insert(0, str(path))
+        added.append(kind)
+    try:
+        yield
+    finally:
+        for kind in added:
+            _USER_CATALOGS[kind].pop(0)
+
+
+def _catalog_files(kind: str, path: str | Path | None) -> list[str]:
+    """The files searched, first match wins: ``path`` alone, else the user ones then shipped."""
+    if path is not None:
+        return [str(path)]
+    return [*_USER_CATALOGS[kind], str(config_dir() / f"{kind}.toml")]
+
+
+def _not_found(kind: str, name: str, path: str | Path | None, known: list[str]) -> ConfigError:
+    first, *rest = _catalog_files(f"{kind}s", path)
+    nor = f" (nor in {', '.join(rest)})" if rest else ""
+    return ConfigError(
+        f"{first}: {kind} '{name}' not found{nor}; known {kind}s: {', '.join(sorted(known))}"
+    )
+
+
 @lru_cache(maxsize=8)
 def _tool_library(path: str) -> ToolLibrary:
     return load_model(ToolLibrary, path)
 
 
 def load_tools(path: str | Path | None = None) -> dict[str, EndMill | FaceMill]:
-    """All tools of a tool library file (default ``configs/tools.toml``)."""
-    return dict(_tool_library(str(path or config_dir() / "tools.toml")).tools)
+    """All tools of a tool library file (default: the user catalogues, then
+    ``configs/tools.toml``; a user name shadows the shipped one)."""
+    out: dict[str, EndMill | FaceMill] = {}
+    for f in reversed(_catalog_files("tools", path)):
+        out.update(_tool_library(f).tools)
+    return out
 
 
 def get_tool(name: str, path: str | Path | None = None) -> EndMill | FaceMill:
     tools = load_tools(path)
     if name not in tools:
-        raise ConfigError(
-            f"{path or config_dir() / 'tools.toml'}: tool '{name}' not found; known tools: "
-            f"{', '.join(sorted(tools))}"
-        )
+        raise _not_found("tool", name, path, list(tools))
     return tools[name]
 
 
@@ -506,16 +553,17 @@ def _material_library(path: str) -> MaterialLibrary:
 
 
 def load_materials(path: str | Path | None = None) -> dict[str, Material]:
-    return dict(_material_library(str(path or config_dir() / "materials.toml")).materials)
+    """All materials (default: the user catalogues, then ``configs/materials.toml``)."""
+    out: dict[str, Material] = {}
+    for f in reversed(_catalog_files("materials", path)):
+        out.update(_material_library(f).materials)
+    return out
 
 
 def get_material(name: str, path: str | Path | None = None) -> Material:
     mats = load_materials(path)
     if name not in mats:
-        raise ConfigError(
-            f"{path or config_dir() / 'materials.toml'}: material '{name}' not found; known: "
-            f"{', '.join(sorted(mats))}"
-        )
+        raise _not_found("material", name, path, list(mats))
     return mats[name]
 
 

@@ -611,12 +611,12 @@ def test_shipped_operation_plan_machines_its_programs_in_order(capsys, tmp_path)
     assert rc == 0
     ops = {o["operation"]: o for o in json.loads(so)["operations"]}
     assert list(ops) == ["demo-part", "inch-features"]
-    # The second program meets what the first left: it removes less than it would alone (a
-    # plan of it alone: a program that changes tools is refused with one --tool).
+    # The second program meets what the first left: it removes less than it would alone.
     alone = Path(__file__).parents[1] / "data" / "programs" / "inch-features.nc"
     text = plan.read_text()
     one = tmp_path / "alone.toml"
-    op = f'[[operations]]\nname = "inch-features"\nprogram = "{alone}"\ntool = "phi10-flat"\n'
+    op = (f'[[operations]]\nname = "inch-features"\nprogram = "{alone}"\n'
+          'tools = { T3 = "quarter-inch-ball", T4 = "no7-drill" }\n')  # fmt: skip
     one.write_text(text[: text.index("[[operations]]")] + op)
     rc, so, _ = cli(["plan", "simulate", str(one), "--json"], capsys)
     assert rc == 0

@@ -24,7 +24,7 @@ from analysis.config import (
     get_material,
     get_tool,
     load_rig,
-    load_tools,
+    user_catalogs,
 )
 from analysis.errors import AnalysisError, ConfigError
 from analysis.identify._common import (
@@ -60,18 +60,9 @@ SHORT_NAMES = {"Ktc": ("Ktc_n_mm2", "N/mm^2"), "Krc": ("Krc_n_mm2", "N/mm^2"),
 
 def find_tool(name: str, tools_path: str | Path | None = None) -> EndMill | FaceMill:
     """A tool from the user's catalogue ``tools_path`` (if given and it has it), else from the
-    shipped ``configs/tools.toml``."""
-    if tools_path is not None and name in load_tools(tools_path):
-        return get_tool(name, tools_path)
-    try:
+    shipped ``configs/tools.toml`` (:func:`analysis.config.user_catalogs`)."""
+    with user_catalogs(tools=tools_path):
         return get_tool(name)
-    except ConfigError as exc:
-        if tools_path is None:
-            raise
-        raise ConfigError(
-            f"{tools_path}: tool {name!r} not found (nor in the shipped catalogue); known "
-            f"tools: {', '.join(sorted(load_tools(tools_path)))}; {exc}"
-        ) from None
 
 
 def tool_teeth(name: str, tools_path: str | Path | None = None) -> int:

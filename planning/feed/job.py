@@ -7,7 +7,7 @@ files and plain data.
   changes, clamps to the machine, and writes OUT.nc with only F words and splits changed, for the
   ``dialect`` controller (default the machine's: :func:`planning.nc.output.for_dialect`), plus a
   report (CSV, PNGs) next to it.
-* :func:`simulate_job` (``cutlab plan simulate IN.nc|PLAN.toml [--tool T] [--stock S]
+* :func:`simulate_job` (``cutlab plan simulate IN.nc|PLAN.toml [--tool T | T1=A,T2=B] [--stock S]
   --png stock.png``): virtual machining alone (removed volume, time, holder contacts, final
   stock PNG). A plan file runs several programs, each with its tool, on the same stock.
 
@@ -22,9 +22,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from analysis.config import EndMill, MachineConfig, get_material, get_tool, load_machine, load_tools
+from analysis.config import EndMill, MachineConfig, get_material, load_machine
 from analysis.rules import FeedRule, RuleBase, load_rule
 from planning.errors import PlanningError
 from planning.feed.post import FeedPostOptions, FeedPostResult, post_process
@@ -32,7 +30,17 @@ from planning.feed.report import write_report
 from planning.nc import Motion, Program, interpret
 from planning.nc.output import DIALECTS, default_dialect, for_dialect
 from planning.stock import Cutter, ZMap, default_stock, load_stock, save_stock_png
-from planning.stock.machining import Operation, OperationPlan, OperationResult, load_plan, summary
+from planning.stock.machining import (
+    Operation,
+    OperationPlan,
+    OperationResult,
+    ToolMap,
+    bind_tools,
+    end_mill,
+    load_plan,
+    parse_tool_spec,
+    summary,
+)
 
 Progress = Callable[[int, int], None]  # (pieces done, pieces in all)
 # (adjusted program, starting stock, machine) -> (program, report): planning.limits
@@ -44,21 +52,21 @@ class Job:
     """One program ready to machine: its machine, end mill, text, motion and starting stock."""
 
     machine: MachineConfig
-    tool: EndMill
+    tools: ToolMap  # T number -> (name, end mill) of each tool the program loads
     program: Program
     motion: Motion
     stock: ZMap
 
-
-def end_mill(name: str | None) -> EndMill:
-    """The end mill ``name`` of configs/tools.toml (the Z-map models end mills only)."""
-    if not name:
-        known = ", ".join(sorted(k for k, t in load_tools().items() if isinstance(t, EndMill)))
-        raise PlanningError(f"--tool is required (an end mill of configs/tools.toml): {known}")
-    tool = get_tool(name)
-    if not isinstance(tool, EndMill):
-        raise PlanningError(f"tool '{name}' is a {tool.kind}: the Z-map models end mills only")
-    return tool
+    @property
+    def tool(self) -> EndMill:
+        """The end mill of a one-tool program (the feed post-processor's); refuse several."""
+        if len(self.tools) > 1:
+            t = list(self.tools)
+            raise PlanningError(
+                f"{self.program.file}: the program changes tools (T{t[0]} to T{t[1]}): the feed "
+                "post-processor adjusts one tool's program; split it per tool"
+            )
+        return next(iter(self.tools.values()))[1]
 
 
 def load_job(
@@ -69,14 +77,16 @@ def load_job(
     spacing_mm: float | None = None,
 ) -> Job:
     """Read and interpret a program (cutter compensation refused) for ``machine`` and the end
-    mill ``tool_name``; the stock from ``stock_spec`` (see :func:`load_stock`), else a box over
-    the program's feed moves with its top at Z0."""
+    mill ``tool_name`` (or ``T1=NAME,T2=NAME``: one per tool the program loads); the stock from
+    ``stock_spec`` (see :func:`load_stock`), else a box over the program's feed moves with its
+    top at Z0."""
     m = load_machine(machine)
-    tool = end_mill(tool_name)
+    if not tool_name:
+        end_mill(tool_name)  # the error lists the end mills
     program = Program.read(program_path)
     motion = interpret(program, m, file=str(program_path), cutter_comp="refuse")
-    _one_tool(motion, program_path, tool_name)
-    cutter = Cutter.from_tool(tool)
+    tools = bind_tools(motion, parse_tool_spec(tool_name), str(program_path))  # type: ignore[arg-type]
+    cutter = Cutter.from_tool(max((t for _, t in tools.values()), key=lambda t: t.diameter_mm))
     if stock_spec:
         stock = load_stock(stock_spec, spacing_mm)
     else:
@@ -84,24 +94,7 @@ def load_job(
             stock = default_stock(motion, cutter, spacing_mm)
         except PlanningError as exc:
             raise PlanningError(f"{program_path}: {exc}") from None
-    return Job(m, tool, program, motion, stock)
-
-
-def _one_tool(motion: Motion, program_path: str | Path, tool_name: str | None) -> None:
-    """A program is cut with the one end mill named: refuse one that changes tools (M6 to
-    another T number), naming the block, rather than cut its later tools' moves with it."""
-    used = motion.tool[motion.tool != 0]
-    if used.size == 0:
-        return
-    other = np.flatnonzero((motion.tool != 0) & (motion.tool != used[0]))
-    if other.size:
-        i = int(other[0])
-        raise PlanningError(
-            f"{program_path}:{int(motion.line[i])}: block {int(motion.block[i])}: the program "
-            f"changes from T{int(used[0])} to T{int(motion.tool[i])} (M6), and --tool "
-            f"{tool_name} is one end mill: give an operation plan (.toml) with one program per "
-            "tool (see data/plans/demo-plan.toml)"
-        )
+    return Job(m, tools, program, motion, stock)
 
 
 def resolve_rule(spec: str, db: str | Path | None = None) -> FeedRule:
@@ -244,7 +237,7 @@ def simulate_job(
         plan, _ = load_plan(program_path, spacing_mm)
     else:
         job = load_job(program_path, machine, tool_name, stock_spec, spacing_mm)
-        op = Operation(Path(program_path).stem, job.motion, job.tool, tool_name, str(program_path))
+        op = Operation(Path(program_path).stem, job.motion, job.tools, str(program_path))
         plan = OperationPlan(job.stock, [op], job.machine)
     start_volume = plan.stock.volume_mm3()
     cb = None if progress is None else (lambda name, done, total: progress(done, total))

@@ -26,6 +26,7 @@ from planning.limits.check import FEED_LIMITS, CheckResult, Pieces, check_motion
 from planning.limits.model import Limits, limits_for
 from planning.nc import Motion, Program, interpret, motion_stats
 from planning.stock import Cutter, ZMap, default_stock, load_stock
+from planning.stock.machining import bind_tools
 
 SPLIT_SLACK = 1.1  # sub-levels: depth / (needed reduction x this)
 ROUNDS = 4  # split-and-recheck rounds before the remaining blocks get lower feeds
@@ -228,6 +229,8 @@ def check_job(
                         force_limit_n=force_limit_n)  # fmt: skip
     program = Program.read(program_path)
     motion = interpret(program, m, file=str(program_path), cutter_comp="refuse")
+    if tool_name:  # the limits are one tool's: refuse a program that changes tools, naming it
+        bind_tools(motion, tool_name, str(program_path))
     if stock_spec:
         stock = load_stock(stock_spec, spacing_mm)
     else:

@@ -39,6 +39,7 @@ from analysis.config import (
     get_tool,
     load_machine,
     load_rig,
+    user_catalogs,
 )
 from analysis.errors import ConfigError
 from analysis.validation import Model, read_toml, validate
@@ -59,6 +60,14 @@ class CampaignSection(Model):
     rig_config: str | None = Field(None, description="rig TOML (default configs/rig.toml)")
     output_dir: str = Field("data/campaigns", description="folder of campaign folders")
     operator: str = ""
+    tools_file: str | None = Field(
+        None, description="your tool catalogue, relative to the campaign file; its names shadow "
+        "configs/tools.toml"
+    )  # fmt: skip
+    materials_file: str | None = Field(
+        None, description="your material catalogue, relative to the campaign file; its names "
+        "shadow configs/materials.toml"
+    )  # fmt: skip
 
 
 class ProgramSection(Model):
@@ -557,8 +566,14 @@ def load_campaign(path: str | Path) -> Campaign:
             return None
 
     machine = load("machine", load_machine, c.machine)
-    tool = load("tool", get_tool, c.tool)
-    material = load("material", get_material, c.material)
+    tool = material = None
+    files = [None if f is None else p.parent / f for f in (c.tools_file, c.materials_file)]
+    try:
+        with user_catalogs(*files):
+            tool = load("tool", get_tool, c.tool)
+            material = load("material", get_material, c.material)
+    except ConfigError as exc:  # a bad catalogue file: its own message names it
+        problems.append(str(exc))
     rig = load("rig_config", load_rig, c.rig_config)
     if c.rig == "sim" and tool is not None and material is not None:
         need = "facemill" if isinstance(tool, FaceMill) else "endmill"

@@ -74,12 +74,20 @@ def campaign_inputs(campaign: Campaign) -> dict[str, dict[str, Any]]:
     c = campaign.spec.campaign
     cfg = config_dir()
     fields = experiment_fields(campaign)
+    here = Path(campaign.path).parent
+
+    def catalogue(kind: str, user: str | None, name: str) -> str:
+        # the campaign's own catalogue is searched first (its names shadow the shipped ones)
+        shipped = cfg / f"{kind}.toml"
+        where = f"{here / user}, then {shipped}" if user else str(shipped)
+        return f"{where} [{kind}.{name}]"
+
     return {
         "config": {"sha256": _sha256(fields), "source": str(campaign.path), "fields": fields},
         "tool": {"sha256": _sha256(campaign.tool.model_dump()),
-                 "source": f"{cfg / 'tools.toml'} [tools.{c.tool}]"},
+                 "source": catalogue("tools", c.tools_file, c.tool)},
         "material": {"sha256": _sha256(campaign.material.model_dump()),
-                     "source": f"{cfg / 'materials.toml'} [materials.{c.material}]"},
+                     "source": catalogue("materials", c.materials_file, c.material)},
         "machine": {"sha256": _sha256(campaign.machine.model_dump()),
                     "source": f"machine '{c.machine}' ({cfg / 'machines'})"},
         "rig": {"sha256": _sha256(campaign.rig.model_dump()),

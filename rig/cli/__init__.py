@@ -50,6 +50,12 @@ def main(argv: list[str] | None = None) -> int:
         msg = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
         print(f"cutlab: error: {msg}", file=sys.stderr)
         return 2
+    except ValueError as exc:
+        if "null byte" not in str(exc):
+            raise
+        # a path with a NUL character reaches os/h5py calls that refuse it this way
+        print("cutlab: error: a file name holds a NUL character", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("cutlab: interrupted", file=sys.stderr)
         return 130

@@ -13,7 +13,7 @@ import argparse
 import contextlib
 from pathlib import Path
 
-from rig.cli._common import print_json, print_table, status
+from rig.cli._common import add_catalog_options, print_json, print_table, status
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -45,6 +45,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     add_server_options(r)
     r.set_defaults(func=_run)
+    add_catalog_options(r)
     s = csub.add_parser("status", help="each run's status and reason")
     rep = csub.add_parser("report", help="analyse a campaign's runs and write its report folder")
     for q, func in ((s, _status), (rep, _report)):
@@ -52,6 +53,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         q.add_argument("--out")
         q.add_argument("--json", action="store_true")
         q.set_defaults(func=func)
+        add_catalog_options(q)
 
 
 def _dry_run(campaign, as_json: bool, out_root: str | None) -> int:

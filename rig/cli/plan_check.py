@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import positive
+from rig.cli._common import add_catalog_options, positive
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -29,6 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--plot", type=Path, help="PNG of each quantity per block against its limit")
     p.add_argument("--json", action="store_true", help="machine-readable output on stdout")
     p.set_defaults(func=run)
+    add_catalog_options(p)
 
 
 def add_limit_options(p: argparse.ArgumentParser) -> None:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import image_file, positive
+from rig.cli._common import add_catalog_options, image_file, positive
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -38,19 +38,20 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     add_limit_options(f)
     f.set_defaults(func=_feed)
+    add_catalog_options(f)
 
     s = sub.add_parser("simulate", help="Z-map virtual machining of a program or a plan")
     s.add_argument("program", type=Path, help="NC program, or an operation plan (.toml)")
     _common(s)
     s.add_argument("--png", type=image_file, help="final stock PNG")
     s.set_defaults(func=_simulate)
+    add_catalog_options(s)
 
 
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--machine", default="ace-h63", help="machine config name or path")
-    p.add_argument(
-        "--tool", help="end mill in configs/tools.toml (needed for a program; plans name theirs)"
-    )
+    p.add_argument("--tool", help="end mill of the tool catalogue, or T1=NAME,T2=NAME for a "
+                   "program that changes tools (needed for a program; plans name theirs)")
     p.add_argument("--stock", help="box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP | mesh (.stl) | stock TOML "
         "(default: a box over the feed moves, top at Z0)")  # fmt: skip
     p.add_argument(
@@ -126,6 +127,9 @@ def _simulate(a: argparse.Namespace) -> int:
     cols = ("operation", "tool", "segments", "removed_mm3", "time_s")
     print_table([{k: r[k] for k in cols} | {"holder_contacts": len(r["holder_contacts"])}
                  for r in out["operations"]])  # fmt: skip
+    if any(len(r["tools"]) > 1 for r in out["operations"]):  # each tool's share
+        print_table([{"operation": r["operation"]} | t for r in out["operations"]
+                     for t in r["tools"]])  # fmt: skip
     if a.png:
         status(f"wrote {a.png}")
     return 0

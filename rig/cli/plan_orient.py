@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import count
+from rig.cli._common import add_catalog_options, count
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -37,6 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="controller to write for (default: the machine's); grbl has no "
                    "rotary axes and is refused")  # fmt: skip
     p.set_defaults(func=run)
+    add_catalog_options(p)
 
 
 def _show(v):

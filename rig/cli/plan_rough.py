@@ -16,7 +16,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import positive
+from rig.cli._common import add_catalog_options, positive
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -51,6 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     add_limit_options(p)
     p.set_defaults(func=run)
+    add_catalog_options(p)
 
 
 # the per-level table (seed 000 Table 1): column -> key of a level row

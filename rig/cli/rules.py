@@ -5,7 +5,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import count, image_file, positive, print_json, print_table, status
+from rig.cli._common import (
+    add_catalog_options,
+    count,
+    image_file,
+    positive,
+    print_json,
+    print_table,
+    status,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -48,6 +56,7 @@ def _register_derive(rs: argparse._SubParsersAction) -> None:
     d.add_argument("--png", type=image_file, help="also plot the rule and the sweep here")
     d.add_argument("--json", action="store_true")
     d.set_defaults(func=_derive)
+    add_catalog_options(d)
 
 
 def _key_args(q: argparse.ArgumentParser) -> None:
