@@ -240,7 +240,10 @@ def refine(
     min_step_mm: float = 0.02,
 ) -> Refined:
     """Insert CC points until every move passes (see the module docstring); a move shorter than
-    ``min_step_mm`` on the part is not split further (a collision there is the CC point's)."""
+    ``min_step_mm`` on the part that collides or turns the axis too far is not split further
+    (that is the CC point's, not the move's). Deviation and C steps still are: near the C
+    axis a short move on the part can swing C by degrees, and halving it quarters the tip's
+    deviation."""
     theta = np.asarray(theta, float)
     inserted, unresolved = 0, ""
     for rounds in range(1, max_rounds + 1):
@@ -252,6 +255,7 @@ def refine(
         bad |= (jump > max_jump_deg) | ((dc > max_c_step_deg) & (cc.line[1:] == cc.line[:-1]))
         bad &= cc.line[1:] == cc.line[:-1]
         short = np.linalg.norm(np.diff(cc.point, axis=0), axis=1) < min_step_mm
+        short &= np.array([bool(h) for h in chk.hits], bool) | (jump > max_jump_deg)
         if (bad & short).any():
             bad &= short  # report the first move that cannot be split further
             break
@@ -270,7 +274,9 @@ def refine(
                 np.full(len(k), 2.0),
             ]
         )
-        cc, theta, added = _insert(ctx, surface, along, cc, theta, k, np.minimum(pieces, 16))
+        cc, theta, added = _insert(
+            ctx, surface, along, cc, theta, k, np.minimum(pieces, 16), max_jump_deg
+        )
         inserted += added
         if not added:
             break
@@ -283,11 +289,13 @@ def refine(
     return Refined(cc, theta, u, tip, moves, chk, inserted, rounds, unresolved)
 
 
-def _insert(ctx, surface, along, cc: CCPoints, theta, moves_idx, pieces):
-    """CC points splitting the moves ``moves_idx`` into ``pieces`` equal steps in parameter; the
-    orientation is the blend of the neighbours' axes in the new frame, clipped to the limits,
-    re-planned from there when it collides. Returns the new cc, theta and how many were
-    inserted."""
+def _insert(ctx, surface, along, cc: CCPoints, theta, moves_idx, pieces, max_turn_deg=5.0):
+    """CC points splitting the moves ``moves_idx`` into ``pieces`` equal steps in parameter, on
+    the surface with its normal there (:func:`cc_at`); the orientation is the blend of the
+    neighbours' axes in the new frame, clipped to the limits. Where a blended orientation
+    collides, the move's points are re-oriented together (:func:`_reorient`): re-planning each
+    one alone picks either side of a collision island and the tool flips between them. Returns
+    the new cc, theta and how many were inserted."""
     reps = np.asarray(pieces, int) - 1
     i = np.repeat(np.asarray(moves_idx), reps)
     w = np.concatenate([np.arange(1, n + 1) / (n + 1) for n in reps])
@@ -299,30 +307,152 @@ def _insert(ctx, surface, along, cc: CCPoints, theta, moves_idx, pieces):
     mean = (1 - w[:, None]) * u0[i] + w[:, None] * u0[i + 1]
     mean /= np.linalg.norm(mean, axis=1)[:, None]
     th_new = np.clip(angles_of(mean, new.binormal, new.feed, new.normal), *ctx.bounds.T)
-    keep = np.ones(len(i), bool)
-    for k in range(len(i)):
-        site = Site(new.point[k], new.normal[k], new.binormal[k], new.feed[k])
-        kap = float(new.kappa_per_mm[k])
-        if _free(ctx, site, kap, th_new[k]) and ctx.gate(site, th_new[k]).ok:
-            continue
-        th, _, _, _ = solve_point(ctx, site, kap, th_new[k])
-        if th is None:
-            keep[k] = False
-        else:
-            th_new[k] = th
-    if not keep.any():
-        return cc, theta, 0
-    i, th_new, w = i[keep], th_new[keep], w[keep]
     pos = np.concatenate([np.arange(len(theta)), i + w])
     order = np.argsort(pos, kind="stable")
-
-    def merged(old, add):
-        return np.concatenate([old, add[keep]])[order]
-
     cc2 = CCPoints(
-        *(merged(getattr(cc, f), getattr(new, f)) for f in CCPoints.__dataclass_fields__)
+        *(
+            np.concatenate([getattr(cc, f), getattr(new, f)])[order]
+            for f in CCPoints.__dataclass_fields__
+        )
     )
-    return cc2, np.concatenate([theta, th_new])[order], int(keep.sum())
+    th2 = np.concatenate([theta, th_new])[order]
+    rank = np.empty(len(order), int)
+    rank[order] = np.arange(len(order))
+    is_new = np.arange(len(order)) >= len(theta)
+    ok = np.ones(len(order), bool)
+    ok[rank[is_new]] = False
+    cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    for k in np.asarray(moves_idx):
+        s, e = int(rank[k]), int(rank[k + 1])
+        if all(_placed_ok(ctx, cc2, th2[j], j) for j in range(s + 1, e)):
+            ok[s + 1 : e] = True
+            continue
+        got = _reorient(ctx, cc2, th2, s, e, max_turn_deg, cache)
+        if got is not None:
+            a, b, th_ab = got
+            th2[a : b + 1] = th_ab
+            ok[a : b + 1] = True
+    # What the joint re-orientation could not place: each point alone, as the planner would.
+    for j in np.flatnonzero(~ok):
+        site = _site(cc2, j)
+        th, _, _, _ = solve_point(ctx, site, float(cc2.kappa_per_mm[j]), th2[j])
+        if th is not None:
+            th2[j], ok[j] = th, True
+    keep = ok | ~is_new[order]
+    added = int((keep & is_new[order]).sum())
+    if not added:
+        return cc, theta, 0
+    cc3 = CCPoints(*(getattr(cc2, f)[keep] for f in CCPoints.__dataclass_fields__))
+    return cc3, th2[keep], added
+
+
+def _site(cc: CCPoints, j: int) -> Site:
+    return Site(cc.point[j], cc.normal[j], cc.binormal[j], cc.feed[j])
+
+
+def _placed_ok(ctx: _Context, cc: CCPoints, th, j: int) -> bool:
+    site = _site(cc, j)
+    return _free(ctx, site, float(cc.kappa_per_mm[j]), th) and ctx.gate(site, th).ok
+
+
+def _nodes(ctx: _Context, cc: CCPoints, j: int, theta, s: int, e: int, cache):
+    """Candidate orientations (k, 2) rad at point j and which are free of the energy's collision
+    and of local overcut (cached per point): the current one, the planner's answer from there,
+    the axes of the move's ends s and e held in j's frame (for a short move the best path is
+    often one of these), and a grid of the advance limits by the tilt within 35 deg of the
+    current one (2.5 deg steps)."""
+    if j not in cache:
+        site, kap = _site(cc, j), float(cc.kappa_per_mm[j])
+        a0, a1 = ctx.bounds[0]
+        a = np.linspace(a0, a1, max(2, int(np.ceil((a1 - a0) / np.radians(2.5))) + 1))
+        w = np.radians(35.0)
+        b = np.arange(-w, w + 1e-9, np.radians(2.5)) + theta[j, 1]
+        b = b[(b >= ctx.bounds[1, 0]) & (b <= ctx.bounds[1, 1])]
+        A, B = np.meshgrid(a, b, indexing="ij")
+        ends = tool_axis(theta[[s, e], 0], theta[[s, e], 1], cc.binormal[[s, e]],
+                         cc.feed[[s, e]], cc.normal[[s, e]])  # fmt: skip
+        held = np.clip(angles_of(ends, cc.binormal[j], cc.feed[j], cc.normal[j]), *ctx.bounds.T)
+        th = [theta[j][None], held, np.stack([A.ravel(), B.ravel()], 1)]
+        got, _, _, _ = solve_point(ctx, site, kap, theta[j])
+        if got is not None:
+            th.insert(1, got[None])
+        th = np.vstack(th)
+        cache[j] = (th, np.array([_free(ctx, site, kap, t) for t in th]))
+    return cache[j]
+
+
+def _reorient(ctx, cc: CCPoints, theta, s: int, e: int, max_turn_deg: float, cache):
+    """Orientations for points s..e of one line, chosen together: a shortest path (dynamic
+    programming) through each point's collision-free grid orientations, the cost the sum of
+    squared axis turns between neighbours (plus a little for leaving the current orientation),
+    no turn above twice ``max_turn_deg`` (the next round inserts points into what is left above
+    it), the end points held. The collision-free set at a point can be two islands within the
+    lead/tilt limits (on the mask's cheek the upright tool collides and only a tilt either way
+    is free); then only a path that keeps to one island from far enough back exists, so while
+    there is none the stretch grows (twice as far each time, to the whole line, whose ends are
+    then free too). Every chosen orientation is gated on the dense check mesh; one that fails
+    is struck out and the path searched again. Returns (first, last, theta (k, 2)) or None."""
+    line = cc.line[s]
+    on = np.flatnonzero(cc.line == line)
+    lo_i, hi_i = int(on[0]), int(on[-1])
+    grow = 1
+    while True:
+        a, b = max(s - (grow - 1), lo_i), min(e + (grow - 1), hi_i)
+        got = _shortest(ctx, cc, theta, a, b, (s, e), a > lo_i, b < hi_i, max_turn_deg, cache)
+        if got is not None:
+            return a, b, got
+        if a == lo_i and b == hi_i:
+            return None
+        grow *= 2
+
+
+def _shortest(ctx, cc, theta, a, b, move, hold_a, hold_b, max_turn_deg, cache):
+    nodes, free = [], []
+    for j in range(a, b + 1):
+        if (j == a and hold_a) or (j == b and hold_b):
+            nodes.append(theta[j][None])
+            free.append(np.ones(1, bool))
+        else:
+            th, fr = _nodes(ctx, cc, j, theta, *move, cache)
+            nodes.append(th)
+            free.append(fr.copy())
+    lim = np.radians(2 * max_turn_deg)
+    pref = 0.05  # weight of leaving the current orientation, against the turns
+    for _ in range(8):
+        axes = [
+            tool_axis(t[:, 0], t[:, 1], cc.binormal[j], cc.feed[j], cc.normal[j])
+            for j, t in zip(range(a, b + 1), nodes)
+        ]
+        here = [
+            np.arccos(np.clip(x @ x[0], -1, 1)) ** 2 * pref
+            if not ((j == a and hold_a) or (j == b and hold_b))
+            else np.zeros(1)
+            for j, x in zip(range(a, b + 1), axes)
+        ]
+        cost = np.where(free[0], here[0], np.inf)
+        back = []
+        for k in range(1, len(nodes)):
+            turn = np.arccos(np.clip(axes[k - 1] @ axes[k].T, -1.0, 1.0))
+            step = np.where(turn <= lim, turn**2, np.inf) + cost[:, None]
+            arg = np.argmin(step, axis=0)
+            cost = step[arg, np.arange(len(arg))] + np.where(free[k], here[k], np.inf)
+            back.append(arg)
+        if not np.isfinite(cost).any():
+            return None
+        pick = [int(np.argmin(cost))]
+        for arg in reversed(back):
+            pick.append(int(arg[pick[-1]]))
+        pick.reverse()
+        th = np.array([nodes[k][p] for k, p in enumerate(pick)])
+        failed = False
+        for k, j in enumerate(range(a, b + 1)):
+            held = (j == a and hold_a) or (j == b and hold_b)
+            if not held and not ctx.gate(_site(cc, j), th[k]).ok:
+                free[k][pick[k]] = False
+                failed = True
+        if not failed:
+            return th
+    return None
 
 
 def require_refined(ref: Refined) -> None:

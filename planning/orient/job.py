@@ -1,8 +1,9 @@
 """The whole `cutlab plan orient` job: plan the orientations, smooth them, refine the CL points
 until the machine's moves between them are verified (planning.orient.between), re-check every
 posted pose on a fresh mesh, post for the machine (inverse kinematics, singularity, G93 feeds
-within the axis speeds, forward-kinematics check of every block), write CL data, the NC program,
-the pictures and summary.json, and return the summary."""
+within the axis speeds, forward-kinematics check of every block), simulate the stock the program
+leaves (planning.orient.stock5: gouge and leftover against the design surface), write CL data,
+the NC program, the pictures and summary.json, and return the summary."""
 
 from __future__ import annotations
 
@@ -36,12 +37,16 @@ from planning.orient.planner import (
     solve_all,
 )
 from planning.orient.smooth import angles_of, smooth_result
+from planning.orient.stock5 import figures, save_maps, simulate
 from planning.orient.tool import ToolSystem
 
 TIP_TOL_MM = 0.01  # tool tip off the chord between CL points, after refinement
 MAX_JUMP_DEG = 5.0  # tool-axis change between neighbouring CL points
 MAX_C_STEP_DEG = 30.0  # C per block
 SINGULAR_CONE_DEG = 3.0  # C held within this angle of the C axis
+STOCK_SPACING_MM = 0.25  # dexels of the stock simulation, apart on the design surface
+STOCK_STEP_MM = 0.1  # tool samples along a move: a bull's 2 mm corner leaves 0.0006 mm between
+STOCK_ALLOWANCE_MM = 1.0  # stock over the design surface before the program
 
 
 def _jump_stats(axis, cc) -> tuple[float, int, float]:
@@ -110,6 +115,14 @@ def run_orient(
             f"{i}: {c.part} in {c.surface} by {-c.min_mm:.4f} mm"
         )
     moves = ref.moves
+    t2 = time.perf_counter()
+    ps = cfg.paths
+    across = (min(ps.lines), max(ps.lines))
+    u_frac, v_frac = (ps.span, across) if ps.along == "u" else (across, ps.span)
+    stock = simulate(machined, u_frac, v_frac, machine, moves, ref.cc.line, tool,
+                     STOCK_SPACING_MM, STOCK_STEP_MM, STOCK_ALLOWANCE_MM)  # fmt: skip
+    cut = figures(stock, STOCK_ALLOWANCE_MM, STOCK_STEP_MM)
+    stock_s = time.perf_counter() - t2
     fk_mm, fk_rad = check_forward(machine, moves, ref.tip_mm, ref.axis, tool.gauge_length_mm)
     inv_f, _ = inverse_time_feeds(machine, moves, ref.tip_mm, pl.feed_mm_min)
     speeds = axis_speeds(machine, moves, inv_f, ref.cc.line)
@@ -138,7 +151,8 @@ def run_orient(
         emap = energy_map(cfg, tool_cfg, idx, res)
         plot_energy_map(emap, out / "energy_map.png", cfg.name)
         plot_axes(surfaces, res, out / "orientation.png", cfg.name)
-        files += [str(out / "energy_map.png"), str(out / "orientation.png")]
+        save_maps(stock, pl.gouge_tolerance_mm, out / "stock_maps.png", cfg.name)
+        files += [str(out / n) for n in ("energy_map.png", "orientation.png", "stock_maps.png")]
     jumps_ok = np.isfinite(res.max_jump_deg)
     before = _jump_stats(raw.axis, cc)
     smoothed = _jump_stats(res.axis, cc)
@@ -189,6 +203,13 @@ def run_orient(
         "a_deg_range": [float(moves.a_deg.min()), float(moves.a_deg.max())],
         "c_deg_range": [float(moves.c_deg.min()), float(moves.c_deg.max())],
         **speeds,
+        "gouge_max_mm": cut.gouge_max_mm,
+        "leftover_max_mm": cut.leftover_max_mm,
+        "stock_uncut_fraction": cut.uncut_fraction,
+        "stock_resolution_mm": cut.spacing_mm,
+        "stock_step_mm": cut.step_mm,
+        "stock_allowance_mm": STOCK_ALLOWANCE_MM,
+        "stock_s": round(stock_s, 3),
         "energy_map_point": idx,
         "files": files,
     }
