@@ -143,12 +143,17 @@ def test_record_s_too_small_is_refused_not_a_hang(tmp_path, capsys):
     from rig.cli import main
 
     path = _write_csv(tmp_path / "tap.csv", [TWO], "disp", "dx [m]")
-    for bad in ("0.0005", "0", "-1", "5"):
+    for bad in ("0.0005", "5"):  # a positive number, refused against the record
         rc = main(["analyze", "modal", str(path), "--record-s", bad])
         err = capsys.readouterr().err
         assert rc == 2, bad
         assert err.count("\n") == 1 and "--record-s" in err and f"= {float(bad):g} s" in err
         assert "expected 0.01 to" in err
+    for bad in ("0", "-1"):  # not a positive number: refused when the options are parsed
+        with pytest.raises(SystemExit) as exc:
+            main(["analyze", "modal", str(path), "--record-s", bad])
+        err = capsys.readouterr().err
+        assert exc.value.code == 2 and err.count("\n") == 1 and "--record-s" in err
 
 
 def test_too_many_hits_are_refused():

@@ -290,7 +290,7 @@ class RuleBase:
 
     def find(self, name: str) -> Group:
         """A group by its rule name (or id given as a string)."""
-        if name.isdigit():
+        if name.isascii() and name.isdigit():  # not "²": str.isdigit takes superscripts
             return self.get(int(name))
         rows = self._rows("WHERE rule_name = ?", (name,))
         if not rows:
