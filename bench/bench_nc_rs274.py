@@ -5,8 +5,8 @@ I J and by R between G1 moves) and a 50 MB single-line file, then runs on each `
 (skipped when /usr/bin/rs274 is absent), ``cutlab nc check FILE --json``, ``cutlab nc motions
 FILE --csv -o OUT`` and the streaming API (:func:`planning.nc.run.iter_motion_chunks` with
 :class:`planning.nc.stats.StreamStats`, and with :func:`planning.nc.table.write_motion_csv`),
-each as its own process; prints wall time, peak RSS (the child's ``ru_maxrss``) and the ratio
-to rs274.
+each as its own process; prints wall time, CPU time (user + system: steadier than the wall
+time on a shared machine), peak RSS (the child's ``ru_maxrss``) and the ratios to rs274.
 
     .venv/bin/python bench/bench_nc_rs274.py [--blocks 1000000] [--arcs 200000] [--keep DIR]
 """
@@ -28,6 +28,10 @@ ROOT = Path(__file__).resolve().parent.parent
 RS274 = shutil.which("rs274") or "/usr/bin/rs274"
 CUTLAB = str(ROOT / ".venv" / "bin" / "cutlab")
 PY = sys.executable
+# The children run with their bytecode cached, as an installed package does: with
+# PYTHONDONTWRITEBYTECODE set and no __pycache__, every run would compile its modules again
+# (~40 ms). main() points the cache into its temporary folder and warms it.
+CHILD_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
 
 STREAM_CHECK = """
 import json, sys
@@ -100,18 +104,20 @@ def write_one_line(path: Path, n_bytes: int) -> None:
             fh.write(chunk)
 
 
-def run(cmd: list[str], timeout: float = 600) -> tuple[float, float, int]:
-    """Wall time (s), peak RSS (MB) and exit code of one child process. The peak comes from
-    ``/usr/bin/time`` when there is one (a child forked from this process inherits its peak
-    RSS in ``ru_maxrss``), else from ``os.wait4``."""
+def run(cmd: list[str], timeout: float = 600) -> tuple[float, float, float, int]:
+    """Wall time (s), CPU time (s, user + system), peak RSS (MB) and exit code of one child
+    process. The peak comes from ``/usr/bin/time`` when there is one (a child forked from this
+    process inherits its peak RSS in ``ru_maxrss``), else from ``os.wait4``."""
     timer = shutil.which("time") or "/usr/bin/time"
     use_time = os.access(timer, os.X_OK)
     with tempfile.NamedTemporaryFile("r", suffix=".rss") as rss:
         full = [timer, "-f", "%M", "-o", rss.name, *cmd] if use_time else cmd
         t = time.perf_counter()
-        p = subprocess.Popen(full, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=ROOT)
+        p = subprocess.Popen(full, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, cwd=ROOT,
+                             env=CHILD_ENV)  # fmt: skip
         _, status, usage = os.wait4(p.pid, 0)
         wall = time.perf_counter() - t
+        cpu_s = usage.ru_utime + usage.ru_stime  # /usr/bin/time's own share is negligible
         peak_mb = usage.ru_maxrss / 1024.0
         if use_time:
             text = rss.read().split()
@@ -122,7 +128,7 @@ def run(cmd: list[str], timeout: float = 600) -> tuple[float, float, int]:
     if code:
         last = [x for x in err.splitlines() if not x.startswith("Command exited")]
         print(f"    ({Path(cmd[0]).name} exit {code}: {last[-1] if last else ''})")
-    return wall, peak_mb, code
+    return wall, cpu_s, peak_mb, code
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -139,15 +145,24 @@ def main(argv: list[str] | None = None) -> int:
     write_arcs(progs["arcs"], args.arcs)
     write_one_line(progs["one-line"], args.line_mb << 20)
     have_rs274 = os.access(RS274, os.X_OK)
+    CHILD_ENV["PYTHONPYCACHEPREFIX"] = str(tmp / "pycache")
+    warm = tmp / "warm.ngc"
+    warm.write_text("G1 X1 F100\nM2\n")
+    for cmd in ([CUTLAB, "nc", "check", str(warm)], [PY, "-c", STREAM_CHECK, str(warm)],
+                [CUTLAB, "nc", "motions", str(warm), "--csv"], [PY, "-c", STREAM_CSV, str(warm),
+                str(tmp / "warm.csv")]):  # fmt: skip
+        subprocess.run(cmd, cwd=ROOT, env=CHILD_ENV, capture_output=True, check=False)
     out = tmp / "out.csv"
     print(
-        f"{'program':9} {'command':18} {'rs274 s':>8} {'cutlab s':>9} {'ratio':>6} {'peak MB':>8}"
+        f"{'program':9} {'command':18} {'rs274 s':>8} {'cutlab s':>9} {'ratio':>6} "
+        f"{'cpu s':>6} {'cpu ratio':>9} {'peak MB':>8}"
     )
     try:
         for name, path in progs.items():
             ref = run([RS274, "-g", str(path)]) if have_rs274 and name != "one-line" else None
             if ref:
-                print(f"{name:9} {'rs274 -g':18} {ref[0]:8.2f} {'':>9} {'':>6} {ref[1]:8.0f}")
+                print(f"{name:9} {'rs274 -g':18} {ref[0]:8.2f} {'':>9} {'':>6} {ref[1]:6.2f} "
+                      f"{'':>9} {ref[2]:8.0f}")  # fmt: skip
             cmds = {
                 "nc check --json": [CUTLAB, "nc", "check", str(path), "--json"],
                 "stream check": [PY, "-c", STREAM_CHECK, str(path)],
@@ -157,11 +172,12 @@ def main(argv: list[str] | None = None) -> int:
                                             str(out)]  # fmt: skip
                 cmds["stream csv"] = [PY, "-c", STREAM_CSV, str(path), str(out)]
             for label, cmd in cmds.items():
-                wall, mb, code = run(cmd)
+                wall, cpu_s, mb, code = run(cmd)
                 ratio = f"{wall / ref[0]:6.2f}" if ref else f"{'':>6}"
+                cpu_ratio = f"{cpu_s / ref[1]:9.2f}" if ref else f"{'':>9}"
                 rs = f"{ref[0]:8.2f}" if ref else f"{'-':>8}"
-                print(f"{name:9} {label:18} {rs} {wall:9.2f} {ratio} {mb:8.0f}"
-                      + (f"  exit {code}" if code else ""))  # fmt: skip
+                print(f"{name:9} {label:18} {rs} {wall:9.2f} {ratio} {cpu_s:6.2f} {cpu_ratio} "
+                      f"{mb:8.0f}" + (f"  exit {code}" if code else ""))  # fmt: skip
     finally:
         if args.keep is None:
             shutil.rmtree(tmp, ignore_errors=True)

@@ -212,3 +212,18 @@ def test_exact_bounding_box_matches_fine_linearisation(case):
     np.testing.assert_allclose(lo, pts.min(axis=0), atol=2e-5)
     np.testing.assert_allclose(hi, pts.max(axis=0), atol=2e-5)
     assert np.all(lo <= pts.min(axis=0) + 1e-9) and np.all(hi >= pts.max(axis=0) - 1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(arcs(), min_size=1, max_size=6))
+def test_stats_box_equals_every_quadrant_point_box(cases):
+    """motion_stats widens the end points' box only by the arcs that can leave it; the result is
+    bit for bit the box of every segment's end and quadrant points (segment_boxes)."""
+    from planning.nc import bounding_box, motion_stats
+
+    m = interpret("\n".join(_program(*c)[0] for c in cases))
+    st_ = motion_stats(m)
+    lo, hi = bounding_box(m)
+    assert st_.bbox_min_mm == tuple(lo) and st_.bbox_max_mm == tuple(hi)
+    clo, chi = bounding_box(m[m.is_feed])
+    assert st_.cutting_bbox_min_mm == tuple(clo) and st_.cutting_bbox_max_mm == tuple(chi)

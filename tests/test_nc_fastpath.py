@@ -8,7 +8,7 @@ from _fastpath import check_fast_is_slow, same_motion
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from planning.nc._fast import FAST_MIN_RUN
+from planning.nc._fast import FAST_MIN_RUN, _present
 from planning.nc.errors import NCError
 from planning.nc.interpreter import Interpreter
 from planning.nc.motion import Motion
@@ -168,3 +168,8 @@ def test_stream_of_a_file_same(tmp_path):
     slow = Motion.concatenate(list(iter_motion_chunks(path, chunk_blocks=1000, fast=False)))
     same_motion(fast, slow)
     assert len(fast) == 6001
+
+
+def test_present_mask_of_mixed_columns():
+    for col in [("", "1"), ("1", ""), ("5", "", ""), ("", "-2.5", "", "33", ""), ("7",), ("",)]:
+        assert _present(col, len(col)).tolist() == [c != "" for c in col]

@@ -38,45 +38,41 @@ Modules: :mod:`~planning.nc.motion` (Motion, kinds), :mod:`~planning.nc.interpre
 file checked as ``cutlab nc`` shows it), :mod:`~planning.nc.errors`.
 """
 
-from planning.nc._codes import INCH_MM
-from planning.nc.arcs import (
-    Linearized,
-    arc_radius_mm,
-    arc_sweep_rad,
-    bounding_box,
-    linearize,
-    segment_length_mm,
-    segment_travel,
-)
-from planning.nc.check import CheckedProgram, check_program, write_motions_csv
-from planning.nc.dialect import DialectProblem, check_dialect
-from planning.nc.errors import NCError, NCWarning
-from planning.nc.interpreter import Interpreter
-from planning.nc.motion import (
-    ARC_CCW,
-    ARC_CW,
-    DWELL,
-    FULL_CIRCLE_TOL_MM,
-    KIND_NAMES,
-    LINE,
-    RAPID,
-    Motion,
-    MotionBuilder,
-)
-from planning.nc.output import for_dialect
-from planning.nc.program import NumberStyle, Program
-from planning.nc.restart import restart_preamble
-from planning.nc.run import (
-    MAX_LINE_CHARS,
-    interpret,
-    interpret_file,
-    iter_motion_chunks,
-    state_at_block,
-)
-from planning.nc.state import CannedCycle, ModalState
-from planning.nc.stats import MotionStats, StreamStats, motion_stats, segment_time_s
-from planning.nc.table import write_motion_csv
-from planning.nc.writer import motion_to_program
+from importlib import import_module
+from typing import Any
+
+# Loaded on first use (PEP 562): `cutlab nc check` needs the interpreter and the statistics, not
+# the program editor, the dialects, the writers or the plots.
+_LAZY = {
+    "planning.nc._codes": ("INCH_MM",),
+    "planning.nc.arcs": ("Linearized", "arc_radius_mm", "arc_sweep_rad", "bounding_box",
+                         "linearize", "segment_length_mm", "segment_travel"),
+    "planning.nc.check": ("CheckedProgram", "check_program", "write_motions_csv"),
+    "planning.nc.dialect": ("DialectProblem", "check_dialect"),
+    "planning.nc.errors": ("NCError", "NCWarning"),
+    "planning.nc.interpreter": ("Interpreter",),
+    "planning.nc.motion": ("ARC_CCW", "ARC_CW", "DWELL", "FULL_CIRCLE_TOL_MM", "KIND_NAMES",
+                           "LINE", "RAPID", "Motion", "MotionBuilder"),
+    "planning.nc.output": ("for_dialect",),
+    "planning.nc.program": ("NumberStyle", "Program"),
+    "planning.nc.restart": ("restart_preamble",),
+    "planning.nc.run": ("MAX_LINE_CHARS", "interpret", "interpret_file", "iter_motion_chunks",
+                        "state_at_block"),
+    "planning.nc.state": ("CannedCycle", "ModalState"),
+    "planning.nc.stats": ("MotionStats", "StreamStats", "motion_stats", "segment_time_s"),
+    "planning.nc.table": ("write_motion_csv",),
+    "planning.nc.writer": ("motion_to_program",),
+}  # fmt: skip
+_WHERE = {name: module for module, names in _LAZY.items() for name in names}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _WHERE:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(_WHERE[name]), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "ARC_CCW",

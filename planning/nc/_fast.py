@@ -12,6 +12,7 @@ per-block Python loop runs at ~200k blocks/s, a third of LinuxCNC's rs274.
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from typing import TYPE_CHECKING
@@ -58,7 +59,7 @@ def _fast_line_re(upper_only: bool) -> re.Pattern[str]:
 
 
 _FAST_UPPER = _fast_line_re(True)  # for ASCII chunks, upper-cased as the lexer does
-_FAST_ANY_CASE = _fast_line_re(False)
+_fast_any_case = functools.cache(lambda: _fast_line_re(False))  # ~5 ms to compile: when needed
 NAN = math.nan
 FAST_MIN_RUN = 8  # shorter runs of plain G0..G3 blocks take the per-block path
 _COL_F = 9  # column of the F words in the fast regex's groups (N G X Y Z I J K R F)
@@ -82,13 +83,16 @@ def _worth_it(lines: list[str], probe: int = 256) -> bool:
 
 
 def _present(col: tuple[str, ...], n: int) -> np.ndarray:
-    """Mask of the non-empty texts of ``col`` (often all or none: counted in C first)."""
+    """Mask of the non-empty texts of ``col`` (often all or none: counted in C first; else from
+    the lengths between separators of the joined column: the texts are ASCII numbers)."""
     empty = col.count("")
     if empty == 0:
         return np.ones(n, bool)
     if empty == n:
         return np.zeros(n, bool)
-    return np.fromiter(map(bool, col), bool, n)
+    text = "\x01".join(col).encode("ascii")
+    sep = np.flatnonzero(np.frombuffer(text, np.uint8) == 1)
+    return np.diff(sep, prepend=-1, append=len(text)) > 1  # a text: 1+ characters between
 
 
 def _numbers(col: tuple[str, ...]) -> np.ndarray:
@@ -117,7 +121,7 @@ class FastRuns:
                 if text.isascii():
                     rows = _FAST_UPPER.findall(text.upper() + "\x00")
                 else:
-                    rows = _FAST_ANY_CASE.findall(text + "\x00")
+                    rows = _fast_any_case().findall(text + "\x00")
                 if len(rows) != n:  # cannot happen; be safe
                     rows = None
         if rows is None:
@@ -163,7 +167,8 @@ class FastRuns:
             has_g = has[1][a:e]
             gval = np.zeros(m, np.int8)
             if has_g.any():
-                gval[has_g] = np.fromiter(map(int, filter(None, cols[1][a:e])), np.int8)
+                g_text = "".join(cols[1][a:e]).encode("ascii")  # one digit 0..3 each
+                gval[has_g] = np.frombuffer(g_text, np.uint8) - 48
                 idx = np.where(has_g, np.arange(m), -1)
                 np.maximum.accumulate(idx, out=idx)
                 mode = np.where(idx >= 0, gval[idx], np.int8(st.motion)).astype(np.int8)
@@ -247,8 +252,8 @@ class FastRuns:
             ii[:, 3] = 1 if st.coolant else 0
             ii[:, 5] = np.arange(block + a, block + e, dtype=np.int32)
             ii[:, 4] = ii[:, 5] + 1
-            out.fbuf.frombytes(f.tobytes())
-            out.ibuf.frombytes(ii.tobytes())
+            out.fbuf.frombytes(f.reshape(-1).view(np.uint8))  # a byte view: no copy on the way
+            out.ibuf.frombytes(ii.reshape(-1).view(np.uint8))
             # ---- the state after the run
             st.position_mm = (float(f[-1, 3]), float(f[-1, 4]), float(f[-1, 5]))
             st.motion = int(mode[-1])

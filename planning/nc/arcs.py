@@ -171,28 +171,103 @@ def arc_radius_mm(motion: Motion) -> np.ndarray:
     return np.where(motion.is_arc, r, np.nan)
 
 
-def arc_sweep_rad(motion: Motion) -> np.ndarray:
-    """Unsigned swept angle (n,) of each arc in (0, 2*pi], radians; 0 for non-arcs."""
-    a0, b0, a1, b1, ca, cb, *_ = _plane_coords(motion)
+def _angles(a0, b0, a1, b1, ca, cb, kind) -> tuple[np.ndarray, np.ndarray]:
+    """Start angle and unsigned sweep in (0, 2*pi] of arcs given by in-plane coordinates."""
     with np.errstate(invalid="ignore"):
         t0 = np.arctan2(b0 - cb, a0 - ca)
         t1 = np.arctan2(b1 - cb, a1 - ca)
         ccw = np.mod(t1 - t0, TWO_PI)
-        sweep = np.where(motion.kind == ARC_CW, np.mod(-ccw, TWO_PI), ccw)
+        sweep = np.where(kind == ARC_CW, np.mod(-ccw, TWO_PI), ccw)
         full = np.hypot(a1 - a0, b1 - b0) <= FULL_CIRCLE_TOL_MM
-    sweep = np.where(full, TWO_PI, sweep)
+    return t0, np.where(full, TWO_PI, sweep)
+
+
+@dataclass(frozen=True)
+class ArcGeometry:
+    """The arcs of a motion, computed once for lengths and boxes: their segment indices ``rows``,
+    in-plane start (a0, b0) and centre (ca, cb), normal start/end (n0, n1), plane axes ``idx``
+    (k, 3), radius ``r``, start angle ``t0``, unsigned sweep (rad) and the CCW mask."""
+
+    rows: np.ndarray
+    a0: np.ndarray
+    b0: np.ndarray
+    ca: np.ndarray
+    cb: np.ndarray
+    n0: np.ndarray
+    n1: np.ndarray
+    idx: np.ndarray
+    r: np.ndarray
+    t0: np.ndarray
+    sweep: np.ndarray
+    ccw: np.ndarray
+
+    @staticmethod
+    def of(motion: Motion) -> ArcGeometry | None:
+        """The arcs of ``motion`` (None when it has none)."""
+        rows = np.flatnonzero(motion.is_arc)
+        if not rows.size:
+            return None
+        a0, b0, a1, b1, ca, cb, n0, n1, idx = _plane_coords(motion)
+        a0, b0, a1, b1, ca, cb, n0, n1 = (v[rows] for v in (a0, b0, a1, b1, ca, cb, n0, n1))
+        kind = motion.kind[rows]
+        t0, sweep = _angles(a0, b0, a1, b1, ca, cb, kind)
+        r = np.hypot(a0 - ca, b0 - cb)
+        return ArcGeometry(rows, a0, b0, ca, cb, n0, n1, idx[rows], r, t0, sweep, kind == ARC_CCW)
+
+    def quadrant_points(self, k: np.ndarray | None = None, quadrants=range(4)):
+        """For the arcs ``k`` (indices into ``rows``; all if None) the points at 0, 90, 180 and
+        270 degrees (``quadrants`` 0..3) in their plane that lie inside their sweep: ``(j, p)``
+        per quadrant, ``j`` indices into ``rows`` and ``p`` (len(j), 3) the points (the normal
+        axis at its start value: it peaks at the ends)."""
+        k = np.arange(self.rows.size) if k is None else k
+        t0, sweep, ccw = self.t0[k], self.sweep[k], self.ccw[k]
+        for q in quadrants:
+            ang = q * 0.5 * math.pi
+            delta = np.where(ccw, np.mod(ang - t0, TWO_PI), np.mod(t0 - ang, TWO_PI))
+            j = k[delta <= sweep]
+            if not j.size:
+                continue
+            p = np.empty((j.size, 3))
+            at = np.arange(j.size)
+            p[at, self.idx[j, 0]] = self.ca[j] + self.r[j] * math.cos(ang)
+            p[at, self.idx[j, 1]] = self.cb[j] + self.r[j] * math.sin(ang)
+            p[at, self.idx[j, 2]] = self.n0[j]
+            yield j, p
+
+    def extend_box(self, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``lo``, ``hi`` (3,), a box holding every arc's start, widened by the quadrant points
+        inside the sweeps, looking at the sweep only where the point lies outside the box (or
+        is NaN): the same box as :func:`segment_boxes` gives, for a fraction of the work."""
+        ia, ib = self.idx[:, 0], self.idx[:, 1]
+        lo_a, hi_a, lo_b, hi_b = lo[ia], hi[ia], lo[ib], hi[ib]
+        for q in range(4):
+            ang = q * 0.5 * math.pi
+            pa = self.ca + self.r * math.cos(ang)  # as quadrant_points computes them
+            pb = self.cb + self.r * math.sin(ang)
+            k = np.flatnonzero(~((pa >= lo_a) & (pa <= hi_a) & (pb >= lo_b) & (pb <= hi_b)))
+            for _, p in self.quadrant_points(k, (q,)) if k.size else ():
+                lo, hi = np.minimum(lo, p.min(axis=0)), np.maximum(hi, p.max(axis=0))
+        return lo, hi
+
+
+def arc_sweep_rad(motion: Motion) -> np.ndarray:
+    """Unsigned swept angle (n,) of each arc in (0, 2*pi], radians; 0 for non-arcs."""
+    a0, b0, a1, b1, ca, cb, *_ = _plane_coords(motion)
+    _, sweep = _angles(a0, b0, a1, b1, ca, cb, motion.kind)
     return np.where(motion.is_arc, sweep, 0.0)
 
 
-def segment_length_mm(motion: Motion) -> np.ndarray:
-    """Path length (n,) of each segment, mm (helical arcs included; 0 for dwells)."""
-    chord = np.linalg.norm(motion.end - motion.start, axis=1)
-    if not motion.is_arc.any():
-        return np.where(motion.kind == DWELL, 0.0, chord)
-    a0, b0, _, _, ca, cb, n0, n1, _ = _plane_coords(motion)
-    r = np.hypot(a0 - ca, b0 - cb)
-    arc = np.hypot(r * arc_sweep_rad(motion), n1 - n0)
-    return np.where(motion.is_arc, arc, np.where(motion.kind == DWELL, 0.0, chord))
+def segment_length_mm(motion: Motion, arcs: ArcGeometry | None = None) -> np.ndarray:
+    """Path length (n,) of each segment, mm (helical arcs included; 0 for dwells); ``arcs``:
+    ``ArcGeometry.of(motion)`` when the caller has it."""
+    d = motion.end - motion.start
+    x, y, z = d[:, 0], d[:, 1], d[:, 2]
+    length = np.sqrt((x * x + y * y) + z * z)  # np.linalg.norm's sum, ~5x faster on (n, 3)
+    length[motion.kind == DWELL] = 0.0
+    arcs = ArcGeometry.of(motion) if arcs is None else arcs
+    if arcs is not None:
+        length[arcs.rows] = np.hypot(arcs.r * arcs.sweep, arcs.n1 - arcs.n0)
+    return length
 
 
 def segment_travel(motion: Motion) -> np.ndarray:
@@ -209,26 +284,11 @@ def segment_boxes(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     """
     lo = np.minimum(motion.start, motion.end)
     hi = np.maximum(motion.start, motion.end)
-    sel = np.flatnonzero(motion.is_arc)
-    if sel.size:
-        arcs = motion[sel]
-        a0, b0, _, _, ca, cb, n0, _, idx = _plane_coords(arcs)
-        r = np.hypot(a0 - ca, b0 - cb)
-        t0 = np.arctan2(b0 - cb, a0 - ca)
-        sweep = arc_sweep_rad(arcs)
-        ccw = arcs.kind == ARC_CCW
-        for q in range(4):
-            ang = q * 0.5 * math.pi
-            delta = np.where(ccw, np.mod(ang - t0, TWO_PI), np.mod(t0 - ang, TWO_PI))
-            k = np.flatnonzero(delta <= sweep)
-            if not k.size:
-                continue
-            p = np.empty((k.size, 3))
-            p[np.arange(k.size), idx[k, 0]] = ca[k] + r[k] * math.cos(ang)
-            p[np.arange(k.size), idx[k, 1]] = cb[k] + r[k] * math.sin(ang)
-            p[np.arange(k.size), idx[k, 2]] = n0[k]  # the normal axis peaks at the ends
-            lo[sel[k]] = np.minimum(lo[sel[k]], p)
-            hi[sel[k]] = np.maximum(hi[sel[k]], p)
+    arcs = ArcGeometry.of(motion)
+    for j, p in arcs.quadrant_points() if arcs is not None else ():
+        rows = arcs.rows[j]
+        lo[rows] = np.minimum(lo[rows], p)
+        hi[rows] = np.maximum(hi[rows], p)
     return lo, hi
 
 
@@ -316,6 +376,7 @@ def linearize(motion: Motion, chord_tol_mm: float = 0.001) -> Linearized:
 
 __all__ = [
     "PLANE_AXES",
+    "ArcGeometry",
     "Linearized",
     "arc_length_mm",
     "arc_radius_mm",

@@ -14,15 +14,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
-from planning.nc.dialect import DialectProblem, check_dialect
 from planning.nc.interpreter import Interpreter
 from planning.nc.motion import Motion
 from planning.nc.run import file_line_lists, file_lines, file_mentions_rotary
 from planning.nc.stats import MotionStats, StreamStats, axis_limit_problems
-from planning.nc.table import write_motion_csv
 
 if TYPE_CHECKING:
     from analysis.config import MachineConfig
+    from planning.nc.dialect import DialectProblem
 
 #: files this big (bytes) or bigger report progress while they are interpreted
 PROGRESS_MIN_BYTES = 2_000_000
@@ -150,6 +149,8 @@ def write_motions_csv(
     ``out`` (a stream, or a file path: written whole or not at all) as it is interpreted (bounded
     memory; floats that read back unchanged); the a0..c1 columns when the file has A/B/C words.
     Returns the interpreter (its warnings)."""
+    from planning.nc.table import write_motion_csv  # here: `nc check` needs no CSV writer
+
     it = Interpreter(_machine(machine), strict=strict, file=path)
     rotary = file_mentions_rotary(path)
     if not isinstance(out, str | Path):
@@ -178,4 +179,6 @@ def dialect_problems(path: str, dialect: str, *, strip: bool = True) -> list[Dia
     """What the ``dialect`` controller (grbl, fanuc, linuxcnc) would refuse or run differently in
     the program file ``path``, with file:line:column (``strip``: GRBL lines as the streamer sends
     them, without comments, spaces and N words). NCError if the file cannot be read."""
+    from planning.nc.dialect import check_dialect  # here: only `nc check --dialect` needs it
+
     return check_dialect(list(file_lines(path)), dialect, file=str(path), strip=strip)

@@ -122,6 +122,10 @@ def _too_long(name: str, line: int, limit: int) -> NCError:
     )
 
 
+#: what str.splitlines also splits an ASCII text at, besides "\n" and "\r"
+_OTHER_BREAKS = ("\x0b", "\x0c", "\x1c", "\x1d", "\x1e")
+
+
 def _chunked_lines(fh, name: str, limit: int) -> Iterator[list[str]]:
     carry = b""
     n = 0  # lines yielded so far
@@ -156,9 +160,11 @@ def _chunked_lines(fh, name: str, limit: int) -> Iterator[list[str]]:
             text = buf.decode("utf-8")
         except UnicodeDecodeError as exc:
             raise _lexer.undecodable(name, buf, exc, n + 1) from None
-        lines = text.split("\n")
-        last = lines.pop()
-        if "\r" in text:
+        if text.isascii() and "\r" not in text and not any(c in text for c in _OTHER_BREAKS):
+            out = text.splitlines(keepends=True)  # as below, split in C
+        elif "\r" in text:
+            lines = text.split("\n")
+            last = lines.pop()
             out = []
             for raw in lines:
                 if "\r" in raw and "\r" in raw.rstrip("\r"):  # CR-only line ends
@@ -168,6 +174,8 @@ def _chunked_lines(fh, name: str, limit: int) -> Iterator[list[str]]:
             if last:
                 out.extend(split_cr(last))
         else:
+            lines = text.split("\n")
+            last = lines.pop()
             out = [raw + "\n" for raw in lines]
             if last:
                 out.append(last)
