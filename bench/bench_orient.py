@@ -11,7 +11,8 @@ normal), the largest change of (alpha, beta) (max_dangle_deg), and the independe
 every output orientation on a fresh dense mesh; then the verification between points
 (planning.orient.between: fcl mesh check and tip deviation as the machine moves, refinement):
 CL points after refinement, their largest axis jump (cl_jump_deg), collisions left between
-points, the largest tip deviation, its wall and CPU time (raw_jump_deg: before smoothing). The
+points, the largest tip deviation, the largest overcut between points (exact, on the NURBS
+surfaces: planning.orient.overcut), its wall and CPU time (raw_jump_deg: before smoothing). The
 machine is shared, so the load average is
 printed and CPU time is given next to wall time. The paper's Indigo2 figures are printed
 alongside; the target here is <= 10 ms per point. Best of --repeat runs (default 3).
@@ -61,6 +62,7 @@ COLS = [
     "cl_jump_deg",
     "between_collisions",
     "tip_dev_mm",
+    "overcut_mm",
     "verify_s",
     "verify_cpu_s",
     "paper_total_s",
@@ -114,6 +116,7 @@ def run(name: str, repeat: int) -> dict:
         "cl_jump_deg": round(float(np.nanmax(axis_jumps_deg(ref.axis, ref.cc.line))), 2),
         "between_collisions": ref.check.collisions,
         "tip_dev_mm": round(float(np.nanmax(ref.check.deviation_mm)), 4),
+        "overcut_mm": round(float(np.nanmax(ref.check.overcut_mm)), 4),
         "verify_s": round(t4 - t3, 2),
         "verify_cpu_s": round(c4 - c3, 2),
         "unresolved": ref.unresolved,

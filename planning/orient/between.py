@@ -11,18 +11,23 @@ and checked:
   python-fcl with the part as a BVH of its triangles (trimesh-style mesh of the NURBS surfaces),
   the cutter as the convex solid of revolution shrunk by the gouge tolerance (a polygon drawn
   round its outline, so it is never smaller than the true shrunk cutter), the holder and the
-  spindle nose as cylinders, the fixtures as boxes.
+  spindle nose as cylinders, the fixtures as boxes;
+* overcut: how deep the part's NURBS surfaces reach into the (unshrunk) cutter, found exactly on
+  the surfaces (:mod:`planning.orient.overcut`). The fcl cutter is shrunk by the mesh's chord sag
+  as well, and on convex areas the triangles lie under the surface, so fcl alone let the straight
+  moves between two CL points dig 0.01 mm into the mask where each point only touches it.
 
 :func:`refine` inserts CC points (on the surface, half way in parameter; orientation interpolated
 and re-planned if that collides) into every move that deviates by more than the tolerance,
-collides, turns the axis by more than ``max_jump_deg`` or swings C by more than
+collides, overcuts by more than ``Scene.gouge_limit_mm``, turns the axis by more than
+``max_jump_deg`` or swings C by more than
 ``max_c_step_deg``, until every move passes (or a round limit, reported).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import fcl
 import numpy as np
@@ -33,11 +38,16 @@ from planning.errors import PlanningError
 from planning.orient._energy import Site
 from planning.orient._search import _Context, _free, solve_point
 from planning.orient.kinematics import AxisMoves, forward, hold_c, inverse
+from planning.orient.overcut import OvercutCheck
 from planning.orient.planner import CCPoints, axis_jumps_deg, cc_at
 from planning.orient.smooth import angles_of
 from planning.orient.tool import ToolSystem, cutter_position, tool_axis
 from planning.surface import NurbsSurface
 
+# Overcut allowed between CL points, as a share of the gouge tolerance: the rest covers the part
+# of a move between its samples (0.25 mm apart: a 0.01 mm bump over a 0.85 mm move can peak
+# 0.0004 mm above the nearest sample).
+GOUGE_SHARE = 0.9
 N_ROUND = 120  # polygon sides round the axis: a 6 mm radius is drawn 0.002 mm too large at most
 
 
@@ -84,6 +94,9 @@ class Scene:
     tool: list[tuple[str, fcl.CollisionObject, float]]
     spacing_mm: float
     tolerance_mm: float
+    overcut: OvercutCheck
+    gouge_limit_mm: float
+    _cache: dict = field(default_factory=dict, repr=False)  # move's axes -> (overcut, where)
 
     @classmethod
     def build(
@@ -96,7 +109,9 @@ class Scene:
     ) -> Scene:
         """``fixtures``: (name, min corner, max corner) boxes in mm, workpiece frame. The cutter
         is shrunk by ``tol_mm`` plus the mesh's chord sag (:func:`chord_sag_mm`): a triangle of
-        a concave surface lies that much above it, towards the tool."""
+        a concave surface lies that much above it, towards the tool; overcut (exact, on the
+        surfaces) is allowed up to ``GOUGE_SHARE`` of ``tol_mm``."""
+        limit_mm = GOUGE_SHARE * tol_mm
         tol_mm = tol_mm + chord_sag_mm(surfaces, spacing_mm)
         verts, faces, off = [], [], 0
         for s in surfaces:
@@ -131,7 +146,8 @@ class Scene:
         for name, z0, z1, a in tool.parts()[1:]:
             parts.append((name, fcl.Cylinder(a, z1 - z0), 0.5 * (z0 + z1)))
         objs = [(n, fcl.CollisionObject(g, fcl.Transform()), dz) for n, g, dz in parts]
-        return cls(part, fix, objs, spacing_mm, tol_mm)
+        over = OvercutCheck(surfaces, tool, spacing_mm)
+        return cls(part, fix, objs, spacing_mm, tol_mm, over, limit_mm)
 
     def hit(self, tip: np.ndarray, axis: np.ndarray) -> str:
         """'' when the tool placed at ``tip`` along ``axis`` touches nothing, else what hits
@@ -148,11 +164,14 @@ class Scene:
 @dataclass(frozen=True)
 class MoveCheck:
     """Per move i (CL point i to i + 1; NaN / '' across lines): the tip's largest deviation from
-    the chord (mm), what collides ('' none), the samples taken."""
+    the chord (mm), what collides ('' none), the largest overcut (mm, exact, on the surfaces) and
+    where ('' none), the samples taken."""
 
     deviation_mm: np.ndarray
     hits: tuple[str, ...]
     samples: int
+    overcut_mm: np.ndarray
+    overcut_at: tuple[str, ...]
 
     @property
     def collisions(self) -> int:
@@ -173,7 +192,8 @@ def check_moves(
     P = moves.as_array()
     m = len(P)
     dev = np.full(max(m - 1, 0), np.nan)
-    hits = [""] * max(m - 1, 0)
+    over = np.full(max(m - 1, 0), np.nan)
+    hits, where = [""] * max(m - 1, 0), [""] * max(m - 1, 0)
     total = 0
     for i in range(m - 1):
         if line[i + 1] != line[i]:
@@ -194,7 +214,14 @@ def check_moves(
             if h:
                 hits[i] = h
                 break
-    return MoveCheck(dev, tuple(hits), total)
+        key = P[i : i + 2].tobytes()  # refinement re-checks unchanged moves: measured once
+        if key not in scene._cache:
+            got = [scene.overcut.depth(tip, u) for tip, u in zip(tips, axes)]
+            k = int(np.argmax([g.depth_mm for g in got]))
+            at = f"in {got[k].surface} at {np.round(got[k].point, 2).tolist()} mm"
+            scene._cache[key] = (got[k].depth_mm, at if got[k].depth_mm > 0 else "")
+        over[i], where[i] = scene._cache[key]
+    return MoveCheck(dev, tuple(hits), total, over, tuple(where))
 
 
 @dataclass(frozen=True)
@@ -251,11 +278,12 @@ def refine(
         chk = check_moves(machine, moves, tip, cc.line, ctx.tool.gauge_length_mm, scene)
         jump = axis_jumps_deg(u, cc.line)
         dc = np.abs(np.diff(moves.c_deg))
-        bad = (chk.deviation_mm > tol_mm) | np.array([bool(h) for h in chk.hits], bool)
+        gouge = chk.overcut_mm > scene.gouge_limit_mm
+        bad = (chk.deviation_mm > tol_mm) | np.array([bool(h) for h in chk.hits], bool) | gouge
         bad |= (jump > max_jump_deg) | ((dc > max_c_step_deg) & (cc.line[1:] == cc.line[:-1]))
         bad &= cc.line[1:] == cc.line[:-1]
         short = np.linalg.norm(np.diff(cc.point, axis=0), axis=1) < min_step_mm
-        short &= np.array([bool(h) for h in chk.hits], bool) | (jump > max_jump_deg)
+        short &= np.array([bool(h) for h in chk.hits], bool) | (jump > max_jump_deg) | gouge
         if (bad & short).any():
             bad &= short  # report the first move that cannot be split further
             break
@@ -269,6 +297,7 @@ def refine(
         pieces = np.maximum.reduce(
             [
                 np.ceil(np.sqrt(dev / tol_mm)),
+                np.ceil(np.sqrt(np.nan_to_num(chk.overcut_mm[k]) / scene.gouge_limit_mm)),
                 np.ceil(np.nan_to_num(jump[k]) / max_jump_deg),
                 np.ceil(dc[k] / max_c_step_deg),
                 np.full(len(k), 2.0),
@@ -283,8 +312,9 @@ def refine(
     k = int(np.flatnonzero(bad)[0])
     unresolved = (
         f"move {k} -> {k + 1} (line {cc.line[k]}): deviation {chk.deviation_mm[k]:.4f} mm, "
-        f"axis turn {jump[k]:.2f} deg, C step {dc[k]:.2f} deg, {chk.hits[k] or 'no collision'}"
-        f" after {rounds} rounds"
+        f"axis turn {jump[k]:.2f} deg, C step {dc[k]:.2f} deg, {chk.hits[k] or 'no collision'}, "
+        f"overcut {chk.overcut_mm[k]:.4f} mm {chk.overcut_at[k]}".rstrip()
+        + f" after {rounds} rounds"
     )
     return Refined(cc, theta, u, tip, moves, chk, inserted, rounds, unresolved)
 

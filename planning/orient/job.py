@@ -183,6 +183,7 @@ def run_orient(
         "between_samples": ref.check.samples,
         "between_collisions": ref.check.collisions,
         "tip_deviation_mm": float(np.nanmax(ref.check.deviation_mm, initial=0.0)),
+        "between_overcut_mm": float(np.nanmax(ref.check.overcut_mm, initial=0.0)),
         "refine_unresolved": ref.unresolved,
         "verify_s": round(verify_s, 3),
         "posted_alpha_deg_range": [

@@ -194,18 +194,22 @@ class ToolSystem:
         the solid (distance to a union = min of distances); inside it is the depth below the
         nearest part's surface. Part index: 0 cutter, 1 holder, 2 spindle nose.
         """
-        R, r, L = self.R_mm, self.r_mm, self.cutter_length_mm
-        # Cutter = cylinder R on [r, L] U cylinder (R - r) on [0, L] U torus tube (R - r, r).
-        d_cyl = _sd_cylinder(rho, z, R, r, L)
-        d_core = _sd_cylinder(rho, z, R - r, 0.0, L) if R > r else np.full_like(rho, np.inf)
-        d_tor = np.hypot(rho - (R - r), z - r) - r if r > 0 else np.full_like(rho, np.inf)
-        d_cut = np.minimum(np.minimum(d_cyl, d_core), d_tor)
+        d_cut = self.cutter_distance(rho, z)
         parts = self.parts()
         d_h = _sd_cylinder(rho, z, parts[1][3], parts[1][1], parts[1][2])
         d_n = _sd_cylinder(rho, z, parts[2][3], parts[2][1], parts[2][2])
         stack = np.stack([d_cut, d_h, d_n])
         which = np.argmin(stack, axis=0)
         return np.take_along_axis(stack, which[None], 0)[0], which
+
+    def cutter_distance(self, rho: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """Signed distance (mm, < 0 inside) to the cutter alone; rho, z as signed_distance."""
+        R, r, L = self.R_mm, self.r_mm, self.cutter_length_mm
+        # Cutter = cylinder R on [r, L] U cylinder (R - r) on [0, L] U torus tube (R - r, r).
+        d_cyl = _sd_cylinder(rho, z, R, r, L)
+        d_core = _sd_cylinder(rho, z, R - r, 0.0, L) if R > r else np.full_like(rho, np.inf)
+        d_tor = np.hypot(rho - (R - r), z - r) - r if r > 0 else np.full_like(rho, np.inf)
+        return np.minimum(np.minimum(d_cyl, d_core), d_tor)
 
     def stations(self, step_frac: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
         """Spheres covering the tool system: heights z (k,) mm and radii (k,) mm.
