@@ -105,3 +105,56 @@ def test_rough_seed000_deep_level_is_split_within_every_limit(tmp_path: Path, ca
     assert any(s["height_mm"] == pytest.approx(37.795) for s in lim["levels_split"])
     assert lim["path_added_mm"] > 0 and lim["time_lost_s"] > 0
     assert res["check"]["ok"]
+
+
+MODES = "".join(
+    f'\n[[{{table}}]]\n{{axis}} = "{ax}"\nf_hz = 1000.0\nzeta = 0.03\nk_N_m = 2.0e7\n'
+    for ax in "xy"
+)  # a stiff 2-dof tool tip: a slot's chatter-free depth of about 1.27 mm at 6000 rpm
+
+
+def _slot_nc(depth_mm: float) -> str:
+    return (f"G21 G90 G17\nS6000 M3\nG0 X-10 Y0 Z5\nG1 Z{-depth_mm:g} F100\nG1 X40 F600\n"
+            "G0 Z5\nM30\n")  # fmt: skip
+
+
+def test_stability_from_tool_modes_matches_analyze_stability(tmp_path: Path, capsys) -> None:
+    """A user tool with [[tools.NAME.modes]] and no --lobes: the limit is the chatter-free depth
+    `cutlab analyze stability` finds for the same case (3 teeth, full slot, down milling, the
+    material's Ktc / Krc, the same modes) times the 0.8 margin."""
+    from analysis.config import get_material
+
+    tools = tmp_path / "tools.toml"
+    tools.write_text('[tools.flex10]\nkind = "flat"\ndiameter_mm = 10.0\nflute_length_mm = 22.0\n'
+                     "flutes = 3\nhelix_deg = 30.0\nstickout_mm = 40.0\n"
+                     + MODES.format(table="tools.flex10.modes", axis="axis"))  # fmt: skip
+    coef = get_material("al6061-t6").endmill
+    case = tmp_path / "case.toml"
+    case.write_text(f'[tool]\nteeth = 3\n[cut]\nmilling = "down"\nradial_immersion = 1.0\n'
+                    f"[coefficients]\nKtc_N_mm2 = {coef.Ktc_n_mm2}\nKrc_N_mm2 = {coef.Krc_n_mm2}\n"
+                    + MODES.format(table="modes", axis="direction")
+                    + "[spindle]\nrpm_min = 6000\nrpm_max = 6001\npoints = 2\n")  # fmt: skip
+    lobes = tmp_path / "lobes.csv"
+    rc, _, _ = cli(["analyze", "stability", str(case), "-o", str(lobes)], capsys)
+    assert rc == 0
+    depth_6000 = float(lobes.read_text().splitlines()[1].split(",")[1])
+    assert 1.0 < depth_6000 < 1.5
+    base = ["plan", "check", "--tool", "flex10", "--tools", str(tools), "--material",
+            "al6061-t6", "--stock", "box:-20,50,-20,20,-20,0", "--json"]  # fmt: skip
+    for depth, broken in ((3.0, True), (0.9 * 0.8 * depth_6000, False)):
+        prog = tmp_path / f"slot{depth:g}.nc"
+        prog.write_text(_slot_nc(depth))
+        rc, so, _ = cli(["plan", "check", str(prog), *base[2:]], capsys)
+        out = json.loads(so)
+        assert rc == 0 and out["limits"]["stability"].startswith("tool modes")
+        slot = [v for v in out["violations"] if v["block"] == 4]
+        assert bool(slot) is broken
+        if broken:
+            v = slot[0]
+            assert v["limit"] == "stability" and v["value"] == pytest.approx(depth)
+            assert v["allowed"] == pytest.approx(0.8 * depth_6000, rel=2e-3)
+    # the same limit from the lobes CSV
+    rc, so, _ = cli(["plan", "check", str(tmp_path / "slot3.nc"), *base[2:], "--lobes",
+                     str(lobes)], capsys)  # fmt: skip
+    v = [v for v in json.loads(so)["violations"] if v["block"] == 4][0]
+    assert v["allowed"] == pytest.approx(0.8 * depth_6000, rel=2e-3)

@@ -126,3 +126,56 @@ def test_limited_feeds_break_no_limit_and_keep_the_path(
     for v in report["violations"]:  # only where even 1 mm/min is too fast
         assert after.feed_mm_min[after.block == v["block"]].min() == 1.0
     assert np.all(after.feed_mm_min[after.is_feed] <= before.feed_mm_min[before.is_feed] + 1e-9)
+
+
+@pytest.mark.slow
+@settings(max_examples=3, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    cx=st.floats(30, 50),
+    cy=st.floats(30, 50),
+    height=st.floats(15, 20),
+    depth_limit_mm=st.floats(3.0, 8.0),
+)
+def test_rough_limit_leaves_the_other_levels_unchanged(cx, cy, height, depth_limit_mm) -> None:
+    """Random bumps and a flat lobes table: the levels ``plan rough --limit`` does not split
+    keep their height, shoulder and passes, in the plan and in the program's feed moves."""
+    import tempfile
+    import tomllib
+
+    from test_rough_parts import bump_grid, part_toml
+
+    from analysis.validation import validate
+    from planning.limits import rough_limiter
+    from planning.rough import RoughPlanner, plan_program
+    from planning.rough.part import Part, PartConfig
+
+    x, y, z = bump_grid(cx, cy, 20.0, 20.0, height)
+    text = part_toml(x, y, z, top=13.0 + height, tool="phi10-flat", cusp_mm=3.0)
+    pl = RoughPlanner(Part(validate(PartConfig, tomllib.loads(text))))
+    plan = pl.plan("bisection")
+    program = plan_program(plan, pl.part)
+    with tempfile.TemporaryDirectory() as d:
+        lobes = Path(d) / "lobes.csv"
+        lobes.write_text(f"spindle_rpm,depth_limit_mm\n100,{depth_limit_mm}\n1e5,{depth_limit_mm}\n")
+        new, new_program, report = rough_limiter(fix=True, material="al6061-t6", lobes=lobes)(
+            pl, plan, program
+        )
+    split = {(s["z_mm"], s["height_mm"]) for s in report["levels_split"]}
+    kept = [lv for lv in plan.levels if (round(lv.z_mm, 3), round(lv.height_mm, 3)) not in split]
+    after = {(lv.z_mm, lv.hi_mm, lv.lo_mm): lv for lv in new.levels}
+    m0, m1 = interpret(program), interpret(new_program)
+
+    def flat_moves(m, z):  # the feed moves of one level: both ends at its height
+        sel = m.is_feed & np.isclose(m.start[:, 2], z, atol=1e-3) & np.isclose(m.end[:, 2], z,
+                                                                               atol=1e-3)
+        return np.concatenate([m.start[sel], m.end[sel]], 1)
+
+    for lv in kept:
+        twin = after[(lv.z_mm, lv.hi_mm, lv.lo_mm)]
+        assert len(twin.paths.passes) == len(lv.paths.passes)
+        for a, b in zip(lv.paths.passes, twin.paths.passes):
+            assert np.array_equal(a.xy_mm, b.xy_mm)
+        # in order, in one run (sub-levels of a split one may share its height)
+        a, b = flat_moves(m0, lv.z_mm), flat_moves(m1, lv.z_mm)
+        runs = np.lib.stride_tricks.sliding_window_view(b, a.shape)[:, 0]
+        assert np.any(np.all(np.abs(runs - a) < 1e-6, axis=(1, 2)))

@@ -15,7 +15,9 @@ as :mod:`planning.feed.force` does. Per piece, at its feed and spindle speed:
 
 A block's value for a limit is its worst piece's (highest value / allowed). Every feed-driven
 quantity grows with the feed, so each piece also gets the feed at which it meets every limit
-(``feed_cap_mm_min``); depth (stability) cannot be cured by feed.
+(``feed_cap_mm_min``); depth (stability) cannot be cured by feed. The table also gives each
+block's time-mean resultant force (``force_mean``, air pieces 0), what a dynamometer record
+averaged over the block reads.
 """
 
 from __future__ import annotations
@@ -113,18 +115,22 @@ class Pieces:
             self._tables = (a_tab, b_tab)
         return self._tables
 
-    def forces_n(self, fz: NDArray) -> tuple[NDArray, NDArray]:
-        """(peak resultant, peak lateral) force per piece at feeds per tooth ``fz``, N."""
+    def forces_n(self, fz: NDArray, mean: bool = False) -> tuple[NDArray, ...]:
+        """(peak resultant, peak lateral[, mean resultant over a tooth period]) force per piece
+        at feeds per tooth ``fz``, N."""
         a_tab, b_tab = self._force_tables()
         force = np.empty(len(fz))
         lateral = np.empty(len(fz))
+        mean_n = np.empty(len(fz))
         for i in range(0, len(fz), 2000):
             sl = slice(i, i + 2000)
             u = self._unique[sl]
             f = fz[sl, None, None] * a_tab[u] + b_tab[u]
-            force[sl] = np.linalg.norm(f, axis=-1).max(1)
+            resultant = np.linalg.norm(f, axis=-1)
+            force[sl] = resultant.max(1)
+            mean_n[sl] = resultant.mean(1)
             lateral[sl] = np.linalg.norm(f[..., :2], axis=-1).max(1)
-        return force, lateral
+        return (force, lateral, mean_n) if mean else (force, lateral)
 
     def _power_parts_kw(self) -> tuple[NDArray, NDArray]:
         """Power = a feed + b, kW: a from K_tc x removal rate, b from the edge force."""
@@ -140,7 +146,7 @@ class Pieces:
     def quantities(self, feed_mm_min: NDArray) -> dict[str, NDArray]:
         """Value per limit, one per cutting piece (feeds of the cutting pieces)."""
         fz = self._fz(feed_mm_min)
-        force, lateral = self.forces_n(fz)
+        force, lateral, mean_n = self.forces_n(fz, mean=True)
         a, b = self._power_parts_kw()
         power = a * feed_mm_min + b
         out = {"force": force, "power": power, "torque": power * self._torque_per_kw(),
@@ -148,6 +154,7 @@ class Pieces:
         if self.limits.stiffness_n_mm is not None:
             out["deflection"] = lateral / self.limits.stiffness_n_mm
         out["lateral_force"] = lateral
+        out["mean_force"] = mean_n
         return out
 
     def allowed(self) -> dict[str, Any]:
@@ -289,6 +296,7 @@ def evaluate(
         v = np.zeros(len(blocks))
         np.maximum.at(v, inv, unit_col)
         cols[f"{name}_mm"] = v
+    cols["force_mean"] = _block_mean(sim, c, values["mean_force"], blocks)
     violations: list[dict[str, Any]] = []
     for k in LIMIT_UNITS:
         if k not in values:
@@ -315,6 +323,23 @@ def evaluate(
             cols[k] = w
     violations.sort(key=lambda d: (d["block"], d["limit"]))
     return CheckResult(pd.DataFrame(cols), violations, limits, pieces, sim, values)
+
+
+def _block_mean(sim: Simulation, cutting: NDArray, value: NDArray, blocks: NDArray) -> NDArray:
+    """Time mean of a cutting piece's ``value`` over each block's feed pieces (0 in the air),
+    as a force record reduced per executing block reads it."""
+    motion = sim.motion
+    seg = sim.piece_segment
+    feed = motion.is_feed[seg] & (sim.piece_length_mm > 0)
+    dt = np.where(feed, sim.piece_length_mm / np.maximum(motion.feed_mm_min[seg], 1e-9), 0.0)
+    v = np.zeros(len(seg))
+    v[cutting] = value
+    k = np.searchsorted(blocks, motion.block[seg]).clip(0, len(blocks) - 1)
+    mine = feed & (blocks[k] == motion.block[seg]) if len(blocks) else feed & False
+    num, den = np.zeros(len(blocks)), np.zeros(len(blocks))
+    np.add.at(num, k[mine], (v * dt)[mine])
+    np.add.at(den, k[mine], dt[mine])
+    return num / np.maximum(den, 1e-12)
 
 
 def check_motion(
