@@ -32,7 +32,7 @@ def _meta(c: int = 3, zero: list[float] | None = None) -> dict:
 
 
 def test_ring_round_trip_wraps_and_drops_what_was_overwritten(tmp_path: Path) -> None:
-    w = RingWriter(tmp_path / "r.ring", sample_bytes=3 * 8 * 100)  # 100 rows of 3 float64
+    w = RingWriter(tmp_path / "r.ring", sample_bytes=3 * 4 * 100)  # 100 rows of 3 float32
     r = RingReader(w.path)
     w.begin_run(_meta(), 3, np.dtype(np.float64))
     ramp = np.arange(250, dtype=float)
@@ -56,6 +56,28 @@ def test_ring_round_trip_wraps_and_drops_what_was_overwritten(tmp_path: Path) ->
     assert r.writer_pid == os.getpid() and r.heartbeat_age_s() < 5 and not r.closed
     w.close()
     assert r.closed
+    r.close()
+
+
+def test_ring_keeps_volts_as_float32_and_codes_as_int16(tmp_path: Path) -> None:
+    # Half the bytes to copy on the acquisition thread (issue 21); the page rounds to 0.1 N.
+    w = RingWriter(tmp_path / "r.ring", sample_bytes=3 * 4 * 64)
+    r = RingReader(w.path)
+    w.begin_run(_meta(), 3, np.dtype(np.float64))
+    t = np.arange(100) / RATE_HZ
+    volts = np.vstack([np.sin(2 * np.pi * 7 * t), 3.3 * np.cos(t), np.full(100, -9.87654321)])
+    w.write(0, volts[:, :60])
+    w.write(60, volts[:, 60:])  # wraps at 64 rows
+    _, first, _, rows = r.rows_since(-1, 0)
+    assert first == 36 and rows.dtype == np.float32
+    assert np.array_equal(rows, volts[:, 36:].T.astype(np.float32))
+    assert np.abs(rows - volts[:, 36:].T).max() < 1e-6  # volts to a microvolt
+    w.begin_run(_meta(), 2, np.dtype(np.int16))
+    codes = np.array([[-32768, 0, 32767], [1, -1, 12345]], np.int16)
+    w.write(0, codes)
+    _, _, _, rows = r.rows_since(-1, 0)
+    assert rows.dtype == np.int16 and np.array_equal(rows, codes.T)
+    w.close()
     r.close()
 
 

@@ -20,6 +20,7 @@ It fits in through the runner's existing entry points (:func:`rig.campaign.run_c
 
 from __future__ import annotations
 
+import bisect
 import contextlib
 import json
 import math
@@ -47,6 +48,7 @@ from rig.daq import Calibration, DaqEvent, DaqInfo
 TICK_S = 0.04  # status 25 times a second
 LIVE_FILE = "live.json"  # in the campaign folder while a live campaign runs
 MAX_EVENTS = 200
+BANDS_S = 60.0  # the executed blocks sent to the page: those of the longest window it shows
 #: s a live campaign's server stays after the campaign process died (the page says so)
 LINGER_S = float(os.environ.get("CUTLAB_CONSOLE_LINGER_S", "600"))
 #: DAQ and runner event kinds the page lists (the others are bookkeeping)
@@ -79,7 +81,10 @@ class _Tee:
 
     def on_block(self, first_sample: int, data: np.ndarray) -> None:
         self.sink.on_block(first_sample, data)
-        self.live.guard(self.live.on_block, first_sample, data)
+        try:  # guard() inlined: this runs once per block on the acquisition thread
+            self.live.on_block(first_sample, data)
+        except Exception:  # noqa: BLE001 - the live view must never endanger the recording
+            self.live.tap_errors += 1
 
     def on_event(self, event: DaqEvent) -> None:
         self.sink.on_event(event)
@@ -201,6 +206,7 @@ class LiveCampaign:
         self._expect = 0
         self._meta: dict[str, Any] = {}
         self._bands: list[list[Any]] = []
+        self._line_of: dict[int, int] = {}  # block -> program line, set once per program
         self._executing = -1
         self._fault_seen: str | None = None
         self._cmd_done = self.ring.read_command()[0]
@@ -226,6 +232,7 @@ class LiveCampaign:
                 self._session, self._run_k = session, k
                 self._run_wall0 = time.monotonic()
                 self._bands, self._fault_seen, self._executing = [], None, -1
+                self._line_of = {}
                 self.phase = "running"
             return session
 
@@ -293,6 +300,7 @@ class LiveCampaign:
                 volts = rf.raw_to_volts(rows, self._info.scaling_coeff)
             meta["zero_v"] = volts.mean(axis=0).tolist()
         meta["program"] = [[b.index, b.line, b.text] for b in program.blocks]
+        self._line_of = {b.index: b.line for b in program.blocks}
         meta["program_name"] = program.name
         self._meta = meta
         self.ring.put_meta(meta)
@@ -306,11 +314,20 @@ class LiveCampaign:
 
     # -- the publisher thread --------------------------------------------------------------------
     def _loop(self) -> None:
-        while not self._closed.wait(TICK_S):
+        # A plain sleep on a fixed beat: it wakes half as dearly as Event.wait(timeout), and
+        # close() waits at most one tick for it.
+        due = time.monotonic()
+        while True:
+            due = max(due + TICK_S, time.monotonic())
+            time.sleep(max(0.0, due - time.monotonic()))
+            if self._closed.is_set():
+                return
             self.guard(self._command)
             self.guard(self._publish)
 
     def _command(self) -> None:
+        if self.ring.seq("command") <= self._cmd_done:
+            return  # nothing new: no JSON read
         seq, cmd = self.ring.read_command()
         if seq <= self._cmd_done or not isinstance(cmd, dict):
             return
@@ -375,7 +392,6 @@ class LiveCampaign:
         st = getattr(s.inner, "streamer", None)
         done, total = s.inner.progress()
         now = s.clock()
-        line_of = {b[0]: b[1] for b in self._meta.get("program", [])}
         fault = s.inner.fault()
         if fault and fault != self._fault_seen:
             self._fault_seen = fault
@@ -387,8 +403,12 @@ class LiveCampaign:
             with contextlib.suppress(RuntimeError):  # the streamer's dict changed: next time
                 spans = [x for x in st.executed_blocks()[-2000:] if x[0] >= 0 and x[1] <= now]
                 self._executing = spans[-1][0] if spans else -1
+                # Only the blocks started in the last BANDS_S (and the one before): 25 times a
+                # second this thread takes the GIL from the logger, so it keeps its work small.
+                # An even cut keeps each band's alternate shading on the page.
+                cut = max(0, bisect.bisect_left(spans, now - BANDS_S, key=lambda x: x[1]) - 1)
                 self._bands = [[b, round(t0, 4), _jsonable(t1) if t1 <= now else None]
-                               for b, t0, t1, _ in spans]  # fmt: skip
+                               for b, t0, t1, _ in spans[cut - cut % 2 :]]  # fmt: skip
         executing = self._executing
         return {
             "t_now_s": round(s.clock(), 4),
@@ -403,7 +423,7 @@ class LiveCampaign:
                 "protocol": getattr(st, "protocol", ""),
             },
             "executing_block": executing,
-            "executing_line": line_of.get(executing),
+            "executing_line": self._line_of.get(executing),
             "bands": self._bands,
         }
 
