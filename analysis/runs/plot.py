@@ -1,12 +1,16 @@
-"""Force-trace PNG of a recorded run: one panel per channel, events marked, holes shaded."""
+"""Force-trace PNGs: a recorded run (one panel per channel, events marked, holes shaded) and a
+parsed export (``plot_table``, `cutlab data plot` on a DynoWare/CSV file)."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
+from analysis.errors import AnalysisError
 from analysis.runs import file as rf
+from analysis.runs.table import ForceTable, _time_column
 
 _MARK = {
     rf.EV_OVERFLOW: "tab:red",
@@ -75,9 +79,47 @@ def plot_run(run: rf.Run, out: str | Path, max_points: int = 4000) -> Path:
         f"{run.duration_s:.3f} s, {state}{lost}",
         fontsize=10,
     )
+    return _save(fig, out)
+
+
+def _save(fig, out: str | Path) -> Path:
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110)
     plt.close(fig)
     return out
+
+
+def plot_table(t: ForceTable, out: str | Path, rate_hz: float | None = None,
+               max_points: int = 4000) -> Path:  # fmt: skip
+    """Write ``out`` (PNG): each column of a parsed export but the time against time (s)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rate = rate_hz if rate_hz is not None else t.rate_hz
+    if not (math.isfinite(rate) and rate > 0):
+        raise AnalysisError(f"{t.path}: no sampling rate (no rate in the header and no time "
+                            "column); give --rate HZ")  # fmt: skip
+    t_col = _time_column(t.columns)
+    cols = [k for k in range(len(t.columns)) if k != t_col]
+    time_s = np.arange(len(t.data)) / rate
+    fig, axes = plt.subplots(len(cols), 1, sharex=True, figsize=(10, 1.8 + 1.6 * len(cols)),
+                             squeeze=False)  # fmt: skip
+    bins = max(1, max_points // 2)
+    for ax, k in zip(axes[:, 0], cols):
+        if len(time_s) > max_points:
+            tt, yy = _envelope(time_s, t.data[:, k], bins)
+        else:
+            tt, yy = time_s, t.data[:, k]
+        ax.plot(tt, yy, lw=0.6, color="tab:blue")
+        ax.set_ylabel(f"{t.columns[k]} ({t.units[k] or '?'})")
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("time since first sample (s)")
+    fig.suptitle(f"{t.path.name}: {len(cols)} columns at {rate:g} Hz, "
+                 f"{len(time_s) / rate:.3f} s (export)", fontsize=10)  # fmt: skip
+    return _save(fig, out)

@@ -9,8 +9,8 @@ column optional; the rate then comes from a ``rate_hz`` header line or the calle
 
 ``read_force_table(path) -> ForceTable``: the columns as found, with their units, the sampling
 rate (header or time column) and the header's ``key: value`` lines (also ``key:,value``,
-``key:<tab>value``, ``key;value``). ``table_summary`` and ``plot_table`` are `cutlab data info`
-and `cutlab data plot` on an export. Turning the columns into the
+``key:<tab>value``, ``key;value``). ``table_summary`` is `cutlab data info` on an export
+(`cutlab data plot`: ``analysis.runs.plot.plot_table``). Turning the columns into the
 dynamometer's X, Y, Z forces is :func:`analysis.identify.import_run`'s job.
 """
 
@@ -27,7 +27,7 @@ import pandas as pd
 
 from analysis.errors import AnalysisError
 
-__all__ = ["FORCE_UNIT_TO_N", "ForceTable", "plot_table", "read_force_table", "table_summary"]
+__all__ = ["FORCE_UNIT_TO_N", "ForceTable", "read_force_table", "table_summary"]
 
 _TIME_NAMES = ("time", "zeit", "t", "time_s", "temps", "tiempo", "tempo")
 #: Force units (lower case) to N.
@@ -241,42 +241,3 @@ def table_summary(path: str | Path, rate_hz: float | None = None) -> dict[str, A
         "separator": {"\t": "tab", " ": "space"}.get(t.separator, t.separator),
         "header": dict(t.header),
     }
-
-
-def plot_table(t: ForceTable, out: str | Path, rate_hz: float | None = None,
-               max_points: int = 4000) -> Path:  # fmt: skip
-    """Write ``out`` (PNG): each column of a parsed export but the time against time (s)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from analysis.runs.plot import _envelope
-
-    rate = rate_hz if rate_hz is not None else t.rate_hz
-    if not (math.isfinite(rate) and rate > 0):
-        raise AnalysisError(f"{t.path}: no sampling rate (no rate in the header and no time "
-                            "column); give --rate HZ")  # fmt: skip
-    t_col = _time_column(t.columns)
-    cols = [k for k in range(len(t.columns)) if k != t_col]
-    time_s = np.arange(len(t.data)) / rate
-    fig, axes = plt.subplots(len(cols), 1, sharex=True, figsize=(10, 1.8 + 1.6 * len(cols)),
-                             squeeze=False)  # fmt: skip
-    bins = max(1, max_points // 2)
-    for ax, k in zip(axes[:, 0], cols):
-        if len(time_s) > max_points:
-            tt, yy = _envelope(time_s, t.data[:, k], bins)
-        else:
-            tt, yy = time_s, t.data[:, k]
-        ax.plot(tt, yy, lw=0.6, color="tab:blue")
-        ax.set_ylabel(f"{t.columns[k]} ({t.units[k] or '?'})")
-        ax.grid(alpha=0.3)
-    axes[-1, 0].set_xlabel("time since first sample (s)")
-    fig.suptitle(f"{t.path.name}: {len(cols)} columns at {rate:g} Hz, "
-                 f"{len(time_s) / rate:.3f} s (export)", fontsize=10)  # fmt: skip
-    fig.tight_layout()
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out

@@ -77,7 +77,8 @@ def _plot(args: argparse.Namespace) -> int:
         run = load_run(args.file, args.start_s, args.stop_s)
         png, samples = plot_run(run, args.output), len(run.time_s)
     else:
-        from analysis.runs.table import plot_table, read_force_table
+        from analysis.runs.plot import plot_table
+        from analysis.runs.table import read_force_table
 
         table = read_force_table(args.file)
         png, samples = plot_table(table, args.output, args.rate), len(table.data)
