@@ -28,7 +28,8 @@ def write_export(path: Path, mb: float, rate_hz: float = 10_000.0) -> None:
     t = np.arange(n) / rate_hz
     f = 100 * np.sin(2 * np.pi * 200 * t)[:, None] + rng.normal(0, 2, (n, 3))
     with path.open("w", encoding="utf-8") as fh:
-        fh.write(f"DynoWare:\tType 5697A1\nSampling rate:\t{rate_hz:g}\n\nTime\tFx\tFy\tFz\ns\tN\tN\tN\n")
+        fh.write(f"DynoWare:\tType 5697A1\nSampling rate:\t{rate_hz:g}\n\n")
+        fh.write("Time\tFx\tFy\tFz\ns\tN\tN\tN\n")
         step = 200_000
         for a in range(0, n, step):
             block = np.column_stack([t[a:a + step], f[a:a + step]])

@@ -45,7 +45,8 @@ def main() -> None:
     rows = ["file,spindle_rpm,feed_mm_min,ap_mm,ae_mm,teeth,tool"]
     for k, feed in enumerate(FEEDS_MM_MIN):
         cut = Cut(diameter_mm=DIAMETER_MM, flutes=TEETH, helix_deg=30.0, spindle_rpm=RPM,
-                  fz_mm=feed / (RPM * TEETH), depth_mm=AP_MM, runout_mm=(0.001, -0.001))  # fmt: skip
+                  fz_mm=feed / (RPM * TEETH), depth_mm=AP_MM,
+                  runout_mm=(0.001, -0.001))  # fmt: skip
         rec = Record(rate_hz=RATE_HZ, air_revs=0, ramp_revs=0, steady_revs=60, rpm_wobble=0.005,
                      noise_n=3.0, modes=((2900.0, 0.03), (3300.0, 0.03), (4100.0, 0.03)),
                      seed=100 + k)  # fmt: skip

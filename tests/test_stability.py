@@ -300,10 +300,9 @@ def test_coefficients_and_modes_from_files(tmp_path) -> None:
 
 
 def test_saved_modes_file_is_read(tmp_path) -> None:
-    modal = pytest.importorskip("analysis.modal")
-    if not hasattr(modal, "save_modes"):
-        pytest.skip("analysis.modal has no save_modes yet")
     from types import SimpleNamespace
+
+    from analysis import modal
 
     mode = SimpleNamespace(channel="x", frequency_hz=FN, damping_ratio=ZETA,
                            stiffness_n_m=K_N_M, mass_kg=MASS)  # fmt: skip
