@@ -48,7 +48,11 @@ class _Console:
     def __init__(self, cfg: SerialConfig) -> None:
         self.q: queue.Queue[str] = queue.Queue()
         self.buf = bytearray()
-        self.link = SerialLink(open_port(cfg, "grbl"), on_data=self._on_data).start()
+        port = open_port(cfg, "grbl")
+        # Bytes GRBL sent before we opened (a status report the streamer asked for and never read)
+        # are not answers to our requests: a stale '<Run|...>' would pass for a live machine.
+        port.reset_input_buffer()
+        self.link = SerialLink(port, on_data=self._on_data).start()
         self.lines: list[str] = []
 
     def _on_data(self, data: bytes) -> None:
