@@ -55,7 +55,7 @@ def has_json(cmd: tuple[str, ...]) -> bool:
 
 
 def hammer_csv(path: Path) -> Path:
-    """Four hits in x on the dynamometer's three modes (as tests/test_modal_cli.py)."""
+    """Four hits in x on the dynamometer's three modes (seed 003 Table 2), with noise."""
     from analysis.modal import DynamometerFilter
 
     fs = 51_200.0
