@@ -134,10 +134,14 @@ def _pool(i, tmp: Path) -> list[str]:  # noqa: ANN001
 WRITES = {"output", "out", "png", "report", "record", "plot"}
 
 
-def _value(action: argparse.Action, pool: list[str]) -> st.SearchStrategy[str]:
-    junk = st.text(alphabet=st.characters(blacklist_categories=("Cs",)), max_size=6)
-    if action.dest in WRITES:
-        return st.sampled_from([p for p in pool if "/out." in p])
+def _value(action: argparse.Action, pool: list[str], writes: bool = False) -> st.SearchStrategy:
+    # junk never climbs out of the test's folder: `catalog index /` once indexed the whole
+    # machine and left a catalogue at / that every later `catalog query` found
+    junk = st.text(alphabet=st.characters(blacklist_categories=("Cs",)), max_size=6).filter(
+        lambda s: "/" not in s and ".." not in s and "~" not in s
+    )
+    if writes or action.dest in WRITES:  # (pool[-1] is a file in the test's folder)
+        return st.sampled_from([p for p in pool if "/out." in p] + [str(Path(pool[-1]).parent)])
     if action.choices:
         return st.one_of(st.sampled_from([str(c) for c in action.choices]), junk)
     if getattr(action.type, "__name__", "") in ("float", "int"):
@@ -154,12 +158,12 @@ def _argv(cmd, pool: list[str], tmp: Path) -> st.SearchStrategy[list[str]]:  # n
     @st.composite
     def build(draw):  # noqa: ANN001, ANN202
         argv = list(cmd)
-        for a in pos:
-            argv.append(draw(_value(a, pool)))
+        for a in pos:  # the folders `catalog index` reads are also where it writes
+            argv.append(draw(_value(a, pool, writes=cmd == ("catalog", "index"))))
         for a in draw(st.lists(st.sampled_from(opts), max_size=4)) if opts else []:
             argv.append(a.option_strings[-1])
             if a.nargs != 0:
-                argv.append(draw(_value(a, pool)))
+                argv.append(draw(_value(a, pool, writes=cmd == ("catalog", "index"))))
         extra = list(LIMITS.get(cmd, []))
         if cmd[0] == "rules":  # never the lab's rule base
             extra += ["--db", str(tmp / "rb.sqlite")] if cmd[1] != "derive" else []
