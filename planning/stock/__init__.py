@@ -4,6 +4,8 @@ simulated machining of programs and operation plans, and the stock's picture.
 
 from planning.stock.block import SteppedBlock
 from planning.stock.machining import (
+    ARC_STEP_RAD,
+    MAX_ARCS,
     Operation,
     OperationPlan,
     Simulation,
@@ -17,6 +19,8 @@ from planning.stock.plot import save_stock_png
 from planning.stock.zmap import Cutter, ZMap
 
 __all__ = [
+    "ARC_STEP_RAD",
+    "MAX_ARCS",
     "Cutter",
     "Operation",
     "OperationPlan",

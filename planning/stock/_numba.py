@@ -103,11 +103,84 @@ def _envelope_point(kind, r, rc, qx, qy, dx, dy, dz, za, l2):
     return _bull_g(0.5 * (lo + hi), tp, w2, l2, za, dz, a, rc)
 
 
+N_ARC = 90  # samples of the leading half-circle (2 deg each)
+MAX_ARCS = 10  # engaged arcs kept per move; more are joined to the last
+ARC_TOL_MM = 0.02  # stock this little above the tip is floor residue: not a cut
+ARC_SPLIT = 0.25  # a new arc where the engaged height differs this much (relative) from its start
+
+
 @njit(cache=True, fastmath=False)
-def cut_pieces(h, x0g, y0g, s, bottom, kind, r, rc, pts, removed, depth):
+def leading_arc(h, x0g, y0g, s, xa, ya, za, xb, yb, zb, r, rc, out):
+    """The engaged arcs of the cutter's periphery at the middle of the move a -> b, before it
+    cuts: ``out`` (MAX_ARCS * 3,) = (entry rad, exit rad, engaged height mm) per arc, NaN where
+    there is none (all NaN without XY motion).
+
+    Angles as the force model's: 0 on the left of the feed direction, pi on its right, the
+    cutter turning clockwise (M3) from entry to exit over the leading half. The stock is read on
+    the circle of radius ``r`` at the grid point under each sample, engaged above the tip plus
+    the corner radius ``rc`` (where the flank begins). An arc ends where the stock does or where
+    its height above the tip differs by ARC_SPLIT from the arc's first sample (a ramp, a step);
+    an arc's height is its samples' mean weighted by sin(angle), as the chip (and the force)
+    is. Arcs beyond MAX_ARCS are joined to the last (more force where a gap was: the safe side).
+    """
+    out[:] = np.nan
+    fx, fy = xb - xa, yb - ya
+    norm = math.sqrt(fx * fx + fy * fy)
+    if norm < 1e-9:
+        return
+    fx /= norm
+    fy /= norm
+    xm, ym = 0.5 * (xa + xb), 0.5 * (ya + yb)
+    zt = 0.5 * (za + zb) + rc
+    ny, nx = h.shape
+    step = math.pi / N_ARC
+    d = np.zeros(N_ARC)  # stock height above the flank's foot per sample
+    for a in range(N_ARC):
+        th = (a + 0.5) * step
+        # the direction at immersion th: (pi/2 - th) counter-clockwise from the feed
+        c, sn = math.sin(th), math.cos(th)
+        i = int(math.floor((xm + r * (c * fx - sn * fy) - x0g) / s))
+        j = int(math.floor((ym + r * (c * fy + sn * fx) - y0g) / s))
+        if 0 <= i < nx and 0 <= j < ny:
+            d[a] = h[j, i] - zt
+    # one sample missing between two engaged ones is a grid point the previous cut just
+    # reached (a ramp's floor, a wall at the radius): not a gap in the cut
+    for a in range(1, N_ARC - 1):
+        if d[a] <= ARC_TOL_MM < min(d[a - 1], d[a + 1]):
+            d[a] = 0.5 * (d[a - 1] + d[a + 1])
+    n = 0  # arcs begun
+    first = 0.0  # engaged height at the current arc's first sample
+    total = 0.0
+    count = 0.0
+    inside = False
+    for a in range(N_ARC):
+        w = math.sin((a + 0.5) * step)
+        engaged = d[a] > ARC_TOL_MM
+        if engaged and (not inside or abs(d[a] - first) > ARC_SPLIT * first):
+            if n < MAX_ARCS:  # an arc begins
+                if n > 0 and inside:
+                    out[3 * n - 1] = total / count
+                out[3 * n] = a * step
+                total, count = 0.0, 0.0
+                n += 1
+            first = d[a]
+        elif not engaged and inside:
+            out[3 * n - 1] = total / count
+        if engaged:
+            out[3 * n - 2] = (a + 1) * step
+            total += d[a] * w
+            count += w
+        inside = engaged
+    if inside:
+        out[3 * n - 1] = total / count
+
+
+@njit(cache=True, fastmath=False)
+def cut_pieces(h, x0g, y0g, s, bottom, kind, r, rc, pts, removed, depth, arcs):
     """Cut the moves ``pts`` (k, 6: x0 y0 z0 x1 y1 z1) in order into ``h`` (ny, nx) in place.
 
-    Fills ``removed`` (k,) with mm^3 and ``depth`` (k,) with the deepest height drop, mm.
+    Fills ``removed`` (k,) with mm^3 and ``depth`` (k,) with the deepest height drop, mm; and,
+    if ``arcs`` has k rows, each move's engaged arcs (:func:`leading_arc`) before it cuts.
     """
     ny, nx = h.shape
     cx = x0g + 0.5 * s
@@ -115,6 +188,8 @@ def cut_pieces(h, x0g, y0g, s, bottom, kind, r, rc, pts, removed, depth):
     area = s * s
     for k in range(pts.shape[0]):
         xa, ya, za, xb, yb, zb = pts[k, 0], pts[k, 1], pts[k, 2], pts[k, 3], pts[k, 4], pts[k, 5]
+        if arcs.shape[0] > 0:
+            leading_arc(h, x0g, y0g, s, xa, ya, za, xb, yb, zb, r, rc, arcs[k])
         i0 = max(0, int(math.ceil((min(xa, xb) - r - cx) / s - 1e-9)))
         i1 = min(nx, int(math.floor((max(xa, xb) + r - cx) / s + 1e-9)) + 1)
         j0 = max(0, int(math.ceil((min(ya, yb) - r - cy) / s - 1e-9)))
@@ -160,4 +235,6 @@ def warm_up() -> None:
     """Compile (or load from cache) the kernel for float64 inputs."""
     if AVAILABLE:
         h = np.zeros((4, 4))
-        cut_pieces(h, 0.0, 0.0, 1.0, -1.0, 0, 1.0, 0.0, np.zeros((1, 6)), np.zeros(1), np.zeros(1))
+        one = np.zeros(1)
+        cut_pieces(h, 0.0, 0.0, 1.0, -1.0, 0, 1.0, 0.0, np.zeros((1, 6)), one, one,
+                   np.zeros((1, 3 * MAX_ARCS), np.float32))  # fmt: skip

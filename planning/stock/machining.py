@@ -62,6 +62,7 @@ from planning.errors import PlanningError
 from planning.nc import DWELL, LINE, RAPID, Motion, segment_time_s
 from planning.nc.arcs import PLANE_AXES, arc_radius_mm, linearize, segment_length_mm
 from planning.stock import _kernels as _k
+from planning.stock._numba import MAX_ARCS, N_ARC
 from planning.stock.starts import (
     _stock_from_model,
     _StockModel,
@@ -70,6 +71,8 @@ from planning.stock.starts import (
 )
 from planning.stock.zmap import Cutter, ZMap, split_pieces
 
+#: the engaged arcs (``Simulation.piece_arcs``): at most this many per piece, on this grid
+ARC_STEP_RAD = math.pi / N_ARC
 #: chordal tolerance for arcs, mm (the Z-map's own resolution is far coarser)
 DEFAULT_CHORD_TOL_MM = 0.001
 _CONTACT_TOL_MM = 1e-6
@@ -105,6 +108,8 @@ class Simulation:
     piece_removed_mm3 : ndarray (k,), mm^3
     removed_mm3 : ndarray (n,), mm^3 — per segment
     piece_depth_mm : ndarray (k,), mm — deepest height drop of each piece (axial depth met)
+    piece_arcs : ndarray (k, 3 * MAX_ARCS) — the cutter's engaged arcs at each piece's middle
+        before it cut: entry rad, exit rad, depth mm each (NaN: none; ``ZMap.cut_pieces``)
     contacts : tuple of HolderContact
     rapid_cut_segments : ndarray, int — rapid moves that removed material (a crash on a machine)
     """
@@ -118,6 +123,7 @@ class Simulation:
     piece_depth_mm: NDArray[np.float64]
     contacts: tuple[HolderContact, ...] = ()
     rapid_cut_segments: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
+    piece_arcs: NDArray[np.float64] | None = None
 
     @property
     def piece_length_mm(self) -> NDArray[np.float64]:
@@ -282,7 +288,8 @@ def simulate_motion(
     check_holder : bool
         Check the holder and spindle nose against the stock after each move that could reach it.
     track_depth : bool
-        Record each piece's deepest height drop (``piece_depth_mm``; zeros otherwise).
+        Record each piece's deepest height drop (``piece_depth_mm``; zeros otherwise) and its
+        engaged arcs (``piece_arcs``; None otherwise).
     until_block : int, optional
         Stop after this block (0-based): ``stock`` is then the stock at that moment, and the
         result covers the segments up to it.
@@ -298,6 +305,8 @@ def simulate_motion(
     seg = src[move]
     removed = np.zeros(len(move))
     depth = np.zeros(len(move))
+    # float32: 120 bytes a piece (a million-piece program: 120 MB)
+    arcs = np.full((len(move), 3 * MAX_ARCS), np.nan, np.float32) if track_depth else None
     contacts: dict[tuple[int, str], HolderContact] = {}
     # The stock never rises, so its highest point now bounds it for the whole program: pieces
     # whose holder underside stays above it need no check.
@@ -319,6 +328,7 @@ def simulate_motion(
             removed[done:stop] = stock.cut_pieces(
                 cutter, p0[done:stop], p1[done:stop], report,
                 depth[done:stop] if track_depth else None,
+                None if arcs is None else arcs[done:stop],
             )  # fmt: skip
             done = stop
             if progress is not None:
@@ -340,7 +350,7 @@ def simulate_motion(
     per_seg = np.bincount(seg, weights=removed, minlength=len(motion))
     rapid_cut = np.nonzero((motion.kind == RAPID) & (per_seg > 1e-9))[0]
     ordered = tuple(sorted(contacts.values(), key=lambda c: (c.block, c.part)))
-    return Simulation(motion, seg, p0, p1, removed, per_seg, depth, ordered, rapid_cut)
+    return Simulation(motion, seg, p0, p1, removed, per_seg, depth, ordered, rapid_cut, arcs)
 
 
 # ---------------------------------------------------------------------------------- plans
@@ -526,6 +536,7 @@ def _join(motion: Motion, parts: list[tuple[int, Simulation]]) -> Simulation:
         motion, cat("piece_segment", 1), cat("piece_start_mm"), cat("piece_end_mm"),
         cat("piece_removed_mm3"), cat("removed_mm3"), cat("piece_depth_mm"),
         tuple(c for _, s in parts for c in s.contacts), cat("rapid_cut_segments", 1),
+        cat("piece_arcs") if all(s.piece_arcs is not None for _, s in parts) else None,
     )  # fmt: skip
 
 

@@ -392,26 +392,34 @@ class ZMap:
         ends_mm: NDArray[np.float64],
         progress: Callable[[int], None] | None = None,
         depth_mm: NDArray[np.float64] | None = None,
+        arcs: NDArray[np.float64] | None = None,
     ) -> NDArray[np.float64]:
         """Cut linear moves in order as given (no splitting); removed volume per move, mm^3.
 
         ``depth_mm``, if given (shape (k,)), receives the deepest height drop of each move, mm
-        (the axial depth of cut the move met).
+        (the axial depth of cut the move met); ``arcs``, if given (shape (k, 3 *
+        ``_numba.MAX_ARCS``)), the cutter's engaged arcs at each move's middle before it cuts
+        (entry rad, exit rad, depth mm each; NaN: none found, no XY motion, or a ball end mill;
+        see ``_numba.leading_arc``).
         """
         p0 = np.asarray(starts_mm, dtype=float).reshape(-1, 3)
         p1 = np.asarray(ends_mm, dtype=float).reshape(-1, 3)
         removed = np.zeros(len(p0))
         kind = _KIND_CODES[cutter.kind]
         r, rc = cutter.radius_mm, cutter.corner_radius_mm
+        if arcs is not None and kind == _k.BALL:
+            arcs[:] = np.nan  # the periphery at the tip's height is a point: no arc
+            arcs = None
         if self.compiled and _numba.AVAILABLE and len(p0):
             pts = np.ascontiguousarray(np.concatenate([p0, p1], axis=1))
             drop = np.zeros(len(p0)) if depth_mm is None else depth_mm
+            arcs_out = np.zeros((0, 3 * _numba.MAX_ARCS), np.float32) if arcs is None else arcs
             step = 16384 if progress is not None else len(p0)
             for a in range(0, len(p0), step):
                 b = min(a + step, len(p0))
                 _numba.cut_pieces(
                     self.heights_mm, self.x0_mm, self.y0_mm, self.spacing_mm, self.bottom_mm,
-                    kind, float(r), float(rc), pts[a:b], removed[a:b], drop[a:b],
+                    kind, float(r), float(rc), pts[a:b], removed[a:b], drop[a:b], arcs_out[a:b],
                 )  # fmt: skip
                 if progress is not None:
                     progress(b)
@@ -419,7 +427,11 @@ class ZMap:
         cut_one = self._cut_one
         rows = np.concatenate([p0, p1], axis=1).tolist()  # python floats: cheaper per piece
         track = depth_mm is not None
+        arc = _numba.leading_arc
         for k, (x0, y0, z0, x1, y1, z1) in enumerate(rows):
+            if arcs is not None:
+                arc(self.heights_mm, self.x0_mm, self.y0_mm, self.spacing_mm,
+                    x0, y0, z0, x1, y1, z1, r, rc, arcs[k])  # fmt: skip
             removed[k], drop = cut_one(kind, r, rc, x0, y0, z0, x1, y1, z1, track)
             if track:
                 depth_mm[k] = drop
