@@ -3,9 +3,13 @@ blocks (data/programs/demo-part.nc, phi10-flat in al6061-t6) cut on the twin's Z
 material's true end-mill coefficients, the force before the dynamometer reduced per executing
 block, against the check's predicted block mean and peak.
 
-The twin is an independent model of the same physics: edge elements engaged where the leading
-half of the cutter meets uncut stock, each sample, against the check's volume-based engagement
-(depth and width from the Z-map's removed cross-section, down milling from the cutter's edge).
+The twin is an independent model of the same physics: each sample, helix-lagged edge elements
+on axial slices, engaged where the leading half of the turning cutter meets uncut stock, against
+the check's engaged arcs read once per 2.5 mm piece at 2 deg and summed from force tables.
+
+Every block that cuts on the twin is compared: the face passes and their strips, the helical
+entry, the pocket's slots and 5 mm corners, the contour. The plunge (block 44) is not: the twin
+has no end-cutting edge and reads 0 N, where the check takes a plunge as a side cut (the safe side).
 """
 
 from __future__ import annotations
@@ -24,10 +28,7 @@ from planning.stock import ZMap
 DEMO = Path(__file__).resolve().parent.parent / "data" / "programs" / "demo-part.nc"
 TOOL, MATERIAL, MACHINE = "phi10-flat", "al6061-t6", "ace-h63"
 RATE_HZ = 20_000.0  # 50 samples per tooth period at 8000 rpm, 3 teeth
-# Blocks whose engagement is the check's: a strip from the cutter's edge or a full slot, over
-# most of the block (motion blocks, 0-based): the face passes at 8 mm step-over, the pocket's
-# slots and arcs, the outer contour's full-width slot.
-STEADY = [13, 15, 17, 19, 21, 23, 25, 36, 37, 38, 39, 40, 45, 46, 47, 48, 49, 50, 51]
+TOLERANCE_PCT = 10.0  # the issue's: mean and peak per block
 
 
 def demo_stock() -> ZMap:
@@ -117,14 +118,19 @@ def table() -> pd.DataFrame:
     return compare_demo(10_000.0)  # 25 samples per tooth period: peaks within 1 %
 
 
-def test_steady_blocks_mean_and_peak_within_10_pct(table: pd.DataFrame) -> None:
-    steady = table.loc[STEADY]
-    assert (steady["twin_peak_n"] > 50).all()  # they cut
-    assert steady["mean_err_pct"].abs().max() < 10, steady.to_string()
-    assert steady["peak_err_pct"].abs().max() < 10, steady.to_string()
+def cutting_blocks(table: pd.DataFrame) -> pd.DataFrame:
+    """The blocks that cut on the twin (all but the plunge)."""
+    return table[table["twin_peak_n"] > 1.0]
+
+
+def test_every_cutting_block_mean_and_peak_within_10_pct(table: pd.DataFrame) -> None:
+    cut = cutting_blocks(table)
+    assert len(cut) == 30 and list(table.index.difference(cut.index)) == [44]
+    assert cut["mean_err_pct"].abs().max() < TOLERANCE_PCT, cut.to_string()
+    assert cut["peak_err_pct"].abs().max() < TOLERANCE_PCT, cut.to_string()
 
 
 def test_no_block_under_predicted_in_peak(table: pd.DataFrame) -> None:
     # the check errs on the safe side: engagement rounded up, plunges taken as side cuts
-    cut = table[table["twin_peak_n"] > 1.0]
-    assert (cut["peak_err_pct"] > -10).all(), cut.to_string()
+    cut = cutting_blocks(table)
+    assert (cut["peak_err_pct"] > -2).all(), cut.to_string()

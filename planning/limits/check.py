@@ -1,16 +1,19 @@
 """The per-block check of a program against the limits (:mod:`planning.limits.model`).
 
 Engagement comes from the Z-map virtual machining ``plan feed`` and ``plan simulate`` do
-(:func:`planning.stock.simulate_motion`, pieces of at most ``piece_mm``): axial depth = a piece's
-deepest height drop, radial width = removed cross-section / depth (capped at D), down milling,
-as :mod:`planning.feed.force` does. Per piece, at its feed and spindle speed:
+(:func:`planning.stock.simulate_motion`, pieces of at most ``piece_mm``): the engaged arcs of the
+cutter's periphery at each piece's middle, read on the stock before the piece cuts, each with
+its depth (``Simulation.piece_arcs``: up to ten arcs, split where the stock's height changes by a
+quarter); where none is found (a plunge, a ball end mill) a strip of width removed cross-section
+/ depth at the cutter's edge in down milling. The stability check uses that width and the
+piece's deepest height drop. Per piece, at its feed and spindle speed:
 
 * force: the largest resultant over a tooth period, and the largest lateral (XY) force for the
   deflection, of :func:`analysis.forces.endmill_forces` (the material's end-mill coefficients);
 * power P = F_t v and torque T = F_t D / 2 with the mean tangential force F_t summed over the
-  teeth in closed form: F_t v = K_tc Q + K_te v N a (phi_ex - phi_st) / (2 pi), Q the removal rate
-  from the Z-map (mm^3/s);
-* chip: the largest chip thickness fz sin(phi), sin(phi) = 1 from half immersion up;
+  teeth in closed form: F_t v = K_tc Q + K_te v N sum(a (phi_ex - phi_st)) / (2 pi) over the
+  arcs, Q the removal rate from the Z-map (mm^3/s);
+* chip: the largest chip thickness fz sin(phi) over the arcs;
 * stability: the axial depth against the chatter-free depth at that speed.
 
 A block's value for a limit is its worst piece's (highest value / allowed). Every feed-driven
@@ -38,13 +41,33 @@ from planning.limits.model import (
     modal_depth_limit_mm,
 )
 from planning.nc import Motion
-from planning.stock import Simulation, ZMap, simulate_motion
+from planning.stock import ARC_STEP_RAD, MAX_ARCS, Simulation, ZMap, simulate_motion
 
 PIECE_MM = 2.5  # pieces of the check's Z-map run, mm (plan feed's default: min piece / 2)
 N_PHI = 36  # tooth-period samples of the peak force
+N_DISCS = 12  # axial discs of the force tables (the twin slices its cutter in 12 too)
 FEED_LIMITS = ("force", "deflection", "power", "torque", "chip")  # cured by a lower feed
 TOL = 1e-6  # relative: a value this close to its limit holds
-ENGAGEMENT_STEP = 0.02  # relative rounding (up) of depth and width for the force tables
+ENGAGEMENT_STEP = 0.02  # relative rounding (up) of the depth for the force tables
+
+
+def _arcs(sim: Simulation, c: NDArray, depth_mm: NDArray, ae_mm: NDArray, d_mm: float) -> NDArray:
+    """Engaged arcs per cutting piece, (k, MAX_ARCS, 3): entry rad, exit rad, depth mm (NaN
+    rows: no more arcs): those the Z-map found at the piece's middle; where it found none (a
+    plunge, a ball end mill, a sliver between grid points) one strip of the removed width and
+    the piece's depth at the cutter's edge in down milling (M3), whose chip is thickest. M4
+    mirrors the arcs (the cutter turns the other way)."""
+    from analysis.forces.endmill import immersion_angles
+
+    arcs = np.full((len(ae_mm), MAX_ARCS, 3), np.nan)
+    arcs[:, 0, 0], arcs[:, 0, 1] = immersion_angles(ae_mm, d_mm, "down")
+    arcs[:, 0, 2] = depth_mm
+    if sim.piece_arcs is not None:
+        found = sim.piece_arcs[c].reshape(-1, MAX_ARCS, 3).astype(float)
+        arcs = np.where(np.isfinite(found[:, :1, :1]), found, arcs)
+    m4 = sim.motion.spindle_rpm[sim.piece_segment][c] < 0
+    arcs[m4, :, :2] = np.pi - arcs[m4][..., 1::-1]
+    return arcs
 
 
 class Pieces:
@@ -68,26 +91,33 @@ class Pieces:
         self.depth_mm = np.clip(sim.piece_depth_mm[c], 1e-3, tool.flute_length_mm)
         self.area_mm2 = sim.piece_removed_mm3[c] / length[c]  # removed per mm of path
         self.ae_mm = np.clip(self.area_mm2 / self.depth_mm, 1e-3, tool.diameter_mm)
-        from analysis.forces.endmill import immersion_angles
-
-        st, ex = immersion_angles(self.ae_mm, tool.diameter_mm, "down")
-        self.sweep_rad = np.abs(ex - st)
-        imm = self.ae_mm / tool.diameter_mm
-        self.chip_factor = np.where(imm >= 0.5, 1.0, 2.0 * np.sqrt(imm * (1.0 - imm)))
-        # forces per distinct engagement, depth and width rounded up to ENGAGEMENT_STEP
-        # (relative): on the safe side, and a few hundred force tables instead of thousands
+        self.arcs = _arcs(sim, c, self.depth_mm, self.ae_mm, tool.diameter_mm)
+        entry, exit_ = self.arcs[..., 0], self.arcs[..., 1]
+        depth = np.clip(self.arcs[..., 2], 1e-3, tool.flute_length_mm)  # (NaN: no arc)
+        self.depth_sweep_mm = np.nansum(depth * (exit_ - entry), axis=1)  # mm rad
+        # the largest chip is fz sin(phi) at the arcs' point nearest pi/2
+        self.chip_factor = np.nanmax(np.sin(np.clip(np.pi / 2, entry, exit_)), axis=1)
+        # forces per distinct arc, the depth rounded up to ENGAGEMENT_STEP (relative) and the
+        # arc widened to the Z-map's 2 deg grid (on the safe side): a few hundred force tables
+        # instead of thousands; a piece's force is the sum of its arcs' (the edge forces add)
         step = math.log1p(ENGAGEMENT_STEP)
-        eng = np.ceil(np.log(np.stack([self.depth_mm, self.ae_mm], 1)) / step - 1e-9)
-        uniq, inv = np.unique(eng, axis=0, return_inverse=True)
-        up = np.exp(uniq * step)
-        self._engagement = (np.minimum(up[:, 0], tool.flute_length_mm),
-                            np.minimum(up[:, 1], tool.diameter_mm))  # fmt: skip
-        self._unique = inv.ravel()
+        keys = np.stack([np.ceil(np.log(depth) / step - 1e-9),
+                         np.floor(entry / ARC_STEP_RAD + 1e-3),
+                         np.ceil(exit_ / ARC_STEP_RAD - 1e-3)], -1).reshape(-1, 3)  # fmt: skip
+        has = np.isfinite(keys).all(1)
+        uniq, inv = np.unique(keys[has], axis=0, return_inverse=True)
+        self._engagement = (np.minimum(np.exp(uniq[:, 0] * step), tool.flute_length_mm),
+                            np.degrees(uniq[:, 1] * ARC_STEP_RAD),
+                            np.degrees(uniq[:, 2] * ARC_STEP_RAD))  # fmt: skip
+        table = np.full(len(keys), len(uniq))  # the last table is no arc: zero force
+        table[has] = inv.ravel()
+        self._table = table.reshape(-1, MAX_ARCS)
         self._tables: tuple[NDArray, NDArray] | None = None
         self.depth_allowed_mm = np.full(c.sum(), np.inf)
         if limits.lobes is not None:
             self.depth_allowed_mm = limits.lobes.depth_mm(self.rpm)
         elif limits.stability_modes and c.any():
+            imm = self.ae_mm / tool.diameter_mm
             self.depth_allowed_mm = modal_depth_limit_mm(tool, coef, self.rpm, imm)
         self.depth_allowed_mm = self.depth_allowed_mm * limits.stability_margin
 
@@ -97,18 +127,18 @@ class Pieces:
     def _force_tables(self) -> tuple[NDArray, NDArray]:
         """Force over a tooth period per distinct engagement, (m, N_PHI, 3) each, as
         F(fz) = fz A + B: the edge model is affine in the chip thickness, which is affine in fz
-        (fz sin(phi), plus runout). Evaluated once, in chunks, per distinct (depth, ae)."""
+        (fz sin(phi), plus runout). Evaluated once, in chunks, per distinct (depth, arc)."""
         if self._tables is None:
             from analysis.forces import EndMillCut, endmill_forces
 
             phi = np.linspace(0.0, 2 * np.pi / self.tool.flutes, N_PHI, endpoint=False)[:, None]
-            d, ae = self._engagement
-            a_tab = np.empty((len(d), N_PHI, 3))
-            b_tab = np.empty((len(d), N_PHI, 3))
+            d, entry_deg, exit_deg = self._engagement
+            a_tab = np.zeros((len(d) + 1, N_PHI, 3))  # (the last: no arc)
+            b_tab = np.zeros((len(d) + 1, N_PHI, 3))
             for i in range(0, len(d), 1000):
-                sl = slice(i, i + 1000)
-                f0, f1 = (endmill_forces(phi, self.tool, self.coef, EndMillCut.from_width(
-                    self.tool, fz, d[sl], ae[sl], mode="down")) for fz in (0.1, 0.2))  # fmt: skip
+                sl = slice(i, min(i + 1000, len(d)))
+                f0, f1 = (endmill_forces(phi, self.tool, self.coef, EndMillCut(
+                    fz, d[sl], entry_deg[sl], exit_deg[sl]), N_DISCS) for fz in (0.1, 0.2))  # fmt: skip
                 # two feeds where every tooth in the cut has a chip (at fz = 0 none is cutting)
                 a_tab[sl] = np.moveaxis(f1 - f0, 0, 1) / 0.1
                 b_tab[sl] = np.moveaxis(f0, 0, 1) - 0.1 * a_tab[sl]
@@ -124,8 +154,8 @@ class Pieces:
         mean_n = np.empty(len(fz))
         for i in range(0, len(fz), 2000):
             sl = slice(i, i + 2000)
-            u = self._unique[sl]
-            f = fz[sl, None, None] * a_tab[u] + b_tab[u]
+            u = self._table[sl]
+            f = fz[sl, None, None] * a_tab[u].sum(1) + b_tab[u].sum(1)
             resultant = np.linalg.norm(f, axis=-1)
             force[sl] = resultant.max(1)
             mean_n[sl] = resultant.mean(1)
@@ -136,8 +166,9 @@ class Pieces:
         """Power = a feed + b, kW: a from K_tc x removal rate, b from the edge force."""
         a = self.coef.Ktc_n_mm2 * self.area_mm2 / 60.0 * 1e-6  # per mm/min of feed
         v = cutting_speed_mm_s(self.tool.diameter_mm, self.rpm)
-        teeth_in_cut = self.tool.flutes * self.sweep_rad / (2 * np.pi)  # on average
-        edge_n = self.coef.Kte_n_mm * self.depth_mm * teeth_in_cut
+        # edge length in the cut, on average over a turn
+        edge_mm = self.tool.flutes * self.depth_sweep_mm / (2 * np.pi)
+        edge_n = self.coef.Kte_n_mm * edge_mm
         return a, edge_n * v * 1e-6
 
     def _torque_per_kw(self) -> NDArray:
@@ -307,7 +338,7 @@ def evaluate(
             ratio = np.where(np.isfinite(al), v / al, 0.0)
             # the worst piece of each block: sort by ratio, keep the last per block
             order = np.lexsort((ratio, inv))
-            last = order[np.r_[inv[order][1:] != inv[order][:-1], True]]
+            last = order[np.r_[inv[order][1:] != inv[order][:-1], True]] if len(v) else order
             cols[k], cols[f"{k}_allowed"], cols[f"{k}_ratio"] = v[last], al[last], ratio[last]
             bad = np.nonzero(ratio[last] > 1 + TOL)[0]
             for i in bad.tolist():

@@ -65,6 +65,8 @@ def run(a: argparse.Namespace) -> int:
         return 0
     for n in out["limits"]["notes"]:
         status("note: " + n)
+    if not out["cutting_blocks"]:  # e.g. the default stock (top at Z0) under a part's program
+        status(f"note: {a.program}: no block removes stock (give the stock with --stock)")
     print_violations(out["violations"])
     for k, w in out["worst"].items():
         print(f"worst {k}: {w['value']:.4g} of {w['allowed']:.4g} at block {w['block']} "
