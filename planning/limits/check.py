@@ -49,6 +49,8 @@ N_DISCS = 12  # axial discs of the force tables (the twin slices its cutter in 1
 FEED_LIMITS = ("force", "deflection", "power", "torque", "chip")  # cured by a lower feed
 TOL = 1e-6  # relative: a value this close to its limit holds
 ENGAGEMENT_STEP = 0.02  # relative rounding (up) of the depth for the force tables
+MAX_CACHED = 50_000  # force tables kept per tool and material (1.7 kB each)
+_TABLES: dict[tuple[str, str], dict[tuple[int, int], tuple[NDArray, NDArray]]] = {}
 
 
 def _arcs(sim: Simulation, c: NDArray, depth_mm: NDArray, ae_mm: NDArray, d_mm: float) -> NDArray:
@@ -97,21 +99,21 @@ class Pieces:
         self.depth_sweep_mm = np.nansum(depth * (exit_ - entry), axis=1)  # mm rad
         # the largest chip is fz sin(phi) at the arcs' point nearest pi/2
         self.chip_factor = np.nanmax(np.sin(np.clip(np.pi / 2, entry, exit_)), axis=1)
-        # forces per distinct arc, the depth rounded up to ENGAGEMENT_STEP (relative) and the
-        # arc widened to the Z-map's 2 deg grid (on the safe side): a few hundred force tables
-        # instead of thousands; a piece's force is the sum of its arcs' (the edge forces add)
+        # A piece's force is the sum of its arcs' (the edge forces add), and an arc (e, x) is
+        # the arc (0, x) less the arc (0, e): force tables per distinct (depth, end angle), the
+        # depth rounded up to ENGAGEMENT_STEP (relative) and the arc widened to the Z-map's
+        # 2 deg grid (on the safe side)
         step = math.log1p(ENGAGEMENT_STEP)
-        keys = np.stack([np.ceil(np.log(depth) / step - 1e-9),
-                         np.floor(entry / ARC_STEP_RAD + 1e-3),
-                         np.ceil(exit_ / ARC_STEP_RAD - 1e-3)], -1).reshape(-1, 3)  # fmt: skip
-        has = np.isfinite(keys).all(1)
-        uniq, inv = np.unique(keys[has], axis=0, return_inverse=True)
-        self._engagement = (np.minimum(np.exp(uniq[:, 0] * step), tool.flute_length_mm),
-                            np.degrees(uniq[:, 1] * ARC_STEP_RAD),
-                            np.degrees(uniq[:, 2] * ARC_STEP_RAD))  # fmt: skip
-        table = np.full(len(keys), len(uniq))  # the last table is no arc: zero force
+        dk = np.ceil(np.log(depth) / step - 1e-9)
+        ends = np.stack([np.stack([dk, np.ceil(exit_ / ARC_STEP_RAD - 1e-3)], -1),
+                         np.stack([dk, np.floor(entry / ARC_STEP_RAD + 1e-3)], -1)])  # fmt: skip
+        ends = ends.reshape(-1, 2)  # (2 k MAX_ARCS, 2): the exits, then the entries
+        has = np.isfinite(ends).all(1) & (ends[:, 1] > 0)  # an arc from 0 adds nothing
+        uniq, inv = np.unique(ends[has], axis=0, return_inverse=True)
+        self._keys = [tuple(k) for k in uniq.astype(np.int64).tolist()]
+        table = np.full(len(ends), len(uniq))  # the last table is no force
         table[has] = inv.ravel()
-        self._table = table.reshape(-1, MAX_ARCS)
+        self._exit_table, self._entry_table = table.reshape(2, -1, MAX_ARCS)
         self._tables: tuple[NDArray, NDArray] | None = None
         self.depth_allowed_mm = np.full(c.sum(), np.inf)
         if limits.lobes is not None:
@@ -125,25 +127,40 @@ class Pieces:
         return np.maximum(feed_mm_min, 1e-9) / (self.tool.flutes * self.rpm)
 
     def _force_tables(self) -> tuple[NDArray, NDArray]:
-        """Force over a tooth period per distinct engagement, (m, N_PHI, 3) each, as
-        F(fz) = fz A + B: the edge model is affine in the chip thickness, which is affine in fz
-        (fz sin(phi), plus runout). Evaluated once, in chunks, per distinct (depth, arc)."""
+        """Force over a tooth period per distinct engagement, (m + 1, N_PHI, 3) each (the last:
+        no arc), as F(fz) = fz A + B: the edge model is affine in the chip thickness, which is
+        affine in fz (fz sin(phi), plus runout). Each (depth, end angle) is evaluated once per
+        tool and material in the process (``plan rough --limit`` checks the same cuts again)."""
         if self._tables is None:
-            from analysis.forces import EndMillCut, endmill_forces
-
-            phi = np.linspace(0.0, 2 * np.pi / self.tool.flutes, N_PHI, endpoint=False)[:, None]
-            d, entry_deg, exit_deg = self._engagement
-            a_tab = np.zeros((len(d) + 1, N_PHI, 3))  # (the last: no arc)
-            b_tab = np.zeros((len(d) + 1, N_PHI, 3))
-            for i in range(0, len(d), 1000):
-                sl = slice(i, min(i + 1000, len(d)))
-                f0, f1 = (endmill_forces(phi, self.tool, self.coef, EndMillCut(
-                    fz, d[sl], entry_deg[sl], exit_deg[sl]), N_DISCS) for fz in (0.1, 0.2))  # fmt: skip
-                # two feeds where every tooth in the cut has a chip (at fz = 0 none is cutting)
-                a_tab[sl] = np.moveaxis(f1 - f0, 0, 1) / 0.1
-                b_tab[sl] = np.moveaxis(f0, 0, 1) - 0.1 * a_tab[sl]
-            self._tables = (a_tab, b_tab)
+            cache = _TABLES.setdefault(
+                (self.tool.model_dump_json(), self.coef.model_dump_json()), {}
+            )
+            missing = [k for k in self._keys if k not in cache]
+            if len(cache) + len(missing) > MAX_CACHED:
+                cache.clear()
+                missing = list(self._keys)
+            for i in range(0, len(missing), 1000):
+                keys = missing[i : i + 1000]
+                for k, a, b in zip(keys, *self._evaluate(np.array(keys, float)), strict=True):
+                    cache[k] = (a, b)
+            none = np.zeros((N_PHI, 3))
+            self._tables = (np.stack([cache[k][0] for k in self._keys] + [none]),
+                            np.stack([cache[k][1] for k in self._keys] + [none]))  # fmt: skip
         return self._tables
+
+    def _evaluate(self, keys: NDArray) -> tuple[NDArray, NDArray]:
+        """A and B (k, N_PHI, 3) of the arcs from 0 for keys (k, 2): depth step, end index."""
+        from analysis.forces import EndMillCut, endmill_forces
+
+        phi = np.linspace(0.0, 2 * np.pi / self.tool.flutes, N_PHI, endpoint=False)[:, None]
+        depth = np.minimum(np.exp(keys[:, 0] * math.log1p(ENGAGEMENT_STEP)),
+                           self.tool.flute_length_mm)  # fmt: skip
+        end_deg = np.degrees(keys[:, 1] * ARC_STEP_RAD)
+        f0, f1 = (endmill_forces(phi, self.tool, self.coef, EndMillCut(fz, depth, 0.0, end_deg),
+                                 N_DISCS) for fz in (0.1, 0.2))  # fmt: skip
+        # two feeds where every tooth in the cut has a chip (at fz = 0 none is cutting)
+        a = np.moveaxis(f1 - f0, 0, 1) / 0.1
+        return a, np.moveaxis(f0, 0, 1) - 0.1 * a
 
     def forces_n(self, fz: NDArray, mean: bool = False) -> tuple[NDArray, ...]:
         """(peak resultant, peak lateral[, mean resultant over a tooth period]) force per piece
@@ -154,8 +171,9 @@ class Pieces:
         mean_n = np.empty(len(fz))
         for i in range(0, len(fz), 2000):
             sl = slice(i, i + 2000)
-            u = self._table[sl]
-            f = fz[sl, None, None] * a_tab[u].sum(1) + b_tab[u].sum(1)
+            x, e = self._exit_table[sl], self._entry_table[sl]
+            a = a_tab[x].sum(1) - a_tab[e].sum(1)
+            f = fz[sl, None, None] * a + b_tab[x].sum(1) - b_tab[e].sum(1)
             resultant = np.linalg.norm(f, axis=-1)
             force[sl] = resultant.max(1)
             mean_n[sl] = resultant.mean(1)
