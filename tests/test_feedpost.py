@@ -431,7 +431,9 @@ def test_force_limit_caps_the_predicted_peak_force() -> None:
     depth = sim.piece_depth_mm[k]
     fz = capped.piece_feed_mm_min[k] / (tool.flutes * 2000)
     cut = EndMillCut.from_width(tool, fz, depth, min(area / depth, 30.0), mode="down")
-    assert float(peak_force(tool, coef, cut, n_phi=90)) == pytest.approx(f[k], rel=1e-6)
+    # (a ball end mill has no engaged arcs: the strip at the edge; the model's force tables
+    # sample a tooth period 36 times over 12 discs, the depth rounded up by 2 %)
+    assert float(peak_force(tool, coef, cut, n_phi=720)) == pytest.approx(f[k], rel=0.03)
     assert_same_geometry(capped)
 
 

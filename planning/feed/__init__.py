@@ -3,6 +3,7 @@ blocks split where the load changes, and its report; the ``plan feed`` / ``plan 
 """
 
 from planning.feed._write import cap_feeds
+from planning.feed.force import ForceModel
 from planning.feed.job import (
     Job,
     end_mill,
@@ -17,6 +18,7 @@ from planning.feed.report import write_report
 
 __all__ = [
     "FeedPostOptions",
+    "ForceModel",
     "FeedPostResult",
     "Job",
     "cap_feeds",

@@ -1,12 +1,10 @@
 """The per-block check of a program against the limits (:mod:`planning.limits.model`).
 
-Engagement comes from the Z-map virtual machining ``plan feed`` and ``plan simulate`` do
-(:func:`planning.stock.simulate_motion`, pieces of at most ``piece_mm``): the engaged arcs of the
-cutter's periphery at each piece's middle, read on the stock before the piece cuts, each with
-its depth (``Simulation.piece_arcs``: up to ten arcs, split where the stock's height changes by a
-quarter); where none is found (a plunge, a ball end mill) a strip of width removed cross-section
-/ depth at the cutter's edge in down milling. The stability check uses that width and the
-piece's deepest height drop. Per piece, at its feed and spindle speed:
+The program is machined on a Z-map as ``plan feed`` and ``plan simulate`` do
+(:func:`planning.stock.simulate_motion`, pieces of at most ``piece_mm``), and each cutting piece's
+engagement and forces come from :class:`planning.feed.ForceModel` (the arcs of the cutter that
+met stock, each with its depth). The stability check uses the piece's deepest height drop and
+its removed cross-section / depth as the width. Per piece, at its feed and spindle speed:
 
 * force: the largest resultant over a tooth period, and the largest lateral (XY) force for the
   deflection, of :func:`analysis.forces.endmill_forces` (the material's end-mill coefficients);
@@ -34,6 +32,7 @@ from numpy.typing import NDArray
 
 from analysis.config import EndMill, EndMillCoefficients
 from planning.errors import PlanningError
+from planning.feed import ForceModel
 from planning.limits.model import (
     LIMIT_UNITS,
     Limits,
@@ -41,39 +40,16 @@ from planning.limits.model import (
     modal_depth_limit_mm,
 )
 from planning.nc import Motion
-from planning.stock import ARC_STEP_RAD, MAX_ARCS, Simulation, ZMap, simulate_motion
+from planning.stock import Simulation, ZMap, simulate_motion
 
 PIECE_MM = 2.5  # pieces of the check's Z-map run, mm (plan feed's default: min piece / 2)
-N_PHI = 36  # tooth-period samples of the peak force
-N_DISCS = 12  # axial discs of the force tables (the twin slices its cutter in 12 too)
 FEED_LIMITS = ("force", "deflection", "power", "torque", "chip")  # cured by a lower feed
 TOL = 1e-6  # relative: a value this close to its limit holds
-ENGAGEMENT_STEP = 0.02  # relative rounding (up) of the depth for the force tables
-MAX_CACHED = 50_000  # force tables kept per tool and material (1.7 kB each)
-_TABLES: dict[tuple[str, str], dict[tuple[int, int], tuple[NDArray, NDArray]]] = {}
 
 
-def _arcs(sim: Simulation, c: NDArray, depth_mm: NDArray, ae_mm: NDArray, d_mm: float) -> NDArray:
-    """Engaged arcs per cutting piece, (k, MAX_ARCS, 3): entry rad, exit rad, depth mm (NaN
-    rows: no more arcs): those the Z-map found at the piece's middle; where it found none (a
-    plunge, a ball end mill, a sliver between grid points) one strip of the removed width and
-    the piece's depth at the cutter's edge in down milling (M3), whose chip is thickest. M4
-    mirrors the arcs (the cutter turns the other way)."""
-    from analysis.forces.endmill import immersion_angles
-
-    arcs = np.full((len(ae_mm), MAX_ARCS, 3), np.nan)
-    arcs[:, 0, 0], arcs[:, 0, 1] = immersion_angles(ae_mm, d_mm, "down")
-    arcs[:, 0, 2] = depth_mm
-    if sim.piece_arcs is not None:
-        found = sim.piece_arcs[c].reshape(-1, MAX_ARCS, 3).astype(float)
-        arcs = np.where(np.isfinite(found[:, :1, :1]), found, arcs)
-    m4 = sim.motion.spindle_rpm[sim.piece_segment][c] < 0
-    arcs[m4, :, :2] = np.pi - arcs[m4][..., 1::-1]
-    return arcs
-
-
-class Pieces:
-    """Engagement of each cutting piece of a simulation and its quantities at any feed."""
+class Pieces(ForceModel):
+    """Engagement and forces of each cutting piece (:class:`planning.feed.ForceModel`), and
+    its quantities against the limits at any feed."""
 
     def __init__(
         self,
@@ -83,102 +59,17 @@ class Pieces:
         sim: Simulation,
         rpm: NDArray,
     ) -> None:
-        self.tool, self.coef, self.limits = tool, coef, limits
-        length = sim.piece_length_mm
         feed_move = sim.motion.is_feed[sim.piece_segment]  # a rapid that cuts is a crash
-        self.cutting = (sim.piece_removed_mm3 > 1e-9) & (length > 0) & (rpm > 0) & feed_move
-        c = self.cutting
-        self.rpm = rpm[c]
-        # deeper than the flutes is the shank rubbing: the force model stops at the flutes
-        self.depth_mm = np.clip(sim.piece_depth_mm[c], 1e-3, tool.flute_length_mm)
-        self.area_mm2 = sim.piece_removed_mm3[c] / length[c]  # removed per mm of path
-        self.ae_mm = np.clip(self.area_mm2 / self.depth_mm, 1e-3, tool.diameter_mm)
-        self.arcs = _arcs(sim, c, self.depth_mm, self.ae_mm, tool.diameter_mm)
-        entry, exit_ = self.arcs[..., 0], self.arcs[..., 1]
-        depth = np.clip(self.arcs[..., 2], 1e-3, tool.flute_length_mm)  # (NaN: no arc)
-        self.depth_sweep_mm = np.nansum(depth * (exit_ - entry), axis=1)  # mm rad
-        # the largest chip is fz sin(phi) at the arcs' point nearest pi/2
-        self.chip_factor = np.nanmax(np.sin(np.clip(np.pi / 2, entry, exit_)), axis=1)
-        # A piece's force is the sum of its arcs' (the edge forces add), and an arc (e, x) is
-        # the arc (0, x) less the arc (0, e): force tables per distinct (depth, end angle), the
-        # depth rounded up to ENGAGEMENT_STEP (relative) and the arc widened to the Z-map's
-        # 2 deg grid (on the safe side)
-        step = math.log1p(ENGAGEMENT_STEP)
-        dk = np.ceil(np.log(depth) / step - 1e-9)
-        ends = np.stack([np.stack([dk, np.ceil(exit_ / ARC_STEP_RAD - 1e-3)], -1),
-                         np.stack([dk, np.floor(entry / ARC_STEP_RAD + 1e-3)], -1)])  # fmt: skip
-        ends = ends.reshape(-1, 2)  # (2 k MAX_ARCS, 2): the exits, then the entries
-        has = np.isfinite(ends).all(1) & (ends[:, 1] > 0)  # an arc from 0 adds nothing
-        uniq, inv = np.unique(ends[has], axis=0, return_inverse=True)
-        self._keys = [tuple(k) for k in uniq.astype(np.int64).tolist()]
-        table = np.full(len(ends), len(uniq))  # the last table is no force
-        table[has] = inv.ravel()
-        self._exit_table, self._entry_table = table.reshape(2, -1, MAX_ARCS)
-        self._tables: tuple[NDArray, NDArray] | None = None
-        self.depth_allowed_mm = np.full(c.sum(), np.inf)
+        cutting = (sim.piece_removed_mm3 > 1e-9) & (sim.piece_length_mm > 0) & (rpm > 0)
+        super().__init__(tool, coef, sim, rpm, cutting & feed_move)
+        self.limits = limits
+        self.depth_allowed_mm = np.full(len(self.rpm), np.inf)
         if limits.lobes is not None:
             self.depth_allowed_mm = limits.lobes.depth_mm(self.rpm)
-        elif limits.stability_modes and c.any():
+        elif limits.stability_modes and len(self.rpm):
             imm = self.ae_mm / tool.diameter_mm
             self.depth_allowed_mm = modal_depth_limit_mm(tool, coef, self.rpm, imm)
         self.depth_allowed_mm = self.depth_allowed_mm * limits.stability_margin
-
-    def _fz(self, feed_mm_min: NDArray) -> NDArray:
-        return np.maximum(feed_mm_min, 1e-9) / (self.tool.flutes * self.rpm)
-
-    def _force_tables(self) -> tuple[NDArray, NDArray]:
-        """Force over a tooth period per distinct engagement, (m + 1, N_PHI, 3) each (the last:
-        no arc), as F(fz) = fz A + B: the edge model is affine in the chip thickness, which is
-        affine in fz (fz sin(phi), plus runout). Each (depth, end angle) is evaluated once per
-        tool and material in the process (``plan rough --limit`` checks the same cuts again)."""
-        if self._tables is None:
-            cache = _TABLES.setdefault(
-                (self.tool.model_dump_json(), self.coef.model_dump_json()), {}
-            )
-            missing = [k for k in self._keys if k not in cache]
-            if len(cache) + len(missing) > MAX_CACHED:
-                cache.clear()
-                missing = list(self._keys)
-            for i in range(0, len(missing), 1000):
-                keys = missing[i : i + 1000]
-                for k, a, b in zip(keys, *self._evaluate(np.array(keys, float)), strict=True):
-                    cache[k] = (a, b)
-            none = np.zeros((N_PHI, 3))
-            self._tables = (np.stack([cache[k][0] for k in self._keys] + [none]),
-                            np.stack([cache[k][1] for k in self._keys] + [none]))  # fmt: skip
-        return self._tables
-
-    def _evaluate(self, keys: NDArray) -> tuple[NDArray, NDArray]:
-        """A and B (k, N_PHI, 3) of the arcs from 0 for keys (k, 2): depth step, end index."""
-        from analysis.forces import EndMillCut, endmill_forces
-
-        phi = np.linspace(0.0, 2 * np.pi / self.tool.flutes, N_PHI, endpoint=False)[:, None]
-        depth = np.minimum(np.exp(keys[:, 0] * math.log1p(ENGAGEMENT_STEP)),
-                           self.tool.flute_length_mm)  # fmt: skip
-        end_deg = np.degrees(keys[:, 1] * ARC_STEP_RAD)
-        f0, f1 = (endmill_forces(phi, self.tool, self.coef, EndMillCut(fz, depth, 0.0, end_deg),
-                                 N_DISCS) for fz in (0.1, 0.2))  # fmt: skip
-        # two feeds where every tooth in the cut has a chip (at fz = 0 none is cutting)
-        a = np.moveaxis(f1 - f0, 0, 1) / 0.1
-        return a, np.moveaxis(f0, 0, 1) - 0.1 * a
-
-    def forces_n(self, fz: NDArray, mean: bool = False) -> tuple[NDArray, ...]:
-        """(peak resultant, peak lateral[, mean resultant over a tooth period]) force per piece
-        at feeds per tooth ``fz``, N."""
-        a_tab, b_tab = self._force_tables()
-        force = np.empty(len(fz))
-        lateral = np.empty(len(fz))
-        mean_n = np.empty(len(fz))
-        for i in range(0, len(fz), 2000):
-            sl = slice(i, i + 2000)
-            x, e = self._exit_table[sl], self._entry_table[sl]
-            a = a_tab[x].sum(1) - a_tab[e].sum(1)
-            f = fz[sl, None, None] * a + b_tab[x].sum(1) - b_tab[e].sum(1)
-            resultant = np.linalg.norm(f, axis=-1)
-            force[sl] = resultant.max(1)
-            mean_n[sl] = resultant.mean(1)
-            lateral[sl] = np.linalg.norm(f[..., :2], axis=-1).max(1)
-        return (force, lateral, mean_n) if mean else (force, lateral)
 
     def _power_parts_kw(self) -> tuple[NDArray, NDArray]:
         """Power = a feed + b, kW: a from K_tc x removal rate, b from the edge force."""
@@ -236,31 +127,8 @@ class Pieces:
         if lim.deflection_mm is not None and lim.stiffness_n_mm is not None:
             d_lim = lim.deflection_mm * lim.stiffness_n_mm  # lateral force limit, N
         if (f_lim is not None or d_lim is not None) and k:
-            cap = np.minimum(cap, self._force_cap_fz(f_lim, d_lim) * per_fz)
+            cap = np.minimum(cap, self.force_cap_fz(f_lim, d_lim) * per_fz)
         return cap
-
-    def _force_cap_fz(self, f_lim: float | None, d_lim: float | None) -> NDArray:
-        """Largest fz with peak force <= f_lim and peak lateral force <= d_lim, by bisection in
-        log(fz) (the peak forces grow with fz), from below; 0 where even 1e-5 mm is too much."""
-
-        def ok(fz: NDArray) -> NDArray:
-            force, lateral = self.forces_n(fz)
-            good = np.ones(len(fz), bool)
-            if f_lim is not None:
-                good &= force <= f_lim
-            if d_lim is not None:
-                good &= lateral <= d_lim
-            return good
-
-        lo = np.full(len(self.rpm), math.log(1e-5))
-        hi = np.full(len(self.rpm), math.log(2.0))
-        ok_lo = ok(np.exp(lo))
-        ok_hi = ok(np.exp(hi))
-        for _ in range(18):  # 18 halvings of log(2e5): fz within 0.005 %
-            mid = 0.5 * (lo + hi)
-            good = ok(np.exp(mid))
-            lo, hi = np.where(good, mid, lo), np.where(good, hi, mid)
-        return np.where(ok_hi, np.inf, np.where(ok_lo, np.exp(lo), 0.0))
 
 
 @dataclass(frozen=True)
