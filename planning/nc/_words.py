@@ -8,7 +8,7 @@ interpreter's ``state``, ``file``, ``strict``, ``warnings`` and machine limits.
 from __future__ import annotations
 
 from planning.nc import _lexer
-from planning.nc._codes import LETTERS, M_GROUP, gkey, gname
+from planning.nc._codes import DIALECT_ONLY_G, LETTERS, M_GROUP, gkey, gname
 from planning.nc.errors import NCError, NCWarning
 from planning.nc.state import ModalState
 
@@ -61,7 +61,14 @@ class WordRules:
             if letter == "G":
                 key = gkey(num)
                 if key not in self._g_group:
-                    self._problem(raw, k, f"unknown G-code {gname(key)}", line)
+                    have = DIALECT_ONLY_G.get(key)  # another control's code: say whose
+                    where = (
+                        f" in the {self.dialect} dialect ({', '.join(have)} have it: a "
+                        "machine config of that dialect)"
+                        if have
+                        else ""
+                    )
+                    self._problem(raw, k, f"unknown G-code {gname(key)}{where}", line)
                 elif gcodes is None:
                     gcodes = [(key, k)]
                 else:
