@@ -84,7 +84,7 @@ def load_job(
     if not tool_name:
         end_mill(tool_name)  # the error lists the end mills
     program = Program.read(program_path)
-    motion = interpret(program, m, file=str(program_path), cutter_comp="refuse")
+    motion = interpret(program, m, file=str(program_path), cutter_comp="refuse", probing="refuse")
     tools = bind_tools(motion, parse_tool_spec(tool_name), str(program_path))  # type: ignore[arg-type]
     cutter = Cutter.from_tool(max((t for _, t in tools.values()), key=lambda t: t.diameter_mm))
     if stock_spec:

@@ -315,7 +315,9 @@ def post_process(
         feed[unsplit] = bf
 
     new_program, new_index = write_program(program, machine, block_feed, split)
-    motion_after = interpret(new_program, machine, file=file, cutter_comp="refuse")
+    motion_after = interpret(
+        new_program, machine, file=file, cutter_comp="refuse", probing="refuse"
+    )
     verify_geometry(motion, motion_after, new_index, set(split), file)
     t_before = segment_time_s(motion, machine)  # feeds > 0: check_motion passed
     t_after = segment_time_s(motion_after, machine)

@@ -46,7 +46,7 @@ def _check(
     program: Program, machine: MachineConfig | None, tool: EndMill, coef: EndMillCoefficients,
     limits: Limits, stock: ZMap, spindle_rpm: float | None, progress: Any = None,
 ) -> tuple[Motion, CheckResult]:  # fmt: skip
-    motion = interpret(program, machine, file=program.file, cutter_comp="refuse")
+    motion = interpret(program, machine, file=program.file, cutter_comp="refuse", probing="refuse")
     res = check_motion(motion, tool, coef, limits, stock.copy(), spindle_rpm=spindle_rpm,
                        file=program.file, progress=progress)  # fmt: skip
     return motion, res
@@ -228,7 +228,7 @@ def check_job(
     limits = limits_for(tool, m, tool_name=tool_name or "", lobes=lobes,
                         force_limit_n=force_limit_n)  # fmt: skip
     program = Program.read(program_path)
-    motion = interpret(program, m, file=str(program_path), cutter_comp="refuse")
+    motion = interpret(program, m, file=str(program_path), cutter_comp="refuse", probing="refuse")
     if tool_name:  # the limits are one tool's: refuse a program that changes tools, naming it
         bind_tools(motion, tool_name, str(program_path))
     if stock_spec:

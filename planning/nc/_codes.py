@@ -15,7 +15,7 @@ DIALECTS = ("fanuc", "grbl", "linuxcnc")
 
 # G-code (times 10, so G90.1 is 901) -> modal group (RS-274 numbering; 0 = non-modal)
 G_GROUP = {
-    0: 1, 10: 1, 20: 1, 30: 1, 810: 1, 820: 1, 830: 1,
+    0: 1, 10: 1, 20: 1, 30: 1, 382: 1, 383: 1, 384: 1, 385: 1, 810: 1, 820: 1, 830: 1,
     800: 9,
     40: 0, 100: 0, 280: 0, 281: 0, 290: 0, 300: 0, 301: 0, 520: 0, 530: 0,
     920: 0, 921: 0, 922: 0, 923: 0,
@@ -25,7 +25,7 @@ G_GROUP = {
     930: 5, 940: 5,
     200: 6, 210: 6,
     400: 7, 410: 7, 420: 7,
-    430: 8, 490: 8,
+    430: 8, 431: 8, 490: 8,
     980: 10, 990: 10,
     540: 12, 550: 12, 560: 12, 570: 12, 580: 12, 590: 12, 591: 12, 592: 12, 593: 12,
     610: 13, 611: 13, 640: 13,
@@ -45,8 +45,12 @@ DIALECT_ONLY_G = {
     593: ("linuxcnc",),
     970: ("linuxcnc",),  # G97 spindle rpm mode (the only one)
     80: ("linuxcnc",),  # G8 lathe radius mode (the default: X is a radius)
+    431: ("grbl", "linuxcnc"),  # G43.1 dynamic tool length offset (Fanuc's is another thing)
+    **{k: ("grbl", "linuxcnc") for k in (382, 383, 384, 385)},  # G38.2..G38.5 probing
 }
-MOTION_MODE = {0: 0, 10: 1, 20: 2, 30: 3, 800: 80, 810: 81, 820: 82, 830: 83}
+# (G38.2..G38.5 all probe alike offline: mode 38)
+MOTION_MODE = {0: 0, 10: 1, 20: 2, 30: 3, 382: 38, 383: 38, 384: 38, 385: 38, 800: 80, 810: 81,
+               820: 82, 830: 83}  # fmt: skip
 # work offset G code key -> index in ModalState.work_offsets_mm (LinuxCNC's P1..P9 minus one)
 OFFSET_INDEX = {540: 0, 550: 1, 560: 2, 570: 3, 580: 4, 590: 5, 591: 6, 592: 7, 593: 8}
 OFFSET_CODES: tuple[int | float, ...] = (54, 55, 56, 57, 58, 59, 59.1, 59.2, 59.3)

@@ -175,6 +175,9 @@ class Moves:
                 raise self._fail(raw, 0, "G53 needs G0 or G1 in force", line)
             if self._lcnc and not st.absolute:
                 raise self._fail(raw, 0, "G53 cannot be used in incremental mode G91", line)
+        if mode == 38:
+            self._probe_checks(raw, line, p0, p1)
+            mode = 1  # a feed move to the target: where it stops depends on the part
         if mode <= 1:  # inlined _seg: this is the hot path of big programs
             if mode == 0:
                 kind, feed = RAPID, NAN
@@ -199,6 +202,26 @@ class Moves:
                 self._seg(out, kind, p0, p1, c, feed, 0.0, line, block, r1)
         st.position_mm = p1
         st.rotary_deg = r1
+
+    def _probe_checks(self, raw, line: int, p0, p1) -> None:
+        """G38.2..G38.5: refused when asked (``probing="refuse"``), and LinuxCNC's and GRBL's
+        errors: no feed, inverse time, cutter compensation on, a target (nearly) where it is."""
+        st = self.state
+        if self.probing == "refuse":
+            raise self._fail(raw, 0, "G38.x probe move: where it stops depends on the part, so "
+                             "the stock cannot be simulated through it (run the probing on "
+                             "its own)", line)  # fmt: skip
+        if st.feed_mode == 93:
+            raise self._fail(raw, 0, "G38.x cannot probe under inverse-time feed G93", line)
+        if not st.feed_mm_min > 0:
+            raise self._fail(raw, 0, "G38.x probe move with no feed rate (program F first)",
+                             line)  # fmt: skip
+        if st.cutter_comp != 40:
+            raise self._fail(raw, 0, "G38.x cannot probe with cutter compensation on", line)
+        too_close = 0.254 if self._lcnc else 0.0  # LinuxCNC's 0.01 in / 0.254 mm
+        if math.dist(p0, p1) <= too_close:
+            raise self._fail(raw, 0, "G38.x target too close to the start (LinuxCNC: within "
+                             "0.254 mm; GRBL: the same point)", line)  # fmt: skip
 
     def _arc(self, raw, v, line: int, block: int, out, kind: int, p0, p1, c, r0, r1) -> None:
         """An arc under G93 or LinuxCNC's rules: its length for the inverse-time feed, the feed
@@ -341,8 +364,8 @@ class Moves:
 
     # ------------------------------------------------------------------ G10 / G92 / G28.1
     def _setting(self, raw, v, scale, line, key: int, k: int) -> None:
-        """The group-0 codes that set something from the block's words (no motion): G10,
-        G28.1 / G30.1, G52, G92, G92.1 / G92.2 / G92.3."""
+        """The codes that set something from the block's words (no motion): G10, G28.1 / G30.1,
+        G43.1, G52, G92, G92.1 / G92.2 / G92.3."""
         st = self.state
         code = gname(key)
         if key == 100:
@@ -350,6 +373,9 @@ class Moves:
             return
         axes = [a for a in range(3) if "XYZ"[a] in v]
         rot = [c for c in "ABC" if c in v]
+        if key == 431:
+            self._g43_1(raw, v, scale, line, k, axes, rot)
+            return
         if key in (281, 301, 921, 922, 923):
             if axes or rot:
                 raise self._fail(
@@ -455,6 +481,8 @@ class Moves:
             tlo = 0.0
             if st.tool_length == 43:
                 tlo = st.tool_table.get(st.tool_length_h or st.tool, (0.0, 0.0, 0.0, 0.0))[2]
+            elif st.tool_length == 431:
+                tlo = st.tool_length_offset_mm[2]
             work = st.work_offsets_mm[8 if ell == 11 else st.work_offset_index]
             g92 = (0.0, 0.0, 0.0) if ell == 11 else st.g92_offset_mm
             for a in axes:
@@ -465,6 +493,28 @@ class Moves:
         table = dict(st.tool_table)
         table[p] = (entry[0], entry[1], entry[2], entry[3])
         st.tool_table = table
+
+    def _g43_1(self, raw, v, scale, line, k: int, axes: list[int], rot: list[str]) -> None:
+        """G43.1: the dynamic tool length offset is the axis words (absolute under G91 too; none:
+        zero, LinuxCNC; GRBL takes Z and only Z, its error 37)."""
+        if rot:
+            raise self._fail(raw, rot[0], "G43.1: rotary axis offsets are not supported", line)
+        if self.dialect == "grbl" and axes != [2]:
+            letter = next((L for L in "XY" if L in v), None)
+            raise self._fail(raw, letter or k, "G43.1 on GRBL takes Z and only Z (error:37)",
+                             line)  # fmt: skip
+        off = tuple(float(v["XYZ"[a]]) * scale if a in axes else 0.0 for a in range(3))
+        self.state.tool_length = 431
+        self._set_tool_length_offset(off)  # type: ignore[arg-type]
+
+    def _set_tool_length_offset(self, off: tuple[float, float, float]) -> None:
+        """A new tool length offset: the tool tip does not move, so the current position (in
+        program coordinates) changes by the offset's change."""
+        st = self.state
+        old = st.tool_length_offset_mm
+        if off != old:
+            st.position_mm = tuple(p - (n - o) for p, n, o in zip(st.position_mm, off, old))  # type: ignore[assignment]
+            st.tool_length_offset_mm = off
 
     # ------------------------------------------------------------------ arcs
     def _arc_center(self, raw, v, scale, line, p0, p1, cw: bool) -> tuple[float, float, float]:

@@ -26,6 +26,12 @@ listed below, "linuxcnc" follows LinuxCNC's interpreter ``rs274`` to the canonic
   tool length is not applied). G92 makes the current position read the given values (the offset
   applies to every work offset), G92.1 cancels and forgets it, G92.2 cancels and keeps it, G92.3
   restores it; G52 sets it directly (a local offset). G10 R (rotation) is refused.
+* GRBL and LinuxCNC: G43.1 sets a dynamic tool length offset from its axis words (GRBL: Z only;
+  absolute whatever G91), G49 or G43 cancels it; the tool does not move, so the current position
+  (program coordinates) changes by the offset's change, as rs274ngc's and GRBL's do. G38.2..G38.5
+  are modal probe moves: a feed move to the target (where a probe stops depends on the part);
+  errors as the controls': no feed, G93, cutter compensation on, a target within 0.254 mm
+  (LinuxCNC) or at the start (GRBL); ``probing="refuse"`` raises (what the Z-map consumers ask).
 * G61 / G61.1 / G64 (with P blending tolerance, Q naive-CAM tolerance) are recorded in the state:
   the motion is the programmed path in every mode.
 * G40/G41/G42 (with D) and G43/G49 (with H) are recorded in the state; the motion is the
@@ -118,9 +124,9 @@ if TYPE_CHECKING:
 
 DEFAULT_ARC_TOLERANCE_MM = 0.002  # MachineConfig's default
 NAN = math.nan
-# group-0 codes that set something from the block's words (no motion): G10, G28.1, G30.1, G52,
-# G92, G92.1, G92.2, G92.3
-SETTING_CODES = frozenset({100, 281, 301, 520, 920, 921, 922, 923})
+# codes that set something from the block's words (no motion): G10, G28.1, G30.1, G43.1 (group
+# 8), G52, G92, G92.1, G92.2, G92.3
+SETTING_CODES = frozenset({100, 281, 301, 431, 520, 920, 921, 922, 923})
 HOME_CODES = frozenset({280, 290, 300})
 FAST_CHUNK = 65_536  # lines read at a time by run()
 CHUNK_BLOCKS = 8_192  # streamed chunk: faster than 65,536 (cache), ~55 MB peak for 1 M blocks
@@ -164,6 +170,9 @@ class Interpreter(FastRuns, WordRules, Moves):
         Start from this state (copied), e.g. to resume a program at a block.
     cutter_comp : {"warn", "refuse"}
         G41/G42 cutter radius compensation is not applied: warn once (default) or raise.
+    probing : {"allow", "refuse"}
+        G38.2..G38.5 probe moves are taken as reaching their target (default), or raise: where
+        a probe stops depends on the part (what the Z-map consumers ask for).
     fast : bool
         :meth:`run` and :meth:`iter_chunks` execute runs of plain ``G0``..``G3`` blocks (only N
         G0..G3 X Y Z I J K R F words) vectorised, with the same result bit for bit (default); False
@@ -194,13 +203,17 @@ class Interpreter(FastRuns, WordRules, Moves):
         second_reference_mm: Sequence[float] | None = None,
         state: ModalState | None = None,
         cutter_comp: str = "warn",
+        probing: str = "allow",
         fast: bool = True,
     ) -> None:
         self.strict = strict
         self.fast = bool(fast)
         if cutter_comp not in ("warn", "refuse"):
             raise ValueError(f"cutter_comp must be 'warn' or 'refuse', got {cutter_comp!r}")
+        if probing not in ("allow", "refuse"):
+            raise ValueError(f"probing must be 'allow' or 'refuse', got {probing!r}")
         self.cutter_comp = cutter_comp
+        self.probing = probing
         self._comp_warned = False
         self.file = str(file)
         self.dialect = dialect or (machine.dialect if machine is not None else "fanuc")
@@ -563,6 +576,11 @@ class Interpreter(FastRuns, WordRules, Moves):
                     dwell = True
                 elif key == 530:
                     g53 = True
+                elif home is not None:
+                    raise _lexer.word_error(
+                        raw, k, f"{gname(key)} and {gname(home[0])} cannot share a block",
+                        self.file, line,
+                    )  # fmt: skip
                 else:
                     home = (key, k)
             elif grp == 2:
@@ -583,7 +601,16 @@ class Interpreter(FastRuns, WordRules, Moves):
                 if st.cutter_comp != 40:
                     self._cutter_comp_word(raw, k, key, line)
             elif grp == 8:
-                st.tool_length = key // 10
+                if key == 431:  # its axis words are the offset: a setting, as G92's are
+                    if home is not None:
+                        raise _lexer.word_error(
+                            raw, k, f"G43.1 and {gname(home[0])} both use the axis words and "
+                            "cannot share a block", self.file, line,
+                        )  # fmt: skip
+                    home = (key, k)
+                else:
+                    st.tool_length = key // 10
+                    self._set_tool_length_offset((0.0, 0.0, 0.0))
             elif grp == 10:
                 st.retract_initial = key == 980
             elif grp == 12:  # work offsets

@@ -62,6 +62,11 @@ def restart_preamble(
             f"cannot restart inside a canned cycle (G{state.motion} in force): restart at the "
             "block that starts the cycle"
         )
+    if state.motion == 38:
+        raise NCError(
+            "cannot restart with a probe move mode (G38.x) in force: where the probe stopped is "
+            "not known; restart at a block after the probing"
+        )
     if any(state.g92_offset_mm):
         raise NCError(
             "cannot restart while a G92/G52 offset is in force: restart at or before the block "
@@ -105,6 +110,10 @@ def restart_preamble(
         out.append(f"S{fmt(state.spindle_speed_rpm)}{m}")
     out.append("M8" if state.coolant else "M9")
     length = f" G43 H{state.tool_length_h}" if state.tool_length == 43 else ""
+    if state.tool_length == 431:  # its own block: G43.1 takes the axis words
+        x, y, z = state.tool_length_offset_mm
+        xy = "".join(f"{c}{fmt(o * scale)} " for c, o in (("X", x), ("Y", y)) if o)
+        out.append(f"G43.1 {xy}Z{fmt(z * scale)}")
     out.append(f"G90 G0{length} Z{fmt(safe * scale)}")
     if state.rotary_named:  # turn the rotary axes at the safe height, before X Y
         out.append(

@@ -57,8 +57,11 @@ class ModalState:
     feed_mode: int = 94  # G94 units per minute / G93 inverse time (F per block, not modal)
     cutter_comp: int = 40  # G40 / G41 / G42 (recorded; motion is not offset)
     cutter_comp_d: int = 0  # D register
-    tool_length: int = 49  # G43 / G49 (recorded; positions are the programmed tool tip)
+    tool_length: int = 49  # G43 / G43.1 (431) / G49 (positions are the programmed tool tip)
     tool_length_h: int = 0  # H register
+    # G43.1's offset (X Y Z, mm): setting it shifts the current position by the change, as
+    # LinuxCNC and GRBL do (an incremental move after it shows it); G43 H and G49 set it to 0
+    tool_length_offset_mm: tuple[float, float, float] = (0.0, 0.0, 0.0)
     work_offset: int | float = 54  # G54..G59, G59.1..G59.3 (59.1 ...)
     retract_initial: bool = True  # G98 (True) / G99 canned-cycle return level
     feed_mm_min: float = math.nan  # G94 F in mm/min; NaN until set and under G93

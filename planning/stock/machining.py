@@ -618,7 +618,9 @@ def load_plan(
     ops = []
     for i, o in enumerate(model.operations):
         prog = Path(o.program) if Path(o.program).is_absolute() else p.parent / o.program
-        motion = interpret_file(prog, machine, strict=strict, cutter_comp="refuse")
+        motion = interpret_file(
+            prog, machine, strict=strict, cutter_comp="refuse", probing="refuse"
+        )
         what = f"{p}: operations[{i}].{'tool' if o.tools is None else 'tools'}"
         tools = bind_tools(motion, o.tools or o.tool, str(prog), what)  # type: ignore[arg-type]
         ops.append(Operation(o.name, motion, tools, str(prog), o.rule))

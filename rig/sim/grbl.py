@@ -333,7 +333,7 @@ class SimGrbl(SimControllerBase):
             return
         try:
             planned = self._interpret(f.text, t)
-        except NCError as exc:  # accepted by GRBL, beyond what planning.nc runs (G38, G43.1)
+        except NCError as exc:  # accepted by GRBL, beyond what planning.nc runs
             self._event("unsimulated", f"{text}: {exc.reason}")
             planned = None
         if planned is not None:
