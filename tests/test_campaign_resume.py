@@ -176,3 +176,20 @@ def test_dry_run_names_the_tests_whose_programs_fail_and_the_disk(
     assert "10 MB free" in space and "64 MB margin" in space and str(tmp_path / "out") in space
     with pytest.raises(CutlabError, match="not started: .* 10 MB free"):
         run_campaign(load_campaign(_config(tmp_path)), progress=False)
+
+
+def test_a_run_closed_before_the_runner_was_stopped_is_not_cut_again(tmp_path: Path) -> None:
+    """Killed between closing a run file (success) and updating the manifest: the resume adopts
+    the file (it recorded the same program) instead of cutting the test again (seen once in CI's
+    kill trials: the earlier file was kept as a successful '.attempt-1')."""
+    res = _first_run(tmp_path)
+    manifest = res.folder / "campaign.json"
+    data = json.loads(manifest.read_text())
+    name = res.runs[0].name
+    data["runs"][name]["status"] = "running"  # where the kill left it
+    manifest.write_text(json.dumps(data))
+    again = run_campaign(load_campaign(_config(tmp_path)), progress=False,
+                         only=lambda t: t.index == 0)  # fmt: skip
+    assert again.ok and again.runs[0].skipped
+    assert not list((res.folder / "runs").glob("*.attempt-*.h5"))
+    assert json.loads(manifest.read_text())["runs"][name]["status"] == "success"

@@ -223,11 +223,22 @@ def run_status(path: Path) -> tuple[str, str]:
     return run.status, run.reason
 
 
-def finished(folder: Path, entry: dict[str, Any] | None, stem: str) -> bool:
+def finished(folder: Path, entry: dict[str, Any] | None, stem: str, sha256: str = "") -> bool:
+    """Whether a test's run is done: its file closed with ``success`` and the manifest says so,
+    or the manifest still says ``running`` (the runner was stopped after the file was closed)
+    and the file recorded this very program (``sha256``): a finished cut is not cut again."""
     path = folder / "runs" / f"{stem}.h5"
-    if entry is None or entry.get("status") != rf.STATUS_SUCCESS:
+    status = None if entry is None else entry.get("status")
+    if status == rf.STATUS_SUCCESS:
+        return run_status(path)[0] == rf.STATUS_SUCCESS
+    if status != rf.STATUS_RUNNING or not sha256 or entry.get("program_sha256") != sha256:
         return False
-    return run_status(path)[0] == rf.STATUS_SUCCESS
+    try:
+        run = rf.load_run(path, samples=False)
+    except Exception:  # noqa: BLE001 - unreadable: run again (and kept)
+        return False
+    return (run.status == rf.STATUS_SUCCESS and run.complete
+            and run.conditions.get("program_sha256") == sha256)  # fmt: skip
 
 
 def set_aside(path: Path) -> Path | None:

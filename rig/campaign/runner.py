@@ -14,7 +14,8 @@ in order on the rig, each through :func:`rig.campaign.run.execute_run`, and keep
         report/                 written by rig.report.base after the campaign
 
 Resume: running a campaign again skips every test whose run file closed with status
-``success``; a run that ended in abort or fail, or whose process was killed (the file reads
+``success`` (also when the runner was stopped before its manifest said so); a run that ended in
+abort or fail, or whose process was killed (the file reads
 ``interrupted``), is run again and its earlier file is kept beside it as ``.attempt-K.h5``. A lock
 file stops two runners from writing one campaign. A campaign whose inputs changed since its runs
 were recorded (config, tool, material, machine, rig, a program) is not resumed: ``fresh`` moves the
@@ -375,7 +376,11 @@ def run_campaign(
             if only is not None and not only(t):
                 continue
             path = folder / "runs" / f"{plan.file_stem}.h5"
-            if finished(folder, manifest.entry(t.name), plan.file_stem):
+            entry = manifest.entry(t.name)
+            if finished(folder, entry, plan.file_stem, plan.sha256):
+                if entry is not None and entry.get("status") != rf.STATUS_SUCCESS:
+                    why = "closed before the runner was stopped (resume)"
+                    manifest.set(t.name, status=rf.STATUS_SUCCESS, ended_utc=utc_now(), reason=why)
                 records.append(
                     RunRecord(t.index, t.name, t.group, str(path), rf.STATUS_SUCCESS,
                               "finished earlier (resume)", skipped=True)
