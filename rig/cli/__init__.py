@@ -50,6 +50,12 @@ def main(argv: list[str] | None = None) -> int:
         msg = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
         print(f"cutlab: error: {msg}", file=sys.stderr)
         return 2
+    except (IsADirectoryError, NotADirectoryError, PermissionError) as exc:
+        # a path given where a file is written or read that cannot be one (e.g. `-o` naming
+        # a folder): the file and the system's reason, one line
+        where = exc.filename2 or exc.filename or ""
+        print(f"cutlab: error: {where}: {exc.strerror or exc}", file=sys.stderr)
+        return 2
     except ValueError as exc:
         if "null byte" not in str(exc):
             raise
