@@ -140,6 +140,9 @@ def inputs(tmp_path_factory: pytest.TempPathFactory) -> Inputs:
 def recipe(cmd: tuple[str, ...], i: Inputs) -> list[str] | None:
     """A valid call of ``cmd`` on small inputs (None: needs a controller, see :func:`with_port`)."""
     o = i.out
+    # the phi 30 ball on the 100 mm slot: plan feed and plan simulate
+    slot_ball = [str(i.slot), "--tool", "phi30-ball", "--stock", "box:0,100,0,60,-10,0",
+                 "--spacing", "1"]  # fmt: skip
     r = {
         ("demo",): ["--campaign", str(i.quick), "--out", str(o("demo")), "--quiet"],
         ("nc", "check"): [str(PROGRAM)],
@@ -169,28 +172,8 @@ def recipe(cmd: tuple[str, ...], i: Inputs) -> list[str] | None:
         ("campaign", "status"): [str(i.quick)],
         ("campaign", "report"): [str(i.quick), "--out", str(_copy_campaign(i))],
         ("plan", "rough"): [str(i.part), "-o", str(o("r.nc")), "--no-png"],
-        ("plan", "feed"): [
-            str(i.slot),
-            "--rules",
-            str(i.rule),
-            "--tool",
-            "phi30-ball",
-            "--stock",
-            "box:0,100,0,60,-10,0",
-            "--spacing",
-            "1",
-            "-o",
-            str(o("f.nc")),
-        ],  # fmt: skip
-        ("plan", "simulate"): [
-            str(i.slot),
-            "--tool",
-            "phi30-ball",
-            "--stock",
-            "box:0,100,0,60,-10,0",
-            "--spacing",
-            "1",
-        ],  # fmt: skip
+        ("plan", "feed"): [*slot_ball, "--rules", str(i.rule), "-o", str(o("f.nc"))],
+        ("plan", "simulate"): slot_ball,
         ("plan", "orient"): [str(i.orient), "-o", str(o("orient")), "--no-plot"],
     }
     r |= {

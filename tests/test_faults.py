@@ -275,6 +275,11 @@ def _part(**rough):  # noqa: ANN003, ANN202
     return make
 
 
+def _rough(i, f, t):  # noqa: ANN001, ANN202
+    """plan rough on an extreme part (the argv of the plan-rough faults)."""
+    return ["plan", "rough", f, "-o", t / "r.nc", "--no-png"]
+
+
 @dataclass
 class FileFault:
     id: str
@@ -310,30 +315,30 @@ FILE_FAULTS = [
                                "--stock", "box:0,100,0,60,-10,0", "--spacing", "1",
                                "-o", t / "o.nc"], names=("block 8", "T2")),
     FileFault("plan rough stock 1e8 tall", _part(stock__z_max_mm=1e8),
-              lambda i, f, t: ["plan", "rough", f, "-o", t / "r.nc", "--no-png"],
+              _rough,
               names=("dh_mm",)),
     FileFault("plan rough dh 1e-6", _part(rough__dh_mm=1e-6),
-              lambda i, f, t: ["plan", "rough", f, "-o", t / "r.nc", "--no-png"],
+              _rough,
               names=("dh_mm",)),
     FileFault("plan rough optimal_dh 1e-6", _part(rough__optimal_dh_mm=1e-6),
-              lambda i, f, t: ["plan", "rough", f, "-o", t / "r.nc", "--no-png"],
+              _rough,
               names=("optimal_dh_mm",)),
     FileFault("plan rough step 1e-6", _part(rough__step_factor=1e-6),
-              lambda i, f, t: ["plan", "rough", f, "-o", t / "r.nc", "--no-png"],
+              _rough,
               names=("step_factor",)),
     FileFault("plan rough contour tol 1e-9", _part(rough__contour_tolerance_mm=1e-9),
-              lambda i, f, t: ["plan", "rough", f, "-o", t / "r.nc", "--no-png"],
+              _rough,
               names=("contour_tolerance_mm",)),
     FileFault("plan rough ramp 1e-6", _part(rough__ramp_angle_deg=1e-6),
-              lambda i, f, t: ["plan", "rough", f, "-o", t / "r.nc", "--no-png"],
+              _rough,
               names=("ramp_angle_deg",)),
     FileFault("plan rough plunge 1e-9", _part(cutting__plunge_feed_mm_min=1e-9),
-              lambda i, f, t: ["plan", "rough", f, "-o", t / "r.nc", "--no-png"],
+              _rough,
               names=("plunge_feed_mm_min",)),
     FileFault("plan rough stock 1e8 wide", _part(stock__x_max_mm=1e8, stock__y_max_mm=1e8),
-              lambda i, f, t: ["plan", "rough", f, "-o", t / "r.nc", "--no-png"]),
+              _rough),
     FileFault("plan rough depth true", _part(rough__cusp_mm=True),
-              lambda i, f, t: ["plan", "rough", f, "-o", t / "r.nc", "--no-png"],
+              _rough,
               names=("cusp_mm", "boolean")),
     FileFault("nc plot unknown image type", lambda i, t: PROGRAM,
               lambda i, f, t: ["nc", "plot", f, "-o", t / "p.png-x"], names=("png-x",)),
