@@ -203,3 +203,22 @@ def _cli_test(n: int):  # noqa: ANN202
 
 test_cli_arguments_fuzz = _cli_test(FAST)
 test_cli_arguments_fuzz_long = pytest.mark.slow(_cli_test(SLOW))
+
+
+@pytest.mark.parametrize("ch", ["\x1e", "\x1c", "\x85", "\u2028", "\r", "\x0b", "\x1b"])
+def test_error_line_shows_control_characters_escaped(ch, tmp_path, capsys) -> None:  # noqa: ANN001
+    """A control character typed into an argument or a file name is shown escaped, so the error
+    stays one line for every reader (Python's splitlines breaks at U+001E and U+2028; found by
+    the fuzzer in CI: ``analyze modal ... --rpm '-\\x1e'``)."""
+    folder = tmp_path / f"d{ch}"
+    folder.mkdir()
+    cases = (
+        ["analyze", "modal", str(PROGRAM), "--rpm", f"-{ch}"],  # argparse
+        ["nc", "check", str(tmp_path / f"a{ch}b.nc")],  # a CutlabError naming the file
+        ["nc", "motions", str(PROGRAM), "--csv", "-o", str(folder)],  # an OSError
+    )
+    for argv in cases:
+        with contextlib.suppress(SystemExit):
+            main(argv)
+        text = capsys.readouterr().err
+        assert len(text.splitlines()) == 1 and text.startswith("cutlab: error:"), (argv, text)

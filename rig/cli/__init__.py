@@ -43,24 +43,25 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    from rig.cli._common import error_line
+
     try:
         return int(args.func(args) or 0)
     except CutlabError as exc:
         # one line, always: a message with several problems (one per field) joined by "; "
-        msg = "; ".join(line.strip() for line in str(exc).splitlines() if line.strip())
-        print(f"cutlab: error: {msg}", file=sys.stderr)
+        error_line("; ".join(line.strip() for line in str(exc).split("\n") if line.strip()))
         return 2
     except (IsADirectoryError, NotADirectoryError, PermissionError) as exc:
         # a path given where a file is written or read that cannot be one (e.g. `-o` naming
         # a folder): the file and the system's reason, one line
         where = exc.filename2 or exc.filename or ""
-        print(f"cutlab: error: {where}: {exc.strerror or exc}", file=sys.stderr)
+        error_line(f"{where}: {exc.strerror or exc}")
         return 2
     except ValueError as exc:
         if "null byte" not in str(exc):
             raise
         # a path with a NUL character reaches os/h5py calls that refuse it this way
-        print("cutlab: error: a file name holds a NUL character", file=sys.stderr)
+        error_line("a file name holds a NUL character")
         return 2
     except KeyboardInterrupt:
         print("cutlab: interrupted", file=sys.stderr)

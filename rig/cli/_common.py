@@ -77,13 +77,21 @@ def image_file(text: str) -> Path:
     return p
 
 
+def error_line(message: str) -> None:
+    """Write ``cutlab: error: MESSAGE`` to stderr as exactly one line: characters that are not
+    printable (a control character typed into an argument or a file name, which a terminal or
+    a log reader may take for a line break) are shown escaped, as Python writes them."""
+    shown = "".join(c if c.isprintable() else repr(c)[1:-1] for c in message)
+    sys.stderr.write(f"cutlab: error: {shown}\n")
+
+
 class Parser(argparse.ArgumentParser):
     """The command's parser: a usage error is one line ``cutlab: error: ...`` (exit 2), like
     every other error, with the command and a pointer to its --help."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        cmd = self.prog.removeprefix("cutlab").strip() or "cutlab"
-        sys.stderr.write(f"cutlab: error: {cmd}: {message} (see `{self.prog} --help`)\n")
+        cmd = self.prog.removeprefix("cutlab").strip()
+        error_line(f"{cmd + ': ' if cmd else ''}{message} (see `{self.prog} --help`)")
         sys.exit(2)
 
 
