@@ -238,6 +238,24 @@ def test_insperger_benchmark_converges(tmp_path, ae, milling) -> None:
     assert e30 < 0.01 and e30 < e15 / 4 + 1e-9
 
 
+@pytest.mark.parametrize("teeth,ae", [(6, 0.25), (3, 0.75), (4, 0.5)])
+@pytest.mark.parametrize("milling", ["up", "down"])
+def test_a_cut_one_tooth_pitch_long_is_continuous_with_its_neighbours(
+    tmp_path, teeth, ae, milling
+) -> None:
+    """A cut arc exactly one pitch long (6 flutes at a quarter immersion) has no tooth entering
+    or leaving within the period; its round-off once made a free flight ~1e-13 of a period long
+    and a zero limit. The limit is that of immersions 1e-6 either side, within 1 % (their
+    discretisations differ: a break step near the period's end)."""
+    lim = {
+        d: stability_lobes(_case(tmp_path, teeth=teeth, ae=ae + d, milling=milling, points=9),
+                           "sd").depth_limit_mm
+        for d in (-1e-6, 0.0, 1e-6)
+    }  # fmt: skip
+    for d in (-1e-6, 1e-6):
+        assert np.allclose(lim[0.0], lim[d], rtol=0.01), lim
+
+
 def test_2dof_benchmark_low_immersion_has_flip_lobes_too(tmp_path) -> None:
     case = _case(tmp_path, ae=0.05, modes=("x", "y"), points=81)
     sd = stability_lobes(case, "sd")

@@ -62,8 +62,11 @@ def _steps(case: StabilityCase, m: int):
     n = case.teeth
     pitch = 2 * math.pi / n
     a, b = case.cut_angles_rad
-    brk = sorted({0.0, round((b - a) % pitch, 12)} - {pitch})
-    edges = [*brk, pitch]
+    # The other teeth enter or leave (b - a) mod pitch after the period's start; a cut as long
+    # as a pitch (or several) has no such break: its round-off residue would be a step of
+    # ~1e-13 of the period taken for a free flight (which gave a zero limit).
+    r = (b - a) % pitch
+    edges = [0.0, pitch] if min(r, pitch - r) < 1e-9 * pitch else [0.0, r, pitch]
     out = []
     for lo, hi in zip(edges[:-1], edges[1:]):
         mid = a + (lo + hi) / 2 + pitch * np.arange(n)
