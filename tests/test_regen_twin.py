@@ -15,6 +15,7 @@ import pytest
 
 from analysis.config import EndMill, EndMillCoefficients, Material, ToolMode, load_rig
 from analysis.forces.endmill import element_forces
+from analysis.stability import load_case, stability_lobes
 from planning.stock import SteppedBlock
 from rig.sim._machine_timeline import ExecutedSegment
 from rig.sim.machine import BlockStock, SignalSettings, SimMachine
@@ -129,3 +130,70 @@ def test_stable_cut_shows_only_tooth_harmonics() -> None:
     near = np.abs(fr - np.round(fr / ft) * ft) < 2 * RATE / n
     assert p[~near].sum() < 1e-4 * p.sum()
     assert np.abs(m.regen.displacement_mm()[0]) < 0.05
+
+
+# ------------------------------------------------ near a lobe peak (the stability sweep's tool)
+
+SWEEP_MODES = (ToolMode(axis="x", f_hz=700, zeta=0.03, k_N_m=1.5e7),
+               ToolMode(axis="y", f_hz=700, zeta=0.03, k_N_m=1.5e7))  # fmt: skip
+SWEEP_RPM = 4600.0  # 50 rpm below a lobe peak; the tooth frequency's 3rd harmonic near the mode
+
+
+def _sd_limit_mm(tmp_path, rpm: float) -> float:
+    """Semi-discretization (analysis.stability: Floquet multipliers of the discretised delay
+    equation, written apart from the twin's time-domain kernel) for a 3-flute slot with the sweep's modes, Al 6061's Ktc, Krc."""
+    modes = "".join(f'[[modes]]\ndirection = "{m.axis}"\nf_hz = {m.f_hz}\nzeta = {m.zeta}\n'
+                    f"k_N_m = {m.k_N_m}\n" for m in SWEEP_MODES)  # fmt: skip
+    p = tmp_path / "case.toml"
+    p.write_text('[tool]\nteeth = 3\n[cut]\nmilling = "down"\nradial_immersion = 1.0\n'
+                 f"[coefficients]\nKtc_N_mm2 = 796\nKrc_N_mm2 = 168\n{modes}"
+                 f"[spindle]\nrpm_min = {rpm}\nrpm_max = {rpm + 1}\npoints = 2\n")  # fmt: skip
+    return float(stability_lobes(load_case(p), "sd").depth_limit_mm[0])
+
+
+def _sweep_slot(depth_mm: float, fz_mm: float, edges: bool) -> np.ndarray:
+    """Fx (n,) of a slot that starts inside the block with the sweep's tool (phi 10, 3 flutes,
+    30 deg helix) at SWEEP_RPM, 1.5 s at the DAQ rate."""
+    tool = EndMill(kind="flat", diameter_mm=10, flute_length_mm=22, flutes=3, helix_deg=30)
+    e = 1.0 if edges else 0.0
+    mat = Material(density_kg_m3=2700, endmill=EndMillCoefficients(
+        Ktc_n_mm2=796, Krc_n_mm2=168, Kac_n_mm2=222, Kte_n_mm=27.7 * e, Kre_n_mm=30.8 * e,
+        Kae_n_mm=0))  # fmt: skip
+    m = SimMachine(
+        tool, mat, load_rig().dynamometer, BlockStock(SteppedBlock(-50, 50, (0.0, 1000.0), (0.0,))),
+        RATE, SignalSettings(0.0, 0.0, 0.0, modes=False), n_slices=16, tool_modes=SWEEP_MODES,
+    )  # fmt: skip
+    feed = fz_mm * 3 * SWEEP_RPM
+    x1 = 20 + feed / 60 * 2.0
+    m.on_segment(ExecutedSegment(0.0, 2.0, (20, 0, -depth_mm), (x1, 0, -depth_mm), SWEEP_RPM, 0,
+                                 feed_mm_min=feed))  # fmt: skip
+    n = int(RATE * 0.1)
+    return np.concatenate([m.cutting_force(k * 0.1 + np.arange(n) / RATE)[:, 0] for k in range(15)])
+
+
+def _off_tooth_harmonics(fx: np.ndarray) -> float:
+    """Share of the last 0.5 s's Fx power away from the tooth frequency's harmonics (230 Hz: 115
+    whole tooth periods, so the harmonics fall on bins)."""
+    x = fx[-5000:] - fx[-5000:].mean()
+    p = np.abs(np.fft.rfft(x)) ** 2
+    fr = np.fft.rfftfreq(x.size, 1 / RATE)
+    return float(p[np.abs(fr - np.round(fr / 230.0) * 230.0) > 1.0].sum() / p.sum())
+
+
+def test_near_a_lobe_peak_the_linear_limit_is_the_lobes_and_edge_forces_open_a_bistable_zone(
+    tmp_path,
+) -> None:
+    """The stability sweep sees chatter near the peak 10-14 % below the lobes. The twin's linear
+    limit there is the lobes': with perturbations far below the chip (fz 0.5 mm, no edge forces)
+    a step start dies out at 0.95 x the SD limit and grows at 1.05 x. With the material's edge
+    forces at the sweep's 0.05 mm the same start chatters at 0.9 x: the edge forces (not
+    proportional to the chip) and the tooth frequency's resonance with the mode near the peak
+    throw the tool out of the cut, and the vibration then sustains itself: the "unsafe zone" below
+    the lobes (Dombovari & Stepan 2015, Phil. Trans. R. Soc. A 373:20140409), which a linear
+    calculation cannot show."""
+    lim = _sd_limit_mm(tmp_path, SWEEP_RPM)
+    assert 2.6 < lim < 2.9
+    assert _off_tooth_harmonics(_sweep_slot(0.95 * lim, 0.5, edges=False)) < 1e-3
+    assert _off_tooth_harmonics(_sweep_slot(1.05 * lim, 0.5, edges=False)) > 0.1
+    assert _off_tooth_harmonics(_sweep_slot(0.9 * lim, 0.05, edges=False)) < 1e-3
+    assert _off_tooth_harmonics(_sweep_slot(0.9 * lim, 0.05, edges=True)) > 0.1
