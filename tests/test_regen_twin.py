@@ -141,7 +141,8 @@ SWEEP_RPM = 4600.0  # 50 rpm below a lobe peak; the tooth frequency's 3rd harmon
 
 def _sd_limit_mm(tmp_path, rpm: float) -> float:
     """Semi-discretization (analysis.stability: Floquet multipliers of the discretised delay
-    equation, written apart from the twin's time-domain kernel) for a 3-flute slot with the sweep's modes, Al 6061's Ktc, Krc."""
+    equation, written apart from the twin's time-domain kernel) for a 3-flute slot with the
+    sweep's modes and Al 6061's Ktc, Krc."""
     modes = "".join(f'[[modes]]\ndirection = "{m.axis}"\nf_hz = {m.f_hz}\nzeta = {m.zeta}\n'
                     f"k_N_m = {m.k_N_m}\n" for m in SWEEP_MODES)  # fmt: skip
     p = tmp_path / "case.toml"
