@@ -556,6 +556,8 @@ def stored_to_device_index(n_stored: int, events: np.ndarray, start: int = 0) ->
     """Device sample index of stored samples ``start..n_stored-1``, (n_stored - start,) int64."""
     stored_at, cum = _holes(events)
     idx = np.arange(start, n_stored, dtype=np.int64)
+    if not len(stored_at):
+        return idx
     # Every hole at or before a stored sample shifts it by that hole's loss.
     return idx + cum[np.searchsorted(stored_at, idx, side="right")]
 

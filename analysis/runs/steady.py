@@ -218,10 +218,23 @@ class RevolutionStats:
     first_sample)`` accumulates sums and sums of squares per revolution and channel.
     """
 
-    def __init__(self, rate_hz: float, spindle_rpm: float, n_samples: int, channels: int) -> None:
+    def __init__(
+        self, rate_hz: float, spindle_rpm: float, n_samples: int, channels: int,
+        noise: bool = True,
+    ) -> None:  # fmt: skip
+        """``noise``: also estimate the noise level (:attr:`hf_noise_n`; the steady-part search
+        needs it, a second pass over a known window does not: a third of the work)."""
+        self.noise = noise
         self.spr = _samples_per_rev(rate_hz, spindle_rpm)
         self.n_rev = int(n_samples // self.spr)
         self.edges = np.round(np.arange(self.n_rev + 1) * self.spr).astype(np.int64)
+        # The first sample of each revolution by add()'s rule (floor((i + 0.5) / spr) = k),
+        # which at an exact half sample can differ from the rounded edge by one.
+        k = np.arange(self.n_rev + 1)
+        first = np.ceil(k * self.spr - 0.5).astype(np.int64)
+        first += np.floor((first + 0.5) / self.spr).astype(np.int64) < k
+        first -= np.floor((first - 0.5) / self.spr).astype(np.int64) >= k
+        self._first = first
         self.sums = np.zeros((self.n_rev, channels))
         self.sumsq = np.zeros((self.n_rev, channels))
         self.counts = np.zeros(self.n_rev)
@@ -237,24 +250,38 @@ class RevolutionStats:
         """``first_sample``: index of the chunk's first sample, or every sample's index (n,),
         increasing, when the record has holes."""
         x = np.asarray(chunk, float)
-        idx = _indices(first_sample, len(x))
-        # Sample i lies in revolution k iff round(k spr) <= i < round((k + 1) spr).
-        rev = np.floor((idx + 0.5) / self.spr).astype(np.int64)
-        ok = (rev >= 0) & (rev < self.n_rev)
-        if not ok.all():
-            rev, x = rev[ok], x[ok]
-        if len(rev) == 0:
+        n = len(x)
+        if np.ndim(first_sample) == 0 or (n and first_sample[-1] - first_sample[0] == n - 1):
+            # Contiguous samples (a record without holes): the revolutions' first samples
+            # from the edges, without a revolution number per sample.
+            i0 = int(first_sample if np.ndim(first_sample) == 0 else first_sample[0])
+            lo = max(int(np.searchsorted(self._first, i0, side="right")) - 1, 0)
+            hi = min(int(np.searchsorted(self._first, i0 + n, side="left")), self.n_rev)
+            cut = np.clip(self._first[lo : hi + 1] - i0, 0, n)
+            keep = cut[1:] > cut[:-1]
+            starts, k = cut[:-1][keep], np.arange(lo, hi)[keep]
+            x = x[starts[0] : cut[1:][keep][-1]] if k.size else x[:0]
+            starts = starts - (starts[0] if k.size else 0)
+        else:
+            idx = _indices(first_sample, n)
+            # Sample i lies in revolution k iff round(k spr) <= i < round((k + 1) spr).
+            rev = np.floor((idx + 0.5) / self.spr).astype(np.int64)
+            ok = (rev >= 0) & (rev < self.n_rev)
+            if not ok.all():
+                rev, x = rev[ok], x[ok]
+            # rev is non-decreasing: each revolution's run of samples starts where it changes.
+            starts = np.flatnonzero(np.diff(rev, prepend=rev[0] - 1)) if len(rev) else rev
+            k = rev[starts]
+        if len(x) == 0:
             return
-        if len(x) >= 16:
-            # white noise: second differences have std sqrt(6) sigma, median |.| 0.6745 of it
-            d2 = np.median(np.abs(np.diff(x, 2, axis=0)), axis=0) / (0.6745 * np.sqrt(6))
+        if self.noise and len(x) >= 16:
+            # white noise: second differences have std sqrt(6) sigma, median |.| 0.6745 of it;
+            # the first 2^16 samples of a chunk estimate it as well as a million would.
+            d2 = np.median(np.abs(np.diff(x[: 1 << 16], 2, axis=0)), axis=0) / (0.6745 * np.sqrt(6))
             self._hf_noise.append(float(np.linalg.norm(d2)))
-        # rev is non-decreasing: sum each revolution's run of samples with reduceat.
-        starts = np.flatnonzero(np.diff(rev, prepend=rev[0] - 1))
-        k = rev[starts]
         self.sums[k] += np.add.reduceat(x, starts, axis=0)
         self.sumsq[k] += np.add.reduceat(x * x, starts, axis=0)
-        self.counts[k] += np.diff(np.append(starts, len(rev)))
+        self.counts[k] += np.diff(np.append(starts, len(x)))
 
 
 def find_steady(
