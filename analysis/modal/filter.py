@@ -48,6 +48,9 @@ class DynamometerFilter:
     rate_hz: float
     crosstalk: np.ndarray | None = None
     _ba: tuple = field(init=False, repr=False, compare=False)
+    # Harmonic responses by (harmonics, period): a fit's phase search filters one run's
+    # regressors some 35 times at the same period, and freqz was half of that work.
+    _harmonics: dict = field(init=False, repr=False, compare=False, default_factory=dict)
 
     def __post_init__(self) -> None:
         if not self.rate_hz > 0:
@@ -128,9 +131,13 @@ class DynamometerFilter:
         w = np.moveaxis(np.asarray(waveform, float), axis, 0)
         n = w.shape[0]
         spec = np.fft.rfft(w, axis=0)
-        freqs = np.arange(spec.shape[0]) / period_s
-        h = self.frequency_response(freqs)  # (k, 3)
-        h = h.reshape((len(freqs),) + (1,) * (w.ndim - 2) + (3,))
+        key = (spec.shape[0], float(period_s))
+        h = self._harmonics.get(key)
+        if h is None:
+            if len(self._harmonics) >= 64:
+                self._harmonics.clear()
+            h = self._harmonics[key] = self.frequency_response(np.arange(key[0]) / period_s)
+        h = h.reshape((key[0],) + (1,) * (w.ndim - 2) + (3,))
         out = np.fft.irfft(spec * h, n=n, axis=0)
         if self.crosstalk is not None:
             out = out @ self.crosstalk.T
