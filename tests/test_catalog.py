@@ -307,6 +307,32 @@ def test_analyze_over_a_query_matches_the_files_and_caches(indexed, capsys, monk
         fit_catalog(indexed, FM_WHERE)
 
 
+def test_the_same_query_again_returns_the_stored_fit(indexed, tmp_path, monkeypatch):
+    """The fit's result is kept with everything it depends on: asked again over unchanged files
+    it is returned as it was; without it the reductions alone are reused; a config file whose
+    content changed, or plots to write, make it fit again."""
+    configs = tmp_path / "configs"
+    shutil.copytree(Path(__file__).parent.parent / "configs", configs)
+    monkeypatch.setenv("CUTLAB_CONFIG_DIR", str(configs))
+    first = fit_catalog(indexed, FM_WHERE)
+    assert not first["catalog"]["fit_cached"] and first["catalog"]["reduced"] == 3
+    again = fit_catalog(indexed, FM_WHERE)
+    assert again["catalog"]["fit_cached"] and again["catalog"]["reduced"] == 0
+    np.testing.assert_equal({k: v for k, v in again.items() if k != "catalog"},
+                            {k: v for k, v in first.items() if k != "catalog"})  # fmt: skip
+    cache = indexed / ".cutlab-catalog.cache"
+    for entry in cache.glob("fit-*.pkl"):
+        entry.unlink()
+    refit = fit_catalog(indexed, FM_WHERE)
+    assert not refit["catalog"]["fit_cached"] and refit["catalog"]["cached"] == 3
+    assert refit["coefficients"] == first["coefficients"]
+    with (configs / "materials.toml").open("a") as fh:
+        fh.write("\n# an edit\n")
+    assert not fit_catalog(indexed, FM_WHERE)["catalog"]["fit_cached"]
+    plots = fit_catalog(indexed, FM_WHERE, plot_dir=tmp_path / "plots")
+    assert not plots["catalog"]["fit_cached"] and plots["plots"]
+
+
 def test_progress_is_dasks_bar_on_stderr(indexed, capsys):
     assert main(["analyze", "forces", "--catalog", str(indexed), "--where", FM_WHERE]) == 0
     cap = capsys.readouterr()

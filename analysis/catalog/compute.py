@@ -19,8 +19,12 @@ the same result.
 The cache: each reduction is kept in ``<index>.cache/`` (beside the index file) as a pickle,
 keyed by the file's SHA-256 (from the index) and name, cutlab's version, the source of the
 reduction's modules and the reduction's parameters; a later query over the same runs reads no
-force data. Delete the folder to drop it. It holds pickles: share it only as you share the
-archive.
+force data. The fit's result is kept there too, keyed by everything it depends on: the selected
+files' hashes in order, the options, the content of the files they name and of the config files
+read by default, and the source of the ``analysis`` package; the same query over unchanged
+files then returns it without fitting again (a query over other runs, or one that writes
+plots or validates, fits). Delete the folder to drop it. It holds pickles: share it only as you
+share the archive.
 """
 
 from __future__ import annotations
@@ -67,6 +71,27 @@ def reduction_key(reducer: Any) -> str:
 
 def _digest(*parts: str) -> str:
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
+
+
+def _fit_key(rows: Any, fit_kw: dict[str, Any]) -> str | None:
+    """The key of a fit's result (module docstring), None when the fit has side effects."""
+    if fit_kw.get("plot_dir") or fit_kw.get("validate"):
+        return None
+    from analysis.config import config_dir
+
+    def content(v: Any) -> str:
+        if isinstance(v, str | Path) and Path(v).is_file():
+            return f"{v}:{hashlib.sha256(Path(v).read_bytes()).hexdigest()}"
+        if hasattr(v, "__dataclass_fields__"):
+            return repr(v) + "".join(content(getattr(v, f)) for f in v.__dataclass_fields__)
+        return repr(v)
+
+    package = Path(find_spec("analysis").origin).parent  # type: ignore[arg-type]
+    code = [p.read_text() for p in sorted(package.rglob("*.py"))]
+    configs = [content(p) for p in sorted(config_dir().glob("*.toml"))]
+    runs = [f"{r.file}:{r.sha256}" for r in rows.itertuples()]
+    options = [f"{k}={content(v)}" for k, v in sorted(fit_kw.items())]
+    return "fit-" + _digest(__version__, *runs, *options, *configs, *code)
 
 
 def _load(path: Path) -> Any:
@@ -178,15 +203,24 @@ def fit_catalog(
 ) -> dict[str, Any]:
     """:func:`analysis.identify.fit_files` over the runs of the catalogue ``index`` (its file or
     folder) that match ``where`` (all without), the reductions on dask (``scheduler``) and
-    cached; ``fit_kw`` as fit_files takes them. The result is fit_files' plus ``catalog``:
-    index, where, runs, cached and reduced counts, scheduler."""
+    cached, the result cached too (module docstring); ``fit_kw`` as fit_files takes them. The
+    result is fit_files' plus ``catalog``: index, where, runs, cached and reduced counts,
+    fit_cached, scheduler."""
     ipath = index_file(index)
     rows = query_runs(where, ipath)
     if rows.empty:
         raise AnalysisError(f"{ipath}: no run in the catalogue matches {where!r}")
     mapper = CachedMapper(cache_dir(ipath), _check_current(rows), scheduler, progress)
-    out = fit_files(list(rows["file"]), mapper=mapper, **fit_kw)
+    key = _fit_key(rows, fit_kw)
+    entry = cache_dir(ipath) / f"{key}.pkl" if key else None
+    out = _load(entry) if entry else None
+    fit_cached = out is not None
+    if out is None:
+        out = fit_files(list(rows["file"]), mapper=mapper, **fit_kw)
+        if entry:
+            _store(entry, out)
     out["catalog"] = {"index": str(ipath), "where": where, "runs": len(rows),
-                      "cached": mapper.cached, "reduced": mapper.reduced,
+                      "cached": len(rows) if fit_cached else mapper.cached,
+                      "reduced": mapper.reduced, "fit_cached": fit_cached,
                       "scheduler": scheduler or "default"}  # fmt: skip
     return out

@@ -44,8 +44,9 @@ def _forces(args: argparse.Namespace) -> int:
 
         out = fit_catalog(args.catalog, args.where, args.scheduler, not args.json, **kw)
         c = out["catalog"]
-        status(f"analyze forces: {c['runs']} run(s) from {c['index']}: {c['cached']} from the "
-               f"cache, {c['reduced']} reduced")  # fmt: skip
+        how = ("the fit from the cache" if c["fit_cached"] else
+               f"{c['cached']} from the cache, {c['reduced']} reduced")  # fmt: skip
+        status(f"analyze forces: {c['runs']} run(s) from {c['index']}: {how}")
     else:
         with Progress("reducing runs", "run", quiet=args.json or len(args.runs) < 2) as bar:
             out = fit_files(args.runs, progress=bar, **kw)
