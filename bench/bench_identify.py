@@ -34,7 +34,9 @@ DEPTHS = np.linspace(0.5, 3.0, 10)
 N_BINS = None  # default: 2500 bins of 2 samples each at 5000 samples per revolution
 
 
-def write_runs(folder: Path) -> list[Path]:
+def write_runs(folder: Path, runs: int = len(DEPTHS)) -> list[Path]:
+    """``runs`` run files at depths 0.5..3.0 mm in ``folder`` (written once, then reused)."""
+    depths = np.linspace(0.5, 3.0, runs)
     rig = load_rig()
     tool = get_tool("seed003-facemill")
     coef = get_material("al6061-t6").facemill
@@ -44,8 +46,8 @@ def write_runs(folder: Path) -> list[Path]:
     rng = np.random.default_rng(2026)
     paths = []
     folder.mkdir(parents=True, exist_ok=True)
-    for k, d in enumerate(DEPTHS):
-        p = folder / f"facemill_d{d:.2f}.h5"
+    for k, d in enumerate(depths):
+        p = folder / f"facemill_d{d:.3f}.h5"
         paths.append(p)
         if p.exists() and load_run(p, samples=False).samples_stored == SAMPLES:
             continue
@@ -74,7 +76,7 @@ def write_runs(folder: Path) -> list[Path]:
             f = f + offset + rng.normal(0, 0.02 * peak, f.shape)
             w.put_block(a, cal.volts_from_force(f).T.copy())
         w.close()
-        print(f"wrote {p} ({k + 1}/{len(DEPTHS)})", flush=True)
+        print(f"wrote {p} ({k + 1}/{len(depths)})", flush=True)
     return paths
 
 
