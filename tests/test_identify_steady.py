@@ -136,3 +136,25 @@ def test_slow_entry_and_exit_tails_do_not_count_as_air():
     part = find_steady(f, RATE, RPM)
     np.testing.assert_allclose(part.offset_n, [5, -3, 1], atol=0.05)
     assert part.entry_revs >= 14 and part.exit_revs >= 14
+
+
+@pytest.mark.parametrize("rate_hz,rpm", [(10_000.0, 600.0), (12_345.0, 777.7), (10_000.0, 48_000.0),
+                                         (20_010.0, 1200.0)])  # fmt: skip
+def test_revolution_sums_of_contiguous_chunks_equal_a_per_sample_count(rate_hz, rpm) -> None:
+    """Chunks without holes find their revolutions from the edges; the sums and counts are those
+    of sample i counted in revolution floor((i + 0.5) / spr), written out here per sample
+    (12.5 and 1000.5 samples per revolution put samples exactly half way)."""
+    from analysis.runs.steady import RevolutionStats
+
+    rng = np.random.default_rng(7)
+    n = 20_000
+    x = rng.normal(size=(n, 3))
+    stats = RevolutionStats(rate_hz, rpm, n, 3)
+    cuts = np.sort(rng.choice(np.arange(1, n), 6, replace=False))
+    for lo, hi in zip(np.r_[0, cuts], np.r_[cuts, n]):
+        stats.add(x[lo:hi], lo if lo % 2 else np.arange(lo, hi))
+    rev = np.floor((np.arange(n) + 0.5) / stats.spr).astype(int)
+    ok = rev < stats.n_rev
+    assert np.array_equal(stats.counts, np.bincount(rev[ok], minlength=stats.n_rev))
+    want = np.stack([np.bincount(rev[ok], x[ok, c], stats.n_rev) for c in range(3)], axis=1)
+    np.testing.assert_allclose(stats.sums, want, rtol=1e-12, atol=1e-9)
