@@ -286,14 +286,20 @@ def _write(con: sqlite3.Connection, rows: list[dict[str, Any]]) -> None:
     rows.clear()
 
 
-def load_index(index: str | Path | None = None) -> pd.DataFrame:
+def load_index(
+    index: str | Path | None = None, where_sql: str = "", params: Sequence[Any] = ()
+) -> pd.DataFrame:
     """The index as a frame, one row per run file, columns :data:`COLUMNS` plus ``file`` (the
-    absolute path), sorted by campaign, run and path."""
+    absolute path), sorted by campaign, run and path; ``where_sql`` (with ``params``) an SQL
+    condition the rows must meet."""
     ipath = index_file(index)
+    sql = "SELECT * FROM runs" + (f" WHERE {where_sql}" if where_sql else "")
     with connect(ipath) as con:
         try:
-            df = pd.read_sql_query("SELECT * FROM runs", con)
+            df = pd.read_sql_query(sql, con, params=tuple(params))
         except (sqlite3.DatabaseError, pd.errors.DatabaseError) as exc:
+            if where_sql:  # an index from before a column existed: read it all
+                return load_index(ipath)
             raise AnalysisError(f"{ipath}: not a readable run catalogue: {exc}") from None
     base = str(ipath.parent.resolve())
     df["file"] = [resolve(p, base) for p in df["path"]]

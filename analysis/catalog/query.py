@@ -15,7 +15,7 @@ from typing import Any
 
 import pandas as pd
 
-from analysis.catalog.index import load_index
+from analysis.catalog.index import COLUMNS, index_file, load_index
 from analysis.errors import AnalysisError
 
 #: Columns shown by default (the query's result has them all).
@@ -56,12 +56,70 @@ def check_query(expr: str, columns: Any) -> None:
             raise AnalysisError(f"{where}: {text!r} is not allowed; {_HELP}")
 
 
+_SQL_OPS = {ast.Eq: "=", ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">="}
+_FLIPPED = {ast.Eq: ast.Eq, ast.Lt: ast.Gt, ast.LtE: ast.GtE, ast.Gt: ast.Lt, ast.GtE: ast.LtE}
+
+
+def _value(node: ast.AST, column: str) -> tuple[bool, Any]:
+    """(True, value) when ``node`` is a constant of the column's SQL type, else (False, None)."""
+    sign = 1
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub | ast.UAdd):
+        sign, node = (-1 if isinstance(node.op, ast.USub) else 1), node.operand
+    if not isinstance(node, ast.Constant) or isinstance(node.value, bool):
+        return False, None
+    v = node.value
+    if COLUMNS[column].startswith("TEXT"):
+        return (isinstance(v, str) and sign == 1), v
+    return isinstance(v, int | float), (sign * v if isinstance(v, int | float) else None)
+
+
+def sql_prefilter(expr: str) -> tuple[str, list[Any]]:
+    """An SQL condition that every row ``expr`` selects meets (checked expressions only): the
+    comparisons of an index column with a constant of its type joined by ``and`` at the top.
+    SQLite then reads a query's rows, not the whole index; pandas still decides each row, so
+    what pandas does with NaN, ``or``, ``not`` and mixed types is unchanged."""
+    parts: list[str] = []
+    params: list[Any] = []
+
+    def compare(a: ast.AST, op: ast.cmpop, b: ast.AST) -> None:
+        if not isinstance(a, ast.Name) and type(op) in _FLIPPED:
+            a, b, op = b, a, _FLIPPED[type(op)]()
+        if not isinstance(a, ast.Name) or a.id not in COLUMNS:
+            return
+        if type(op) in _SQL_OPS:
+            ok, v = _value(b, a.id)
+            if ok:
+                parts.append(f'"{a.id}" {_SQL_OPS[type(op)]} ?')
+                params.append(v)
+        elif isinstance(op, ast.In) and isinstance(b, ast.List | ast.Tuple):
+            values = [_value(e, a.id) for e in b.elts]
+            if all(ok for ok, _ in values):
+                parts.append(f'"{a.id}" IN ({", ".join("?" * len(values))})')
+                params.extend(v for _, v in values)
+
+    def walk(node: ast.AST) -> None:
+        if isinstance(node, ast.BoolOp) and isinstance(node.op, ast.And):
+            for v in node.values:
+                walk(v)
+        elif isinstance(node, ast.BinOp) and isinstance(node.op, ast.BitAnd):
+            walk(node.left)
+            walk(node.right)
+        elif isinstance(node, ast.Compare):
+            operands = [node.left, *node.comparators]
+            for a, op, b in zip(operands, node.ops, operands[1:]):
+                compare(a, op, b)
+
+    walk(ast.parse(expr.strip(), mode="eval").body)
+    return " AND ".join(parts), params
+
+
 def query_runs(expr: str | None, index: str | Path | None = None) -> pd.DataFrame:
     """The index's runs matching ``expr`` (all without one), one row per run file."""
-    df = load_index(index)
     if not expr or not expr.strip():
-        return df
-    check_query(expr, df.columns)
+        return load_index(index)
+    ipath = index_file(index)
+    check_query(expr, [*COLUMNS, "file"])
+    df = load_index(ipath, *sql_prefilter(expr))
     try:
         out = df.query(expr, engine="python", local_dict={}, global_dict={})
     except Exception as exc:  # noqa: BLE001 - a checked expression can still compare badly
