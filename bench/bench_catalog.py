@@ -141,7 +141,7 @@ def main() -> None:
     ident("sync, cold", "sync")
     cold = ident("threads (the default), cold", None)
     ident("processes, cold", "processes")
-    logging.getLogger("distributed").setLevel(logging.ERROR)
+    logging.getLogger("distributed").setLevel(logging.CRITICAL)  # workers left as it closes
     from distributed import Client, LocalCluster
 
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,

@@ -486,31 +486,22 @@ def axis_order(channel_names: Sequence[str], dynamometer=None) -> list[int]:
 def iter_run_chunks(path, chunk_samples: int = 1 << 20, start: int = 0, stop: int | None = None):
     """Yield (device sample indices (m,), force (m, 3) N in X, Y, Z) of a run file in chunks.
 
-    Reads through :func:`analysis.runs.file.load_run` time windows, so memory is bounded by the
-    chunk (plus the loader's index bookkeeping).
+    Reads through :func:`analysis.runs.file.iter_forces` (the numbers of ``load_run`` time
+    windows, the file opened once), so memory is bounded by the chunk.
     """
     from analysis.runs import load_run
+    from analysis.runs.file import iter_forces
 
     meta = load_run(path, samples=False)
-    rate, acquired = meta.rate_hz, meta.samples_acquired
-    del meta  # the loader's per-run arrays: do not keep them alive while streaming
-    end = acquired if stop is None else min(stop, acquired)
-    order = None
-    for a in range(start, end, chunk_samples):
-        b = min(a + chunk_samples, end)
-        # Half-sample offsets keep ceil(t * rate) exact on the window edges.
-        run = load_run(path, (a - 0.5) / rate, (b - 0.5) / rate)
-        if run.force_n is None:
-            raise AnalysisError(f"{path}: the run has no calibration: forces in N are unknown")
-        if order is None:
-            order = axis_order(run.channel_names)
-        # A copy: sample_index is a view into the loader's index of the whole run. The force is
-        # the loader's own array: reordered (a copy) only when the channels are not X, Y, Z.
-        idx = run.sample_index.copy()
-        same = order == [0, 1, 2] and run.force_n.shape[1] == 3
-        force = run.force_n if same else run.force_n[:, order]
-        del run
-        yield idx, force
+    if meta.calibration is None:
+        raise AnalysisError(f"{path}: the run has no calibration: forces in N are unknown")
+    end = meta.samples_acquired if stop is None else min(stop, meta.samples_acquired)
+    order = axis_order(meta.channel_names)
+    same = order == [0, 1, 2] and len(meta.channel_names) == 3
+    windows = ((a, min(a + chunk_samples, end)) for a in range(start, end, chunk_samples))
+    for idx, force in iter_forces(path, windows, meta):
+        # The loader's own array: reordered (a copy) only when the channels are not X, Y, Z.
+        yield idx, force if same else force[:, order]
 
 
 #: Samples read at once when a run file is streamed (24 MB of forces; 2^18-2^20 ran equally fast

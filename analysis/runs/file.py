@@ -81,6 +81,7 @@ import math
 import os
 import re
 import socket
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -617,6 +618,36 @@ def load_run(
     f = open_run_file(p)
     try:
         return _load(f, p, start_s, stop_s, samples)
+    except (OSError, KeyError) as exc:
+        raise RunFileError(f"{p}: damaged run file (truncated or corrupt): {exc}") from None
+    finally:
+        f.close()
+
+
+def iter_forces(
+    path: str | Path, windows: Iterable[tuple[int, int]], meta: Run
+) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """(device sample index (m,), force (m, c) N) of each device-sample window [a, b) of a run
+    file: what ``load_run(path, (a - 0.5) / rate, (b - 0.5) / rate)`` gives as ``sample_index``
+    and ``force_n``, the same numbers, with the file opened and ``meta`` (its
+    ``load_run(path, samples=False)``, which also repairs it) read once: for streaming readers,
+    whose per-window cost was the metadata. ``meta`` needs a calibration."""
+    p = Path(path)
+    cal, n_stored = meta.calibration, meta.samples_stored
+    if cal is None:
+        raise RunFileError(f"{p}: the run has no calibration: forces in N are unknown")
+    t0 = 0.0 if math.isnan(meta.t0_s) else meta.t0_s
+    f = open_run_file(p)
+    try:
+        events = _table(f, EVENTS)
+        for a, b in windows:
+            lo = device_to_stored_index(a, n_stored, events)
+            hi = max(lo, device_to_stored_index(b, n_stored, events))
+            _, volts = _read_samples(f, p, slice(lo, hi))
+            idx = stored_to_device_index(hi, events, start=lo)
+            time_s = t0 + idx / meta.rate_hz
+            yield idx, volts_to_force(volts, time_s, cal.volts_to_n, cal.zero_v,
+                                      cal.zero_time_s, cal.drift_v_s)  # fmt: skip
     except (OSError, KeyError) as exc:
         raise RunFileError(f"{p}: damaged run file (truncated or corrupt): {exc}") from None
     finally:
