@@ -140,3 +140,29 @@ def test_cli_reports_bad_files_in_one_line(tmp_path: Path, capsys) -> None:
     err = capsys.readouterr().err
     assert err.strip().startswith("cutlab: error:") and "not an HDF5 file" in err
     assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_iter_forces_gives_the_loaders_windows(tmp_path: Path) -> None:
+    """Windows streamed with the file opened once are the loader's windows, number for number,
+    across holes (device samples 500-599 and 750-849 lost) and past the end."""
+    from analysis.config import load_rig
+    from rig.daq import Calibration
+
+    rig = load_rig()
+    info = DaqInfo(device="t", physical_channels=("t/ai0", "t/ai1", "t/ai2"),
+                   channel_names=tuple(c.name for c in rig.dynamometer.channels),
+                   rate_hz=1000.0, sample_format="volts_float64", input_range_v=10.0,
+                   block_samples=250)  # fmt: skip
+    p = tmp_path / "cal.h5"
+    with RunWriter(p, info, Calibration.from_rig(rig), flush_interval_s=0.1) as w:
+        w.on_start(info, 2.0)
+        for first, n in [(0, 250), (250, 250), (600, 150), (850, 150)]:
+            idx = first + np.arange(n)
+            w.on_block(first, np.vstack([idx, -idx, 0.5 * idx]) * 1e-3)
+    meta = rf.load_run(p, samples=False)
+    windows = [(0, 300), (300, 700), (700, 1000), (950, 1200), (1200, 1300)]
+    for (a, b), (idx, force) in zip(windows, rf.iter_forces(p, windows, meta), strict=True):
+        want = rf.load_run(p, (a - 0.5) / 1000.0, (b - 0.5) / 1000.0)
+        np.testing.assert_array_equal(idx, want.sample_index)
+        np.testing.assert_array_equal(force, want.force_n)
+    assert len(next(rf.iter_forces(p, [(500, 600)], meta))[0]) == 0  # all lost

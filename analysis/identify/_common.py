@@ -483,7 +483,16 @@ def axis_order(channel_names: Sequence[str], dynamometer=None) -> list[int]:
     return order
 
 
-def iter_run_chunks(path, chunk_samples: int = 1 << 20, start: int = 0, stop: int | None = None):
+#: Samples read at once when a run file is streamed (24 MB of forces; 2^18-2^20 ran equally fast
+#: here, smaller chunks pay the per-read overhead).
+CHUNK_SAMPLES = 1 << 20
+#: Samples of the steady part that refine the revolution period and give the tooth peaks.
+PROBE_SAMPLES = 1 << 20
+
+
+def iter_run_chunks(
+    path, chunk_samples: int = CHUNK_SAMPLES, start: int = 0, stop: int | None = None
+):
     """Yield (device sample indices (m,), force (m, 3) N in X, Y, Z) of a run file in chunks.
 
     Reads through :func:`analysis.runs.file.iter_forces` (the numbers of ``load_run`` time
@@ -504,13 +513,6 @@ def iter_run_chunks(path, chunk_samples: int = 1 << 20, start: int = 0, stop: in
         yield idx, force if same else force[:, order]
 
 
-#: Samples read at once when a run file is streamed (24 MB of forces; 2^18-2^20 ran equally fast
-#: here, smaller chunks pay the per-read overhead).
-CHUNK_SAMPLES = 1 << 20
-#: Samples of the steady part that refine the revolution period and give the tooth peaks.
-PROBE_SAMPLES = 1 << 20
-
-
 def reduce_run_file(
     path, teeth: int, conditions: RunConditions | None = None, n_bins: int | None = None,
     chunk_samples: int = CHUNK_SAMPLES, progress=None, tolerance: float = IDENTIFY_TOLERANCE,
@@ -519,8 +521,8 @@ def reduce_run_file(
 
     Pass 1 gathers per-revolution statistics (steady part, offset, drift); the revolution period
     is refined on the steady part's first :data:`PROBE_SAMPLES` (at least 4 revolutions); pass 2
-    averages the steady part synchronously. Memory: the chunk and the probe plus
-    O(revolutions + bins), plus what ``load_run`` allocates per window. ``tolerance``: the
+    averages the steady part synchronously. Memory: the chunk and the probe (and the window's
+    arrays while it is read and calibrated) plus O(revolutions + bins). ``tolerance``: the
     steady window, as :func:`reduce_run`.
 
     One BLAS thread: its only BLAS call, the calibration's (m, 3) x (3, 3) product, is no faster

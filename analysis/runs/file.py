@@ -636,22 +636,29 @@ def iter_forces(
     cal, n_stored = meta.calibration, meta.samples_stored
     if cal is None:
         raise RunFileError(f"{p}: the run has no calibration: forces in N are unknown")
-    t0 = 0.0 if math.isnan(meta.t0_s) else meta.t0_s
     f = open_run_file(p)
     try:
         events = _table(f, EVENTS)
         for a, b in windows:
             lo = device_to_stored_index(a, n_stored, events)
             hi = max(lo, device_to_stored_index(b, n_stored, events))
-            _, volts = _read_samples(f, p, slice(lo, hi))
-            idx = stored_to_device_index(hi, events, start=lo)
-            time_s = t0 + idx / meta.rate_hz
+            _, volts, idx, time_s = _window(f, p, lo, hi, events, meta.rate_hz, meta.t0_s)
             yield idx, volts_to_force(volts, time_s, cal.volts_to_n, cal.zero_v,
                                       cal.zero_time_s, cal.drift_v_s)  # fmt: skip
     except (OSError, KeyError) as exc:
         raise RunFileError(f"{p}: damaged run file (truncated or corrupt): {exc}") from None
     finally:
         f.close()
+
+
+def _window(
+    f: h5py.File, p: Path, lo: int, hi: int, events: np.ndarray, rate_hz: float, t0_s: float
+) -> tuple[np.ndarray | None, np.ndarray, np.ndarray, np.ndarray]:
+    """Stored samples [lo, hi): raw codes (or None), volts, device sample index, run clock s."""
+    raw, volts = _read_samples(f, p, slice(lo, hi))
+    sample_index = stored_to_device_index(hi, events, start=lo)
+    time_s = (0.0 if math.isnan(t0_s) else t0_s) + sample_index / rate_hz
+    return raw, volts, sample_index, time_s
 
 
 def _load(f: h5py.File, p: Path, start_s: float | None, stop_s: float | None, samples: bool) -> Run:
@@ -676,11 +683,9 @@ def _load(f: h5py.File, p: Path, start_s: float | None, stop_s: float | None, sa
     if not samples:
         lo = hi = 0
     hi = max(lo, hi)
-    raw, volts = _read_samples(f, p, slice(lo, hi))
-    sample_index = stored_to_device_index(hi, events, start=lo)
     acq = _json(f, META_ACQUISITION)
     t0_s = float(acq.get("t0_s", math.nan))
-    time_s = (0.0 if math.isnan(t0_s) else t0_s) + sample_index / rate_hz
+    raw, volts, sample_index, time_s = _window(f, p, lo, hi, events, rate_hz, t0_s)
 
     cal = None
     force_n = None
