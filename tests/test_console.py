@@ -90,6 +90,18 @@ def test_not_a_ring_is_one_clear_error(tmp_path: Path) -> None:
         RingReader(tmp_path / "missing.ring")
 
 
+ORIGIN = {"origin": "http://127.0.0.1"}  # the page's own (the Host of WS)
+WS = "ws://127.0.0.1/ws"
+
+
+def _client(app: object) -> object:
+    """Starlette's TestClient as the page is: on 127.0.0.1, with the session's token."""
+    from starlette.testclient import TestClient
+
+    return TestClient(app, base_url="http://127.0.0.1",
+                      headers={"authorization": f"Bearer {app.state.token}"})  # fmt: skip
+
+
 def _live_folder(tmp_path: Path) -> tuple[Path, RingWriter]:
     folder = tmp_path / "camp"
     (folder / "runs").mkdir(parents=True)
@@ -99,8 +111,6 @@ def _live_folder(tmp_path: Path) -> tuple[Path, RingWriter]:
 
 
 def test_websocket_frames_carry_min_max_per_pixel_and_the_status(tmp_path: Path) -> None:
-    from starlette.testclient import TestClient
-
     from rig.console.server import make_app
 
     folder, w = _live_folder(tmp_path)
@@ -110,12 +120,12 @@ def test_websocket_frames_carry_min_max_per_pixel_and_the_status(tmp_path: Path)
     fx = 0.5 + np.sin(2 * np.pi * 3.0 * t)  # volts; zero 0.5 V, 100 N/V
     w.write(0, np.vstack([fx, np.zeros(n), np.full(n, 0.25)]))
     w.put_status({"phase": "running", "run": 1, "runs": 2, "executing_block": 7})
-    with TestClient(make_app(folder)) as client:
+    with _client(make_app(folder)) as client:
         assert client.get("/api/health").json()["live"] is True
         page = client.get("/")
         assert page.status_code == 200 and 'data-testid="frame-count"' in page.text
         assert client.get("/static/uPlot.iife.min.js").status_code == 200
-        with client.websocket_connect("/ws") as ws:
+        with client.websocket_connect(WS, headers=ORIGIN) as ws:
             ws.send_json({"type": "hello", "px": 100, "window_s": 2.0})  # 20 samples a bin
             msgs = [ws.receive_json() for _ in range(4)]
             # the frame after the hello starts over at its resolution
@@ -136,20 +146,18 @@ def test_websocket_frames_carry_min_max_per_pixel_and_the_status(tmp_path: Path)
 
 
 def test_a_command_is_refused_when_no_campaign_runs(tmp_path: Path) -> None:
-    from starlette.testclient import TestClient
-
     from rig.console.server import make_app
 
     folder, w = _live_folder(tmp_path)
     w.close()  # the campaign ended
-    with TestClient(make_app(folder)) as client, client.websocket_connect("/ws") as ws:
+    with _client(make_app(folder)) as client, client.websocket_connect(WS, headers=ORIGIN) as ws:
         ws.send_json({"type": "cmd", "cmd": "abort"})
         reply = next(m for m in (ws.receive_json() for _ in range(5)) if m["type"] == "cmd")
         assert not reply["ok"] and "no campaign" in reply["message"]
     # a page elsewhere cannot reach the feed hold
-    with TestClient(make_app(folder)) as client:
+    with _client(make_app(folder)) as client:
         with pytest.raises(Exception):  # noqa: B017 - starlette raises its disconnect
-            with client.websocket_connect("/ws", headers={"origin": "http://evil.example"}) as ws:
+            with client.websocket_connect(WS, headers={"origin": "http://evil.example"}) as ws:
                 ws.receive_json()
 
 
@@ -171,14 +179,12 @@ def _run_file(path: Path) -> tuple[np.ndarray, float]:
 
 
 def test_run_browser_lists_runs_and_gives_traces_by_block(tmp_path: Path) -> None:
-    from starlette.testclient import TestClient
-
     from rig.console.server import make_app
 
     folder = tmp_path / "camp"
     (folder / "runs").mkdir(parents=True)
     volts, t0 = _run_file(folder / "runs" / "000-a.h5")
-    with TestClient(make_app(folder)) as client:
+    with _client(make_app(folder)) as client:
         runs = client.get("/api/runs").json()["runs"]
         assert runs == [{"file": "000-a.h5", "status": "success", "reason": ""}]
         info = client.get("/api/run", params={"file": "000-a.h5"}).json()
@@ -195,7 +201,7 @@ def test_run_browser_lists_runs_and_gives_traces_by_block(tmp_path: Path) -> Non
         bad = client.get("/api/run", params={"file": "../../etc/passwd"})
         assert bad.status_code == 404 and "no run file" in bad.json()["error"]
     # a single run file is a target too
-    with TestClient(make_app(folder / "runs" / "000-a.h5")) as client:
+    with _client(make_app(folder / "runs" / "000-a.h5")) as client:
         assert [r["file"] for r in client.get("/api/runs").json()["runs"]] == ["000-a.h5"]
 
 

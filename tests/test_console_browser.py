@@ -10,11 +10,13 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import shutil
 import socket
 import subprocess
 import sys
 import time
+import urllib.error
 import urllib.request
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -149,20 +151,28 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
     env = {**os.environ, "CUTLAB_CONSOLE_LINGER_S": "2"}
     camp = subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, env=env)
     try:
-        url = f"http://127.0.0.1:{port}/"
+        # The address with the session's token, as printed once the server answers (issue 31).
         t_end = time.monotonic() + 60
         while True:
-            with contextlib.suppress(OSError):
-                urllib.request.urlopen(url + "api/health", timeout=1).close()
+            found = re.search(r"live console at (http://127\.0\.0\.1:\d+/\?token=[\w-]+)",
+                              (tmp_path / "campaign.log").read_text())  # fmt: skip
+            if found:
+                url = found.group(1)
                 break
             assert camp.poll() is None, (tmp_path / "campaign.log").read_text()
             assert time.monotonic() < t_end, "the console did not come up"
             time.sleep(0.1)
+        bare = url.split("?")[0]
+        with pytest.raises(urllib.error.HTTPError) as refused:  # no token: no page, no data
+            urllib.request.urlopen(bare + "api/runs", timeout=10)
+        assert refused.value.code == 401
         with _chromium(tmp_path) as (ws_url, _):
             page = Page(ws_url)
             page.call("Page.enable")
             page.call("Page.navigate", url=url)
             page.wait("frames", lambda: int(page.text("frame-count") or 0) > 5)
+            # the token is kept for the tab and taken out of the address bar
+            assert "token" not in page.js("location.href")
             n0 = int(page.text("frame-count"))
             time.sleep(0.5)
             n1 = int(page.text("frame-count"))
@@ -209,4 +219,6 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
     assert kinds.count("pause") >= 1 and "resume" in kinds
     messages = " ".join(last.events["message"])
     assert "console: feed hold" in messages and "console: abort requested" in messages
+    # the abort names its source: the console and the page's address (not Ctrl-C)
+    assert last.reason.startswith("operator stopped the run from the console (client 127.0.0.1:")
     assert not (tmp_path / "out" / "quick" / "live.json").exists()

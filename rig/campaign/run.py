@@ -225,15 +225,30 @@ class _Tap:
 
 
 class StopRequest:
-    """Set by the Ctrl-C handler (and by tests): the operator wants to pause or stop."""
+    """Set by the Ctrl-C handler (and by tests): the operator wants to pause or stop.
+
+    ``source`` says who asked, the last request's: "Ctrl-C", "SIGTERM", "console (client
+    ADDRESS)"; :meth:`reason` puts it in the run's reason."""
 
     def __init__(self) -> None:
         self.event = threading.Event()
         self.kill = False  # True: stop without asking (SIGTERM, second Ctrl-C)
+        self.source = ""
 
-    def request(self, kill: bool = False) -> None:
+    def request(self, kill: bool = False, source: str = "") -> None:
         self.kill = self.kill or kill
+        self.source = source
         self.event.set()
+
+    def reason(self) -> str:
+        s = self.source
+        if s == "SIGTERM":
+            return "stopped by SIGTERM"
+        if s.startswith("console"):
+            return f"operator stopped the run from the {s}"
+        if s == "Ctrl-C":
+            return "operator stopped the run (Ctrl-C)"
+        return f"the run was stopped ({s or 'no source given'})"
 
 
 def _ask_resume(prompt: str) -> bool:
@@ -313,7 +328,7 @@ def execute_run(
                 progress(*session.progress())
             if stop.event.is_set():
                 session.feed_hold()
-                writer.event(rf.EV_PAUSE, "operator: feed hold")
+                writer.event(rf.EV_PAUSE, f"stop ({stop.source or 'no source given'}): feed hold")
                 if not stop.kill and _ask_resume(
                     "\ncutlab: paused (feed hold). [r]esume or [a]bort? "
                 ):
@@ -321,7 +336,7 @@ def execute_run(
                     session.cycle_start()
                     writer.event(rf.EV_RESUME, "operator: cycle start")
                     continue
-                status, reason = STATUS_ABORT, "operator stopped the run (Ctrl-C): feed hold, stop"
+                status, reason = STATUS_ABORT, f"{stop.reason()}: feed hold, stop"
                 break
             if tap.daq_fault is not None and on_overflow == "fail":
                 status, reason = STATUS_FAIL, tap.daq_fault

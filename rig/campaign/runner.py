@@ -298,11 +298,11 @@ def _sigint_to(stop: StopRequest) -> Iterator[None]:
         return
 
     def on_int(signum: int, frame: object) -> None:
-        stop.request(kill=stop.event.is_set())
+        stop.request(kill=stop.event.is_set(), source="Ctrl-C")
         print("\ncutlab: stopping safely (feed hold) ...", file=sys.stderr, flush=True)
 
     def on_term(signum: int, frame: object) -> None:
-        stop.request(kill=True)
+        stop.request(kill=True, source="SIGTERM")
 
     old_int = signal.signal(signal.SIGINT, on_int)
     old_term = signal.signal(signal.SIGTERM, on_term)

@@ -4,7 +4,9 @@ cutlab console out/quick                  # a campaign folder: live while it run
 cutlab console out/quick/runs/000-a.h5    # browse one run file by block
 cutlab console out/quick --port 9000 --bind 0.0.0.0   # reachable from the network (warns)
 
-`cutlab campaign run CONFIG --live [--port P]` starts the same page beside a campaign.
+`cutlab campaign run CONFIG --live [--port P]` starts the same page beside a campaign. The address
+printed carries the session's token (`http://127.0.0.1:8765/?token=...`): the page, its data and
+its feed hold / resume / abort answer only with it, always (also with `--bind`).
 """
 
 from __future__ import annotations
@@ -32,7 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
         default=None,
         help="exit this long after the campaign process is gone (default: never)",
     )
-    p.add_argument("--quiet", action="store_true", help="no address line on stderr")
+    p.add_argument("--quiet", action="store_true",
+                   help="only the address (with its token) on stderr")  # fmt: skip
     p.set_defaults(func=_console)
 
 
@@ -53,8 +56,8 @@ def add_server_options(p: argparse.ArgumentParser) -> None:
 
 def warn_bind(bind: str) -> None:
     if bind not in ("127.0.0.1", "localhost", "::1"):
-        status(f"cutlab: warning: the console listens on {bind}: anyone who reaches it can "
-               "hold or abort the machine")  # fmt: skip
+        status(f"cutlab: warning: the console listens on {bind}: anyone who reaches it with the "
+               "token in its address can hold or abort the machine")  # fmt: skip
 
 
 def _console(args: argparse.Namespace) -> int:
@@ -66,8 +69,9 @@ def _console(args: argparse.Namespace) -> int:
     resolve_target(args.target)  # bad input: one line before anything listens
     check_port(args.bind, args.port)
     warn_bind(args.bind)
-    if not args.quiet:
-        host = "127.0.0.1" if args.bind in ("0.0.0.0", "") else args.bind
-        status(f"cutlab: console at http://{host}:{args.port}/ (Ctrl-C to stop)")
-    serve(args.target, args.port, args.bind, args.linger_s)
+
+    def tell(url: str) -> None:  # once it listens; the token is the way in, so even --quiet
+        status(f"cutlab: console at {url}" + ("" if args.quiet else " (Ctrl-C to stop)"))
+
+    serve(args.target, args.port, args.bind, args.linger_s, on_listening=tell)
     return 0

@@ -42,7 +42,7 @@ from analysis.errors import ConfigError
 from analysis.runs import file as rf
 from rig.campaign.run import StopRequest
 from rig.campaign.runner import campaign_folder, default_session_factory, plan_campaign
-from rig.console.ring import RingWriter
+from rig.console.ring import RingError, RingWriter
 from rig.daq import Calibration, DaqEvent, DaqInfo
 
 TICK_S = 0.04  # status 25 times a second
@@ -333,17 +333,20 @@ class LiveCampaign:
             return
         self._cmd_done = seq
         what = str(cmd.get("cmd", ""))
-        ok, message = self.command(what)
+        ok, message = self.command(what, str(cmd.get("from", ""))[:80])
         self._last_cmd = {"seq": seq, "cmd": what, "ok": ok, "message": message}
 
-    def command(self, what: str) -> tuple[bool, str]:
-        """Hold, resume or abort the run; (done, what was done or why not)."""
+    def command(self, what: str, client: str = "") -> tuple[bool, str]:
+        """Hold, resume or abort the run (``client``: the page's address, as the server saw it);
+        (done, what was done or why not)."""
         s = self._session
         if what == "abort":
-            self.stop.request(kill=True)  # the runner holds, stops, closes the run "abort"
+            who = f"client {client}" if client else "client unknown"
+            # the runner holds, stops, closes the run "abort" with this as its reason
+            self.stop.request(kill=True, source=f"console ({who})")
             if s is not None and s.writer is not None:
-                s.writer.event(rf.EV_NOTE, "console: abort requested by the operator")
-            self.note("abort", "console: abort requested")
+                s.writer.event(rf.EV_NOTE, f"console: abort requested by the operator ({who})")
+            self.note("abort", f"console: abort requested ({who})")
             return True, "abort requested: feed hold, stop, campaign ends"
         if what not in ("hold", "resume"):
             return False, f"unknown command {what!r} (expected hold, resume or abort)"
@@ -474,19 +477,26 @@ def check_port(bind: str, port: int) -> None:
             ) from None
 
 
-def start_server(target: Path, port: int, bind: str, timeout_s: float = 20.0) -> subprocess.Popen:
+def start_server(
+    target: Path, port: int, bind: str, token: str, timeout_s: float = 20.0
+) -> subprocess.Popen:
     """The console server for ``target`` in its own process (its own session: Ctrl-C at the
-    campaign's terminal is the campaign's); returns once it answers."""
+    campaign's terminal is the campaign's), with the session's ``token`` (in its environment,
+    not its command line); returns once it answers."""
+    from rig.console.server import TOKEN_ENV, url_of
+
     cmd = [sys.executable, "-m", "rig.console.server", str(target), "--port", str(port),
            "--bind", bind, "--linger-s", str(LINGER_S)]  # fmt: skip
-    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, start_new_session=True)
-    url = f"http://{'127.0.0.1' if bind in ('0.0.0.0', '') else bind}:{port}/api/health"
+    env = {**os.environ, TOKEN_ENV: token}
+    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, start_new_session=True, env=env)
+    url = url_of(bind, port, token).split("?")[0] + "api/health"
+    ask = urllib.request.Request(url, headers={"Authorization": f"Bearer {token}"})
     t_end = time.monotonic() + timeout_s
     while time.monotonic() < t_end:
         if proc.poll() is not None:
             raise ConfigError(f"console: the server exited at start (status {proc.returncode})")
         with contextlib.suppress(OSError):
-            with urllib.request.urlopen(url, timeout=1.0) as r:
+            with urllib.request.urlopen(ask, timeout=1.0) as r:
                 if r.status == 200:
                     return proc
         time.sleep(0.1)
@@ -506,6 +516,77 @@ def stop_server(proc: subprocess.Popen, grace_s: float = 1.0) -> None:
             proc.wait()
 
 
+def _pid_alive(pid: int) -> bool:
+    if pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _beating(ring: Path) -> bool:
+    """The ring's writer beat within the last 10 s and has not closed it (a PID alone may have
+    been reused by another process)."""
+    from rig.console.ring import RingReader
+
+    try:
+        r = RingReader(ring)
+    except RingError:
+        return False
+    try:
+        return not r.closed and r.heartbeat_age_s() < 10.0
+    finally:
+        r.close()
+
+
+def _ring_pid(path: Path) -> int:
+    """The writer's PID from a ring file's name (``cutlab-live-PID-N.ring``), else 0."""
+    parts = path.name.split("-")
+    return int(parts[2]) if len(parts) == 4 and parts[2].isdigit() else 0
+
+
+def remove_stale(folder: Path) -> list[Path]:
+    """Remove what a killed live campaign left (issue 31): ``folder/live.json`` and the ring it
+    names when their process is dead, and this user's other rings in the ring folder whose
+    process is dead. A live campaign's are kept; ``live.json`` of another live process in this
+    folder is an error (its campaign runs). Returns what was removed."""
+    from rig.console.ring import default_ring_path
+
+    removed: list[Path] = []
+    pointer = folder / LIVE_FILE
+    try:
+        ptr = json.loads(pointer.read_text())
+    except (OSError, ValueError):
+        ptr = None if not pointer.exists() else {}
+    if ptr is not None:
+        pid = int(ptr.get("pid", 0) or 0) if isinstance(ptr, dict) else 0
+        ring = Path(str(ptr.get("ring", ""))) if isinstance(ptr, dict) else None
+        if pid != os.getpid() and _pid_alive(pid) and ring is not None and _beating(ring):
+            raise ConfigError(
+                f"{pointer}: the live campaign of process {pid} is running in this folder"
+            )
+        if ring is not None and ring.name.startswith("cutlab-live-") and ring.suffix == ".ring":
+            with contextlib.suppress(OSError):
+                ring.unlink()
+                removed.append(ring)
+        with contextlib.suppress(OSError):
+            pointer.unlink()
+            removed.append(pointer)
+    # Rings whose live.json was never written or was removed: those of dead processes of ours.
+    uid = os.getuid()
+    for ring in default_ring_path().parent.glob("cutlab-live-*.ring"):
+        pid = _ring_pid(ring)
+        with contextlib.suppress(OSError):
+            if pid and pid != os.getpid() and ring.stat().st_uid == uid and not _pid_alive(pid):
+                ring.unlink()
+                removed.append(ring)
+    return removed
+
+
 @contextlib.contextmanager
 def live_console(
     campaign: Any,
@@ -516,36 +597,48 @@ def live_console(
     serve: bool = True,
 ) -> Iterator[LiveCampaign]:
     """Run a campaign with the console: the ring, ``live.json`` in the campaign folder, and
-    (``serve``) the page server at ``http://bind:port/`` in its own process. The server's death
-    does not stop the campaign; the campaign's end (or death) is shown on the page."""
+    (``serve``) the page server at ``http://bind:port/?token=...`` in its own process (the
+    address with the session's token is printed on stderr). The server's death does not stop
+    the campaign; the campaign's end (or death) is shown on the page. The ring and ``live.json``
+    are removed when this ends, however it ends; a killed campaign's are removed by the next
+    start (:func:`remove_stale`)."""
+    import secrets
+
+    from rig.console.server import url_of
+
     folder = campaign_folder(campaign, out_root)
     if serve:
         check_console_extra()
         check_port(bind, port)
     folder.mkdir(parents=True, exist_ok=True)
+    remove_stale(folder)
+    token = secrets.token_urlsafe(24)
     live = LiveCampaign(campaign, folder)
     pointer = folder / LIVE_FILE
-    pointer.write_text(json.dumps({"ring": str(live.ring.path), "pid": os.getpid(),
-                                   "port": port, "bind": bind}))  # fmt: skip
     proc = None
     phase, message = "finished", ""
     try:
+        pointer.write_text(json.dumps({"ring": str(live.ring.path), "pid": os.getpid(),
+                                       "port": port, "bind": bind}))  # fmt: skip
         if serve:
-            proc = start_server(folder, port, bind)
-            host = "127.0.0.1" if bind in ("0.0.0.0", "") else bind
-            print(f"cutlab: live console at http://{host}:{port}/", file=sys.stderr, flush=True)
+            proc = start_server(folder, port, bind, token)
+            print(f"cutlab: live console at {url_of(bind, port, token)}", file=sys.stderr,
+                  flush=True)  # fmt: skip
         yield live
         if live.stop.event.is_set():
-            phase, message = "stopped", "the campaign was stopped"
+            who = live.stop.source or "no source given"
+            phase, message = "stopped", f"the campaign was stopped ({who})"
     except BaseException as exc:
         phase, message = "failed", f"{type(exc).__name__}: {exc}"[:300]
         if isinstance(exc, KeyboardInterrupt):
             phase = "stopped"
         raise
     finally:
-        live.close(phase, message)
-        pointer.unlink(missing_ok=True)
-        if proc is not None:
-            stop_server(proc)
-        with contextlib.suppress(OSError):
-            live.ring.path.unlink()
+        try:
+            live.close(phase, message)
+        finally:
+            pointer.unlink(missing_ok=True)
+            with contextlib.suppress(OSError):
+                live.ring.path.unlink()
+            if proc is not None:
+                stop_server(proc)

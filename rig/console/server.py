@@ -10,21 +10,39 @@ in ``<folder>/live.json``; its run files always) or one run file. Endpoints:
 - ``/api/health``, ``/api/runs``, ``/api/run?file=NAME`` (blocks, events, program) and
   ``/api/trace?file=NAME&t0=&t1=&px=`` (min/max bins of a run file's forces, run clock s).
 
-Run files are opened read-only (never repaired from here). A websocket whose Origin is not this
-server is refused: a web page elsewhere must not reach the machine's feed hold.
+Run files are opened read-only (never repaired from here). Access (:class:`Guard`, issue 31): a
+web page elsewhere must not reach the machine's feed hold nor read the runs, also through a DNS
+name rebound to this computer, so
+
+- the Host header must name this computer: ``localhost``, ``127.0.0.1``, ``[::1]`` or the bound
+  address (bound to all addresses: also the computer's own names and any IP address; a rebinding
+  page's Host is a DNS name): others get 403 (a websocket is refused);
+- a websocket must carry an Origin whose host is allowed and equals the Host header;
+- everything but ``/static/*`` needs the session's token (:func:`secrets.token_urlsafe`, made
+  per server and printed with the address as ``http://127.0.0.1:PORT/?token=...``): in the query,
+  as ``Authorization: Bearer TOKEN``, or in the cookie the server sets when the token comes in the
+  query; else 401 (a websocket is refused). There is no mode without it.
+
+A bad websocket message (not JSON, not an object, NaN or infinity, an unknown type or command, a
+wrong type) is dropped with one logged line and an ``error`` reply; no traceback reaches stderr.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
+import ipaddress
 import json
 import math
 import os
+import secrets
+import socket
+import sys
 import time
+from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import Any
-from urllib.parse import urlparse
+from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
 from starlette.applications import Starlette
@@ -42,6 +60,12 @@ from rig.console.ring import RingError, RingReader
 STATIC = Path(__file__).parent / "static"
 STALE_S = 3.0  # s without a heartbeat: the campaign process is gone
 DEFAULT_PX, DEFAULT_WINDOW_S = 1000, 10.0
+TOKEN_ENV = "CUTLAB_CONSOLE_TOKEN"  # how a live campaign hands its server the token (not argv)
+LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
+WILDCARD_BINDS = frozenset({"", "0.0.0.0", "::"})
+COMMANDS = ("hold", "resume", "abort")
+WS_MAX_BYTES = 64 * 1024  # a page's messages are < 100 bytes; larger ones are closed (1009)
+LOG_BUDGET = 20  # logged lines of refusals / bad messages per connection (then one more saying so)
 
 
 def resolve_target(target: str | Path) -> tuple[Path | None, Path | None]:
@@ -294,17 +318,230 @@ class _Client:
                 "min": np.round(lo, 1).tolist(), "max": np.round(hi, 1).tolist()}  # fmt: skip
 
 
-def _same_origin(ws: WebSocket) -> bool:
-    origin = ws.headers.get("origin")
-    if origin is None:
-        return True  # not a browser (scripts, tests)
-    return urlparse(origin).netloc == ws.headers.get("host", "")
+def say(message: str) -> None:
+    """One line on stderr (the console's log: refusals, dropped messages, errors)."""
+    line = " ".join(str(message).split())[:400]
+    with contextlib.suppress(OSError, ValueError):
+        print(f"cutlab: console: {line}", file=sys.stderr, flush=True)
 
 
-def make_app(target: str | Path, linger_s: float | None = None) -> Starlette:
-    """The console app for a campaign folder or a run file (see the module docstring)."""
+def host_allowlist(bind: str) -> frozenset[str]:
+    """The host names (lower case, IPv6 without brackets) a request's Host may name: this
+    computer's loopback names and the bound address; bound to all addresses, also the computer's
+    own names and addresses (:func:`host_allowed` then takes any IP address too)."""
+    names = set(LOOPBACK_NAMES)
+    b = bind.strip().strip("[]").lower()
+    if b in WILDCARD_BINDS:
+        with contextlib.suppress(OSError):
+            me = socket.gethostname()
+            names |= {me.lower(), socket.getfqdn().lower()}
+            names |= {str(i[4][0]).lower() for i in socket.getaddrinfo(me, None)}
+    else:
+        names.add(b)
+    return frozenset(names)
+
+
+def _hostname(netloc: str) -> str | None:
+    """The host of ``host[:port]`` (lower case, IPv6 without brackets); None if malformed."""
+    if not netloc or "@" in netloc or any(c.isspace() or c in "/?#\\" for c in netloc):
+        return None
+    try:
+        parts = urlsplit("//" + netloc)
+        _ = parts.port  # a non-numeric port raises
+    except ValueError:
+        return None
+    return parts.hostname or None
+
+
+def host_allowed(host: str | None, allow: frozenset[str], any_ip: bool) -> bool:
+    if host is None:
+        return False
+    if host in allow:
+        return True
+    if any_ip:  # bound to all addresses: an IP address is no DNS name, so cannot be rebound
+        with contextlib.suppress(ValueError):
+            ipaddress.ip_address(host.split("%")[0])
+            return True
+    return False
+
+
+def _peer(scope: dict[str, Any]) -> str:
+    c = scope.get("client")
+    if not c:
+        return "an unknown client"
+    host, port = c[0], c[1]
+    return f"[{host}]:{port}" if ":" in str(host) else f"{host}:{port}"
+
+
+def cookie_name(port: int) -> str:
+    """Cookies are shared by every port of a host: one name per console port."""
+    return f"cutlab_console_token_{port}"
+
+
+Send = Callable[[dict[str, Any]], Awaitable[None]]
+
+
+class Guard:
+    """ASGI middleware in front of the console app: the Host allowlist, the websocket's Origin,
+    the token (see the module docstring); and a last net under the app: an exception is one
+    logged line and a 500 (or a closed websocket), never an ASGI traceback."""
+
+    def __init__(self, app: Any, token: str, bind: str = "127.0.0.1") -> None:
+        if not token:
+            raise ValueError("the console needs a token")
+        self.app, self.token = app, token.encode()
+        self.allow = host_allowlist(bind)
+        self.any_ip = bind.strip().strip("[]") in WILDCARD_BINDS
+        self._logged = 0
+
+    def _say(self, message: str) -> None:
+        # A page or script knocking in a loop must not fill the campaign's terminal.
+        self._logged += 1
+        if self._logged <= 10 * LOG_BUDGET:
+            say(message)
+        elif self._logged == 10 * LOG_BUDGET + 1:
+            say("more refusals: not logged")
+
+    def _token_ok(self, given: str | None) -> bool:
+        return bool(given) and secrets.compare_digest(str(given).encode(), self.token)
+
+    def check(self, scope: dict[str, Any]) -> tuple[int, str, bool]:
+        """(0 or the HTTP status refusing the request, why, the token came in the query)."""
+        headers = {k.decode("latin-1").lower(): v.decode("latin-1")
+                   for k, v in scope.get("headers", [])}  # fmt: skip
+        host_header = headers.get("host", "")
+        if not host_allowed(_hostname(host_header), self.allow, self.any_ip):
+            return 403, f"Host {host_header[:80]!r} is not this computer", False
+        if scope["type"] == "websocket":
+            origin = headers.get("origin")
+            if origin is None:
+                return 403, "no Origin (a websocket must come from the console's page)", False
+            try:
+                o = urlsplit(origin)
+                ok = o.scheme in ("http", "https") and o.netloc.lower() == host_header.lower()
+            except ValueError:
+                ok = False
+            if not ok or not host_allowed(_hostname(o.netloc), self.allow, self.any_ip):
+                return 403, f"Origin {origin[:80]!r} is not this console's page", False
+        if scope["path"].startswith("/static/"):
+            return 0, "", False  # the page's scripts and styles: no data
+        query = parse_qs(scope.get("query_string", b"").decode("latin-1"))
+        in_query = (query.get("token") or [None])[-1]
+        if in_query is not None:
+            if self._token_ok(in_query):
+                return 0, "", True
+            return 401, "wrong token", False
+        auth = headers.get("authorization", "")
+        scheme, _, value = auth.partition(" ")
+        if scheme.lower() in ("bearer", "token") and self._token_ok(value.strip()):
+            return 0, "", False
+        port = (scope.get("server") or ("", 0))[1]
+        for part in headers.get("cookie", "").split(";"):
+            name, _, value = part.strip().partition("=")
+            if name == cookie_name(port) and self._token_ok(value):
+                return 0, "", False
+        return 401, "no token or a wrong one (open the address printed with its ?token=)", False
+
+    async def __call__(self, scope: dict[str, Any], receive: Any, send: Send) -> None:
+        if scope["type"] not in ("http", "websocket"):
+            await self.app(scope, receive, send)
+            return
+        what = "websocket" if scope["type"] == "websocket" else scope.get("method", "GET")
+        where = f"{what} {scope.get('path', '')} from {_peer(scope)}"
+        code, why, token_in_query = self.check(scope)
+        if code:
+            self._say(f"refused {where}: {why}")
+            await _refuse(scope, send, code, why)
+            return
+        started = False
+
+        async def send_on(message: dict[str, Any]) -> None:
+            nonlocal started
+            if message["type"] == "http.response.start":
+                started = True
+                if token_in_query:  # later requests of the page carry it by themselves
+                    port = (scope.get("server") or ("", 0))[1]
+                    cookie = (f"{cookie_name(port)}={self.token.decode()}; Path=/; HttpOnly; "
+                              "SameSite=Strict")  # fmt: skip
+                    headers = [*message.get("headers", []), (b"set-cookie", cookie.encode())]
+                    message = {**message, "headers": headers}
+            elif message["type"] in ("websocket.accept", "websocket.close"):
+                started = True
+            await send(message)
+
+        try:
+            await self.app(scope, receive, send_on)
+        except Exception as exc:  # noqa: BLE001 - one line, never a traceback in the campaign's log
+            self._say(f"error in {where}: {type(exc).__name__}: {exc}")
+            if not started:
+                with contextlib.suppress(Exception):
+                    await _refuse(scope, send, 500, "internal error (logged by the console)")
+
+
+async def _refuse(scope: dict[str, Any], send: Send, code: int, why: str) -> None:
+    if scope["type"] == "websocket":
+        await send({"type": "websocket.close", "code": 1008 if code != 500 else 1011})
+        return
+    body = json.dumps({"error": why}).encode()
+    await send({"type": "http.response.start", "status": code,
+                "headers": [(b"content-type", b"application/json"),
+                            (b"content-length", str(len(body)).encode())]})  # fmt: skip
+    await send({"type": "http.response.body", "body": body})
+
+
+def _finite(text: str) -> float:
+    x = float(text)
+    if not math.isfinite(x):
+        raise ValueError(f"{text[:20]} is out of range")
+    return x
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a number")
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def parse_message(text: str | None) -> tuple[dict[str, Any] | None, str]:
+    """A page's websocket message: (the message, "") or (None, why it is dropped)."""
+    if text is None:
+        return None, "a binary message (expected JSON text)"
+    try:
+        msg = json.loads(text, parse_float=_finite, parse_constant=_no_constant)
+    except (ValueError, RecursionError) as exc:
+        return None, f"not JSON ({str(exc)[:80]})"
+    if not isinstance(msg, dict):
+        return None, f"a JSON {type(msg).__name__} (expected an object with a type)"
+    kind = msg.get("type")
+    if kind == "hello":
+        for key in ("px", "window_s"):
+            if key in msg and not _is_number(msg[key]):
+                return None, f"hello: {key} = {str(msg[key])[:40]!r}: expected a number"
+        return msg, ""
+    if kind == "cmd":
+        cmd = msg.get("cmd")
+        if not isinstance(cmd, str) or cmd not in COMMANDS:
+            return None, (f"cmd: {str(cmd)[:40]!r}: unknown command (expected hold, resume or "
+                          "abort)")  # fmt: skip
+        return msg, ""
+    return None, f"type {str(kind)[:40]!r}: unknown (expected hello or cmd)"
+
+
+def make_app(
+    target: str | Path,
+    linger_s: float | None = None,
+    *,
+    token: str | None = None,
+    bind: str = "127.0.0.1",
+) -> Any:
+    """The console app for a campaign folder or a run file (see the module docstring), behind
+    its :class:`Guard`; ``token`` (default: a new one; always ``app.state.token``) is the
+    session's, ``bind`` the address served (for the Host allowlist)."""
     folder, run_file = resolve_target(target)
     hub = Hub(folder, run_file, linger_s)
+    token = token or secrets.token_urlsafe(24)
 
     async def index(request: Request) -> FileResponse:
         return FileResponse(STATIC / "index.html")
@@ -334,17 +571,28 @@ def make_app(target: str | Path, linger_s: float | None = None) -> Starlette:
         return _trace(hub.run_path(q["file"]), t0, t1, px)
 
     async def ws_endpoint(ws: WebSocket) -> None:
-        if not _same_origin(ws):
-            await ws.close(code=1008)
-            return
-        await ws.accept()
+        await ws.accept()  # the Guard has checked Host, Origin and token
+        peer = _peer(ws.scope)
         client = _Client(DEFAULT_PX, DEFAULT_WINDOW_S)
-        inbox: asyncio.Queue[dict[str, Any]] = asyncio.Queue()
+        # Bounded: a client sending faster than 25 frames a second are read waits (TCP holds it).
+        inbox: asyncio.Queue[dict[str, Any]] = asyncio.Queue(maxsize=256)
+        bad = 0
 
         async def receive() -> None:
-            with contextlib.suppress(WebSocketDisconnect, RuntimeError):
-                while True:
-                    await inbox.put(await ws.receive_json())
+            nonlocal bad
+            while True:
+                m = await ws.receive()
+                if m["type"] != "websocket.receive":
+                    return  # websocket.disconnect
+                msg, why = parse_message(m.get("text"))
+                if msg is None:
+                    bad += 1
+                    if bad <= LOG_BUDGET:
+                        say(f"dropped a websocket message from {peer}: {why}")
+                    elif bad == LOG_BUDGET + 1:
+                        say(f"more bad websocket messages from {peer}: dropped, not logged")
+                    msg = {"type": "_error", "message": why}
+                await inbox.put(msg)
 
         reader = asyncio.create_task(receive())
         loop = asyncio.get_running_loop()
@@ -352,7 +600,7 @@ def make_app(target: str | Path, linger_s: float | None = None) -> Starlette:
         try:
             while not reader.done():
                 while not inbox.empty():
-                    await _handle(ws, hub, client, inbox.get_nowait())
+                    await _handle(ws, hub, client, inbox.get_nowait(), peer)
                 msg = client.frame(hub)
                 sig = hub.runs_signature() if client.frames % 25 == 1 else client.runs_sig
                 if sig != client.runs_sig:
@@ -365,6 +613,12 @@ def make_app(target: str | Path, linger_s: float | None = None) -> Starlette:
             pass
         finally:
             reader.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await reader  # its exception (a connection gone mid-read) is retrieved here
+            if reader.done() and not reader.cancelled() and reader.exception() is not None:
+                exc = reader.exception()
+                if not isinstance(exc, WebSocketDisconnect | RuntimeError | ConnectionError):
+                    say(f"websocket from {peer} ended: {type(exc).__name__}: {exc}")
 
     async def watch() -> None:
         while True:
@@ -386,45 +640,80 @@ def make_app(target: str | Path, linger_s: float | None = None) -> Starlette:
         WebSocketRoute("/ws", ws_endpoint),
         Mount("/static", app=StaticFiles(directory=STATIC), name="static"),
     ]
-    app = Starlette(routes=routes, lifespan=lifespan)
-    app.state.hub = hub
+    inner = Starlette(routes=routes, lifespan=lifespan)
+    inner.state.hub = hub
+    app = Guard(inner, token, bind)
+    app.state = inner.state
+    app.state.token = token
     return app
 
 
-async def _handle(ws: WebSocket, hub: Hub, client: _Client, msg: dict[str, Any]) -> None:
+async def _handle(
+    ws: WebSocket, hub: Hub, client: _Client, msg: dict[str, Any], peer: str = ""
+) -> None:
+    """A message checked by :func:`parse_message` (or its ``_error``: the reply says why)."""
     kind = msg.get("type")
-    if kind == "hello":
-        client.px = min(max(int(msg.get("px", DEFAULT_PX)), 50), 4000)
-        client.window_s = min(max(float(msg.get("window_s", DEFAULT_WINDOW_S)), 1.0), 60.0)
+    if kind == "_error":
+        await ws.send_text(json.dumps({"type": "error", "message": msg["message"]}))
+    elif kind == "hello":
+        client.px = int(min(max(msg.get("px", DEFAULT_PX), 50), 4000))
+        client.window_s = float(min(max(msg.get("window_s", DEFAULT_WINDOW_S), 1.0), 60.0))
         client.gen = -1  # resend the window at the new resolution
     elif kind == "cmd":
-        cmd = str(msg.get("cmd", ""))
-        if cmd not in ("hold", "resume", "abort"):
-            reply = {"type": "cmd", "cmd": cmd, "ok": False, "message": "unknown command"}
-        elif hub.ring is None or not hub.alive():
+        cmd = msg["cmd"]
+        if hub.ring is None or not hub.alive():
             reply = {"type": "cmd", "cmd": cmd, "ok": False, "message": "no campaign running"}
         else:
-            seq = hub.ring.send_command({"cmd": cmd, "at": time.time()})
+            # who asked goes with it: the run's reason names the console and this client
+            seq = hub.ring.send_command({"cmd": cmd, "at": time.time(), "from": peer})
             reply = {"type": "cmd", "cmd": cmd, "ok": True, "seq": seq, "message": "sent"}
         await ws.send_text(json.dumps(reply))
 
 
+def url_of(bind: str, port: int, token: str) -> str:
+    """The address to open, token included (as notebook servers print theirs)."""
+    b = bind.strip().strip("[]")
+    host = "127.0.0.1" if b in WILDCARD_BINDS else f"[{b}]" if ":" in b else b
+    return f"http://{host}:{port}/?token={token}"
+
+
 def serve(
-    target: str | Path, port: int = 8765, bind: str = "127.0.0.1", linger_s: float | None = None
+    target: str | Path,
+    port: int = 8765,
+    bind: str = "127.0.0.1",
+    linger_s: float | None = None,
+    *,
+    token: str | None = None,
+    on_listening: Callable[[str], None] | None = None,
 ) -> None:
     """Serve the console until interrupted (or, with ``linger_s``, until that long after the
-    campaign process is gone)."""
+    campaign process is gone). ``token``: the session's (default: a new one); ``port`` 0: a free
+    one; ``on_listening(url)`` is called once it listens, with the address and token."""
     import uvicorn
 
-    app = make_app(target, linger_s)
+    token = token or secrets.token_urlsafe(24)
+    app = make_app(target, linger_s, token=token, bind=bind)
     config = uvicorn.Config(app, host=bind, port=port, log_level="warning", ws="websockets-sansio",
-                            lifespan="on", timeout_graceful_shutdown=1)  # fmt: skip
+                            lifespan="on", timeout_graceful_shutdown=1,
+                            ws_max_size=WS_MAX_BYTES)  # fmt: skip
     server = uvicorn.Server(config)
+    sockets = None
+    if port == 0:  # bound here, so the address printed is the one listened on
+        fam = socket.AF_INET6 if ":" in bind else socket.AF_INET
+        sock = socket.socket(fam, socket.SOCK_STREAM)
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind((bind.strip("[]"), 0))
+        sockets, port = [sock], sock.getsockname()[1]
 
     async def main() -> None:
-        task = asyncio.create_task(server.serve())
+        task = asyncio.create_task(server.serve(sockets))
+        told = False
         while not task.done():
-            await asyncio.sleep(0.5)
+            await asyncio.sleep(0.05 if not told else 0.5)
+            if not told and server.started:
+                told = True
+                if on_listening is not None:
+                    on_listening(url_of(bind, port, token))
             if app.state.hub.should_exit:
                 server.should_exit = True
         await task
@@ -434,7 +723,9 @@ def serve(
 
 def main(argv: list[str] | None = None) -> None:
     """``python -m rig.console.server TARGET --port P --bind B [--linger-s S]``: the server a
-    live campaign starts (it needs none of the CLI; ``cutlab console`` is the user's door)."""
+    live campaign starts (it needs none of the CLI; ``cutlab console`` is the user's door). The
+    token comes in the environment (``CUTLAB_CONSOLE_TOKEN``: not on the command line, which
+    other users can read); without it the server makes one and prints the address with it."""
     import argparse
 
     p = argparse.ArgumentParser(prog="python -m rig.console.server")
@@ -443,7 +734,13 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--bind", default="127.0.0.1")
     p.add_argument("--linger-s", type=float, default=None)
     a = p.parse_args(argv)
-    serve(a.target, a.port, a.bind, a.linger_s)
+    token = os.environ.pop(TOKEN_ENV, "") or None
+
+    def tell(url: str) -> None:
+        say(f"listening at {url}")
+
+    serve(a.target, a.port, a.bind, a.linger_s, token=token,
+          on_listening=tell if token is None else None)  # fmt: skip
 
 
 if __name__ == "__main__":

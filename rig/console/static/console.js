@@ -4,6 +4,21 @@
 "use strict";
 
 const $ = (id) => document.getElementById(id);
+
+// The session's token: printed with the address (?token=...), kept for this tab, sent with every
+// request and websocket (the server refuses data and commands without it). It is taken out of the
+// address bar so a screenshot or a shared link does not carry it.
+const TOKEN = (() => {
+  const url = new URL(location.href);
+  const t = url.searchParams.get("token");
+  if (t) {
+    sessionStorage.setItem("cutlab-token", t);
+    url.searchParams.delete("token");
+    history.replaceState(null, "", url.pathname + url.search + url.hash);
+    return t;
+  }
+  return sessionStorage.getItem("cutlab-token") || ""; // else the server's cookie answers
+})();
 const COLORS = ["#1e88e5", "#e53935", "#43a047", "#8e24aa", "#fb8c00", "#00897b"];
 const WINDOW_S = 10;
 
@@ -229,6 +244,10 @@ function showRuns(runs) {
 // -- the websocket ---------------------------------------------------------------------------
 function onMessage(ev) {
   const msg = JSON.parse(ev.data);
+  if (msg.type === "error") {
+    $("cmd-note").textContent = `the console dropped a message: ${msg.message}`;
+    return;
+  }
   if (msg.type === "cmd") {
     $("cmd-note").textContent = `${msg.cmd}: ${msg.message}; waiting for the machine's state`;
     return;
@@ -251,7 +270,8 @@ function onMessage(ev) {
 
 function connect() {
   const proto = location.protocol === "https:" ? "wss" : "ws";
-  ws = new WebSocket(`${proto}://${location.host}/ws`);
+  const q = TOKEN ? `?token=${encodeURIComponent(TOKEN)}` : "";
+  ws = new WebSocket(`${proto}://${location.host}/ws${q}`);
   ws.onopen = () => {
     $("overlay").classList.add("hidden");
     ws.send(JSON.stringify({ type: "hello", px: plotWidth(), window_s: WINDOW_S }));
@@ -290,7 +310,7 @@ for (const cmd of ["hold", "resume", "abort"]) $(cmd).onclick = () => ask(cmd);
 
 // -- finished runs: the whole trace, then block by block -------------------------------------
 async function getJSON(url) {
-  const r = await fetch(url);
+  const r = await fetch(url, { headers: TOKEN ? { Authorization: `Bearer ${TOKEN}` } : {} });
   const j = await r.json();
   if (!r.ok) throw new Error(j.error || r.statusText);
   return j;
