@@ -31,9 +31,12 @@ digit of each offset in the sum, in the units it was printed in.
 
 from __future__ import annotations
 
+import logging
 import math
+import os
 import random
 import re
+import signal
 import subprocess
 import tempfile
 from dataclasses import dataclass, field
@@ -123,20 +126,65 @@ def tool_table(path: Path, tools: int = 99) -> Path:
     return path
 
 
-def run_rs274(program: Path, timeout_s: float = 60.0) -> str:
-    """``rs274 -g`` on ``program`` (in a scratch folder, with a tool table of zero lengths); its
-    stdout and stderr together."""
-    with tempfile.TemporaryDirectory() as tmp:
-        tbl = tool_table(Path(tmp) / "tools.tbl")
-        proc = subprocess.run(
-            [str(RS274), "-g", "-t", str(tbl), str(Path(program).resolve())],
-            cwd=tmp,
-            stdin=subprocess.DEVNULL,
-            capture_output=True,
-            text=True,
-            timeout=timeout_s,
-        )
-    return proc.stdout + proc.stderr
+class RS274CutShort(RuntimeError):
+    """``rs274`` ended without reaching the end of the program or an error of its own (killed, or
+    cut short): its output says nothing about cutlab."""
+
+
+_END_CALLS = ("PROGRAM_END(", "FINISH(")  # M2/M30, and a program closed by "%"
+RS274_TRIES = 3
+_log = logging.getLogger(__name__)
+
+
+def rs274_ended(returncode: int, text: str) -> str:
+    """Why an ``rs274 -g`` run did not run to its end ("" if it did): it ends with an end of
+    program (``PROGRAM_END``, or ``FINISH`` after a closing "%") and status 0, or with its own
+    error message and status 1. (Two rs274 at once used to end after 5 canonical calls, killed by
+    SIGBUS: both truncate and map ``$HOME/.tool.mmap``; :func:`run_rs274` gives each its own.)"""
+    calls = [ln for ln in text.splitlines() if _CALL.match(ln)]
+    said = [ln for ln in text.splitlines() if ln.strip() and ln.strip() != "executing"
+            and not _CALL.match(ln)]  # fmt: skip
+    if returncode < 0:
+        why = f"killed by {signal.Signals(-returncode).name}"
+    elif returncode == 0 and any(c in ln for ln in calls for c in _END_CALLS):
+        return ""
+    elif returncode == 1 and said:
+        return ""
+    else:
+        why = f"status {returncode}, no end of program and no error message"
+    return f"{why} after {len(calls)} canonical calls"
+
+
+def run_rs274(program: Path, timeout_s: float = 60.0, rs274: Path = RS274) -> str:
+    """``rs274 -g`` on ``program`` (in a scratch folder that is also its $HOME, with a tool table
+    of zero lengths); its stdout and stderr together. A run cut short (:func:`rs274_ended`) is
+    tried again, up to :data:`RS274_TRIES` times, each reason logged; then
+    :class:`RS274CutShort`."""
+    reasons = []
+    for attempt in range(1, RS274_TRIES + 1):
+        with tempfile.TemporaryDirectory() as tmp:
+            tbl = tool_table(Path(tmp) / "tools.tbl")
+            proc = subprocess.run(
+                [str(rs274), "-g", "-t", str(tbl), str(Path(program).resolve())],
+                cwd=tmp,
+                # rs274 creates, truncates and maps $HOME/.tool.mmap: a shared one is cut under
+                # another run's feet (SIGBUS)
+                env={**os.environ, "HOME": tmp},
+                stdin=subprocess.DEVNULL,
+                capture_output=True,
+                text=True,
+                timeout=timeout_s,
+            )
+        text = proc.stdout + proc.stderr
+        why = rs274_ended(proc.returncode, text)
+        if not why:
+            return text
+        reasons.append(f"try {attempt}: {why}")
+        _log.warning("rs274 on %s was cut short (%s)", program, reasons[-1])
+    raise RS274CutShort(
+        f"rs274 was cut short on {program} ({'; '.join(reasons)}): "
+        "its output says nothing about cutlab"
+    )
 
 
 def _nums(args: str) -> list[float]:
@@ -538,6 +586,7 @@ __all__ = [
     "RS274",
     "Canon",
     "Outcome",
+    "RS274CutShort",
     "Seg",
     "available",
     "compare",
@@ -547,5 +596,6 @@ __all__ = [
     "motion_segments",
     "parse_canon",
     "random_program",
+    "rs274_ended",
     "run_rs274",
 ]

@@ -12,12 +12,17 @@ segment by segment (kinds, end points, arc centres, feeds, dwells, rotary axes; 
   U V W axes, no motion, or refused by rs274 itself);
 * random programs (seeded: ``_rs274.random_program``) mixing all of the above must agree.
 
+An rs274 run that does not reach the end of the program (nor an error of its own) is run again, up
+to 3 times, then the test fails saying rs274 was cut short; each run has its own $HOME (rs274 maps
+``$HOME/.tool.mmap``, which a second rs274 truncates: SIGBUS after 5 canonical calls).
+
 Skipped when ``/usr/bin/rs274`` is absent (``apt-get install linuxcnc-uspace``); the parsing of
 rs274's output is tested on a stored sample in any case.
 """
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 
 import _rs274
@@ -165,3 +170,88 @@ def test_scope_reasons(tmp_path: Path):
         p = tmp_path / "p.ngc"
         p.write_text(text + "\nM2\n")
         assert (why in out_of_scope(p)) if why else out_of_scope(p) == "", text
+
+
+# what a run killed by another rs274 printed (SIGBUS, status -7): no end of program, no error
+CUT_SHORT = """    1 N..... USE_LENGTH_UNITS(CANON_UNITS_MM)
+    2 N..... SET_G5X_OFFSET(1, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000)
+    3 N..... SET_G92_OFFSET(0.0000, 0.0000, 0.0000, 0.0000, 0.0000, 0.0000)
+    4 N..... SET_XY_ROTATION(0.0000)
+    5 N..... SET_FEED_REFERENCE(CANON_XYZ)
+executing
+"""
+WHOLE = (
+    CUT_SHORT
+    + """    6 N..... STRAIGHT_FEED(4.0000, 5.0000, 3.0000, 0.0000, 0.0000, 0.0000)
+    7 N..... PROGRAM_END()
+    8 N..... ON_RESET()
+"""
+)
+
+
+def test_a_cut_short_rs274_run_is_told_from_an_ended_one():
+    assert _rs274.rs274_ended(0, WHOLE) == ""
+    assert _rs274.rs274_ended(0, WHOLE.replace("PROGRAM_END", "FINISH")) == ""  # closing "%"
+    assert _rs274.rs274_ended(1, CUT_SHORT + "Bad character 'w' used\n") == ""  # its own error
+    assert _rs274.rs274_ended(-7, CUT_SHORT) == "killed by SIGBUS after 5 canonical calls"
+    assert "no end of program" in _rs274.rs274_ended(0, CUT_SHORT)
+    assert "no end of program" in _rs274.rs274_ended(1, "")  # status 1 and nothing said
+    assert _rs274.rs274_ended(-7, WHOLE).startswith("killed by SIGBUS")
+
+
+def _flaky_rs274(tmp_path: Path, cut_first: int) -> Path:
+    """A stand-in for rs274 killed by SIGBUS (as a shared .tool.mmap did) on its first
+    ``cut_first`` runs, then printing a whole program."""
+    count, script = tmp_path / "count", tmp_path / "rs274"
+    whole = "".join(f"echo '{ln}'\n" for ln in WHOLE.splitlines())
+    script.write_text(
+        "#!/bin/sh\n"
+        f"n=$(cat {count} 2>/dev/null || echo 0); n=$((n + 1)); echo $n > {count}\n"
+        f"echo '{CUT_SHORT.splitlines()[0]}'\n"
+        f'if [ "$n" -le {cut_first} ]; then kill -BUS $$; fi\n' + whole
+    )
+    script.chmod(0o755)
+    return script
+
+
+@pytest.mark.faults
+def test_a_cut_short_rs274_run_is_retried(tmp_path: Path, caplog):
+    prog = tmp_path / "p.ngc"
+    prog.write_text("G1 X4 Y5 Z3 F300\nM2\n")
+    with caplog.at_level("WARNING", logger="_rs274"):
+        text = _rs274.run_rs274(prog, rs274=_flaky_rs274(tmp_path, 2))
+    assert text.rstrip().endswith("ON_RESET()") and "PROGRAM_END()" in text
+    tries = [r.getMessage() for r in caplog.records if "cut short" in r.getMessage()]
+    assert len(tries) == 2 and "try 1: killed by SIGBUS after 1 canonical calls" in tries[0]
+
+
+@pytest.mark.faults
+def test_an_rs274_cut_short_three_times_fails_as_such(tmp_path: Path):
+    prog = tmp_path / "p.ngc"
+    prog.write_text("G1 X4 Y5 Z3 F300\nM2\n")
+    with pytest.raises(_rs274.RS274CutShort, match=r"rs274 was cut short on .*p\.ngc \(try 1: "
+                       r"killed by SIGBUS.*try 3: killed by SIGBUS"):  # fmt: skip
+        _rs274.run_rs274(prog, rs274=_flaky_rs274(tmp_path, 3))
+    assert (tmp_path / "count").read_text().strip() == "3"  # bounded: 3 runs
+
+
+@needs_rs274
+def test_rs274_runs_at_the_same_time_all_end(tmp_path: Path):
+    # 4 at once, 4 times each: with one shared $HOME/.tool.mmap about 1 run in 4 was cut short
+    prog = tmp_path / "p.ngc"
+    prog.write_text(_rs274.random_program(3))
+    alone = _rs274.run_rs274(prog)
+    outs = []
+
+    def runs():
+        for _ in range(4):
+            outs.append(_rs274.run_rs274(prog))
+
+    threads = [threading.Thread(target=runs) for _ in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=120)
+    assert not any(t.is_alive() for t in threads)
+    assert len(outs) == 16 and all(o == alone for o in outs)
+    assert "PROGRAM_END()" in alone
