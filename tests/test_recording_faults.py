@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import errno
 import json
+import re
 import subprocess
 import sys
 import time
@@ -119,7 +120,8 @@ def test_disk_running_low_stops_recording_cleanly_before_it_is_full(
     while w.failure is None and time.monotonic() < deadline:
         time.sleep(0.01)
     assert w.failure is not None
-    assert "50 MB free, below the 64 MB margin: recording stopped" in w.failure
+    assert "disk nearly full" in w.failure and "50000000 free bytes (50 MB free)" in w.failure
+    assert "below the 64 MB margin: recording stopped at sample 2000" in w.failure
     assert str(tmp_path) in w.failure
     for k in range(4, 8):  # the DAQ goes on delivering; nothing more is written
         w.on_block(k * B, _block(k * B))
@@ -154,7 +156,7 @@ sys.path.insert(0, {root!r})
 from rig.daq import DaqInfo
 from rig.log import RunWriter
 signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # the write fails with EFBIG instead
-resource.setrlimit(resource.RLIMIT_FSIZE, (3_000_000, 3_000_000))
+resource.setrlimit(resource.RLIMIT_FSIZE, (6_000_000, 6_000_000))
 info = DaqInfo(device="t", physical_channels=("a", "b"), channel_names=("a", "b"),
                rate_hz=10000.0, sample_format="volts_float64", input_range_v=10.0,
                block_samples=1000)
@@ -170,22 +172,26 @@ print(w.failure)
 """
 
 
-def test_a_real_write_error_ends_failed_without_a_crash(tmp_path: Path) -> None:
+def test_a_file_size_limit_ends_failed_without_a_crash(tmp_path: Path) -> None:
     """HDF5 cannot close a file it failed to write and crashed the process at exit (rc 139):
-    now the process ends normally and the file holds every flushed sample, status fail."""
+    now the writer stops before the limit (ulimit -f) is reached, the process ends normally and
+    the file holds every sample it was handed before the stop, status fail."""
     p = tmp_path / "limit.h5"
     res = subprocess.run(
         [sys.executable, "-c", _EFBIG.format(root=str(ROOT)), str(p)],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert res.returncode == 0, res.stderr[-2000:]
-    assert "File too large (EFBIG)" in res.stdout
+    assert "file size limit reached" in res.stdout and "RLIMIT_FSIZE" in res.stdout
     with h5py.File(p, "r") as f:
         status = json.loads(rf.decode_text(f[rf.meta_path(rf.META_STATUS)]))
-    assert status["status"] == "fail" and "EFBIG" in status["reason"]
+    assert status["status"] == "fail" and "file size limit" in status["reason"]
+    assert p.stat().st_size <= 6_000_000
     run = rf.load_run(p)
-    # 2 channels x 8 B: 3 MB holds at most ~187 k samples; at least several flushes got there.
-    assert 10_000 <= run.samples_stored < 187_500
+    stopped_at = int(re.search(r"stopped at sample (\d+)", status["reason"])[1])
+    # 2 channels x 8 B: 6 MB holds at most 375 k samples; 2 MiB of it stay for a chunk and
+    # the close, so at least 150 k samples (several flushes) got there.
+    assert 150_000 <= run.samples_stored == stopped_at < 375_000
     _assert_prefix(run)
 
 

@@ -70,7 +70,12 @@ file when its writer is gone (the status names the writer's process and host): e
 copied, the samples cut at ``/forces/flushed`` (what lies past it may be zeros), into a fresh file
 that replaces the original atomically once it verifies (the original is kept as ``.bak`` until
 then), with status ``interrupted``. Where it cannot be rewritten (a read-only folder) it is read in
-SWMR mode and still reported ``interrupted``. :attr:`Run.complete` is False for both.
+SWMR mode and still reported ``interrupted``. :attr:`Run.complete` is False for both. A writer
+that stopped on a failed write and could not rewrite its file (no room) leaves its reason in a
+sidecar ``.NAME.reason``; the repair takes status and reason from it (and removes it). A repair
+killed mid-way leaves ``.NAME.repair-PID`` and ``NAME.bak-PID``: the next read of a run file in
+that folder removes those of dead processes (a ``.bak`` is restored if the run file is missing or
+no longer opens, else removed).
 """
 
 from __future__ import annotations
@@ -346,6 +351,93 @@ def writer_alive(status: dict[str, Any]) -> bool:
     return True
 
 
+def _reason_sidecar(p: Path) -> Path:
+    return p.with_name(f".{p.name}.reason")
+
+
+def write_reason_sidecar(path: str | Path, status: str, reason: str) -> None:
+    """Leave ``status`` and ``reason`` beside a run file its writer could not close (best effort:
+    the next repair uses them instead of "interrupted")."""
+    text = json.dumps({"status": status, "reason": reason, "writer": writer_identity()})
+    with contextlib.suppress(OSError):
+        _reason_sidecar(Path(path)).write_text(text)
+
+
+def remove_reason_sidecar(path: str | Path) -> None:
+    with contextlib.suppress(OSError):
+        _reason_sidecar(Path(path)).unlink()
+
+
+def _sidecar_reason(p: Path) -> tuple[str, str] | None:
+    """(status, reason) a writer left beside ``p``, or None."""
+    try:
+        d = json.loads(_reason_sidecar(p).read_text())
+        st, why = str(d["status"]), str(d["reason"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return (st, why) if st in CLOSED_STATUSES else None
+
+
+_LEFTOVER = re.compile(r"^(?:\.(?P<tmp>.+)\.repair-(?P<p1>\d+)|(?P<bak>.+)\.bak-(?P<p2>\d+))$")
+_swept: dict[str, int] = {}  # folder -> its mtime (ns) when last swept
+
+
+def sweep_repair_leftovers(folder: str | Path) -> list[str]:
+    """Remove what repairs killed mid-way left in ``folder`` (their process is gone): the copy
+    ``.NAME.repair-PID``, and ``NAME.bak-PID`` (put back as NAME if NAME is missing or does not
+    open, else removed). Returns what was done, a line each. A folder unchanged since its last
+    sweep in this process is not listed again."""
+    d = Path(folder)
+    try:
+        mtime = d.stat().st_mtime_ns
+    except OSError:
+        return []
+    if _swept.get(str(d)) == mtime:
+        return []
+    done: list[str] = []
+    try:
+        names = [e.name for e in os.scandir(d) if ".repair-" in e.name or ".bak-" in e.name]
+    except OSError:
+        names = []
+    host = socket.gethostname()
+    for name in names:
+        m = _LEFTOVER.match(name)
+        if m is None:
+            continue
+        pid = int(m["p1"] or m["p2"])
+        if pid == os.getpid() or writer_alive({"writer": {"pid": pid, "host": host}}):
+            continue
+        leftover = d / name
+        with contextlib.suppress(OSError):
+            if m["tmp"] is not None:
+                leftover.unlink()
+                done.append(f"removed {leftover} (a repair's copy; process {pid} gone)")
+                continue
+            original = d / m["bak"]
+            if _opens(original):
+                leftover.unlink()
+                done.append(f"removed {leftover} ({original} is intact)")
+            else:
+                os.replace(leftover, original)
+                done.append(f"restored {original} from {leftover}")
+    with contextlib.suppress(OSError):
+        _swept[str(d)] = d.stat().st_mtime_ns
+    return done
+
+
+def _opens(p: Path) -> bool:
+    """``p`` is an HDF5 file that opens (plainly or, a writer's, in SWMR mode)."""
+    if not p.is_file() or not h5py.is_hdf5(str(p)):
+        return False
+    for kw in ({}, {"libver": "latest", "swmr": True}):
+        try:
+            h5py.File(p, "r", **kw).close()
+            return True
+        except OSError:
+            continue
+    return False
+
+
 def _needs_repair(p: Path) -> bool:
     """HDF5 refuses a plain open: the file is marked open for writing (a live or dead writer), or
     a writer that failed mid-flush recorded an end of file beyond the bytes it wrote."""
@@ -371,7 +463,10 @@ def repair_run(
     rewritten (no room, a read-only folder).
     """
     p = Path(path)
+    sweep_repair_leftovers(p.parent)
     if not p.is_file() or not _needs_repair(p):
+        if p.is_file() and _reason_sidecar(p).exists() and _opens(p):
+            remove_reason_sidecar(p)  # its file was repaired (or closed) after all
         return False
     tmp = p.with_name(f".{p.name}.repair-{os.getpid()}")
     bak = p.with_name(f"{p.name}.bak-{os.getpid()}")
@@ -381,6 +476,9 @@ def repair_run(
             dead = writer_gone or not writer_alive(old)
             if old.get("status", STATUS_RUNNING) != STATUS_RUNNING or not dead:
                 return False
+            left = _sidecar_reason(p) if reason is None else None
+            if left is not None:  # the writer's own reason (disk full ...), not "interrupted"
+                status, reason = left
             kept = _copy_flushed(src, tmp, old, status, reason)
         with h5py.File(tmp, "r") as chk:  # the copy opens plainly and holds what was kept
             if int(samples_dataset(chk).shape[0]) != kept:
@@ -388,12 +486,20 @@ def repair_run(
         os.link(p, bak)  # the original stays reachable until the copy is in place
         os.replace(tmp, p)
         bak.unlink()
+        remove_reason_sidecar(p)
         return True
     except (OSError, KeyError, RunFileError):
         return False
     finally:
+        # Nothing of the repair outlives it, whatever stopped it (an exception, Ctrl-C).
         with contextlib.suppress(OSError):
             tmp.unlink()
+        with contextlib.suppress(OSError):
+            if bak.exists():
+                if p.exists():
+                    bak.unlink()  # the original (same file) or the verified copy is in place
+                else:
+                    os.replace(bak, p)
 
 
 def _copy_flushed(
@@ -674,6 +780,9 @@ def _load(f: h5py.File, p: Path, start_s: float | None, stop_s: float | None, sa
     reason = str(status.get("reason", ""))
     if state == STATUS_RUNNING and not writer_alive(status):
         state, reason = STATUS_INTERRUPTED, _interrupted_reason(n_stored)
+        left = _sidecar_reason(p)
+        if left is not None:  # not rewritten (no room, read-only): the writer's reason still
+            state, reason = left
     events = _table(f, EVENTS)
     lo, hi = 0, n_stored
     if start_s is not None:

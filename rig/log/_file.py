@@ -6,9 +6,14 @@ The layout itself is documented in :mod:`analysis.runs.file`; this module only b
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import datetime as dt
+import errno
 import json
 import os
+import re
+import shutil
 from collections.abc import Mapping
 from dataclasses import asdict, is_dataclass
 from pathlib import Path
@@ -50,6 +55,59 @@ def jsonable(obj: Any) -> Any:
     if isinstance(obj, Path):
         return str(obj)
     return obj
+
+
+_FALLOC_FL_KEEP_SIZE = 1
+_fallocate: Any = None
+
+
+def reserve_blocks(fd: int, offset: int, length: int) -> int | None:
+    """Allocate the disk blocks of bytes [offset, offset + length) of the open file ``fd``
+    without changing its size (Linux ``fallocate`` with FALLOC_FL_KEEP_SIZE): HDF5's later
+    writes there cannot fail for lack of space. 0 on success, the errno on failure (ENOSPC,
+    EDQUOT ...), None where the system or file system cannot (then nothing is reserved)."""
+    global _fallocate
+    if _fallocate is None:
+        try:
+            f = ctypes.CDLL(None, use_errno=True).fallocate
+            f.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_int64, ctypes.c_int64]
+            _fallocate = f
+        except (OSError, AttributeError):
+            _fallocate = False
+    if not _fallocate:
+        return None
+    if _fallocate(fd, _FALLOC_FL_KEEP_SIZE, offset, length) == 0:
+        return 0
+    err = ctypes.get_errno()
+    return None if err in (errno.EOPNOTSUPP, errno.ENOSYS, errno.EINVAL) else err
+
+
+def release_blocks(path: Path) -> None:
+    """Give back the blocks reserved past the end of ``path`` (a truncate to its own size frees
+    them on ext4, xfs and tmpfs)."""
+    with contextlib.suppress(OSError):
+        os.truncate(path, path.stat().st_size)
+
+
+def free_bytes(folder: Path) -> int:
+    """Free bytes on the file system of ``folder`` (or of its nearest existing parent)."""
+    p = Path(folder).absolute()
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return shutil.disk_usage(p).free
+
+
+def disk_full_reason(errno_code: int | None, folder: Path) -> str:
+    """``disk full: FOLDER has N free bytes`` (ENOSPC, EDQUOT) or ``file size limit ...`` (EFBIG,
+    ``ulimit -f``) or "" for other errors: what a failed write's reason starts with."""
+    if errno_code in (errno.ENOSPC, errno.EDQUOT):
+        try:
+            return f"disk full: {folder} has {free_bytes(folder)} free bytes"
+        except OSError:
+            return f"disk full: {folder}"
+    if errno_code == errno.EFBIG:
+        return "file size limit reached (ulimit -f, RLIMIT_FSIZE)"
+    return ""
 
 
 def chunk_rows(info: DaqInfo) -> int:
@@ -129,7 +187,36 @@ def create_run_file(
             rdcc_nslots=1009,
         )
     except OSError as exc:
-        raise RunWriterError(f"{path}: cannot create the run file: {exc}") from None
+        building.unlink(missing_ok=True)
+        raise RunWriterError(_cannot_create(path, exc)) from None
+    try:
+        ds = _build(f, info, cal, compression)
+        os.replace(building, path)  # the open file keeps its descriptor
+    except Exception as exc:
+        # A full disk while building: HDF5 cannot close a file it failed to write (and crashes
+        # at exit if left to try), so its descriptor goes to /dev/null first.
+        with contextlib.suppress(Exception):
+            null = os.open(os.devnull, os.O_RDWR)
+            os.dup2(null, f.id.get_vfd_handle())
+            os.close(null)
+        with contextlib.suppress(Exception):
+            f.close()
+        building.unlink(missing_ok=True)
+        raise RunWriterError(_cannot_create(path, exc)) from None
+    return f, ds
+
+
+def _cannot_create(path: Path, exc: BaseException) -> str:
+    m = re.search(r"errno = (\d+)", str(exc))
+    code = getattr(exc, "errno", None) or (int(m[1]) if m else None)
+    full = disk_full_reason(code, path.parent)
+    what = f"{full}" if full else str(exc).splitlines()[0][:300]
+    return f"{path}: cannot create the run file: {what}"
+
+
+def _build(f: h5py.File, info: DaqInfo, cal: Calibration | None, compression: str | None) -> Any:
+    """Every object of a new run file in ``f``; SWMR on; returns the samples dataset."""
+    c = info.n_channels
     f.attrs[rf.ATTR_FORMAT] = rf.FORMAT_NAME
     f.attrs[rf.ATTR_FORMAT_VERSION] = rf.FORMAT_VERSION
     f.attrs[rf.ATTR_SOFTWARE_VERSION] = __version__
@@ -187,10 +274,4 @@ def create_run_file(
     write_text(f, rf.META_STATUS, json.dumps(status))
     f.swmr_mode = True
     f.flush()
-    try:
-        os.replace(building, path)  # the open file keeps its descriptor
-    except OSError as exc:
-        f.close()
-        building.unlink(missing_ok=True)
-        raise RunWriterError(f"{path}: cannot create the run file: {exc}") from None
-    return f, ds
+    return ds

@@ -13,11 +13,19 @@ moment leaves a file that opens and holds everything up to its last flush (defau
 The medium: the writer thread checks the free space of the file's folder at every flush and, below
 ``min_free_mb``, stops recording cleanly (a ``fault`` event, everything so far flushed) before the
 disk is full; :func:`free_space_problem` checks a recording's expected size before it starts. A
-write error (ENOSPC, EIO, EFBIG from HDF5) stops the writer too: HDF5 cannot close a file it failed
-to write (and crashes the process at exit if left to try), so the file is abandoned (its
-descriptor pointed at /dev/null so nothing more reaches the disk) and rewritten at :meth:`close`
-with every flushed sample and status ``fail``. Either way :attr:`RunWriter.failure` says why, for
-the run to end with that reason.
+disk that another program fills at once is met by a reservation: before HDF5 writes anything the
+writer allocates the disk blocks it will go into, past the file's end (Linux ``fallocate``
+KEEP_SIZE), the next samples plus room for the close; when the disk (or ``ulimit -f``) cannot
+give more, recording stops there cleanly ("disk full: ... free bytes") and the close writes its
+status into blocks already held, so the file closes normally and plain h5py opens it; blocks
+held and unused are given back at the close. A write error HDF5 still meets (EIO, a file system
+without ``fallocate``) stops the writer too: HDF5 cannot close a file it failed to write (and
+crashes the process at exit if left to try), so the file is abandoned (its descriptor pointed at
+/dev/null so nothing more reaches the disk) and rewritten at :meth:`close` with every flushed
+sample and status ``fail``; if there is no room for that copy the reason is left in a small
+sidecar (``.NAME.reason``) and the next read repairs the file with it. Either way
+:attr:`RunWriter.failure` says why, for the run to end with that reason, and :meth:`stats` after
+the close counts the samples the file holds.
 
 The layout is documented in :mod:`analysis.runs.file` and written here only through its constants.
 
@@ -46,15 +54,20 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import h5py
 import numpy as np
 
 from analysis.runs import file as rf
 from rig.daq import Calibration, DaqEvent, DaqInfo
 from rig.log._file import (
+    CHUNK_BYTES,
     RunWriterError,
     append_rows,
     create_run_file,
+    disk_full_reason,
     jsonable,
+    release_blocks,
+    reserve_blocks,
     utc_now,
     write_acks,
     write_text,
@@ -66,6 +79,10 @@ __all__ = ["MIN_FREE_MB", "RunWriter", "RunWriterError", "WriterStats", "free_sp
 _STOP = object()
 #: MB that must stay free on the run file's disk: below it a recording stops (or does not start).
 MIN_FREE_MB = 64.0
+#: Bytes held for the close's own writes (status, events, indexes, superblock) beyond the samples.
+_CLOSE_BYTES = 1 << 20
+#: Bytes reserved ahead of the samples at a time (fewer fallocate calls).
+_RESERVE_STEP = 4 << 20
 
 
 def free_bytes(folder: Path) -> int:
@@ -91,6 +108,17 @@ def free_space_problem(
     )
 
 
+def _file_size_limit() -> int | None:
+    """This process's file size limit (``ulimit -f``), bytes; None without one."""
+    try:
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    except (ImportError, OSError, ValueError):
+        return None
+    return None if soft == resource.RLIM_INFINITY else int(soft)
+
+
 def _write_failure(path: Path, exc: BaseException) -> str:
     """One line for a failed write, with the OS error HDF5 buried in its message."""
     text = str(exc)
@@ -98,7 +126,9 @@ def _write_failure(path: Path, exc: BaseException) -> str:
     code = getattr(exc, "errno", None) or (int(m[1]) if m else None)
     what = m[2] if m else (os.strerror(code) if code else text.splitlines()[0][:200])
     name = errno.errorcode.get(code, "") if code else ""
-    return f"write error on {path}: {what}{f' ({name})' if name else ''}"
+    full = disk_full_reason(code, path.parent)
+    name = f" ({name})" if name else ""
+    return f"{full + ': ' if full else ''}write error on {path}: {what}{name}"
 
 
 @dataclass(frozen=True)
@@ -198,6 +228,15 @@ class RunWriter:
         self._abandoned = False  # HDF5 failed a write: the file is left alone, rewritten at close
         self._closed = False
         self._close_as = (rf.STATUS_SUCCESS, "")
+        # The disk blocks held past the file's end (see the module docstring).
+        self._fd = self._f.id.get_vfd_handle()
+        self._reserving = True  # False where fallocate is not supported
+        self._reserved_to = 0  # file offset up to which blocks are held
+        self._pending = 0  # bytes of samples written since the last flush (maybe not on disk yet)
+        self._flushed_rows = 0
+        self._row_bytes = self._c * self._dtype.itemsize
+        self._size_limit = _file_size_limit()
+        self._ensure_room(0)
         self._thread = threading.Thread(target=self._run, name=f"RunWriter({self.path.name})")
         self._thread.daemon = True
         self._thread.start()
@@ -450,19 +489,36 @@ class RunWriter:
         self._close_as = (status, reason)
         self._filled.put(_STOP)
         self._thread.join()
-        final, why = self._final_status_of(status, reason)
-        if self._abandoned:
-            # The flushed samples into a fresh file with the status (needs room for them; if
-            # there is none, the next reader repairs it as interrupted).
-            rf.repair_run(self.path, status=final, reason=why, writer_gone=True)
-        else:
+        if not self._abandoned:
             try:
                 self._f.close()
             except Exception as exc:  # noqa: BLE001 - a failed last write is a failure too
                 self.failure = self.failure or _write_failure(self.path, exc)
+                self._abandon()
+        release_blocks(self.path)  # the held blocks back to the disk: room for what follows
+        final, why = self._final_status_of(status, reason)
+        if self._abandoned:
+            # The reason first (the room just given back holds it), then the flushed samples
+            # into a fresh file with the status; without room for that copy the next read
+            # repairs the file with this reason.
+            rf.write_reason_sidecar(self.path, final, why)
+            if rf.repair_run(self.path, status=final, reason=why, writer_gone=True):
+                rf.remove_reason_sidecar(self.path)
+        self._committed = self._stored_rows()  # what the file holds, not what was handed over
         if self.failure is not None and status == rf.STATUS_SUCCESS:
             raise RunWriterError(self.failure)
         return self.stats()
+
+    def _stored_rows(self) -> int:
+        """Samples per channel the closed file holds (read back; as the next read will see)."""
+        try:
+            with h5py.File(self.path, "r") as f:
+                return int(rf.samples_dataset(f).shape[0])
+        except Exception:  # noqa: BLE001 - not plainly openable: what its repair will keep
+            try:
+                return rf.load_run(self.path, samples=False, repair=False).samples_stored
+            except Exception:  # noqa: BLE001
+                return self._flushed_rows
 
     def _final_status_of(self, status: str, reason: str) -> tuple[str, str]:
         if self.failure is None:
@@ -521,8 +577,9 @@ class RunWriter:
             write_text(self._f, rf.META_STATUS, json.dumps(closed))
             self._f.flush()
         except BaseException as exc:  # noqa: BLE001 - surfaced by close() and ``failure``
-            self.error = exc
+            # failure before error: a waiter woken by the error reads the failure
             self.failure = self.failure or _write_failure(self.path, exc)
+            self.error = exc
             self._abandon()
         finally:
             with self._idle:
@@ -544,14 +601,15 @@ class RunWriter:
         """Append the first n rows of a filled pool buffer (n, c) to the samples dataset and
         return the buffer to the pool."""
         _, n, buf = item
-        if self.failure is not None:  # stopped: the buffer goes back, nothing more is written
-            self._free.put(buf)
+        if self.failure is not None or not self._ensure_room(n * self._row_bytes):
+            self._free.put(buf)  # stopped: the buffer goes back, nothing more is written
             return
         t = time.perf_counter()
         end = self._committed + n
         self._ds.resize((end, self._c))
         self._ds[self._committed : end] = buf[:n]
         self._committed = end
+        self._pending += n * self._row_bytes
         self._max_write_s = max(self._max_write_s, time.perf_counter() - t)
         self._blocks_written += 1
         self._free.put(buf)
@@ -566,16 +624,61 @@ class RunWriter:
         flushed = self._f[rf.FLUSHED]
         flushed[0] = self._committed
         flushed.flush()
+        self._pending = 0
+        self._flushed_rows = self._committed
         self._flushes += 1
         self._max_flush_s = max(self._max_flush_s, time.perf_counter() - t)
         free = free_bytes(self.path.parent)
         if self.failure is None and free < self.min_free_mb * 1e6:
-            self.failure = (
-                f"{self.path.parent}: {free / 1e6:.0f} MB free, below the {self.min_free_mb:g} MB "
-                f"margin: recording stopped at sample {self._committed} before the disk fills"
+            word = "disk full" if free < _RESERVE_STEP else "disk nearly full"
+            self._stop(
+                f"{word}: {self.path.parent} has {free} free bytes ({free / 1e6:.0f} MB"
+                f" free), below the {self.min_free_mb:g} MB margin: recording stopped at sample "
+                f"{self._committed} before the disk fills"
             )
-            ev = DaqEvent(rf.EV_FAULT, -1, self.failure[-200:], time_s=self.clock())
+
+    def _stop(self, why: str) -> bool:
+        """Stop recording for ``why`` (a ``fault`` event; :attr:`failure`); False."""
+        if self.failure is None:
+            self.failure = why
+            ev = DaqEvent(rf.EV_FAULT, -1, why[-rf.EVENT_MESSAGE_BYTES :], time_s=self.clock())
             self._control.append(("event", ev))
+        return False
+
+    def _ensure_room(self, add_bytes: int) -> bool:
+        """Hold the disk blocks the next ``add_bytes`` of samples, the samples written since the
+        last flush, a chunk HDF5 may start and the close's writes will go into, before HDF5
+        writes any of them; False (recording stopped) when the disk or the file size limit has
+        no room for them."""
+        if not self._reserving:
+            return self.failure is None
+        try:
+            size = os.fstat(self._fd).st_size
+        except OSError:
+            return self.failure is None
+        need_to = size + self._pending + add_bytes + CHUNK_BYTES + _CLOSE_BYTES
+        if need_to <= self._reserved_to:
+            return True
+        at = f"recording stopped at sample {self._committed}, every sample before it kept"
+        limit = self._size_limit
+        if limit is not None and need_to > limit:
+            return self._stop(f"file size limit reached: {self.path} may grow to {limit} bytes "
+                              f"(ulimit -f, RLIMIT_FSIZE): {at}")  # fmt: skip
+        want = need_to + _RESERVE_STEP + 2 * add_bytes
+        if limit is not None:
+            want = min(want, limit)
+        err = reserve_blocks(self._fd, size, want - size)
+        if err in (errno.ENOSPC, errno.EDQUOT) and want > need_to:
+            want = need_to  # the last bytes of the disk are still worth recording into
+            err = reserve_blocks(self._fd, size, want - size)
+        if err is None:  # the file system cannot: the margin and the write-error path remain
+            self._reserving = False
+            return self.failure is None
+        if err:
+            why = disk_full_reason(err, self.path.parent) or f"no disk space: {os.strerror(err)}"
+            return self._stop(f"{why}, {need_to - size} needed: {at}")
+        self._reserved_to = want
+        return True
 
     def _drain_control(self) -> None:
         events: list[DaqEvent] = []
