@@ -80,6 +80,7 @@ def campaign_inputs(campaign: Campaign) -> dict[str, dict[str, Any]]:
         # the campaign's own catalogue is searched first (its names shadow the shipped ones)
         shipped = cfg / f"{kind}.toml"
         where = f"{here / user}, then {shipped}" if user else str(shipped)
+        where = campaign.source(kind) or where  # the file it was read from (--tools too)
         return f"{where} [{kind}.{name}]"
 
     return {
@@ -149,9 +150,40 @@ class Manifest:
         self.save()
 
     def save(self) -> None:
-        tmp = self.path.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(self.data, indent=2, default=str))
-        os.replace(tmp, self.path)
+        """Write the manifest atomically (a temporary file, fsync, rename): a failed write (a
+        full disk) leaves the previous manifest as it was, removes the temporary file and raises
+        a one-line RigError."""
+        save_json_atomic(self.path, self.data, "campaign manifest")
+
+
+def save_json_atomic(path: Path, data: Any, what: str) -> None:
+    """``data`` as JSON at ``path``, all or nothing (see :meth:`Manifest.save`)."""
+    text = json.dumps(data, indent=2, default=str).encode()
+    tmp = path.with_name(f"{path.name}.tmp")
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        try:
+            view = memoryview(text)
+            while view:
+                view = view[os.write(fd, view) :]
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, path)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        from rig.log._file import disk_full_reason
+
+        why = disk_full_reason(exc.errno, path.parent) or exc.strerror or str(exc)
+        kept = "the previous one is kept" if path.exists() else "none was written"
+        raise RigError(f"{path}: cannot save the {what}: {why}; {kept}") from None
+    with contextlib.suppress(OSError):  # the rename itself survives a power cut
+        dfd = os.open(path.parent, os.O_RDONLY)
+        try:
+            os.fsync(dfd)
+        finally:
+            os.close(dfd)
 
 
 @contextlib.contextmanager

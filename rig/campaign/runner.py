@@ -228,6 +228,8 @@ def _expected_seconds(cut: CutProgram, campaign: Campaign) -> float:
 # ----------------------------------------------------------------------------------------------
 
 SessionFactory = Callable[[Campaign, PlannedRun, int], RigSession]
+#: How a writer's failure for want of room starts (rig.log.writer).
+_NO_ROOM = ("disk full", "disk nearly full", "file size limit")
 
 
 def default_session_factory(campaign: Campaign) -> SessionFactory:
@@ -440,6 +442,10 @@ def run_campaign(
                 t.name, status=status, reason=reason, ended_utc=utc_now(),
                 peak_force_n=outcome.peak_force_n, wall_s=round(outcome.wall_s, 3),
             )  # fmt: skip
+            if writer.failure is not None and writer.failure.startswith(_NO_ROOM):
+                # no room for the next run either: stop here, in one line, files closed
+                raise RigError(f"run {t.index} ({t.name}) stopped: {writer.failure}; free some "
+                               "space and run the same command again to resume")  # fmt: skip
             records.append(
                 RunRecord(t.index, t.name, t.group, str(path), status, reason, False,
                           outcome.peak_force_n, outcome.wall_s)

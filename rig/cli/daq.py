@@ -25,7 +25,8 @@ def _record(args: argparse.Namespace) -> int:
 
     conditions = parse_conditions(args.conditions)
     plan = plan_recording(args.rig, args.output, args.seconds, rate_hz=args.rate_hz,
-                          overwrite=args.force, conditions=conditions)  # fmt: skip
+                          overwrite=args.force, conditions=conditions,
+                          min_free_mb=args.min_free_mb)  # fmt: skip
     for w in plan.notes:
         status(f"daq record: {w}")
     if args.sim:
@@ -79,6 +80,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     add("--conditions", nargs="+", default=[], metavar="KEY=VALUE",
         help="cutting conditions as KEY=VALUE pairs (spindle_rpm=600 tool=phi10-flat; numbers "
         "stored as numbers) or one JSON object ('{\"feed_mm_min\": 300}')")  # fmt: skip
+    add("--min-free-mb", type=nonnegative("MB", 1e6), default=64.0,
+        help="MB to keep free on the file's disk: a recording that would need them does not "
+        "start, one that reaches them stops cleanly (default 64)")  # fmt: skip
     add("--force", action="store_true", help="overwrite an existing file")
     add("--quiet", action="store_true", help="no progress bar")
     add("--json", action="store_true", help="summary as JSON on stdout")

@@ -19,7 +19,7 @@ import numpy as np
 from analysis.runs import file as rf
 from rig.daq import Calibration, Daq, DaqInfo
 from rig.errors import RigError
-from rig.log.writer import RunWriter, WriterStats, free_space_problem
+from rig.log.writer import MIN_FREE_MB, RunWriter, WriterStats, free_space_problem
 
 if TYPE_CHECKING:
     from analysis.config import RigConfig
@@ -81,6 +81,7 @@ class RecordPlan:
     overwrite: bool
     conditions: dict[str, Any]
     notes: list[str]  # warnings to show and store as note events (aliasing)
+    min_free_mb: float = MIN_FREE_MB  # MB kept free on the disk (the writer stops below it)
 
 
 def plan_recording(
@@ -91,10 +92,12 @@ def plan_recording(
     rate_hz: float | None = None,
     overwrite: bool = False,
     conditions: Mapping[str, Any] | None = None,
+    min_free_mb: float = MIN_FREE_MB,
 ) -> RecordPlan:
     """Check a recording before any device is opened: the rig config (None: configs/rig.toml),
     ``seconds`` > 0, ``rate_hz`` in (0, 1e7] Hz (None or 0: the config's), ``path`` new unless
-    ``overwrite``, room on its disk for the recording (float64 bound) and the writer's margin;
+    ``overwrite``, room on its disk for the recording (float64 bound) and the writer's margin
+    ``min_free_mb``;
     ``notes`` gets the aliasing warning of the rate."""
     from analysis.config import load_rig
 
@@ -107,12 +110,16 @@ def plan_recording(
     out = Path(path)
     if out.exists() and not overwrite:
         raise RigError(f"{out}: file exists; --force overwrites it")
-    problem = free_space_problem(out.parent, seconds * rate * len(rig.daq.channels) * 8)
+    if not 0 <= min_free_mb <= 1e6:
+        raise RigError(f"--min-free-mb = {min_free_mb}: must be in [0, 1e6] MB")
+    need = seconds * rate * len(rig.daq.channels) * 8
+    problem = free_space_problem(out.parent, need, min_free_mb)
     if problem:
         raise RigError(problem)
     notes = [w for w in [aliasing_warning(rate, rig.dynamometer)] if w]
     where = str(rig_path or "configs/rig.toml")
-    return RecordPlan(rig, where, out, seconds, rate, overwrite, dict(conditions or {}), notes)
+    return RecordPlan(rig, where, out, seconds, rate, overwrite, dict(conditions or {}), notes,
+                      float(min_free_mb))  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -156,6 +163,7 @@ def record(
     rig: Mapping[str, Any] | None = None,
     progress: Callable[[float], None] | None = None,
     notes: Sequence[str] = (),
+    min_free_mb: float = MIN_FREE_MB,
 ) -> RecordResult:
     """Acquire for ``seconds`` of device time (or until the DAQ ends by itself) into ``path``.
 
@@ -163,6 +171,8 @@ def record(
     status ``abort``; a DAQ error or a failing medium (disk nearly full, write error) with status
     ``fail`` (the file keeps what was acquired, or flushed).
     ``notes`` (e.g. :func:`aliasing_warning`) are stored as ``note`` events at sample 0.
+    ``min_free_mb``: the writer's margin (it stops below it). The result's ``writer`` counts
+    what the closed file holds.
     """
     writer = RunWriter(
         path,
@@ -172,6 +182,7 @@ def record(
         flush_interval_s=flush_interval_s,
         queue_blocks=queue_blocks,
         overwrite=overwrite,
+        min_free_mb=min_free_mb,
     )
     if conditions:
         writer.set_conditions(conditions)
@@ -226,7 +237,7 @@ def record_rig(
     res = record(
         daq, plan.path, plan.seconds, calibration=daq.calibration, clock=daq.run_clock,
         flush_interval_s=flush_interval_s, overwrite=plan.overwrite, conditions=plan.conditions,
-        rig=daq.rig_meta, progress=report, notes=plan.notes,
+        rig=daq.rig_meta, progress=report, notes=plan.notes, min_free_mb=plan.min_free_mb,
     )  # fmt: skip
     report(res.samples_acquired / daq.info.rate_hz)
     return res
