@@ -518,6 +518,17 @@ def _catalog_files(kind: str, path: str | Path | None) -> list[str]:
     return [*_USER_CATALOGS[kind], str(config_dir() / f"{kind}.toml")]
 
 
+def catalog_source(kind: str, name: str) -> str:
+    """The file a :func:`get_tool` (``kind`` "tools") or :func:`get_material` ("materials") of
+    ``name`` reads it from now: the first of the user catalogues and the shipped file that holds
+    it ("" if none does), so that a message about the tool names the user's file."""
+    read = _tool_library if kind == "tools" else _material_library
+    for f in _catalog_files(kind, None):
+        if name in getattr(read(f), kind):
+            return f
+    return ""
+
+
 def _not_found(kind: str, name: str, path: str | Path | None, known: list[str]) -> ConfigError:
     first, *rest = _catalog_files(f"{kind}s", path)
     nor = f" (nor in {', '.join(rest)})" if rest else ""

@@ -34,6 +34,7 @@ from analysis.config import (
     Material,
     RigConfig,
     ToolMode,
+    catalog_source,
     config_dir,
     get_material,
     get_tool,
@@ -350,10 +351,17 @@ class Campaign:
     material: Material
     rig: RigConfig
     tests: tuple[RunConditions, ...]
+    # the catalogue file each of the tool and the material was read from ("tools"/"materials":
+    # the campaign's own, a --tools/--materials one or the shipped one), for messages
+    sources: tuple[tuple[str, str], ...] = ()
 
     @property
     def name(self) -> str:
         return self.spec.campaign.name
+
+    def source(self, kind: str) -> str:
+        """The file the tool ("tools") or the material ("materials") came from, or ""."""
+        return dict(self.sources).get(kind, "")
 
     @property
     def teeth(self) -> int:
@@ -552,6 +560,7 @@ def load_campaign(path: str | Path) -> Campaign:
     spec = validate(CampaignFile, data, str(p), text)
     c = spec.campaign
     problems: list[str] = []
+    sources: tuple[tuple[str, str], ...] = ()
     camp_line = _table_line(text, "campaign")
 
     def where(table_line: int, field: str) -> str:
@@ -572,6 +581,8 @@ def load_campaign(path: str | Path) -> Campaign:
         with user_catalogs(*files):
             tool = load("tool", get_tool, c.tool)
             material = load("material", get_material, c.material)
+            sources = tuple((k, catalog_source(k, n)) for k, n in
+                            (("tools", c.tool), ("materials", c.material)))  # fmt: skip
     except ConfigError as exc:  # a bad catalogue file: its own message names it
         problems.append(str(exc))
     rig = load("rig_config", load_rig, c.rig_config)
@@ -597,7 +608,7 @@ def load_campaign(path: str | Path) -> Campaign:
                 problems += str(exc).splitlines()
     if problems:
         raise ConfigError("\n".join(problems))
-    return Campaign(p, text, spec, machine, tool, material, rig, tuple(tests))
+    return Campaign(p, text, spec, machine, tool, material, rig, tuple(tests), sources)
 
 
 def _rate_problems(spec: CampaignFile, rig: RigConfig, where: str) -> list[str]:
