@@ -45,8 +45,11 @@ def coefficients(material: str | None) -> EndMillCoefficients:
 def _check(
     program: Program, machine: MachineConfig | None, tool: EndMill, coef: EndMillCoefficients,
     limits: Limits, stock: ZMap, spindle_rpm: float | None, progress: Any = None,
+    dialect: str | None = None,
 ) -> tuple[Motion, CheckResult]:  # fmt: skip
-    motion = interpret(program, machine, file=program.file, cutter_comp="refuse", probing="refuse")
+    """``dialect``: the program's (default the machine's; the rough planner writes Fanuc)."""
+    motion = interpret(program, machine, file=program.file, cutter_comp="refuse",
+                       probing="refuse", dialect=dialect)  # fmt: skip
     res = check_motion(motion, tool, coef, limits, stock.copy(), spindle_rpm=spindle_rpm,
                        file=program.file, progress=progress)  # fmt: skip
     return motion, res
@@ -151,7 +154,7 @@ def _rough(planner, plan, program, tool, coef, limits, stock, machine, fix):
                 "cutting_path_mm": round(plan.path_mm, 2),
                 "time_s": round(_time_s(motion, machine), 2)}  # fmt: skip
 
-    motion, res = _check(program, machine, tool, coef, limits, stock, None)
+    motion, res = _check(program, machine, tool, coef, limits, stock, None, dialect="fanuc")
     before = totals(plan, motion, res)
     splits: list[dict[str, Any]] = []
     lowered: list[dict[str, Any]] = []
@@ -171,10 +174,10 @@ def _rough(planner, plan, program, tool, coef, limits, stock, machine, fix):
             if not need:
                 break
             program = plan_program(plan, part)
-            motion, res = _check(program, machine, tool, coef, limits, stock, None)
+            motion, res = _check(program, machine, tool, coef, limits, stock, None, dialect="fanuc")
         program, lowered = _lower_feeds(program, motion, machine, res)
         if lowered:
-            motion, res = _check(program, machine, tool, coef, limits, stock, None)
+            motion, res = _check(program, machine, tool, coef, limits, stock, None, dialect="fanuc")
     after = totals(plan, motion, res)
     report = {**res.summary(), "before": before, "after": after, "levels_split": splits,
               "feeds_lowered": lowered,
