@@ -188,6 +188,10 @@ class GrblStreamer(StreamerBase):
     strip : send lines without comments, spaces, N words and lone O words (see the module doc)
     lost_ok_confirm_s : how long GRBL must stay Idle with empty buffers while lines are unanswered
         before the answers count as lost (wall s)
+    pause_timeout_s : sending paused on a suspected lost answer (a noise line, the Bf count)
+        resumes once every line sent is answered; if neither that nor GRBL standing Idle with
+        empty buffers (the lost-answer fault) happens within this time, the stream is halted
+        (``timeout``; wall s)
     halt_timeout_s : how long a halt waits for Hold:0 and for the reset's banner (wall s)
     reset_after_halt : a halt ends with a soft reset (GRBL Idle, buffers flushed); False: held
     guard : a watchdog process sends ``!`` if this process dies while streaming (device ports)
@@ -209,6 +213,7 @@ class GrblStreamer(StreamerBase):
         halt_on_error: bool = True,
         strip: bool = True,
         lost_ok_confirm_s: float = 1.0,
+        pause_timeout_s: float = 10.0,
         halt_timeout_s: float = 10.0,
         reset_after_halt: bool = True,
         guard: bool = False,
@@ -228,6 +233,7 @@ class GrblStreamer(StreamerBase):
         self.halt_on_error = halt_on_error
         self.strip = strip
         self.lost_ok_confirm_s = lost_ok_confirm_s
+        self.pause_timeout_s = pause_timeout_s
         self.halt_timeout_s = halt_timeout_s
         self.reset_after_halt = reset_after_halt
         self.guard = guard
@@ -248,18 +254,27 @@ class GrblStreamer(StreamerBase):
         if self.link is None:
             raise DncError("GRBL real-time command before the stream opened the port")
         try:
-            self.link.write_now(cmd)
+            self._write_rt(self.link, cmd)
         except (LinkLost, LinkTimeout) as exc:
             raise DncError(f"GRBL real-time command {cmd!r} not sent: {exc}") from None
 
     def _rt_safe(self, cmd: bytes) -> bool:
         try:
             if self.link is not None:
-                self.link.write_now(cmd)
+                self._write_rt(self.link, cmd)
                 return True
         except (LinkLost, LinkTimeout, OSError):
             pass
         return False
+
+    def _write_rt(self, link: SerialLink, cmd: bytes) -> None:
+        if cmd == STATUS:
+            # What had been written when this '?' went out: it reaches GRBL behind those bytes
+            # (one byte stream), so the report it brings back was made after they arrived.
+            # Taken before the write: a line being written meanwhile counts as not yet sent,
+            # which can only make a lost answer look less likely, never more.
+            self._queries.append(link.bytes_written)
+        link.write_now(cmd)
 
     def feed_hold(self) -> None:
         self._rt(FEED_HOLD)
@@ -277,6 +292,13 @@ class GrblStreamer(StreamerBase):
         self._rt_safe(FEED_HOLD)  # first of all: the machine stops
 
     def _begin(self) -> None:
+        self._queries: deque[int] = deque()  # bytes written before each '?' not yet answered
+        self._report_written: int | None = None  # ... before the '?' of the last report
+        self._alive_key: tuple | None = None
+        self._noise = self._noise_reports = 0
+        self._noise_example = ""
+        self._extra_wait_s = 0.0  # a dwell under way lengthens the silence allowed
+        self._pause_since: float | None = None
         self._partial.clear()
         while not self._lines.empty():
             self._lines.get_nowait()
@@ -371,10 +393,14 @@ class GrblStreamer(StreamerBase):
             if raw:
                 self._lines.put((self.clock(), raw.decode("ascii", "replace")))
 
-    def _next_line(self, heard: list[float]) -> str:
+    def _next_line(self, heard: list[float], deadline: float, what: str) -> str:
         """The next line GRBL sends that is not a status report; messages and alarms among them
-        are kept in ``messages`` (answers are not)."""
+        are kept in ``messages`` (answers are not). A ``timeout`` fault at ``deadline``
+        (perf_counter) whatever arrives meanwhile (noise, status reports)."""
         while True:
+            if time.perf_counter() > deadline:
+                head = f"GRBL did not answer {what} within {self.cfg.timeout_s:g} s"
+                raise Fault("timeout", self._no_answer(head))
             ev = self._get(heard)
             if ev is None:
                 self._check_interrupt()
@@ -386,28 +412,59 @@ class GrblStreamer(StreamerBase):
                 self.messages.append(line)
             return line
 
+    def _no_answer(self, head: str) -> str:
+        """Why a wait ended (``head``), and what came instead of an answer (timeout fault)."""
+        if self._noise:
+            got = (f"{self._noise} line(s) that are not GRBL's (e.g. {self._noise_example!r}: "
+                   "wrong baud rate, wrong device or line noise)")  # fmt: skip
+        elif self._noise_reports:
+            got = f"only status reports that did not change ({self._noise_reports})"
+        elif self._heard_any:
+            got = "no answer"
+        else:
+            got = "nothing" + SILENT_HINT
+        return f"{head}: received {got}"
+
+    def _alive(self, line: str, st: GrblStatus | None) -> bool:
+        """Does this line show GRBL at work? Answers and messages do; a status report does when
+        it differs from the last one or says the machine is held (an operator's hold, a door);
+        noise and a repeated report do not, so neither keeps a wait going for ever."""
+        if st is None:
+            return line.startswith(("ok", "error:", "ALARM:", "Grbl", "[", "$", ">"))
+        if st.state in ("Hold", "Door", "Sleep", "Home"):
+            return True
+        key = (st.full_state, st.mpos_mm, st.wpos_mm, st.planner_free, st.rx_free)
+        changed = key != self._alive_key
+        self._alive_key = key
+        return changed
+
     def _get(self, heard: list[float], timeout: float = 0.05) -> tuple[float, str] | None:
-        """Next line from GRBL or None after ``timeout``; faults on silence or a lost port."""
+        """Next line from GRBL or None after ``timeout``; faults on silence (nothing that shows
+        GRBL at work, :meth:`_alive`, for the serial timeout) or a lost port."""
         link = self.link
         assert link is not None
         if link.lost.is_set():
             raise Fault("port-lost", link.lost_reason)
+        if time.perf_counter() - heard[0] > self.cfg.timeout_s + self._extra_wait_s:
+            limit = self.cfg.timeout_s + self._extra_wait_s
+            raise Fault("timeout", self._no_answer(f"no answer from GRBL for {limit:g} s"))
         try:
             item = self._lines.get(timeout=timeout)
         except queue.Empty:
-            if time.perf_counter() - heard[0] > self.cfg.timeout_s:
-                hint = SILENT_HINT if not self._heard_any else ""
-                why = f"no answer from GRBL for {self.cfg.timeout_s:g} s{hint}"
-                raise Fault("timeout", why) from None
             return None
-        heard[0] = time.perf_counter()
-        self._heard_any = True
         if item[1].startswith("<"):
+            if self._queries:  # the i-th report answers at least the i-th '?'
+                self._report_written = self._queries.popleft()
             try:
                 st = parse_status(item[1])
             except DncError:
                 self.garbled.append(item[1])
                 return None
+            if self._alive(item[1], st):
+                heard[0] = time.perf_counter()
+                self._heard_any = True
+            else:
+                self._noise_reports += 1
             self.last_status = st
             self.controller_state = st.full_state
             if st.wco_mm is not None:
@@ -416,14 +473,20 @@ class GrblStreamer(StreamerBase):
             if self._streaming.is_set() and self._seen_run:
                 self._reports += 1
                 self._starved_reports += st.state == "Idle"
+        elif self._alive(item[1], None):
+            heard[0] = time.perf_counter()
+            self._heard_any = True
+        else:
+            self._noise += 1
+            self._noise_example = self._noise_example or item[1][:40]
         return item
 
     def _poll_status(self) -> None:
         period = 1.0 / self.status_hz
         while not self._poll_stop.wait(period):
             try:
-                self.link.write_now(STATUS)  # type: ignore[union-attr]
-            except (LinkLost, LinkTimeout):
+                self._write_rt(self.link, STATUS)  # type: ignore[arg-type]
+            except (LinkLost, LinkTimeout, OSError):
                 return
 
     def _work_pos(self, st: GrblStatus) -> tuple[float, float, float] | None:
@@ -473,14 +536,21 @@ class GrblStreamer(StreamerBase):
         # are dropped here: taken as this stream's, they would let the character counting
         # overfill GRBL's receive buffer.
         self._check_interrupt()
+        # one deadline for the whole handshake: noise or status reports do not extend it
+        deadline = time.perf_counter() + self.cfg.timeout_s
         self._write(HANDSHAKE)
-        while not (line := self._next_line(heard)).startswith("[GC:"):
+        what = "$G (parser state)"
+        while not (line := self._next_line(heard, deadline, what)).startswith("[GC:"):
             pass  # stale answers of an earlier stream are dropped; alarms and messages are kept
-        while not _is_answer(line := self._next_line(heard)):
+        while not _is_answer(line := self._next_line(heard, deadline, what)):
             pass
         if line != "ok":
             raise Fault("error", f"GRBL answered $G (parser state) with {line}")
-        st = self._wait_status(heard, lambda s: True)
+        try:
+            st = self._wait_status(heard, lambda s: True, deadline)
+        except TimeoutError:
+            head = f"GRBL sent no status report within {self.cfg.timeout_s:g} s of '?'"
+            raise Fault("timeout", self._no_answer(head)) from None
         if st.planner_free is not None and st.state == "Idle":
             self._planner_cap = st.planner_free
             self._rx_cap = st.rx_free
@@ -492,7 +562,11 @@ class GrblStreamer(StreamerBase):
                     "machine and its position, then unlock (cutlab dnc unlock, or --unlock)",
                 )
             self._write(b"$X\n")
+            deadline = time.perf_counter() + self.cfg.timeout_s
             while True:
+                if time.perf_counter() > deadline:
+                    head = f"GRBL did not answer $X within {self.cfg.timeout_s:g} s"
+                    raise Fault("timeout", self._no_answer(head))
                 ev = self._get(heard)
                 if ev is None or ev[1].startswith("<"):
                     continue
@@ -566,16 +640,21 @@ class GrblStreamer(StreamerBase):
         self._executing(tr.pop_started(), tr.current, tr.done)
 
     def _stream(self, items: list[Item]) -> None:
-        inflight: deque[tuple[int, int, float]] = deque()  # (position, bytes, send time)
+        # (position, bytes, send time, the link's bytes written once the line was)
+        inflight: deque[tuple[int, int, float, int]] = deque()
         used = 0
         i = 0
         heard = [time.perf_counter()]
         counting = self.mode == "char-counting"
+        link = self.link
+        assert link is not None
         self._streaming.set()
         self._last_io = time.perf_counter()
         try:
             while i < len(items) or inflight:
                 self._check_interrupt()
+                if self._suspect:
+                    self._check_pause(inflight, heard)
                 while i < len(items) and not self._suspect:
                     data = items[i].text.encode("ascii") + b"\n"
                     fits = used + len(data) <= self.rx_buffer_bytes if counting else not inflight
@@ -584,7 +663,7 @@ class GrblStreamer(StreamerBase):
                     self._check_interrupt()
                     t = self.clock()
                     self._write(data)
-                    inflight.append((i, len(data), t))
+                    inflight.append((i, len(data), t, link.bytes_written))
                     used += len(data)
                     self.blocks_sent += 1
                     self._sent_pos = i
@@ -593,6 +672,9 @@ class GrblStreamer(StreamerBase):
                     if items[i].block >= 0:
                         self.last_sent_block = items[i].block
                     i += 1
+                # a dwell under way answers after it: its time is not silence
+                r0 = self._results[inflight[0][0]] if inflight and self._results else None
+                self._extra_wait_s = r0.dwell_s if r0 is not None and r0.dwell_s else 0.0
                 ev = self._get(heard)
                 if ev is None:
                     continue
@@ -600,7 +682,7 @@ class GrblStreamer(StreamerBase):
                 if line.startswith("<"):
                     if self.last_status is not None:
                         self._track(t_ans, self.last_status)
-                        self._check_lost(inflight, items, self.last_status, used)
+                        self._check_lost(inflight, items, self.last_status, heard)
                     continue
                 if _is_answer(line):
                     self._lost_since = None
@@ -608,7 +690,7 @@ class GrblStreamer(StreamerBase):
                     if not inflight:
                         self.messages.append(line)
                         continue
-                    pos, n, t_send = inflight.popleft()
+                    pos, n, t_send, _ = inflight.popleft()
                     used -= n
                     it = items[pos]
                     status = line if line.startswith("error") else "ok"
@@ -645,7 +727,7 @@ class GrblStreamer(StreamerBase):
                 self.garbled.append(line)  # not a GRBL answer: line noise
                 self.messages.append(line)
                 if inflight and not self._suspect:  # maybe an answer: stop sending, let it drain
-                    self._suspect = f"received {line!r}, not a GRBL answer (line noise)"
+                    self._pause(f"received {line!r}, not a GRBL answer (line noise)")
             self._streaming.clear()
             if self.wait_idle:
                 self._wait_idle(heard)
@@ -657,7 +739,7 @@ class GrblStreamer(StreamerBase):
             raise
         finally:
             self._streaming.clear()
-            for pos, n, t in inflight:
+            for pos, n, t, _ in inflight:
                 it = items[pos]
                 self._answered(pos, BlockRow(it.block, it.line, it.text, n, t,
                                              status="unacknowledged"))  # fmt: skip
@@ -670,39 +752,86 @@ class GrblStreamer(StreamerBase):
         return f"{grbl_alarm_text(code)} ({line} {when}; GRBL discarded the lines in its buffers)"
 
     # -- lost answers ------------------------------------------------------------------------------
-    def _check_lost(
-        self, inflight: deque, items: list[Item], st: GrblStatus, used: int = 0
-    ) -> None:
-        """Answers lost: GRBL's receive buffer (Bf) holds less than is unanswered, beyond the
-        line it is busy with, report after report (sending then pauses); or GRBL is Idle with
-        empty buffers while lines are unanswered, for long enough (the fault)."""
+    def _pause(self, why: str) -> None:
+        """Stop sending until every line sent is answered (then go on: nothing was lost) or GRBL
+        stands Idle with empty buffers (an answer was lost); :meth:`_check_pause` keeps it
+        within ``pause_timeout_s``."""
+        self._suspect = why
+        self._pause_since = time.perf_counter()
+        self.sink.event("paused", self.clock(), f"sending paused: {why}")
+
+    def _check_pause(self, inflight: deque, heard: list[float]) -> None:
         now = time.perf_counter()
-        if st.rx_free is not None and self._rx_cap and len(inflight) >= 2 and not self._suspect:
-            # unanswered = in GRBL's receive buffer + the line it is busy with (if any) + bytes
-            # still on their way to it (now and then); more than that in every one of 8 reports
-            # in a row: an answer is lost
-            drift = used - (self._rx_cap - st.rx_free) - inflight[0][1]
-            if drift > 0:
+        if not inflight:  # every line sent was answered: the count is right, go on
+            self.sink.event("resumed", self.clock(), f"every line answered; was: {self._suspect}")
+            self._suspect = ""
+            self._pause_since = None
+            self._drift_reports = 0
+            return
+        st = self.last_status
+        if self._pause_since is None or (st is not None and st.state in ("Hold", "Door")):
+            self._pause_since = now  # an operator's hold is not the streamer's pause
+            return
+        if now - self._pause_since <= self.pause_timeout_s:
+            return
+        state = "no status report"
+        if st is not None:
+            state = st.full_state
+            if st.planner_free is not None:
+                state += f", Bf {st.planner_free},{st.rx_free}"
+        reason = (
+            f"sending paused for {self.pause_timeout_s:g} s ({self._suspect}) and in that time "
+            f"neither did the {len(inflight)} unanswered line(s) get their answers nor did GRBL "
+            f"stand Idle with empty buffers (GRBL: {state})"
+        )
+        raise Fault("timeout", reason + "; " + self.halt(reset=self.reset_after_halt, heard=heard))
+
+    def _check_lost(
+        self, inflight: deque, items: list[Item], st: GrblStatus, heard: list[float]
+    ) -> None:
+        """A report may make a lost answer *likely* (Bf: GRBL's receive buffer holds less than
+        had reached it unanswered): sending pauses. Only GRBL's state *shows* it: Idle (or
+        Hold:0) with nothing in the planner nor the receive buffer while lines are unanswered,
+        report after report for ``lost_ok_confirm_s``: the fault, after a feed hold."""
+        now = time.perf_counter()
+        s_q = self._report_written
+        if st.rx_free is not None and self._rx_cap and inflight and s_q is not None:
+            # The unanswered bytes written before the '?' this report answers had all reached
+            # GRBL when it made the report (one byte stream, in order); bytes written after it
+            # may still be on the wire and are not counted. GRBL holds them in its receive
+            # buffer, except the line it is busy with or reading (the oldest unanswered, if
+            # nothing was lost); 1 byte of margin (1.1h's count of a wrapped ring is one short).
+            arrived = sum(min(n, max(0, s_q - (end - n))) for _, n, _, end in inflight)
+            held = self._rx_cap - st.rx_free
+            if arrived - held - inflight[0][1] - 1 > 0:
                 self._drift_reports += 1
-                if self._drift_reports >= 8:
-                    self._suspect = (
-                        f"GRBL's receive buffer holds {self._rx_cap - st.rx_free} bytes but "
-                        f"{used} are unanswered: an answer was lost"
+                if self._drift_reports >= 3 and not self._suspect:
+                    self._pause(
+                        f"GRBL's receive buffer held {held} bytes when {arrived} unanswered bytes "
+                        "had reached it, 3 reports in a row: an answer may have been lost"
                     )
             else:
                 self._drift_reports = 0
-        empty = (
-            st.state == "Idle"
-            and (st.planner_free is None or self._planner_cap is None
-                 or st.planner_free >= self._planner_cap)
-            and (st.rx_free is None or st.rx_free >= (self._rx_cap or 128) - 1)
+        pause_line = False
+        if inflight and self._results:
+            r0 = self._results[inflight[0][0]]
+            pause_line = r0 is not None and r0.program_flow == "pause"  # M0: Hold:0 till ~
+        cap = self._planner_cap
+        stopped = st.state == "Idle" or (
+            st.full_state == "Hold:0" and st.planner_free is not None and cap is not None
+            and not pause_line
         )  # fmt: skip
+        empty = (
+            stopped
+            and (st.planner_free is None or cap is None or st.planner_free >= cap)
+            and (st.rx_free is None or st.rx_free >= (self._rx_cap or 128) - 1)
+        )
         if not inflight or not empty:
             self._lost_since = None
             return
         # the line time of what is outstanding, and a dwell under way, are allowed for
         wait = self.lost_ok_confirm_s
-        nbytes = sum(n for _, n, _ in inflight)
+        nbytes = sum(n for _, n, _, _ in inflight)
         wait += nbytes * 10.0 / max(self.cfg.baudrate, 1)
         res = self._results[inflight[0][0]] if self._results else None
         if res is not None and res.dwell_s:
@@ -715,9 +844,11 @@ class GrblStreamer(StreamerBase):
         self._lost_reports += 1
         if now - self._lost_since < self.lost_ok_confirm_s or self._lost_reports < 3:
             return
-        self._lost_answers(inflight, items, st)
+        self._lost_answers(inflight, items, st, heard)
 
-    def _lost_answers(self, inflight: deque, items: list[Item], st: GrblStatus) -> None:
+    def _lost_answers(
+        self, inflight: deque, items: list[Item], st: GrblStatus, heard: list[float]
+    ) -> None:
         last = items[self._sent_pos]
         tr = self.tracker
         pos = self._work_pos(st)
@@ -738,12 +869,12 @@ class GrblStreamer(StreamerBase):
                 b = items[known].block
                 where += f", the end of block {b}" if b >= 0 else ", the end of the preamble"
         upto = f"up to block {last.block}" if last.block >= 0 else "of the restart preamble"
-        raise Fault(
-            "lost-ok",
-            f"GRBL is Idle with empty buffers, so it has processed every line sent ({upto}), but "
-            f"{len(inflight)} answer(s) never came: lost or garbled on the line{why}; which "
-            f"line they belonged to cannot be told{where}; nothing more was sent",
+        reason = (
+            f"GRBL is {st.full_state} with empty buffers, so it has processed every line sent "
+            f"({upto}), but {len(inflight)} answer(s) never came: lost or garbled on the line"
+            f"{why}; which line they belonged to cannot be told{where}; nothing more was sent"
         )
+        raise Fault("lost-ok", reason + "; " + self.halt(reset=self.reset_after_halt, heard=heard))
 
     # -- ending --------------------------------------------------------------------------------
     def _wait_idle(self, heard: list[float]) -> None:
