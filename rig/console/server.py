@@ -136,8 +136,10 @@ class Hub:
         self._pointer = text or self._pointer
         if self.ring is not None and not self.ring.closed and not self.alive():
             self.gone_since = self.gone_since or time.monotonic()
+            # A killed campaign's ring and live.json are removed now (issue 31); the mapping
+            # keeps its last state for the page.
+            self._clean_up()
             if self.linger_s is not None and time.monotonic() - self.gone_since > self.linger_s:
-                self._clean_up()
                 self.should_exit = True
         elif self.ring is not None and self.ring.closed and self.linger_s is not None:
             self.gone_since = self.gone_since or time.monotonic()
@@ -153,12 +155,16 @@ class Hub:
 
     def _clean_up(self) -> None:
         """The campaign died without closing: its ring and pointer are left to us."""
-        if self.ring is not None and not _pid_alive(self.ring.writer_pid):
-            with contextlib.suppress(OSError):
-                self.ring.path.unlink()
-            if self.folder is not None:
-                with contextlib.suppress(OSError):
-                    (self.folder / LIVE_FILE).unlink()
+        r = self.ring
+        if r is None or _pid_alive(r.writer_pid) or not r.path.exists():
+            return
+        with contextlib.suppress(OSError):
+            r.path.unlink()
+        if self.folder is not None:
+            pointer = self.folder / LIVE_FILE
+            with contextlib.suppress(OSError, ValueError, AttributeError):
+                if json.loads(pointer.read_text()).get("ring") == str(r.path):  # not a new one's
+                    pointer.unlink()
 
     def live_state(self) -> dict[str, Any]:
         r = self.ring
@@ -739,8 +745,11 @@ def main(argv: list[str] | None = None) -> None:
     def tell(url: str) -> None:
         say(f"listening at {url}")
 
-    serve(a.target, a.port, a.bind, a.linger_s, token=token,
-          on_listening=tell if token is None else None)  # fmt: skip
+    try:
+        serve(a.target, a.port, a.bind, a.linger_s, token=token,
+              on_listening=tell if token is None else None)  # fmt: skip
+    except KeyboardInterrupt:  # Ctrl-C (uvicorn re-raises it after its clean shutdown)
+        sys.exit(130)
 
 
 if __name__ == "__main__":
