@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import secrets
 import socket
 import statistics
 import subprocess
@@ -45,6 +46,7 @@ ROOT = Path(__file__).resolve().parent.parent
 BLOCK_S = 0.1  # a DAQ block: 0.1 s of samples
 SOURCE_BLOCKS = 50  # distinct source blocks, cycled (a DAQ's buffers are reused too)
 CONDITIONS = ("without", "tap", "console")
+TOKEN = secrets.token_urlsafe(24)  # the console server's session token
 SETTLE_S = 2.5  # a pause before every trial (the console's server and client connect in it)
 CLIENT = """
 import json, signal, sys, time
@@ -54,7 +56,8 @@ def done(*_):
     print(n / (time.monotonic() - t0), flush=True)
     sys.exit(0)
 signal.signal(signal.SIGTERM, done)
-with connect(sys.argv[1], max_size=None) as ws:
+# the page's Origin and the session's token (in the URL): the console refuses others (issue 31)
+with connect(sys.argv[1], max_size=None, origin="http://" + sys.argv[1].split("/")[2]) as ws:
     ws.send(json.dumps({"type": "hello", "px": 1000, "window_s": 10}))
     t0 = time.monotonic()
     while time.monotonic() < t_end:
@@ -132,8 +135,9 @@ def _rounds(
                 (folder / LIVE_FILE).write_text(json.dumps({"ring": str(live.ring.path),
                                                             "pid": os.getpid()}))  # fmt: skip
                 time.sleep(1.2)  # the server attaches (it looks once a second)
+                url = f"ws://127.0.0.1:{port}/ws?token={TOKEN}"
                 client = subprocess.Popen(
-                    [sys.executable, "-c", CLIENT, f"ws://127.0.0.1:{port}/ws", "600"],
+                    [sys.executable, "-c", CLIENT, url, "600"],
                     stdout=subprocess.PIPE, text=True)  # fmt: skip
             time.sleep(max(0.0, ready - time.monotonic()))  # (console: frames flowing)
             try:
@@ -170,7 +174,7 @@ def main() -> None:
         folder = Path(tmp)
         (folder / "runs").mkdir()  # a campaign folder to the server
         port = _free_port()
-        server = start_server(folder, port, "127.0.0.1")
+        server = start_server(folder, port, "127.0.0.1", TOKEN)
         try:
             for paced in (False, True):
                 n_total = int(args.paced_s * args.rate) if paced else args.samples
