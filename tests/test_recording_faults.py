@@ -11,7 +11,9 @@ from __future__ import annotations
 
 import errno
 import json
+import os
 import re
+import shutil
 import subprocess
 import sys
 import time
@@ -286,3 +288,85 @@ def test_reader_stops_at_the_last_flush_not_the_extent() -> None:
         run = rf.load_run(p)
         assert run.status == "interrupted" and run.samples_stored == B
         _assert_prefix(run)
+
+
+_MID_REPAIR = """
+import os, sys, time
+sys.path.insert(0, {root!r})
+from analysis.runs import file as rf
+def hold(src, dst):  # the repair stops between its .bak link and its rename: killed here
+    time.sleep(60)
+rf.os.replace = hold
+rf.load_run(sys.argv[1])
+"""
+
+
+@pytest.fixture(scope="module")
+def killed_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One killed writer's file (still marked open for writing), copied by each test."""
+    p = tmp_path_factory.mktemp("killed") / "killed.h5"
+    res = subprocess.run([sys.executable, "-c", _KILLED.format(root=str(ROOT)), str(p)],
+                         capture_output=True, timeout=60)  # fmt: skip
+    assert res.returncode == -9
+    return p
+
+
+def _killed_run(p: Path, killed: Path) -> None:
+    shutil.copyfile(killed, p)
+
+
+def test_a_repair_killed_mid_way_leaves_nothing_after_the_next_read(
+    tmp_path: Path, killed_file: Path
+) -> None:
+    """Issue 31 item 5: `data info` SIGKILLed while it repaired a killed run left
+    .NAME.repair-PID and NAME.bak-PID for good; the next read now removes them."""
+    p = tmp_path / "killed.h5"
+    _killed_run(p, killed_file)
+    child = subprocess.Popen([sys.executable, "-c", _MID_REPAIR.format(root=str(ROOT)), str(p)])
+    tmp, bak = tmp_path / f".killed.h5.repair-{child.pid}", tmp_path / f"killed.h5.bak-{child.pid}"
+    deadline = time.monotonic() + 60
+    while not (tmp.exists() and bak.exists()) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    child.kill()
+    child.wait(timeout=30)
+    assert tmp.exists() and bak.exists()  # what a killed repair leaves
+    run = rf.load_run(p)
+    assert run.status == "interrupted" and run.samples_stored >= 8 * 500
+    _assert_prefix(run)
+    assert sorted(q.name for q in tmp_path.iterdir()) == ["killed.h5"]
+    with h5py.File(p, "r") as f:
+        assert f[rf.VOLTS].shape[0] == run.samples_stored
+
+
+def test_a_backup_of_a_missing_run_file_is_put_back(tmp_path: Path, killed_file: Path) -> None:
+    """A repair's .bak whose process is gone and whose run file is missing is the run: it is
+    restored (then repaired) on the next read, never deleted."""
+    p = tmp_path / "lost.h5"
+    _killed_run(p, killed_file)
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, timeout=60)  # fmt: skip
+    pid = int(gone.stdout)  # a process that has ended
+    os.replace(p, tmp_path / f"lost.h5.bak-{pid}")
+    (tmp_path / f".lost.h5.repair-{pid}").write_bytes(b"\0" * 4096)  # a half-written copy
+    run = rf.load_run(p)
+    assert run.status == "interrupted" and run.samples_stored >= 8 * 500
+    _assert_prefix(run)
+    assert sorted(q.name for q in tmp_path.iterdir()) == ["lost.h5"]
+
+
+def test_a_repair_stopped_by_an_exception_leaves_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, killed_file: Path
+) -> None:
+    p = tmp_path / "k.h5"
+    _killed_run(p, killed_file)
+
+    def interrupted(src: object, dst: object) -> None:
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as m:
+        m.setattr(rf.os, "replace", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            rf.load_run(p)
+    assert sorted(q.name for q in tmp_path.iterdir()) == ["k.h5"]  # original, untouched
+    assert rf.load_run(p).status == "interrupted"
+    assert sorted(q.name for q in tmp_path.iterdir()) == ["k.h5"]

@@ -355,12 +355,28 @@ def _reason_sidecar(p: Path) -> Path:
     return p.with_name(f".{p.name}.reason")
 
 
+_SIDECAR_BYTES = 4096
+
+
+def prepare_reason_sidecar(path: str | Path) -> None:
+    """Create the reason sidecar of a run file now, blank (spaces), so that a reason written into
+    it later needs no new disk block (for a writer that cannot hold blocks ahead)."""
+    with contextlib.suppress(OSError):
+        _reason_sidecar(Path(path)).write_bytes(b" " * _SIDECAR_BYTES)
+
+
 def write_reason_sidecar(path: str | Path, status: str, reason: str) -> None:
     """Leave ``status`` and ``reason`` beside a run file its writer could not close (best effort:
-    the next repair uses them instead of "interrupted")."""
-    text = json.dumps({"status": status, "reason": reason, "writer": writer_identity()})
+    the next repair uses them instead of "interrupted"). Written over a prepared blank sidecar in
+    place (padded with spaces, still JSON), so a full disk does not refuse it."""
+    text = json.dumps({"status": status, "reason": reason[:2000], "writer": writer_identity()})
+    data = text.encode().ljust(_SIDECAR_BYTES)
     with contextlib.suppress(OSError):
-        _reason_sidecar(Path(path)).write_text(text)
+        fd = os.open(_reason_sidecar(Path(path)), os.O_WRONLY | os.O_CREAT, 0o644)
+        try:
+            os.pwrite(fd, data, 0)
+        finally:
+            os.close(fd)
 
 
 def remove_reason_sidecar(path: str | Path) -> None:

@@ -504,6 +504,8 @@ class RunWriter:
             rf.write_reason_sidecar(self.path, final, why)
             if rf.repair_run(self.path, status=final, reason=why, writer_gone=True):
                 rf.remove_reason_sidecar(self.path)
+        elif not self._reserving:
+            rf.remove_reason_sidecar(self.path)  # closed normally: the blank sidecar goes
         self._committed = self._stored_rows()  # what the file holds, not what was handed over
         if self.failure is not None and status == rf.STATUS_SUCCESS:
             raise RunWriterError(self.failure)
@@ -673,6 +675,7 @@ class RunWriter:
             err = reserve_blocks(self._fd, size, want - size)
         if err is None:  # the file system cannot: the margin and the write-error path remain
             self._reserving = False
+            rf.prepare_reason_sidecar(self.path)  # a reason written later needs no new block
             return self.failure is None
         if err:
             why = disk_full_reason(err, self.path.parent) or f"no disk space: {os.strerror(err)}"
