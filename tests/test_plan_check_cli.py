@@ -31,8 +31,9 @@ def test_check_flags_the_deep_hss_slot(tmp_path: Path, capsys) -> None:
     rc, so, _ = cli(["plan", "check", str(prog), "--tool", "phi20-flat", "--material",
                      "al6061-t6", "--stock", "box:-30,110,-20,20,-40,0", "--spacing", "0.5",
                      "--json", "--plot", str(png)], capsys)  # fmt: skip
-    assert rc == 0 and png.exists()
+    assert rc == 3 and png.exists()  # 3: a verdict that failed
     out = json.loads(so)
+    assert out["verdict"] == "violations"
     slot = [v for v in out["violations"] if v["block"] == 4]
     assert {v["limit"] for v in slot} == {"deflection"}
     v = slot[0]
@@ -146,7 +147,10 @@ def test_stability_from_tool_modes_matches_analyze_stability(tmp_path: Path, cap
         prog.write_text(_slot_nc(depth))
         rc, so, _ = cli(["plan", "check", str(prog), *base[2:]], capsys)
         out = json.loads(so)
-        assert rc == 0 and out["limits"]["stability"].startswith("tool modes")
+        # flex10 gives no max_chip_mm nor deflection_tol_mm: without a violation, "unchecked"
+        assert rc == (3 if broken else 4) and out["limits"]["stability"].startswith("tool modes")
+        assert out["verdict"] == ("violations" if broken else "unchecked")
+        assert {u["limit"] for u in out["unchecked"]} == {"chip", "deflection"}
         slot = [v for v in out["violations"] if v["block"] == 4]
         assert bool(slot) is broken
         if broken:

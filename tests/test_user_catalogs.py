@@ -98,8 +98,9 @@ def test_plan_check_with_a_user_tool_and_material(files: Path, capsys) -> None:
                       "my-alu", "--stock", "box:0,50,0,40,-5,0", "--spacing", "0.5", "--json",
                       "--tools", str(files / "my-tools.toml"), "--materials",
                       str(files / "my-materials.toml")], capsys)  # fmt: skip
-    assert rc == 0, se
-    assert json.loads(so)["tool"] == "my-flat"
+    assert rc == 4, se  # my-flat has no modes: stability unchecked, never "within"
+    out = json.loads(so)
+    assert out["tool"] == "my-flat" and out["verdict"] == "unchecked"
 
 
 def _campaign(files: Path, extra: str = "") -> Path:

@@ -18,9 +18,11 @@ travel, an arc the machine cannot cut) is reported before any file is written.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from analysis.config import EndMill, MachineConfig, get_material, load_machine
 from analysis.rules import FeedRule, RuleBase, load_rule
@@ -29,7 +31,7 @@ from planning.feed.post import FeedPostOptions, FeedPostResult, post_process
 from planning.feed.report import write_report
 from planning.nc import Motion, Program, interpret
 from planning.nc.output import DIALECTS, default_dialect, for_dialect
-from planning.stock import Cutter, ZMap, default_stock, load_stock, save_stock_png
+from planning.stock import ZMap, load_stock, save_stock_png
 from planning.stock.machining import (
     Operation,
     OperationPlan,
@@ -47,6 +49,53 @@ Progress = Callable[[int, int], None]  # (pieces done, pieces in all)
 LimitStep = Callable[[Program, ZMap, MachineConfig], tuple[Program, dict[str, Any]]]
 
 
+#: the derived stock's top: this far above the highest level the program cuts (a Z-constant
+#: feed move), and never below Z0 (work zero on the stock top, the usual convention)
+STOCK_ALLOWANCE_MM = 1.0
+
+
+def job_stock(
+    motion: Motion, radius_mm: float, stock_spec: str | None, spacing_mm: float | None,
+    file: str = "<program>",
+) -> tuple[ZMap, dict[str, Any]]:  # fmt: skip
+    """The starting stock and where it came from (printed and in JSON): ``stock_spec`` (see
+    :func:`load_stock`), else a box over the program's feed moves: their XY extent plus the
+    widest cutter's ``radius_mm``, bottom 1 mm below the deepest, top at Z0 or
+    :data:`STOCK_ALLOWANCE_MM` above the highest level cut, whichever is higher."""
+    if stock_spec:
+        return load_stock(stock_spec, spacing_mm), {"source": "--stock", "spec": stock_spec}
+    from planning.nc import bounding_box
+
+    feed = motion.is_feed
+    if not feed.any():
+        raise PlanningError(f"{file}: the program has no feed moves: give the stock (--stock)")
+    lo, hi = bounding_box(motion[feed])
+    level = feed & (np.abs(motion.start[:, 2] - motion.end[:, 2]) < 1e-9)
+    top = 0.0
+    if level.any():
+        top = max(0.0, float(motion.end[level, 2].max()) + STOCK_ALLOWANCE_MM)
+    bottom = min(float(lo[2]) - 1.0, -1.0)
+    r = radius_mm
+    box = (float(lo[0]) - r, float(hi[0]) + r, float(lo[1]) - r, float(hi[1]) + r, bottom, top)
+    spec = "box:" + ",".join(f"{v:.6g}" for v in box)
+    info = {"source": "derived", "spec": spec, "allowance_mm": STOCK_ALLOWANCE_MM,
+            "how": "the feed moves' XY extent plus the cutter radius; top at Z0 or "
+                   f"{STOCK_ALLOWANCE_MM:g} mm above the highest level cut; bottom 1 mm below "
+                   "the deepest feed move (give --stock for the real one)"}  # fmt: skip
+    return load_stock(spec, spacing_mm), info
+
+
+def refuse_no_removal(removed_mm3: float, stock: dict[str, Any], file: str) -> None:
+    """A program that removes nothing from its stock is an error naming the stock: its times
+    and loads would say nothing of the part (every feed raised to the rule's maximum)."""
+    if removed_mm3 <= 1e-6:
+        raise PlanningError(
+            f"{file}: the program removes nothing from its stock {stock['spec']} "
+            f"({'--stock' if stock['source'] == '--stock' else 'derived'}): give the stock it "
+            "cuts (--stock box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP)"
+        )
+
+
 @dataclass(frozen=True)
 class Job:
     """One program ready to machine: its machine, end mill, text, motion and starting stock."""
@@ -56,6 +105,7 @@ class Job:
     program: Program
     motion: Motion
     stock: ZMap
+    stock_info: dict[str, Any] = field(default_factory=dict)  # where the stock came from
 
     @property
     def tool(self) -> EndMill:
@@ -78,23 +128,16 @@ def load_job(
 ) -> Job:
     """Read and interpret a program (cutter compensation refused) for ``machine`` and the end
     mill ``tool_name`` (or ``T1=NAME,T2=NAME``: one per tool the program loads); the stock from
-    ``stock_spec`` (see :func:`load_stock`), else a box over the program's feed moves with its
-    top at Z0."""
+    ``stock_spec`` (see :func:`load_stock`), else derived (:func:`job_stock`)."""
     m = load_machine(machine)
     if not tool_name:
         end_mill(tool_name)  # the error lists the end mills
     program = Program.read(program_path)
     motion = interpret(program, m, file=str(program_path), cutter_comp="refuse", probing="refuse")
     tools = bind_tools(motion, parse_tool_spec(tool_name), str(program_path))  # type: ignore[arg-type]
-    cutter = Cutter.from_tool(max((t for _, t in tools.values()), key=lambda t: t.diameter_mm))
-    if stock_spec:
-        stock = load_stock(stock_spec, spacing_mm)
-    else:
-        try:
-            stock = default_stock(motion, cutter, spacing_mm)
-        except PlanningError as exc:
-            raise PlanningError(f"{program_path}: {exc}") from None
-    return Job(m, tools, program, motion, stock)
+    radius = max(t.diameter_mm for _, t in tools.values()) / 2
+    stock, info = job_stock(motion, radius, stock_spec, spacing_mm, str(program_path))
+    return Job(m, tools, program, motion, stock, info)
 
 
 def resolve_rule(spec: str, db: str | Path | None = None) -> FeedRule:
@@ -179,6 +222,7 @@ def feed_program(
     result = post_process(
         job.program, job.motion, job.tool, rule, job.stock, job.machine, opts, progress=progress
     )
+    refuse_no_removal(result.simulation.removed_total_mm3, job.stock_info, str(program_path))
     limits = None
     if limit_step is not None:
         program, limits = limit_step(result.program, start, job.machine)
@@ -194,8 +238,13 @@ def feed_program(
         {"output": str(output), "dialect": dialect,
          "report": {k: str(v) for k, v in report.items()}}
     )  # fmt: skip
+    summ["stock"] = job.stock_info
     if limits is not None:
-        summ.update(violations=limits["violations"], limits=limits)
+        summ.update(verdict=limits["verdict"], violations=limits["violations"],
+                    unchecked=limits["unchecked"], limits=limits)  # fmt: skip
+    else:
+        why = "no --material: the limits need its force coefficients"
+        summ.update(verdict="unchecked", violations=[], unchecked=[{"limit": "all", "reason": why}])
     summ["slower_than_input"] = _slower(summ)
     if summ["slower_than_input"] and warn is not None:
         warn(f"warning: {summ['slower_than_input']}")
@@ -235,10 +284,12 @@ def simulate_job(
     """
     if Path(program_path).suffix.lower() == ".toml":
         plan, _ = load_plan(program_path, spacing_mm)
+        stock_info = {"source": "operation plan", "spec": str(program_path)}
     else:
         job = load_job(program_path, machine, tool_name, stock_spec, spacing_mm)
         op = Operation(Path(program_path).stem, job.motion, job.tools, str(program_path))
         plan = OperationPlan(job.stock, [op], job.machine)
+        stock_info = job.stock_info
     start_volume = plan.stock.volume_mm3()
     cb = None if progress is None else (lambda name, done, total: progress(done, total))
     results = plan.run(check_holder=check_holder, progress=cb)
@@ -253,5 +304,6 @@ def simulate_job(
         "removed_mm3": sum(r["removed_mm3"] for r in rows),
         "time_s": sum(r["time_s"] for r in rows),
         "png": str(png) if png else None,
+        "stock": stock_info,
     }
     return results, out

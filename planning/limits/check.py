@@ -165,12 +165,25 @@ class CheckResult:
                 worst[k] = {"block": int(row["block"]), "value": float(row[k]),
                             "allowed": float(row[f"{k}_allowed"]),
                             "margin_pct": round(100 * (1 - float(row[col])), 2)}  # fmt: skip
+        unchecked = [{"limit": k, "reason": r} for k, r in self.limits.unchecked]
+        if not len(self.blocks):
+            unchecked.append({"limit": "all", "reason": "no block removes stock"})
         return {
+            "verdict": verdict(self.violations, unchecked),
             "violations": self.violations,
+            "unchecked": unchecked,
             "limits": self.limits.to_json(),
             "cutting_blocks": int(len(self.blocks)),
             "worst": worst,
         }
+
+
+def verdict(violations: list, unchecked: list) -> str:
+    """The verdict: "violations" if any block breaks a limit; else "unchecked" if a limit could
+    not be checked (a check that could not run is never "within"); else "within"."""
+    if violations:
+        return "violations"
+    return "unchecked" if unchecked else "within"
 
 
 def evaluate(

@@ -25,7 +25,7 @@ from planning.feed import cap_feeds, end_mill
 from planning.limits.check import FEED_LIMITS, CheckResult, Pieces, check_motion
 from planning.limits.model import Limits, limits_for
 from planning.nc import Motion, Program, interpret, motion_stats
-from planning.stock import Cutter, ZMap, default_stock, load_stock
+from planning.stock import ZMap
 from planning.stock.machining import bind_tools
 
 SPLIT_SLACK = 1.1  # sub-levels: depth / (needed reduction x this)
@@ -119,8 +119,10 @@ def rough_limiter(
         part = planner.part
         mat = material or part.config.cutting.material
         if not mat:
-            return plan, program, {"violations": [], "checked": False,
-                                   "why": "no material: give cutting.material or --material"}
+            why = "no material: give cutting.material or --material"
+            return plan, program, {"violations": [], "checked": False, "why": why,
+                                   "verdict": "unchecked",
+                                   "unchecked": [{"limit": "all", "reason": why}]}  # fmt: skip
         tool, coef = part.tool, coefficients(mat)
         limits = limits_for(tool, m, tool_name=part.config.tool.name, lobes=lobes)
         st = part.config.stock
@@ -209,6 +211,39 @@ def _split_needs(res: CheckResult, level_of: dict[int, int], plan) -> dict[int, 
     return {lv: k for lv, k in need.items() if k >= 2 and lv < len(plan.levels)}
 
 
+def _is_drilling(motion: Motion) -> bool:
+    """Every feed move of a tool's section is along Z alone (hole cycles G81-G83, plunges)."""
+    from planning.stock.machining import plunge_mask
+
+    feed = motion.is_feed
+    return bool(feed.any()) and bool(plunge_mask(motion.start[feed], motion.end[feed]).all())
+
+
+def _lobes_for(lobes: str | Path | None, tools: dict, file: str) -> dict[int, str | None]:
+    """``--lobes FILE`` (a one-tool program) or ``T1=FILE,T2=FILE``: the table of each tool."""
+    from planning.stock.machining import parse_tool_spec
+
+    if lobes is None:
+        return {t: None for t in tools}
+    spec = parse_tool_spec(str(lobes))
+    if isinstance(spec, str):
+        if len(tools) > 1:
+            raise PlanningError(
+                f"{file}: --lobes = {lobes}: a lobes table is one tool's and the program loads "
+                f"{', '.join(f'T{t}' for t in tools)}: give T<number>=FILE for each"
+            )
+        return {t: spec for t in tools}
+    out: dict[int, str | None] = {t: None for t in tools}
+    for key, path in spec.items():
+        if not (key[:1] == "T" and key[1:].isdigit() and int(key[1:]) in tools):
+            raise PlanningError(
+                f"{file}: --lobes: {key}={path}: expected T<number>=FILE for a "
+                f"tool the program loads ({', '.join(f'T{t}' for t in tools)})"
+            )
+        out[int(key[1:])] = path
+    return out
+
+
 def check_job(
     program_path: str | Path,
     *,
@@ -222,31 +257,90 @@ def check_job(
     spindle_rpm: float | None = None,
     plot: str | Path | None = None,
     progress: Any = None,
-) -> tuple[CheckResult, dict[str, Any]]:
+) -> tuple[list[CheckResult], dict[str, Any]]:
     """``cutlab plan check``: every block of a program against the limits of its tool and
-    machine; the per-block quantities to ``plot`` (PNG)."""
+    machine, each tool's section (``tool_name`` ``T1=A,T2=B`` for a program that changes tools)
+    with its own cutter and limits on the one stock; the per-block quantities to ``plot`` (PNG).
+    A drilling section (Z-only feed moves) is machined but not checked (the end-mill force
+    model does not hold for a drill): its limits are listed as unchecked. The verdict:
+    "violations", else "unchecked" if any limit of any section could not be checked, else
+    "within"."""
+    from planning.feed.job import job_stock, refuse_no_removal
+    from planning.limits.check import PIECE_MM, verdict
+    from planning.nc import segment_time_s
+    from planning.stock import simulate_motion
+    from planning.stock.machining import Operation, parse_tool_spec
+
+    file = str(program_path)
     m = load_machine(machine)
-    tool = end_mill(tool_name)
+    if not tool_name:
+        end_mill(tool_name)  # the error lists the end mills
     coef = coefficients(material)
-    limits = limits_for(tool, m, tool_name=tool_name or "", lobes=lobes,
-                        force_limit_n=force_limit_n)  # fmt: skip
     program = Program.read(program_path)
-    motion = interpret(program, m, file=str(program_path), cutter_comp="refuse", probing="refuse")
-    if tool_name:  # the limits are one tool's: refuse a program that changes tools, naming it
-        bind_tools(motion, tool_name, str(program_path))
-    if stock_spec:
-        stock = load_stock(stock_spec, spacing_mm)
-    else:
-        try:
-            stock = default_stock(motion, Cutter.from_tool(tool), spacing_mm)
-        except PlanningError as exc:
-            raise PlanningError(f"{program_path}: {exc}") from None
-    res = check_motion(motion, tool, coef, limits, stock, spindle_rpm=spindle_rpm,
-                       file=str(program_path), progress=progress)  # fmt: skip
-    out = {"program": str(program_path), "tool": tool_name, "material": material,
-           "machine": m.name, **res.summary(), "png": None}  # fmt: skip
+    motion = interpret(program, m, file=file, cutter_comp="refuse", probing="refuse")
+    tools = bind_tools(motion, parse_tool_spec(tool_name), file)  # type: ignore[arg-type]
+    radius = max(t.diameter_mm for _, t in tools.values()) / 2
+    stock, stock_info = job_stock(motion, radius, stock_spec, spacing_mm, file)
+    tables = _lobes_for(lobes, tools, file)
+    time_s = segment_time_s(motion, m)
+    results: list[CheckResult] = []
+    sections: list[dict[str, Any]] = []
+    first_limits = None
+    for lo, hi, t in Operation("", motion, tools, file).runs():
+        name, tool = tools[t]
+        sub = motion[lo:hi]
+        row: dict[str, Any] = {"tool_number": t, "tool": name, "segments": hi - lo,
+                               "time_s": round(float(time_s[lo:hi].sum()), 3)}  # fmt: skip
+        if _is_drilling(sub):
+            sim = simulate_motion(stock, tool, sub, piece_mm=PIECE_MM, check_holder=False)
+            unchecked = [{"limit": "all", "reason": f"T{t} {name} drills (Z-only feed moves): "
+                          "the end-mill force model does not cover a drill"}]  # fmt: skip
+            row |= {"removed_mm3": round(sim.removed_total_mm3, 3), "cutting_blocks": 0,
+                    "violations": 0, "unchecked": unchecked, "verdict": "unchecked"}  # fmt: skip
+            sections.append(row)
+            continue
+        limits = limits_for(tool, m, tool_name=name, lobes=tables[t],
+                            force_limit_n=force_limit_n)  # fmt: skip
+        before = stock.volume_mm3()
+        res = check_motion(sub, tool, coef, limits, stock, spindle_rpm=spindle_rpm, file=file,
+                           progress=progress)  # fmt: skip
+        summ = res.summary()
+        row |= {"removed_mm3": round(before - stock.volume_mm3(), 3),
+                "cutting_blocks": summ["cutting_blocks"], "violations": len(res.violations),
+                "unchecked": summ["unchecked"], "verdict": summ["verdict"],
+                "worst": summ["worst"], "limits": summ["limits"]}  # fmt: skip
+        first_limits = first_limits or summ["limits"]
+        results.append(res)
+        sections.append(row)
+    removed = sum(r["removed_mm3"] for r in sections)
+    refuse_no_removal(removed, stock_info, file)
+    violations = []
+    unchecked = []
+    for row, res in _paired(sections, results):
+        tag = f"T{row['tool_number']}" if len(tools) > 1 else None
+        if res is not None:
+            violations += [v | ({"tool": tag} if tag else {}) for v in res.violations]
+        unchecked += [u | ({"tool": tag} if tag else {}) for u in row["unchecked"]]
+    worst: dict[str, Any] = {}
+    for row in sections:
+        for k, w in row.get("worst", {}).items():
+            if k not in worst or w["margin_pct"] < worst[k]["margin_pct"]:
+                worst[k] = w | ({"tool": f"T{row['tool_number']}"} if len(tools) > 1 else {})
+    out = {"program": file, "tool": tool_name, "material": material, "machine": m.name,
+           "verdict": verdict(violations, unchecked), "violations": violations,
+           "unchecked": unchecked, "limits": first_limits,
+           "cutting_blocks": sum(r["cutting_blocks"] for r in sections), "worst": worst,
+           "stock": stock_info, "removed_mm3": round(removed, 3),
+           "time_s": round(float(time_s.sum()), 3), "tools": sections, "png": None}  # fmt: skip
     if plot:
         from planning.limits.plot import plot_check
 
-        out["png"] = str(plot_check(res, plot, f"{Path(program_path).name}: limits per block"))
-    return res, out
+        out["png"] = str(plot_check(results, plot, f"{Path(program_path).name}: limits per block"))
+    return results, out
+
+
+def _paired(sections: list[dict], results: list[CheckResult]):
+    """Each section with its check (None for a drilling section), in program order."""
+    it = iter(results)
+    for row in sections:
+        yield row, (next(it) if "limits" in row else None)

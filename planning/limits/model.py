@@ -155,6 +155,8 @@ class Limits:
     stability_modes: bool = False
     stability_margin: float = STABILITY_MARGIN
     notes: tuple[str, ...] = field(default=())
+    #: (limit, why) of each limit that could not be checked: a verdict with any is "unchecked"
+    unchecked: tuple[tuple[str, str], ...] = field(default=())
 
     @property
     def has_stability(self) -> bool:
@@ -177,6 +179,7 @@ class Limits:
             "stability": lobes,
             "stability_margin": self.stability_margin if lobes else None,
             "notes": list(self.notes),
+            "unchecked": [{"limit": k, "reason": r} for k, r in self.unchecked],
         }
 
     @property
@@ -199,19 +202,24 @@ def limits_for(
     """The limits of ``tool`` on ``machine`` (either may lack some: then that limit is off)."""
     if not 0 < stability_margin <= 1:
         raise PlanningError(f"stability margin = {stability_margin}: expected 0 < margin <= 1")
-    notes = []
+    unchecked: list[tuple[str, str]] = []
     if machine is None:
-        notes.append("no machine: spindle power and torque not checked")
-    elif machine.spindle_power_kw is None and machine.spindle_torque_nm is None:
-        notes.append(f"machine {machine.name} gives no spindle_power_kw / spindle_torque_nm")
+        unchecked += [(k, "no machine") for k in ("power", "torque")]
+    else:
+        if machine.spindle_power_kw is None:
+            unchecked.append(("power", f"machine {machine.name} gives no spindle_power_kw"))
+        if machine.spindle_torque_nm is None:
+            unchecked.append(("torque", f"machine {machine.name} gives no spindle_torque_nm"))
     table = load_lobes(lobes) if isinstance(lobes, (str, Path)) else lobes
     modes = table is None and bool(tool.modes)
     if table is None and not modes:
-        notes.append("no lobes table (--lobes) and no tool modes: stability not checked")
+        unchecked.append(("stability", f"tool {tool_name} has no modes and no lobes table "
+                          "(--lobes) was given"))  # fmt: skip
     if tool.deflection_tol_mm is None:
-        notes.append(f"tool {tool_name} gives no deflection_tol_mm: deflection not checked")
+        unchecked.append(("deflection", f"tool {tool_name} gives no deflection_tol_mm"))
     if tool.max_chip_mm is None:
-        notes.append(f"tool {tool_name} gives no max_chip_mm: chip thickness not checked")
+        unchecked.append(("chip", f"tool {tool_name} gives no max_chip_mm"))
+    notes = [f"{k} not checked: {why}" for k, why in unchecked]
     return Limits(
         force_n=force_limit_n,
         deflection_mm=tool.deflection_tol_mm,
@@ -223,6 +231,7 @@ def limits_for(
         stability_modes=modes,
         stability_margin=stability_margin,
         notes=tuple(notes),
+        unchecked=tuple(unchecked),
     )
 
 

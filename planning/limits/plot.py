@@ -8,27 +8,47 @@ from planning.limits.check import CheckResult
 from planning.limits.model import LIMIT_UNITS
 
 
-def plot_check(res: CheckResult, path: str | Path, title: str = "") -> Path:
-    """One panel per quantity (value per block, the allowed value dashed, violations red)."""
+def plot_check(res: CheckResult | list[CheckResult], path: str | Path, title: str = "") -> Path:
+    """One panel per quantity (value per block, the allowed value dashed, violations red), the
+    blocks of every tool's check in ``res``; a program that cuts nothing gets one panel saying
+    so, not empty axes."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import pandas as pd
 
-    df = res.blocks
+    checks = res if isinstance(res, list) else [res]
+    frames = [c.blocks for c in checks if len(c.blocks)]
+    df = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
     names = [k for k in LIMIT_UNITS if k in df]
+    if not names:
+        fig, ax = plt.subplots(figsize=(9, 2.5))
+        ax.text(0.5, 0.5, "no cutting: no block removes stock", ha="center", va="center")
+        ax.set_axis_off()
+        return _save(fig, path, title)
     fig, axes = plt.subplots(len(names), 1, figsize=(9, 1.9 * len(names) + 0.6), sharex=True,
                              squeeze=False)  # fmt: skip
     for ax, k in zip(axes[:, 0], names):
         ax.plot(df["block"], df[k], ".", ms=3, color="tab:blue")
         if f"{k}_allowed" in df:
-            ax.plot(df["block"], df[f"{k}_allowed"], "--", color="k", lw=1)
+            ok = df[f"{k}_allowed"].notna()
+            ax.plot(df["block"][ok], df[f"{k}_allowed"][ok], "--", color="k", lw=1)
             bad = df[f"{k}_ratio"] > 1 + 1e-6
             ax.plot(df["block"][bad], df[k][bad], ".", ms=4, color="tab:red")
+        else:  # a limit that could not be checked is said so on its panel
+            ax.text(0.99, 0.9, "limit not checked", transform=ax.transAxes, ha="right",
+                    va="top", fontsize=8, color="tab:red")  # fmt: skip
         label = "depth" if k == "stability" else k
         ax.set_ylabel(f"{label} ({LIMIT_UNITS[k]})")
         ax.grid(alpha=0.3)
     axes[-1, 0].set_xlabel("block")
+    return _save(fig, path, title)
+
+
+def _save(fig, path: str | Path, title: str) -> Path:
+    import matplotlib.pyplot as plt
+
     fig.suptitle(title or "limits per block")
     fig.tight_layout()
     out = Path(path)

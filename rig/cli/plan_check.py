@@ -13,13 +13,20 @@ from rig.cli._common import add_catalog_options, positive
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``check`` to the ``plan`` group."""
-    p = sub.add_parser("check", help="check a program's blocks against machine and tool limits")
+    p = sub.add_parser(
+        "check", help="check a program's blocks against machine and tool limits",
+        description="Exit status: 0 every block within every limit (verdict 'within'); 3 a block "
+        "breaks a limit ('violations'); 4 none breaks one but a limit could not be checked (no "
+        "tool modes or lobes, no spindle curve, a drill, nothing cut: 'unchecked', listed); "
+        "2 bad input.",
+    )  # fmt: skip
     p.add_argument("program", type=Path, help="NC program")
-    p.add_argument("--tool", help="end mill in configs/tools.toml")
+    p.add_argument("--tool", help="end mill in configs/tools.toml, or T1=NAME,T2=NAME for a "
+                   "program that changes tools (each section checked with its own)")  # fmt: skip
     p.add_argument("--material", help="material (configs/materials.toml): force coefficients")
     p.add_argument("--machine", default="ace-h63", help="machine config name or path")
     p.add_argument("--stock", help="box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP | mesh (.stl) | stock TOML "
-        "(default: a box over the feed moves, top at Z0)")  # fmt: skip
+        "(default: derived from the program's feed moves, printed)")  # fmt: skip
     p.add_argument(
         "--spacing", type=positive("mm", 100), help="Z-map grid spacing, mm (default 0.25)"
     )
@@ -38,11 +45,14 @@ def add_limit_options(p: argparse.ArgumentParser) -> None:
                    "`cutlab analyze stability -o`), default: the tool's modes if any")  # fmt: skip
 
 
+#: exit status of each verdict (0 within, 3 violations, 4 unchecked; 2 is bad input)
+VERDICT_EXIT = {"within": 0, "violations": 3, "unchecked": 4}
+
+
 def print_violations(violations: list[dict], limit: int = 20) -> None:
     from rig.cli._common import print_table
 
     if not violations:
-        print("every block within every limit")
         return
     print(f"{len(violations)} violations (block, limit, value, allowed, margin %):")
     print_table(violations[:limit])
@@ -50,9 +60,29 @@ def print_violations(violations: list[dict], limit: int = 20) -> None:
         print(f"... and {len(violations) - limit} more (--json lists all)")
 
 
+def print_verdict(out: dict) -> None:
+    """The verdict line, then each limit that could not be checked and why."""
+    n = len(out["violations"])
+    line = {"within": "verdict: within: every block within every limit",
+            "violations": f"verdict: violations: {n} (block, limit) over a limit",
+            "unchecked": "verdict: unchecked: no block over a checked limit, but these limits "
+                         "were not checked:"}[out["verdict"]]  # fmt: skip
+    print(line)
+    for u in out["unchecked"]:
+        tool = f"{u['tool']} " if u.get("tool") else ""
+        print(f"  not checked: {tool}{u['limit']}: {u['reason']}")
+
+
+def print_stock(stock: dict) -> None:
+    from rig.cli._common import status
+
+    if stock.get("source") == "derived":
+        status(f"stock: {stock['spec']} (derived: {stock['how']})")
+
+
 def run(a: argparse.Namespace) -> int:
     from planning.limits import check_job
-    from rig.cli._common import Progress, print_json, status
+    from rig.cli._common import Progress, print_json, print_table, status
 
     with Progress("simulate", unit="piece") as bar:
         _, out = check_job(
@@ -60,17 +90,21 @@ def run(a: argparse.Namespace) -> int:
             stock_spec=a.stock, spacing_mm=a.spacing, lobes=a.lobes, spindle_rpm=a.spindle,
             plot=a.plot, progress=bar,
         )  # fmt: skip
+    code = VERDICT_EXIT[out["verdict"]]
     if a.json:
         print_json(out)
-        return 0
-    for n in out["limits"]["notes"]:
-        status("note: " + n)
-    if not out["cutting_blocks"]:  # e.g. the default stock (top at Z0) under a part's program
-        status(f"note: {a.program}: no block removes stock (give the stock with --stock)")
+        return code
+    print_stock(out["stock"])
+    if len(out["tools"]) > 1:
+        cols = ("tool_number", "tool", "removed_mm3", "time_s", "cutting_blocks", "violations",
+                "verdict")  # fmt: skip
+        print_table([{k: r[k] for k in cols} for r in out["tools"]])
     print_violations(out["violations"])
     for k, w in out["worst"].items():
-        print(f"worst {k}: {w['value']:.4g} of {w['allowed']:.4g} at block {w['block']} "
+        tool = f"{w['tool']} " if w.get("tool") else ""
+        print(f"worst {k}: {w['value']:.4g} of {w['allowed']:.4g} at {tool}block {w['block']} "
               f"(margin {w['margin_pct']} %)")  # fmt: skip
+    print_verdict(out)
     if out["png"]:
         status(f"wrote {out['png']}")
-    return 0
+    return code

@@ -11,7 +11,12 @@ from rig.cli._common import add_catalog_options, image_file, positive
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``feed`` and ``simulate`` to the ``plan`` group."""
-    f = sub.add_parser("feed", help="adjust feeds by predicted cutting load (seed 001)")
+    f = sub.add_parser(
+        "feed", help="adjust feeds by predicted cutting load (seed 001)",
+        description="Exit status: 0 when the program is written, whatever its verdict (printed, "
+        "and 'verdict' in --json: 'within', 'violations' or 'unchecked' without --material); "
+        "2 bad input, or a program that removes nothing from its stock.",
+    )  # fmt: skip
     f.add_argument("program", type=Path, help="NC program (G21 or G20)")
     f.add_argument("--rules", required=True, help="rule file (TOML) or rule-base name / id")
     f.add_argument("--db", type=Path, help="rule base for a name / id (default from lab.toml)")
@@ -53,7 +58,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--tool", help="end mill of the tool catalogue, or T1=NAME,T2=NAME for a "
                    "program that changes tools (needed for a program; plans name theirs)")
     p.add_argument("--stock", help="box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP | mesh (.stl) | stock TOML "
-        "(default: a box over the feed moves, top at Z0)")  # fmt: skip
+        "(default: derived from the program's feed moves, printed)")  # fmt: skip
     p.add_argument(
         "--spacing", type=positive("mm", 100), help="Z-map grid spacing, mm (default 0.25)"
     )
@@ -90,11 +95,11 @@ def _feed(a: argparse.Namespace) -> int:
     if a.json:
         s.setdefault("violations", [])  # the command contract: always a list
         print_json(s)
-        return 0
-    if "limits" in s:
-        from rig.cli.plan_check import print_violations
+        return 0  # a written program; its verdict is in the JSON (plan check exits by it)
+    from rig.cli.plan_check import print_stock, print_verdict, print_violations
 
-        print_violations(s["violations"])
+    print_stock(s["stock"])
+    print_violations(s["violations"])
     status(f"wrote {a.output} ({s['dialect']}) and report "
            f"{Path(s['report']['csv']).parent}/{a.output.stem}-*")  # fmt: skip
     for c in result.simulation.contacts:
@@ -106,6 +111,7 @@ def _feed(a: argparse.Namespace) -> int:
     print_table([{"": t, "before": s[k % "before"], "after": s[k % "after"]} for t, k in rows])
     print(f"time saved {s['time_saved_pct']:.1f} %, {s['split_blocks']} blocks split, "
           f"removed {s['removed_mm3']:.1f} mm^3")  # fmt: skip
+    print_verdict(s)
     return 0
 
 

@@ -79,6 +79,9 @@ def run(args: argparse.Namespace) -> int:
                                              material=args.material, lobes=args.lobes))  # fmt: skip
     c = res["check"]
     code = 0 if c is None or c["ok"] else 1
+    lim = res["limits"] or {}  # the limits' verdict of the written program (exit as before)
+    res["verdict"] = lim.get("verdict", "unchecked")
+    res["unchecked"] = lim.get("unchecked", [{"limit": "all", "reason": "limits not run"}])
     if args.json:
         print_json(res)
         return code
@@ -112,6 +115,9 @@ def run(args: argparse.Namespace) -> int:
         if lim["feeds_lowered"]:
             print(f"  lowered the feed of {len(lim['feeds_lowered'])} blocks")
         print_violations(res["violations"])
+    from rig.cli.plan_check import print_verdict
+
+    print_verdict(res)
     for k, v in res["png"].items():
         print(f"{k}: {v}")
     return code
