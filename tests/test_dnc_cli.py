@@ -160,3 +160,38 @@ def test_serve_answers_a_remote_request(tmp_path) -> None:
     res = json.loads(out)
     assert res["program"] == "4321" and res["ok"] and res["blocks_sent"] == len(prog)
     assert ctl.executed_texts() == [b.text for b in prog.blocks]
+
+
+def test_restart_dry_run_prints_the_preamble_and_sends_nothing(tmp_path, capsys) -> None:
+    from test_dnc_restart import CLEAR
+
+    nc = tmp_path / "c.nc"
+    nc.write_text(CLEAR)
+    port = str(tmp_path / "no-such-tty")  # nothing is opened: a port that does not exist
+    args = ["dnc", "send", str(nc), "--port", port, "--protocol", "grbl", "--start-block", "5",
+            "--dry-run"]  # fmt: skip
+    assert main(args) == 0
+    out, err = capsys.readouterr()
+    lines = [ln.split("    (")[0] for ln in out.splitlines() if not ln.startswith("(")]
+    # as GRBL is sent (stripped): up at the clearance, over X20 Y0, down at F600, F3000 back
+    assert lines[3:8] == ["G90G0Z5", "X20Y0", "G1Z-1F600", "F3000", "G90G1"]
+    assert lines[8] == "G1Y10"
+    assert "clearance Z5 mm" in err and "plunge F600 mm/min" in err and "nothing was sent" in err
+    assert main([*args, "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    assert doc["sent"] is False and doc["first_blocks"][0] == {"block": 5, "line": 6,
+                                                              "text": "G1Y10"}  # fmt: skip
+    assert "G1Z-1F600" in doc["preamble"]
+
+
+@pytest.mark.faults
+def test_restart_without_a_plunge_feed_is_one_line(tmp_path, capsys) -> None:
+    nc = tmp_path / "np.nc"
+    nc.write_text("G21 G90\nG0 X0 Y0 Z5\nG0 Z-1\nG1 X10 F3000\nG1 X20\nM30\n")
+    args = ["dnc", "send", str(nc), "--port", str(tmp_path / "tty"), "--protocol", "fanuc",
+            "--start-block", "4", "--dry-run"]  # fmt: skip
+    assert main(args) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--plunge-feed" in err and "np.nc" in err
+    assert main([*args, "--plunge-feed", "300"]) == 0
+    assert "G1 Z-1 F300" in capsys.readouterr().out

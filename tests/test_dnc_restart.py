@@ -4,12 +4,13 @@ whole program from block N on, whatever modal state N inherits."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from _dnc_helpers import ARCS as ARCS_BODY
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planning.nc import interpret, state_at_block
-from rig.dnc import program_from_text, restart_blocks
+from rig.dnc import program_from_text, restart_blocks, restart_plan
 
 coord = st.integers(-2000, 2000).map(lambda v: v / 100)  # 0.01 steps: written exactly
 
@@ -111,3 +112,94 @@ def test_fanuc_restart_at_an_arc_and_the_predicted_execution() -> None:
     assert np.all(np.isfinite(got))
     assert np.max(np.abs(got - ex)) < 0.2  # predicted from the time model, no acceleration
     assert res.last_executed_block <= prog.blocks[-1].index
+
+
+# -- the approach: the program's clearance and plunge feed (issue 31, item 3) --------------------
+
+# clearance Z5 (the only rapid height), plunges at F600, cuts at F3000; the part spans X0-50 Y0-10
+CLEAR = """G21 G90 G17
+S3000 M3
+G0 X0 Y0 Z5
+G1 Z-1 F600
+G1 X20 F3000
+G1 Y10
+G1 X0
+G0 Z5
+G0 X30 Y0
+G1 Z-1 F600
+G1 X50 F3000
+G0 Z5
+M5
+M30
+"""
+
+
+@pytest.mark.parametrize("protocol", ["fanuc", "grbl"])
+def test_restart_approaches_at_the_clearance_and_plunges_at_the_programs_feed(protocol) -> None:
+    """Restart at block 5 ('G1 Y10', the tool at X20 Y0 Z-1 in the cut): the preamble, read by
+    planning.nc's interpreter, rapids no lower than Z5 (the program's clearance) and comes down
+    at F600 (its plunge feed), never F3000; the block then cuts at F3000 as in the program."""
+    from planning.nc import LINE, RAPID
+
+    prog = program_from_text(CLEAR, "c.nc")
+    plan = restart_plan(prog, 5, protocol)
+    assert "clearance Z5" in plan.notes[0] and "line 3" in plan.notes[0]
+    assert "plunge F600" in plan.notes[1] and "line 4" in plan.notes[1]
+    lines = CLEAR.splitlines()
+    part = interpret("\n".join(plan.preamble + lines[5:]) + "\n", dialect=protocol)
+    n = len(plan.preamble)
+    app = part[part.block < n]
+    kind, start, end, feed = (np.asarray(a) for a in (app.kind, app.start, app.end,
+                                                       app.feed_mm_min))  # fmt: skip
+    rap = kind == RAPID
+    moves_xy = np.hypot(*(end[:, :2] - start[:, :2]).T) > 1e-9
+    # no rapid ends below the clearance (hand-computed: Z5; the first one rises straight up from
+    # wherever the machine stands, the interpreter's Z0), none moves in X Y below it
+    assert rap.any() and np.all(end[rap, 2] >= 5.0 - 1e-9)
+    assert np.all(np.minimum(start[rap & moves_xy, 2], end[rap & moves_xy, 2]) >= 5.0 - 1e-9)
+    assert not moves_xy[0] and end[0, 2] == 5.0
+    # the XY move is at Z5 and ends over the restart point (X20 Y0)
+    xy = np.flatnonzero(rap & moves_xy)
+    np.testing.assert_allclose(end[xy[-1]], [20.0, 0.0, 5.0], atol=1e-9)
+    # the only descent below Z5: a feed move straight down X20 Y0 Z5 -> Z-1 at F600
+    below = end[:, 2] < 5.0 - 1e-9
+    assert np.flatnonzero(below).tolist() == [len(kind) - 1]
+    assert kind[-1] == LINE and feed[-1] == 600.0
+    np.testing.assert_allclose(start[-1], [20.0, 0.0, 5.0], atol=1e-9)
+    np.testing.assert_allclose(end[-1], [20.0, 0.0, -1.0], atol=1e-9)
+    # block 5 itself: the cut at the program's F3000 from where the approach left the tool
+    blk = part[part.block == n]
+    assert int(blk.kind[0]) == LINE and float(blk.feed_mm_min[0]) == 3000.0
+    np.testing.assert_allclose(blk.start[0], [20.0, 0.0, -1.0], atol=1e-9)
+    np.testing.assert_allclose(blk.end[0], [20.0, 10.0, -1.0], atol=1e-9)
+
+
+def test_restart_keeps_a_modal_rapid_after_the_plunge() -> None:
+    """The plunge is a G1; a program in G0 at block N gets its G0 back (block N stays a rapid)."""
+    from planning.nc import RAPID
+
+    text = "G21 G90\nG0 X0 Y0 Z5\nG1 Z-1 F600\nG0 X10\nX20\nM30\n"
+    plan = restart_plan(program_from_text(text, "g0.nc"), 4, "grbl")
+    part = interpret("\n".join(plan.preamble + text.splitlines()[4:]) + "\n", dialect="grbl")
+    blk = part[part.block == len(plan.preamble)]
+    assert int(blk.kind[0]) == RAPID
+    np.testing.assert_allclose(blk.end[0], [20.0, 0.0, -1.0], atol=1e-9)
+
+
+def test_restart_clearance_and_plunge_refused_or_given() -> None:
+    from rig.dnc import DncError
+
+    no_rapid = "G21 G90\nG1 X0 Y0 Z-1 F600\nG1 X10 F3000\nG1 X20\nM30\n"
+    prog = program_from_text(no_rapid, "nr.nc")
+    with pytest.raises(DncError, match="no rapid move before that block.*--safe-z"):
+        restart_plan(prog, 3, "fanuc")
+    plan = restart_plan(prog, 3, "fanuc", safe_z_mm=10.0)
+    assert "G90 G0 Z10" in plan.preamble and "G1 Z-1 F600" in plan.preamble
+    assert "--safe-z" in plan.notes[0]
+    no_plunge = "G21 G90\nG0 X0 Y0 Z5\nG0 Z-1\nG1 X10 F3000\nG1 X20\nM30\n"
+    prog = program_from_text(no_plunge, "np.nc")
+    with pytest.raises(DncError, match="no Z-descending feed move.*--plunge-feed"):
+        restart_plan(prog, 4, "grbl")
+    plan = restart_plan(prog, 4, "grbl", plunge_feed_mm_min=250.0)
+    assert plan.preamble[-4:] == ["X10 Y0", "G1 Z-1 F250", "F3000", "G90 G1"]
+    assert "--plunge-feed" in plan.notes[1]

@@ -10,27 +10,63 @@ from rig.cli._common import count, number, positive, print_json, status
 
 def _send(args: argparse.Namespace) -> int:
     from rig.dnc import StreamFault, halt_on_signals, prepare_send
+    from rig.dnc.keys import operator_control
 
     job = prepare_send(
         args.file, args.protocol, machine=args.machine, port=args.port, baud=args.baud,
         timeout_s=args.timeout, start_block=args.start_block, safe_z_mm=args.safe_z,
-        record_csv=args.record, progress=not args.no_progress,
+        plunge_feed_mm_min=args.plunge_feed,
+        record_csv=None if args.dry_run else args.record, progress=not args.no_progress,
         grbl_mode=args.mode, grbl_unlock=args.unlock, grbl_strip=not args.no_strip,
-        fanuc_wait_dc1=not args.no_wait_dc1, guard=True,
+        fanuc_wait_dc1=not args.no_wait_dc1, guard=not args.dry_run,
     )  # fmt: skip
     p = job.program
+    if job.start_block:
+        status(f"restart at block {job.start_block}: " + "; ".join(job.restart_notes))
+    if args.dry_run:
+        return _dry_run(job, args)
     status(f"sending {p.name} ({len(p)} blocks) to {job.settings.port} [{job.protocol}]")
-    try:
-        with halt_on_signals(job.streamer):  # Ctrl-C, SIGTERM, SIGHUP: feed hold, clean halt
-            res = job.send()
-    except StreamFault as exc:
-        if args.json:
-            print_json(exc.result.as_dict())
-        raise
+    with operator_control(job.streamer, job.protocol) as ctl:
+        try:
+            with halt_on_signals(job.streamer, on_signal=ctl.note):  # Ctrl-C: hold, clean halt
+                res = job.send()
+        except StreamFault as exc:
+            ctl.close()
+            if args.json:
+                print_json({**exc.result.as_dict(), "operator_actions": ctl.actions})
+            raise
+        ctl.close()
     if args.json:
-        print_json(res.as_dict())
+        print_json({**res.as_dict(), "operator_actions": ctl.actions})
     else:
         status(res.summary_line())
+    return 0
+
+
+#: blocks of the program shown after the preamble by ``dnc send --dry-run``
+DRY_RUN_BLOCKS = 10
+
+
+def _dry_run(job, args: argparse.Namespace) -> int:  # noqa: ANN001 - a SendJob
+    """Print what a send would send first (the restart preamble and the first blocks, as the
+    protocol sends them); nothing is opened or sent."""
+    items = job.items_to_send()
+    pre = [it.text for it in items if it.block < 0]
+    blocks = [{"block": it.block, "line": it.line, "text": it.text}
+              for it in items if it.block >= 0][:DRY_RUN_BLOCKS]  # fmt: skip
+    if args.json:
+        print_json({"dry_run": True, "program": job.program.name, "protocol": job.protocol,
+                    "start_block": job.start_block, "restart": list(job.restart_notes),
+                    "preamble": pre, "first_blocks": blocks, "sent": False})  # fmt: skip
+        return 0
+    if pre:
+        print(f"(restart preamble: {len(pre)} lines)")
+        for t in pre:
+            print(t)
+    print(f"(then the program from block {job.start_block}, first {len(blocks)} blocks)")
+    for b in blocks:
+        print(f"{b['text']}    (block {b['block']}, line {b['line']})")
+    status(f"dry run: nothing was sent to {job.settings.port}")
     return 0
 
 
@@ -88,7 +124,18 @@ def _sim_controller(args: argparse.Namespace) -> int:
 
 
 def _add_send(dsub: argparse._SubParsersAction) -> None:
-    s = dsub.add_parser("send", help="stream an NC program to a controller over serial")
+    from rig.dnc.keys import HELP as KEYS_HELP
+
+    s = dsub.add_parser(
+        "send", help="stream an NC program to a controller over serial",
+        description="Stream an NC program to a controller over serial. Operator control, "
+        f"{KEYS_HELP}: each action is one status line on stderr and is recorded (--json: "
+        "operator_actions). GRBL: hold is '!', resume '~', abort '!' then Hold:0 then a soft "
+        "reset; Fanuc drip feed: the line takes no feed hold, press FEED HOLD / CYCLE START on "
+        "the control, abort stops feeding. A restart (--start-block) approaches at the "
+        "program's clearance (its highest rapid before the block, or the R plane; --safe-z "
+        "overrides) and plunges at the program's plunge feed (--plunge-feed if it has none).",
+    )  # fmt: skip
     s.add_argument("file", help="NC program")
     s.add_argument("--port", help="port name or pyserial URL (default: the machine config's)")
     s.add_argument("--protocol", required=True, help="fanuc or grbl")
@@ -98,7 +145,13 @@ def _add_send(dsub: argparse._SubParsersAction) -> None:
     s.add_argument(
         "--start-block", type=count(0), default=0, help="restart at this block (0-based)"
     )
-    s.add_argument("--safe-z", type=number("mm"), help="restart: Z to approach from, mm")
+    safe = "restart: clearance Z to approach from, mm (default: the program's)"
+    s.add_argument("--safe-z", type=number("mm"), help=safe)
+    s.add_argument("--plunge-feed", type=positive("mm/min", 200_000),
+                   help="restart: feed down to the restart point, mm/min (default: the "
+                   "program's last plunge before the block)")  # fmt: skip
+    s.add_argument("--dry-run", action="store_true", help="print the restart preamble and the "
+                   "first blocks that would be sent; send nothing")  # fmt: skip
     s.add_argument("--mode", default="char-counting", help="GRBL: char-counting | send-response")
     s.add_argument("--unlock", action="store_true", help="GRBL: send $X if it is in Alarm")
     strip = "GRBL: send lines as written (default: no comments, spaces, N and O words)"

@@ -75,6 +75,17 @@ class SendJob:
     start_block: int
     preamble: list[str]
     replaced: dict[int, str] | None = None
+    restart_notes: tuple[str, ...] = ()  # where the restart's clearance and plunge feed came from
+
+    def items_to_send(self) -> list[Any]:
+        """What :meth:`send` would send, as ``rig.dnc._stream.Item`` s (``block`` -1: the
+        preamble): the preamble, then the program from ``start_block``, as the protocol sends
+        them (GRBL: stripped unless ``--no-strip``, and checked against GRBL's parser). Nothing
+        is opened."""
+        from rig.dnc._stream import items_for
+
+        items = items_for(self.program, self.start_block, self.preamble, self.replaced)
+        return list(self.streamer._prepare(self.program, items))
 
     def send(self) -> StreamResult:
         """Stream the program; a fault raises :class:`~rig.dnc.errors.StreamFault`."""
@@ -93,6 +104,7 @@ def prepare_send(
     timeout_s: float | None = None,
     start_block: int = 0,
     safe_z_mm: float | None = None,
+    plunge_feed_mm_min: float | None = None,
     record_csv: str | Path | None = None,
     progress: bool = False,
     grbl_mode: str = "char-counting",
@@ -103,13 +115,16 @@ def prepare_send(
 ) -> SendJob:
     """Everything ``cutlab dnc send`` checks before the port is opened: protocol, machine,
     serial settings, the program (NC errors raise here) and the restart preamble (arcs and
-    canned cycles completed); the block record goes to ``record_csv`` (None: kept in memory).
+    canned cycles completed; ``safe_z_mm`` / ``plunge_feed_mm_min`` override the program's
+    clearance and plunge feed); the block record goes to ``record_csv`` (None: kept in memory).
     ``guard``: GRBL, a watchdog process holds the feed if this process dies mid-stream."""
     protocol, m = dnc_machine(protocol, machine)
     cfg = serial_settings(m, port, baud, timeout_s)
     check_settings(cfg, protocol)
     program = load_program(file)
-    plan: RestartPlan = restart_plan(program, start_block, protocol, m, safe_z_mm)
+    plan: RestartPlan = restart_plan(
+        program, start_block, protocol, m, safe_z_mm, plunge_feed_mm_min
+    )
     sink = CsvSink(record_csv) if record_csv else MemorySink()
     if protocol == "fanuc":
         st: FanucStreamer | GrblStreamer = FanucStreamer(
@@ -120,7 +135,8 @@ def prepare_send(
             cfg, sink=sink, progress=progress, mode=grbl_mode, unlock=grbl_unlock,
             strip=grbl_strip, guard=guard, machine=m,
         )  # fmt: skip
-    return SendJob(protocol, program, cfg, st, start_block, plan.preamble, plan.replaced)
+    return SendJob(protocol, program, cfg, st, start_block, plan.preamble, plan.replaced,
+                   tuple(plan.notes))  # fmt: skip
 
 
 def remote_server(

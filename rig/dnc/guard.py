@@ -19,7 +19,7 @@ import signal
 import subprocess
 import sys
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 _CHILD = r"""
@@ -81,9 +81,14 @@ class HoldGuard:
 
 
 @contextlib.contextmanager
-def halt_on_signals(streamer: Any, signals: tuple[int, ...] | None = None) -> Iterator[None]:
+def halt_on_signals(
+    streamer: Any,
+    signals: tuple[int, ...] | None = None,
+    on_signal: Callable[[str], None] | None = None,
+) -> Iterator[None]:
     """While the block runs, the ``signals`` (default SIGINT, SIGTERM, SIGHUP) interrupt
-    ``streamer`` instead of killing the process (main thread only; elsewhere a no-op)."""
+    ``streamer`` instead of killing the process (main thread only; elsewhere a no-op).
+    ``on_signal(name)`` is told of the first one (after the interrupt: it must not block)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -97,6 +102,8 @@ def halt_on_signals(streamer: Any, signals: tuple[int, ...] | None = None) -> It
         if streamer.interrupted:
             raise KeyboardInterrupt  # the second one: stop waiting
         streamer.interrupt(f"{name} received")
+        if on_signal is not None:
+            on_signal(name)
 
     old = {}
     for s in signals:

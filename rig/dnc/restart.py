@@ -9,8 +9,15 @@ writes it back as NC. What the preamble restores, in this order:
    G54..G59, and G40 G49 G98/G99 G80 (compensation off, canned cycle cancelled);
 3. the tool in the spindle (``T.. M6``) and the next tool selected (``T..``);
 4. spindle speed and direction (``S.. M3/M4/M5``), coolant (M8 or M9);
-5. a safe retract and rapid approach: ``G90 G0 Z<safe>``, then ``X.. Y..`` of the position before
-   block N, then down to its Z at the feed (``G1 Z.. F..``), so the tool never rapids into stock;
+5. the approach (:func:`approach_for`): ``G90 G0 Z<clearance>``, then ``X.. Y..`` of the
+   position before block N at that height, then down to its Z at the program's plunge feed
+   (``G1 Z.. F<plunge>``, then ``F..`` restores the program's feed), so the tool never rapids
+   below the clearance. The clearance is ``safe_z_mm`` (``--safe-z``) if given, else the highest
+   Z of the program's rapids before block N, else the canned cycle's R plane; none of these: the
+   restart is refused (give ``--safe-z``). The plunge feed is block N's own if it descends in Z,
+   else that of the program's last Z-descending feed move before N, else ``plunge_feed_mm_min``
+   (``--plunge-feed``, which also overrides the program's); none and a descent is needed:
+   refused. :attr:`RestartPlan.notes` says which was used;
 6. cutter compensation G41/G42 with D, tool length G43 with H, if they were on;
 7. distance mode G90/G91 and the motion mode G0/G1, and the feed F.
 
@@ -32,7 +39,7 @@ Positions and feeds are written with 4 decimals in the units in force: exact to 
 to the control's 0.0001 in (at most 1.27 um off) in inch.
 
 ``safe_z_mm`` is in mm, machine frame (the program frame: the controllers here apply no work
-offsets); default the higher of the position's Z and 0.
+offsets); a clearance below the position before block N is raised to that position.
 
 Refused (a clear DncError, nothing sent): N past the end or after M2/M30; for GRBL, a state that
 needs codes GRBL does not take (cutter compensation, G43). For GRBL the preamble leaves out what
@@ -53,9 +60,13 @@ from planning.nc import (
     ARC_CW,
     DWELL,
     INCH_MM,
+    LINE,
+    RAPID,
     Interpreter,
+    ModalState,
     NCError,
     NumberStyle,
+    interpret,
     restart_preamble,
 )
 from rig.dnc.errors import DncError
@@ -83,6 +94,96 @@ class RestartPlan:
     block: int
     preamble: list[str] = field(default_factory=list)
     replaced: dict[int, str] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)  # where the clearance and plunge feed came from
+    approach: Approach | None = None
+
+
+@dataclass(frozen=True)
+class Approach:
+    """How a restart reaches the position before block N: rapid to ``clearance_mm`` (machine
+    frame), X Y there, then down to ``z_mm`` at ``plunge_mm_min`` (None: no descent needed).
+    ``*_from``: where each figure came from, for people."""
+
+    clearance_mm: float
+    clearance_from: str
+    z_mm: float
+    plunge_mm_min: float | None
+    plunge_from: str
+
+    def notes(self) -> list[str]:
+        out = [f"clearance Z{_fmt(self.clearance_mm)} mm ({self.clearance_from})"]
+        if self.plunge_mm_min is not None:
+            out.append(f"plunge F{_fmt(self.plunge_mm_min)} mm/min ({self.plunge_from})")
+        else:
+            out.append(f"no plunge: the restart point (Z{_fmt(self.z_mm)}) is at the clearance")
+        return out
+
+
+_Z_TOL_MM = 1e-6
+
+
+def approach_for(
+    program: Program,
+    block: int,
+    state: ModalState,
+    machine: MachineConfig | None = None,
+    safe_z_mm: float | None = None,
+    plunge_feed_mm_min: float | None = None,
+) -> Approach:
+    """The clearance and plunge feed of a restart at ``block`` (see the module doc); DncError
+    when the program gives neither and the option is not given."""
+    where = f"{program.name}: restart at block {block} (line {block + 1})"
+    z = float(state.position_mm[2])
+    try:
+        m = interpret(nc_text(program.text), machine, file=program.name)
+    except NCError as exc:
+        raise DncError(f"{where}: {exc} (nothing was sent)") from None
+    blk = np.asarray(m.block)
+    kind = np.asarray(m.kind)
+    start = np.asarray(m.start, float).reshape(-1, 3)
+    end = np.asarray(m.end, float).reshape(-1, 3)
+    before = blk < block
+    if safe_z_mm is not None:
+        clear, clear_from = float(safe_z_mm), "--safe-z"
+    else:
+        rap = np.flatnonzero(before & (kind == RAPID))
+        r_plane = float(getattr(getattr(state, "canned", None), "r_mm", math.nan))
+        if len(rap):
+            i = int(rap[np.argmax(end[rap, 2])])
+            clear = float(end[i, 2])
+            clear_from = f"the highest rapid before block {block}: line {int(blk[i]) + 1}"
+        elif math.isfinite(r_plane):
+            clear, clear_from = r_plane, "the canned cycle's R plane"
+        else:
+            raise DncError(
+                f"{where}: the program has no rapid move before that block to take a clearance "
+                "height from; give --safe-z MM (machine Z to approach from; nothing was sent)"
+            )
+    if clear < z - _Z_TOL_MM:
+        clear_from += f", raised to the restart point's Z{_fmt(z)}"
+        clear = z
+    if z > clear - _Z_TOL_MM:
+        return Approach(clear, clear_from, z, None, "")
+    feed_kinds = np.isin(kind, (int(LINE), int(ARC_CW), int(ARC_CCW)))
+    down = feed_kinds & (end[:, 2] < start[:, 2] - _Z_TOL_MM)
+    feed = np.asarray(m.feed_mm_min, float)
+    own = np.flatnonzero(blk == block)
+    if plunge_feed_mm_min is not None:
+        plunge, plunge_from = float(plunge_feed_mm_min), "--plunge-feed"
+    elif len(own) and down[own[0]] and math.isfinite(feed[own[0]]):
+        plunge, plunge_from = float(feed[own[0]]), f"block {block}'s own plunge"
+    else:
+        prev = np.flatnonzero(before & down & np.isfinite(feed))
+        if not len(prev):
+            raise DncError(
+                f"{where}: the approach descends from Z{_fmt(clear)} to Z{_fmt(z)} mm and the "
+                "program has no Z-descending feed move before that block to take the plunge "
+                "feed from; give --plunge-feed MM_PER_MIN (nothing was sent)"
+            )
+        i = int(prev[-1])
+        plunge = float(feed[i])
+        plunge_from = f"the last Z-descending feed move before it: line {int(blk[i]) + 1}"
+    return Approach(clear, clear_from, z, plunge, plunge_from)
 
 
 def restart_blocks(
@@ -91,11 +192,12 @@ def restart_blocks(
     protocol: str,
     machine: MachineConfig | None = None,
     safe_z_mm: float | None = None,
+    plunge_feed_mm_min: float | None = None,
 ) -> list[str]:
     """The preamble blocks to send before ``program``'s block ``block`` (0-based). A restart
     in an arc or a canned cycle also changes a block of the program: use :func:`restart_plan`
     (what ``cutlab dnc send`` does)."""
-    return restart_plan(program, block, protocol, machine, safe_z_mm).preamble
+    return restart_plan(program, block, protocol, machine, safe_z_mm, plunge_feed_mm_min).preamble
 
 
 def restart_plan(
@@ -104,6 +206,7 @@ def restart_plan(
     protocol: str,
     machine: MachineConfig | None = None,
     safe_z_mm: float | None = None,
+    plunge_feed_mm_min: float | None = None,
 ) -> RestartPlan:
     """The preamble and the completed blocks for a restart at ``block`` (see the module doc)."""
     if block <= 0:
@@ -127,9 +230,13 @@ def restart_plan(
     if cycle:
         pre_state.motion = 80  # the preamble cancels it; the completed block starts it again
     try:  # refusals of the preamble itself (unknown reference point, G92 in force)
-        pre = restart_preamble(pre_state, safe_z_mm=safe_z_mm, plunge_feed=True)
+        pre = restart_preamble(pre_state, plunge_feed=True)
     except NCError as exc:
         raise DncError(f"{where}: {exc} (nothing was sent)") from None
+    if plunge_feed_mm_min is not None and not (0 < plunge_feed_mm_min < math.inf):
+        raise DncError(f"--plunge-feed = {plunge_feed_mm_min}: expected a feed > 0 mm/min")
+    app = approach_for(program, block, state, machine, safe_z_mm, plunge_feed_mm_min)
+    pre = _with_approach(pre, pre_state, app)
     replaced: dict[int, str] = {}
     if state.motion in (2, 3) or cycle:
         pre[-1] = _without_motion(pre[-1])
@@ -140,7 +247,35 @@ def restart_plan(
             text = " ".join(_GRBL_DROP.sub("", text).split())
         if text:
             out.append(text)
-    return RestartPlan(block, out, replaced)
+    return RestartPlan(block, out, replaced, app.notes(), app)
+
+
+def _with_approach(pre: list[str], st: ModalState, app: Approach) -> list[str]:
+    """``restart_preamble``'s lines with its approach (``G90 G0 Z<safe>``, X Y, down at the
+    program's modal feed or at rapid) replaced by the clearance and plunge feed of ``app``."""
+    fmt = NumberStyle().format
+    scale = 1.0 / INCH_MM if st.inch else 1.0
+    oz = float(st.origin_mm[2])
+    up = next(i for i, t in enumerate(pre) if t.startswith("G90 G0") and " Z" in t)
+    xy = next(i for i in range(up + 1, len(pre)) if pre[i].startswith("X"))
+    end = xy + 1
+    while end < len(pre) and (pre[end].startswith(("Z", "G1 Z", "F"))):
+        end += 1  # the old descent: "G1 Z.. F..", or "Z.." and "F.."
+    head = pre[up].rsplit(" Z", 1)[0]
+    lines = [f"{head} Z{fmt((app.clearance_mm - oz) * scale)}", *pre[up + 1 : xy + 1]]
+    feed = st.feed_mm_min
+    restore = f"F{fmt(feed * scale)}" if math.isfinite(feed) else ""
+    if app.plunge_mm_min is not None:
+        plunge = f"F{fmt(app.plunge_mm_min * scale)}"
+        lines.append(f"G1 Z{fmt((app.z_mm - oz) * scale)} {plunge}")
+        if restore and restore != plunge:
+            lines.append(restore)
+    elif restore:
+        lines.append(restore)
+    tail = list(pre[end:])
+    if app.plunge_mm_min is not None and st.motion == 0:
+        tail[-1] += " G0"  # the plunge left G1 in force; the program was in G0
+    return [*pre[:up], *lines, *tail]
 
 
 def _without_motion(line: str) -> str:
