@@ -47,6 +47,8 @@ from rig.daq import Calibration, DaqEvent, DaqInfo
 
 TICK_S = 0.04  # status 25 times a second
 LIVE_FILE = "live.json"  # in the campaign folder while a live campaign runs
+TOKEN_ENV = "CUTLAB_CONSOLE_TOKEN"  # how a live campaign hands its server the token (not argv)
+WILDCARD_BINDS = frozenset({"", "0.0.0.0", "::"})
 MAX_EVENTS = 200
 BANDS_S = 60.0  # the executed blocks sent to the page: those of the longest window it shows
 #: s a live campaign's server stays after the campaign process died (the page says so)
@@ -451,6 +453,13 @@ class LiveCampaign:
 # ----------------------------------------------------------------------------------------------
 
 
+def url_of(bind: str, port: int, token: str) -> str:
+    """The address to open, token included (as notebook servers print theirs)."""
+    b = bind.strip().strip("[]")
+    host = "127.0.0.1" if b in WILDCARD_BINDS else f"[{b}]" if ":" in b else b
+    return f"http://{host}:{port}/?token={token}"
+
+
 def check_console_extra() -> None:
     """ConfigError naming the install line when the console's packages are missing."""
     import importlib.util
@@ -483,8 +492,6 @@ def start_server(
     """The console server for ``target`` in its own process (its own session: Ctrl-C at the
     campaign's terminal is the campaign's), with the session's ``token`` (in its environment,
     not its command line); returns once it answers."""
-    from rig.console.server import TOKEN_ENV, url_of
-
     cmd = [sys.executable, "-m", "rig.console.server", str(target), "--port", str(port),
            "--bind", bind, "--linger-s", str(LINGER_S)]  # fmt: skip
     env = {**os.environ, TOKEN_ENV: token}
@@ -603,8 +610,6 @@ def live_console(
     are removed when this ends, however it ends; a killed campaign's are removed by the next
     start (:func:`remove_stale`)."""
     import secrets
-
-    from rig.console.server import url_of
 
     folder = campaign_folder(campaign, out_root)
     if serve:

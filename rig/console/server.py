@@ -54,15 +54,13 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from analysis.errors import ConfigError
 from analysis.runs import file as rf
-from rig.console.live import LIVE_FILE, TICK_S
+from rig.console.live import LIVE_FILE, TICK_S, TOKEN_ENV, WILDCARD_BINDS, url_of
 from rig.console.ring import RingError, RingReader
 
 STATIC = Path(__file__).parent / "static"
 STALE_S = 3.0  # s without a heartbeat: the campaign process is gone
 DEFAULT_PX, DEFAULT_WINDOW_S = 1000, 10.0
-TOKEN_ENV = "CUTLAB_CONSOLE_TOKEN"  # how a live campaign hands its server the token (not argv)
 LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
-WILDCARD_BINDS = frozenset({"", "0.0.0.0", "::"})
 COMMANDS = ("hold", "resume", "abort")
 WS_MAX_BYTES = 64 * 1024  # a page's messages are < 100 bytes; larger ones are closed (1009)
 LOG_BUDGET = 20  # logged lines of refusals / bad messages per connection (then one more saying so)
@@ -674,13 +672,6 @@ async def _handle(
             seq = hub.ring.send_command({"cmd": cmd, "at": time.time(), "from": peer})
             reply = {"type": "cmd", "cmd": cmd, "ok": True, "seq": seq, "message": "sent"}
         await ws.send_text(json.dumps(reply))
-
-
-def url_of(bind: str, port: int, token: str) -> str:
-    """The address to open, token included (as notebook servers print theirs)."""
-    b = bind.strip().strip("[]")
-    host = "127.0.0.1" if b in WILDCARD_BINDS else f"[{b}]" if ":" in b else b
-    return f"http://{host}:{port}/?token={token}"
 
 
 def serve(
