@@ -40,7 +40,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--json", action="store_true", help="machine-readable summary on stdout")
     r.add_argument("--quiet", action="store_true", help="no progress display")
     r.add_argument("--live", action="store_true",
-                   help="serve the live console beside the campaign (--port, --bind)")  # fmt: skip
+                   help="serve the live console beside the campaign (--port, --bind); its "
+                   "address, printed, carries the session's token")  # fmt: skip
     from rig.cli.console import add_server_options
 
     add_server_options(r)
