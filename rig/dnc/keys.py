@@ -131,22 +131,30 @@ class OperatorControl:
         s = getattr(self.streamer, "last_status", None)
         return s.full_state if s is not None else ""
 
-    def _wait_state(self, ok: Callable[[str], bool], seconds: float) -> str:
-        """The first reported state ``ok`` accepts within ``seconds``, else "" (the streamer
-        polls GRBL's status)."""
+    def _wait_state(
+        self, want: Callable[[str], bool], seconds: float, idle_ok: bool = False
+    ) -> str:
+        """The state of the first status report, after this call, that ``want`` accepts within
+        ``seconds``, else "" (the streamer polls GRBL's status; a report that was already in
+        flight does not count). ``idle_ok``: ``Idle`` from the third new report on counts too
+        (nothing left to hold or run)."""
+        seen = getattr(self.streamer, "last_status", None)
+        new = 0
         end = time.perf_counter() + seconds
         while time.perf_counter() < end:
-            state = self._state()
-            if state and ok(state):
-                return state
-            time.sleep(0.02)
+            s = getattr(self.streamer, "last_status", None)
+            if s is not None and s is not seen:
+                seen, new = s, new + 1
+                if want(s.full_state) or (idle_ok and new >= 3 and s.state == "Idle"):
+                    return s.full_state
+            time.sleep(0.01)
         return ""
 
     def _hold(self, source: str) -> str:
         if self.protocol != "grbl":
             return "a Fanuc takes no feed hold over the line: press FEED HOLD on the control"
         self.streamer.feed_hold()
-        state = self._wait_state(lambda s: s.startswith("Hold") or s == "Idle", self.confirm_s)
+        state = self._wait_state(lambda s: s.startswith("Hold"), self.confirm_s, idle_ok=True)
         if not state:
             return f"'!' sent; GRBL has not reported Hold within {self.confirm_s:g} s"
         return f"'!' sent: GRBL {state}"
@@ -157,7 +165,7 @@ class OperatorControl:
         if self._state() == "Hold:1":  # GRBL ignores '~' while the hold decelerates
             self._wait_state(lambda s: s != "Hold:1", self.confirm_s)
         self.streamer.cycle_start()
-        state = self._wait_state(lambda s: s in ("Run", "Idle", "Jog"), self.confirm_s)
+        state = self._wait_state(lambda s: s in ("Run", "Jog"), self.confirm_s, idle_ok=True)
         if not state:
             now = self._state() or "nothing"
             return f"'~' sent; GRBL still reports {now} after {self.confirm_s:g} s"
