@@ -53,7 +53,7 @@ def check_number(value: Any, what: str = "value") -> None:
 def _check_numbers(value: Any, what: str = "") -> None:
     if isinstance(value, list | tuple):
         for i, v in enumerate(value):
-            _check_numbers(v, f"item {i} = {v!r}: ")
+            _check_numbers(v, f"item {i} = {v.item() if isinstance(v, np.generic) else v!r}: ")
     elif not isinstance(value, Mapping):  # a nested table is its own model's business
         check_number(value, what)
 
@@ -217,6 +217,7 @@ def format_validation_error(
             msg = "missing required field"
         unit = _field_unit(model, loc, data) if e["type"] not in ("extra_forbidden",) else ""
         inp = e.get("input")
+        inp = inp.item() if isinstance(inp, np.generic) else inp  # nan, not np.float64(nan)
         value = "" if e["type"] == "missing" or isinstance(inp, Mapping) else f" = {inp!r}"
         suffix = f" ({unit})" if unit and unit not in msg else ""
         out.append(f"{place}: {field}{value}: {msg}{suffix}")

@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -85,3 +86,111 @@ def test_a_changed_user_catalogue_is_named_on_resume(tmp_path: Path):
     assert f"tool changed: {my_tools} [tools.lab-facemill]: sha256" in msg
     assert f"material changed: {my_mats} [materials.lab-al]: sha256" in msg
     assert "configs/tools.toml" not in msg and "configs/materials.toml" not in msg, msg
+
+
+# ------------------------------------------------------------------ exports: inf and NaN samples
+
+
+def _export(tmp_path: Path, line_25: str) -> tuple[Path, Path]:
+    """The shipped DynoWare example with line 25 (a sample) replaced, and its conditions row."""
+    src = (ROOT / "data" / "dynoware" / "cut_300.txt").read_text().splitlines(keepends=True)
+    assert src[24].startswith("0,001500\t")
+    src[24] = line_25 + "\n"
+    export = tmp_path / "cut_bad.txt"
+    export.write_text("".join(src))
+    rows = (ROOT / "data" / "dynoware" / "conditions.csv").read_text().splitlines()
+    table = tmp_path / "conditions.csv"
+    table.write_text(rows[0] + "\n" + rows[1].replace("cut_300,", "cut_bad,") + "\n")
+    return export, table
+
+
+def test_data_import_refuses_an_inf_sample(tmp_path: Path):
+    export, table = _export(tmp_path, "0,001500\t1,5\tinf\t-13,866939")
+    out = tmp_path / "runs"
+    proc = cutlab("data", "import", export, "--conditions", table, "--axes", "x=-Fy,y=Fx,z=-Fz",
+                  "--tools", ROOT / "data" / "dynoware" / "my_tools.toml", "-o", out)  # fmt: skip
+    line = one_error_line(proc)
+    assert line == f"cutlab: error: {export}:25: column Fy = inf: not a finite number"
+    assert not out.exists() or not list(out.iterdir())  # nothing written
+
+
+@pytest.mark.parametrize(
+    ("cell", "shown", "why"),
+    [
+        ("-inf", "-inf", "not a finite number"),
+        ("+Infinity", "+Infinity", "not a finite number"),
+        ("nan", "nan", "not a number"),
+        ("NaN", "NaN", "not a number"),
+        ("", "(empty)", "not a number"),
+    ],
+)
+def test_a_bad_sample_is_named_as_written(tmp_path: Path, cell: str, shown: str, why: str):
+    from analysis.errors import AnalysisError
+    from analysis.runs import read_force_table
+
+    export, _ = _export(tmp_path, f"0,001500\t{cell}\t-182,962515\t-13,866939")
+    with pytest.raises(AnalysisError) as e:
+        read_force_table(export)
+    assert str(e.value) == f"{export}:25: column Fx = {shown}: {why}"
+    # a blank line among the samples (pandas skips it) does not shift the line named
+    text = export.read_text().replace("0,001400\t", "\n0,001400\t")
+    export.write_text(text)
+    with pytest.raises(AnalysisError, match=f":26: column Fx = {re.escape(shown)}: "):
+        read_force_table(export)
+
+
+def test_data_info_of_a_nan_sample_says_nan(tmp_path: Path):
+    export, _ = _export(tmp_path, "0,001500\tnan\t-182,962515\t-13,866939")
+    line = one_error_line(cutlab("data", "info", export))
+    assert line == f"cutlab: error: {export}:25: column Fx = nan: not a number"
+
+
+def test_numpy_values_read_plain_in_messages():
+    import numpy as np
+
+    from analysis.config import Material
+    from analysis.errors import AnalysisError, ConfigError
+    from analysis.identify.conditions import resolve_conditions
+    from analysis.validation import validate
+
+    with pytest.raises(ConfigError) as e:
+        validate(Material, {"density_kg_m3": np.float64("nan")}, "m.toml")
+    assert str(e.value).startswith("m.toml: density_kg_m3 = nan: ") and "np." not in str(e.value)
+    given = {"spindle_rpm": np.float64(6000), "fz_mm": 0.1, "depth_mm": np.int64(3),
+             "width_mm": 25, "teeth": np.float64("nan")}  # fmt: skip
+    with pytest.raises(AnalysisError) as e:
+        resolve_conditions([("run.h5 (conditions)", given)], lambda tool: 2, "lab-phi25-2f")
+    assert "teeth = nan but tool 'lab-phi25-2f' has 2 teeth" in str(e.value)
+    assert "np." not in str(e.value)
+
+
+# ---------------------------------------------------------------------- --conditions KEY=nan
+
+
+@pytest.mark.parametrize(
+    ("given", "said"),
+    [
+        (["fz_mm=nan"], "--conditions 'fz_mm=nan': fz_mm = nan: not a finite number"),
+        (["spindle_rpm=600", "depth_mm=-inf"], "depth_mm = -inf: not a finite number"),
+        (["fz_mm=Infinity"], "fz_mm = inf: not a finite number"),
+        (['{"fz_mm": NaN}'], "--conditions: fz_mm = nan: not a finite number"),
+    ],
+)
+def test_non_finite_conditions_are_refused(given: list[str], said: str):
+    from analysis.errors import ConfigError
+    from rig.cli._common import parse_conditions
+
+    with pytest.raises(ConfigError) as e:
+        parse_conditions(given)
+    assert said in str(e.value)
+    assert parse_conditions(["fz_mm=0.1", "tool=nano"]) == {"fz_mm": 0.1, "tool": "nano"}
+
+
+def test_daq_record_refuses_fz_nan(tmp_path: Path):
+    out = tmp_path / "rec.h5"
+    proc = cutlab("daq", "record", "--sim", "--seconds", "0.2", "-o", out, "--quiet",
+                  "--conditions", "spindle_rpm=600", "fz_mm=nan")  # fmt: skip
+    line = one_error_line(proc)
+    assert line == ("cutlab: error: --conditions 'fz_mm=nan': fz_mm = nan: not a finite number "
+                    "(a condition is a number or a name)")  # fmt: skip
+    assert not out.exists()

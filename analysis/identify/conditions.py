@@ -25,6 +25,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
+import numpy as np
+
 from analysis.errors import AnalysisError
 from analysis.identify._common import RunConditions
 
@@ -52,7 +54,11 @@ _FOREIGN = re.compile(r"_(in|inch|ipm|ipt|ipr|m|cm|um|sfm|in_min|m_min|ft_min|in
 
 
 def _value(v: Any) -> Any:
-    """Numbers in text (decimal comma too) become numbers."""
+    """Numbers in text (decimal comma too) become numbers; numpy's (a run file's attributes, a
+    table read by pandas) become Python's, so that every message shows ``nan``, not
+    ``np.float64(nan)``."""
+    if isinstance(v, np.generic):
+        return v.item()
     if not isinstance(v, str):
         return v
     s = v.strip()
@@ -90,6 +96,7 @@ def normalize(
             )
         if v is None or (isinstance(v, str) and not v.strip()):
             continue
+        v = v.item() if isinstance(v, np.generic) else v  # messages say nan, not np.float64(nan)
         val = _value(v)
         if canon in _NUMERIC and not isinstance(val, int | float):
             raise AnalysisError(f"{where}: {raw_key} = {v!r}: not a number")

@@ -159,14 +159,14 @@ def read_force_table(path: str | Path) -> ForceTable:
         )
     numeric = all(pd.api.types.is_numeric_dtype(t) for t in df.dtypes)
     values = df if numeric else df.apply(pd.to_numeric, errors="coerce")
-    bad = values.isna().to_numpy()
+    data = values.to_numpy(float)
+    bad = ~np.isfinite(data)  # a NaN or an empty cell, and inf (which pandas reads as a number)
     if bad.any():
         r, c = np.argwhere(bad)[0]
-        raise AnalysisError(
-            f"{p}:{data_start + r + 1}: column {names[c]} = {df.iat[r, c]!r}: not a number"
-        )
+        line, cell = _cell(p, encoding, data_start, int(r), int(c), sep)
+        what = "not a finite number" if np.isinf(data[r, c]) else "not a number"
+        raise AnalysisError(f"{p}:{line}: column {names[c]} = {cell}: {what}")
     header = _header(lines[:hdr_i])
-    data = values.to_numpy(float)
     rate = math.nan
     for k in _RATE_KEYS:
         if k in header:
@@ -191,6 +191,33 @@ def read_force_table(path: str | Path) -> ForceTable:
                 f"({from_time:g} Hz)"
             )
     return ForceTable(p, data, tuple(names), tuple(units), rate, header, decimal, sep)
+
+
+def _cell(p: Path, encoding: str, data_start: int, row: int, col: int, sep: str) -> tuple[int, str]:
+    """The line number (1-based) and the text of sample ``row``'s cell ``col`` as written (for a
+    message: ``nan``, ``inf``, ``(empty)``; blank lines are skipped as pandas skips them)."""
+    with open(p, encoding=encoding, errors="replace") as f:
+        seen = -1
+        for n, text in enumerate(f, start=1):
+            if n <= data_start or not text.strip():
+                continue
+            seen += 1
+            if seen == row:
+                cells = _split(text.rstrip("\r\n"), sep)
+                cell = cells[col] if col < len(cells) else ""
+                return n, _shown(cell)
+    return data_start + row + 1, "(empty)"
+
+
+def _shown(cell: str) -> str:
+    """A cell in a message: ``nan``, ``inf`` as written, text quoted, ``(empty)``."""
+    if not cell:
+        return "(empty)"
+    try:
+        float(cell.replace(",", "."))
+    except ValueError:
+        return repr(cell)
+    return cell
 
 
 # ``key: value``, ``key:,value`` (DynoWare CSV), ``key:\tvalue``, ``key;value``, ``key = value``;

@@ -181,6 +181,9 @@ def status(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
+_NOT_FINITE = "not a finite number (a condition is a number or a name)"
+
+
 def parse_conditions(items: list[str]) -> dict[str, Any]:
     """``--conditions``: one JSON object, or KEY=VALUE pairs as `cutlab analyze forces` takes
     them (numbers become numbers: ``spindle_rpm=600 tool=phi10-flat``)."""
@@ -195,6 +198,9 @@ def parse_conditions(items: list[str]) -> dict[str, Any]:
             raise ConfigError(f"--conditions {items[0]!r}: not a JSON object ({exc})") from None
         if not isinstance(obj, dict):
             raise ConfigError(f"--conditions {items[0]!r}: expected a JSON object")
+        for key, val in obj.items():
+            if isinstance(val, float) and not math.isfinite(val):
+                raise ConfigError(f"--conditions: {key} = {val}: {_NOT_FINITE}")
         return obj
     out: dict[str, Any] = {}
     for item in items:
@@ -208,17 +214,19 @@ def parse_conditions(items: list[str]) -> dict[str, Any]:
         if key in out:
             raise ConfigError(f"--conditions: {key} given twice")
         out[key] = _number_or_text(val.strip())
+        if isinstance(out[key], float) and not math.isfinite(out[key]):  # never stored as text
+            raise ConfigError(f"--conditions {item!r}: {key} = {out[key]}: {_NOT_FINITE}")
     return out
 
 
 def _number_or_text(text: str) -> int | float | str:
-    """600 -> 600, 0.236 -> 0.236, phi10-flat -> 'phi10-flat' (nan/inf stay text)."""
+    """600 -> 600, 0.236 -> 0.236, phi10-flat -> 'phi10-flat' (nan/inf become float nan/inf:
+    the caller refuses them)."""
     for kind in (int, float):
         try:
-            v = kind(text)
+            return kind(text)
         except ValueError:
             continue
-        return v if math.isfinite(v) else text
     return text
 
 
