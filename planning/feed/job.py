@@ -27,7 +27,7 @@ import numpy as np
 from analysis.config import EndMill, MachineConfig, get_material, load_machine
 from analysis.rules import FeedRule, RuleBase, load_rule
 from planning.errors import PlanningError
-from planning.feed.post import FeedPostOptions, FeedPostResult, post_process
+from planning.feed.post import FeedPostOptions, FeedPostResult, Section, post_process
 from planning.feed.report import write_report
 from planning.nc import Motion, Program, interpret
 from planning.nc.output import DIALECTS, default_dialect, for_dialect
@@ -210,18 +210,24 @@ def feed_program(
     """
     if dialect is not None and dialect not in DIALECTS:
         raise PlanningError(f"dialect = {dialect!r}: expected one of {', '.join(DIALECTS)}")
-    rule = resolve_rule(rule_spec, db)
     job = load_job(program_path, machine, tool_name, stock_spec, spacing_mm)
-    if rule.tool and rule.tool != tool_name and warn is not None:
-        warn(
-            f"warning: rule '{rule.name}' was derived with tool '{rule.tool}', not "
-            f"'{tool_name}': its loads (relative to that tool's size) do not carry over"
-        )
+    sections = tool_sections(job, rule_spec, db, str(program_path))
+    rule = next((sc.rule for sc in sections if sc.rule is not None), None)
+    if rule is None:
+        raise PlanningError(f"{program_path}: --rules = {rule_spec}: no tool of the program has "
+                            "a rule: nothing to adjust")  # fmt: skip
+    for sc in sections:
+        if sc.rule is not None and sc.rule.tool and sc.rule.tool != sc.tool_name and warn:
+            warn(
+                f"warning: rule '{sc.rule.name}' was derived with tool '{sc.rule.tool}', not "
+                f"'{sc.tool_name}': its loads (relative to that tool's size) do not carry over"
+            )
     opts = feed_post_options(**options)
     start = job.stock.copy() if limit_step is not None else job.stock
     result = post_process(
-        job.program, job.motion, job.tool, rule, job.stock, job.machine, opts, progress=progress
-    )
+        job.program, job.motion, sections[0].tool, rule, job.stock, job.machine, opts,
+        progress=progress, sections=sections,
+    )  # fmt: skip
     refuse_no_removal(result.simulation.removed_total_mm3, job.stock_info, str(program_path))
     limits = None
     if limit_step is not None:
@@ -239,6 +245,7 @@ def feed_program(
          "report": {k: str(v) for k, v in report.items()}}
     )  # fmt: skip
     summ["stock"] = job.stock_info
+    summ["tools"] = tool_figures(result)
     if limits is not None:
         summ.update(verdict=limits["verdict"], violations=limits["violations"],
                     unchecked=limits["unchecked"], limits=limits)  # fmt: skip
@@ -249,6 +256,71 @@ def feed_program(
     if summ["slower_than_input"] and warn is not None:
         warn(f"warning: {summ['slower_than_input']}")
     return result, summ
+
+
+def _drilling(motion: Motion) -> bool:
+    """Every feed move is along Z alone (hole cycles G81-G83, plunges)."""
+    from planning.stock.machining import plunge_mask
+
+    feed = motion.is_feed
+    return bool(feed.any()) and bool(plunge_mask(motion.start[feed], motion.end[feed]).all())
+
+
+def tool_sections(job: Job, rule_spec: str, db: str | Path | None, file: str) -> list[Section]:
+    """Each tool's run of the program with its rule: ``rule_spec`` is one rule (a one-tool
+    program) or ``T1=RULE,T2=RULE``; a tool the map leaves out keeps its feeds (listed). A rule
+    for a drilling run (Z-only feed moves) is refused: the load model is a milling cutter's."""
+    op = Operation(Path(file).stem, job.motion, job.tools, file)
+    runs = op.runs()
+    spec: str | dict[str, str] = rule_spec
+    if "=" in rule_spec and not Path(rule_spec).exists():
+        spec = parse_tool_spec(rule_spec)
+    if isinstance(spec, str):
+        if len(job.tools) > 1:
+            t = ", ".join(f"T{n}=RULE" for n in job.tools)
+            raise PlanningError(
+                f"{file}: the program changes tools ({', '.join(f'T{n}' for n in job.tools)}) "
+                f"and --rules = {rule_spec!r} is one rule: give each tool's ({t}; a tool left "
+                "out keeps its feeds)"
+            )
+        spec = {f"T{t}": spec for t in job.tools}
+    rules: dict[int, FeedRule] = {}
+    for key, val in spec.items():
+        if not (key[:1] == "T" and key[1:].isdigit() and int(key[1:]) in job.tools):
+            raise PlanningError(
+                f"{file}: --rules: {key}={val!r}: expected T<number>=RULE for a tool the "
+                f"program loads ({', '.join(f'T{t}' for t in job.tools)})"
+            )
+        rules[int(key[1:])] = resolve_rule(val, db)
+    out = []
+    for lo, hi, t in runs:
+        name, tool = job.tools[t]
+        rule = rules.get(t)
+        if rule is not None and len(job.tools) > 1 and _drilling(job.motion[lo:hi]):
+            raise PlanningError(
+                f"{file}: --rules T{t}={rule.name}: T{t} ({name}) only drills (Z-only feed "
+                "moves): the load rule is a milling cutter's; leave T{t} out (feeds kept)"
+            )
+        out.append(Section(lo, hi, tool, rule, t, name))
+    return out
+
+
+def tool_figures(result: FeedPostResult) -> list[dict[str, Any]]:
+    """Per tool run: its rule (None: feeds kept), removed volume, and the time of its blocks
+    with feed moves before and after, s (rapid-only blocks do not change)."""
+    sim, bt = result.simulation, result.blocks
+    out = []
+    for sc in result.sections:
+        blocks = np.unique(result.motion_before.block[sc.lo : sc.hi])
+        k = np.isin(bt.block, blocks)
+        before = float(bt.time_before_s[k].sum())
+        after = float(bt.time_after_s[k].sum())
+        out.append({"tool_number": sc.tool_number, "tool": sc.tool_name,
+                    "rule": sc.rule.name if sc.rule is not None else None,
+                    "removed_mm3": round(float(sim.removed_mm3[sc.lo : sc.hi].sum()), 3),
+                    "feed_time_before_s": round(before, 3), "feed_time_after_s": round(after, 3),
+                    "feed_blocks": int(k.sum())})  # fmt: skip
+    return out
 
 
 #: a result slower than its input by more than this is said so (a rule for another tool or

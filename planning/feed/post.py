@@ -53,6 +53,7 @@ from planning.stock.machining import (
     plunge_mask,
     simulate_motion,
 )
+from planning.stock.machining import _join as _join  # one simulation of consecutive slices
 
 
 @dataclass(frozen=True)
@@ -93,6 +94,20 @@ class FeedPostOptions:
                 raise PlanningError(
                     "force_limit_n needs end-mill force coefficients (material [endmill] table)"
                 )
+
+
+@dataclass(frozen=True)
+class Section:
+    """One tool's run of a program that changes tools: segments ``lo:hi`` of its motion, cut by
+    ``tool``; ``rule`` None leaves the section's feeds as programmed (a drill, a probe, a tool
+    with no rule)."""
+
+    lo: int
+    hi: int
+    tool: EndMill
+    rule: FeedRule | None
+    tool_number: int = 0
+    tool_name: str = ""
 
 
 @dataclass(frozen=True)
@@ -142,6 +157,7 @@ class FeedPostResult:
     # With the machine's acceleration (planning.nc.accel); None when the machine gives none.
     accel_time_before_s: float | None = None
     accel_time_after_s: float | None = None
+    sections: tuple[Section, ...] = ()  # each tool's run (one for a one-tool program)
 
     @property
     def time_saved_pct(self) -> float:
@@ -214,8 +230,13 @@ def post_process(
     machine: MachineConfig | None = None,
     options: FeedPostOptions | None = None,
     progress: Any = None,
+    sections: list[Section] | None = None,
 ) -> FeedPostResult:
     """Adjust the feeds of ``program`` (interpreted as ``motion``) by predicted load.
+
+    ``sections`` (a program that changes tools): each tool's run cut by its own tool on the
+    one stock, its feeds set by its own rule, or left as programmed where its rule is None;
+    default one section of ``tool`` and ``rule``. The force options need one section.
 
     ``stock`` is lowered in place (it ends as the machined part). Raises :class:`PlanningError`
     (before anything is written) for a program the machine cannot run, that leaves the stock,
@@ -223,24 +244,45 @@ def post_process(
     """
     opts = options or FeedPostOptions()
     file = program.file
-    cutter = Cutter.from_tool(tool)
-    check_motion(motion, machine, stock, cutter, file, opts.chord_tol_mm)
-    lo, hi = _feed_limits(rule, machine)
+    sections = sections or [Section(0, len(motion), tool, rule)]
+    if len(sections) > 1 and (opts.coefficients is not None or opts.feed_cap is not None):
+        raise PlanningError(
+            f"{file}: the force and limit options (--material, --force-limit, --limit) work on "
+            "a one-tool program: run them per tool, or check the output with `cutlab plan check`"
+        )
+    widest = max((sc.tool for sc in sections), key=lambda t: t.diameter_mm)
+    check_motion(motion, machine, stock, Cutter.from_tool(widest), file, opts.chord_tol_mm)
     piece_mm = opts.min_piece_mm / 2 if opts.split else math.inf
-    sim = simulate_motion(
-        stock, tool, motion, chord_tol_mm=opts.chord_tol_mm, piece_mm=piece_mm,
-        check_holder=opts.check_holder,
-        track_depth=opts.coefficients is not None or opts.feed_cap is not None,
-        progress=progress,
-    )  # fmt: skip
+    parts = []
+    for sc in sections:
+        part = simulate_motion(
+            stock, sc.tool, motion[sc.lo : sc.hi], chord_tol_mm=opts.chord_tol_mm,
+            piece_mm=piece_mm, check_holder=opts.check_holder,
+            track_depth=opts.coefficients is not None or opts.feed_cap is not None,
+            progress=progress,
+        )  # fmt: skip
+        parts.append((sc.lo, part))
+    sim = _join(motion, parts)
     seg = sim.piece_segment
     plen = sim.piece_length_mm
     plunge = plunge_mask(sim.piece_start_mm, sim.piece_end_mm)
-    load = cutting_load_percent(
-        sim.piece_removed_mm3, plen, plunge, tool.diameter_mm, tool.flute_length_mm
-    )
     notes: list[str] = []
-    feed = np.clip(rule.feed_for(load), lo, hi)
+    # per piece: load with its section's tool, feed from its section's rule (or as programmed)
+    load = np.zeros(len(seg))
+    feed = motion.feed_mm_min[seg].astype(float)
+    lo_p, hi_p = np.array(feed), np.array(feed)  # a section without a rule: clamped to itself
+    fixed = np.zeros(len(seg), bool)
+    for sc in sections:
+        k = (seg >= sc.lo) & (seg < sc.hi)
+        load[k] = cutting_load_percent(sim.piece_removed_mm3[k], plen[k], plunge[k],
+                                       sc.tool.diameter_mm, sc.tool.flute_length_mm)  # fmt: skip
+        if sc.rule is None:
+            fixed[k] = True
+            continue
+        f_lo, f_hi = _feed_limits(sc.rule, machine)
+        lo_p[k], hi_p[k] = f_lo, f_hi
+        feed[k] = np.clip(sc.rule.feed_for(load[k]), f_lo, f_hi)
+    lo, hi = lo_p, hi_p
     force = None
     rpm = np.abs(motion.spindle_rpm[seg])
     if opts.spindle_rpm:
@@ -263,7 +305,7 @@ def post_process(
         if opts.force_limit_n is not None:
             feed = np.clip(np.minimum(feed, force.feed_cap(opts.force_limit_n)), lo, hi)
     step = opts.feed_step_mm_min
-    feed = np.maximum(np.floor(feed / step + 1e-9) * step, lo)
+    feed = np.where(fixed, feed, np.maximum(np.floor(feed / step + 1e-9) * step, lo))
     is_feed_piece = motion.is_feed[seg]
     feed = np.where(is_feed_piece, feed, np.nan)
 
@@ -273,7 +315,11 @@ def post_process(
     np.minimum.at(seg_feed, seg[is_feed_piece], feed[is_feed_piece])
     seg_feed[~motion.is_feed] = np.nan
     seg_feed[np.isinf(seg_feed)] = np.nan  # feed segments with no piece (zero length)
-    seg_feed = np.where(motion.is_feed & np.isnan(seg_feed), hi, seg_feed)
+    seg_hi = motion.feed_mm_min.astype(float)  # a segment with no piece: its section's max
+    for sc in sections:
+        if sc.rule is not None:
+            seg_hi[sc.lo : sc.hi] = _feed_limits(sc.rule, machine)[1]
+    seg_feed = np.where(motion.is_feed & np.isnan(seg_feed), seg_hi, seg_feed)
     first_piece = np.searchsorted(seg, np.arange(n), side="left")
     last_piece = np.searchsorted(seg, np.arange(n), side="right")
 
@@ -285,9 +331,12 @@ def post_process(
     seg_count = np.bincount(motion.block, minlength=len(program))
     split: dict[int, tuple[int, list[tuple[float, float]]]] = {}
     if opts.split:
+        ruled = np.zeros(n, bool)
+        for sc in sections:
+            ruled[sc.lo : sc.hi] = sc.rule is not None
         multi = np.nonzero(
             motion.is_feed & (motion.kind != DWELL) & (last_piece - first_piece > 1)
-            & ~plunge_mask(motion.start, motion.end)
+            & ~plunge_mask(motion.start, motion.end) & ruled
         )[0]  # fmt: skip
         for s in multi.tolist():
             a, b = first_piece[s], last_piece[s]
@@ -332,15 +381,16 @@ def post_process(
         notes.append(f"{len(sim.rapid_cut_segments)} rapid moves cut material (crash on a machine)")
     piece_force = np.full(len(feed), np.nan)
     if force is not None:
-        piece_force = force.force_n(np.nan_to_num(feed, nan=lo))
+        piece_force = force.force_n(np.where(np.isnan(feed), lo, feed))
         if opts.force_limit_n is not None:
             over = np.nan_to_num(piece_force) > opts.force_limit_n * (1 + 1e-6)
             if over.any():
                 notes.append(
                     f"{int(over.sum())} pieces exceed force_limit_n = {opts.force_limit_n} N "
-                    f"even at the lowest allowed feed {lo} mm/min"
+                    f"even at the lowest allowed feed {np.min(lo, initial=np.inf):g} mm/min"
                 )
-    blocks = _block_table(motion, motion_after, sim, load, feed, new_index, t_before, t_after, tool)
+    blocks = _block_table(motion, motion_after, sim, load, feed, new_index, t_before, t_after,
+                          sections)  # fmt: skip
     blocks = replace(blocks, force_max_n=_block_max(motion.block[seg], piece_force, blocks.block))
     return FeedPostResult(
         program=new_program,
@@ -359,6 +409,7 @@ def post_process(
         notes=tuple(notes),
         accel_time_before_s=accel_before,
         accel_time_after_s=accel_after,
+        sections=tuple(sections),
     )
 
 
@@ -380,7 +431,7 @@ def _block_table(
     new_index: list[int],
     t_before: NDArray[np.float64],
     t_after: NDArray[np.float64],
-    tool: EndMill,
+    sections: list[Section],
 ) -> BlockTable:
     fm = motion.is_feed
     blocks = np.unique(motion.block[fm])
@@ -389,9 +440,14 @@ def _block_table(
     removed = np.bincount(motion.block, sim.removed_mm3, n_blocks)
     plunge_blk = np.zeros(n_blocks, bool)
     plunge_blk[motion.block[plunge_mask(motion.start, motion.end) & fm]] = True
-    load_blk = cutting_load_percent(
-        removed, length, plunge_blk, tool.diameter_mm, tool.flute_length_mm
-    )
+    load_blk = np.zeros(n_blocks)
+    for sc in sections:  # each block with the tool that cuts it
+        k = np.zeros(n_blocks, bool)
+        k[motion.block[sc.lo : sc.hi]] = True
+        t = sc.tool
+        load_blk[k] = cutting_load_percent(
+            removed[k], length[k], plunge_blk[k], t.diameter_mm, t.flute_length_mm
+        )
     pb = motion.block[sim.piece_segment]
     load_max = np.zeros(n_blocks)
     np.maximum.at(load_max, pb, load)
@@ -426,6 +482,7 @@ __all__ = [
     "BlockTable",
     "FeedPostOptions",
     "FeedPostResult",
+    "Section",
     "post_process",
     "rejoin",
 ]

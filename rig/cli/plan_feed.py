@@ -18,7 +18,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "2 bad input, or a program that removes nothing from its stock.",
     )  # fmt: skip
     f.add_argument("program", type=Path, help="NC program (G21 or G20)")
-    f.add_argument("--rules", required=True, help="rule file (TOML) or rule-base name / id")
+    f.add_argument("--rules", required=True, help="rule file (TOML) or rule-base name / id; "
+                   "T1=RULE,T2=RULE for a program that changes tools (a tool left out, e.g. a "
+                   "drill, keeps its feeds)")  # fmt: skip
     f.add_argument("--db", type=Path, help="rule base for a name / id (default from lab.toml)")
     _common(f)
     f.add_argument("-o", "--output", type=Path, required=True, help="adjusted program to write")
@@ -73,6 +75,11 @@ def _feed(a: argparse.Namespace) -> int:
     from rig.cli._common import Progress, print_json, print_table, status
 
     step, cap = None, None
+    if a.material and a.tool and "=" in a.tool:
+        raise PlanningError(
+            f"--material with --tool {a.tool}: the force and limit options work on a one-tool "
+            "program; check the output per tool with `cutlab plan check OUT --tool T1=A,T2=B`"
+        )
     if a.material:  # the limits need the force coefficients
         from planning.limits import coefficients, feed_limiter, limits_for
 
@@ -109,6 +116,9 @@ def _feed(a: argparse.Namespace) -> int:
     rows = (("machining time (s)", "time_%s_s"), ("with acceleration (s)", "accel_time_%s_s"),
             ("max load x feed", "load_rate_max_%s"))  # fmt: skip
     print_table([{"": t, "before": s[k % "before"], "after": s[k % "after"]} for t, k in rows])
+    if len(s["tools"]) > 1:  # each tool's share (a tool without a rule keeps its feeds)
+        print_table([{k: ("(kept)" if v is None else v) for k, v in t.items()}
+                     for t in s["tools"]])  # fmt: skip
     print(f"time saved {s['time_saved_pct']:.1f} %, {s['split_blocks']} blocks split, "
           f"removed {s['removed_mm3']:.1f} mm^3")  # fmt: skip
     print_verdict(s)
