@@ -57,20 +57,6 @@ def main(argv: list[str] | None = None) -> int:
         where = exc.filename2 or exc.filename or ""
         error_line(f"{where}: {exc.strerror or exc}")
         return 2
-    except OSError as exc:
-        import errno
-
-        if exc.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
-            raise
-        # a full disk (or ulimit -f) under a file the command writes: where, and the free bytes
-        from pathlib import Path
-
-        from rig.log._file import disk_full_reason
-
-        where = exc.filename or ""
-        why = disk_full_reason(exc.errno, Path(where).parent if where else Path.cwd())
-        error_line(f"{where}: {why}" if where else why)
-        return 2
     except ValueError as exc:
         if "null byte" not in str(exc):
             raise
@@ -87,6 +73,20 @@ def main(argv: list[str] | None = None) -> int:
 
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    except OSError as exc:
+        import errno
+
+        if exc.errno not in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
+            raise
+        # a full disk (or ulimit -f) under a file the command writes: where, and the free bytes
+        from pathlib import Path
+
+        from rig.log._file import disk_full_reason
+
+        where = exc.filename or ""
+        why = disk_full_reason(exc.errno, Path(where).parent if where else Path.cwd())
+        error_line(f"{where}: {why}" if where else why)
+        return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -679,7 +679,8 @@ class RunWriter:
             return self.failure is None
         if err:
             why = disk_full_reason(err, self.path.parent) or f"no disk space: {os.strerror(err)}"
-            return self._stop(f"{why}, {need_to - size} needed: {at}")
+            return self._stop(f"{why}, fewer than the {need_to - size} the next samples and "
+                              f"the close may take: {at}")  # fmt: skip
         self._reserved_to = want
         return True
 
