@@ -63,3 +63,19 @@ def test_lobes_match_the_published_code(reference: pd.DataFrame, name: str) -> N
     dev = np.abs(mine / theirs - 1)
     assert np.median(dev) < 0.02, (name, np.median(dev))
     assert mine.min() == pytest.approx(theirs.min(), rel=0.02)
+
+
+def test_default_lobes_are_converged_where_30_steps_read_high() -> None:
+    """2-DOF a/D 0.05 down milling at 6700-6900 rpm: 30 steps per tooth period read 10-14 %
+    above the converged limit (the unsafe side); the default doubles the steps per speed until
+    the limit moves by at most 1 % and says so."""
+    rpm = np.linspace(6700, 6900, 5)
+    case = _case("d2-down-0.05", rpm)
+    fixed30 = stability_lobes(case, "sd", 30).depth_limit_mm
+    fine = stability_lobes(case, "sd", 240).depth_limit_mm
+    lobes = stability_lobes(case, "sd")
+    assert (fixed30 / fine - 1).min() > 0.08  # the fault the default had
+    assert np.abs(lobes.depth_limit_mm / fine - 1).max() < 0.01
+    conv = lobes.convergence()
+    assert conv["checked"] and conv["max_change_pct"] <= 1.0 and conv["unconverged_speeds"] == 0
+    assert (lobes.steps >= 60).all()

@@ -27,7 +27,9 @@ import numpy as np
 
 from analysis.stability.case import StabilityCase
 
-__all__ = ["Discretisation", "critical_depths", "discretise", "spectral_radius"]
+__all__ = [
+    "Discretisation", "critical_depths", "critical_depths_near", "discretise", "spectral_radius",
+]  # fmt: skip
 
 _GAUSS_X, _GAUSS_W = np.polynomial.legendre.leggauss(4)
 
@@ -239,6 +241,42 @@ def critical_depths(d: Discretisation, grid_m: np.ndarray, iterations: int = 3):
         hi[todo[bad]], f_hi[todo[bad]], crit[todo[bad]] = g, np.log(r[bad]), c[bad]
         lo[todo[~bad]], f_lo[todo[~bad]] = g, np.log(r[~bad])
         todo = todo[~bad]
+    return _narrow(d, lo, f_lo, hi, f_hi, crit, iterations)
+
+
+def critical_depths_near(d: Discretisation, guess_m: np.ndarray, width: float = 0.15,
+                         points: int = 7, iterations: int = 3):  # fmt: skip
+    """As :func:`critical_depths`, for limits known to lie near ``guess_m`` (finite; from a
+    coarser discretisation of the same case): a local march over ``points`` depths from
+    guess (1 - width) to guess (1 + width) (5 % apart: finer than the full march's 15 %, so
+    an unstable island next to the guess is not stepped over), then the same narrowing.
+    Speeds whose limit is not inside that range come back as nan (the caller marches)."""
+    ns = d.tau_s.size
+    levels = np.linspace(1 - width, 1 + width, points)
+    lo, f_lo = np.full(ns, np.nan), np.full(ns, np.nan)
+    hi, f_hi = np.full(ns, np.inf), np.full(ns, np.nan)
+    crit = np.full(ns, np.nan, complex)
+    below = np.zeros(ns, bool)  # unstable at the first level: the limit is further down
+    todo = np.arange(ns)
+    for k, level in enumerate(levels):
+        if not todo.size:
+            break
+        g = guess_m[todo] * level
+        r, c = spectral_radius(d, todo, g)
+        bad = r >= 1
+        below[todo[bad]] = k == 0
+        hi[todo[bad]], f_hi[todo[bad]], crit[todo[bad]] = g[bad], np.log(r[bad]), c[bad]
+        lo[todo[~bad]], f_lo[todo[~bad]] = g[~bad], np.log(r[~bad])
+        todo = todo[~bad]
+    hi[below] = np.inf  # not bracketed: leave to the caller's march
+    out, crit = _narrow(d, lo, f_lo, hi, f_hi, crit, iterations)
+    found = np.isfinite(hi)
+    return np.where(found, out, np.nan), np.where(found, crit, np.nan)
+
+
+def _narrow(d: Discretisation, lo, f_lo, hi, f_hi, crit, iterations: int):
+    """Regula falsi (Illinois) on log(radius) inside [lo, hi] where hi is finite."""
+    ns = d.tau_s.size
     idx = np.flatnonzero(np.isfinite(hi))
     side = np.zeros(ns, int)  # which end the last step moved: -1 lo, +1 hi
     for _ in range(iterations):
