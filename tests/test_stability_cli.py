@@ -36,7 +36,9 @@ def test_the_contract_command_writes_200_rows(tmp_path, capsys, method) -> None:
     out = tmp_path / "lobes.csv"
     assert cutlab(["stability", str(CONFIG), "-o", str(out), "--method", method]) == 0
     rows = list(csv.DictReader(out.open()))
-    assert list(rows[0]) == ["spindle_rpm", "depth_limit_mm", "chatter_hz"]
+    assert list(rows[0]) == [
+        "spindle_rpm", "depth_limit_mm", "chatter_hz", "kind", "steps", "convergence_pct",
+    ]  # fmt: skip
     assert len(rows) == 200
     assert float(rows[0]["spindle_rpm"]) == 5000 and float(rows[-1]["spindle_rpm"]) == 25000
     assert all(float(r["depth_limit_mm"]) > 0 for r in rows)
@@ -54,12 +56,45 @@ def test_json_is_strict_with_null_and_a_reason(tmp_path, capsys) -> None:
     assert cutlab(["stability", str(cfg), "-o", str(tmp_path / "l.csv"), "--json"]) == 0
     got = _strict(capsys.readouterr().out)
     assert got["method"] == "sd" and got["steps_per_period"] == 30 and got["warnings"] == []
+    conv = got["convergence"]
+    assert conv["checked"] and conv["max_change_pct"] <= 1.0 and conv["unconverged_speeds"] == 0
+    assert all(r["steps"] >= 60 and r["convergence_pct"] <= 1.0 for r in got["rows"])
     stable = [r for r in got["rows"] if r["depth_limit_mm"] is None]
     assert stable and all("stable up to depth_max_mm = 3 mm" in r["depth_limit_mm_reason"]
                           for r in stable)  # fmt: skip
     assert any(r["kind"] == "flip" for r in got["rows"])
     rows = list(csv.DictReader((tmp_path / "l.csv").open()))
-    assert sum(r["depth_limit_mm"] == "" for r in rows) == len(stable)
+    # nothing blank: a speed stable up to the ceiling reads inf, its kind "stable"
+    assert all(v != "" for r in rows for v in r.values())
+    assert sum(r["depth_limit_mm"] == "inf" and r["kind"] == "stable" for r in rows) == len(stable)
+
+
+def test_csv_is_round_trip_exact_and_max_depth_sets_the_ceiling(tmp_path, capsys) -> None:
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(CONFIG.read_text().replace("points = 200", "points = 12"))
+    out = tmp_path / "l.csv"
+    assert cutlab(["stability", str(cfg), "-o", str(out), "--json", "--max-depth", "100"]) == 0
+    got = _strict(capsys.readouterr().out)
+    assert got["depth_max_mm"] == 100.0
+    rows = list(csv.DictReader(out.open()))
+    for r, j in zip(rows, got["rows"]):
+        assert float(r["spindle_rpm"]) == j["spindle_rpm"]  # exact, not to 6 digits
+        if j["depth_limit_mm"] is not None:
+            assert float(r["depth_limit_mm"]) == j["depth_limit_mm"]
+    # the default ceiling (30 x the ZOA minimum, ~45 mm here) left speeds without a limit that
+    # exists below 100 mm
+    assert cutlab(["stability", str(cfg), "-o", str(out), "--json"]) == 0
+    default = _strict(capsys.readouterr().out)
+    assert sum(r["depth_limit_mm"] is None for r in got["rows"]) <= sum(
+        r["depth_limit_mm"] is None for r in default["rows"]
+    )
+
+
+def test_fixed_steps_say_convergence_is_unchecked(tmp_path, capsys) -> None:
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(CONFIG.read_text().replace("points = 200", "points = 6"))
+    assert cutlab(["stability", str(cfg), "-o", str(tmp_path / "l.csv"), "--steps", "20"]) == 0
+    assert "convergence unchecked" in capsys.readouterr().out
 
 
 def test_plot_writes_a_png(tmp_path) -> None:
