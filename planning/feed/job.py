@@ -277,7 +277,7 @@ def tool_sections(job: Job, rule_spec: str, db: str | Path | None, file: str) ->
         spec = parse_tool_spec(rule_spec)
     if isinstance(spec, str):
         if len(job.tools) > 1:
-            t = ", ".join(f"T{n}=RULE" for n in job.tools)
+            t = ",".join(f"T{n}=RULE" for n in job.tools)
             raise PlanningError(
                 f"{file}: the program changes tools ({', '.join(f'T{n}' for n in job.tools)}) "
                 f"and --rules = {rule_spec!r} is one rule: give each tool's ({t}; a tool left "
