@@ -73,7 +73,8 @@ def test_check_cuts_each_tool_with_its_own_cutter(three_check: dict) -> None:
     assert tools[1]["removed_mm3"] == pytest.approx(face_mm3() + pocket_mm3(), rel=0.01)
     assert tools[2]["removed_mm3"] == pytest.approx(grooves_mm3(), rel=0.01)
     assert tools[3]["removed_mm3"] == pytest.approx(holes_mm3(), rel=0.01)
-    assert three_check["removed_mm3"] == pytest.approx(sum(t["removed_mm3"] for t in tools.values()))
+    total = sum(t["removed_mm3"] for t in tools.values())
+    assert three_check["removed_mm3"] == pytest.approx(total)
     # the drill is machined but not checked, and says so; the others are checked
     assert tools[3]["verdict"] == "unchecked" and tools[3]["cutting_blocks"] == 0
     assert tools[1]["cutting_blocks"] > 0 and tools[2]["cutting_blocks"] > 0
@@ -119,7 +120,7 @@ def test_feed_gives_each_tool_its_rule_and_keeps_the_drill(
     # the drill's lines byte for byte (the T3 M6 block to the end)
     src, new = THREE.read_text().splitlines(), out.read_text().splitlines()
     k = next(i for i, ln in enumerate(src) if "T3 M6" in ln)
-    assert new[-(len(src) - k):] == src[k:]
+    assert new[-(len(src) - k) :] == src[k:]
     # T1 and T2 blocks changed F only (the geometry check of the post), and some did change
     assert s["split_blocks"] > 0 and s["time_after_s"] < s["time_before_s"]
     assert s["verdict"] == "unchecked" and s["unchecked"][0]["reason"].startswith("no --material")
@@ -144,8 +145,9 @@ def test_feed_refuses_one_rule_for_several_tools(rules: dict[str, Path], tmp_pat
 def test_demo_part_t1_in_the_whole_program_against_the_rig() -> None:
     """The demo part checked whole (T1 and the T2 drill): the T1 blocks' mean and peak force
     against the simulated rig's, per block, as the README compares them for T1 alone."""
-    from planning.limits import check_job
     from test_plan_limits_vs_rig import TOLERANCE_PCT, t1_motion, twin_per_block
+
+    from planning.limits import check_job
 
     res, out = check_job(DEMO, tool_name="T1=phi10-flat,T2=phi5-drill", material="al6061-t6",
                          stock_spec=STOCK)  # fmt: skip
