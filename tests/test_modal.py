@@ -94,9 +94,19 @@ def test_half_power_of_a_single_mode():
     assert zh == pytest.approx(z, rel=0.02)
 
 
-def test_too_few_hits_and_flat_hammer():
+def test_one_hit_is_analysed_with_a_warning_and_the_spread_over_orders():
     rec = _record(0, seed=5, hits=(0.02,))
-    with pytest.raises(AnalysisError, match="need at least 2"):
+    res = modal_analysis(rec)
+    (mode,) = res.modes
+    assert mode.frequency_hz == pytest.approx(TABLE2["x"][0], rel=0.01)
+    assert np.isfinite(mode.frequency_uncertainty_hz) and np.isfinite(mode.damping_uncertainty)
+    assert "one hit: no coherence" in res.warnings[0]
+    assert "+-" in res.warnings[0]
+
+
+def test_no_usable_hit_and_flat_hammer():
+    rec = _record(0, seed=5, hits=(0.02,), bounce_at=0)
+    with pytest.raises(AnalysisError, match="no usable hit"):
         modal_analysis(rec)
     flat = ImpactRecord(np.zeros(1000), np.zeros((1000, 3)), FS)
     with pytest.raises(AnalysisError, match="flat"):

@@ -4,15 +4,21 @@ channel, analysed into modes (`cutlab analyze modal`).
 A response column's unit says what it measures, in its name (``ax [m/s^2]``, ``dx (mm)``):
 force (N, kN, lbf: a dynamometer), displacement (m, mm, um) or acceleration (m/s^2, g); a column
 without a unit is taken as ``response`` (force unless told). A run file's channels are forces.
+
+A file with no header row at all (as many data loggers write a tap test: time, hammer N, accel
+m/s^2, one row per sample) is read with ``columns`` naming its columns in order, units in
+brackets (``time[s],hammer[N],accel[m/s^2]``); the rate comes from the time column or ``rate_hz``.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pandas as pd
 
 from analysis.config import load_rig
 from analysis.errors import AnalysisError
@@ -57,26 +63,100 @@ def _response_column(path, name: str, unit: str, response: str | None) -> tuple[
     return kind, factor
 
 
+def parse_columns(spec: str | Sequence[str]) -> tuple[list[str], list[str]]:
+    """Column names and units of ``--columns``: ``time[s],hammer[N],accel[m/s^2]`` (or a list)."""
+    items = spec.split(",") if isinstance(spec, str) else list(spec)
+    names, units = [], []
+    for item in items:
+        m = re.match(r"^\s*([^\[\]()]+?)\s*(?:[\[(]\s*([^\])]*?)\s*[\])])?\s*$", item)
+        if not m or not m.group(1):
+            raise AnalysisError(
+                f"--columns {item!r}: expected a column name with an optional unit in brackets, "
+                "e.g. time[s],hammer[N],accel[m/s^2]"
+            )
+        names.append(m.group(1))
+        units.append(m.group(2) or "")
+    if len(set(n.lower() for n in names)) != len(names):
+        raise AnalysisError(f"--columns {','.join(items)}: a column name appears twice")
+    return names, units
+
+
+def _headerless(path: Path, names: list[str], units: list[str]) -> tuple[np.ndarray, float]:
+    """Samples of a file without a header row, in ``names``' order, and the rate from a time
+    column (NaN without one)."""
+    try:
+        first = next((ln for ln in path.open(encoding="utf-8", errors="replace") if ln.strip()), "")
+    except OSError as exc:
+        raise AnalysisError(f"{path}: cannot read: {exc}") from None
+    sep = next((c for c in ("\t", ";", ",") if c in first), r"\s+")
+    decimal = "," if sep in ("\t", ";", r"\s+") and re.search(r"\d,\d", first) else "."
+    try:
+        df = pd.read_csv(path, sep=sep, header=None, decimal=decimal, skip_blank_lines=True,
+                         engine="python" if sep == r"\s+" else "c")  # fmt: skip
+    except (ValueError, pd.errors.ParserError, UnicodeDecodeError) as exc:
+        raise AnalysisError(f"{path}: cannot read the samples: {exc}") from None
+    if df.shape[1] != len(names):
+        raise AnalysisError(
+            f"{path}:1: {df.shape[1]} data columns but --columns names {len(names)} "
+            f"({','.join(names)})"
+        )
+    data = df.apply(pd.to_numeric, errors="coerce").to_numpy(float)
+    bad = np.argwhere(~np.isfinite(data))
+    if bad.size:
+        r, c = bad[0]
+        what = (
+            "a header row? (a headerless file has numbers only)"
+            if r == 0
+            else "not a finite number"
+        )
+        raise AnalysisError(f"{path}:{r + 1}: column {names[c]} = {df.iat[r, c]!r}: {what}")
+    lower = [n.lower() for n in names]
+    t = next((k for k, n in enumerate(lower) if n in _TIME_COLUMNS), None)
+    if t is None or len(data) < 3:
+        return data, float("nan")
+    dt = np.diff(data[:, t])
+    scale = {"": 1.0, "s": 1.0, "ms": 1e-3, "us": 1e-6}.get(units[t].lower())
+    if scale is None:
+        raise AnalysisError(f"--columns {names[t]}[{units[t]}]: expected a time unit s, ms or us")
+    if np.any(dt <= 0):
+        raise AnalysisError(f"{path}: the time column {names[t]} does not increase")
+    return data, 1.0 / (float(np.median(dt)) * scale)
+
+
 def hammer_file_record(
     path: str | Path, hammer: str = "hammer", rate_hz: float | None = None,
-    response: str | None = None,
+    response: str | None = None, columns: str | Sequence[str] | None = None,
 ) -> ImpactRecord:  # fmt: skip
     """The hammer channel (named ``hammer``, any case) and the other channels but time as
     responses (axis letters x, y, z where a name ends in one), in SI units with their kind from
     the column's unit, else ``response`` (``RESPONSES``; default force); ``rate_hz`` replaces an
-    export's rate (a run file's own rate is kept)."""
+    export's rate (a run file's own rate is kept); ``columns`` names the columns of a file
+    without a header row (:func:`parse_columns`)."""
     path = Path(path)
     if response is not None and response not in RESPONSES:
         raise AnalysisError(f"response = {response!r}: expected one of {', '.join(RESPONSES)}")
     if rate_hz is not None and not 0 < rate_hz < 1e8:
         raise AnalysisError(f"--rate {rate_hz:g}: expected a sampling rate > 0 Hz")
-    if path.suffix.lower() in (".h5", ".hdf5"):
+    if columns is not None and path.suffix.lower() not in (".h5", ".hdf5"):
+        columns, units = parse_columns(columns)
+        data, rate = _headerless(path, columns, units)
+        if rate_hz:
+            rate = rate_hz
+    elif path.suffix.lower() in (".h5", ".hdf5"):
         run = load_run(path)
         data = run.force_n if run.force_n is not None else run.volts
         columns, rate = list(run.channel_names), run.rate_hz
         units = [""] * len(columns)
     else:
-        t = read_force_table(path)
+        try:
+            t = read_force_table(path)
+        except AnalysisError as exc:
+            if "column-name row" not in str(exc):
+                raise
+            raise AnalysisError(
+                f"{path}: no header row naming the columns: give them in order with --columns, "
+                "e.g. --columns time[s],hammer[N],accel[m/s^2]"
+            ) from None
         data, columns, rate, units = t.data, list(t.columns), t.rate_hz, list(t.units)
         if rate_hz:
             rate = rate_hz
@@ -114,6 +194,7 @@ def modal_file(
     response: str | None = None,
     stabilisation_png: str | Path | None = None,
     save: str | Path | None = None,
+    columns: str | Sequence[str] | None = None,
 ) -> dict[str, Any]:
     """Modes of a hammer-test file as a JSON-able dict: hits used and double, modes per axis
     (with modal stiffness, mass and damping for a displacement or acceleration response, a
@@ -127,7 +208,7 @@ def modal_file(
 
     if not 1 <= teeth <= 1000:
         raise AnalysisError(f"--teeth {teeth}: expected 1 to 1000 teeth")
-    rec = hammer_file_record(path, hammer, rate_hz, response)
+    rec = hammer_file_record(path, hammer, rate_hz, response, columns)
     res = modal_analysis(rec, record_s=record_s, window_end=window_end)
     rig = load_rig(rig_path or None)
     warn = list(res.warnings)
@@ -142,10 +223,14 @@ def modal_file(
             "damping_windowed": m.damping_windowed,
             "half_power_frequency_hz": m.half_power_frequency_hz,
             "half_power_damping": m.half_power_damping,
-            "coherence": m.coherence,
+            "coherence": m.coherence if len(res.hits_used) > 1 else None,
             "response": m.response,
             "stable_poles": m.stable_poles,
+            "frequency_hz_uncertainty": m.frequency_uncertainty_hz,
+            "damping_ratio_uncertainty": m.damping_uncertainty,
         }
+        if len(res.hits_used) == 1:
+            row["coherence_reason"] = "one hit: coherence needs at least 2"
         if m.response == "force":
             row["static_gain_share"] = m.residue / (2 * np.pi * m.frequency_hz) ** 2
         else:

@@ -87,7 +87,9 @@ class ModeEstimate:
     the raw windowed damping, the half-power cross-check (NaN with a neighbouring mode), mean
     coherence around the mode; ``response`` kind; ``residue`` R_r (FRF unit x (rad/s)^2);
     ``mass_kg``, ``stiffness_n_m``, ``damping_n_s_m`` (NaN for a force response); ``stable_poles``
-    how many stable poles its cluster holds."""
+    how many stable poles its cluster holds; ``frequency_uncertainty_hz`` and
+    ``damping_uncertainty``: the standard deviation of the cluster's poles over model orders
+    (with the frequency step's resolution), which is all one hit can say (no averaging)."""
 
     channel: str
     frequency_hz: float
@@ -103,6 +105,8 @@ class ModeEstimate:
     stiffness_n_m: float = math.nan
     damping_n_s_m: float = math.nan
     stable_poles: int = 0
+    frequency_uncertainty_hz: float = math.nan
+    damping_uncertainty: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -316,10 +320,27 @@ def _channel_modes(
                 w.append(f"{name}: LSCF damping {z_true:.4f} vs half-power {zh:.4f}")
             if not math.isfinite(zh):
                 w.append(f"{name}: half-power points outside the band; no cross-check")
+        sf, sz = _cluster_spread(st, f_true, df)
         out.append(ModeEstimate(name, f_true, z_true, zw, fh, zh, coh_m, tuple(w), kind, residue,
-                                mass, stiff, damp, size))  # fmt: skip
+                                mass, stiff, damp, size, sf, sz))  # fmt: skip
         notes.extend(w)
     return out
+
+
+def _cluster_spread(st, f_hz: float, df_hz: float) -> tuple[float, float]:
+    """Standard deviation of frequency (with the step's resolution, df / sqrt(12)) and of
+    damping over the counted poles within the stabilisation's tolerance of ``f_hz``."""
+    from analysis.modal.stabilisation import FREQ_TOL
+
+    fs, zs = [], []
+    for fr, xi, state in zip(st.freq_hz, st.damping, st.state):
+        near = (state == 4) & (np.abs(fr - f_hz) <= FREQ_TOL * f_hz)
+        fs.extend(fr[near])
+        zs.extend(xi[near])
+    if len(fs) < 2:
+        return math.nan, math.nan
+    return (float(math.hypot(np.std(fs, ddof=1), df_hz / math.sqrt(12))),
+            float(np.std(zs, ddof=1)))  # fmt: skip
 
 
 def modal_analysis(
@@ -351,10 +372,9 @@ def modal_analysis(
     notes: list[str] = []
     if doubles:
         notes.append(f"double hit(s) left out: {', '.join(str(i) for i in doubles)}")
-    if len(used) < 2:
+    if not used:
         raise AnalysisError(
-            f"{len(used)} usable hit(s) ({len(doubles)} double): need at least 2 for an H1 "
-            "average with coherence"
+            f"no usable hit ({len(doubles)} double): tap again, one clean hit at least"
         )
     exc = np.stack([h[starts[i] : starts[i] + n] for i in used])
     resp = np.stack([y[starts[i] : starts[i] + n].T for i in used])
@@ -399,6 +419,16 @@ def modal_analysis(
             skipped.append((name, f"no mode: no stable pole with coherence >= {min_coherence} in "
                                   f"{lo:.0f}..{hi:.0f} Hz"))  # fmt: skip
         modes.extend(found)
+    if len(used) == 1:  # an H1 of one hit has coherence 1 by construction: nothing checked
+        spread = "; ".join(
+            f"{m.channel} {m.frequency_hz:.0f} +- {m.frequency_uncertainty_hz:.1f} Hz, damping "
+            f"{m.damping_ratio:.4f} +- {m.damping_uncertainty:.4f}" for m in modes
+        )  # fmt: skip
+        notes.insert(0, (
+            "one hit: no coherence (it needs at least 2 hits) and the noise is not averaged; "
+            f"the uncertainty is the spread over model orders only ({spread or 'no mode'}): "
+            "tap 3-5 times for a coherence check"
+        ))  # fmt: skip
     return ModalResult(tuple(modes), tuple(used), tuple(doubles), freq, frf, coh,
                        tuple(skipped), tuple(notes), stabs, names)  # fmt: skip
 

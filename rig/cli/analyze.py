@@ -120,7 +120,7 @@ def _modal(args: argparse.Namespace) -> int:
         args.file, args.hammer, rate_hz=args.rate, record_s=args.record_s,
         window_end=args.window_end, spindle_rpm=args.rpm, teeth=args.teeth, rig_path=args.rig,
         plot_png=args.plot, response=args.response, stabilisation_png=args.stabilisation,
-        save=args.save,
+        save=args.save, columns=args.columns,
     )  # fmt: skip
     for key in ("plot", "stabilisation_plot", "saved"):
         if key in out:
@@ -230,6 +230,11 @@ def _register_modal(psub: argparse._SubParsersAction) -> None:
     m = psub.add_parser("modal", help="modes from an impulse-hammer record (dynamometer, tool)")
     m.add_argument("file", help="CSV/DynoWare export or run file with a hammer channel")
     m.add_argument("--hammer", default="hammer", help="name of the hammer force channel")
+    m.add_argument(
+        "--columns", default=None, metavar="NAMES",
+        help="the columns of a file without a header row, in order, units in brackets: "
+        "e.g. time[s],hammer[N],accel[m/s^2] (the rate from the time column, or --rate)",
+    )  # fmt: skip
     m.add_argument("--rate", type=positive("Hz", 10_000_000), default=None,
                    help="Hz, for files without a rate")  # fmt: skip
     m.add_argument("--record-s", type=positive("s", 3600), default=0.08,
