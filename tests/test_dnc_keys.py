@@ -81,8 +81,11 @@ class _Sender:
         os.write(self.master, text.encode())
 
     def finish(self, timeout_s: float = 60.0) -> tuple[int, str]:
-        try:
-            out, _ = self.proc.communicate(timeout=timeout_s)
+        try:  # stderr is the reader thread's (communicate would take lines from it); the JSON
+            # on stdout is far below a pipe's buffer, so waiting first cannot block the sender
+            self.proc.wait(timeout=timeout_s)
+            assert self.proc.stdout is not None
+            out = self.proc.stdout.read()
         finally:
             if self.proc.poll() is None:
                 self.proc.kill()
