@@ -411,7 +411,8 @@ def _validate(targets: list[RunAverage], model: str, tool: Any, coefficients: An
         "validation": {"max_error_pct": cmp.max_error_pct, "rows": list(cmp.rows)}
     }
     if plot_dir:
-        pngs = plot_comparison(cmp, plot_dir)
+        pngs = plot_comparison(cmp, plot_dir, tool=tool, coef=coefficients,
+                               conditions=[a.conditions for a in targets])  # fmt: skip
         if model == "facemill":
             pngs += plot_waveforms(targets, tool, coefficients, plot_dir, dynamometer)
         out["plots"] = [str(p) for p in pngs]

@@ -112,9 +112,24 @@ def compare_runs(
     return Comparison(tuple(rows), worst)
 
 
-def plot_comparison(cmp: Comparison, out_dir: str | Path, stem: str = "validation") -> list[Path]:
-    """PNG plots: mean X, Y, Z force vs depth of cut per feed per tooth, measured (markers) and
-    predicted (lines). Returns the files written."""
+#: which condition a comparison plot puts on its x axis: the one the runs vary most over
+_SWEEP_KEYS = (("fz_mm", "feed per tooth, mm"), ("depth_mm", "axial depth of cut, mm"),
+               ("width_mm", "width of cut, mm"))  # fmt: skip
+
+
+def plot_comparison(
+    cmp: Comparison, out_dir: str | Path, stem: str = "validation",
+    tool: FaceMill | EndMill | None = None,
+    coef: FaceMillCoefficients | EndMillCoefficients | None = None,
+    conditions: Sequence[RunConditions] | None = None,
+) -> list[Path]:  # fmt: skip
+    """PNG: mean X, Y, Z force per revolution against the condition the runs vary most over
+    (feed per tooth for a feed sweep, depth for a depth sweep), measured (markers) and, with
+    ``tool``, ``coef`` and the runs' ``conditions``, the model's line through them; below, each
+    run's residual (measured - predicted) per direction. The title quotes the table's figure
+    (the largest resultant error, % of the measured resultant). Returns the files written."""
+    import dataclasses
+
     import matplotlib
 
     matplotlib.use("Agg")
@@ -122,22 +137,64 @@ def plot_comparison(cmp: Comparison, out_dir: str | Path, stem: str = "validatio
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    feeds = sorted({r["fz_mm"] for r in cmp.rows})
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4), constrained_layout=True)
-    for i, ax in enumerate(axes):
-        for j, fz in enumerate(feeds):
-            rs = sorted((r for r in cmp.rows if r["fz_mm"] == fz), key=lambda r: r["depth_mm"])
-            d = [r["depth_mm"] for r in rs]
-            col = f"C{j}"
-            ax.plot(d, [r["measured_mean_n"][i] for r in rs], "o", color=col,
-                    label=f"measured {fz:g} mm/tooth")  # fmt: skip
-            ax.plot(d, [r["predicted_mean_n"][i] for r in rs], "-", color=col,
-                    label=f"predicted {fz:g} mm/tooth")  # fmt: skip
-        ax.set_xlabel("axial depth of cut, mm")
-        ax.set_ylabel(f"mean F{'xyz'[i]} per revolution, N")
-        ax.grid(True, alpha=0.3)
-    axes[0].legend(fontsize=7)
-    fig.suptitle(f"predicted vs measured (largest error {cmp.max_error_pct:.2f} % of resultant)")
+    rows = list(cmp.rows)
+    cond = list(conditions) if conditions is not None else None
+    vals = [{"fz_mm": float(r["fz_mm"]), "depth_mm": float(r["depth_mm"]),
+             "width_mm": float(cond[i].width_mm) if cond is not None else float("nan")}
+            for i, r in enumerate(rows)]  # fmt: skip
+
+    def distinct(k: str) -> int:
+        return len({v[k] for v in vals if np.isfinite(v[k])})
+
+    key, label = max(_SWEEP_KEYS, key=lambda kl: distinct(kl[0]))
+    others = [k for k, _ in _SWEEP_KEYS if k != key and distinct(k)]
+
+    def x_of(i: int) -> float:
+        return vals[i][key]
+
+    def group_of(i: int) -> tuple:
+        return tuple(round(vals[i][k], 6) for k in others)
+
+    groups = sorted({group_of(i) for i in range(len(rows))})
+    fig, axes = plt.subplots(2, 3, figsize=(13, 6.5), constrained_layout=True,
+                             gridspec_kw={"height_ratios": [2.2, 1]}, sharex="col")  # fmt: skip
+    for j, g in enumerate(groups):
+        idx = sorted((i for i in range(len(rows)) if group_of(i) == g), key=x_of)
+        xs = np.array([x_of(i) for i in idx])
+        name = ", ".join(f"{k.removesuffix('_mm')} {v:g} mm" for k, v in zip(others, g))
+        col = f"C{j}"
+        line = None
+        if tool is not None and coef is not None and cond is not None and len(idx):
+            grid = np.linspace(0, xs.max() * 1.1, 40)[1:]
+            base = cond[idx[0]]
+            line = np.array([predicted_mean(dataclasses.replace(base, **{key: float(x)}), tool,
+                                            coef) for x in grid])  # fmt: skip
+        for a in range(3):
+            ax = axes[0, a]
+            ax.plot(xs, [rows[i]["measured_mean_n"][a] for i in idx], "o", color=col,
+                    label=f"measured ({name})" if name else "measured")  # fmt: skip
+            if line is not None:
+                ax.plot(grid, line[:, a], "-", color=col, lw=1,
+                        label=f"model ({name})" if name else "model")  # fmt: skip
+            else:
+                ax.plot(xs, [rows[i]["predicted_mean_n"][a] for i in idx], "x--", color=col,
+                        lw=0.8, label="predicted")  # fmt: skip
+            res = [rows[i]["measured_mean_n"][a] - rows[i]["predicted_mean_n"][a] for i in idx]
+            axes[1, a].plot(xs, res, "o", color=col)
+    for a in range(3):
+        axes[0, a].set_ylabel(f"mean F{'xyz'[a]} per revolution, N")
+        axes[0, a].grid(True, alpha=0.3)
+        axes[0, a].axhline(0, color="0.6", lw=0.6)
+        axes[1, a].axhline(0, color="0.3", lw=0.8)
+        axes[1, a].set_ylabel(f"residual F{'xyz'[a]}, N")
+        axes[1, a].set_xlabel(label)
+        axes[1, a].grid(True, alpha=0.3)
+        axes[0, a].set_xlim(left=0)
+    axes[0, 0].legend(fontsize=7)
+    worst = max((abs(r["resultant_error_pct"]) for r in rows), default=0.0)
+    fig.suptitle(f"predicted vs measured, {len(rows)} runs: largest resultant error {worst:.2f} % "
+                 f"(the table's error_pct); largest per-direction error {cmp.max_error_pct:.2f} % "
+                 "of the resultant")  # fmt: skip
     path = out / f"{stem}_mean_forces.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)
