@@ -49,8 +49,8 @@ Progress = Callable[[int, int], None]  # (pieces done, pieces in all)
 LimitStep = Callable[[Program, ZMap, MachineConfig], tuple[Program, dict[str, Any]]]
 
 
-#: the derived stock's top: this far above the highest level the program cuts (a Z-constant
-#: feed move), and never below Z0 (work zero on the stock top, the usual convention)
+#: the derived stock's top: Z0 (work zero on the stock top, the usual convention) when every
+#: level the program cuts (a Z-constant feed move) is below it, else this far above the highest
 STOCK_ALLOWANCE_MM = 1.0
 
 
@@ -60,8 +60,8 @@ def job_stock(
 ) -> tuple[ZMap, dict[str, Any]]:  # fmt: skip
     """The starting stock and where it came from (printed and in JSON): ``stock_spec`` (see
     :func:`load_stock`), else a box over the program's feed moves: their XY extent plus the
-    widest cutter's ``radius_mm``, bottom 1 mm below the deepest, top at Z0 or
-    :data:`STOCK_ALLOWANCE_MM` above the highest level cut, whichever is higher."""
+    widest cutter's ``radius_mm``, bottom 1 mm below the deepest, top at Z0, or
+    :data:`STOCK_ALLOWANCE_MM` above the highest level cut when that is at or above Z0."""
     if stock_spec:
         return load_stock(stock_spec, spacing_mm), {"source": "--stock", "spec": stock_spec}
     from planning.nc import bounding_box
@@ -72,16 +72,17 @@ def job_stock(
     lo, hi = bounding_box(motion[feed])
     level = feed & (np.abs(motion.start[:, 2] - motion.end[:, 2]) < 1e-9)
     top = 0.0
-    if level.any():
-        top = max(0.0, float(motion.end[level, 2].max()) + STOCK_ALLOWANCE_MM)
+    if level.any() and float(motion.end[level, 2].max()) >= 0.0:
+        top = float(motion.end[level, 2].max()) + STOCK_ALLOWANCE_MM
     bottom = min(float(lo[2]) - 1.0, -1.0)
     r = radius_mm
     box = (float(lo[0]) - r, float(hi[0]) + r, float(lo[1]) - r, float(hi[1]) + r, bottom, top)
     spec = "box:" + ",".join(f"{v:.6g}" for v in box)
     info = {"source": "derived", "spec": spec, "allowance_mm": STOCK_ALLOWANCE_MM,
-            "how": "the feed moves' XY extent plus the cutter radius; top at Z0 or "
-                   f"{STOCK_ALLOWANCE_MM:g} mm above the highest level cut; bottom 1 mm below "
-                   "the deepest feed move (give --stock for the real one)"}  # fmt: skip
+            "how": "the feed moves' XY extent plus the cutter radius; top at Z0, or "
+                   f"{STOCK_ALLOWANCE_MM:g} mm above the highest level cut if that is not below "
+                   "Z0; bottom 1 mm below the deepest feed move (give --stock for the real "
+                   "one)"}  # fmt: skip
     return load_stock(spec, spacing_mm), info
 
 
