@@ -229,14 +229,26 @@ def plot_waveforms(
         ang = ang % 360
         order = np.argsort(ang)
         for i, name in enumerate("XYZ"):
-            ax.plot(ang[order], a.waveform_n[order, i], color=f"C{i}", lw=1, label=f"F{name}")
-            ax.plot(ang[order], pred[order, i], color=f"C{i}", lw=1, ls="--")
+            # measured thick and pale, the prediction thin and dark on top: both stay visible
+            ax.plot(ang[order], a.waveform_n[order, i], color=f"C{i}", lw=2.6, alpha=0.35,
+                    label=f"F{name} measured")  # fmt: skip
+            ax.plot(ang[order], pred[order, i], color=f"C{i}", lw=1.0, ls="--",
+                    label=f"F{name} predicted")  # fmt: skip
+        # the cut's angular span (where the resultant exceeds 5 % of its peak), with margins:
+        # a face mill's insert cuts over a part of the turn, the rest is air
+        res = np.linalg.norm(a.waveform_n[order], axis=1)
+        cutting = ang[order][res > 0.05 * res.max()]
+        if cutting.size and np.ptp(cutting) < 300:
+            lo, hi = cutting.min(), cutting.max()
+            pad = max(10.0, 0.15 * (hi - lo))
+            ax.set_xlim(max(0.0, lo - pad), min(360.0, hi + pad))
         ax.set_title(f"{a.name}: fz {a.conditions.fz_mm:g} mm, depth {a.conditions.depth_mm:g} "
-                     "mm (solid measured, dashed predicted)", fontsize=9)  # fmt: skip
+                     "mm (thick: measured, dashed: predicted)", fontsize=9)  # fmt: skip
         ax.set_ylabel("N")
         ax.grid(True, alpha=0.3)
     axes[-1, 0].set_xlabel("insert angle, deg")
     axes[0, 0].legend(fontsize=7, ncol=3)
+    axes[-1, 0].set_xlabel("insert angle, deg (zoomed to the cut)")
     if len(runs) < len(averages):
         fig.suptitle(f"{len(runs)} of {len(averages)} runs shown", fontsize=9)
     path = out / f"{stem}.png"
