@@ -194,3 +194,129 @@ def test_daq_record_refuses_fz_nan(tmp_path: Path):
     assert line == ("cutlab: error: --conditions 'fz_mm=nan': fz_mm = nan: not a finite number "
                     "(a condition is a number or a name)")  # fmt: skip
     assert not out.exists()
+
+
+# ------------------------------------------------------------------- catalogue: queries, dask
+
+
+@pytest.fixture(scope="module")
+def lab(tmp_path_factory):
+    """The catalogue tests' archive (face-milling runs that identify), indexed."""
+    from test_catalog import _make_archive
+
+    from analysis.catalog import update_index
+
+    root = tmp_path_factory.mktemp("lab")
+    _make_archive(root)
+    update_index([root])
+    return root
+
+
+def _main(argv: list[str], capsys) -> tuple[int, str, str]:
+    from rig.cli import main
+
+    rc = main([str(a) for a in argv])
+    cap = capsys.readouterr()
+    return rc, cap.out, cap.err
+
+
+def _one_line(rc: int, err: str) -> str:
+    assert rc == 2 and "Traceback" not in err, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("cutlab: error: "), err
+    return lines[0]
+
+
+def test_a_query_of_8000_terms_is_one_line(lab, capsys):
+    from analysis.catalog.query import MAX_QUERY_TERMS
+
+    expr = " or ".join(["fz_mm == 0.1"] * 8000)
+    rc, _, err = _main(["catalog", "query", expr, "--index", lab], capsys)
+    line = _one_line(rc, err)
+    assert f"has 8000 terms (comparisons); at most {MAX_QUERY_TERMS}" in line
+    assert len(line) < 300  # the query is cut in the message
+    for expr, said in ((" | ".join(["(fz_mm == 0.1)"] * 500), "has 500 terms"),
+                       ("not " * 5000 + "fz_mm == 0.1", "nested too deeply"),
+                       ("~" * 300 + "(fz_mm == 0.1)", "nests 304 levels deep")):  # fmt: skip
+        rc, _, err = _main(["analyze", "forces", "--catalog", lab, "--where", expr], capsys)
+        assert said in _one_line(rc, err)
+    # as many terms as allowed still run (pandas' own recursion is the limit beyond)
+    expr = " or ".join([f"fz_mm == {0.1 + k / 1000:g}" for k in range(MAX_QUERY_TERMS - 1)])
+    rc, out, err = _main(["catalog", "query", expr + " or group == 'v'", "--index", lab], capsys)
+    assert rc == 0 and "004-v" in out, err
+
+
+@pytest.fixture(scope="module")
+def tcp_scheduler():
+    """A real dask scheduler and worker on 127.0.0.1 (an ephemeral port), in this process."""
+    import logging
+
+    from distributed import LocalCluster
+
+    logging.getLogger("distributed").setLevel(logging.ERROR)
+    where = dict(protocol="tcp", host="127.0.0.1", scheduler_port=0, dashboard_address=None)
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False, **where) as cluster:
+        assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+        yield cluster.scheduler_address
+
+
+FM_WHERE = "campaign == 'fm' and group == 'g'"
+
+
+def test_analyze_on_a_tcp_scheduler_with_and_without_json(lab, tcp_scheduler, capsys):
+    import shutil
+
+    shutil.rmtree(lab / ".cutlab-catalog.cache", ignore_errors=True)
+    argv = ["analyze", "forces", "--catalog", lab, "--where", FM_WHERE, "--scheduler",
+            tcp_scheduler]  # fmt: skip
+    rc, out, err = _main(argv, capsys)  # (was ValueError: No clients found, a traceback)
+    assert rc == 0 and "Traceback" not in err, err
+    assert "100% Completed" in err and "3 reduced" in err  # distributed's bar, on stderr
+    assert "facemill fit of 3 run(s)" in out
+    rc, out, err = _main([*argv, "--json"], capsys)  # the fit is cached now
+    assert rc == 0 and json.loads(out)["catalog"]["fit_cached"], err
+    assert json.loads(out)["catalog"]["scheduler"] == tcp_scheduler
+    shutil.rmtree(lab / ".cutlab-catalog.cache")
+    rc, out, err = _main([*argv, "--json"], capsys)
+    assert rc == 0 and json.loads(out)["catalog"]["reduced"] == 3, err
+
+
+def _closed_port() -> int:
+    import socket
+
+    with socket.socket() as s:  # bound and closed: nothing listens there
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.parametrize("json_out", [False, True])
+def test_an_unreachable_scheduler_is_one_line_even_when_cached(lab, capsys, json_out):
+    from analysis.catalog import fit_catalog
+
+    fit_catalog(lab, FM_WHERE, scheduler="sync")  # the fit is cached
+    address = f"tcp://127.0.0.1:{_closed_port()}"
+    argv = ["analyze", "forces", "--catalog", lab, "--where", FM_WHERE, "--scheduler", address]
+    rc, out, err = _main(argv + ["--json"] * json_out, capsys)
+    line = _one_line(rc, err)
+    assert line.startswith(f"cutlab: error: --scheduler {address}: cannot reach the dask "
+                           "scheduler within 4 s (ConnectionRefusedError")  # fmt: skip
+    assert out == ""
+
+
+def test_a_port_that_is_no_dask_scheduler_is_an_error(lab, capsys):
+    """A port that accepts and never answers (a wrong --scheduler): distributed's Client waits
+    for its answer for ever; cutlab says so within its deadline, the fit cached or not."""
+    import socket
+
+    from analysis.catalog import CONNECT_TIMEOUT_S, fit_catalog
+
+    fit_catalog(lab, FM_WHERE, scheduler="sync")
+    with socket.socket() as silent:
+        silent.bind(("127.0.0.1", 0))
+        silent.listen(4)
+        address = f"tcp://127.0.0.1:{silent.getsockname()[1]}"
+        argv = ["analyze", "forces", "--catalog", lab, "--where", FM_WHERE, "--scheduler",
+                address, "--json"]  # fmt: skip
+        rc, out, err = _main(argv, capsys)
+    line = _one_line(rc, err)
+    assert f"no dask scheduler answered in {CONNECT_TIMEOUT_S:g} s" in line and out == ""

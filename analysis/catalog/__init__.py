@@ -4,11 +4,12 @@ to comparisons, and force identification over a query with the per-run reduction
 (local threads or a dask.distributed cluster), cached by file hash.
 """
 
-from analysis.catalog.compute import CachedMapper, compute, fit_catalog
+from analysis.catalog.compute import CONNECT_TIMEOUT_S, CachedMapper, compute, fit_catalog
 from analysis.catalog.index import INDEX_NAME, index_file, load_index, update_index
 from analysis.catalog.query import MAIN_COLUMNS, check_query, query_runs, records, show_run
 
 __all__ = [
+    "CONNECT_TIMEOUT_S",
     "INDEX_NAME",
     "MAIN_COLUMNS",
     "CachedMapper",

@@ -12,7 +12,9 @@ Where the tasks run: ``scheduler`` None uses a ``scheduler-address`` from the da
 there is one, else the dask config's ``scheduler``, by default dask's threaded scheduler on this
 machine (h5py reads one at a time, the numpy reduction in parallel); ``"threads"``, ``"processes"``,
 ``"sync"`` name a local one; ``tcp://HOST:PORT`` a dask.distributed scheduler, whose workers
-must see the run files under the same paths (a shared file system). A worker that dies is
+must see the run files under the same paths (a shared file system). A scheduler is reached
+before anything else, a cached fit too (a wrong address is an error, not ignored), within
+:data:`CONNECT_TIMEOUT_S`. A worker that dies is
 replaced and its tasks rerun by the scheduler; a reduction has no side effect, so a rerun gives
 the same result.
 
@@ -34,7 +36,10 @@ import hashlib
 import os
 import pickle
 import re
+import socket
 import sys
+import threading
+import time
 from collections.abc import Sequence
 from importlib.util import find_spec
 from pathlib import Path
@@ -112,38 +117,99 @@ def _store(path: Path, value: Any) -> None:
     os.replace(tmp, path)  # readers see the whole entry or none
 
 
-def compute(tasks: Sequence[Any], scheduler: str | None = None, progress: bool = False) -> list:
-    """Compute dask ``tasks`` on ``scheduler`` (see the module docstring), with dask's progress
-    bar on stderr when ``progress``."""
+#: How long to try to reach a dask scheduler (distributed's default is 30 s; a scheduler on
+#: the lab's network answers in milliseconds)
+CONNECT_TIMEOUT_S = 4.0
+
+
+def distributed_address(scheduler: str | None) -> str | None:
+    """The dask.distributed scheduler ``scheduler`` (or the dask config's
+    ``scheduler-address``) names, None for a local one; a malformed one is one line."""
+    import dask
+
+    address = scheduler or dask.config.get("scheduler-address", None)
+    if scheduler in LOCAL_SCHEDULERS or not address:
+        return None
+    if not re.fullmatch(r"[a-z]+://\S+", str(address)):  # tcp://, tls://, inproc://
+        raise AnalysisError(f"--scheduler {address}: expected {', '.join(LOCAL_SCHEDULERS[:3])} "
+                            "or a dask scheduler's address, tcp://HOST:PORT")  # fmt: skip
+    return str(address)
+
+
+def connect(address: str) -> Any:
+    """A ``distributed.Client`` of the scheduler at ``address`` (not made the default client),
+    or one line within :data:`CONNECT_TIMEOUT_S` saying it cannot be reached."""
+    from distributed import Client
+
+    tcp = re.fullmatch(r"tcp://\[?([^\]/]+?)\]?:(\d+)/?", address)
+    made: list[Any] = []
+    given_up = threading.Event()
+    deadline = time.monotonic() + CONNECT_TIMEOUT_S
+
+    def make() -> None:
+        try:
+            client = Client(address, set_as_default=False, timeout=CONNECT_TIMEOUT_S)
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller's thread
+            made.append(exc)
+            return
+        made.append(client)
+        if given_up.is_set():  # answered after the deadline: nobody will use it
+            client.close()
+
+    try:
+        if tcp:  # a closed port says so at once (distributed retries it until its timeout)
+            socket.create_connection((tcp[1], int(tcp[2])), timeout=CONNECT_TIMEOUT_S).close()
+        # distributed's timeout covers the connection, not the scheduler's answer: a port that
+        # accepts and stays silent (not a dask scheduler) would hang the Client for ever
+        maker = threading.Thread(target=make, name="dask-connect", daemon=True)
+        maker.start()
+        maker.join(max(0.0, deadline - time.monotonic()))
+        if not made:
+            given_up.set()
+            if made and not isinstance(made[0], BaseException):  # (in between)
+                made[0].close()
+            raise TimeoutError(f"no dask scheduler answered in {CONNECT_TIMEOUT_S:g} s")
+        if isinstance(made[0], BaseException):
+            raise made[0]
+        return made[0]
+    except (OSError, TimeoutError, ValueError) as exc:
+        why = " ".join(f"{type(exc).__name__}: {exc}".split())
+        raise AnalysisError(f"--scheduler {address}: cannot reach the dask scheduler within "
+                            f"{CONNECT_TIMEOUT_S:g} s ({why})") from None  # fmt: skip
+
+
+def compute(tasks: Sequence[Any], scheduler: str | None = None, progress: bool = False,
+            client: Any = None) -> list:  # fmt: skip
+    """Compute dask ``tasks`` on ``scheduler`` (see the module docstring), or on ``client`` (a
+    ``distributed.Client`` already connected), with dask's progress bar on stderr when
+    ``progress``."""
     import dask
 
     if not tasks:
         return []
-    address = scheduler or dask.config.get("scheduler-address", None)
-    if scheduler in LOCAL_SCHEDULERS or not address:
+    address = None if client is not None else distributed_address(scheduler)
+    if client is None and address is None:
         from dask.diagnostics import ProgressBar
 
         bar = ProgressBar(out=sys.stderr) if progress else contextlib.nullcontext()
         with bar:
             # None: the dask config's ``scheduler`` (or a default Client), else threads
             return list(dask.compute(*tasks, scheduler=scheduler))
-    if not re.fullmatch(r"[a-z]+://\S+", str(address)):  # tcp://, tls://, inproc://
-        raise AnalysisError(f"--scheduler {address}: expected {', '.join(LOCAL_SCHEDULERS[:3])} "
-                            "or a dask scheduler's address, tcp://HOST:PORT")  # fmt: skip
-    from distributed import Client
     from distributed import progress as show_progress
 
-    try:  # waits up to dask's distributed.comm.timeouts.connect (30 s)
-        client = Client(address, set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise AnalysisError(f"--scheduler {address}: cannot reach the dask scheduler "
-                            f"({type(exc).__name__}: {exc})") from None  # fmt: skip
-    with client:
+    own = client is None
+    client = connect(address) if own else client
+    try:
         futures = client.compute(list(tasks))
         if progress:
-            with contextlib.redirect_stdout(sys.stderr):  # distributed's bar prints to stdout
-                show_progress(futures)
+            # distributed's bar prints to stdout, and finds its scheduler through the default
+            # client unless told (this one is not the default: "No clients found")
+            with contextlib.redirect_stdout(sys.stderr):
+                show_progress(futures, scheduler=client.scheduler.address)
         return client.gather(futures)
+    finally:
+        if own:
+            client.close()
 
 
 class CachedMapper:
@@ -151,9 +217,9 @@ class CachedMapper:
     the other reductions as dask tasks; counts ``cached`` and ``reduced`` files."""
 
     def __init__(self, cache: Path, hashes: dict[str, str | None], scheduler: str | None = None,
-                 progress: bool = False) -> None:  # fmt: skip
+                 progress: bool = False, client: Any = None) -> None:  # fmt: skip
         self.cache, self.hashes = cache, hashes
-        self.scheduler, self.progress = scheduler, progress
+        self.scheduler, self.progress, self.client = scheduler, progress, client
         self.cached = self.reduced = 0
 
     def __call__(self, reducer: Any, paths: Sequence[Any]) -> list:
@@ -166,7 +232,8 @@ class CachedMapper:
         results = [_load(e) if e else None for e in entries]
         todo = [i for i, r in enumerate(results) if r is None]
         task = dask.delayed(reducer, pure=False)  # one node: the reducer goes to a worker once
-        done = compute([task(str(paths[i])) for i in todo], self.scheduler, self.progress)
+        done = compute([task(str(paths[i])) for i in todo], self.scheduler, self.progress,
+                       self.client)  # fmt: skip
         for i, r in zip(todo, done):
             results[i] = r
             if entries[i]:
@@ -210,15 +277,20 @@ def fit_catalog(
     rows = query_runs(where, ipath)
     if rows.empty:
         raise AnalysisError(f"{ipath}: no run in the catalogue matches {where!r}")
-    mapper = CachedMapper(cache_dir(ipath), _check_current(rows), scheduler, progress)
-    key = _fit_key(rows, fit_kw)
-    entry = cache_dir(ipath) / f"{key}.pkl" if key else None
-    out = _load(entry) if entry else None
-    fit_cached = out is not None
-    if out is None:
-        out = fit_files(list(rows["file"]), mapper=mapper, **fit_kw)
-        if entry:
-            _store(entry, out)
+    hashes = _check_current(rows)
+    # The scheduler asked for is reached first, cached fit or not: a wrong one is an error.
+    address = distributed_address(scheduler)
+    client = connect(address) if address else None
+    with client if client is not None else contextlib.nullcontext():
+        mapper = CachedMapper(cache_dir(ipath), hashes, scheduler, progress, client)
+        key = _fit_key(rows, fit_kw)
+        entry = cache_dir(ipath) / f"{key}.pkl" if key else None
+        out = _load(entry) if entry else None
+        fit_cached = out is not None
+        if out is None:
+            out = fit_files(list(rows["file"]), mapper=mapper, **fit_kw)
+            if entry:
+                _store(entry, out)
     out["catalog"] = {"index": str(ipath), "where": where, "runs": len(rows),
                       "cached": len(rows) if fit_cached else mapper.cached,
                       "reduced": mapper.reduced, "fit_cached": fit_cached,

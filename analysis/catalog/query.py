@@ -29,14 +29,41 @@ _HELP = ("use comparisons (== != < <= > >= in, not in) of columns with numbers, 
          "lists, joined by and / or / not, e.g. \"material == 'GM241' and 0.2 <= fz_mm <= 0.4\"")
 
 
+#: The most comparisons a query may join, and the deepest it may nest (and/or/not/&/|/~ and
+#: parentheses as a syntax tree): pandas evaluates a query recursively (about 350 terms end in
+#: RecursionError), Python's parser too; a query a lab writes has a handful.
+MAX_QUERY_TERMS = 100
+MAX_QUERY_DEPTH = 128
+
+
+def _shown(expr: str) -> str:
+    """The query in a message, cut to one readable line."""
+    text = " ".join(expr.split())
+    return repr(text if len(text) <= 80 else text[:60] + " ... " + text[-15:])
+
+
 def check_query(expr: str, columns: Any) -> None:
     """Raise unless ``expr`` is a plain comparison expression over ``columns`` (one line)."""
-    where = f"query {expr!r}"
+    where = f"query {_shown(expr)}"
     try:
         tree = ast.parse(expr.strip(), mode="eval")
     except SyntaxError as exc:
         raise AnalysisError(f"{where}: not an expression (column {exc.offset}: {exc.msg}); "
                             f"{_HELP}") from None  # fmt: skip
+    except (RecursionError, MemoryError):  # the parser's own limit (e.g. 5000 x "not")
+        raise AnalysisError(f"{where}: nested too deeply to parse; at most {MAX_QUERY_DEPTH} "
+                            "levels") from None  # fmt: skip
+    terms, depth, todo = 0, 0, [(tree, 1)]
+    while todo:  # (not ast.walk: the depth too)
+        node, d = todo.pop()
+        depth = max(depth, d)
+        terms += isinstance(node, ast.Compare)
+        todo.extend((child, d + 1) for child in ast.iter_child_nodes(node))
+    if terms > MAX_QUERY_TERMS:
+        raise AnalysisError(f"{where} has {terms} terms (comparisons); at most "
+                            f"{MAX_QUERY_TERMS} (a list is one: run in ['a', 'b'])")  # fmt: skip
+    if depth > MAX_QUERY_DEPTH:
+        raise AnalysisError(f"{where} nests {depth} levels deep; at most {MAX_QUERY_DEPTH}")
     known = set(columns)
     for node in ast.walk(tree):
         ok = isinstance(node, _ALLOWED)
