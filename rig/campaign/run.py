@@ -40,6 +40,8 @@ STATUS_SUCCESS, STATUS_ABORT, STATUS_FAIL = rf.STATUS_SUCCESS, rf.STATUS_ABORT, 
 WATCHDOG_MARGIN_S = 30.0
 #: Revolutions of force the chatter suspender judges (indicators keeps all but one at each end).
 CHATTER_WINDOW_REVS = 10
+#: wall s a simulated DAQ's block waits for room in the writer's queue before it is dropped
+LOSSLESS_WAIT_S = 60.0
 
 
 class RigSession(Protocol):
@@ -128,6 +130,7 @@ class _Tap:
         self.on_over_limit = on_over_limit
         self.chatter = chatter
         self.chatter_found: str | None = None
+        self.lossless = False
         self.cal = cal
         self.force_limit_n = force_limit_n
         self.monitor = False
@@ -152,7 +155,12 @@ class _Tap:
         self.writer.on_start(info, t0_s)
 
     def on_block(self, first_sample: int, data: np.ndarray) -> None:
-        self.writer.on_block(first_sample, data)
+        if self.lossless:
+            # A simulated DAQ waits for the writer (its clock waits with it): a busy host must
+            # not drop samples a quiet one keeps.
+            self.writer.put_block(first_sample, data, timeout_s=LOSSLESS_WAIT_S)
+        else:
+            self.writer.on_block(first_sample, data)
         info = self.info
         n = data.shape[1]
         self.samples = first_sample + n
@@ -302,11 +310,16 @@ def execute_run(
         watch = _ChatterWatch(tuple(cal.channel_names), rate, abs(spindle_rpm), chatter_floor_n,
                               chatter_settings)  # fmt: skip
     tap = _Tap(writer, cal, force_limit_n, hold_now, watch)
+    simulated = bool(getattr(session, "simulated", False))
+    tap.lossless = simulated and hasattr(writer, "put_block")
     n_rest = max(2, int(round(zero_s * rate)))
     wait_rest_s = 10.0 + 3 * zero_s / sim_speed
     catch_up_s = 60.0  # wall s a lagging simulated DAQ may take to deliver what it owes
     daq.start(tap)
     try:
+        arm = getattr(session, "arm", None)
+        if arm is not None:  # a simulated rig: program start and end on its own clock
+            arm(n_rest)
         t_zero, v_zero = tap.capture(n_rest, wait_rest_s)
         cal0 = cal.zeroed(v_zero, float(t_zero.mean()))
         tap.cal = cal0
@@ -386,7 +399,9 @@ def execute_run(
             writer.event(rf.EV_NOTE, msg, time_s=t0)
         # Rest after the cut: zero and drift from both rests (not after a failure: the rig may
         # not be at rest, so the zero taken before the cut stays).
-        t_end = session.clock()
+        end_of = getattr(session, "program_end_s", None)
+        t_prog_end = end_of() if end_of is not None and status == STATUS_SUCCESS else None
+        t_end = session.clock() if t_prog_end is None else t_prog_end
         if status == STATUS_SUCCESS:
             try:
                 t_tail, v_tail = tap.capture(n_rest, wait_rest_s + catch_up_s, from_s=t_end)

@@ -14,6 +14,7 @@ import os
 import select
 import termios
 import threading
+import time
 import tty
 from collections import deque
 from collections.abc import Callable
@@ -35,6 +36,11 @@ _BAUD_CONSTANTS = {
     for b in (50, 110, 150, 300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200, 230400)
     if hasattr(termios, f"B{b}")
 }
+
+
+#: wall s the line gate waits for the streamer's next byte before it gives up (a stalled streamer
+#: must not stop simulated time for good: the run's own timeouts then see it)
+LINE_GATE_WALL_S = 10.0
 
 
 class SimControllerBase(ExecutorMixin):
@@ -102,6 +108,14 @@ class SimControllerBase(ExecutorMixin):
         self.path = ""
         self.line_ok = True  # False while the streamer's line is at another baud rate
         self._baud_warned = False  # the framing event is reported once
+        #: lockstep (the simulated rig's campaigns): the clock cannot pass this controller's next
+        #: segment end before it has been run, nor, while a stream is expected, the arrival of
+        #: the last byte received (see :meth:`expect_stream`); off for a controller on its own
+        self.lockstep = False
+        self._expecting = False
+        self._stream_done = False
+        self._line_mark = 0.0  # wall time of the last byte read (or of expect_stream)
+        self._expect_t = 0.0
         self._init_state()
 
     # -- state ---------------------------------------------------------------------------------
@@ -200,6 +214,8 @@ class SimControllerBase(ExecutorMixin):
             self._thread.join(timeout=5.0)
         with self._lock:
             self._close_pty()
+            self._expecting = False
+            self._lift_gates()
 
     def reopen(self) -> str:
         """A new pty after the port was dropped (the adapter plugged in again); returns its path."""
@@ -272,6 +288,7 @@ class SimControllerBase(ExecutorMixin):
                     self.quiet.set()
                 else:
                     self.quiet.clear()
+                self._update_gates()
                 wake = self._next_wake(now)
                 fd = self._master
             delay = min(self.clock.wall_delay(wake), 0.01)
@@ -305,6 +322,8 @@ class SimControllerBase(ExecutorMixin):
             t = max(self.clock.now(), self._line_free_t)
             self._wire.append((t + self.char_time_s, data))
             self._line_free_t = t + len(data) * self.char_time_s
+            self._line_mark = time.monotonic()
+            self._update_gates()
 
     def _check_line_settings(self) -> None:
         """A streamer at the wrong baud rate sends garbage: count it as framing errors."""
@@ -337,6 +356,12 @@ class SimControllerBase(ExecutorMixin):
                 self.framing_errors += len(part)
                 self._on_framing_error(t0)
                 continue
+            if self.lockstep:
+                # each character at its own arrival: how the loop happened to split the wire
+                # (when the host let it run) must not move a block's arrival
+                for j in range(len(part)):
+                    self._on_bytes(part[j : j + 1], t0 + j * ct)
+                continue
             self._on_bytes(part, t0 + (n - 1) * ct)
 
     def _on_framing_error(self, t: float) -> None:
@@ -364,6 +389,63 @@ class SimControllerBase(ExecutorMixin):
             now = min(t_s, self.clock.now())
             self._deliver(now)
             self._advance(now)
+            self._update_gates()
+
+    # -- lockstep --------------------------------------------------------------------------------
+    def expect_stream(self) -> None:
+        """A streamer is about to send a program (lockstep only): until it has sent it, the
+        clock waits at the arrival of the last byte for the next (the line never idles because
+        the host was slow), at most :data:`LINE_GATE_WALL_S` wall s per byte."""
+        with self._lock:
+            self._expecting, self._stream_done = True, False
+            self._expect_t = self.clock.now()
+            self._line_mark = time.monotonic()
+            self._update_gates()
+
+    def end_stream(self) -> None:
+        """The streamer has written all it will: the line gate lifts once it has been read."""
+        with self._lock:
+            self._stream_done = True
+            self._update_gates()
+
+    def _stream_wants(self) -> bool:
+        """Protocol hook: the streamer sends the moment it can (no wait for an answer whose time
+        is this controller's); False: no line gate (the answers pace the stream)."""
+        return False
+
+    def _pty_pending(self) -> bool:
+        if self._master < 0:
+            return False
+        try:
+            return bool(select.select([self._master], [], [], 0)[0])
+        except (OSError, ValueError):
+            return False
+
+    def _update_gates(self) -> None:
+        if not self.lockstep:
+            return
+        clk = self.clock
+        nxt = None
+        if self._cur is not None and not (self.held or self.alarm or self.silent):
+            nxt = self._seg_t1
+        if self._hold_stop_at is not None:
+            nxt = self._hold_stop_at if nxt is None else min(nxt, self._hold_stop_at)
+        clk.gate(f"ctl-{id(self)}", nxt)
+        line = None
+        if self._expecting and not (self.alarm or self.silent):
+            if self._stream_done and not self._pty_pending():
+                self._expecting = False
+            elif time.monotonic() - self._line_mark > LINE_GATE_WALL_S:
+                self._expecting = False
+                self._event("lockstep", f"no byte for {LINE_GATE_WALL_S:g} wall s: line gate off")
+            elif self._stream_wants():
+                line = max(self._line_free_t, self._expect_t)
+        clk.gate(f"line-{id(self)}", line)
+
+    def _lift_gates(self) -> None:
+        if hasattr(self.clock, "gate"):
+            self.clock.gate(f"ctl-{id(self)}", None)
+            self.clock.gate(f"line-{id(self)}", None)
 
     def _periodic(self, now: float) -> None:
         """Protocol hook run every loop pass (e.g. Fanuc re-sending DC1 while it waits)."""

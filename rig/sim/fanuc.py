@@ -232,6 +232,10 @@ class SimFanuc(SimControllerBase):
             return None
         return b
 
+    def _stream_wants(self) -> bool:
+        # a drip feed sends until the closing tape mark unless held off by DC3
+        return self.reader in ("waiting", "label", "reading") and not self.xoff_sent
+
     def _on_framing_error(self, t: float) -> None:
         if not self.alarm:
             self._raise_alarm(85, "COMMUNICATION ERROR (framing: wrong baud rate?)", t)

@@ -20,6 +20,7 @@ How the simulated rig differs from the lab (beyond :mod:`rig.sim.machine`'s list
 
 from __future__ import annotations
 
+import math
 import threading
 from typing import Any
 
@@ -46,8 +47,13 @@ class SimSession:
         sim = campaign.spec.sim
         rig = campaign.rig
         self.protocol = sim.protocol or campaign.machine.dialect
-        self.sim_clock = SimClock(sim.speed)
+        # Nothing moves in simulated time before the run arms it (:meth:`arm`): the DAQ's first
+        # sample is at t = 0 however long the host took to get there.
+        self.sim_clock = SimClock(sim.speed, gates={"arm": 0.0})
         self.clock = self.sim_clock.now
+        self.simulated = True
+        self._rest_samples: int | None = None
+        self._end_s: float | None = None
         rate = campaign.spec.daq.rate_hz or rig.daq.rate_hz
         read_s = campaign.spec.daq.read_interval_s or rig.daq.read_interval_s
         faults = run_index == sim.sim_fault_run
@@ -65,6 +71,7 @@ class SimSession:
             tool_modes=sim.tool_modes,
         )  # fmt: skip
         self.controller = self._make_controller(campaign, faults)
+        self.controller.lockstep = True
         self.controller.add_listener(
             on_segment=self.machine.on_segment,
             on_spindle=self.machine.on_spindle,
@@ -118,11 +125,46 @@ class SimSession:
     # -- controller events -----------------------------------------------------------------------
     def _on_event(self, ev: Any) -> None:
         if ev.kind == "program_end":
+            if self._end_s is None:
+                self._end_s = ev.t_s
+                self._gate_tail(ev.t_s)
             self._ended.set()
         elif ev.kind == "alarm" and self._fault is None:
             self._fault = f"controller alarm {ev.detail} at t = {ev.t_s:.3f} s"
         elif ev.kind in ("overrun", "port_dropped", "error") and self._fault is None:
             self._fault = f"controller {ev.kind}: {ev.detail}"
+
+    # -- deterministic pacing --------------------------------------------------------------------
+    def _block_end_time(self, k: int) -> float:
+        """Run-clock time of the end of the DAQ block holding device sample ``k - 1`` (the
+        DAQ's own expression, so its wait ends exactly there)."""
+        block = self.daq.info.block_samples
+        kk = -(-k // block) * block
+        return self.daq._t0_s + kk / self.daq.info.rate_hz
+
+    def arm(self, rest_samples: int) -> None:
+        """The run has started the DAQ and takes ``rest_samples`` at rest before the program and
+        after its end: simulated time runs to the end of the DAQ block that completes the first
+        rest and waits there for the program's first byte (:meth:`start`); after the program's
+        end it stops at the end of the block that completes the second rest. So the program
+        starts and the recording ends at the same simulated times however busy the host."""
+        self._rest_samples = int(rest_samples)
+        self.sim_clock.gate("arm", self._block_end_time(self._rest_samples))
+
+    def _gate_tail(self, t_end: float) -> None:
+        if self._rest_samples is None:
+            return
+        rate, t0 = self.daq.info.rate_hz, self.daq._t0_s
+        k0 = max(0, math.ceil((t_end - t0) * rate))
+        while k0 > 0 and t0 + (k0 - 1) / rate >= t_end:
+            k0 -= 1
+        while t0 + k0 / rate < t_end:
+            k0 += 1
+        self.sim_clock.gate("end", self._block_end_time(k0 + self._rest_samples))
+
+    def program_end_s(self) -> float | None:
+        """Simulated time the controller reached the program's end (None: not yet)."""
+        return self._end_s
 
     # -- RigSession ------------------------------------------------------------------------------
     def start(self, program: Program, writer: object) -> None:
@@ -141,6 +183,8 @@ class SimSession:
 
         def stream() -> None:
             try:
+                self.controller.expect_stream()
+                self.sim_clock.gate("arm", None)
                 self.streamer.send(program)
             except StreamFault as exc:
                 if self._fault is None:
@@ -149,6 +193,7 @@ class SimSession:
                 if self._fault is None:
                     self._fault = f"DNC: {exc}"
             finally:
+                self.controller.end_stream()
                 self._stream_done.set()
 
         self._thread = threading.Thread(target=stream, name="sim-stream", daemon=True)
@@ -200,6 +245,8 @@ class SimSession:
 
     def close(self) -> None:
         self._stop.set()
+        for name in ("arm", "end"):
+            self.sim_clock.gate(name, None)
         stop = getattr(getattr(self, "streamer", None), "stop", None)
         if stop is not None and not self._stream_done.is_set():
             stop()
