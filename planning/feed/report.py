@@ -33,8 +33,16 @@ def write_report(result: FeedPostResult, folder: str | Path, stem: str = "feedpo
     before = result.motion_before.feed_mm_min[sim.piece_segment]
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(9, 6), sharex=True, dpi=110)
     ax1.plot(dist[feed_piece], result.piece_load_pct[feed_piece], lw=0.8, color="tab:red")
+    top = float(np.nanmax(result.piece_load_pct[feed_piece], initial=0.0)) * 1.05 or 1.0
+    for e in result.rule.load_edges_pct:  # the rule's bins: a feed step where a line is crossed
+        if e <= top:
+            ax1.axhline(e, color="0.85", lw=0.5, zorder=0)
+    ax1.set_ylim(0, top)
     ax1.set_ylabel("cutting load (%)")
-    ax1.set_title(f"load and feed along the path ({result.rule.name})")
+    rules = ", ".join(dict.fromkeys(
+        f"T{sc.tool_number} {sc.rule.name if sc.rule else 'kept'}" for sc in result.sections
+    )) if len(result.sections) > 1 else result.rule.name  # fmt: skip
+    ax1.set_title(f"load (grey: the rule's bin edges) and feed along the path ({rules})")
     ax2.plot(dist[feed_piece], before[feed_piece], lw=0.8, color="0.5", label="programmed")
     ax2.plot(
         dist[feed_piece], result.piece_feed_mm_min[feed_piece], lw=0.8, color="tab:blue",
