@@ -320,3 +320,40 @@ def test_a_port_that_is_no_dask_scheduler_is_an_error(lab, capsys):
         rc, out, err = _main(argv, capsys)
     line = _one_line(rc, err)
     assert f"no dask scheduler answered in {CONNECT_TIMEOUT_S:g} s" in line and out == ""
+
+
+# --------------------------------------------------------------------- campaign matrix size
+
+
+def _matrix_campaign(tmp_path: Path, n_fz: int, n_depth: int) -> Path:
+    text = (DATA / "campaign" / "quick.toml").read_text()
+    text = text.replace('"OUT"', json.dumps(str(tmp_path / "out"))).replace("FAULTS", "")
+    fz = ", ".join(f"{0.1 + k * 1e-4:.4f}" for k in range(n_fz))
+    depth = ", ".join(f"{0.5 + k * 1e-3:.3f}" for k in range(n_depth))
+    text = text.replace("fz_mm = 0.3", f"fz_mm = [{fz}]")
+    text = text.replace("depth_mm = [1.0, 2.0]", f"depth_mm = [{depth}]")
+    cfg = tmp_path / f"m{n_fz}x{n_depth}.toml"
+    cfg.write_text(text)
+    return cfg
+
+
+def test_a_matrix_of_4_million_runs_is_one_line_at_once(tmp_path: Path):
+    cfg = _matrix_campaign(tmp_path, 2000, 2000)
+    line = one_error_line(cutlab("campaign", "run", cfg, "--dry-run"))
+    assert line == (f"cutlab: error: {cfg}:30: matrix[0] makes 4000000 runs (2000 fz_mm x 2000 "
+                    "depth_mm), the campaign 4000000; at most 10000 runs in a campaign (split "
+                    "it)")  # fmt: skip
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_matrix_cap_counts_every_table(tmp_path: Path):
+    from analysis.errors import ConfigError
+    from rig.campaign import load_campaign
+    from rig.campaign.config import MAX_CAMPAIGN_RUNS
+
+    assert len(load_campaign(_matrix_campaign(tmp_path, 100, 100)).tests) == MAX_CAMPAIGN_RUNS
+    cfg = _matrix_campaign(tmp_path, 100, 100)
+    cfg.write_text(cfg.read_text() + '\n[[tests]]\ngroup = "g"\nspindle_rpm = 1200\n'
+                   "fz_mm = 0.3\ndepth_mm = 1.0\n")  # fmt: skip
+    with pytest.raises(ConfigError, match=r"the campaign 10001; at most 10000 runs"):
+        load_campaign(cfg)

@@ -20,6 +20,7 @@ See ``configs/campaigns/*.toml`` for commented examples.
 from __future__ import annotations
 
 import itertools
+import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -386,6 +387,34 @@ def _fmt(x: float) -> str:
     return f"{x:g}"
 
 
+#: The most runs a campaign may hold: a lab cuts tens to hundreds; a matrix beyond this is a
+#: slip (two 2000-value lists made 4 million runs, and a --dry-run that did not end in 60 s)
+MAX_CAMPAIGN_RUNS = 10_000
+
+
+def _matrix_size_problem(spec: CampaignFile, where: str, lines: list[int]) -> str:
+    """A line when the matrix makes more than :data:`MAX_CAMPAIGN_RUNS` runs ("" if not),
+    counted from the list lengths, before anything is expanded."""
+    total, sizes = 0, []
+    for k, e in enumerate(spec.matrix + spec.tests):
+        factors = {name: len(_as_list(getattr(e, name))) for name in
+                   ("spindle_rpm", "fz_mm", "feed_mm_min", "depth_mm", "width_mm", "feed_mode")
+                   if getattr(e, name) is not None}  # fmt: skip
+        factors["repeat"] = e.repeat
+        n = math.prod(factors.values())
+        total += n
+        sizes.append((n, k, factors))
+    if total <= MAX_CAMPAIGN_RUNS:
+        return ""
+    n, k, factors = max(sizes)
+    table = f"matrix[{k}]" if k < len(spec.matrix) else f"tests[{k - len(spec.matrix)}]"
+    line = lines[k] if k < len(lines) else 0
+    product = " x ".join(f"{v} {name}" for name, v in factors.items() if v > 1)
+    place = f"{where}:{line}" if line else where
+    return (f"{place}: {table} makes {n} runs ({product}), the campaign {total}; at most "
+            f"{MAX_CAMPAIGN_RUNS} runs in a campaign (split it)")  # fmt: skip
+
+
 def expand_matrix(
     entries: tuple[MatrixEntry, ...],
     tool: EndMill | FaceMill,
@@ -598,8 +627,11 @@ def load_campaign(path: str | Path) -> Campaign:
         problems += _rate_problems(spec, rig, where(_table_line(text, "daq"), "rate_hz"))
     problems += _analysis_problems(spec, tool, where(_table_line(text, "analysis"), "kind"))
     tests: list[RunConditions] = []
-    if tool is not None:
-        lines = _table_lines(text, "matrix") + _table_lines(text, "tests")
+    lines = _table_lines(text, "matrix") + _table_lines(text, "tests")
+    too_big = _matrix_size_problem(spec, str(p), lines)
+    if too_big:  # nothing expanded: refused at once, --dry-run too
+        problems.append(too_big)
+    elif tool is not None:
         tests = expand_matrix(spec.matrix + spec.tests, tool, lines, spec.program.block_width_mm)
         if machine is not None:
             try:
