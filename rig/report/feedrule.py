@@ -83,13 +83,21 @@ def _plot_sweep(rows: list[dict], base: float, path: Path, title: str) -> None:
     f = [r["feed_mm_min"] for r in rows]
     ax.plot(f, [r["mean_resultant_N"] for r in rows], "o-", label="mean |Fxy| per rev")
     ax.plot(f, [r["peak_resultant_N"] for r in rows], "s--", label="peak |Fxy| per rev")
-    ax.plot(f, [r["vibration_rms_N"] for r in rows], "^:", label="vibration rms")
+    # the vibration (a few N) on its own axis: on the force axis (hundreds of N) it reads as 0
+    ax2 = ax.twinx()
+    ax2.plot(f, [r["vibration_rms_N"] for r in rows], "^:", color="tab:green",
+             label="vibration rms (right axis)")  # fmt: skip
+    ax2.set_ylabel("vibration rms, N", color="tab:green")
+    ax2.set_ylim(bottom=0)
     if math.isfinite(base):
         ax.axvline(base, color="k", lw=0.8, label=f"base feed {base:g} mm/min")
     ax.set_xlabel("feed, mm/min")
     ax.set_ylabel("force, N")
+    ax.set_ylim(bottom=0)
     ax.set_title(f"{title}: feed sweep", fontsize=9)
-    ax.legend(fontsize=7)
+    h1, l1 = ax.get_legend_handles_labels()
+    h2, l2 = ax2.get_legend_handles_labels()
+    ax.legend(h1 + h2, l1 + l2, fontsize=7, loc="upper left")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

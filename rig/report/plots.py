@@ -44,6 +44,7 @@ def plot_traces(runs: Sequence[Any], path: Path, title: str, max_runs: int = 12)
             ax.fill_between(t, lo[:, k], hi[:, k], lw=0, alpha=0.6, label=name)
         ax.set_title(lr.name, fontsize=7)
         ax.tick_params(labelsize=6)
+        _revolutions_inset(ax, run, rpm)
     for ax in list(axes.flat)[len(shown) :]:
         ax.axis("off")
     axes.flat[0].legend(fontsize=6, loc="upper left")
@@ -55,6 +56,27 @@ def plot_traces(runs: Sequence[Any], path: Path, title: str, max_runs: int = 12)
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def _revolutions_inset(ax: Any, run: Any, rpm: float, revs: int = 2) -> None:
+    """Raw samples of ``revs`` revolutions from the middle of the cut, inset in the run's panel
+    (the band shows the whole run; the inset shows what one revolution looks like)."""
+    f = run.force_n
+    n = len(f)
+    span = int(run.rate_hz * revs * 60.0 / rpm) if rpm else int(run.rate_hz * 0.05)
+    if n < 4 * max(span, 1):
+        return
+    res = np.abs(f).sum(axis=1)
+    busy = np.flatnonzero(res > 0.2 * np.percentile(res, 99))
+    mid = int(np.median(busy)) if busy.size else n // 2
+    a = int(np.clip(mid - span // 2, 0, n - span))
+    ins = ax.inset_axes([0.62, 0.58, 0.36, 0.38])
+    tt = (run.time_s[a : a + span] - run.time_s[a]) * 1e3
+    for k in range(f.shape[1]):
+        ins.plot(tt, f[a : a + span, k], lw=0.5)
+    ins.set_title(f"{revs} rev, ms" if rpm else "50 ms", fontsize=5, pad=1)
+    ins.tick_params(labelsize=4, length=1, pad=1)
+    ins.patch.set_alpha(0.85)
 
 
 def plot_pred_vs_meas(rows: Sequence[dict], path: Path, title: str) -> Path:

@@ -131,13 +131,16 @@ def _plot(path: Path, lobes: Any, true_lobes: Any, verdicts: list, rows: list, t
     if true_lobes is not None:
         ax.plot(true_lobes.spindle_rpm, np.minimum(true_lobes.depth_limit_mm, 1e3), "b--",
                 lw=0.8, label="limit, the twin's true modes")  # fmt: skip
+    # stable and chattering cuts of one speed side by side (they overlapped at one x)
+    dx = 0.006 * float(np.ptp(lobes.spindle_rpm) or 1.0)
     for chatter, style, name in ((False, "go", "stable cut"), (True, "rx", "chatter detected")):
-        pts = [(n, d) for n, d, c in verdicts if c == chatter]
+        pts = [(n + (dx if chatter else -dx), d) for n, d, c in verdicts if c == chatter]
         if pts:
             ax.plot(*zip(*pts), style, ms=6, mfc="none" if not chatter else None, label=name)
-    for r in rows:
-        if r.get("observed_onset_mm") is not None:
-            ax.plot([r["spindle_rpm"]], [r["observed_onset_mm"]], "r_", ms=18, mew=2)
+    onset = [(r["spindle_rpm"], r["observed_onset_mm"]) for r in rows
+             if r.get("observed_onset_mm") is not None]  # fmt: skip
+    if onset:
+        ax.plot(*zip(*onset), "r_", ms=18, mew=2, label="observed onset (lowest chatter)")
     ax.set_xlabel("spindle speed (rpm)")
     ax.set_ylabel("axial depth (mm)")
     ax.set_ylim(0, top or None)
