@@ -122,7 +122,10 @@ def test_the_shipped_plan_uses_each_programs_tools(capsys) -> None:
     assert 0 < drilled <= 4 * math.pi * 2.5**2 * 12 * 1.03
 
 
-def test_plan_feed_refuses_a_program_that_changes_tools(tmp_path: Path, capsys) -> None:
+def test_plan_feed_refuses_one_rule_for_a_program_that_changes_tools(tmp_path: Path,
+                                                                     capsys) -> None:  # fmt: skip
+    """Issue 28: a program that changes tools takes a rule per tool (tests/test_plan_multitool.py);
+    one rule for two tools is refused, naming them."""
     from analysis.rules import derive_rule, save_rule, slot_load_percent
 
     (tmp_path / "two.nc").write_text(TWO_TOOLS)
@@ -131,5 +134,5 @@ def test_plan_feed_refuses_a_program_that_changes_tools(tmp_path: Path, capsys) 
     rc, _, se = cli(["plan", "feed", str(tmp_path / "two.nc"), "--rules",
                      str(tmp_path / "rule.toml"), "--tool", "T1=phi10-flat,T2=phi5-drill", "-o",
                      str(tmp_path / "o.nc")], capsys)  # fmt: skip
-    assert rc == 2 and "two.nc: the program changes tools (T1 to T2)" in se
+    assert rc == 2 and "two.nc: the program changes tools (T1, T2) and --rules" in se
     assert not (tmp_path / "o.nc").exists()

@@ -211,8 +211,9 @@ def feed_program(
     """
     if dialect is not None and dialect not in DIALECTS:
         raise PlanningError(f"dialect = {dialect!r}: expected one of {', '.join(DIALECTS)}")
+    rules = resolve_rules(rule_spec, db)  # a missing rule file is named before the program
     job = load_job(program_path, machine, tool_name, stock_spec, spacing_mm)
-    sections = tool_sections(job, rule_spec, db, str(program_path))
+    sections = tool_sections(job, rules, rule_spec, str(program_path))
     rule = next((sc.rule for sc in sections if sc.rule is not None), None)
     if rule is None:
         raise PlanningError(f"{program_path}: --rules = {rule_spec}: no tool of the program has "
@@ -267,16 +268,24 @@ def _drilling(motion: Motion) -> bool:
     return bool(feed.any()) and bool(plunge_mask(motion.start[feed], motion.end[feed]).all())
 
 
-def tool_sections(job: Job, rule_spec: str, db: str | Path | None, file: str) -> list[Section]:
-    """Each tool's run of the program with its rule: ``rule_spec`` is one rule (a one-tool
-    program) or ``T1=RULE,T2=RULE``; a tool the map leaves out keeps its feeds (listed). A rule
-    for a drilling run (Z-only feed moves) is refused: the load model is a milling cutter's."""
-    op = Operation(Path(file).stem, job.motion, job.tools, file)
-    runs = op.runs()
-    spec: str | dict[str, str] = rule_spec
+def resolve_rules(rule_spec: str, db: str | Path | None) -> FeedRule | dict[str, FeedRule]:
+    """``--rules``: one rule (file or rule-base name / id), or ``T1=RULE,T2=RULE``."""
     if "=" in rule_spec and not Path(rule_spec).exists():
         spec = parse_tool_spec(rule_spec)
-    if isinstance(spec, str):
+        assert isinstance(spec, dict)  # "=" in it
+        return {k: resolve_rule(v, db) for k, v in spec.items()}
+    return resolve_rule(rule_spec, db)
+
+
+def tool_sections(
+    job: Job, spec: FeedRule | dict[str, FeedRule], rule_spec: str, file: str
+) -> list[Section]:
+    """Each tool's run of the program with its rule: ``spec`` is one rule (a one-tool program)
+    or ``{"T1": rule, ...}``; a tool the map leaves out keeps its feeds (listed). A rule for a
+    drilling run (Z-only feed moves) is refused: the load model is a milling cutter's."""
+    op = Operation(Path(file).stem, job.motion, job.tools, file)
+    runs = op.runs()
+    if isinstance(spec, FeedRule):
         if len(job.tools) > 1:
             t = ",".join(f"T{n}=RULE" for n in job.tools)
             raise PlanningError(
@@ -289,10 +298,10 @@ def tool_sections(job: Job, rule_spec: str, db: str | Path | None, file: str) ->
     for key, val in spec.items():
         if not (key[:1] == "T" and key[1:].isdigit() and int(key[1:]) in job.tools):
             raise PlanningError(
-                f"{file}: --rules: {key}={val!r}: expected T<number>=RULE for a tool the "
+                f"{file}: --rules: {key}={val.name!r}: expected T<number>=RULE for a tool the "
                 f"program loads ({', '.join(f'T{t}' for t in job.tools)})"
             )
-        rules[int(key[1:])] = resolve_rule(val, db)
+        rules[int(key[1:])] = val
     out = []
     for lo, hi, t in runs:
         name, tool = job.tools[t]
