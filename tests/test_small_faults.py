@@ -357,3 +357,36 @@ def test_the_matrix_cap_counts_every_table(tmp_path: Path):
                    "fz_mm = 0.3\ndepth_mm = 1.0\n")  # fmt: skip
     with pytest.raises(ConfigError, match=r"the campaign 10001; at most 10000 runs"):
         load_campaign(cfg)
+
+
+# ---------------------------------------------------------------- analyze a killed attempt
+
+_KILLED_WRITER = """
+import os, signal, sys
+sys.path.insert(0, {tests!r})
+from test_catalog import _info
+from analysis.config import load_rig
+from rig.daq import Calibration
+from rig.log import RunWriter
+
+rig = load_rig()
+info = _info(rig)
+w = RunWriter({path!r}, info, Calibration.from_rig(rig), clock=lambda: 0.0)
+w.on_start(info, 0.0)
+w.set_rig({{"rig": "sim", "machine": "ace-h63"}})
+w.flush() if hasattr(w, "flush") else None
+os.kill(os.getpid(), signal.SIGKILL)  # as a campaign killed before the run's conditions
+"""
+
+
+def test_analyze_forces_on_a_killed_attempt_names_it(tmp_path: Path, capsys):
+    path = tmp_path / "001-g-n001.attempt-1.h5"
+    script = _KILLED_WRITER.format(tests=str(Path(__file__).parent), path=str(path))
+    proc = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True,
+                          text=True, timeout=120)  # fmt: skip
+    assert proc.returncode == -9 and path.exists(), proc.stderr
+    rc, out, err = _main(["analyze", "forces", path], capsys)
+    line = _one_line(rc, err)  # (was "<conditions>: missing condition 'spindle_rpm'")
+    assert line.startswith(f"cutlab: error: {path}: an interrupted attempt (status interrupted: "
+                           "the writer was killed or crashed; 0 samples per channel kept): "
+                           "missing condition 'spindle_rpm'")  # fmt: skip

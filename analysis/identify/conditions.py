@@ -238,7 +238,8 @@ def resolve_conditions(
         if "fz_mm" in d and "feed_mm_min" in d:
             origin["feed_mm_min"] = where
     wheres = list(dict.fromkeys(w for w, d in layers if d))
-    where = wheres[0] if len(wheres) == 1 else " + ".join(wheres) or "<conditions>"
+    # (no layer holds anything: the first still names the file, e.g. "RUN.h5 (conditions)")
+    where = " + ".join(wheres) or (layers[0][0] if layers else "<conditions>")
     # The run's own tool first: a run of another tool than expected_tool is refused elsewhere.
     tool = str(merged.get("tool", "") or "") or expected_tool or ""
     tool_teeth = teeth_of(tool) if (teeth_of and tool) else None

@@ -143,15 +143,26 @@ def _reduce_file(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer |
     if str(path).lower().endswith((".h5", ".hdf5")):
         layers = [*opts.layers(path), (f"{path} (--conditions)", given)]
         meta = load_run(path, samples=False)
-        recorded = normalize(meta.conditions, f"{path} (conditions)", "skip")
-        if "fz_mm" in recorded:  # campaigns record both feeds; fz_mm is the one fitted
-            recorded.pop("feed_mm_min", None)
-        cond = resolve_conditions([(f"{path} (conditions)", recorded), *layers], teeth_of,
-                                  expected_tool)  # fmt: skip
-        _check_tool(path, cond.tool, expected_tool, by)
-        _check_material(path, cond.material, opts.materials_path)
-        avg = reduce_run_file(path, teeth_of(expected_tool or cond.tool), cond,
-                              tolerance=tolerance)  # fmt: skip
+        try:
+            recorded = normalize(meta.conditions, f"{path} (conditions)", "skip")
+            if "fz_mm" in recorded:  # campaigns record both feeds; fz_mm is the one fitted
+                recorded.pop("feed_mm_min", None)
+            cond = resolve_conditions([(f"{path} (conditions)", recorded), *layers], teeth_of,
+                                      expected_tool)  # fmt: skip
+            _check_tool(path, cond.tool, expected_tool, by)
+            _check_material(path, cond.material, opts.materials_path)
+            avg = reduce_run_file(path, teeth_of(expected_tool or cond.tool), cond,
+                                  tolerance=tolerance)  # fmt: skip
+        except AnalysisError as exc:
+            if meta.complete:
+                raise
+            # a killed attempt (a campaign keeps it as .attempt-K.h5) lacks what it never wrote
+            why = str(exc).removeprefix(f"{path} (conditions): ").removeprefix(f"{path}: ")
+            raise AnalysisError(
+                f"{path}: an interrupted attempt (status {meta.status}: the writer was killed or "
+                f"crashed; {meta.samples_stored} samples per channel kept): {why}; leave it out "
+                "(a resumed campaign cut the run again)"
+            ) from None
         names = [meta.channel_names[i] for i in axis_order(meta.channel_names)]
         axes = opts.axes or AxisMap(tuple(names))  # type: ignore[arg-type]
         if opts.axes is not None:
