@@ -223,23 +223,43 @@ def save_maps(dexels: NormalDexels, tol_mm: float, path: str | Path, title: str)
     sv = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(P[P.shape[0] // 2], axis=0),
                                                          axis=1))])  # fmt: skip
     top = dexels.top_mm
-    fig, axs = plt.subplots(1, 2, figsize=(12, 5), dpi=110)
     gouge = np.maximum(-top, 0.0)
-    vmax = max(float(gouge.max()), 2 * tol_mm)
-    m0 = axs[0].pcolormesh(sv, su, gouge * 1e3, cmap="Reds", vmin=0, vmax=vmax * 1e3,
-                           shading="auto")  # fmt: skip
-    cb = fig.colorbar(m0, ax=axs[0], label="gouge below design surface (um)")
-    cb.ax.axhline(tol_mm * 1e3, color="k", lw=1.5)
-    axs[0].set_title(f"gouge: max {gouge.max() * 1e3:.1f} um (tolerance {tol_mm * 1e3:g} um)")
     left = np.maximum(top, 0.0)
-    m1 = axs[1].pcolormesh(sv, su, left, cmap="viridis", shading="auto")
-    fig.colorbar(m1, ax=axs[1], label="leftover above design surface (mm)")
-    axs[1].set_title(f"leftover: max {left.max():.3f} mm")
+    # a gouge panel only when a dexel is beyond the tolerance: a few um within it drew a blank
+    # panel; those are marked on the leftover map instead
+    gouged = bool(gouge.max() > tol_mm)
+    # the panels take the surface's own proportions (a fixed 12 x 5 figure left white space)
+    aspect = float(np.clip(su[-1] / max(sv[-1], 1e-9), 0.25, 4.0))
+    n = 2 if gouged else 1
+    fig, axs = plt.subplots(1, n, figsize=(5.2 * n + 1.2, 5.2 * aspect + 1.2), dpi=110,
+                            squeeze=False)  # fmt: skip
+    axs = list(axs[0])
+    if gouged:
+        vmax = max(float(gouge.max()), 2 * tol_mm)
+        m0 = axs[0].pcolormesh(sv, su, gouge * 1e3, cmap="Reds", vmin=0, vmax=vmax * 1e3,
+                               shading="auto")  # fmt: skip
+        cb = fig.colorbar(m0, ax=axs[0], label="gouge below design surface (um)")
+        cb.ax.axhline(tol_mm * 1e3, color="k", lw=1.5)
+        over = int(np.sum(gouge > tol_mm))
+        axs[0].set_title(f"gouge: max {gouge.max() * 1e3:.1f} um, {over} dexels beyond the "
+                         f"tolerance {tol_mm * 1e3:g} um", fontsize=9)  # fmt: skip
+    m1 = axs[-1].pcolormesh(sv, su, left, cmap="viridis", shading="auto")
+    fig.colorbar(m1, ax=axs[-1], label="leftover above design surface (mm)")
+    no_gouge = ""
+    if not gouged:
+        iu, iv = np.nonzero(gouge > 0)
+        if iu.size:
+            axs[-1].plot(sv[iv], su[iu], "r.", ms=2, label=f"gouge within tolerance ({iu.size})")
+            axs[-1].legend(fontsize=7, loc="upper right")
+        no_gouge = (f"\ngouge: max {gouge.max() * 1e3:.1f} um at {iu.size} dexels, all within "
+                    f"the tolerance {tol_mm * 1e3:g} um")  # fmt: skip
+    axs[-1].set_title(f"leftover: max {left.max():.3f} mm{no_gouge}", fontsize=9)
     for ax in axs:
         ax.set_xlabel("along v (mm of arc)")
         ax.set_ylabel("along u (mm of arc)")
         ax.set_aspect("equal")
-    fig.suptitle(f"{title}: stock after the program, dexels {dexels.spacing_mm:g} mm apart")
+    fig.suptitle(f"{title}: stock after the program, dexels {dexels.spacing_mm:g} mm apart",
+                 fontsize=10)  # fmt: skip
     fig.tight_layout()
     out = Path(path)
     fig.savefig(out)
