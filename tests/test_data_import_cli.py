@@ -116,11 +116,14 @@ def test_steady_only_exports_are_zeroed_and_say_so(tmp_path, capsys):
 
 
 def test_wrong_axes_warn_on_stderr_and_in_json(lab, capsys):
-    rc, out, err = _forces([*lab["files"], "--tool", TOOL, "--tools", str(lab["tools"]),
-                            "--conditions", lab["table"]], capsys)  # fmt: skip
-    assert rc == 1 and not out["success"]
-    assert "warning: axes x=Fx,y=Fy,z=Fz give a negative cutting coefficient (Krc)" in err
-    assert out["warnings"] and "check --axes" in out["warnings"][0]
+    rc = main(["analyze", "forces", *lab["files"], "--tool", TOOL, "--tools", str(lab["tools"]),
+               "--conditions", lab["table"], "--json"])  # fmt: skip
+    cap = capsys.readouterr()
+    out, err = cap.out or None, cap.err
+    # refused (issue 27): exit 2, one line naming the mapping that fits
+    assert rc == 2 and out is None and len(err.strip().splitlines()) == 1
+    assert "axes x=Fx,y=Fy,z=Fz give a negative cutting coefficient (Krc" in err
+    assert "give --axes" in err and "Validation" not in err
 
 
 @pytest.mark.parametrize(

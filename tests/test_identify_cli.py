@@ -119,7 +119,7 @@ def test_endmill_readme_example_merges_conditions_with_each_header(slot_exports,
     truth, files = slot_exports
     rc = main(["analyze", "forces", *map(str, files), "--model", "endmill", "--tool",
                "phi10-flat", "--conditions", "spindle_rpm=3000", "depth_mm=2", "mode=slot",
-               "--json"])  # fmt: skip
+               "--keep", "--json"])  # fmt: skip (--keep: fz 0.1 > phi10-flat's max chip 0.08)
     out = json.loads(capsys.readouterr().out)
     assert rc == 0 and out["success"] and out["model"] == "endmill", out["message"]
     # Each run keeps its own header feed; --conditions replaced the header's depth.

@@ -138,11 +138,11 @@ def test_steady_only_export_is_taken_as_zeroed_and_says_so(lab):
 
 def test_wrong_axes_warn_with_the_figures(lab):
     opts = ImportOptions(tools_path=lab["tools"])  # default: x=Fx, y=Fy, z=Fz
-    out = fit_files(lab["air"], "endmill", TOOL, options=opts)
-    assert not out["success"]  # Krc < 0 cannot be a coefficient set
-    (w,) = out["warnings"]
-    assert "x=Fx,y=Fy,z=Fz give a negative cutting coefficient (Krc)" in w
-    assert "Krc -796" in w and f"under {TRUE_AXES.replace('z=-Fz', 'z=Fz')}: Ktc 796" in w
+    with pytest.raises(AnalysisError) as exc:  # Krc < 0 cannot be a coefficient set: refused
+        fit_files(lab["air"], "endmill", TOOL, options=opts)
+    w = str(exc.value)
+    assert "x=Fx,y=Fy,z=Fz give a negative cutting coefficient (Krc" in w
+    assert "Ktc 79" in w and "cannot tell them apart" in w and "give --axes" in w
     # x and y swapped with a sign: a slot fits it as well, with Ktc and Krc traded.
     opts = ImportOptions(axes="x=-Fx,y=Fy,z=-Fz", tools_path=lab["tools"])
     out = fit_files(lab["air"], "endmill", TOOL, options=opts)
@@ -263,8 +263,8 @@ def test_mixed_immersions_show_a_wrong_mapping_by_its_residual(tmp_path):
     assert out["success"] and out["warnings"] == []
     _assert_truth(_coefs(out))
     wrong = "x=-Fx,y=Fy,z=-Fz"
-    out = fit_files(files, "endmill", TOOL, options=ImportOptions(wrong, tools_path=tools))
-    (w,) = out["warnings"]
+    with pytest.raises(AnalysisError) as exc:  # refused (issue 27), with both fits
+        fit_files(files, "endmill", TOOL, options=ImportOptions(wrong, tools_path=tools))
+    w = str(exc.value)
     assert f"axes {wrong} fit clearly worse than another mapping" in w
-    assert f"under {TRUE_AXES}: Ktc 796" in w and "R^2 1.00000" in w
-    assert out["residual_rms_n"] > 10.0
+    assert f"the runs fit {TRUE_AXES}: Ktc 796" in w and "R^2 1.00000" in w

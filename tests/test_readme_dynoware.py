@@ -64,8 +64,10 @@ def test_default_mapping_warns_with_figures(lab, capsys):
     """Without --axes the turned dynamometer gives swapped, negative coefficients: said, with
     the figures of the mapping that fits."""
     exports = sorted(str(p.name) for p in lab.glob("cut_*.txt"))
-    main(["analyze", "forces", *exports, "--model", "endmill", "--tool", "lab-phi25-2f",
-          "--tools", "my_tools.toml", "--conditions", "conditions.csv", "--json"])  # fmt: skip
-    out = json.loads(capsys.readouterr().out)
-    (warn,) = [w for w in out["warnings"] if "negative cutting coefficient" in w]
-    assert "Krc -7" in warn and "under x=-Fy,y=Fx" in warn and "Ktc 72" in warn
+    rc = main(["analyze", "forces", *exports, "--model", "endmill", "--tool", "lab-phi25-2f",
+               "--tools", "my_tools.toml", "--conditions", "conditions.csv", "--json"])  # fmt: skip
+    cap = capsys.readouterr()
+    assert rc == 2 and cap.out == "" and len(cap.err.strip().splitlines()) == 1  # refused
+    assert "negative cutting coefficient" in cap.err and "Krc -7" in cap.err
+    # slots at one depth fit several mappings alike: said, and --axes asked for
+    assert "Ktc 72" in cap.err and "cannot tell them apart" in cap.err and "give --axes" in cap.err

@@ -5,10 +5,12 @@ the tool axis; forces are those on the workpiece (a table dynamometer's). A mapp
 ``x=-Fy,y=Fx,z=-Fz`` names, for each axis, a column of the file (case-insensitive, a unit
 suffix such as ``[N]`` ignored) with an optional minus sign.
 
-:func:`check_axes` refits the end-mill model under the plausible alternatives (x and y swapped,
-the signs of x and y flipped) and warns, with the figures, when the given mapping yields a
-negative cutting coefficient, when another mapping fits clearly better, or when the runs cannot
-tell the mapping from one that gives K_tc > K_rc while the given one gives K_rc > K_tc.
+:func:`check_axes` refits the end-mill model under all 48 signed permutations of (x, y, z) and
+refuses, with the figures, a mapping that yields a negative cutting coefficient (Ktc, Krc, Kac)
+or fits clearly worse than another; it warns when the runs cannot tell the mapping from one that
+gives K_tc > K_rc while the given one gives K_rc > K_tc. :func:`choose_axes` (``--axes auto``)
+picks the best-fitting mapping with positive cutting coefficients when the runs tell it from the
+runner-up, and refuses when they cannot (a slot-only sweep cannot tell x from y).
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from analysis.forces.endmill import PARAMETERS, mean_force_design
 from analysis.identify._common import RunAverage, linear_fit
 from analysis.identify.endmill import _cut
 
-__all__ = ["AxisMap", "check_axes", "column_key", "parse_axes"]
+__all__ = ["AxisMap", "check_axes", "choose_axes", "column_key", "parse_axes"]
 
 #: Another mapping is "clearly better" when its residual RMS is below this fraction of the given's.
 BETTER_RESIDUAL_RATIO = 0.5
@@ -154,72 +156,151 @@ def _fmt(c: dict[str, float]) -> str:
     return ", ".join(f"{k} {v:.4g}" for k, v in c.items())
 
 
-def check_axes(averages: Sequence[RunAverage], tool: EndMill, axes: AxisMap) -> dict[str, Any]:
-    """Fit the end-mill model under ``axes`` and the 7 alternatives (x, y swapped or not, each
-    sign flipped or not; z kept). Returns ``{"axes", "candidates": [{axes, r_squared,
-    residual_rms_n, coefficients}], "warnings": [...]}`` (no candidates when the runs cannot be
-    fitted at all)."""
-    out: dict[str, Any] = {"axes": axes.text, "candidates": [], "warnings": []}
-    if not averages:
-        return out
-    # The design does not depend on the mapping; only the measured means move.
+#: The 48 signed permutations of (x, y, z): (perm, signs) with cutlab axis i = signs[i] times
+#: the mapping's axis perm[i].
+SIGNED_PERMUTATIONS = tuple(
+    (perm, signs)
+    for perm in itertools.permutations(range(3))
+    for signs in itertools.product((1.0, -1.0), repeat=3)
+)
+#: Cutting coefficients that are positive under the right mapping (forces on the workpiece: the
+#: tangential force drags it with the tooth, the radial one pushes it away, the axial one follows
+#: the helix); the edge terms may come out slightly negative from noise.
+CUTTING = ("Ktc", "Krc", "Kac")
+
+
+def _candidates(averages: Sequence[RunAverage], tool: EndMill,
+                axes: AxisMap) -> list[dict[str, Any]] | None:  # fmt: skip
+    """The end-mill fit under each of the 48 signed permutations of ``axes`` (the given one
+    first); None when the runs cannot be fitted at all (too few, rank-deficient)."""
     X = np.concatenate([mean_force_design(tool, _cut(tool, a.conditions)) for a in averages])
     y = np.stack([a.mean_n for a in averages])
-    cands = out["candidates"]
-    for perm, fx, fy in itertools.product(((0, 1, 2), (1, 0, 2)), (1.0, -1.0), (1.0, -1.0)):
+    out = []
+    for perm, signs in SIGNED_PERMUTATIONS:
         m = np.zeros((3, 3))
-        for ax, (p, f) in enumerate(zip(perm, (fx, fy, 1.0))):
+        for ax, (p, f) in enumerate(zip(perm, signs)):
             m[ax, p] = f
         try:
             fit, _ = linear_fit(X, (y @ m.T).ravel(), PARAMETERS)
-        except AnalysisError:  # too few runs, rank-deficient: nothing to check
-            return out
-        cands.append({
-            "axes": axes.composed(perm, (fx, fy, 1.0)).text,
+        except AnalysisError:
+            return None
+        coef = {s: float(v) for s, v in zip(_SHORT, fit.values)}
+        out.append({
+            "axes": axes.composed(perm, signs).text,
             "r_squared": float(fit.r_squared),
             "residual_rms_n": float(fit.residual_rms),
-            "coefficients": {s: float(v) for s, v in zip(_SHORT, fit.values)},
+            "coefficients": coef,
+            "plausible": all(coef[k] > 0 for k in CUTTING),
         })  # fmt: skip
+    return out
+
+
+def _describe(c: dict[str, Any]) -> str:
+    return (f"{c['axes']}: {_fmt(c['coefficients'])}, R^2 {c['r_squared']:.5f}, "
+            f"residual {c['residual_rms_n']:.3g} N")  # fmt: skip
+
+
+def _ranked(cands: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The plausible mappings (all cutting coefficients positive), best fit first."""
+    return sorted((c for c in cands if c["plausible"]), key=lambda c: c["residual_rms_n"])
+
+
+def _tells(best: dict[str, Any], runner: dict[str, Any] | None) -> bool:
+    """Whether the runs tell the best mapping from the runner-up: its residual at least
+    1 / BETTER_RESIDUAL_RATIO times the best's (slots alone cannot: x = F1, y = F2 and
+    x = -F2, y = F1 fit them alike, K_tc and K_rc traded)."""
+    return runner is None or (best["residual_rms_n"]
+                              < BETTER_RESIDUAL_RATIO * runner["residual_rms_n"])  # fmt: skip
+
+
+def check_axes(
+    averages: Sequence[RunAverage], tool: EndMill, axes: AxisMap, refuse: bool = True
+) -> dict[str, Any]:
+    """Fit the end-mill model under ``axes`` and the 47 other signed permutations. Returns
+    ``{"axes", "candidates": [{axes, r_squared, residual_rms_n, coefficients, plausible}],
+    "warnings": [...], "refusal": str | None, "checked": bool}``: a refusal (one line) when the
+    mapping gives a negative cutting coefficient (Ktc, Krc or Kac) or fits clearly worse than
+    another (residual more than 1 / BETTER_RESIDUAL_RATIO times the best plausible one's);
+    unchecked (no candidates) when the runs cannot be fitted at all."""
+    out: dict[str, Any] = {"axes": axes.text, "candidates": [], "warnings": [],
+                           "refusal": None, "checked": False}  # fmt: skip
+    cands = _candidates(averages, tool, axes) if averages else None
+    if not cands:
+        return out
+    out["candidates"], out["checked"] = cands, True
     given = cands[0]
-
-    def plausible(c: dict[str, Any]) -> bool:
-        return c["coefficients"]["Ktc"] > 0 and c["coefficients"]["Krc"] > 0
-
-    def describe(c: dict[str, Any]) -> str:
-        return (f"{c['axes']}: {_fmt(c['coefficients'])}, R^2 {c['r_squared']:.5f}, "
-                f"residual {c['residual_rms_n']:.3g} N")  # fmt: skip
-
-    others = [c for c in cands[1:] if plausible(c)]
-    floor = min((c["residual_rms_n"] for c in others), default=0.0)
-    # Best: the smallest residual; among mappings that fit as well, one with Ktc > Krc.
-    others.sort(key=lambda c: (c["residual_rms_n"] > 1.05 * floor,
-                               c["coefficients"]["Ktc"] <= c["coefficients"]["Krc"],
-                               c["residual_rms_n"]))  # fmt: skip
-    best = others[0] if others else None
-    warn = out["warnings"]
-    if not plausible(given):
-        neg = [k for k in ("Ktc", "Krc") if given["coefficients"][k] <= 0]
-        msg = (
-            f"axes {axes.text} give a negative cutting coefficient ({', '.join(neg)}), so a "
-            f"force axis is probably swapped or of the wrong sign; under {describe(given)}"
-        )
-        if best:
-            msg += f"; under {describe(best)}"
-        warn.append(msg + "; check --axes")
+    ranked = [c for c in _ranked(cands) if c is not given]
+    best = ranked[0] if ranked else None
+    runner = ranked[1] if len(ranked) > 1 else None
+    better = (f"the runs fit {_describe(best)}" if best
+              else "no mapping gives positive Ktc, Krc, Kac")  # fmt: skip
+    if best and runner and not _tells(best, runner):
+        alike = [c for c in ranked if not _tells(best, c)]
+        better += (f" and {_describe(runner)} alike ({len(alike)} mappings with positive Ktc, "
+                   "Krc, Kac fit alike: the runs cannot tell them apart)")  # fmt: skip
+    msg = None
+    if not given["plausible"]:
+        neg = [k for k in CUTTING if given["coefficients"][k] <= 0]
+        msg = (f"axes {axes.text} give a negative cutting coefficient ({', '.join(neg)}), so a "
+               f"force axis is swapped or of the wrong sign; under {_describe(given)}; {better}; "
+               "give --axes (x feed, y cross-feed, z tool axis up from the workpiece; forces on "
+               "the workpiece)")  # fmt: skip
     elif best and best["residual_rms_n"] < BETTER_RESIDUAL_RATIO * given["residual_rms_n"]:
-        warn.append(
-            f"axes {axes.text} fit clearly worse than another mapping: under {describe(given)}; "
-            f"under {describe(best)}; check --axes"
-        )
+        msg = (f"axes {axes.text} fit clearly worse than another mapping: under "
+               f"{_describe(given)}; {better}; give --axes")  # fmt: skip
     elif given["coefficients"]["Krc"] > given["coefficients"]["Ktc"]:
         # Slots cannot tell x = F1, y = F2 from x = -F2, y = F1 (same residual, K_tc and K_rc
         # trade places); K_rc above K_tc is unusual for metal cutting, so say which is which.
-        twin = [c for c in others if c["coefficients"]["Ktc"] > c["coefficients"]["Krc"]
+        twin = [c for c in ranked if c["coefficients"]["Ktc"] > c["coefficients"]["Krc"]
                 and c["residual_rms_n"] <= 1.05 * given["residual_rms_n"]]  # fmt: skip
         if twin:
-            warn.append(
+            out["warnings"].append(
                 f"axes {axes.text} give Krc > Ktc (unusual: Krc/Ktc is mostly 0.2-0.7 in metal "
-                f"cutting) and the runs fit another mapping as well: under {describe(given)}; "
-                f"under {describe(twin[0])}; check --axes"
+                f"cutting) and the runs fit another mapping as well: under {_describe(given)}; "
+                f"under {_describe(twin[0])}; check --axes"
             )
+    if msg:
+        if refuse:
+            out["refusal"] = msg
+        else:
+            out["warnings"].append(msg)
     return out
+
+
+def choose_axes(
+    averages: Sequence[RunAverage], tool: EndMill, base: AxisMap
+) -> tuple[AxisMap, dict[str, Any]]:
+    """``--axes auto``: the signed permutation of ``base`` whose fit gives positive cutting
+    coefficients with the smallest residual, when the runs tell it from the runner-up (its
+    residual at least 1 / BETTER_RESIDUAL_RATIO times larger). Returns (mapping, {"axes",
+    "chosen", "runner_up", "candidates", "line"}); raises AnalysisError (one line) when the runs
+    cannot be fitted, no mapping gives positive coefficients, or the runs cannot tell."""
+    cands = _candidates(averages, tool, base) if averages else None
+    if not cands:
+        raise AnalysisError(
+            f"--axes auto: {len(averages)} run(s) cannot be fitted under any mapping (too few "
+            "runs or feeds); give --axes x=COLUMN,y=COLUMN,z=COLUMN"
+        )
+    ranked = _ranked(cands)
+    if not ranked:
+        raise AnalysisError(
+            "--axes auto: none of the 48 signed permutations of the force columns gives positive "
+            "Ktc, Krc and Kac: check the conditions (mode, widths, feeds) and the tool; or give "
+            "--axes x=COLUMN,y=COLUMN,z=COLUMN"
+        )
+    best = ranked[0]
+    runner = ranked[1] if len(ranked) > 1 else None
+    if not _tells(best, runner):
+        assert runner is not None
+        raise AnalysisError(
+            f"--axes auto: the runs cannot tell {_describe(best)} from {_describe(runner)} "
+            "(slots alone cannot tell x from y: add a partial-immersion up- or down-milling "
+            "cut); give --axes x=COLUMN,y=COLUMN,z=COLUMN (x feed, y cross-feed, z tool axis)"
+        )
+    line = f"auto: {_describe(best)}"
+    if runner:
+        ratio = runner["residual_rms_n"] / max(best["residual_rms_n"], 1e-300)
+        line += f"; runner-up {_describe(runner)} ({ratio:.3g} x the residual)"
+    chosen = parse_axes(best["axes"], "--axes auto")
+    return chosen, {"axes": best["axes"], "chosen": best, "runner_up": runner,
+                    "candidates": cands, "line": line}  # fmt: skip

@@ -13,9 +13,11 @@ before the shipped ``configs/tools.toml``.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from analysis.config import (
     Dynamometer,
@@ -34,7 +36,7 @@ from analysis.identify._common import (
     reduce_run,
     reduce_run_file,
 )
-from analysis.identify.axes import AxisMap, check_axes, parse_axes, remap
+from analysis.identify.axes import AxisMap, check_axes, choose_axes, parse_axes, remap
 from analysis.identify.conditions import (
     ConditionsTable,
     load_conditions_table,
@@ -45,6 +47,13 @@ from analysis.identify.conditions import (
 from analysis.identify.endmill import fit_endmill
 from analysis.identify.facemill import fit_facemill
 from analysis.identify.importers import NO_AIR_ZEROED, Export, load_export
+from analysis.identify.trust import (
+    by_direction,
+    influence,
+    outside_limits,
+    per_run_residuals,
+    statuses,
+)
 from analysis.identify.validate import compare_runs, plot_comparison, plot_waveforms
 from analysis.runs import IDENTIFY_TOLERANCE, NoSteadyCutError, load_run
 
@@ -87,9 +96,16 @@ class ImportOptions:
     tools_path: str | Path | None = None
     materials_path: str | Path | None = None
 
+    @property
+    def auto(self) -> bool:
+        """``--axes auto``: the mapping is chosen from the fit (:func:`choose_axes`)."""
+        return isinstance(self.axes, str) and self.axes.strip().lower() == "auto"
+
     def loaded(self) -> ImportOptions:
-        """Parsed once: the mapping and the table."""
-        axes = parse_axes(self.axes) if isinstance(self.axes, str) else self.axes
+        """Parsed once: the mapping and the table (``auto`` stays ``"auto"``)."""
+        axes = self.axes
+        if isinstance(axes, str) and not self.auto:
+            axes = parse_axes(axes)
         table = self.table
         if table is not None and not isinstance(table, ConditionsTable):
             table = load_conditions_table(table)
@@ -248,7 +264,10 @@ def _one_by_one(reducer: FileReducer, paths: Sequence[Any], progress: Progress |
 def _reduce_all(paths, overrides, dynamometer, rate_hz, expected_tool, by, tolerance, progress,
                 opts: ImportOptions, mapper: Mapper | None = None):  # fmt: skip
     given = normalize(overrides or {}, "--conditions")
-    reducer = FileReducer(given, dynamometer, rate_hz, expected_tool, by, tolerance, opts.loaded())
+    opts = opts.loaded()
+    if opts.auto:  # read with the files' own (or the rig's) mapping; the fit chooses after
+        opts = replace(opts, axes=None)
+    reducer = FileReducer(given, dynamometer, rate_hz, expected_tool, by, tolerance, opts)
     results = mapper(reducer, paths) if mapper else _one_by_one(reducer, paths, progress)
     avgs: list[RunAverage] = []
     notes: dict[str, dict[str, str]] = {}
@@ -305,12 +324,21 @@ def _fit(avgs: list[RunAverage], tool_name: str, model: str | None, dynamometer:
     return model, tool, fit, _identified(fit, fit.fit.as_dict() if fit.fit else {}, "K", "e_n_mm")
 
 
+#: The status line's reason for edge (ploughing) terms the adequacy check does not support.
+EDGE_REASON = "the runs do not separate edge forces from a size effect (see model adequacy)"
+
+
 def _identified(fit: Any, stats: dict, prefix: str, suffix: str = "") -> dict:
-    """Statistics rows marked ``identified``: the edge (ploughing) rows only when the data
-    support the linear edge-force model (fit.adequacy)."""
+    """Statistics rows marked ``identified`` with a ``status`` ('identified' or 'not identified:
+    reason'): the edge (ploughing) rows only when the data support the linear edge-force model
+    (fit.adequacy)."""
     edge_ok = fit.adequacy is None or fit.adequacy.edge_identified
-    return {k: {**v, "identified": edge_ok or not (k.startswith(prefix) and k.endswith(suffix))}
-            for k, v in stats.items()}  # fmt: skip
+    out = {}
+    for k, v in stats.items():
+        ok = edge_ok or not (k.startswith(prefix) and k.endswith(suffix))
+        out[k] = {**v, "identified": ok,
+                  "status": "identified" if ok else f"not identified: {EDGE_REASON}"}  # fmt: skip
+    return out
 
 
 def _per_run(a: RunAverage) -> dict[str, Any]:
@@ -339,6 +367,7 @@ def fit_files(
     progress: Progress | None = None,
     options: ImportOptions | None = None,
     mapper: Mapper | None = None,
+    keep: bool = False,
 ) -> dict[str, Any]:
     """Fit the force model (``model`` 'facemill' / 'endmill', default from the tool's kind) to
     run files; the tool is ``tool`` or the one the runs record. With a successful fit,
@@ -349,7 +378,15 @@ def fit_files(
     coefficients (end mill: also ``Ktc`` ... ``Kae``, units in ``coefficient_units``),
     statistics (+ note), r_squared, residual_rms_n, dof, runs, rejected, per_run (with each
     run's ``axes`` and ``zero``), axes, axes_check (end mill), warnings, and validation
-    (max_error_pct, rows) / plots when made."""
+    (max_error_pct, rows) / plots when made.
+
+    End mill: runs whose conditions exceed the tool's limits (``max_chip_mm``) are named in
+    ``outside_limits`` and left out of the fit unless ``keep``; the result adds ``by_direction``
+    (R^2 and RMS per direction), ``run_residuals`` (per run and direction, N and %),
+    ``influence`` (leave-one-out) and each statistics row's ``status``. The mapping is checked
+    against the 47 other signed permutations and refused (AnalysisError) when it gives a
+    negative cutting coefficient or fits clearly worse; ``--axes auto`` (``options.axes =
+    "auto"``) chooses it (``axes_choice``)."""
     if not 0.0 < tolerance < 1.0:
         raise ConfigError(
             f"--steady-tolerance {tolerance}: expected a fraction of the steady "
@@ -367,6 +404,28 @@ def fit_files(
             f"runs name tools {sorted(names) or 'none'}: give --tool NAME (one tool per fit)"
         )
     tool_name = tool or names.pop()
+    tool_obj = find_tool(tool_name, opts.tools_path)
+    endmill = isinstance(tool_obj, EndMill) and model != "facemill"
+    limits = outside_limits(avgs, tool_obj) if endmill else []
+    if limits and not keep:
+        out_names = {n for n, _ in limits}
+        avgs = [a for a in avgs if a.name not in out_names]
+    choice = None
+    if endmill and opts.auto:
+        base = sorted({n["axes"] for n in notes.values()})
+        if len(base) != 1:
+            raise AnalysisError(f"--axes auto: the runs are read with different mappings "
+                                f"({'; '.join(base)}): give --axes")  # fmt: skip
+        read = parse_axes(base[0])
+        chosen, choice = choose_axes(avgs, tool_obj, read)
+        # chosen = M_c @ columns, read = M_r @ columns (M_r diagonal +-1): chosen = M_c M_r^T read
+        cols = list(read.sources)
+        m = chosen.matrix(cols, "--axes auto") @ read.matrix(cols, "--axes auto").T
+        avgs = [remap(a, m) for a in avgs]
+        notes = {k: {**n, "axes": chosen.text} for k, n in notes.items()}
+    elif opts.auto:
+        raise AnalysisError("--axes auto chooses the mapping from the end-mill fit; for "
+                            f"{model or tool_obj.kind} runs give --axes")  # fmt: skip
     model, tool_cfg, fit, stats = _fit(avgs, tool_name, model, dyno, opts.tools_path)
     message = fit.message
     if rejected:
@@ -399,10 +458,25 @@ def fit_files(
     if model == "endmill" and coefficients:
         coefficients.update({k: coefficients[v] for k, (v, _) in SHORT_NAMES.items()})
         out["coefficient_units"] = {k: u for k, (_, u) in SHORT_NAMES.items()}
-    if model == "endmill" and len(mappings) == 1 and lin is not None:
+    if choice is not None:
+        out["axes_choice"] = {"axes": choice["axes"], "line": choice["line"],
+                              "runner_up": choice["runner_up"]}  # fmt: skip
+        out["axes_check"] = choice["candidates"]
+    elif model == "endmill" and len(mappings) == 1:
         check = check_axes(avgs, tool_cfg, parse_axes(mappings[0]))
+        if check["refusal"]:
+            raise AnalysisError(check["refusal"])
         out["axes_check"] = check["candidates"]
         out["warnings"] += check["warnings"]
+    if endmill:
+        out["outside_limits"] = [{"run": n, "reason": r, "kept": keep} for n, r in limits]
+        out["speed_limits"] = "unchecked: the tool catalogue gives no speed range"
+        if limits and not keep:
+            out["message"] += (f" (left out {len(limits)} run(s) beyond the tool's limits: "
+                               + "; ".join(f"{n}: {r}" for n, r in limits)
+                               + "; --keep fits them)")  # fmt: skip
+        if fit.fit is not None:
+            _trust(out, avgs, tool_cfg, fit)
     if fit.success and (validate or plot_dir):
         targets = avgs
         if validate:
@@ -412,6 +486,32 @@ def fit_files(
             out["rejected"] += [{"run": n, "reason": m} for n, m in rej2]
         out.update(_validate(targets, model, tool_cfg, fit.coefficients, dyno, plot_dir))
     return out
+
+
+def _trust(out: dict[str, Any], avgs: list[RunAverage], tool: EndMill, fit: Any) -> None:
+    """Per-direction fit, per-run residuals, leave-one-out influence and each coefficient's
+    status into the result ``out`` (:mod:`analysis.identify.trust`)."""
+    from analysis.forces.endmill import mean_force_design
+    from analysis.identify.endmill import _cut
+
+    Xr = [mean_force_design(tool, _cut(tool, a.conditions)) for a in avgs]
+    y = np.stack([a.mean_n for a in avgs])
+    resid = y - np.stack([x @ fit.fit.values for x in Xr])
+    short = list(SHORT_NAMES)
+    out["by_direction"] = by_direction(y, resid)
+    out["run_residuals"] = per_run_residuals([a.name for a in avgs], y, resid)
+    infl = influence(Xr, list(y), short, fit.fit, [a.name for a in avgs])
+    out["influence"] = infl
+    edge_ok = fit.adequacy is None or fit.adequacy.edge_identified
+    status = statuses(short, ("Kte", "Kre", "Kae"), None if edge_ok else EDGE_REASON, infl)
+    if not infl["checked"]:
+        out["warnings"].append(f"leave-one-out influence unchecked: {infl['reason']}")
+    for k, (long, _) in SHORT_NAMES.items():
+        if long in out["statistics"]:
+            row = out["statistics"][long]
+            row["status"] = status[k]
+            row["identified"] = status[k] == "identified"
+    out["coefficient_status"] = status
 
 
 def _validate(targets: list[RunAverage], model: str, tool: Any, coefficients: Any,

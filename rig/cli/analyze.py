@@ -38,7 +38,7 @@ def _forces(args: argparse.Namespace) -> int:
                          materials_path=args.materials)  # fmt: skip
     kw = dict(model=args.model, tool=args.tool, overrides=pairs, rig_path=args.rig,
               rate_hz=args.rate, tolerance=args.steady_tolerance, validate=args.validate,
-              plot_dir=args.plot, options=opts)  # fmt: skip
+              plot_dir=args.plot, options=opts, keep=args.keep)  # fmt: skip
     if _catalog_args(args):
         from analysis.catalog import fit_catalog
 
@@ -60,9 +60,18 @@ def _forces(args: argparse.Namespace) -> int:
     print(f"{out['model']} fit of {len(out['runs'])} run(s), tool {out['tool']}: {out['message']}")
     axes = out["axes"] if isinstance(out["axes"], str) else "; ".join(out["axes"])
     print(f"axes: {axes} (x feed, y cross-feed, z tool axis)")
+    if "axes_choice" in out:
+        print(f"axes {out['axes_choice']['line']}")
+    for r in out.get("outside_limits", []):
+        how = "kept (--keep)" if r["kept"] else "left out (--keep fits it)"
+        print(f"beyond the tool's limits, {how}: {r['run']}: {r['reason']}")
     if out["statistics"]:
-        print_table([{"coefficient": k, **v} for k, v in out["statistics"].items()])
+        # the status on the number's own line: a coefficient is never shown without it
+        rows = [{"coefficient": k, **{c: v for c, v in row.items() if c != "identified"}}
+                for k, row in out["statistics"].items()]  # fmt: skip
+        print_table(rows)
         print(out["statistics_note"])
+    _print_trust(out)
     if out["adequacy"]:
         print(out["adequacy"]["summary"])
     for r in out["per_run"]:
@@ -73,6 +82,30 @@ def _forces(args: argparse.Namespace) -> int:
         print_table([{**{k: r[k] for k in keys}, "error_pct": r["resultant_error_pct"]}
                      for r in out["validation"]["rows"]])  # fmt: skip
     return 0 if out["success"] else 1
+
+
+def _print_trust(out: dict) -> None:
+    """How far an end-mill fit holds: per direction, per run, leave-one-out influence."""
+    from rig.cli._common import print_table
+
+    if out.get("by_direction"):
+        print("fit per direction: " + "; ".join(
+            f"{d}: R^2 {v['r_squared']:.4f}, RMS {v['rms_n']:.3g} N"
+            for d, v in out["by_direction"].items()) + f" (pooled R^2 {out['r_squared']:.4f})")
+    if out.get("run_residuals"):
+        print("mean-force residual per run (measured - fitted; % of the run's mean resultant):")
+        print_table([{"run": r["run"], **{f"{d}_n": v for d, v in zip("xyz", r["residual_n"])},
+                      **{f"{d}_pct": v for d, v in zip("xyz", r["residual_pct"])}}
+                     for r in out["run_residuals"]])  # fmt: skip
+    infl = out.get("influence")
+    if infl is not None:
+        if not infl["checked"]:
+            print(f"leave-one-out influence: unchecked: {infl['reason']}")
+        for r in infl["runs"]:
+            if r["moved"]:
+                print(f"leave-one-out: run {r['run']} moves " + ", ".join(
+                    f"{k} by {r['shift'][k]:.4g} (without it {r['without'][k]:.4g})"
+                    for k in r["moved"]) + ": more than its interval")  # fmt: skip
 
 
 def _catalog_args(args: argparse.Namespace) -> bool:
@@ -185,6 +218,9 @@ def _register_forces(psub: argparse._SubParsersAction) -> None:
     f.add_argument("--validate", nargs="*", default=None, metavar="RUN",
                    help="runs to predict with the fitted coefficients")  # fmt: skip
     f.add_argument("--plot", default=None, metavar="DIR", help="write validation PNGs here")
+    f.add_argument("--keep", action="store_true",
+                   help="fit runs beyond the tool's limits too (max_chip_mm): by default they "
+                   "are named and left out")  # fmt: skip
     f.add_argument("--json", action="store_true", help="JSON on stdout")
     f.set_defaults(func=_forces)
 
@@ -194,8 +230,11 @@ def add_import_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--axes", default=None, metavar="x=COL,y=COL,z=COL",
         help="file columns (or run-file channels) for cutlab's x (feed), y (cross-feed), z (tool "
-        "axis), a '-' flips the sign: x=-Fy,y=Fx,z=-Fz (default: the rig config's dynamometer, "
-        "else columns named Fx, Fy, Fz)",
+        "axis), a '-' flips the sign: x=-Fy,y=Fx,z=-Fz; or 'auto': the signed permutation whose "
+        "end-mill fit gives positive Ktc, Krc, Kac with the smallest residual (refused when the "
+        "runs cannot tell; slots alone cannot tell x from y) (default: the rig config's "
+        "dynamometer, else columns named Fx, Fy, Fz; a mapping giving a negative cutting "
+        "coefficient or fitting clearly worse than another is refused)",
     )  # fmt: skip
     p.add_argument(
         "--conditions-pattern",
