@@ -259,3 +259,19 @@ def test_no_runtime_code_imports_tests() -> None:
         if "tests" in _raw_imports(p) or "conftest" in _raw_imports(p)
     ]
     assert not bad
+
+
+def test_independent_facemill_simulator_shares_no_model_code() -> None:
+    """rig/sim/facemill_independent.py judges seed 003's model and fit (issue 33): neither it
+    nor anything it imports, however indirectly, may import analysis.forces or
+    analysis.identify."""
+    seen: set[str] = set()
+    todo = ["rig.sim.facemill_independent"]
+    while todo:
+        mod = todo.pop()
+        for target in _imports(mod):
+            if target not in seen:
+                seen.add(target)
+                todo.append(target)
+    shared = sorted(m for m in seen if _unit(m) in ("analysis.forces", "analysis.identify"))
+    assert not shared, shared

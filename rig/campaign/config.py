@@ -145,6 +145,10 @@ class SimSection(Model):
     tool_max_chip_mm: float | None = Field(
         None, gt=0, le=2, description="mm, the fitted edge's max_chip_mm (default: the tool's)"
     )
+    force_model: Literal["seed003", "independent"] = Field(
+        "seed003", description="face mills' forces: analysis.forces (seed003) or the simulator "
+        "written apart from it (independent: rig.sim.facemill_independent)",
+    )  # fmt: skip
 
     @model_validator(mode="before")
     @classmethod

@@ -8,6 +8,8 @@ writes the report folder. It prints the identified coefficients beside the simul
 
     cutlab demo                    # -> ./out/demo/facemill-ploughing/report/report.md
     cutlab demo --json             # the same figures as JSON
+    cutlab demo --forces independent   # forces from rig.sim.facemill_independent (written
+                                       # apart from analysis.forces) -> ./out/demo-independent
 """
 
 from __future__ import annotations
@@ -27,9 +29,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="run seed 003's face-milling campaign on the simulated rig and report it",
         description=__doc__.split("\n\n")[1] if __doc__ else None,
     )
-    p.add_argument("--out", default="out/demo", help="output folder (default: out/demo)")
+    p.add_argument("--out", default=None,
+                   help="output folder (default: out/demo, out/demo-independent with --forces "
+                   "independent)")  # fmt: skip
     p.add_argument("--campaign", default=CAMPAIGN, help="campaign to run (default: %(default)s)")
     p.add_argument("--resume", action="store_true", help="keep finished runs of an earlier demo")
+    p.add_argument("--forces", choices=("seed003", "independent"), default=None,
+                   help="where the twin's face-milling forces come from: seed003 "
+                   "(analysis.forces, the model the fit inverts) or independent (a simulator "
+                   "written apart from it); default: the campaign's [sim] force_model")  # fmt: skip
     p.add_argument("--json", action="store_true", help="machine-readable summary on stdout")
     p.add_argument("--quiet", action="store_true", help="no progress display")
     p.set_defaults(func=_demo)
@@ -39,8 +47,9 @@ def _demo(args: argparse.Namespace) -> int:
     from rig.cli._common import print_json, print_table, status
     from rig.report import run_demo
 
-    res = run_demo(args.campaign, args.out, resume=args.resume, progress=not args.quiet,
-                   status=status)  # fmt: skip
+    out = args.out or ("out/demo-independent" if args.forces == "independent" else "out/demo")
+    res = run_demo(args.campaign, out, resume=args.resume, progress=not args.quiet,
+                   status=status, forces=args.forces)  # fmt: skip
     if res.stopped:
         status(f"demo: stopped; run `cutlab demo --resume` to continue ({res.folder})")
         return 130
@@ -49,7 +58,7 @@ def _demo(args: argparse.Namespace) -> int:
         print_json(res.summary())
         return 0 if res.ok else 1
     print(f"Seed 003 face-milling coefficients, identified from {fm.get('identify_runs', 0)} "
-          f"simulated runs, beside the simulator's truth:")  # fmt: skip
+          f"simulated runs (forces: {res.force_model}), beside the simulator's truth:")  # fmt: skip
     print_table([{"coefficient": r["coefficient"], "identified": r["identified"],
                   "truth": r.get("truth", nan), "error_%": r.get("error_pct", nan),
                   "std_error": r["std_error"]} for r in fm.get("coefficients", [])])  # fmt: skip

@@ -6,6 +6,7 @@ identified coefficients, beside the simulator's truth, are in :attr:`DemoResult.
 
 from __future__ import annotations
 
+import dataclasses
 import shutil
 import time
 from collections.abc import Callable
@@ -21,6 +22,9 @@ from rig.report.write import write_report
 #: the campaign the demo runs by default (configs/campaigns/)
 DEMO_CAMPAIGN = "facemill-ploughing"
 
+#: where the twin's face-milling forces come from (``[sim] force_model``)
+FORCE_MODELS = ("seed003", "independent")
+
 
 @dataclass(frozen=True)
 class DemoResult:
@@ -31,6 +35,7 @@ class DemoResult:
     report: Report | None
     folder: Path
     wall_s: float
+    force_model: str = "seed003"
 
     @property
     def stopped(self) -> bool:
@@ -52,6 +57,7 @@ class DemoResult:
         fm = self.facemill
         return {
             "campaign": self.campaign.name,
+            "force_model": self.force_model,
             "runs": len(self.campaign.runs),
             "status_counts": self.campaign.counts,
             "identification": fm.get("message"),
@@ -70,25 +76,33 @@ def run_demo(
     resume: bool = False,
     progress: bool = True,
     status: Callable[[str], None] = lambda msg: None,
+    forces: str | None = None,
 ) -> DemoResult:
     """Run ``campaign`` (a name or TOML; it must use the simulated rig) into ``out_root``,
     replacing an earlier demo's folder unless ``resume``, then write its report (not when the
-    campaign stopped). ``status(message)`` gets each step; ``progress`` shows the campaign bar."""
+    campaign stopped). ``status(message)`` gets each step; ``progress`` shows the campaign bar.
+    ``forces`` overrides the campaign's ``[sim] force_model`` (:data:`FORCE_MODELS`)."""
     t0 = time.monotonic()
     c = load_campaign(campaign)
     if c.spec.campaign.rig != "sim":
         raise RigError(f"{c.path}: the demo runs on the simulated rig (rig = 'sim')")
+    if forces is not None:
+        if forces not in FORCE_MODELS:
+            raise RigError(f"--forces {forces}: expected one of {', '.join(FORCE_MODELS)}")
+        sim = c.spec.sim.model_copy(update={"force_model": forces})
+        c = dataclasses.replace(c, spec=c.spec.model_copy(update={"sim": sim}))
     folder = campaign_folder(c, out_root)
     if folder.exists() and not resume:
         status(f"demo: replacing the earlier demo output in {folder}")
         shutil.rmtree(folder)
     status(
         f"demo: campaign {c.name}: {len(c.tests)} test cuts on the simulated rig "
-        f"(x{c.spec.sim.speed:g} real time); runs -> {folder / 'runs'}"
+        f"(x{c.spec.sim.speed:g} real time, forces: {c.spec.sim.force_model}); "
+        f"runs -> {folder / 'runs'}"
     )
     result = run_campaign(c, out_root=out_root, progress=progress)
     report = None
     if not result.stopped:
         status("demo: identifying the coefficients and writing the report ...")
         report = write_report(folder)
-    return DemoResult(result, report, folder, time.monotonic() - t0)
+    return DemoResult(result, report, folder, time.monotonic() - t0, c.spec.sim.force_model)

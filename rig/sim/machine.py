@@ -168,6 +168,27 @@ def facemill_forces(eng: FaceMillEngagement, tool: FaceMill, material: Material)
     return _summed(eng, at)
 
 
+def facemill_forces_independent(
+    eng: FaceMillEngagement, tool: FaceMill, material: Material
+) -> np.ndarray:
+    """As :func:`facemill_forces`, from :mod:`rig.sim.facemill_independent` (seed 003's equations
+    written apart from ``analysis.forces``: the edge sliced axially, each slice's own radius and
+    angle): ``[sim] force_model = "independent"``."""
+    from rig.sim.facemill_independent import insert_forces
+
+    coef = _truth(material, "facemill")
+    return _summed(
+        eng,
+        lambda idx: insert_forces(
+            eng.theta_rad[idx], idx[1], eng.fz_mm[idx[0]], eng.depth_mm[idx], tool, coef
+        ),
+    )
+
+
+#: ``[sim] force_model``: where the twin's face-milling forces come from.
+FACEMILL_FORCE_MODELS = {"seed003": facemill_forces, "independent": facemill_forces_independent}
+
+
 def endmill_forces(eng: EndMillEngagement, tool: EndMill, material: Material) -> np.ndarray:
     """Summed edge-element forces (n, 3) N in machine axes (linear edge-force model)."""
     from analysis.forces import endmill
@@ -194,6 +215,8 @@ class SimMachine:
     rate_hz : the DAQ's sample rate, Hz.
     signal : disturbances; ``n_slices`` axial slices per flute for end mills.
     tool_modes : the tool's modes for the regenerative twin (default: the tool's own ``modes``).
+    force_model : face mills' forces from ``"seed003"`` (``analysis.forces.facemill``) or
+        ``"independent"`` (:mod:`rig.sim.facemill_independent`).
     """
 
     def __init__(
@@ -206,7 +229,12 @@ class SimMachine:
         signal: SignalSettings = SignalSettings(),
         n_slices: int = 16,
         tool_modes: tuple[ToolMode, ...] | None = None,
+        force_model: str = "seed003",
     ) -> None:
+        if force_model not in FACEMILL_FORCE_MODELS:
+            raise RigError(f"force_model = {force_model!r}: expected one of "
+                           f"{', '.join(FACEMILL_FORCE_MODELS)}")  # fmt: skip
+        self.facemill_forces = FACEMILL_FORCE_MODELS[force_model]
         self.tool = tool
         self.material = material
         self.stock = stock
@@ -266,7 +294,7 @@ class SimMachine:
         st = self.timeline.state(t)
         if isinstance(self.tool, FaceMill):
             eng = facemill_engagement(st, self.tool, self.stock)
-            return facemill_forces(eng, self.tool, self.material)
+            return self.facemill_forces(eng, self.tool, self.material)
         depth = self.stock.z_max_mm - float(np.min(st.position_mm[:, 2]))
         if depth <= 0:
             return np.zeros((t.size, 3))

@@ -69,6 +69,7 @@ class SimSession:
             SignalSettings(sim.noise_n, sim.drift_n_s, sim.hum_n, sim.hum_hz,
                            sim.seed + run_index),
             tool_modes=sim.tool_modes,
+            force_model=sim.force_model,
         )  # fmt: skip
         self.controller = self._make_controller(campaign, faults)
         self.controller.lockstep = True

@@ -1,0 +1,223 @@
+"""Seed 003 judged by data its model did not make: rig/sim/facemill_independent.py (the edge
+sliced axially, each slice at its own radius and angle, exact circles for the chip, per-insert
+runout, the block's edges, the dynamometer's modes) against a hand calculation of one insert's
+chip, beside ``analysis.forces.facemill``, and through ``cutlab analyze forces`` on run files
+written by the run writer, as a user would.
+
+What the independent data showed (issue 33, measured here):
+
+- Steady cutting away from the entry and exit: the two models agree within 0.4 % of the peak (the
+  rest is the rake's angular lag of the upper slices, which seed 003's point insert leaves out;
+  without it 0.02 %).
+- The identification is not within 2 % on it: an insert's edge enters the workpiece over 0.3-1 deg
+  (the top of a 2 mm cut on a 15 deg lead sits 0.54 mm further out than the nose: it enters at
+  acos(50 / 63.04) = 37.5 deg, the nose at acos(50 / 62.5) = 36.9 deg, 1.8 samples later at
+  10 kHz and 600 rpm), while the model and the fit take the whole insert in at once at the nose's
+  radius; through the 2.05 kHz, zeta 0.027 X mode a step's timing within a sample moves the ringing
+  that the waveform fit weighs. The one-feed campaign then gives the ploughing pair tens of per cent
+  off (the tests below record the figures); the demo is exact only because its twin makes the same
+  steps through the same discrete filter the fit inverts.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict
+
+import numpy as np
+import pytest
+
+from analysis.config import FaceMill, FaceMillCoefficients, load_rig
+from analysis.identify import RunConditions
+from analysis.runs import SAMPLE_FORMAT_VOLTS
+from rig.cli import main
+from rig.daq import Calibration, DaqInfo
+from rig.log import RunWriter
+from rig.sim import facemill_independent as fi
+
+RATE = 10_000.0
+TOOL = FaceMill(kind="facemill", diameter_mm=125, inserts=1, lead_angle_deg=15, axial_rake_deg=7,
+                radial_rake_deg=0, nose_radius_mm=0.4)  # fmt: skip
+TRUE = FaceMillCoefficients(
+    K_T_n_mm2=405.4, K_R=1.1, P_T_n_mm=39.7, P_R_n_mm=19.6, K_A=0.35, P_A_n_mm=8.0
+)
+NAMES = ("K_T_n_mm2", "K_R", "P_T_n_mm", "P_R_n_mm", "K_A", "P_A_n_mm")
+DEPTHS = (0.5, 1.0, 1.5, 2.0, 2.5, 3.0)
+
+
+def test_insert_axes_solve_the_projected_angles():
+    """theta_1..3 from the orthogonality conditions: orthonormal, and the projections of A' on
+    RA, R' on TR, T' on TA make the tool angles (seed 003 2.2.2)."""
+    m = fi.insert_axes(15.0, 0.0, 7.0)
+    np.testing.assert_allclose(m.T @ m, np.eye(3), atol=1e-12)
+    tp, rp, ap = m[:, 0], m[:, 1], m[:, 2]
+    assert np.degrees(np.arctan2(ap[1], ap[2])) == pytest.approx(15.0)  # lead: A' in RA
+    assert np.degrees(np.arctan2(rp[0], rp[1])) == pytest.approx(0.0, abs=1e-12)  # TR
+    assert np.degrees(np.arctan2(tp[2], tp[0])) == pytest.approx(7.0)  # axial rake: T' in TA
+
+
+def test_one_inserts_chip_by_hand():
+    """Zero rakes, lead 15 deg: the rake face is the RA plane, R' and A' are the minor and major
+    edges turned 15 deg. At theta = 90 deg the chip is exactly f (eq 1 with cos = 0), X' = F_R,
+    Y' = -F_T, Z' = F_A. Above the cusp one more millimetre of depth adds f mm^2 of chip and
+    1 / cos 15 mm of major edge, so per mm of depth (eqs 3-4):
+    dF_T = P_T / cos 15 + K_T f, dF_R = cos 15 dF_R' + sin 15 dF_A', dF_A = -sin 15 dF_R' +
+    cos 15 dF_A' with dF_R' = P_R / cos 15 + K_R K_T f, dF_A' = P_A / cos 15 + K_A K_T f."""
+    tool = TOOL.model_copy(update={"axial_rake_deg": 0.0})
+    f, c15, s15 = 0.236, np.cos(np.radians(15)), np.sin(np.radians(15))
+    k = TRUE
+    d_ft = k.P_T_n_mm / c15 + k.K_T_n_mm2 * f
+    d_frp = k.P_R_n_mm / c15 + k.K_R * k.K_T_n_mm2 * f
+    d_fap = k.P_A_n_mm / c15 + k.K_A * k.K_T_n_mm2 * f
+    want = np.array([c15 * d_frp + s15 * d_fap, -d_ft, -s15 * d_frp + c15 * d_fap])
+    one = np.zeros(2, int)
+    got = fi.insert_forces(np.full(2, np.pi / 2), one, np.full(2, f), np.array([1.0, 2.5]),
+                           tool, TRUE, exact=True)  # fmt: skip
+    np.testing.assert_allclose((got[1] - got[0]) / 1.5, want, rtol=2e-4)
+    # the whole chip at 2.5 mm: f x 2.5 less what the cusp leaves (a sliver, < 1 %)
+    tab = fi._edge(tool)
+    assert tab.cos_nu == pytest.approx(1.0)
+    # the radial chip at theta = 60 deg, from eq 1's exact form, through the tabulated twin path
+    th = np.radians(60.0)
+    h = 62.5 + f * np.sin(th) - np.sqrt(62.5**2 - (f * np.cos(th)) ** 2)
+    g = fi.insert_forces(np.full(2, th), one, np.full(2, f), np.array([1.0, 2.5]), tool, TRUE)
+    d_ft60 = k.P_T_n_mm / c15 + k.K_T_n_mm2 * h
+    d_fr60 = c15 * (k.P_R_n_mm / c15 + k.K_R * k.K_T_n_mm2 * h) + s15 * (
+        k.P_A_n_mm / c15 + k.K_A * k.K_T_n_mm2 * h
+    )
+    c, s = np.cos(th), np.sin(th)
+    want60 = np.array([c * d_ft60 + s * d_fr60, -s * d_ft60 + c * d_fr60])
+    np.testing.assert_allclose((g[1, :2] - g[0, :2]) / 1.5, want60, rtol=1e-3)
+
+
+def test_steady_forces_beside_the_seed003_model():
+    """Away from entry and exit the two agree within 0.5 % of the peak (the upper slices' lag
+    behind the nose, which the point insert leaves out, is most of it); not a reference for the
+    model, the hand calculation above is."""
+    from analysis.forces.facemill import FaceMillCut, facemill_forces
+
+    th = np.radians(np.arange(20.0, 161.0, 10.0))
+    n = len(th)
+    for fz in (0.05, 0.236, 0.345):
+        for d in (0.5, 3.0):
+            a = fi.insert_forces(th, np.zeros(n, int), np.full(n, fz), np.full(n, d), TOOL, TRUE,
+                                 exact=True)  # fmt: skip
+            b = facemill_forces(th, TOOL, TRUE, FaceMillCut(fz, d, entry_deg=0, exit_deg=180))
+            assert np.abs(a - b).max() < 0.005 * np.abs(b).max(), (fz, d)
+
+
+def test_twin_tables_match_the_direct_computation():
+    th = np.random.default_rng(1).uniform(0.02, np.pi - 0.02, 500)
+    n = len(th)
+    args = (th, np.zeros(n, int), np.full(n, 0.236), np.full(n, 2.0), TOOL, TRUE)
+    a, b = fi.insert_forces(*args), fi.insert_forces(*args, exact=True)
+    assert np.abs(a - b).max() < 2e-3 * np.abs(b).max()
+
+
+def test_entry_of_a_leaning_edge_takes_part_of_a_sample():
+    """The hand figure of the module docstring: a 2 mm cut over a 100 mm block enters over
+    about 0.6 deg (the top of the cut 2 tan 15 mm further out than the nose, less the rake's lag),
+    where the point insert enters at once at the nose's acos(50 / 62.5). The chip's first corner
+    (the earlier pass's surface, f sin(theta) inside the nose's circle) meets the block first."""
+    nose = np.degrees(np.arccos(50 / 62.5))
+    top = np.degrees(np.arccos(50 / (62.5 + 2.0 * np.tan(np.radians(15)))))
+    psi = np.radians(np.arange(36.0, 39.0, 0.01))
+    n = len(psi)
+    one = np.ones(n)
+    window = (-50 * one, 50 * one, -1e6 * one, 1e6 * one, 0 * one)
+    f = fi._forces(fi._edge(TOOL), fi._coef(TRUE), psi, 2.0 * one, np.array([[0.236, 0.472]] * n),
+                   np.zeros((n, 2)), np.zeros((n, 2)), window, one)  # fmt: skip
+    mag = np.abs(f[:, 1])
+    deg = np.degrees(psi)
+    first, full = deg[mag > 0].min(), deg[mag > 0.99 * mag.max()].min()
+    chip = np.degrees(np.arccos(50 / (62.5 - 0.236 * np.sin(np.radians(nose)))))
+    assert chip - 0.02 <= first <= nose
+    # the chip's own width (f sin) and the rake's lag add to the lean: 1.2 deg here, 3 samples
+    assert top - nose < full - first < 2.5 * (top - nose)
+
+
+# --- through `cutlab analyze forces`, run files from the run writer -------------------------
+
+
+def _modes():
+    rig = load_rig()
+    by_axis = {m.axis: (m.frequency_hz, m.damping_ratio) for m in rig.dynamometer.modes}
+    return rig, tuple(by_axis[a] for a in "xyz")
+
+
+def _write(path, t, force, rig, conditions):
+    cal = Calibration.from_rig(rig)
+    info = DaqInfo(
+        device="Sim1", physical_channels=("ai0", "ai1", "ai2"),
+        channel_names=tuple(c.name for c in rig.dynamometer.channels), rate_hz=RATE,
+        sample_format=SAMPLE_FORMAT_VOLTS, input_range_v=10.0, block_samples=4096,
+    )  # fmt: skip
+    volts = cal.volts_from_force(force)
+    w = RunWriter(path, info, cal, clock=lambda: 0.0, overwrite=True)
+    w.on_start(info, 0.0)
+    w.set_conditions(conditions)
+    for a in range(0, len(volts), 4096):
+        w.put_block(a, volts[a : a + 4096].T.copy())
+    w.close()
+
+
+def _campaign(folder, tool=TOOL, tool_name="seed003-facemill", feeds=(0.236,), depths=DEPTHS,
+              width=50.0, offset=0.0, **run):  # fmt: skip
+    """Run files of a campaign made by the independent simulator: the modes of configs/rig.toml
+    (the dynamometer answers between samples: 4 x oversampled), offsets, drift, 0.5 N noise."""
+    rig, modes = _modes()
+    files = []
+    for i, (fz, d) in enumerate((fz, d) for fz in feeds for d in depths):
+        rec = fi.Record(rate_hz=RATE, modes=modes, offset_n=(3.0, -2.0, 1.0), drift_n_s=(0.05, 0,
+                        0), noise_n=0.5, seed=i, phase_rad=0.37 * i, oversample=4)  # fmt: skip
+        r = fi.Run(fz_mm=fz, depth_mm=d, width_mm=width, center_offset_mm=offset, steady_s=2.0,
+                   **run)  # fmt: skip
+        t, f, _ = fi.simulate(tool, TRUE, r, rec)
+        c = RunConditions(spindle_rpm=600, fz_mm=fz, depth_mm=d, width_mm=width,
+                          center_offset_mm=offset)  # fmt: skip
+        p = folder / f"{i:03d}-fz{fz}-d{d}.h5"
+        _write(p, t, f, rig, {**asdict(c), "tool": tool_name})
+        files.append(str(p))
+    return files
+
+
+def _analyze(files, capsys, *extra):
+    rc = main(["analyze", "forces", *files, "--json", *extra])
+    out = json.loads(capsys.readouterr().out)
+    err = {k: 100 * (out["coefficients"][k] / getattr(TRUE, k) - 1) for k in NAMES}
+    return rc, out, err
+
+
+@pytest.fixture(scope="module")
+def one_feed(tmp_path_factory):
+    return _campaign(tmp_path_factory.mktemp("indep"))
+
+
+def test_one_feed_campaign_says_the_ploughing_pair_is_not_identified(one_feed, capsys):
+    """Seed 003's own design (one feed per tooth, depth 0.5..3 mm): the output says the
+    ploughing coefficients are not identified, and why."""
+    rc, out, err = _analyze(one_feed, capsys)
+    text = json.dumps(out)
+    assert "not identified" in text.lower() and "1 feed" in text
+    print("independent data, one feed, symmetric 50 mm cut, error %:",
+          {k: round(v, 2) for k, v in err.items()})  # fmt: skip
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="issue 33: the point-insert entry and the sample-rate "
+    "discrete dynamometer in the fit bias it on independent data (see docstring)",
+)
+def test_one_feed_campaign_within_2_percent(one_feed, capsys):
+    rc, out, err = _analyze(one_feed, capsys)
+    assert rc == 0 and max(abs(v) for v in err.values()) < 2.0, err
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="issue 33: as the one-feed campaign")
+@pytest.mark.parametrize("offset", [0.0, 20.0])
+def test_three_feeds_identify_all_six_within_2_percent(tmp_path, capsys, offset):
+    files = _campaign(tmp_path, feeds=(0.1, 0.236, 0.345), depths=(0.5, 1.5, 3.0), offset=offset)
+    rc, out, err = _analyze(files, capsys)
+    print(f"three feeds, offset {offset} mm, error %:", {k: round(v, 2) for k, v in err.items()})
+    assert rc == 0 and max(abs(v) for v in err.values()) < 2.0, err
