@@ -137,6 +137,9 @@ def _simulate(a: argparse.Namespace) -> int:
     if a.json:
         print_json(out)
         return 0
+    from rig.cli.plan_check import print_stock
+
+    print_stock(out["stock"])
     for r, res in zip(out["operations"], results):
         for c in res.simulation.contacts:
             status("warning: " + c.message(r["file"]))
