@@ -1,5 +1,10 @@
-"""Seed 003 identification against known truth: synthetic runs with the seed's setup, 2 % noise,
-the dynamometer's Table 2 modes, an offset with drift; validation at other feeds; bad input."""
+"""Seed 003 identification, regression tests: synthetic runs with the seed's setup, 2 % noise, the
+dynamometer's Table 2 modes, an offset with drift; validation at other feeds; bad input.
+
+Circular by construction: the runs are made by ``analysis.forces.facemill`` through the same
+discrete dynamometer filter the fit inverts, so the tests named ``test_regression_*`` say the
+chain still inverts itself, not that seed 003's model is right. The identification judged on data
+the model did not make is tests/test_facemill_independent.py (issue 33)."""
 
 from __future__ import annotations
 
@@ -66,7 +71,7 @@ def fitted(runs_0236, dyno):
     return fit_facemill_runs(runs_0236, TOOL, dyno)
 
 
-def test_coefficients_come_back_within_2_percent(fitted):
+def test_regression_coefficients_come_back_within_2_percent(fitted):
     assert fitted.success, fitted.message
     got = fitted.coefficients
     for name in ("K_T_n_mm2", "K_R", "P_T_n_mm", "P_R_n_mm"):
@@ -81,7 +86,7 @@ def test_coefficients_come_back_within_2_percent(fitted):
     assert len(fitted.residuals_n) == len(DEPTHS)
 
 
-def test_without_the_modes_in_the_fit_the_ringing_biases_it(runs_0236, fitted):
+def test_regression_without_the_modes_in_the_fit_the_ringing_biases_it(runs_0236, fitted):
     """The same runs fitted as if the dynamometer were rigid: worse, which is why the
     regressors go through the modes."""
     rigid = fit_facemill_runs(runs_0236, TOOL, None)
@@ -91,7 +96,7 @@ def test_without_the_modes_in_the_fit_the_ringing_biases_it(runs_0236, fitted):
     assert rigid.fit.r_squared < with_modes.fit.r_squared
 
 
-def test_validation_at_other_feeds_within_3_percent(fitted, modes, dyno, tmp_path):
+def test_regression_validation_at_other_feeds_within_3_percent(fitted, modes, dyno, tmp_path):
     runs = _runs(0.246, modes, seed=7, cut_s=1.5) + _runs(0.345, modes, seed=8, cut_s=1.5)
     avgs = [reduce_run(r, 1) for r in runs]
     cmp = compare_runs(avgs, TOOL, fitted.coefficients, dyno)
@@ -155,7 +160,7 @@ def test_a_tool_the_model_cannot_describe(modes, dyno):
         fit_facemill(avgs, undercut, dyno)
 
 
-def test_noise_free_runs_give_the_truth_exactly(modes, dyno):
+def test_regression_noise_free_runs_give_the_truth_exactly(modes, dyno):
     """Without noise the whole chain (steady part, offset and drift, period, phase, modes) is
     exact: any bias in it would show here."""
     rng = np.random.default_rng(21)
