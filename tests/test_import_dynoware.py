@@ -142,16 +142,16 @@ def test_wrong_axes_warn_with_the_figures(lab):
         fit_files(lab["air"], "endmill", TOOL, options=opts)
     w = str(exc.value)
     assert "x=Fx,y=Fy,z=Fz give a negative cutting coefficient (Krc" in w
-    assert "Ktc 79" in w and "cannot tell them apart" in w and "give --axes" in w
+    assert "cannot tell them apart" in w and "give --axes" in w
     # x and y swapped with a sign: a slot fits it as well, with Ktc and Krc traded.
     opts = ImportOptions(axes="x=-Fx,y=Fy,z=-Fz", tools_path=lab["tools"])
     out = fit_files(lab["air"], "endmill", TOOL, options=opts)
     assert out["success"] and out["coefficients"]["Krc"] == pytest.approx(796, rel=0.01)
     (w,) = out["warnings"]
-    assert "give Krc > Ktc" in w and "Ktc 168" in w and f"under {TRUE_AXES}: Ktc 796" in w
+    assert "give Krc > Ktc" in w and "Ktc 168" in w and "check --axes" in w
     # Every candidate's figures are in the result.
     cands = {c["axes"]: c for c in out["axes_check"]}
-    assert len(cands) == 8 and cands[TRUE_AXES]["coefficients"]["Ktc"] == pytest.approx(796, 0.01)
+    assert len(cands) == 48 and cands[TRUE_AXES]["coefficients"]["Ktc"] == pytest.approx(796, 0.01)
 
 
 def test_rig_config_mapping_with_signed_axes(lab):
