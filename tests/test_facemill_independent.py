@@ -90,6 +90,24 @@ def test_one_inserts_chip_by_hand():
     np.testing.assert_allclose((g[1, :2] - g[0, :2]) / 1.5, want60, rtol=1e-3)
 
 
+def test_radial_runout_changes_each_inserts_chip_by_hand():
+    """Three inserts, zero rakes, an eccentricity e (insert k at R + e cos a_k): at theta = 90 deg
+    insert k cuts the surface left by the insert ahead of it in angle (it passed there a pitch
+    earlier), so its chip is f + e cos a_k - e cos a_(k+1) and its Y' force grows with depth by
+    P_T / cos 15 + K_T h_k per mm."""
+    e, f = 0.02, 0.1
+    tool = TOOL.model_copy(update={"axial_rake_deg": 0.0, "inserts": 3, "runout_mm": e})
+    a = np.radians([0.0, 120.0, 240.0])
+    for k in range(3):
+        h = f + e * np.cos(a[k]) - e * np.cos(a[(k + 1) % 3])
+        ins = np.full(2, k)
+        got = fi.insert_forces(np.full(2, np.pi / 2), ins, np.full(2, f), np.array([1.0, 2.5]),
+                               tool, TRUE, exact=True)  # fmt: skip
+        slope = -(got[1, 1] - got[0, 1]) / 1.5
+        assert slope == pytest.approx(TRUE.P_T_n_mm / np.cos(np.radians(15)) +
+                                      TRUE.K_T_n_mm2 * h, rel=2e-4), k  # fmt: skip
+
+
 def test_steady_forces_beside_the_seed003_model():
     """Away from entry and exit the two agree within 0.5 % of the peak (the upper slices' lag
     behind the nose, which the point insert leaves out, is most of it); not a reference for the

@@ -278,7 +278,7 @@ def _direct(theta: np.ndarray, insert: np.ndarray, fz: np.ndarray, depth: np.nda
     z = len(a)
     e = float(getattr(tool, "runout_mm", 0.0) or 0.0) * np.cos(a)
     # angle gaps back to the earlier inserts (over two turns) and who they are
-    back = (a[:, None] - a[None, :]) % (2 * np.pi)
+    back = (a[None, :] - a[:, None]) % (2 * np.pi)  # [k, j]: insert j was here that much earlier
     back[back == 0] = 2 * np.pi
     both = np.concatenate([back, back + 2 * np.pi], axis=1)
     order = np.argsort(both, axis=1)[:, : 2 * z]
@@ -462,7 +462,7 @@ def simulate(tool: Any, coef: Any, run: Run, rec: Record = Record()) -> tuple[np
     theta = rec.phase_rad + omega * t
     f = np.zeros((n, 3))
     # 2 Z earlier passes per insert, the angle gap back to each
-    back = (a[:, None] - a[None, :]) % (2 * np.pi)
+    back = (a[None, :] - a[:, None]) % (2 * np.pi)  # [k, j]: insert j was here that much earlier
     back[back == 0] = 2 * np.pi
     both = np.concatenate([back, back + 2 * np.pi], axis=1)
     order = np.argsort(both, axis=1)[:, : 2 * z]
