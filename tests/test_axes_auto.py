@@ -105,3 +105,23 @@ def test_cli_auto_picks_the_mapping_and_refuses_a_wrong_one(tmp_path, capsys):
     rc = main([*args[:3], *files[:3], *args[-4:], "--axes", "auto"])
     cap = capsys.readouterr()
     assert rc == 2 and "cannot tell" in cap.err and "give --axes" in cap.err
+
+
+@pytest.mark.faults
+def test_data_import_axes_auto_writes_the_chosen_mapping(tmp_path, capsys):
+    m = _matrix((1, 0, 2), (-1.0, 1.0, -1.0))  # the turned dynamometer, as above
+    files = [str(export(tmp_path, fz, mode, ae, k, matrix=m))
+             for k, (mode, ae, fz) in enumerate(DESIGN)]  # fmt: skip
+    common = ["--tool", "phi10-flat", "--axes", "auto"]
+    rc = main(["data", "import", *files[:3], *common, "-o", str(tmp_path / "slots")])
+    cap = capsys.readouterr()
+    assert rc == 2 and "cannot tell" in cap.err and not (tmp_path / "slots").exists()
+    rc = main(["data", "import", *files, *common, "-o", str(tmp_path / "runs"), "--json"])
+    cap = capsys.readouterr()
+    written = json.loads(cap.out)["written"]
+    assert rc == 0 and {w["axes"] for w in written} == {"x=Fy,y=-Fx,z=-Fz"}
+    assert "data import: axes auto: x=Fy,y=-Fx,z=-Fz" in cap.err and "runner-up" in cap.err
+    runs = sorted(str(p) for p in (tmp_path / "runs").glob("*.h5"))
+    rc = main(["analyze", "forces", *runs, "--tool", "phi10-flat", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert rc == 0 and out["coefficients"]["Ktc"] == pytest.approx(TRUTH["Ktc_n_mm2"], rel=0.02)

@@ -304,6 +304,21 @@ def synthetic_run(
     return ForceRun(name, f, rate_hz, conditions)
 
 
+def validation_line(exc: Exception) -> str:
+    """A pydantic range check's failure as one line, field by field (``Ktc_n_mm2 = -723.5:
+    Input should be greater than 0``); no pydantic dump reaches the user."""
+    errors = getattr(exc, "errors", None)
+    if not callable(errors):
+        return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    parts = []
+    for e in errors():
+        loc = ".".join(str(x) for x in e.get("loc", ())) or "value"
+        val = e.get("input")
+        shown = f"{val:.6g}" if isinstance(val, float) else repr(val)
+        parts.append(f"{loc} = {shown}: {e.get('msg', 'out of range')}")
+    return "; ".join(parts)
+
+
 def too_few_runs(averages: Sequence[RunAverage], varied: str, label: str, why: str) -> str | None:
     """None when there are >= 3 runs over >= 2 values of ``conditions.<varied>``, else the
     reason (``label``: what the values are, e.g. 'depth(s)'; ``why``: the model's need)."""

@@ -43,6 +43,7 @@ from analysis.identify._common import (
     reduce_runs,
     synthetic_run,
     too_few_runs,
+    validation_line,
     with_rejected,
 )
 from analysis.identify.adequacy import Adequacy, runs_adequacy
@@ -115,7 +116,8 @@ def fit_endmill(
     try:
         coef = coefficients_from_vector(fit.values)
     except Exception as exc:  # pydantic range check (e.g. a negative K_tc): report it
-        return EndMillFit(False, f"fitted coefficients out of range: {exc}", fit=fit, runs=names)
+        return EndMillFit(False, f"fitted coefficients out of range: {validation_line(exc)}",
+                          fit=fit, runs=names)  # fmt: skip
     msg = f"fitted {len(averages)} runs ({len(y)} mean forces), R^2 = {fit.r_squared:.5f}"
     if not adequacy.edge_identified:
         msg += f"; edge coefficients Kte, Kre, Kae not identified: {adequacy.reason}"

@@ -53,6 +53,7 @@ from analysis.identify._common import (
     reduce_runs,
     synthetic_run,
     too_few_runs,
+    validation_line,
     with_rejected,
 )
 from analysis.identify.adequacy import Adequacy, runs_adequacy
@@ -281,7 +282,8 @@ def fit_facemill(
     try:
         coef = coefficients_from_vector(p)
     except Exception as exc:  # pydantic range check: report, do not crash
-        return FaceMillFit(False, f"fitted coefficients out of range: {exc}", fit=fit,
+        why = validation_line(exc)
+        return FaceMillFit(False, f"fitted coefficients out of range: {why}", fit=fit,
                            summary=summary, runs=names)  # fmt: skip
     n_per = [len(a.waveform_n) * 3 for a in averages]
     res_runs = tuple(r.reshape(-1, 3) for r in np.split(resid, np.cumsum(n_per)[:-1]))

@@ -466,6 +466,9 @@ def fit_files(
         check = check_axes(avgs, tool_cfg, parse_axes(mappings[0]))
         if check["refusal"]:
             raise AnalysisError(check["refusal"])
+        if not check["checked"]:
+            out["warnings"].append(f"axes {mappings[0]} unchecked: the runs cannot be fitted "
+                                   "under any mapping (too few runs or feeds)")  # fmt: skip
         out["axes_check"] = check["candidates"]
         out["warnings"] += check["warnings"]
     if endmill:
@@ -486,6 +489,42 @@ def fit_files(
             out["rejected"] += [{"run": n, "reason": m} for n, m in rej2]
         out.update(_validate(targets, model, tool_cfg, fit.coefficients, dyno, plot_dir))
     return out
+
+
+def auto_axes(
+    paths: Sequence[str | Path],
+    overrides: Mapping[str, Any] | None = None,
+    rig_path: str | Path | None = None,
+    rate_hz: float | None = None,
+    tool: str | None = None,
+    options: ImportOptions | None = None,
+    tolerance: float = IDENTIFY_TOLERANCE,
+) -> tuple[str, str]:
+    """``--axes auto`` for `cutlab data import`: the exports reduced under their own mapping
+    (column names, the rig config) and the end-mill fit's choice among the 48 signed
+    permutations (:func:`analysis.identify.axes.choose_axes`). Returns (mapping, the line that
+    says it with the runner-up); AnalysisError when the runs cannot tell."""
+    opts = replace((options or ImportOptions()).loaded(), axes=None)
+    dyno = load_rig(rig_path or None).dynamometer
+    avgs, rejected, tool_names, notes = _reduce_all(
+        paths, overrides, dyno, rate_hz, tool, "--tool", tolerance, None, opts
+    )
+    names = {t for t in tool_names if t}
+    if not tool and len(names) != 1:
+        raise AnalysisError(f"--axes auto fits the end-mill model: the runs name tools "
+                            f"{sorted(names) or 'none'}: give --tool NAME")  # fmt: skip
+    tool_obj = find_tool(tool or names.pop(), opts.tools_path)
+    if not isinstance(tool_obj, EndMill):
+        raise AnalysisError("--axes auto chooses the mapping from the end-mill fit; for "
+                            f"{tool_obj.kind} tools give --axes")  # fmt: skip
+    base = sorted({n["axes"] for n in notes.values()})
+    if len(base) != 1:
+        raise AnalysisError(f"--axes auto: the exports are read with different mappings "
+                            f"({'; '.join(base)}): give --axes")  # fmt: skip
+    limits = {n for n, _ in outside_limits(avgs, tool_obj)}
+    read = parse_axes(base[0])
+    chosen, info = choose_axes([a for a in avgs if a.name not in limits], tool_obj, read)
+    return chosen.text, info["line"]
 
 
 def _trust(out: dict[str, Any], avgs: list[RunAverage], tool: EndMill, fit: Any) -> None:

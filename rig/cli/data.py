@@ -100,6 +100,14 @@ def _import(args: argparse.Namespace) -> int:
     opts = ImportOptions(axes=args.axes, table=table, pattern=args.conditions_pattern,
                          zero_file=args.zero, zeroed=args.zeroed, tools_path=args.tools,
                          materials_path=args.materials)  # fmt: skip
+    if opts.auto:  # the mapping from an end-mill fit of all the exports, before any is written
+        from dataclasses import replace
+
+        from analysis.identify.files import auto_axes
+
+        axes, line = auto_axes(args.files, pairs, args.rig, args.rate, args.tool, opts)
+        status(f"data import: axes {line}")
+        opts = replace(opts, axes=axes)
     with Progress("importing", "file", quiet=args.json or len(args.files) < 2) as bar:
         written = import_exports(args.files, args.output, pairs, opts, rig_path=args.rig,
                                  rate_hz=args.rate, tool=args.tool, overwrite=args.force,
