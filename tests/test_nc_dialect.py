@@ -180,3 +180,5 @@ def test_cutlab_nc_check_dialect(tmp_path, capsys) -> None:
     assert main(["nc", "check", str(f), "--dialect", "grbl", "--json"]) == 2
     out = json.loads(capsys.readouterr().out)
     assert out["dialect_problems"][0]["answer"] == "error:20"
+    # read as GRBL reads it, the program stops at the refused line: no summary, and why
+    assert out["summary"] is None and "M6" in out["summary_reason"]

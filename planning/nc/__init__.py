@@ -44,7 +44,7 @@ from typing import Any
 # Loaded on first use (PEP 562): `cutlab nc check` needs the interpreter and the statistics, not
 # the program editor, the dialects, the writers or the plots.
 _LAZY = {
-    "planning.nc._codes": ("INCH_MM",),
+    "planning.nc._codes": ("DIALECTS", "INCH_MM"),
     "planning.nc.arcs": ("Linearized", "arc_radius_mm", "arc_sweep_rad", "bounding_box",
                          "linearize", "segment_length_mm", "segment_travel"),
     "planning.nc.check": ("CheckedProgram", "check_program", "write_motions_csv"),
@@ -75,6 +75,7 @@ def __getattr__(name: str) -> Any:
 
 
 __all__ = [
+    "DIALECTS",
     "ARC_CCW",
     "ARC_CW",
     "CannedCycle",

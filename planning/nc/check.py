@@ -117,13 +117,15 @@ def check_program(
     strict: bool = True,
     progress: Callable[[float, float], None] | None = None,
     keep_motion: bool = False,
+    dialect: str | None = None,
 ) -> CheckedProgram:
     """Interpret the program file ``path`` on ``machine`` (a config name or TOML path; None: no
-    machine), chunk by chunk. ``strict`` False reports unknown codes as warnings; ``progress`` see
-    :func:`progress_lines`; ``keep_motion`` keeps the whole motion (for a plot or a table).
-    NC errors raise :class:`~planning.nc.errors.NCError`."""
+    machine), chunk by chunk, as ``dialect``'s controller does (default the machine's, else
+    Fanuc; a machine given keeps its own). ``strict`` False reports unknown codes as warnings;
+    ``progress`` see :func:`progress_lines`; ``keep_motion`` keeps the whole motion (for a plot
+    or a table). NC errors raise :class:`~planning.nc.errors.NCError`."""
     cfg = _machine(machine)
-    it = Interpreter(cfg, strict=strict, file=path)
+    it = Interpreter(cfg, strict=strict, file=path, dialect=_dialect(cfg, dialect))
     acc, first_limit, rotary, kept = StreamStats(cfg), {}, False, []
     for part in it.iter_chunks(progress_lines(path, progress)):
         acc.add(part)
@@ -144,14 +146,16 @@ def write_motions_csv(
     *,
     strict: bool = True,
     progress: Callable[[float, float], None] | None = None,
+    dialect: str | None = None,
 ) -> Interpreter:
     """``cutlab nc motions --csv``: one row per segment of the program file ``path`` written to
     ``out`` (a stream, or a file path: written whole or not at all) as it is interpreted (bounded
     memory; floats that read back unchanged); the a0..c1 columns when the file has A/B/C words.
-    Returns the interpreter (its warnings)."""
+    ``dialect`` as in :func:`check_program`. Returns the interpreter (its warnings)."""
     from planning.nc.table import write_motion_csv  # here: `nc check` needs no CSV writer
 
-    it = Interpreter(_machine(machine), strict=strict, file=path)
+    cfg = _machine(machine)
+    it = Interpreter(cfg, strict=strict, file=path, dialect=_dialect(cfg, dialect))
     rotary = file_mentions_rotary(path)
     if not isinstance(out, str | Path):
         write_motion_csv(it.iter_chunks(progress_lines(path, progress)), out, rotary=rotary)
@@ -165,6 +169,13 @@ def write_motions_csv(
     finally:
         part.unlink(missing_ok=True)
     return it
+
+
+def _dialect(cfg: MachineConfig | None, dialect: str | None) -> str | None:
+    """The dialect to interpret in: a machine's own (its file says how its control reads a
+    program; ``--dialect`` beside it only lists what another control would refuse), else
+    ``dialect``."""
+    return cfg.dialect if cfg is not None else dialect
 
 
 def _machine(machine: str | None) -> MachineConfig | None:

@@ -7,6 +7,11 @@
 * ``cutlab nc motions FILE [--csv] [-o OUT]``: one row per canonical segment (line, kind,
   x0 y0 z0 x1 y1 z1, arc centre, feed, ...).
 * ``cutlab nc plot FILE -o path.png``: tool path, rapids dashed, feeds solid, 3-D and top views.
+
+``--dialect NAME`` on all three interprets the program as that controller does (LinuxCNC: G10
+L20, F in the units of a G20/G21 in the same block, its arc tolerance, its order of execution;
+no machine file needed) unless ``--machine`` names a machine, whose own dialect then interprets
+(``--dialect`` beside it only lists what the other control would refuse).
 """
 
 from __future__ import annotations
@@ -14,6 +19,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from planning.nc import DIALECTS
 from rig.cli._common import Progress, image_file, print_json, print_table, status
 
 
@@ -23,13 +29,15 @@ def _interpret(args: argparse.Namespace, *, warn: bool = True, keep_motion: bool
 
     with Progress("interpreting", "B", unit_scale=True) as bar:
         run = check_program(args.file, args.machine, strict=not args.lenient, progress=bar,
-                            keep_motion=keep_motion)  # fmt: skip
+                            keep_motion=keep_motion, dialect=args.dialect)  # fmt: skip
     for w in run.warnings if warn else ():
         status(f"warning: {w}")
     return run
 
 
 def _check(args: argparse.Namespace) -> int:
+    from planning.nc import NCError
+
     problems = None
     if args.dialect:
         from planning.nc.check import dialect_problems
@@ -38,9 +46,22 @@ def _check(args: argparse.Namespace) -> int:
         if not args.json:
             for p in problems:
                 status(f"{p.severity}: {p}")
-    run = _interpret(args, warn=not args.json)
-    out = run.summary()
     refused = sum(p.severity == "error" for p in problems or ())
+    try:
+        run = _interpret(args, warn=not args.json)
+    except NCError as exc:
+        if not refused:
+            raise
+        # the controller refuses a line, so its reading of the program stops there: the
+        # refusals are the answer (in --json as well), and the summary is not made
+        if args.json:
+            print_json({"file": args.file, "dialect": args.dialect,
+                        "dialect_problems": [p.as_dict() for p in problems or ()],
+                        "summary": None, "summary_reason": str(exc)})  # fmt: skip
+        else:
+            status(f"{args.file}: {args.dialect} would refuse {refused} line(s)")
+        return 2
+    out = run.summary()
     if problems is not None:
         out["dialect"] = args.dialect
         out["dialect_problems"] = [p.as_dict() for p in problems]
@@ -68,7 +89,8 @@ def _motions(args: argparse.Namespace) -> int:
 
         with Progress("interpreting", "B", unit_scale=True) as bar:
             it = write_motions_csv(args.file, args.output or sys.stdout, args.machine,
-                                   strict=not args.lenient, progress=bar)  # fmt: skip
+                                   strict=not args.lenient, progress=bar,
+                                   dialect=args.dialect)  # fmt: skip
         for w in it.warnings:
             status(f"warning: {w}")
         return 0
@@ -99,6 +121,10 @@ def _add_parser(nsub, name: str, text: str, func) -> argparse.ArgumentParser:
     p.add_argument("--machine", default=None, help=machine_help)
     lenient_help = "report unknown codes as warnings instead of errors"
     p.add_argument("--lenient", action="store_true", help=lenient_help)
+    if name != "check":  # check's --dialect also lists what the control would refuse
+        p.add_argument("--dialect", choices=DIALECTS, default=None,
+                       help="interpret as this controller does (default: the machine's, "
+                            "else fanuc)")  # fmt: skip
     p.set_defaults(func=func)
     return p
 
@@ -111,8 +137,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = _add_parser(nsub, "check", "parse + interpret; print lengths, time, bbox (or the error)",
                     _check)  # fmt: skip
     p.add_argument("--json", action="store_true", help="machine-readable output")
-    p.add_argument("--dialect", choices=("grbl", "fanuc", "linuxcnc"), default=None,
-                   help="also list what this controller would refuse (exit 2 if any)")  # fmt: skip
+    p.add_argument("--dialect", choices=DIALECTS, default=None,
+                   help="interpret as this controller does (default: the machine's, else "
+                        "fanuc) and list what it would refuse (exit 2 if any)")  # fmt: skip
     p = _add_parser(nsub, "motions", "one row per canonical motion segment", _motions)
     p.add_argument("--csv", action="store_true", help="CSV to stdout (or to -o)")
     p.add_argument("-o", "--output", default=None, help="write CSV to this file")
