@@ -293,8 +293,8 @@ def check_job(
                                "time_s": round(float(time_s[lo:hi].sum()), 3)}  # fmt: skip
         if _is_drilling(sub):
             sim = simulate_motion(stock, tool, sub, piece_mm=PIECE_MM, check_holder=False)
-            unchecked = [{"limit": "all", "reason": f"T{t} {name} drills (Z-only feed moves): "
-                          "the end-mill force model does not cover a drill"}]  # fmt: skip
+            unchecked = [{"limit": "all", "reason": f"T{t} {name} only drills or plunges (Z-only "
+                          "feed moves): the end-mill force model does not cover them"}]  # fmt: skip
             row |= {"removed_mm3": round(sim.removed_total_mm3, 3), "cutting_blocks": 0,
                     "violations": 0, "unchecked": unchecked, "verdict": "unchecked"}  # fmt: skip
             sections.append(row)
