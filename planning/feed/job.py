@@ -110,13 +110,7 @@ class Job:
 
     @property
     def tool(self) -> EndMill:
-        """The end mill of a one-tool program (the feed post-processor's); refuse several."""
-        if len(self.tools) > 1:
-            t = list(self.tools)
-            raise PlanningError(
-                f"{self.program.file}: the program changes tools (T{t[0]} to T{t[1]}): the feed "
-                "post-processor adjusts one tool's program; split it per tool"
-            )
+        """The first end mill the program loads (each tool's run: :func:`tool_sections`)."""
         return next(iter(self.tools.values()))[1]
 
 
