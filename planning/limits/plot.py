@@ -30,15 +30,18 @@ def plot_check(res: CheckResult | list[CheckResult], path: str | Path, title: st
     fig, axes = plt.subplots(len(names), 1, figsize=(9, 1.9 * len(names) + 0.6), sharex=True,
                              squeeze=False)  # fmt: skip
     for ax, k in zip(axes[:, 0], names):
-        ax.plot(df["block"], df[k], ".", ms=3, color="tab:blue")
-        if f"{k}_allowed" in df:
-            ok = df[f"{k}_allowed"].notna()
+        ok = df[f"{k}_allowed"].notna() if f"{k}_allowed" in df else df[k].isna()
+        ax.plot(df["block"][ok], df[k][ok], ".", ms=3, color="tab:blue")
+        # blocks whose tool has no such limit: grey rings, and the panel says so
+        ax.plot(df["block"][~ok], df[k][~ok], "o", ms=3, mfc="none", color="0.6")
+        if ok.any():
             ax.plot(df["block"][ok], df[f"{k}_allowed"][ok], "--", color="k", lw=1)
             bad = df[f"{k}_ratio"] > 1 + 1e-6
             ax.plot(df["block"][bad], df[k][bad], ".", ms=4, color="tab:red")
-        else:  # a limit that could not be checked is said so on its panel
-            ax.text(0.99, 0.9, "limit not checked", transform=ax.transAxes, ha="right",
-                    va="top", fontsize=8, color="tab:red")  # fmt: skip
+        if not ok.all():
+            why = "no --force-limit given" if k == "force" else "limit not checked"
+            ax.text(0.99, 0.9, f"grey: {why}", transform=ax.transAxes, ha="right", va="top",
+                    fontsize=8, color="0.4")  # fmt: skip
         label = "depth" if k == "stability" else k
         ax.set_ylabel(f"{label} ({LIMIT_UNITS[k]})")
         ax.grid(alpha=0.3)
