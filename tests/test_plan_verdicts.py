@@ -186,3 +186,42 @@ def test_check_plot_without_cutting_says_so(tmp_path: Path) -> None:
 
     png = plot_check([], tmp_path / "none.png")
     assert png.exists() and png.stat().st_size > 1000
+
+
+def test_the_twins_chattering_cut_is_not_passed(tmp_path: Path, capsys) -> None:
+    """The issue's case: a 0.82 mm full slot at 5500 rpm with phi10-flat chatters on the twin
+    (stability-sweep: tapped modes 700 Hz, zeta 0.03, 1.5e7 N/m; limit 0.746 mm there). Without
+    modes or lobes plan check says "unchecked" (exit 4), never "within"; with the lobes of the
+    twin's modes (`cutlab analyze stability`) it is a stability violation (exit 3)."""
+    import tomllib
+
+    from analysis.config import get_material
+
+    camp = Path(__file__).resolve().parents[1] / "configs" / "campaigns" / "stability-sweep.toml"
+    modes = tomllib.loads(camp.read_text())["sim"]["tool_modes"]
+    coef = get_material("al6061-t6").endmill
+    case = tmp_path / "case.toml"
+    case.write_text(
+        f'[tool]\nteeth = 3\n[cut]\nmilling = "down"\nradial_immersion = 1.0\n'
+        f"[coefficients]\nKtc_N_mm2 = {coef.Ktc_n_mm2}\nKrc_N_mm2 = {coef.Krc_n_mm2}\n"
+        + "".join(f'[[modes]]\ndirection = "{m["axis"]}"\nf_hz = {m["f_hz"]}\nzeta = {m["zeta"]}'
+                  f'\nk_N_m = {m["k_N_m"]}\n' for m in modes)
+        + "[spindle]\nrpm_min = 5500\nrpm_max = 5501\npoints = 2\n"
+    )  # fmt: skip
+    lobes = tmp_path / "lobes.csv"
+    rc, _, _ = cli(["analyze", "stability", str(case), "-o", str(lobes)], capsys)
+    assert rc == 0
+    limit = float(lobes.read_text().splitlines()[1].split(",")[1])
+    assert limit == pytest.approx(0.746, abs=0.01)  # the README's stability-sweep figure
+    prog = tmp_path / "chatter.nc"
+    prog.write_text("G21 G90 G17\nS5500 M3\nG0 Z5\nG0 X-10 Y0\nG1 Z-0.82 F100\nG1 X40 F825\n"
+                    "G0 Z5\nM30\n")  # fmt: skip
+    base = ["plan", "check", str(prog), "--tool", "phi10-flat", "--material", "al6061-t6",
+            "--stock", "box:-20,50,-20,20,-20,0", "--spacing", "0.5", "--json"]  # fmt: skip
+    rc, so, _ = cli(base, capsys)
+    assert rc == 4 and json.loads(so)["verdict"] == "unchecked"
+    rc, so, _ = cli([*base, "--lobes", str(lobes)], capsys)
+    out = json.loads(so)
+    assert rc == 3 and out["verdict"] == "violations"
+    v = next(v for v in out["violations"] if v["limit"] == "stability")
+    assert v["value"] == pytest.approx(0.82) and v["allowed"] == pytest.approx(0.8 * limit)
