@@ -134,8 +134,14 @@ class SimControllerBase(ExecutorMixin):
         self.starved_s = 0.0
         self.busy_s = 0.0
         self._started = False
-        self._wire: deque[tuple[float, bytes]] = deque()  # (arrival of first byte, bytes)
+        # (start of the busy line, characters before these on it since then, bytes): character
+        # j of an entry arrives at start + (k0 + j + 1) * char_time, computed from the count, not
+        # by adding up char times chunk by chunk, so how the pty happened to split a burst
+        # cannot move an arrival by a rounding (it moved block starts by 1e-15 s)
+        self._wire: deque[tuple[float, int, bytes]] = deque()
         self._line_free_t = 0.0
+        self._line_t0 = 0.0  # when the line last began to be busy
+        self._line_chars = 0  # characters sent on it since then
         self._outbox = bytearray()
         self._plan: deque[_Planned] = deque()
         self._cur: _Planned | None = None
@@ -319,9 +325,12 @@ class SimControllerBase(ExecutorMixin):
             if self.silent:
                 return
             self._check_line_settings()
-            t = max(self.clock.now(), self._line_free_t)
-            self._wire.append((t + self.char_time_s, data))
-            self._line_free_t = t + len(data) * self.char_time_s
+            now = self.clock.now()
+            if now > self._line_free_t:  # the line was idle: a new burst starts now
+                self._line_t0, self._line_chars = now, 0
+            self._wire.append((self._line_t0, self._line_chars, data))
+            self._line_chars += len(data)
+            self._line_free_t = self._line_t0 + self._line_chars * self.char_time_s
             self._line_mark = time.monotonic()
             self._update_gates()
 
@@ -343,13 +352,18 @@ class SimControllerBase(ExecutorMixin):
         """Move bytes whose arrival time has come from the wire into the receiver."""
         ct = self.char_time_s
         while self._wire:
-            t0, data = self._wire[0]
+            base, k0, data = self._wire[0]
+            t0 = base + (k0 + 1) * ct
             if t0 > now:
                 return
             n = min(len(data), int((now - t0) / ct) + 1)
+            while n > 1 and base + (k0 + n) * ct > now:  # the division may round either way
+                n -= 1
+            while n < len(data) and base + (k0 + n + 1) * ct <= now:
+                n += 1
             part, rest = data[:n], data[n:]
             if rest:
-                self._wire[0] = (t0 + n * ct, rest)
+                self._wire[0] = (base, k0 + n, rest)
             else:
                 self._wire.popleft()
             if not self.line_ok:
@@ -360,9 +374,9 @@ class SimControllerBase(ExecutorMixin):
                 # each character at its own arrival: how the loop happened to split the wire
                 # (when the host let it run) must not move a block's arrival
                 for j in range(len(part)):
-                    self._on_bytes(part[j : j + 1], t0 + j * ct)
+                    self._on_bytes(part[j : j + 1], base + (k0 + j + 1) * ct)
                 continue
-            self._on_bytes(part, t0 + (n - 1) * ct)
+            self._on_bytes(part, base + (k0 + n) * ct)
 
     def _on_framing_error(self, t: float) -> None:
         """Protocol hook: characters at the wrong baud rate arrived (garbage)."""
@@ -370,7 +384,8 @@ class SimControllerBase(ExecutorMixin):
     def _next_wake(self, now: float) -> float:
         t = now + 0.05
         if self._wire:
-            t = min(t, self._wire[0][0])
+            base, k0, _ = self._wire[0]
+            t = min(t, base + (k0 + 1) * self.char_time_s)
         if self._cur is not None and not self.held and not self.alarm:
             t = min(t, self._seg_t1)
         if self._hold_stop_at is not None:
