@@ -397,6 +397,15 @@ def execute_run(
         for seq, t0, t1, text in session.executed_blocks():
             msg = f"executed block {seq} {t0:.6f}..{t1:.6f} s: {text}"
             writer.event(rf.EV_NOTE, msg, time_s=t0)
+        # The block table's execution starts from the controller's own record where it keeps
+        # one (the simulated rig): the streamer's estimate knows nothing of a feed hold.
+        starts = getattr(session, "block_starts", None)
+        set_exec = getattr(writer, "set_exec_times", None)
+        if starts is not None and set_exec is not None:
+            rows, t_starts = starts()
+            set_exec(rows, t_starts, complete=True)
+            writer.event(rf.EV_NOTE, "block table: execution starts from the controller's "
+                                     f"record ({len(rows)} blocks started)")  # fmt: skip
         # Rest after the cut: zero and drift from both rests (not after a failure: the rig may
         # not be at rest, so the zero taken before the cut stays).
         end_of = getattr(session, "program_end_s", None)

@@ -401,6 +401,17 @@ class RunWriter:
         a = np.broadcast_to(np.asarray(ack_s, dtype=np.float64), b.shape)
         self._control.append(("ack", (b.copy(), a.copy())))
 
+    def set_exec_times(
+        self, rows: Sequence[int], exec_s: Sequence[float], complete: bool = False
+    ) -> None:
+        """Set ``exec_s`` of the NC-blocks table by row (the k-th block sent is row k; NaN: it
+        never started): the control's own record of when each block ran, which replaces the
+        streamer's estimate (an estimate knows nothing of a feed hold). ``complete``: the record
+        names every block that started, so the rows it does not name never ran (NaN)."""
+        r = np.atleast_1d(np.asarray(rows, dtype=np.int64))
+        e = np.broadcast_to(np.asarray(exec_s, dtype=np.float64), r.shape)
+        self._control.append(("exec", (r.copy(), e.copy(), complete)))
+
     def set_conditions(self, conditions: Mapping[str, Any] | Any) -> None:
         """Cutting conditions (tool, material, spindle_rpm, feed_mm_min, fz_mm, depth_mm, ...):
         a mapping, a dataclass or a pydantic model; stored as JSON, the latest call wins."""
@@ -700,6 +711,8 @@ class RunWriter:
                 self._write_blocks(payload)
             elif kind == "ack":
                 self._write_acks(*payload)
+            elif kind == "exec":
+                self._write_exec(*payload)
             elif kind == "cal":
                 write_zero_and_drift(self._f, payload)
         if events:
@@ -722,6 +735,21 @@ class RunWriter:
     def _write_blocks(self, rows: np.ndarray) -> None:
         first = append_rows(self._f[rf.BLOCKS], rows)
         self._block_rows.update(zip(rows["block"].tolist(), range(first, first + len(rows))))
+
+    def _write_exec(self, rows: np.ndarray, exec_s: np.ndarray, complete: bool) -> None:
+        ds = self._f[rf.BLOCKS]
+        ok = (rows >= 0) & (rows < ds.shape[0])
+        if ds.shape[0] and (ok.any() or complete):
+            table = ds[()]
+            if complete:
+                table["exec_s"] = np.nan
+            table["exec_s"][rows[ok]] = exec_s[ok]
+            ds[...] = table
+        if not ok.all():
+            self._write_events(
+                [DaqEvent(rf.EV_NOTE, -1, f"exec time for rows never appended: "
+                                          f"{rows[~ok][:10].tolist()}")]
+            )  # fmt: skip
 
     def _write_acks(self, blocks: np.ndarray, acks: np.ndarray) -> None:
         unknown = write_acks(self._f[rf.BLOCKS], self._block_rows, blocks, acks)

@@ -228,6 +228,19 @@ class SimSession:
         the run clock: the block clock the samples share."""
         return [(b.seq, b.t_start_s, b.t_end_s, b.text) for b in self.controller.executed]
 
+    def block_starts(self) -> tuple[list[int], list[float]]:
+        """The controller's own record of when each block it took started, on the run clock:
+        (row of the block table, i.e. order received; start s), the finished blocks and the one
+        running or held when it stopped. Blocks it never started are left out."""
+        ctl = self.controller
+        with ctl._lock:
+            starts = {b.seq: b.t_start_s for b in ctl.executed if b.seq >= 0}
+            cur = ctl._cur
+            if cur is not None and cur.seq >= 0:
+                starts[cur.seq] = ctl._block_t0
+        rows = sorted(starts)
+        return rows, [starts[k] for k in rows]
+
     def feed_hold(self) -> None:
         self.controller.feed_hold()
 
