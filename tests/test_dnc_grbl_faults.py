@@ -28,6 +28,8 @@ from rig.dnc import (
 from rig.dnc.grbl import HANDSHAKE
 from rig.sim import SimClock, SimGrbl
 
+pytestmark = pytest.mark.faults
+
 SPEED = 10.0
 
 
@@ -90,7 +92,7 @@ def test_lost_ok_is_detected_and_the_stream_ends() -> None:
         assert ctl.quiet.wait(10)
     assert fault is not None and fault.kind == "lost-ok", fault
     assert wall < 10.0
-    assert "answer(s) never came" in str(fault) and "last block known executed" in str(fault)
+    assert "never came" in str(fault) and "last block known executed" in str(fault)
     texts = grbl_texts(prog)
     assert ctl.executed_texts() == texts  # GRBL ran every line; only an answer was lost
     assert fault.result.last_executed_block >= prog.blocks[-3].index  # it stands at the end
@@ -108,7 +110,7 @@ def test_lost_ok_with_buffer_reports_stops_sending_early() -> None:
         fault, wall, st = _stream(ctl, prog)
         assert ctl.quiet.wait(10)
     assert fault is not None and fault.kind == "lost-ok" and wall < 10.0
-    assert "an answer may have been lost" in str(fault) and "answer(s) never came" in str(fault)
+    assert "never came" in str(fault)
     assert fault.result.last_sent_block < prog.blocks[-1].index  # stopped before the end
     assert ctl.executed_texts() == grbl_texts(prog)[: len(ctl.executed)]
     assert fault.result.last_executed_block == _last_run(prog, len(ctl.executed))

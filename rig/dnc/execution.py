@@ -21,7 +21,8 @@ has passed, never beyond the last block fully sent.
 
 Start times of execution are kept per line (:attr:`ExecTracker.started`): the time of the first
 report that saw the line executing (or past it); lines that ran between two reports get times
-interpolated by their predicted durations.
+interpolated by their predicted durations, skipping the time GRBL reported itself held
+(:meth:`ExecTracker.hold`: no line starts, none runs on, while it stands in a feed hold).
 """
 
 from __future__ import annotations
@@ -158,6 +159,47 @@ class ExecTracker:
         self._new: dict[int, float] = {}
         self._t_last: float | None = None
         self._t_origin: float | None = None
+        self.pauses: list[list[float]] = []  # [t0, t1]: GRBL held, nothing ran (in order)
+
+    def hold(self, t0: float, t1: float) -> None:
+        """GRBL was held from ``t0`` to ``t1`` (a hold reported from t0 is extended to t1)."""
+        if self.pauses and self.pauses[-1][0] == t0:
+            self.pauses[-1][1] = max(self.pauses[-1][1], t1)
+        elif t1 >= t0:
+            self.pauses.append([t0, t1])
+
+    def _after(self, t: float, run_s: float) -> float:
+        """The time ``run_s`` of motion after ``t``, the holds skipped."""
+        for a, b in self.pauses:
+            if b <= t:
+                continue
+            if a <= t:
+                t = b
+                continue
+            if a - t >= run_s:
+                break
+            run_s -= a - t
+            t = b
+        return t + run_s
+
+    def _before(self, t: float, run_s: float) -> float:
+        """The time ``run_s`` of motion before ``t``, the holds skipped."""
+        for a, b in reversed(self.pauses):
+            if a >= t:
+                continue
+            if b >= t:
+                t = a
+                continue
+            if t - b >= run_s:
+                break
+            run_s -= t - b
+            t = a
+        return t - run_s
+
+    def _running(self, t0: float, t1: float) -> float:
+        """Motion time between ``t0`` and ``t1``: the holds left out."""
+        held = sum(max(0.0, min(b, t1) - max(a, t0)) for a, b in self.pauses)
+        return max(0.0, t1 - t0 - held)
 
     def pop_started(self) -> dict[int, float]:
         """Execution starts found since the last call (line index -> s)."""
@@ -237,25 +279,25 @@ class ExecTracker:
             dur = [max(self.paths[k].duration_s, 0.0) for k in range(len(self.paths))]
             prev = self.current
             if prev >= 0 and prev in self.started:
-                tc = self.started[prev] + dur[prev]
+                tc = self._after(self.started[prev], dur[prev])
             else:
                 tc = self._t_origin if self._t_origin is not None else t
             tc = min(tc, t)
             if finished:
                 starts = []
                 for k in new:
-                    starts.append(min(tc, t))
-                    tc += dur[k]
+                    starts.append(min(self._after(tc, 0.0), t))
+                    tc = self._after(tc, dur[k])
             else:
-                s_j = max(t - frac * dur[j], tc)
+                s_j = max(self._before(t, frac * dur[j]), tc)
                 before = new[:-1]
                 need = sum(dur[k] for k in before)
-                room = s_j - tc
+                room = self._running(tc, s_j)
                 scale = min(1.0, room / need) if need > 0 else 0.0
                 starts = []
                 for k in before:
-                    starts.append(tc)
-                    tc += dur[k] * scale
+                    starts.append(min(self._after(tc, 0.0), s_j))
+                    tc = self._after(tc, dur[k] * scale)
                 starts.append(s_j)
             for k, s0 in zip(new, starts):
                 self.started[k] = self._new[k] = float(s0)

@@ -280,6 +280,7 @@ class GrblStreamer(StreamerBase):
         self._rt(FEED_HOLD)
 
     def cycle_start(self) -> None:
+        self._resume_t = self.clock()
         self._rt(CYCLE_START)
 
     def status(self) -> None:
@@ -299,6 +300,9 @@ class GrblStreamer(StreamerBase):
         self._noise_example = ""
         self._extra_wait_s = 0.0  # a dwell under way lengthens the silence allowed
         self._pause_since: float | None = None
+        self._hold_t0: float | None = None  # first report of a hold under way
+        self._idle_hits: tuple[float, int] | None = None  # (since, reports): see _check_lost
+        self._resume_t = -float("inf")  # the last cycle start sent, stream clock
         self._partial.clear()
         while not self._lines.empty():
             self._lines.get_nowait()
@@ -635,6 +639,15 @@ class GrblStreamer(StreamerBase):
         tr = self.tracker
         if tr is None or not self._tracking:  # after a reset Idle means flushed, not done
             return
+        # While GRBL reports Hold no line starts: the time is left out of the start times
+        # interpolated between two reports (it ends at the cycle start, if this streamer sent it)
+        if st.state in ("Hold", "Door"):
+            if self._hold_t0 is None:
+                self._hold_t0 = t
+            tr.hold(self._hold_t0, t)
+        elif self._hold_t0 is not None:
+            tr.hold(self._hold_t0, min(max(self._resume_t, self._hold_t0), t))
+            self._hold_t0 = None
         tr.update(t, st.state, self._work_pos(st), self._acked_pos, st.planner_free,
                   self._sent_pos)  # fmt: skip
         self._executing(tr.pop_started(), tr.current, tr.done)
@@ -734,7 +747,7 @@ class GrblStreamer(StreamerBase):
         except Fault as f:
             if f.kind in ("interrupted", "stopped"):
                 f.reason += "; " + self.halt(reset=self.reset_after_halt, heard=heard)
-            elif f.kind == "timeout":
+            elif f.kind == "timeout" and not self.halt_report:  # (a stalled pause has halted)
                 self._rt_safe(FEED_HOLD)  # whatever it is doing, it should not go on
             raise
         finally:
@@ -821,9 +834,35 @@ class GrblStreamer(StreamerBase):
             st.full_state == "Hold:0" and st.planner_free is not None and cap is not None
             and not pause_line
         )  # fmt: skip
+        planner_empty = st.planner_free is None or cap is None or st.planner_free >= cap
+        res = self._results[inflight[0][0]] if inflight and self._results else None
+        dwell = res.dwell_s if res is not None and res.dwell_s else 0.0
+        bf = st.rx_free is not None and st.planner_free is not None and bool(self._rx_cap)
+        if stopped and planner_empty and s_q is not None and bf:
+            # Mid-stream (needs Bf, $10=3): GRBL stands with an empty planner, yet the oldest
+            # unanswered line had wholly reached it before the '?' and is not in its receive
+            # buffer. Busy with it (out of the buffer, not planned yet) lasts milliseconds;
+            # seen at every such report spanning lost_ok_confirm_s (and a dwell), an answer is
+            # missing: after a lost ok each later ok is taken for the line before its own, so
+            # one line too many stays unanswered whichever it is. (A starved GRBL goes Idle
+            # between lines while the stream goes on: the wait for silence below would come
+            # only at the end.)
+            hit = False
+            if inflight and inflight[0][3] <= s_q:
+                n0 = inflight[0][1]
+                arrived = sum(min(n, max(0, s_q - (end - n))) for _, n, _, end in inflight)
+                hit = self._rx_cap - st.rx_free <= arrived - n0 + 1  # type: ignore[operator]
+            if not hit:
+                self._idle_hits = None
+            else:
+                since, n_rep = self._idle_hits or (now, 0)
+                self._idle_hits = (since, n_rep + 1)
+                if n_rep + 1 >= 3 and now - since >= self.lost_ok_confirm_s + dwell:
+                    upto = max(k for k, _, _, end in inflight if end <= s_q)
+                    self._lost_answers(inflight, items, st, heard, arrived_upto=upto)
         empty = (
             stopped
-            and (st.planner_free is None or cap is None or st.planner_free >= cap)
+            and planner_empty
             and (st.rx_free is None or st.rx_free >= (self._rx_cap or 128) - 1)
         )
         if not inflight or not empty:
@@ -832,10 +871,7 @@ class GrblStreamer(StreamerBase):
         # the line time of what is outstanding, and a dwell under way, are allowed for
         wait = self.lost_ok_confirm_s
         nbytes = sum(n for _, n, _, _ in inflight)
-        wait += nbytes * 10.0 / max(self.cfg.baudrate, 1)
-        res = self._results[inflight[0][0]] if self._results else None
-        if res is not None and res.dwell_s:
-            wait += res.dwell_s
+        wait += nbytes * 10.0 / max(self.cfg.baudrate, 1) + dwell
         if now - self._last_io < wait:
             return
         if self._lost_since is None:
@@ -847,16 +883,24 @@ class GrblStreamer(StreamerBase):
         self._lost_answers(inflight, items, st, heard)
 
     def _lost_answers(
-        self, inflight: deque, items: list[Item], st: GrblStatus, heard: list[float]
+        self,
+        inflight: deque,
+        items: list[Item],
+        st: GrblStatus,
+        heard: list[float],
+        arrived_upto: int | None = None,
     ) -> None:
-        last = items[self._sent_pos]
+        """The lost-answer fault; ``arrived_upto``: mid-stream, the last line known to have
+        reached GRBL (the lines after it may be on the wire; the halt's reset discards them)."""
+        last = items[self._sent_pos] if arrived_upto is None else items[arrived_upto]
+        upto_pos = self._sent_pos if arrived_upto is None else arrived_upto
         tr = self.tracker
         pos = self._work_pos(st)
         known = -1
         if tr is not None and pos is not None:
-            # GRBL processed every line sent: the last one whose move ends where the machine
-            # stands, and all before it, ran (an answer lost might have been an error:N)
-            j = tr.line_ending_at(pos, range(self._sent_pos + 1))
+            # GRBL processed every line that reached it: the last one whose move ends where the
+            # machine stands, and all before it, ran (an answer lost might have been an error:N)
+            j = tr.line_ending_at(pos, range(upto_pos + 1))
             if j >= 0:
                 known = j
                 tr.finish_all(j, self.clock())
@@ -869,11 +913,20 @@ class GrblStreamer(StreamerBase):
                 b = items[known].block
                 where += f", the end of block {b}" if b >= 0 else ", the end of the preamble"
         upto = f"up to block {last.block}" if last.block >= 0 else "of the restart preamble"
-        reason = (
-            f"GRBL is {st.full_state} with empty buffers, so it has processed every line sent "
-            f"({upto}), but {len(inflight)} answer(s) never came: lost or garbled on the line"
-            f"{why}; which line they belonged to cannot be told{where}; nothing more was sent"
-        )
+        if arrived_upto is None:
+            reason = (
+                f"GRBL is {st.full_state} with empty buffers, so it has processed every line sent "
+                f"({upto}), but {len(inflight)} answer(s) never came: lost or garbled on the line"
+                f"{why}; which line they belonged to cannot be told{where}; nothing more was sent"
+            )
+        else:
+            reason = (
+                f"GRBL stood {st.full_state} with an empty planner, report after report, while a "
+                f"line that had reached it stayed unanswered, so it had processed the lines "
+                f"{upto} but an answer never came: lost or garbled on the line{why}; "
+                f"which line it belonged to cannot be told{where}; sending stopped, and the "
+                "lines still on their way are discarded by the reset"
+            )
         raise Fault("lost-ok", reason + "; " + self.halt(reset=self.reset_after_halt, heard=heard))
 
     # -- ending --------------------------------------------------------------------------------

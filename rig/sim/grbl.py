@@ -51,6 +51,7 @@ Fault knobs (``sim_``): ``sim_stop_answering_after_block=k`` (after k lines: sil
 code)`` (answer line k with ``error:code`` once, not executing it), ``sim_alarm_at_block=(k,
 code)`` (``ALARM:code`` when line k starts), ``sim_drop_ok_at_line=k`` (line k runs, its ``ok``
 is never sent: line noise), ``sim_garble_ok_at_line=k`` (its ``ok`` arrives as ``oo``),
+``sim_noise_at_line=k`` (a line of noise arrives before line k's ``ok``, which is not lost),
 ``sim_reset_at_block=k`` (a reset when line k starts: ``ALARM:3`` if moving),
 ``sim_stop_answering_at_s=t``, ``sim_alarm_at_s=(t, code)`` (at simulated time t). Lines count
 from 0 among the g-code lines received (``$`` lines not counted).
@@ -129,6 +130,7 @@ class SimGrbl(SimControllerBase):
         sim_error_at_block: tuple[int, int] | None = None,
         sim_drop_ok_at_line: int | None = None,
         sim_garble_ok_at_line: int | None = None,
+        sim_noise_at_line: int | None = None,
         sim_reset_at_block: int | None = None,
         **base_kw: Any,
     ) -> None:
@@ -142,6 +144,7 @@ class SimGrbl(SimControllerBase):
         self.sim_error_at_block = sim_error_at_block
         self.sim_drop_ok_at_line = sim_drop_ok_at_line
         self.sim_garble_ok_at_line = sim_garble_ok_at_line
+        self.sim_noise_at_line = sim_noise_at_line
         self.sim_reset_at_block = sim_reset_at_block
         self.settings: dict[int, float] = dict(_SETTINGS)
         self.settings[10] = status_report_mask
@@ -296,6 +299,10 @@ class SimGrbl(SimControllerBase):
             self._event("ok_garbled", f"line {k}: its ok arrives as 'oo'")
             self._reply(b"oo")
             return
+        if k is not None and k == self.sim_noise_at_line:
+            self.sim_noise_at_line = None
+            self._event("noise", f"line {k}: a line of noise before its ok")
+            self._reply(b"\xfe~#q")
         self.oks += 1
         self._reply(b"ok")
 
