@@ -1,21 +1,36 @@
-"""Chatter detection from cutting forces: two indicators per stretch of steady cutting.
+"""Chatter detection from cutting forces: three indicators per stretch of steady cutting.
 
-- Spectrum: the share of the force's (AC) energy away from the spindle's harmonics. A stable
-  cut is periodic with the spindle (tooth passing and runout are spindle harmonics), chatter is
-  not: it adds a component near a structural mode and its sidebands f_c + k f_tooth. The
-  record is cut to whole revolutions and not windowed, so the harmonics fall on FFT bins and do
-  not leak. The strongest component away from the harmonics is the chatter frequency reported.
+- Spectrum: the share of the force's (AC) energy up to ``max_hz`` (default 0.3 x the rate)
+  away from the spindle's harmonics, so away from every tooth-passing harmonic. A stable cut is
+  periodic with the spindle (tooth passing and runout are spindle harmonics), chatter is not: it
+  adds a component near a structural mode and its sidebands f_c + k f_tooth. The stretch is
+  Hann-windowed (a harmonic's leakage stays within a few bins), the spindle frequency is taken
+  from the record (its strongest harmonic's peak within ``speed_tolerance`` of the commanded
+  speed), and a band of ``harmonic_band`` x the spindle frequency (at least 3 bins) around each
+  harmonic is never chatter: a force level changing within the stretch (entry, exit) spreads a
+  harmonic by a few Hz (a stable 3-flute cut at 6000 rpm was once "chatter at 297 Hz", its
+  300 Hz tooth frequency). The strongest component off the bands is the chatter frequency.
 - Once-per-revolution sampling (Schmitz, Medicus & Dutterer 2002): samples taken at the same
   spindle angle, revolution after revolution, repeat in a stable cut and scatter under chatter.
   The statistic is the variance of those samples (averaged over ``phases`` angles per
   revolution) over the variance of the whole signal: ~0 stable, towards 1 under chatter.
+- Growth: the RMS of the part off the harmonic bands over the last third of the stretch over
+  its first third. A stable cut's entry transient dies out (below 1); chatter grows, or holds
+  once the tool leaves the cut (about 1 and above).
 
-A stretch chatters when both exceed their thresholds (either alone is fooled: the spectrum by a
-force level that changes within the stretch, the sampling by noise on a light cut). Only
-cutting revolutions are judged: those whose mean resultant lies above ``cut_fraction`` of the way
-from the stretch's quietest revolutions (5th percentile: air, if any) to its busiest (95th), or
-above ``cut_fraction`` of the busiest, whichever is lower; the longest run of them, less one at
-each end (entry and exit).
+A stretch chatters when all three exceed their thresholds (energy alone is fooled by a force
+level that changes within the stretch, the sampling by noise on a light cut, growth by noise).
+The defaults (energy 0.1, opr 0.2, growth 0.8, band 0.05) are calibrated on the regenerative
+twin (``bench/bench_chatter_detect.py``: 330 calibration and 252 held-out cuts, 2-4 teeth,
+slot, half and quarter immersion up and down, 0.5-1.5 x the semi-discretization limit, the
+truth from the twin's true force). Blind spot: period-doubling chatter of a cutter with an even
+tooth count sits at odd multiples of half the tooth frequency, which are spindle harmonics
+(where runout also puts lines), so it is seen only through its sidebands.
+
+Only cutting revolutions are judged: those whose mean resultant lies above ``cut_fraction`` of
+the way from the stretch's quietest revolutions (5th percentile: air, if any) to its busiest
+(95th), or above ``cut_fraction`` of the busiest, whichever is lower; the longest run of them,
+less one at each end (entry and exit).
 """
 
 from __future__ import annotations
@@ -33,20 +48,32 @@ from analysis.errors import AnalysisError
 @dataclass(frozen=True)
 class ChatterSettings:
     """Thresholds: ``energy_ratio`` (share of AC energy off the spindle harmonics),
-    ``opr_ratio`` (once-per-revolution variance over total variance); ``min_revolutions`` a
-    stretch needs to be judged; ``cut_fraction`` where a revolution starts to count as cutting
-    (module docstring); ``harmonic_band_hz`` half-width kept around each spindle harmonic
-    (default: 2 % of the spindle frequency, at least one FFT bin); ``phases`` per revolution."""
+    ``opr_ratio`` (once-per-revolution variance over total variance), ``growth_ratio`` (RMS
+    off the harmonics, last third over first third); ``min_revolutions`` a stretch needs to be
+    judged; ``cut_fraction`` where a revolution starts to count as cutting (module docstring);
+    ``harmonic_band_hz`` half-width kept around each spindle harmonic (default:
+    ``harmonic_band`` x the spindle frequency, at least 3 FFT bins); ``speed_tolerance`` how far
+    (relative) the spindle may run from the commanded speed; ``max_hz`` the highest frequency
+    judged (default 0.3 x the rate: above it a DAQ's aliases fold harmonics off the harmonics);
+    ``phases`` per revolution."""
 
     energy_ratio: float = 0.1
-    opr_ratio: float = 0.1
+    opr_ratio: float = 0.2
     min_revolutions: int = 6
     cut_fraction: float = 0.5
     harmonic_band_hz: float | None = None
     phases: int = 16
+    growth_ratio: float = 0.8
+    harmonic_band: float = 0.05
+    speed_tolerance: float = 0.01
+    max_hz: float | None = None
 
     def __post_init__(self) -> None:
-        for name in ("energy_ratio", "opr_ratio", "cut_fraction"):
+        if not self.growth_ratio > 0:
+            raise AnalysisError(f"chatter settings: growth_ratio = {self.growth_ratio}: "
+                                "expected > 0")  # fmt: skip
+        for name in ("energy_ratio", "opr_ratio", "cut_fraction", "harmonic_band",
+                     "speed_tolerance"):  # fmt: skip
             v = getattr(self, name)
             if not 0 < v < 1:
                 raise AnalysisError(f"chatter settings: {name} = {v}: expected in (0, 1)")
@@ -62,7 +89,9 @@ class StretchChatter:
 
     ``judged`` False (with ``reason``) when the stretch holds too few cutting revolutions;
     then ``chatter`` is False and the figures NaN. Times in s on the run clock (samples from 0
-    without one), ``frequency_hz`` the strongest component off the spindle harmonics.
+    without one), ``frequency_hz`` the strongest component off the spindle harmonics;
+    ``growth`` (last third over first third), ``spindle_rpm_measured`` (from the record) and
+    ``band_hz`` (the half-width kept around each harmonic).
     """
 
     block: int
@@ -77,6 +106,9 @@ class StretchChatter:
     energy_threshold: float
     opr_threshold: float
     reason: str = ""
+    growth: float = math.nan
+    spindle_rpm_measured: float = math.nan
+    band_hz: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -154,6 +186,31 @@ def _cutting_stretch(
     return int(edges[run0]) if count else 0, count
 
 
+def _spindle_hz(p: np.ndarray, f: np.ndarray, f_sp0: float, tol: float) -> float:
+    """The spindle frequency from the record: the strongest spindle harmonic's peak within
+    ``tol`` of where the commanded speed puts it (parabolic interpolation on the zero-padded
+    spectrum ``p`` at frequencies ``f``), divided by its order; the commanded one when no
+    harmonic rises clear of its neighbourhood."""
+    df = f[1] - f[0]
+    best, f_sp = 0.0, f_sp0
+    for k in range(1, int(min(f[-1] / f_sp0, 40)) + 1):
+        lo, hi = np.searchsorted(f, [k * f_sp0 * (1 - tol), k * f_sp0 * (1 + tol)])
+        if hi - lo < 3 or lo < 1 or hi >= len(p) - 1:
+            continue
+        i = lo + int(np.argmax(p[lo:hi]))
+        if p[i] <= best or i in (lo, hi - 1):
+            continue
+        a, b, c = np.log(p[i - 1 : i + 2] + 1e-300)
+        den = a - 2 * b + c
+        shift = 0.5 * (a - c) / den if den < 0 else 0.0
+        best, f_sp = p[i], (f[i] + shift * df) / k
+    return float(f_sp)
+
+
+def _off_harmonic_mask(f: np.ndarray, f_sp: float, half_hz: float) -> np.ndarray:
+    return np.abs(f - np.round(f / f_sp) * f_sp) > half_hz
+
+
 def indicators(
     forces_n: np.ndarray, rate_hz: float, spindle_rpm: float,
     settings: ChatterSettings | None = None, block: int = -1, t0_s: float = 0.0,
@@ -179,33 +236,54 @@ def indicators(
     n = int(round(revs * spr))
     seg = x[first : first + n]
     seg = seg - seg.mean(axis=0)
-    # Spectrum over whole revolutions: energy per bin, summed over channels.
-    p = (np.abs(np.fft.rfft(seg, axis=0)) ** 2).sum(axis=1)
-    f = np.fft.rfftfreq(n, 1.0 / rate_hz)
-    f_sp = abs(spindle_rpm) / 60.0
+    # Hann-windowed, zero-padded spectrum: a harmonic's leakage stays within a few bins of it,
+    # and its peak can be placed between bins (the spindle's true speed).
+    n_fft = 1 << int(math.ceil(math.log2(4 * n)))
+    p = (np.abs(np.fft.rfft(seg * np.hanning(n)[:, None], n_fft, axis=0)) ** 2).sum(axis=1)
+    f = np.fft.rfftfreq(n_fft, 1.0 / rate_hz)
+    f_sp = _spindle_hz(p, f, abs(spindle_rpm) / 60.0, st.speed_tolerance)
+    # Never chatter near a spindle (so tooth-passing) harmonic: the band holds the window's
+    # main lobe (2 bins) and a force level changing within the stretch (entry, exit, a ramp
+    # in depth) that spreads each harmonic by a few Hz.
     half = st.harmonic_band_hz
     if half is None:
-        half = max(0.02 * f_sp, 1.01 * rate_hz / n)
-    near = np.abs(f - np.round(f / f_sp) * f_sp) <= half
-    total = p[1:].sum()
-    off = np.where(near, 0.0, p)
-    energy = float(off.sum() / total) if total > 0 else 0.0
-    freq = float(f[np.argmax(off)]) if off.any() else nan
+        half = max(st.harmonic_band * f_sp, 3.0 * rate_hz / n)
+    f_max = st.max_hz or 0.3 * rate_hz
+    off = _off_harmonic_mask(f, f_sp, half) & (f <= f_max)
+    total = p[1 : np.searchsorted(f, f_max, "right")].sum()
+    p_off = np.where(off, p, 0.0)
+    energy = float(p_off.sum() / total) if total > 0 else 0.0
+    freq = float(f[np.argmax(p_off)]) if p_off.any() else nan
+    # Growth: the part off the harmonics (masked in the unwindowed spectrum), its RMS over the
+    # last third against the first third of the stretch. A stable cut's entry transient dies
+    # out (< 1); chatter grows, or holds once the tool leaves the cut (>= 1).
+    spec = np.fft.rfft(seg, axis=0)
+    f_n = np.fft.rfftfreq(n, 1.0 / rate_hz)
+    spec[~(_off_harmonic_mask(f_n, f_sp, half) & (f_n <= f_max))] = 0.0
+    resid = np.fft.irfft(spec, n, axis=0)
+    third = n // 3
+    early = float(np.sqrt(np.mean(resid[:third] ** 2)))
+    late = float(np.sqrt(np.mean(resid[-third:] ** 2)))
+    growth = late / early if early > 0 else (math.inf if late > 0 else 0.0)
     # Once per revolution at `phases` angles (linear interpolation between samples).
-    t_rev = np.arange(revs) * spr
-    var_opr = np.mean(
-        [
-            np.interp(t_rev + ph * spr / st.phases, np.arange(n), seg[:, c]).var()
-            for ph in range(st.phases)
-            for c in range(seg.shape[1])
-        ]
-    ) * seg.shape[1]
+    spr_true = rate_hz / f_sp
+    t_rev = np.arange(int(n // spr_true)) * spr_true
+    var_opr = (
+        np.mean(
+            [
+                np.interp(t_rev + ph * spr_true / st.phases, np.arange(n), seg[:, c]).var()
+                for ph in range(st.phases)
+                for c in range(seg.shape[1])
+            ]
+        )
+        * seg.shape[1]
+    )
     var_all = seg.var(axis=0).sum()
     opr = float(var_opr / var_all) if var_all > 0 else 0.0
-    chatter = energy > st.energy_ratio and opr > st.opr_ratio
+    chatter = energy > st.energy_ratio and opr > st.opr_ratio and growth > st.growth_ratio
     return StretchChatter(block, t0_s + first / rate_hz, t0_s + (first + n) / rate_hz, revs,
                           True, chatter, freq, energy, opr, st.energy_ratio,
-                          st.opr_ratio)  # fmt: skip
+                          st.opr_ratio, "", growth, 60.0 * f_sp, half)  # fmt: skip
 
 
 def detect_chatter(
