@@ -4,9 +4,20 @@ take longer, never changes what happens in simulated time)."""
 
 from __future__ import annotations
 
+import hashlib
+import re
+import subprocess
+import sys
 import threading
 import time
+from pathlib import Path
 
+import h5py
+import numpy as np
+import pytest
+
+from analysis.runs import file as rf
+from rig.campaign import load_campaign, run_campaign
 from rig.sim.clock import SimClock
 
 
@@ -62,3 +73,85 @@ def test_sleep_until_a_gated_time_waits_for_the_gate_and_honours_stop() -> None:
     clk.gate("arm", None)
     assert clk.sleep_until(1.5)
     assert clk.now() >= 1.5
+
+
+# -- whole campaigns: a busy host changes how long a simulated run takes, never its samples ---
+
+CAMPAIGNS = Path(__file__).resolve().parent.parent / "configs" / "campaigns"
+BUSY_PROCESSES = 2
+BUSY_CODE = "while True:\n    pass\n"
+
+
+def _reduced_feed_sweep(tmp_path: Path, feeds: str, block_length_mm: float) -> Path:
+    """The shipped feed sweep with fewer feeds and a shorter slot (same tool, modes, edge limit)."""
+    text = (CAMPAIGNS / "feed-sweep.toml").read_text()
+    text = re.sub(r"feed_mm_min = \[[^\]]*\]", f"feed_mm_min = [{feeds}]", text)
+    text = text.replace("block_length_mm = 40.0", f"block_length_mm = {block_length_mm}")
+    p = tmp_path / "feed-sweep.toml"
+    p.write_text(text)
+    return p
+
+
+def _fingerprint(folder: Path) -> dict[str, tuple[int, str, str]]:
+    """Per run file: (samples, sha256 of the force dataset, sha256 of the block table's
+    execution starts)."""
+    out = {}
+    for f in sorted(folder.glob("*/runs/*.h5")):
+        with h5py.File(f, "r") as h:
+            volts = h[rf.VOLTS][()]
+            exec_s = h[rf.BLOCKS]["exec_s"]
+        out[f.name] = (
+            volts.shape[0],
+            hashlib.sha256(np.ascontiguousarray(volts).tobytes()).hexdigest(),
+            hashlib.sha256(np.ascontiguousarray(exec_s).tobytes()).hexdigest(),
+        )
+    return out
+
+
+def _base_feed(folder: Path) -> float | None:
+    from analysis.rules import find_base_feed, sweep_runs_from_files
+
+    files = sorted(folder.glob("*/runs/*.h5"))
+    return find_base_feed(sweep_runs_from_files(files).runs).base_feed_mm_min
+
+
+def _run(config: Path, out: Path, busy: int) -> None:
+    hogs: list[subprocess.Popen] = []
+    try:
+        for _ in range(busy):
+            hogs.append(subprocess.Popen([sys.executable, "-c", BUSY_CODE]))
+        res = run_campaign(load_campaign(config), out_root=out, progress=False)
+        assert all(r.status == "success" for r in res.runs), [r.reason for r in res.runs]
+    finally:
+        for p in hogs:
+            p.kill()
+        for p in hogs:
+            p.wait(timeout=10)
+
+
+def _quiet_and_busy(config: Path, tmp_path: Path) -> tuple[dict, dict]:
+    _run(config, tmp_path / "quiet", 0)
+    _run(config, tmp_path / "busy", BUSY_PROCESSES)
+    return _fingerprint(tmp_path / "quiet"), _fingerprint(tmp_path / "busy")
+
+
+def test_a_reduced_feed_sweep_is_bit_identical_beside_two_busy_processes(tmp_path: Path) -> None:
+    cfg = _reduced_feed_sweep(tmp_path, "600, 800, 1000, 1200", 12.0)
+    quiet, busy = _quiet_and_busy(cfg, tmp_path)
+    assert len(quiet) == 4 and quiet == busy
+    assert _base_feed(tmp_path / "quiet") == _base_feed(tmp_path / "busy") == 1000.0
+
+
+@pytest.mark.slow
+def test_the_shipped_feed_sweep_is_bit_identical_beside_two_busy_processes(
+    tmp_path: Path,
+) -> None:
+    quiet, busy = _quiet_and_busy(CAMPAIGNS / "feed-sweep.toml", tmp_path)
+    assert len(quiet) == 10 and quiet == busy
+    assert _base_feed(tmp_path / "quiet") == _base_feed(tmp_path / "busy") == 1000.0
+
+
+@pytest.mark.slow
+def test_the_demo_campaign_is_bit_identical_beside_two_busy_processes(tmp_path: Path) -> None:
+    quiet, busy = _quiet_and_busy(CAMPAIGNS / "facemill-ploughing.toml", tmp_path)
+    assert len(quiet) >= 4 and quiet == busy
