@@ -62,14 +62,18 @@ def _forces(args: argparse.Namespace) -> int:
     print(f"axes: {axes} (x feed, y cross-feed, z tool axis)")
     if "axes_choice" in out:
         print(f"axes {out['axes_choice']['line']}")
+    for w in out["warnings"]:  # beside the figures, not only on stderr
+        if w.startswith("axes "):
+            print(f"warning: {w}")
     for r in out.get("outside_limits", []):
         how = "kept (--keep)" if r["kept"] else "left out (--keep fits it)"
         print(f"beyond the tool's limits, {how}: {r['run']}: {r['reason']}")
     if out["statistics"]:
         # the status on the number's own line: a coefficient is never shown without it
-        rows = [{"coefficient": k, **{c: v for c, v in row.items() if c != "identified"}}
+        rows = [{"coefficient": k, "value": row["value"], "status": row.get("status", ""),
+                 **{c: v for c, v in row.items() if c not in ("identified", "value", "status")}}
                 for k, row in out["statistics"].items()]  # fmt: skip
-        print_table(rows)
+        print_table(rows, cell_max=400)
         print(out["statistics_note"])
     _print_trust(out)
     if out["adequacy"]:

@@ -61,7 +61,8 @@ def _demo(args: argparse.Namespace) -> int:
           f"simulated runs (forces: {res.force_model}), beside the simulator's truth:")  # fmt: skip
     print_table([{"coefficient": r["coefficient"], "identified": r["identified"],
                   "truth": r.get("truth", nan), "error_%": r.get("error_pct", nan),
-                  "std_error": r["std_error"]} for r in fm.get("coefficients", [])])  # fmt: skip
+                  "std_error": r["std_error"], "status": r.get("status", "")}
+                 for r in fm.get("coefficients", [])])  # fmt: skip
     err = fm.get("validation_max_abs_error_pct")
     if err is not None:
         print(f"validation ({fm.get('validate_runs', 0)} runs at other feeds per tooth): "

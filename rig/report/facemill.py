@@ -80,6 +80,11 @@ def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section
         row = {"coefficient": name, "identified": s["value"], "std_error": s["std_error"],
                "ci_low": s["ci_low"], "ci_high": s["ci_high"],
                "boot_ci_low": s["boot_ci_low"], "boot_ci_high": s["boot_ci_high"]}  # fmt: skip
+        # the status beside the number (issue 27): ploughing terms the runs do not support
+        edge_ok = fit.adequacy is None or fit.adequacy.edge_identified
+        row["status"] = ("identified" if edge_ok or not name.startswith("P_") else
+                         "not identified: the runs do not separate ploughing from a size effect "
+                         "(see model adequacy)")  # fmt: skip
         if truth is not None:
             tv = float(truth[name])
             row["truth"] = tv
