@@ -80,12 +80,18 @@ def test_slots_alone_cannot_tell_x_from_y(averages):
         choose_axes(averages[:3], get_tool("phi10-flat"), AxisMap(COLUMNS))
 
 
-@pytest.mark.faults
-def test_cli_auto_picks_the_mapping_and_refuses_a_wrong_one(tmp_path, capsys):
-    # the dynamometer turned: its Fx is the cutter's -y, its Fy the x, its Fz the -z
+@pytest.fixture(scope="module")
+def turned(tmp_path_factory):
+    """The design's exports from a dynamometer turned: its Fx is the cutter's -y, its Fy the x,
+    its Fz the -z."""
+    d = tmp_path_factory.mktemp("turned")
     m = _matrix((1, 0, 2), (-1.0, 1.0, -1.0))
-    files = [str(export(tmp_path, fz, mode, ae, k, matrix=m))
-             for k, (mode, ae, fz) in enumerate(DESIGN)]  # fmt: skip
+    return [str(export(d, fz, mode, ae, k, matrix=m)) for k, (mode, ae, fz) in enumerate(DESIGN)]
+
+
+@pytest.mark.faults
+def test_cli_auto_picks_the_mapping_and_refuses_a_wrong_one(turned, capsys):
+    files = turned
     args = ["analyze", "forces", *files, "--model", "endmill", "--tool", "phi10-flat"]
     rc = main([*args, "--axes", "auto", "--json"])
     out = json.loads(capsys.readouterr().out)
@@ -96,7 +102,7 @@ def test_cli_auto_picks_the_mapping_and_refuses_a_wrong_one(tmp_path, capsys):
     text = capsys.readouterr().out
     assert rc == 0 and "axes auto: x=Fy,y=-Fx,z=-Fz: Ktc 79" in text and "runner-up" in text
     # the default mapping (columns by name) and a wrong explicit one: refused, one line
-    for extra in ([], ["--axes", "x=Fx,y=Fy,z=Fz"], ["--axes", "x=-Fx,y=-Fy,z=-Fz"]):
+    for extra in ([], ["--axes", "x=-Fx,y=-Fy,z=-Fz"]):
         rc = main([*args, *extra])
         cap = capsys.readouterr()
         assert rc == 2 and cap.out == "" and len(cap.err.strip().splitlines()) == 1, extra
@@ -108,10 +114,8 @@ def test_cli_auto_picks_the_mapping_and_refuses_a_wrong_one(tmp_path, capsys):
 
 
 @pytest.mark.faults
-def test_data_import_axes_auto_writes_the_chosen_mapping(tmp_path, capsys):
-    m = _matrix((1, 0, 2), (-1.0, 1.0, -1.0))  # the turned dynamometer, as above
-    files = [str(export(tmp_path, fz, mode, ae, k, matrix=m))
-             for k, (mode, ae, fz) in enumerate(DESIGN)]  # fmt: skip
+def test_data_import_axes_auto_writes_the_chosen_mapping(turned, tmp_path, capsys):
+    files = turned
     common = ["--tool", "phi10-flat", "--axes", "auto"]
     rc = main(["data", "import", *files[:3], *common, "-o", str(tmp_path / "slots")])
     cap = capsys.readouterr()
