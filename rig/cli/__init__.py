@@ -43,10 +43,11 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    from rig.cli._common import error_line
+    from rig.cli._common import error_line, heartbeat_for
 
     try:
-        return int(args.func(args) or 0)
+        with heartbeat_for(args):  # a line every 5 s on stderr when it is not a terminal
+            return int(args.func(args) or 0)
     except CutlabError as exc:
         # one line, always: a message with several problems (one per field) joined by "; "
         error_line("; ".join(line.strip() for line in str(exc).split("\n") if line.strip()))

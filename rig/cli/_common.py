@@ -4,6 +4,7 @@ and the argument types that keep bad numbers at the edge."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import sys
@@ -154,8 +155,15 @@ def print_json(obj: Any) -> None:
     sys.stdout.write("\n")
 
 
-def print_table(rows: Sequence[Mapping[str, Any]], floatfmt: str = ".4g") -> None:
-    """A plain aligned text table of dict rows to stdout."""
+#: widest cell of a text table; a longer value is folded onto continuation lines (the whole
+#: value is in --json), so one wide cell (a conditions dict) does not pad every row
+TABLE_CELL_MAX = 60
+
+
+def print_table(rows: Sequence[Mapping[str, Any]], floatfmt: str = ".4g",
+                cell_max: int = TABLE_CELL_MAX) -> None:  # fmt: skip
+    """A plain aligned text table of dict rows to stdout; a cell longer than ``cell_max``
+    characters is folded onto continuation lines (at ``, `` or spaces where it can)."""
     if not rows:
         print("(no rows)")
         return
@@ -167,13 +175,26 @@ def print_table(rows: Sequence[Mapping[str, Any]], floatfmt: str = ".4g") -> Non
             if x.is_integer() and abs(x) < 1e12:
                 return str(int(x))  # 30000, not 3e+04
             return format(x, floatfmt)
-        return str(v)
+        if isinstance(v, Mapping):  # {'a': 1} -> a=1, b=2 (folds at the commas)
+            return ", ".join(f"{k}={fmt(x)}" for k, x in v.items())
+        return " ".join(str(v).split("\n"))
 
-    cells = [[fmt(r.get(c, "")) for c in cols] for r in rows]
-    widths = [max(len(c), *(len(row[i]) for row in cells)) for i, c in enumerate(cols)]
+    cells = [[_fold(fmt(r.get(c, "")), cell_max) for c in cols] for r in rows]
+    widths = [max(len(c), *(len(ln) for row in cells for ln in row[i])) for i, c in enumerate(cols)]
     print("  ".join(c.ljust(w) for c, w in zip(cols, widths)))
     for row in cells:
-        print("  ".join(v.ljust(w) for v, w in zip(row, widths)))
+        for k in range(max(len(lines) for lines in row)):
+            print("  ".join((lines[k] if k < len(lines) else "").ljust(w)
+                            for lines, w in zip(row, widths)))  # fmt: skip
+
+
+def _fold(text: str, width: int) -> list[str]:
+    """``text`` as lines of at most ``width`` characters (broken at spaces where it can)."""
+    if len(text) <= width:
+        return [text]
+    import textwrap
+
+    return textwrap.wrap(text, width, break_long_words=True, break_on_hyphens=False) or [""]
 
 
 def status(msg: str) -> None:
@@ -301,6 +322,7 @@ class Progress:
             n += f" {self.unit}"
         note = f" [{self.note}]" if self.note else ""
         print(f"{self.desc}: {n}{note}, {now - self._t0:.0f} s", file=sys.stderr, flush=True)
+        _last_line[0] = now
 
     def close(self) -> None:
         if self.bar is not None:
@@ -314,6 +336,85 @@ class Progress:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+#: when the last plain progress line went to stderr (time.monotonic), from any helper here
+_last_line: list[float] = [-math.inf]
+
+
+class Heartbeat:
+    """A plain line on stderr every :attr:`interval_s` seconds while a command works and stderr
+    is not a terminal (a log, CI, a service), for commands without a progress count of their
+    own, or between their counts: ``cutlab campaign run: working, 25 s [run 3 of 8]``. Quiet
+    while a :class:`Progress` line went out within the interval; nothing for a command that
+    ends within it. ``note`` (set any time, a string or a function giving one) says where the
+    work is. A daemon thread that ends at :meth:`close` (within a second)."""
+
+    interval_s = 5.0
+
+    def __init__(self, desc: str, quiet: bool = False) -> None:
+        import threading
+
+        self.desc = desc
+        self.note: str | Callable[[], str] = ""
+        self._t0 = time.monotonic()
+        self._stop = threading.Event()
+        self._thread = None
+        if not quiet and not _isatty(sys.stderr):
+            self._thread = threading.Thread(target=self._beat, name="cutlab-heartbeat",
+                                            daemon=True)  # fmt: skip
+            self._thread.start()
+
+    def _beat(self) -> None:
+        while not self._stop.wait(min(1.0, self.interval_s)):
+            now = time.monotonic()
+            if now - max(self._t0, _last_line[0]) < self.interval_s:
+                continue
+            try:
+                note = self.note() if callable(self.note) else self.note
+            except Exception:  # noqa: BLE001 - a note that cannot be read is left out
+                note = ""
+            with contextlib.suppress(ValueError, OSError):  # stderr closed under us
+                print(f"{self.desc}: working, {now - self._t0:.0f} s{f' [{note}]' if note else ''}",
+                      file=sys.stderr, flush=True)  # fmt: skip
+            _last_line[0] = now
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+
+    def __enter__(self) -> Heartbeat:
+        _current_heartbeat.append(self)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+        with contextlib.suppress(ValueError):
+            _current_heartbeat.remove(self)
+
+
+_current_heartbeat: list[Heartbeat] = []
+
+#: commands that serve or wait on a device until stopped (their own output says they are
+#: alive), or stream with their own plain progress lines (rig/dnc/progress.py)
+_NO_HEARTBEAT = {"console", "dnc"}
+
+
+def heartbeat_for(args: argparse.Namespace) -> Heartbeat:
+    """The heartbeat of the command ``args`` names (``cutlab main`` wraps every command)."""
+    names = vars(args)
+    words = [names[k] for k in ("command", *sorted(k for k in names if k.endswith("_command")))
+             if isinstance(names.get(k), str)]  # fmt: skip
+    quiet = (not words or words[0] in _NO_HEARTBEAT or bool(getattr(args, "quiet", False))
+             or bool(getattr(args, "live", False)))  # fmt: skip
+    return Heartbeat(" ".join(["cutlab", *words]), quiet=quiet)
+
+
+def progress_note(note: str | Callable[[], str]) -> None:
+    """Say where a long command is (shown by the running :class:`Heartbeat`, if any)."""
+    if _current_heartbeat:
+        _current_heartbeat[-1].note = note
 
 
 def _isatty(stream: Any) -> bool:

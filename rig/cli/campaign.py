@@ -13,7 +13,14 @@ import argparse
 import contextlib
 from pathlib import Path
 
-from rig.cli._common import add_catalog_options, print_json, print_table, status
+from rig.cli._common import (
+    add_catalog_options,
+    error_line,
+    print_json,
+    print_table,
+    progress_note,
+    status,
+)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -74,11 +81,22 @@ def _dry_run(campaign, as_json: bool, out_root: str | None) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from rig.campaign import load_campaign, run_campaign
+    from analysis.errors import CutlabError
+    from rig.campaign import campaign_folder, load_campaign, run_campaign
 
-    campaign = load_campaign(args.config)
+    try:
+        campaign = load_campaign(args.config)
+    except CutlabError as exc:
+        if not args.dry_run:
+            raise
+        # the dry run lists every problem, one line each (the config's problems come joined)
+        for line in str(exc).splitlines():
+            if line.strip():
+                error_line(line.strip())
+        return 2
     if args.dry_run:
         return _dry_run(campaign, args.json, args.out)
+    progress_note(_runs_done(campaign_folder(campaign, args.out), len(campaign.tests)))
     live_ctx = contextlib.nullcontext(None)
     if args.live:
         from rig.cli.console import warn_bind
@@ -107,6 +125,20 @@ def _run(args: argparse.Namespace) -> int:
         status(f"cutlab: campaign stopped; run the same command again to resume ({result.folder})")
         return 130
     return 0 if result.ok else 1
+
+
+def _runs_done(folder: Path, total: int):  # noqa: ANN202 - a note for the heartbeat
+    """``3 of 8 runs ended, 2 cutting`` from the campaign's manifest (written atomically), for
+    the progress line on stderr."""
+
+    def note() -> str:
+        import json
+
+        runs = json.loads((folder / "campaign.json").read_text()).get("runs", {})
+        ended = sum(1 for r in runs.values() if r.get("status") not in (None, "running"))
+        return f"{ended} of {total} runs ended"
+
+    return note
 
 
 def _status(args: argparse.Namespace) -> int:

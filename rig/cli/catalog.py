@@ -4,14 +4,16 @@ cutlab catalog index DIR... [--index FILE] [--json]
     index the run files (.h5) under each DIR (the index lives in DIR/.cutlab-catalog.sqlite, or
     in FILE): new and changed files are read (metadata only) and hashed, unchanged ones skipped,
     deleted ones dropped; runs still being written are indexed as running
-cutlab catalog query EXPR [--index FILE|DIR] [--json|--csv] [--all-columns]
-    the runs matching EXPR, one row each: comparisons of columns (campaign, run, group, status,
+cutlab catalog query EXPR [DIR] [--index FILE|DIR] [--json|--csv] [--all-columns]
+    the runs matching EXPR, one row each (with its path, so two copies of a run differ):
+    comparisons of columns (campaign, run, group, status,
     tool, material, spindle_rpm, feed_mm_min, fz_mm, depth_mm, width_mm, ...) joined by
     and / or / not, e.g. "material == 'GM241' and 0.2 <= fz_mm <= 0.4"; "" for every run
-cutlab catalog show RUN [--index FILE|DIR] [--json]
+cutlab catalog show RUN [DIR] [--index FILE|DIR] [--json]
     one run's row (RUN: its name, CAMPAIGN/RUN, or its path)
 
-Without --index, query and show use the catalogue of the current folder or its nearest parent.
+DIR (or --index) names the archive folder that holds the catalogue, or the index file; without
+either, query and show use the catalogue of the current folder or its nearest parent.
 """
 
 from __future__ import annotations
@@ -42,13 +44,14 @@ def _query(args: argparse.Namespace) -> int:
     from analysis.catalog import MAIN_COLUMNS, query_runs, records
     from rig.cli._common import print_json, print_table
 
-    df = query_runs(args.expr, args.index)
+    df = query_runs(args.expr, _where(args))
     if args.json:
         print_json(records(df))
     elif args.csv:
         df.to_csv(sys.stdout, index=False)
     else:
-        cols = list(df.columns) if args.all_columns else list(MAIN_COLUMNS)
+        # the path tells two copies of an archive (same campaign and run names) apart
+        cols = list(df.columns) if args.all_columns else [*MAIN_COLUMNS, "path"]
         print_table(df[cols].to_dict("records"))
     return 0
 
@@ -57,7 +60,7 @@ def _show(args: argparse.Namespace) -> int:
     from analysis.catalog import show_run
     from rig.cli._common import print_json
 
-    row = show_run(args.run, args.index)
+    row = show_run(args.run, _where(args))
     if args.json:
         print_json(row)
         return 0
@@ -65,6 +68,20 @@ def _show(args: argparse.Namespace) -> int:
     for k, v in [*row.items(), *((f"conditions.{k}", v) for k, v in conditions.items())]:
         print(f"{k:<28} {v}")
     return 0
+
+
+def _where(args: argparse.Namespace) -> str | None:
+    """The catalogue named by DIR or --index (both: they must agree), else None (the current
+    folder's or a parent's)."""
+    from pathlib import Path
+
+    from analysis.errors import AnalysisError
+
+    if args.dir is not None and args.index is not None:
+        if Path(args.dir).resolve() != Path(args.index).resolve():
+            raise AnalysisError(f"catalog: DIR {args.dir!r} and --index {args.index!r} name two "
+                                "catalogues; give one")  # fmt: skip
+    return args.dir if args.dir is not None else args.index
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -81,6 +98,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     q = psub.add_parser("query", help="the runs matching an expression, one row each")
     q.add_argument("expr", metavar="EXPR",
                    help="e.g. \"material == 'GM241' and 0.2 <= fz_mm <= 0.4\" ('' for all)")
+    q.add_argument("dir", nargs="?", default=None, metavar="DIR",
+                   help="the archive folder indexed (or its index file); default: --index, "
+                   "else the current folder's or a parent's catalogue")  # fmt: skip
     q.add_argument("--index", default=None, metavar="FILE|DIR",
                    help="the catalogue (default: the current folder's or a parent's)")
     fmt = q.add_mutually_exclusive_group()
@@ -90,6 +110,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.set_defaults(func=_query)
     s = psub.add_parser("show", help="one run's catalogue row")
     s.add_argument("run", metavar="RUN", help="run name, CAMPAIGN/RUN, or path")
+    s.add_argument("dir", nargs="?", default=None, metavar="DIR",
+                   help="the archive folder indexed (or its index file); default: --index, "
+                   "else the current folder's or a parent's catalogue")  # fmt: skip
     s.add_argument("--index", default=None, metavar="FILE|DIR",
                    help="the catalogue (default: the current folder's or a parent's)")
     s.add_argument("--json", action="store_true", help="JSON on stdout")
