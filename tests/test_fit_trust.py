@@ -61,3 +61,4 @@ def test_kept_the_run_is_flagged_and_the_coefficients_are_not_identified(sweep, 
     assert "not identified: depends on one run: slot_ae10_fz0.1" in line
     assert "leave-one-out: run slot_ae10_fz0.1 moves Ktc by" in text
     assert "fit per direction: x: R^2" in text and "kept (--keep): slot_ae10_fz0.1" in text
+    assert "chip thickness checked against max_chip_mm 0.08 mm; speeds unchecked" in text

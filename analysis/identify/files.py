@@ -474,6 +474,9 @@ def fit_files(
     if endmill:
         out["outside_limits"] = [{"run": n, "reason": r, "kept": keep} for n, r in limits]
         out["speed_limits"] = "unchecked: the tool catalogue gives no speed range"
+        mc = tool_obj.max_chip_mm
+        out["chip_limit"] = (f"checked against max_chip_mm {mc:g} mm" if mc is not None else
+                             "unchecked: the tool gives no max_chip_mm")  # fmt: skip
         if limits and not keep:
             out["message"] += (f" (left out {len(limits)} run(s) beyond the tool's limits: "
                                + "; ".join(f"{n}: {r}" for n, r in limits)

@@ -65,6 +65,8 @@ def _forces(args: argparse.Namespace) -> int:
     for w in out["warnings"]:  # beside the figures, not only on stderr
         if w.startswith("axes "):
             print(f"warning: {w}")
+    if "chip_limit" in out:
+        print(f"tool limits: chip thickness {out['chip_limit']}; speeds {out['speed_limits']}")
     for r in out.get("outside_limits", []):
         how = "kept (--keep)" if r["kept"] else "left out (--keep fits it)"
         print(f"beyond the tool's limits, {how}: {r['run']}: {r['reason']}")
