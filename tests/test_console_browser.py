@@ -148,7 +148,8 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
     # Not a pipe: the console server (the campaign's child) would hold it open. A server left
     # by a failed test goes 2 s after the campaign process.
     log = (tmp_path / "campaign.log").open("w")
-    env = {**os.environ, "CUTLAB_CONSOLE_LINGER_S": "2"}
+    # the server stays this long after the campaign (browse mode), then goes by itself
+    env = {**os.environ, "CUTLAB_CONSOLE_LINGER_S": "8"}
     camp = subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, env=env)
     try:
         # The address with the session's token, as printed once the server answers (issue 31).
@@ -187,12 +188,16 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
             page.wait("run 2/2", lambda: page.text("run-progress") == "2/2", 60)
             page.wait("the cut of run 2", lambda: int(page.text("executing-block")) >= 3)
             assert page.text("machine-state") == "Run"
+            assert _buttons(page) == {"hold": True, "resume": False, "abort": True}
+            readouts = _watch_the_machine(page)
             # hold, with confirmation: the state shown is the one read back from the control
             page.click("hold")
             assert page.js("document.getElementById('confirm').open") is True
             assert page.text("machine-state") == "Run"  # nothing sent before the confirmation
             page.click("confirm-yes")
             page.wait("Hold read back", lambda: page.text("machine-state").startswith("Hold"))
+            page.wait("resume enabled", lambda: _buttons(page)["resume"])
+            assert not _buttons(page)["hold"]
             page.click("resume")
             page.click("confirm-yes")
             page.wait("Run read back", lambda: page.text("machine-state") == "Run")
@@ -203,6 +208,24 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
             assert any("feed hold" in e for e in events) and any("cycle start" in e for e in events)
             camp.wait(timeout=60)
             assert camp.returncode == 130, (tmp_path / "campaign.log").read_text()
+            server_pid = _server_pid(tmp_path / "campaign.log")
+            # The server outlives the campaign: the page says it ended, browses, acts on nothing.
+            page.wait("ended", lambda: page.text("machine-state") == "ended")
+            assert page.text("mode") == "browse"
+            assert _buttons(page) == {"hold": False, "resume": False, "abort": False}
+            assert "the campaign has ended" in page.js("document.getElementById('ended')"
+                                                       ".textContent")  # fmt: skip
+            page.wait("both runs listed", lambda: page.js("document.querySelectorAll("
+                                                          "'#runs li').length") == 2)  # fmt: skip
+            page.js("document.querySelectorAll('#runs li')[1].click()")
+            page.wait("the run browsed", lambda: "abort" in page.js(
+                "document.getElementById('browse-info').textContent"))  # fmt: skip
+            assert page.js("document.querySelectorAll('#browse-blocks li').length") > 3
+            # then it goes by itself, and the page says so instead of reconnecting forever
+            page.wait("the server's goodbye", lambda: "console server has stopped" in page.js(
+                "document.getElementById('ended').textContent"), 40)  # fmt: skip
+            assert page.js("document.getElementById('overlay').classList.contains('hidden')")
+            _gone(server_pid)
     finally:
         if camp.poll() is None:
             camp.terminate()  # SIGTERM: the runner stops safely, the console closes
@@ -222,3 +245,133 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
     # the abort names its source: the console and the page's address (not Ctrl-C)
     assert last.reason.startswith("operator stopped the run from the console (client 127.0.0.1:")
     assert not (tmp_path / "out" / "quick" / "live.json").exists()
+    _readouts_match_the_run_file(readouts, last)
+
+
+def _buttons(page: Page) -> dict[str, bool]:
+    return {b: not page.js(f"document.getElementById('{b}').disabled")
+            for b in ("hold", "resume", "abort")}  # fmt: skip
+
+
+def _server_pid(log: Path) -> int:
+    found = re.search(r"the console stays at .* \(server process (\d+)\)", log.read_text())
+    assert found, log.read_text()
+    return int(found.group(1))
+
+
+def _gone(pid: int, timeout_s: float = 30.0) -> None:
+    """The lingering server has exited (else it is ended here, and the test fails)."""
+    t_end = time.monotonic() + timeout_s
+    while time.monotonic() < t_end:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return
+        with contextlib.suppress(ChildProcessError):
+            os.waitpid(pid, os.WNOHANG)
+        time.sleep(0.1)
+    os.kill(pid, 15)
+    raise AssertionError(f"the console server {pid} did not exit after its linger")
+
+
+def _watch_the_machine(page: Page) -> list[dict[str, Any]]:
+    """While run 2 cuts: the DRO moves (estimated on the drip feed), the toolpath highlights
+    the block the controller executes, on screen where the page's own data puts it, and the
+    per-revolution readouts come (returned, to check against the run file)."""
+    xs: set[str] = set()
+    readouts: dict[int, dict[str, Any]] = {}
+
+    def moving() -> bool:
+        xs.add(page.text("dro-x"))
+        r = page.js("window.cutlab.readouts")
+        if r and r["run"] == 2:
+            readouts[r["rev"]] = r
+        return len(xs - {"-"}) >= 3 and len(readouts) >= 3
+
+    page.wait("the DRO to move and readouts to come", moving, 30)
+    # a drip feed reports no position: estimated from the program, and said so
+    page.wait("the estimated DRO", lambda: page.js("window.cutlab.dro.estimated") is True and
+              not page.js("document.getElementById('dro-estimated').classList"
+                          ".contains('hidden')"))  # fmt: skip
+    assert page.text("dro-spindle") == "1200"  # the program's S1200
+    assert float(page.text("dro-feed")) > 0
+    # the readouts on the page are the last ones received
+    shown = page.js("[...document.querySelectorAll('#readout-mean td')].map(e => e.textContent)")
+    last = page.js("window.cutlab.readouts")
+    assert shown == [f"{n} {v:.1f}" for n, v in zip(last["channels"], last["mean"])]
+    assert re.fullmatch(r"p50 \d+ ms, p95 \d+ ms", page.text("latency")), page.text("latency")
+    _toolpath_on_screen(page)
+    return list(readouts.values())
+
+
+def _toolpath_on_screen(page: Page) -> None:
+    """A screenshot of the toolpath canvas: the executing block's colour is drawn along the
+    segments the page's data gives for the block the controller executes (not judged by eye)."""
+    import io
+
+    from PIL import Image
+
+    for _ in range(20):  # the block may change between the screenshot and the reading
+        before = page.text("executing-block")
+        view = page.js("window.cutlab.toolpath()")
+        # the canvas's drawing area in page coordinates (inside its border)
+        rect = page.js("(() => { const c = document.getElementById('toolpath'); "
+                       "const r = c.getBoundingClientRect(); return [r.x + scrollX + "
+                       "c.clientLeft, r.y + scrollY + c.clientTop, c.clientWidth, "
+                       "c.clientHeight]; })()")  # fmt: skip
+        shot = page.call("Page.captureScreenshot", format="png",
+                         clip={"x": rect[0], "y": rect[1], "width": rect[2], "height": rect[3],
+                               "scale": 1})  # fmt: skip
+        if page.text("executing-block") == before and view and str(view["block"]) == before:
+            break
+        time.sleep(0.1)
+    else:
+        raise AssertionError("the executing block changed during every screenshot")
+    block = int(before)
+    segs = [s for s in page.js("window.cutlab.toolpathSegments()") if s[0] == block]
+    assert segs, f"block {block} has no segment in the toolpath"
+    img = Image.open(io.BytesIO(__import__("base64").b64decode(shot["data"]))).convert("RGB")
+    sx, sy = img.width / view["W"], img.height / view["H"]
+
+    def at(x_mm: float, y_mm: float) -> tuple[int, int]:
+        px = view["pad"] + (x_mm - view["x0"]) * view["k"]
+        py = view["H"] - view["pad"] - (y_mm - view["y0"]) * view["k"]
+        return round(px * sx), round(py * sy)
+
+    orange = (0xFF, 0x6F, 0x00)
+    hits = 0
+    for s in segs:
+        for f in (0.25, 0.5, 0.75):
+            x, y = at(s[2] + f * (s[4] - s[2]), s[3] + f * (s[5] - s[3]))
+            px = img.getpixel((min(max(x, 0), img.width - 1), min(max(y, 0), img.height - 1)))
+            hits += all(abs(a - b) < 40 for a, b in zip(px, orange))
+    assert hits >= 1, f"block {block}: no executing colour along its segments"
+    # and nowhere far from them: the orange pixels are near the block's segments
+    pts = [(x, y) for x in range(0, img.width, 2) for y in range(0, img.height, 2)
+           if all(abs(a - b) < 40 for a, b in zip(img.getpixel((x, y)), orange))]  # fmt: skip
+    assert pts
+    ends = [at(s[2], s[3]) for s in segs] + [at(s[4], s[5]) for s in segs]
+    xs = [e[0] for e in ends]
+    ys = [e[1] for e in ends]
+    margin = 8 * max(sx, sy)
+    near = [min(xs) - margin <= x <= max(xs) + margin and min(ys) - margin <= y <= max(ys) + margin
+            for x, y in pts]  # fmt: skip
+    assert all(near), "executing colour drawn away from the block"
+
+
+def _readouts_match_the_run_file(readouts: list[dict[str, Any]], run: rf.Run) -> None:
+    """The page's per-revolution mean / peak / RMS are the run file's: mean and peak from
+    analysis.runs.per_revolution, RMS computed here from the file's samples."""
+    from analysis.runs import per_revolution
+
+    assert run.force_n is not None
+    for r in readouts:
+        means, peaks = per_revolution(run.force_n, run.rate_hz, r["rpm"])
+        spr = run.rate_hz * 60 / r["rpm"]
+        k = r["rev"]
+        a, b = round(k * spr), round((k + 1) * spr)
+        rms = (run.force_n[a:b] ** 2).mean(axis=0) ** 0.5
+        # the page's zero is the rest's mean in the ring; the file's adds a drift correction
+        for got, want in ((r["mean"], means[k]), (r["peak"], peaks[k]), (r["rms"], rms)):
+            for g, w in zip(got, want):
+                assert abs(g - w) <= 0.5 + 0.01 * abs(w), (k, got, list(want))

@@ -123,10 +123,12 @@ class _LiveSession:
 
     def feed_hold(self) -> None:
         self.inner.feed_hold()
+        self._live._held = True
         self._live.note(rf.EV_PAUSE, "runner: feed hold")
 
     def cycle_start(self) -> None:
         self.inner.cycle_start()
+        self._live._held = False
         self._live.note(rf.EV_RESUME, "runner: cycle start")
 
     def stop(self) -> None:
@@ -155,8 +157,11 @@ def machine_report(session: Any) -> dict[str, Any]:
         if pos is None and st.mpos_mm is not None:
             off = wco if wco is not None else (0.0, 0.0, 0.0)
             pos = tuple(m - o for m, o in zip(st.mpos_mm, off))
+        ov = getattr(st, "overrides", None)
+        overrides = dict(zip(("feed", "rapid", "spindle"), ov)) if ov else None
         return out | {"state": st.full_state, "pos_mm": _round(pos), "source": "GRBL status",
-                      "feed_mm_min": st.feed_mm_min, "spindle_rpm": st.spindle_rpm}  # fmt: skip
+                      "feed_mm_min": st.feed_mm_min, "spindle_rpm": st.spindle_rpm,
+                      "overrides_pct": overrides, "estimated": False}  # fmt: skip
     ctrl = getattr(session, "controller", None)  # the simulated rig's control
     if ctrl is not None:
         if hasattr(ctrl, "state_name"):
@@ -167,6 +172,56 @@ def machine_report(session: Any) -> dict[str, Any]:
         return out | {"state": state, "pos_mm": _round(pos), "source": "simulated control"}
     state = getattr(streamer, "controller_state", "") or ""
     return out | {"state": state, "source": "none: a drip feed reports no state"}
+
+
+class ProgramPath:
+    """The program interpreted with ``planning.nc`` (as the controller will run it): per block
+    its segments' start and end (mm), programmed feed (mm/min), spindle (rpm) and duration at
+    that feed (s). A drip feed reports no position: the DRO is estimated from the executing
+    block's start time and these (no acceleration, no override: marked estimated)."""
+
+    def __init__(self, text: str, machine: Any, name: str = "<program>") -> None:
+        from planning.nc import interpret
+        from rig.dnc.nc import nc_text, segment_durations_s
+
+        m = interpret(nc_text(text), machine, strict=False, file=name)
+        self.rapid_mm_min = float(getattr(machine, "rapid_mm_min", 0) or 10_000.0)
+        self.motion = m
+        dur = segment_durations_s(m, self.rapid_mm_min) if len(m) else np.zeros(0)
+        self.by_block: dict[int, list[int]] = {}
+        for i, b in enumerate(m.block.tolist()):
+            self.by_block.setdefault(int(b), []).append(i)
+        self.dur_s = dur
+
+    def estimate(self, block: int, since_s: float) -> dict[str, Any] | None:
+        """Position, feed, spindle ``since_s`` after ``block`` started (None: no motion known
+        for it, e.g. a block that only sets modes: the caller keeps the last estimate)."""
+        idx = self.by_block.get(block)
+        if not idx:
+            return None
+        m, t = self.motion, max(0.0, since_s)
+        for i in idx:
+            d = float(self.dur_s[i])
+            if t <= d or i == idx[-1]:
+                f = min(1.0, t / d) if d > 0 else 1.0
+                pos = m.start[i] + f * (m.end[i] - m.start[i])  # arcs: along the chord
+                feed = float(m.feed_mm_min[i]) if m.kind[i] != 0 else self.rapid_mm_min
+                return {"pos_mm": _round(pos), "feed_mm_min": _jsonable(round(feed, 1)),
+                        "spindle_rpm": _jsonable(float(m.spindle_rpm[i])),
+                        "block_end_mm": _round(m.end[idx[-1]])}  # fmt: skip
+            t -= d
+        return None
+
+    def toolpath_xy(self, max_points: int = 20_000) -> list[list[Any]]:
+        """[block, kind, x0, y0, x1, y1] per segment (mm; arcs as chords), for the page's XY
+        view; at most ``max_points`` segments (a longer program is thinned evenly)."""
+        m = self.motion
+        n = len(m)
+        step = max(1, -(-n // max_points))
+        return [[int(m.block[i]), int(m.kind[i]), round(float(m.start[i, 0]), 3),
+                 round(float(m.start[i, 1]), 3), round(float(m.end[i, 0]), 3),
+                 round(float(m.end[i, 1]), 3)] for i in range(0, n, step)
+                if m.kind[i] != 4]  # fmt: skip
 
 
 def _round(v: Any) -> list[float] | None:
@@ -192,6 +247,7 @@ class LiveCampaign:
         self.speed = float(campaign.spec.sim.speed) if sim and campaign.spec.sim.speed else 1.0
         self.expected_wall_s = [p.expected_s / self.speed for p in plans]
         self.run_names = [p.test.name for p in plans]
+        self.rpms = [float(p.test.spindle_rpm) for p in plans]
         self.cal = Calibration.from_dynamometer(campaign.rig.dynamometer)
         self.ring = RingWriter(ring_path)
         self.stop = StopRequest()
@@ -210,6 +266,10 @@ class LiveCampaign:
         self._bands: list[list[Any]] = []
         self._line_of: dict[int, int] = {}  # block -> program line, set once per program
         self._executing = -1
+        self._exec_t0 = math.nan  # run clock s the executing block started
+        self._path: ProgramPath | None = None
+        self._dro: dict[str, Any] = {}  # the last estimate (a block without motion keeps it)
+        self._held = False  # hold sent and no resume since (for a control that reports no state)
         self._fault_seen: str | None = None
         self._cmd_done = self.ring.read_command()[0]
         self._last_cmd: dict[str, Any] = {}
@@ -234,7 +294,8 @@ class LiveCampaign:
                 self._session, self._run_k = session, k
                 self._run_wall0 = time.monotonic()
                 self._bands, self._fault_seen, self._executing = [], None, -1
-                self._line_of = {}
+                self._line_of, self._path, self._dro, self._held = {}, None, {}, False
+                self._exec_t0 = math.nan
                 self.phase = "running"
             return session
 
@@ -287,6 +348,7 @@ class LiveCampaign:
             "sample_format": info.sample_format,
             "scaling_coeff": None if info.scaling_coeff is None else info.scaling_coeff.tolist(),
             "volts_to_n": self.cal.volts_to_n.tolist(),
+            "spindle_rpm": self.rpms[k] if 0 <= k < self.n_runs else None,
             "zero_v": None,
             "program": [],
         }
@@ -304,6 +366,13 @@ class LiveCampaign:
         meta["program"] = [[b.index, b.line, b.text] for b in program.blocks]
         self._line_of = {b.index: b.line for b in program.blocks}
         meta["program_name"] = program.name
+        try:  # the DRO's estimate and the toolpath; a program it cannot read shows without
+            path = ProgramPath(program.text, getattr(self.campaign, "machine", None), program.name)
+            meta["toolpath"] = path.toolpath_xy(5000)
+            self._path = path
+        except Exception as exc:  # noqa: BLE001 - the live view must never endanger the run
+            meta["toolpath"] = []
+            self.note("fault", f"console: the program's path is not shown: {exc}"[:300])
         self._meta = meta
         self.ring.put_meta(meta)
 
@@ -357,6 +426,7 @@ class LiveCampaign:
         kind, message = (rf.EV_PAUSE, "console: feed hold") if what == "hold" else (
             rf.EV_RESUME, "console: cycle start")  # fmt: skip
         (s.inner.feed_hold if what == "hold" else s.inner.cycle_start)()
+        self._held = what == "hold"
         if s.writer is not None:  # None while the rig zeroes, before the program starts
             s.writer.event(kind, message)
         self.note(kind, message)
@@ -384,6 +454,9 @@ class LiveCampaign:
         else:
             status["machine"] = {"state": "", "source": "no run in progress"}
             status["bands"] = self._bands
+            ended = self.phase in ("finished", "stopped", "failed")
+            # between runs abort still ends the campaign
+            status["controls"] = {"hold": False, "resume": False, "abort": not ended}
         self.ring.put_status(status)
 
     def _remaining_s(self, now: float) -> float:
@@ -408,6 +481,7 @@ class LiveCampaign:
             with contextlib.suppress(RuntimeError):  # the streamer's dict changed: next time
                 spans = [x for x in st.executed_blocks()[-2000:] if x[0] >= 0 and x[1] <= now]
                 self._executing = spans[-1][0] if spans else -1
+                self._exec_t0 = spans[-1][1] if spans else math.nan
                 # Only the blocks started in the last BANDS_S (and the one before): 25 times a
                 # second this thread takes the GIL from the logger, so it keeps its work small.
                 # An even cut keeps each band's alternate shading on the page.
@@ -415,9 +489,22 @@ class LiveCampaign:
                 self._bands = [[b, round(t0, 4), _jsonable(t1) if t1 <= now else None]
                                for b, t0, t1, _ in spans[cut - cut % 2 :]]  # fmt: skip
         executing = self._executing
+        machine = machine_report(s.inner)
+        if machine.get("pos_mm") is None and self._path is not None and executing >= 0:
+            est = self._path.estimate(executing, now - self._exec_t0)
+            self._dro = est or self._dro
+            if self._dro:
+                machine |= self._dro | {"estimated": True, "source": (
+                    f"estimated from block {executing} and the program; "
+                    + machine.get("source", ""))}  # fmt: skip
+        state = str(machine.get("state") or "")
+        held = state.startswith(("Hold", "Door")) or (not state and self._held)
+        stopped = state.startswith(("Alarm", "Idle"))
         return {
             "t_now_s": round(s.clock(), 4),
-            "machine": machine_report(s.inner),
+            "machine": machine,
+            # the buttons that act now (the page disables the others)
+            "controls": {"hold": not held and not stopped, "resume": held, "abort": True},
             "stream": {
                 "sent": getattr(st, "last_sent_block", -1),
                 "acknowledged": getattr(st, "last_ack_block", -1),
@@ -523,6 +610,20 @@ def stop_server(proc: subprocess.Popen, grace_s: float = 1.0) -> None:
             proc.wait()
 
 
+def leave_server(proc: subprocess.Popen, url: str) -> None:
+    """The campaign has ended: its server stays (the page switches to browsing the runs) for
+    ``LINGER_S`` (``CUTLAB_CONSOLE_LINGER_S``), then exits by itself; said on stderr with its
+    process id. Without a linger it is stopped now."""
+    if proc.poll() is not None:
+        return
+    if LINGER_S <= 0:
+        stop_server(proc)
+        return
+    proc.returncode = 0  # not waited for: it outlives this process (no ResourceWarning)
+    print(f"cutlab: the console stays at {url} for {LINGER_S:.0f} s to browse the runs "
+          f"(server process {proc.pid})", file=sys.stderr, flush=True)  # fmt: skip
+
+
 def _pid_alive(pid: int) -> bool:
     if pid <= 0:
         return False
@@ -606,7 +707,8 @@ def live_console(
     """Run a campaign with the console: the ring, ``live.json`` in the campaign folder, and
     (``serve``) the page server at ``http://bind:port/?token=...`` in its own process (the
     address with the session's token is printed on stderr). The server's death does not stop
-    the campaign; the campaign's end (or death) is shown on the page. The ring and ``live.json``
+    the campaign; the campaign's end (or death) is shown on the page, and the server stays
+    ``LINGER_S`` after it to browse the runs (:func:`leave_server`). The ring and ``live.json``
     are removed when this ends, however it ends; a killed campaign's are removed by the next
     start (:func:`remove_stale`)."""
     import secrets
@@ -646,4 +748,4 @@ def live_console(
             with contextlib.suppress(OSError):
                 live.ring.path.unlink()
             if proc is not None:
-                stop_server(proc)
+                leave_server(proc, url_of(bind, port, token))

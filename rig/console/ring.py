@@ -36,7 +36,7 @@ SAMPLE_BYTES = 32 << 20  # 60 s of 3 channels of float32 volts at 40 kHz
 
 # header fields (int64 index)
 (_MAGIC, _PID, _HEARTBEAT_NS, _GEN, _ROWS, _CAPACITY, _CHANNELS, _ITEMSIZE, _ROW_TO_SAMPLE,
- _CLOSED) = range(10)  # fmt: skip
+ _CLOSED, _WRITTEN_NS) = range(11)  # fmt: skip
 _SEQ = {"meta": 16, "status": 18, "command": 20}  # seq at k, length at k + 1
 _OFFSET = {
     "meta": HEADER_BYTES,
@@ -188,6 +188,7 @@ class RingWriter(_Mapped):
             np.copyto(rows[:, : n - k], data[:, k:], casting="same_kind")
         self._w = w + n
         self.h[_ROW_TO_SAMPLE] = first_sample - w  # holes: later rows keep their device time
+        self.h[_WRITTEN_NS] = time.time_ns()  # the page's sample-to-screen latency starts here
         self.h[_ROWS] = w + n
 
     def rows_so_far(self) -> np.ndarray:
@@ -243,6 +244,11 @@ class RingReader(_Mapped):
     @property
     def closed(self) -> bool:
         return bool(self.h[_CLOSED])
+
+    @property
+    def written_ns(self) -> int:
+        """Wall clock (``time.time_ns``) when the newest block came into the ring (0: none)."""
+        return int(self.h[_WRITTEN_NS])
 
     def heartbeat_age_s(self) -> float:
         return (time.time_ns() - int(self.h[_HEARTBEAT_NS])) / 1e9

@@ -117,6 +117,7 @@ class Hub:
         self.pid = 0
         self.gone_since: float | None = None
         self.should_exit = False
+        self.until_wall: float | None = None  # when a lingering server exits (time.time())
         self.refresh()
 
     def refresh(self) -> None:
@@ -133,16 +134,22 @@ class Hub:
                 self.ring, self.pid, self.gone_since = ring, int(ptr.get("pid", 0)), None
         self._pointer = text or self._pointer
         if self.ring is not None and not self.ring.closed and not self.alive():
-            self.gone_since = self.gone_since or time.monotonic()
+            self._mark_gone()
             # A killed campaign's ring and live.json are removed now (issue 31); the mapping
             # keeps its last state for the page.
             self._clean_up()
             if self.linger_s is not None and time.monotonic() - self.gone_since > self.linger_s:
                 self.should_exit = True
         elif self.ring is not None and self.ring.closed and self.linger_s is not None:
-            self.gone_since = self.gone_since or time.monotonic()
+            self._mark_gone()
             if time.monotonic() - self.gone_since > self.linger_s:
                 self.should_exit = True
+
+    def _mark_gone(self) -> None:
+        if self.gone_since is None:
+            self.gone_since = time.monotonic()
+            if self.linger_s is not None:
+                self.until_wall = round(time.time() + self.linger_s, 1)
 
     def alive(self) -> bool:
         """The campaign process is there and beating."""
@@ -173,7 +180,7 @@ class Hub:
             ended = "closed"
         elif not self.alive():
             ended = "gone"
-        return {"live": True, "alive": self.alive(), "ended": ended}
+        return {"live": True, "alive": self.alive(), "ended": ended, "until": self.until_wall}
 
     # -- the run files ---------------------------------------------------------------------------
     def run_files(self) -> list[Path]:
@@ -225,8 +232,9 @@ def _run_details(path: Path) -> dict[str, Any]:
     t_end = run.t0_s + run.duration_s if math.isfinite(run.t0_s) else math.nan
     for j, i in enumerate(order):
         t1 = start[order[j + 1]] if j + 1 < len(order) else t_end
-        spans.append({"block": int(b["block"].iloc[i]), "line": int(b["line"].iloc[i]),
-                      "text": str(b["text"].iloc[i]), "t0": _num(start[i]), "t1": _num(t1)})
+        row = {"block": int(b["block"].iloc[i]), "line": int(b["line"].iloc[i]),
+               "text": str(b["text"].iloc[i]), "t0": _num(start[i]), "t1": _num(t1)}  # fmt: skip
+        spans.append(row)
     ev = run.events
     events = [{"t_s": _num(t), "kind": str(k), "message": str(m)}
               for t, k, m in zip(ev["time_s"], ev["kind"], ev["message"])
@@ -271,6 +279,7 @@ class _Client:
         self.frames = 0
         self.runs_sig: tuple[Any, ...] | None = None
         self.live_state: dict[str, Any] | None = None
+        self.last_rev = -1
 
     def frame(self, hub: Hub) -> dict[str, Any]:
         self.frames += 1
@@ -289,14 +298,68 @@ class _Client:
             self.cursor = max(0, ring.rows_written - int(self.window_s * rate))
             msg["meta"], msg["reset"] = self.meta, True
             self.catch_up = True
+            self.last_rev = -1
         st_seq = ring.seq("status")
         if st_seq != self.status_seq:
             self.status_seq, msg["status"] = ring.get_json("status")
         if self.meta:
+            # read before the rows: the newest block in this frame came no earlier (the latency
+            # the page shows errs long, never short)
+            written_ns = ring.written_ns
             bins = self._bins(ring)
             if bins is not None:
+                bins["written_ms"] = written_ns / 1e6
                 msg["bins"] = bins
+            if self.frames % 5 == 0:  # 5 times a second: a revolution at 300 rpm and up
+                readouts = self._readouts(ring)
+                if readouts is not None:
+                    msg["readouts"] = readouts
         return msg
+
+    def _force(self, rows: np.ndarray) -> np.ndarray:
+        """(n, c) N of the ring's rows (volts or codes): the run's zero and calibration."""
+        meta = self.meta or {}
+        volts = rows.astype(np.float64)
+        if meta.get("sample_format") == rf.SAMPLE_FORMAT_RAW and meta.get("scaling_coeff"):
+            volts = rf.raw_to_volts(rows, np.asarray(meta["scaling_coeff"], float))
+        zero = np.asarray(meta.get("zero_v") or np.zeros(volts.shape[1]), float)
+        return np.einsum("nj,ij->ni", volts - zero, np.asarray(meta["volts_to_n"], float))
+
+    def _readouts(self, ring: RingReader) -> dict[str, Any] | None:
+        """Mean, peak and RMS of the last whole revolution per channel, N, as
+        :func:`analysis.runs.per_revolution` cuts a run: revolution k is device samples
+        round(k * spr) .. round((k + 1) * spr) - 1, spr = rate * 60 / rpm (the run's programmed
+        speed). None until a new revolution is complete, or without a speed."""
+        meta = self.meta or {}
+        rpm = abs(float(meta.get("spindle_rpm") or 0.0))
+        rate = float(meta.get("rate_hz") or 0.0)
+        if rpm <= 0 or rate <= 0 or meta.get("zero_v") is None:
+            return None  # before the zero: no forces to speak of
+        spr = rate * 60.0 / rpm
+        if spr < 8:
+            return None
+        w = ring.rows_written
+        g, start, offset, rows = ring.rows_since(self.gen, max(0, w - int(2 * spr) - 2))
+        if g != self.gen or len(rows) == 0:
+            return None
+        n_dev = start + offset + len(rows)  # device samples up to the newest
+        k = int(n_dev // spr)
+        while k >= 0 and round((k + 1) * spr) > n_dev:
+            k -= 1
+        if k <= self.last_rev or k < 0:
+            return None
+        a, b = round(k * spr) - offset - start, round((k + 1) * spr) - offset - start
+        if a < 0:
+            return None  # overwritten or a hole: the next one
+        f = self._force(rows[a:b])
+        self.last_rev = k
+        t0 = float(meta.get("t0_s", 0.0))
+        return {"run": meta.get("run"), "rev": k, "rpm": rpm,
+                "t_s": round(t0 + round(k * spr) / rate, 5),
+                "channels": meta.get("channels", []), "unit": "N",
+                "mean": np.round(f.mean(axis=0), 2).tolist(),
+                "peak": np.round(f.max(axis=0), 2).tolist(),
+                "rms": np.round(np.sqrt((f * f).mean(axis=0)), 2).tolist()}  # fmt: skip
 
     def _bins(self, ring: RingReader) -> dict[str, Any] | None:
         meta = self.meta or {}
@@ -308,11 +371,7 @@ class _Client:
         g, start, offset, rows = ring.rows_since(self.gen, self.cursor, most)
         if g != self.gen or len(rows) == 0 or rows.ndim != 2:
             return None
-        volts = rows.astype(np.float64)
-        if meta.get("sample_format") == rf.SAMPLE_FORMAT_RAW and meta.get("scaling_coeff"):
-            volts = rf.raw_to_volts(rows, np.asarray(meta["scaling_coeff"], float))
-        zero = np.asarray(meta.get("zero_v") or np.zeros(volts.shape[1]), float)
-        force = np.einsum("nj,ij->ni", volts - zero, np.asarray(meta["volts_to_n"], float))
+        force = self._force(rows)
         per = max(1, round(rate * self.window_s / self.px))
         sample = np.arange(start, start + len(rows)) + offset
         b, lo, hi, last = bins_min_max(force, sample, per)
@@ -603,6 +662,11 @@ def make_app(
         due = loop.time()
         try:
             while not reader.done():
+                if hub.should_exit:  # the page says so rather than "connection lost"
+                    bye = {"type": "bye", "message": "the console server has stopped"}
+                    await ws.send_text(json.dumps(bye))
+                    await ws.close(1001)
+                    break
                 while not inbox.empty():
                     await _handle(ws, hub, client, inbox.get_nowait(), peer)
                 msg = client.frame(hub)

@@ -35,6 +35,21 @@ let browsing = null; // run file being browsed, or null: live
 let browseSpans = [];
 let programKey = "";
 let eventsKey = "";
+let liveState = { live: false, alive: false, ended: "" };
+let serverGone = false; // the server said it stops (or the campaign ended): no reconnecting
+let lostSince = null;
+const RECONNECT_FOR_MS = 120000; // then the page says the server is gone and stops trying
+let toolpath = []; // [block, kind, x0, y0, x1, y1] per segment, from the run info
+let tpView = null; // the toolpath canvas's transform (mm -> px), for tests and screenshots
+const latencies = []; // sample-to-screen, ms, the last LAT_N frames with new samples
+const LAT_N = 250;
+window.cutlab = {
+  latencies,
+  readouts: null,
+  dro: null,
+  toolpath: () => tpView,
+  toolpathSegments: () => toolpath,
+};
 
 function fmtS(s) {
   if (s === null || s === undefined || !isFinite(s)) return "-";
@@ -173,9 +188,7 @@ function showStatus(s) {
     const st = $("machine-state");
     st.textContent = m.state || "-";
     st.className = "state " + (m.state || "").split(":")[0];
-    $("pos").textContent = m.pos_mm ? m.pos_mm.map((v) => v.toFixed(3)).join(", ") : "-";
-    $("feed").textContent = m.feed_mm_min ?? "-";
-    $("spindle").textContent = m.spindle_rpm ?? "-";
+    showDro(m);
     $("source").textContent = m.source ? `(${m.source})` : "";
   }
   const str = s.stream;
@@ -194,9 +207,116 @@ function showStatus(s) {
   }
   if (s.bands) bands = s.bands;
   showEvents(s.events || []);
+  drawToolpath();
+  updateControls();
   if (s.command && s.command.seq) {
     $("cmd-note").textContent = `${s.command.cmd}: ${s.command.message}`;
   }
+}
+
+// -- the DRO: as the controller reports it, or estimated from the program (drip feed) -------
+function fmtNum(v, digits) {
+  return v === null || v === undefined || !isFinite(v) ? "-" : Number(v).toFixed(digits);
+}
+
+function showDro(m) {
+  const p = m.pos_mm || [null, null, null];
+  ["x", "y", "z"].forEach((a, i) => ($(`dro-${a}`).textContent = fmtNum(p[i], 3)));
+  $("dro-feed").textContent = fmtNum(m.feed_mm_min, 0);
+  $("dro-spindle").textContent = fmtNum(m.spindle_rpm, 0);
+  const ov = m.overrides_pct;
+  $("dro-overrides").textContent = ov
+    ? `feed ${ov.feed}%, rapid ${ov.rapid}%, spindle ${ov.spindle}%`
+    : "not reported";
+  $("dro").classList.toggle("estimated", !!m.estimated);
+  $("dro-estimated").classList.toggle("hidden", !m.estimated);
+  $("dro-estimated").title = m.source || "";
+  window.cutlab.dro = m;
+}
+
+// -- per-revolution readouts (the server cuts revolutions as analysis.runs.per_revolution) ---
+function showReadouts(r) {
+  window.cutlab.readouts = r;
+  $("readout-head").textContent = `revolution ${r.rev} at ${r.t_s.toFixed(3)} s (${r.rpm} rpm), ${r.unit}`;
+  for (const what of ["mean", "peak", "rms"]) {
+    const tr = $(`readout-${what}`);
+    tr.dataset.rev = r.rev;
+    while (tr.children.length > 1) tr.removeChild(tr.lastChild);
+    r.channels.forEach((name, c) => {
+      const td = document.createElement("td");
+      td.dataset.channel = name;
+      td.textContent = `${name} ${r[what][c].toFixed(1)}`;
+      tr.appendChild(td);
+    });
+  }
+}
+
+// -- sample-to-screen latency: the frame's newest block came into the ring at written_ms (the
+// server's wall clock, this computer's); the frame is on screen at the next animation frame --
+function noteLatency(writtenMs) {
+  requestAnimationFrame(() => {
+    const ms = Date.now() - writtenMs;
+    if (!(ms >= 0 && ms < 60000)) return;
+    latencies.push(ms);
+    if (latencies.length > LAT_N) latencies.shift();
+    if (latencies.length % 5 === 0) {
+      const q = [...latencies].sort((a, b) => a - b);
+      const at = (f) => q[Math.min(q.length - 1, Math.floor(f * q.length))];
+      $("latency").textContent = `p50 ${at(0.5).toFixed(0)} ms, p95 ${at(0.95).toFixed(0)} ms`;
+      $("latency").title = `${q.length} frames`;
+    }
+  });
+}
+
+// -- the buttons act only when they mean something ------------------------------------------
+function updateControls() {
+  const c = status.controls || {};
+  const live = !browsing && liveState.live && liveState.alive && !liveState.ended && !serverGone;
+  for (const cmd of ["hold", "resume", "abort"]) $(cmd).disabled = !(live && c[cmd]);
+  $("mode").textContent = browsing || !live ? "browse" : "live";
+  if (liveState.ended || serverGone) {
+    $("machine-state").textContent = "ended";
+    $("machine-state").className = "state ended";
+  }
+}
+
+// -- the toolpath, XY: the program (grey), the cut so far (blue), the executing block --------
+function drawToolpath() {
+  const cv = $("toolpath");
+  const ctx = cv.getContext("2d");
+  const W = cv.width, H = cv.height, pad = 10;
+  ctx.clearRect(0, 0, W, H);
+  if (!toolpath.length) return;
+  let [x0, x1, y0, y1] = [Infinity, -Infinity, Infinity, -Infinity];
+  for (const s of toolpath) {
+    x0 = Math.min(x0, s[2], s[4]); x1 = Math.max(x1, s[2], s[4]);
+    y0 = Math.min(y0, s[3], s[5]); y1 = Math.max(y1, s[3], s[5]);
+  }
+  const k = Math.min((W - 2 * pad) / Math.max(x1 - x0, 1e-6), (H - 2 * pad) / Math.max(y1 - y0, 1e-6));
+  const px = (x) => pad + (x - x0) * k;
+  const py = (y) => H - pad - (y - y0) * k; // Y up
+  const exec = browsing ? -1 : execBlock;
+  const seg = (s, color, width) => {
+    ctx.strokeStyle = color; ctx.lineWidth = width;
+    ctx.beginPath(); ctx.moveTo(px(s[2]), py(s[3])); ctx.lineTo(px(s[4]), py(s[5])); ctx.stroke();
+  };
+  for (const s of toolpath) seg(s, s[1] === 0 ? "#cfd8dc" : "#90a4ae", 1);
+  if (exec >= 0) for (const s of toolpath) if (s[0] < exec && s[1] !== 0) seg(s, "#1e88e5", 2);
+  ctx.lineCap = "round";
+  for (const s of toolpath) {
+    if (s[0] !== exec) continue;
+    seg(s, "#ff6f00", 4);
+    ctx.fillStyle = "#ff6f00"; // a plunge (no XY travel) shows as a dot
+    ctx.beginPath(); ctx.arc(px(s[4]), py(s[5]), 3, 0, 2 * Math.PI); ctx.fill();
+  }
+  ctx.lineCap = "butt";
+  const p = (status.machine || {}).pos_mm;
+  if (!browsing && p) {
+    ctx.fillStyle = "#d32f2f";
+    ctx.beginPath(); ctx.arc(px(p[0]), py(p[1]), 4, 0, 2 * Math.PI); ctx.fill();
+  }
+  tpView = { x0, y0, k, pad, W, H, block: exec, executing_color: "#ff6f00" };
+  cv.dataset.block = exec;
 }
 
 function showEvents(events) {
@@ -217,16 +337,23 @@ function showEvents(events) {
 }
 
 function showLive(live) {
+  liveState = live;
   const el = $("ended");
+  const until = live.until
+    ? `; this console stays until ${new Date(live.until * 1000).toLocaleTimeString()}`
+    : "";
   if (!live.live) {
     el.textContent = "no campaign running here: browse its runs";
   } else if (live.ended === "gone") {
     el.textContent =
-      "the campaign process has ended without closing (killed or crashed); the last state is shown";
+      "the campaign process has ended without closing (killed or crashed); the last state is " +
+      `shown, its runs can be browsed${until}`;
   } else if (live.ended === "closed") {
-    el.textContent = "the campaign has ended";
+    const ph = status.phase ? ` (${status.phase})` : "";
+    el.textContent = `the campaign has ended${ph}: browse its runs${until}`;
   }
   el.classList.toggle("hidden", live.live && !live.ended);
+  updateControls();
 }
 
 function showRuns(runs) {
@@ -248,6 +375,10 @@ function onMessage(ev) {
     $("cmd-note").textContent = `the console dropped a message: ${msg.message}`;
     return;
   }
+  if (msg.type === "bye") {
+    serverGone = true;
+    return;
+  }
   if (msg.type === "cmd") {
     $("cmd-note").textContent = `${msg.cmd}: ${msg.message}; waiting for the machine's state`;
     return;
@@ -259,13 +390,19 @@ function onMessage(ev) {
   if (msg.runs) showRuns(msg.runs);
   if (msg.meta) {
     meta = msg.meta;
-    if (msg.reset) bins = { t: [], min: [], max: [] };
+    if (msg.reset) {
+      bins = { t: [], min: [], max: [] };
+      window.cutlab.readouts = null;
+    }
     showProgram(meta.program || [], meta.program_name || meta.name || "");
+    if (meta.toolpath) toolpath = meta.toolpath;
     if (!browsing) makePlot(meta.channels, "N");
   }
   if (msg.status) showStatus(msg.status);
   if (msg.bins) addBins(msg.bins);
+  if (msg.readouts) showReadouts(msg.readouts);
   if (!browsing && plot && (msg.bins || msg.status)) setPlotData(bins.t, bins.min, bins.max);
+  if (msg.bins && msg.bins.t.length && msg.bins.written_ms) noteLatency(msg.bins.written_ms);
 }
 
 function connect() {
@@ -273,11 +410,30 @@ function connect() {
   const q = TOKEN ? `?token=${encodeURIComponent(TOKEN)}` : "";
   ws = new WebSocket(`${proto}://${location.host}/ws${q}`);
   ws.onopen = () => {
+    lostSince = null;
     $("overlay").classList.add("hidden");
     ws.send(JSON.stringify({ type: "hello", px: plotWidth(), window_s: WINDOW_S }));
   };
   ws.onmessage = onMessage;
   ws.onclose = () => {
+    if (serverGone || liveState.ended) {
+      // the campaign ended and its server went after it: say so, once, and stop trying
+      serverGone = true;
+      const el = $("ended");
+      el.textContent =
+        "the campaign has ended and its console server has stopped: `cutlab console FOLDER` " +
+        "browses its runs";
+      el.classList.remove("hidden");
+      updateControls();
+      return;
+    }
+    lostSince = lostSince || Date.now();
+    if (Date.now() - lostSince > RECONNECT_FOR_MS) {
+      $("overlay-text").textContent =
+        "The console server is not answering (stopped?); reload the page to try again";
+      $("overlay").classList.remove("hidden");
+      return;
+    }
     $("overlay").classList.remove("hidden");
     setTimeout(connect, 1000);
   };
@@ -329,6 +485,7 @@ async function browse(file) {
   try {
     const run = await getJSON(`/api/run?file=${encodeURIComponent(file)}`);
     browsing = file;
+    updateControls();
     browseSpans = run.blocks.filter((b) => b.t0 !== null).map((b) => [b.block, b.t0, b.t1]);
     $("browse").classList.remove("hidden");
     $("browse-name").textContent = file;
@@ -357,6 +514,7 @@ async function browse(file) {
 
 $("browse-live").onclick = () => {
   browsing = null;
+  updateControls();
   $("browse").classList.add("hidden");
   if (meta) {
     plotChannels = "";
@@ -367,4 +525,5 @@ $("browse-live").onclick = () => {
 
 window.addEventListener("resize", () => plot && plot.setSize({ width: plotWidth(), height: 360 }));
 makePlot(["Fx", "Fy", "Fz"], "N");
+updateControls();
 connect();
