@@ -27,12 +27,26 @@ block (:class:`rig.dnc.execution.ExecTracker`: the position against each line's 
 by the planner count Bf when ``$10`` reports it). The record's rows carry the acknowledgement
 time and the execution start; the result both blocks; the progress bar both.
 
-A lost or garbled ``ok`` (line noise) leaves the character count short forever. When GRBL reports
-Idle with nothing in its planner and its receive buffer empty (Bf ``15,128``; without Bf, Idle
-alone) for ``lost_ok_confirm_s`` while lines are unanswered, every line has been processed and
-the answer is not coming: the stream stops (fault ``lost-ok``) naming the last block known
-executed. Silence (no status report either) for ``timeout_s`` is a ``timeout``. A dwell's time
-is allowed for.
+Bytes written are not in GRBL's receive buffer at once: they may still be on the wire (2.5 ms
+for a 29-byte line at 115200 baud, more in a USB adapter). Every ``?`` is noted with the bytes
+written before it; its report was made after those arrived (one byte stream, in order), so a
+report's ``Bf`` is compared with those bytes only, never with what is unanswered now.
+
+A lost or garbled ``ok`` (line noise) leaves the character count short forever. It is declared
+only from GRBL's own state, never from a count alone: Idle (or Hold:0, with Bf) with nothing in
+its planner while lines are unanswered, report after report for ``lost_ok_confirm_s`` (1 s) --
+at the end, with its receive buffer empty; mid-stream, with a line that had wholly reached it
+before the ``?`` unanswered and out of its buffer (Bf, ``$10=3``) or, without Bf, already run
+(the machine stands Idle at the end of its move: GRBL answers a line before it runs it). The
+stream then holds and resets (:meth:`~GrblStreamer.halt`) and stops (fault ``lost-ok``) naming
+the last block known executed. A report whose Bf makes a lost answer likely, or a line of noise, pauses sending: once
+every line sent is answered it goes on (nothing was lost); if neither that nor the fault comes
+within ``pause_timeout_s`` (10 s) the stream is halted (``timeout``) stating GRBL's state.
+
+Every wait has a deadline: the handshake as a whole within ``timeout_s``; otherwise nothing that
+shows GRBL at work (an answer, a message, a status report that differs from the last or says
+Hold) for ``timeout_s`` is a ``timeout``: noise lines and a repeated report keep no wait alive.
+A dwell's time is allowed for.
 
 Halting: :meth:`GrblStreamer.halt` sends feed hold ``!``, waits for ``Hold:0`` (the motion has
 stopped), then, with ``reset``, soft reset 0x18: GRBL ends Idle, without the ``ALARM:3`` a reset
@@ -54,6 +68,8 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
+
+import numpy as np
 
 from analysis.config import SerialConfig
 from planning.nc.dialect import check_dialect, refused
@@ -838,7 +854,7 @@ class GrblStreamer(StreamerBase):
         res = self._results[inflight[0][0]] if inflight and self._results else None
         dwell = res.dwell_s if res is not None and res.dwell_s else 0.0
         bf = st.rx_free is not None and st.planner_free is not None and bool(self._rx_cap)
-        if stopped and planner_empty and s_q is not None and bf:
+        if stopped and planner_empty and s_q is not None:
             # Mid-stream (needs Bf, $10=3): GRBL stands with an empty planner, yet the oldest
             # unanswered line had wholly reached it before the '?' and is not in its receive
             # buffer. Busy with it (out of the buffer, not planned yet) lasts milliseconds;
@@ -847,11 +863,16 @@ class GrblStreamer(StreamerBase):
             # one line too many stays unanswered whichever it is. (A starved GRBL goes Idle
             # between lines while the stream goes on: the wait for silence below would come
             # only at the end.)
+            # Without Bf ($10=1): the machine stands Idle at the end of that line's move, so it
+            # ran it, and GRBL answers a line before it runs it.
             hit = False
             if inflight and inflight[0][3] <= s_q:
                 n0 = inflight[0][1]
                 arrived = sum(min(n, max(0, s_q - (end - n))) for _, n, _, end in inflight)
-                hit = self._rx_cap - st.rx_free <= arrived - n0 + 1  # type: ignore[operator]
+                if bf:
+                    hit = self._rx_cap - st.rx_free <= arrived - n0 + 1  # type: ignore[operator]
+                else:
+                    hit = st.state == "Idle" and self._ran(inflight[0][0], st)
             if not hit:
                 self._idle_hits = None
             else:
@@ -881,6 +902,18 @@ class GrblStreamer(StreamerBase):
         if now - self._lost_since < self.lost_ok_confirm_s or self._lost_reports < 3:
             return
         self._lost_answers(inflight, items, st, heard)
+
+    def _ran(self, k: int, st: GrblStatus) -> bool:
+        """The machine stands at the end of line ``k``'s move, away from its start."""
+        tr = self.tracker
+        pos = self._work_pos(st)
+        if tr is None or pos is None or not 0 <= k < len(tr.paths) or not tr.paths[k].moves:
+            return False
+        pts = tr.paths[k].points
+        p = np.asarray(pos, float)
+        return bool(
+            np.linalg.norm(pts[-1] - p) <= tr.tol_mm and np.linalg.norm(pts[0] - p) > 2 * tr.tol_mm
+        )
 
     def _lost_answers(
         self,
