@@ -215,3 +215,57 @@ def test_console_command_bad_target_is_one_line(tmp_path: Path) -> None:
     assert p.returncode == 2 and "Traceback" not in p.stderr
     assert p.stderr.startswith("cutlab: error: console:") and "campaign folder" in p.stderr
     assert len(p.stderr.strip().splitlines()) == 1
+
+
+def test_readouts_are_per_revolution_mean_peak_rms(tmp_path: Path) -> None:
+    from rig.console.server import make_app
+
+    folder, w = _live_folder(tmp_path)
+    meta = _meta(zero=[0.0, 0.0, 0.0]) | {"spindle_rpm": 600.0}  # 100 samples a revolution
+    w.begin_run(meta, 3, np.dtype(np.float64))
+    n = 1050  # 10 whole revolutions and a part
+    k = np.arange(n)
+    fx = 0.5 + np.sin(2 * np.pi * k / 100.0)  # once a revolution; 100 N/V
+    w.write(0, np.vstack([fx, np.full(n, -0.2), np.zeros(n)]))
+    with _client(make_app(folder)) as client, client.websocket_connect(WS, headers=ORIGIN) as ws:
+        r = next(m["readouts"] for m in (ws.receive_json() for _ in range(30)) if "readouts" in m)
+    w.close(unlink=True)
+    # Independent reference, by hand: the last whole revolution is the 10th (k = 9, samples
+    # 900..999); 50 + 100 sin: mean 50 N, peak 150 N (sample 925), RMS sqrt(50^2 + 100^2 / 2).
+    assert r["rev"] == 9 and r["rpm"] == 600.0 and r["t_s"] == pytest.approx(5.0 + 0.9)
+    assert r["mean"] == pytest.approx([50.0, -20.0, 0.0], abs=0.01)
+    assert r["peak"] == pytest.approx([150.0, -20.0, 0.0], abs=0.01)
+    assert r["rms"] == pytest.approx([(50.0**2 + 100.0**2 / 2) ** 0.5, 20.0, 0.0], abs=0.01)
+
+
+def test_the_drip_feed_dro_is_estimated_from_the_program() -> None:
+    from rig.console.live import ProgramPath
+
+    text = "G21 G90\nS1000 M3\nG0 X0 Y0 Z5\nG1 Z-1 F100\nG1 X10 F600\nG0 Z5\n"
+    path = ProgramPath(text, None)
+    # By hand: block 4 (line 5) goes 10 mm at 600 mm/min, 1 s; block 3 goes 6 mm down at
+    # 100 mm/min, 3.6 s.
+    half = path.estimate(4, 0.5)
+    assert half["pos_mm"] == pytest.approx([5.0, 0.0, -1.0])
+    assert half["feed_mm_min"] == 600.0 and half["spindle_rpm"] == 1000.0
+    assert half["block_end_mm"] == pytest.approx([10.0, 0.0, -1.0])
+    assert path.estimate(4, 9.0)["pos_mm"] == pytest.approx([10.0, 0.0, -1.0])  # then it waits
+    assert path.estimate(3, 1.8)["pos_mm"] == pytest.approx([0.0, 0.0, 2.0])
+    assert path.estimate(0, 0.0) is None  # modes only: the page keeps the last estimate
+    segs = path.toolpath_xy()
+    assert [s[0] for s in segs] == [2, 3, 4, 5] and segs[2][2:] == [0.0, 0.0, 10.0, 0.0]
+
+
+def test_grbl_dro_is_its_status_report() -> None:
+    from types import SimpleNamespace
+
+    from rig.console.live import machine_report
+    from rig.dnc.grbl import parse_status
+
+    st = parse_status("<Hold:0|MPos:12.500,-3.250,-1.000|FS:450,12000|Ov:110,50,95>")
+    session = SimpleNamespace(streamer=SimpleNamespace(last_status=st, _wco=(2.0, 0.0, 0.0)))
+    m = machine_report(session)
+    assert m["state"] == "Hold:0" and m["source"] == "GRBL status" and not m["estimated"]
+    assert m["pos_mm"] == [10.5, -3.25, -1.0]  # work position: MPos less the offset
+    assert (m["feed_mm_min"], m["spindle_rpm"]) == (450, 12000)
+    assert m["overrides_pct"] == {"feed": 110, "rapid": 50, "spindle": 95}

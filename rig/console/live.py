@@ -269,6 +269,7 @@ class LiveCampaign:
         self._exec_t0 = math.nan  # run clock s the executing block started
         self._path: ProgramPath | None = None
         self._dro: dict[str, Any] = {}  # the last estimate (a block without motion keeps it)
+        self._overrides: dict[str, int] | None = None
         self._held = False  # hold sent and no resume since (for a control that reports no state)
         self._fault_seen: str | None = None
         self._cmd_done = self.ring.read_command()[0]
@@ -497,6 +498,10 @@ class LiveCampaign:
                 machine |= self._dro | {"estimated": True, "source": (
                     f"estimated from block {executing} and the program; "
                     + machine.get("source", ""))}  # fmt: skip
+        if machine.get("overrides_pct"):  # GRBL sends them every 10-30 reports: the last kept
+            self._overrides = machine["overrides_pct"]
+        elif self._overrides and machine.get("source") == "GRBL status":
+            machine["overrides_pct"] = self._overrides
         state = str(machine.get("state") or "")
         held = state.startswith(("Hold", "Door")) or (not state and self._held)
         stopped = state.startswith(("Alarm", "Idle"))
