@@ -80,13 +80,14 @@ def test_the_1504_move_program_runs_to_the_end(mode) -> None:
 
 
 @pytest.mark.faults
-def test_a_lost_ok_is_held_and_stated_mid_stream() -> None:
+@pytest.mark.parametrize("mask", [3, 1], ids=["Bf", "no-Bf"])
+def test_a_lost_ok_is_held_and_stated_mid_stream(mask) -> None:
     """Line 100's ok is lost while GRBL, starved by the line, stands Idle between lines: the
-    same line, wholly arrived, unanswered report after report while GRBL is Idle with empty
-    buffers gives it away mid-stream; feed hold, then a clean reset, and the fault says what
-    ran."""
+    oldest unanswered line, wholly arrived, out of GRBL's buffer (Bf) or already run (the
+    machine Idle at its end, without Bf), report after report, gives it away mid-stream; feed
+    hold, then a clean reset, and the fault says what ran."""
     prog = short_moves(1100)
-    ctl = SimGrbl(clock=SimClock(1.0), status_report_mask=3, sim_drop_ok_at_line=100)
+    ctl = SimGrbl(clock=SimClock(1.0), status_report_mask=mask, sim_drop_ok_at_line=100)
     events: list = []
     ctl.add_listener(on_event=events.append)
     with ctl:
