@@ -107,7 +107,8 @@ def test_sim_controller_rejects_unknown_knob(capsys) -> None:
 
 GRBL_KNOBS = (
     "alarm_at_block, alarm_at_s, drop_ok_at_line, drop_port_after_block, error_at_block, "
-    "garble_ok_at_line, overrun_at_byte, reset_at_block, stop_answering_after_block, "
+    "garble_ok_at_line, noise_at_line, overrun_at_byte, reset_at_block, "
+    "stop_answering_after_block, "
     "stop_answering_at_s"
 )
 FANUC_KNOBS = (
