@@ -62,7 +62,7 @@ def _demo(args: argparse.Namespace) -> int:
     print_table([{"coefficient": r["coefficient"], "identified": r["identified"],
                   "truth": r.get("truth", nan), "error_%": r.get("error_pct", nan),
                   "std_error": r["std_error"], "status": r.get("status", "")}
-                 for r in fm.get("coefficients", [])])  # fmt: skip
+                 for r in fm.get("coefficients", [])], cell_max=400)  # fmt: skip
     err = fm.get("validation_max_abs_error_pct")
     if err is not None:
         print(f"validation ({fm.get('validate_runs', 0)} runs at other feeds per tooth): "
