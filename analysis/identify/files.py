@@ -483,6 +483,17 @@ def fit_files(
                                + "; --keep fits them)")  # fmt: skip
         if fit.fit is not None:
             _trust(out, avgs, tool_cfg, fit)
+    elif model == "facemill" and fit.success and len(fit.residuals_n) == len(avgs):
+        # the face-mill fit is to the revolution-averaged waveforms: per direction over their bins
+        out["by_direction"] = by_direction(np.concatenate([a.waveform_n for a in avgs]),
+                                           np.concatenate(fit.residuals_n))  # fmt: skip
+        out["by_direction_over"] = "the runs' revolution-averaged waveforms (all bins)"
+        out["run_residuals"] = per_run_residuals(
+            [a.name for a in avgs], np.stack([a.mean_n for a in avgs]),
+            np.stack([r.mean(axis=0) for r in fit.residuals_n]),
+        )  # fmt: skip
+        out["influence"] = {"checked": False, "runs": [], "depends": {},
+                            "reason": "leave-one-out is not run for the face-mill fit"}  # fmt: skip
     if fit.success and (validate or plot_dir):
         targets = avgs
         if validate:

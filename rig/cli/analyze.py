@@ -95,7 +95,8 @@ def _print_trust(out: dict) -> None:
     from rig.cli._common import print_table
 
     if out.get("by_direction"):
-        print("fit per direction: " + "; ".join(
+        over = f" over {out['by_direction_over']}" if out.get("by_direction_over") else ""
+        print(f"fit per direction{over}: " + "; ".join(
             f"{d}: R^2 {v['r_squared']:.4f}, RMS {v['rms_n']:.3g} N"
             for d, v in out["by_direction"].items()) + f" (pooled R^2 {out['r_squared']:.4f})")
     if out.get("run_residuals"):
