@@ -3,9 +3,9 @@ lobes (:mod:`rig.cli.stability`).
 
 cutlab analyze forces RUN... [--model facemill|endmill] [--tool NAME] [--validate RUN...]
                              [--conditions KEY=VALUE...|TABLE] [--conditions-pattern PATTERN]
-                             [--axes x=-Fy,y=Fx,z=-Fz] [--zero FILE | --zeroed] [--tools FILE]
-                             [--materials FILE] [--steady-tolerance FRACTION] [--plot DIR]
-                             [--json]
+                             [--axes x=-Fy,y=Fx,z=-Fz|auto] [--zero FILE | --zeroed]
+                             [--tools FILE] [--materials FILE] [--steady-tolerance FRACTION]
+                             [--keep] [--plot DIR] [--json]
 cutlab analyze forces --catalog DIR [--where EXPR] [--scheduler ADDRESS] [options as above]
 cutlab analyze modal FILE [--hammer NAME] [--response force|disp|accel] [--record-s S]
                           [--rpm RPM...] [--teeth N] [--plot PNG] [--stabilisation PNG]

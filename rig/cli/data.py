@@ -4,7 +4,7 @@ cutlab data info FILE [--rate HZ] [--json]     a run file: channels, rate, durat
                                                events, gaps, status; an export: columns, units,
                                                rate, samples, header
 cutlab data plot FILE -o forces.png            force traces of a run file or an export
-cutlab data import FILE... -o DIR [--conditions TABLE|KEY=VALUE...] [--axes x=-Fy,y=Fx,z=-Fz]
+cutlab data import FILE... -o DIR [--conditions TABLE|KEY=VALUE...] [--axes x=-Fy,y=Fx,z=-Fz|auto]
                            [--rate HZ] [--zero FILE | --zeroed] [--tool NAME] [--tools FILE]
                            [--force] [--json]
     DynoWare / CSV exports into ordinary run files (DIR/<name>.h5), conditions and all, so every
