@@ -169,14 +169,15 @@ def print_table(rows: Sequence[Mapping[str, Any]], floatfmt: str = ".4g",
         return
     cols = list(rows[0])
 
-    def fmt(v: Any) -> str:
+    def fmt(v: Any, nested: bool = False) -> str:
         if isinstance(v, float | np.floating):
             x = float(v)
             if x.is_integer() and abs(x) < 1e12:
                 return str(int(x))  # 30000, not 3e+04
             return format(x, floatfmt)
         if isinstance(v, Mapping):  # {'a': 1} -> a=1, b=2 (folds at the commas)
-            return ", ".join(f"{k}={fmt(x)}" for k, x in v.items())
+            text = ", ".join(f"{k}={fmt(x, True)}" for k, x in v.items())
+            return f"{{{text}}}" if nested else text
         return " ".join(str(v).split("\n"))
 
     cells = [[_fold(fmt(r.get(c, "")), cell_max) for c in cols] for r in rows]
