@@ -73,7 +73,9 @@ def test_heartbeat_prints_on_a_non_terminal_stderr_and_stops() -> None:
         hb = Heartbeat("cutlab test")
         hb.interval_s = 0.2
         with hb:
-            hb.note = lambda: "3 of 8 runs ended"
+            time.sleep(0.6)
+            assert err.getvalue() == ""  # nothing before the work starts (input checks)
+            _common.progress_note(lambda: "3 of 8 runs ended")
             deadline = time.monotonic() + 20
             while "working" not in err.getvalue() and time.monotonic() < deadline:
                 time.sleep(0.05)

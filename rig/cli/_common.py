@@ -279,6 +279,7 @@ class Progress:
         self._last: float | None = None  # when the last plain line went out
 
     def _open(self) -> Any:
+        _work_started()  # the first report: the command's heartbeat may speak from now on
         if self.bar is None and not self._plain:
             from tqdm import tqdm
 
@@ -347,9 +348,10 @@ class Heartbeat:
     """A plain line on stderr every :attr:`interval_s` seconds while a command works and stderr
     is not a terminal (a log, CI, a service), for commands without a progress count of their
     own, or between their counts: ``cutlab campaign run: working, 25 s [run 3 of 8]``. Quiet
-    while a :class:`Progress` line went out within the interval; nothing for a command that
-    ends within it. ``note`` (set any time, a string or a function giving one) says where the
-    work is. A daemon thread that ends at :meth:`close` (within a second)."""
+    until the work starts (:func:`progress_note` or a :class:`Progress` report: a refused input
+    stays one line however slow the start), while a :class:`Progress` line went out within the
+    interval, and for a command that ends within it. ``note`` (a string or a function giving
+    one) says where the work is. A daemon thread that ends at :meth:`close` (within a second)."""
 
     interval_s = 5.0
 
@@ -359,6 +361,7 @@ class Heartbeat:
         self.desc = desc
         self.note: str | Callable[[], str] = ""
         self._t0 = time.monotonic()
+        self._armed: float | None = None  # when the work started
         self._stop = threading.Event()
         self._thread = None
         if not quiet and not _isatty(sys.stderr):
@@ -369,7 +372,7 @@ class Heartbeat:
     def _beat(self) -> None:
         while not self._stop.wait(min(1.0, self.interval_s)):
             now = time.monotonic()
-            if now - max(self._t0, _last_line[0]) < self.interval_s:
+            if self._armed is None or now - max(self._armed, _last_line[0]) < self.interval_s:
                 continue
             try:
                 note = self.note() if callable(self.note) else self.note
@@ -379,6 +382,11 @@ class Heartbeat:
                 print(f"{self.desc}: working, {now - self._t0:.0f} s{f' [{note}]' if note else ''}",
                       file=sys.stderr, flush=True)  # fmt: skip
             _last_line[0] = now
+
+    def arm(self) -> None:
+        """The work has started (input checked): lines may follow from now on."""
+        if self._armed is None:
+            self._armed = time.monotonic()
 
     def close(self) -> None:
         self._stop.set()
@@ -416,6 +424,12 @@ def progress_note(note: str | Callable[[], str]) -> None:
     """Say where a long command is (shown by the running :class:`Heartbeat`, if any)."""
     if _current_heartbeat:
         _current_heartbeat[-1].note = note
+        _current_heartbeat[-1].arm()
+
+
+def _work_started() -> None:
+    if _current_heartbeat:
+        _current_heartbeat[-1].arm()
 
 
 def _isatty(stream: Any) -> bool:

@@ -161,7 +161,9 @@ def _report(args: argparse.Namespace) -> int:
     from rig.campaign import campaign_folder, load_campaign
     from rig.report import write_report
 
-    rep = write_report(campaign_folder(load_campaign(args.config), args.out))
+    folder = campaign_folder(load_campaign(args.config), args.out)
+    progress_note("analysing the runs")  # the report of a large campaign takes a while
+    rep = write_report(folder)
     if args.json:
         print_json(rep.summary)
     else:
