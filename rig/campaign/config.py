@@ -197,13 +197,15 @@ class ChatterSection(Model):
     (:class:`analysis.chatter.ChatterSettings`; defaults: the detector's)."""
 
     energy_ratio: float = Field(0.1, gt=0, lt=1, description="share of AC energy off harmonics")
-    opr_ratio: float = Field(0.1, gt=0, lt=1, description="once-per-rev variance / variance")
+    opr_ratio: float = Field(0.2, gt=0, lt=1, description="once-per-rev variance / variance")
+    growth_ratio: float = Field(0.8, gt=0, description="off-harmonic RMS, last / first third")
     cut_fraction: float = Field(0.5, gt=0, lt=1, description="where a revolution counts as cut")
 
     def settings(self):  # noqa: ANN201 - analysis.chatter.ChatterSettings
         from analysis.chatter import ChatterSettings
 
-        return ChatterSettings(self.energy_ratio, self.opr_ratio, cut_fraction=self.cut_fraction)
+        return ChatterSettings(self.energy_ratio, self.opr_ratio, cut_fraction=self.cut_fraction,
+                               growth_ratio=self.growth_ratio)  # fmt: skip
 
 
 class FeedRuleSection(Model):
