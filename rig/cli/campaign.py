@@ -95,6 +95,7 @@ def _run(args: argparse.Namespace) -> int:
                 error_line(line.strip())
         return 2
     if args.dry_run:
+        progress_note("checking every program")
         return _dry_run(campaign, args.json, args.out)
     progress_note(_runs_done(campaign_folder(campaign, args.out), len(campaign.tests)))
     live_ctx = contextlib.nullcontext(None)
