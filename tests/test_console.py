@@ -269,3 +269,27 @@ def test_grbl_dro_is_its_status_report() -> None:
     assert m["pos_mm"] == [10.5, -3.25, -1.0]  # work position: MPos less the offset
     assert (m["feed_mm_min"], m["spindle_rpm"]) == (450, 12000)
     assert m["overrides_pct"] == {"feed": 110, "rapid": 50, "spindle": 95}
+
+
+def test_the_live_run_zooms_to_raw_samples_and_scrolls_back_binned(tmp_path: Path) -> None:
+    from rig.console.server import make_app
+
+    folder, w = _live_folder(tmp_path)
+    w.begin_run(_meta(zero=[0.5, 0.0, 0.0]), 3, np.dtype(np.float64))
+    n = 2000
+    ramp = np.arange(n) / 1000.0  # volts
+    for k in range(0, n, 250):
+        w.write(k, np.vstack([ramp[k : k + 250], np.zeros(250), np.ones(250)]))
+    with _client(make_app(folder)) as client:
+        whole = client.get("/api/trace", params={"live": 1, "px": 100}).json()
+        zoom = client.get("/api/trace", params={"live": 1, "t0": 5.5, "t1": 5.6, "px": 100})
+    w.close(unlink=True)
+    # the whole run: 100 bins of 20 samples (run clock from t0 = 5 s), min and max by hand
+    assert not whole["raw"] and whole["n"] == n and len(whole["t"]) == 100
+    assert np.allclose(whole["min"][0], 100.0 * (ramp[::20] - 0.5), atol=0.01)
+    assert np.allclose(whole["max"][0], 100.0 * (ramp[19::20] - 0.5), atol=0.01)
+    # zoomed to 0.1 s: the samples themselves, 5.500 .. 5.600 s
+    z = zoom.json()
+    assert z["raw"] and z["n"] == 101 and z["t"][0] == pytest.approx(5.5)
+    assert np.allclose(z["min"][0], 100.0 * (ramp[500:601] - 0.5), atol=1e-3)
+    assert np.allclose(z["max"][2], 100.0)

@@ -80,7 +80,8 @@ class Page:
         while not pred():
             if time.monotonic() > t_end:
                 seen = {k: self.text(k) for k in ("machine-state", "run-progress", "frame-count")}
-                note = self.js("document.getElementById('cmd-note').textContent")
+                note = self.js("[document.getElementById('cmd-note').textContent, "
+                               "document.getElementById('browse-info').textContent]")
                 raise AssertionError(f"timed out waiting for {what}: page {seen}, {note!r}")
             time.sleep(0.05)
 
@@ -149,7 +150,7 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
     # by a failed test goes 2 s after the campaign process.
     log = (tmp_path / "campaign.log").open("w")
     # the server stays this long after the campaign (browse mode), then goes by itself
-    env = {**os.environ, "CUTLAB_CONSOLE_LINGER_S": "8"}
+    env = {**os.environ, "CUTLAB_CONSOLE_LINGER_S": "15"}
     camp = subprocess.Popen(cmd, cwd=ROOT, stdout=log, stderr=subprocess.STDOUT, env=env)
     try:
         # The address with the session's token, as printed once the server answers (issue 31).
@@ -185,11 +186,11 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
                 return len(seen - {"-", "-1"}) >= 3
 
             page.wait("the executing block to change", blocks_seen, 60)
+            readouts, zoom = _watch_the_machine(page)
             page.wait("run 2/2", lambda: page.text("run-progress") == "2/2", 60)
             page.wait("the cut of run 2", lambda: int(page.text("executing-block")) >= 3)
             assert page.text("machine-state") == "Run"
             assert _buttons(page) == {"hold": True, "resume": False, "abort": True}
-            readouts = _watch_the_machine(page)
             # hold, with confirmation: the state shown is the one read back from the control
             page.click("hold")
             assert page.js("document.getElementById('confirm').open") is True
@@ -245,7 +246,8 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
     # the abort names its source: the console and the page's address (not Ctrl-C)
     assert last.reason.startswith("operator stopped the run from the console (client 127.0.0.1:")
     assert not (tmp_path / "out" / "quick" / "live.json").exists()
-    _readouts_match_the_run_file(readouts, last)
+    _readouts_match_the_run_file(readouts, rf.load_run(runs[0]))
+    _zoom_is_the_run_file_s_samples(zoom, rf.load_run(runs[zoom["run"] - 1]))
 
 
 def _buttons(page: Page) -> dict[str, bool]:
@@ -275,7 +277,7 @@ def _gone(pid: int, timeout_s: float = 30.0) -> None:
 
 
 def _watch_the_machine(page: Page) -> list[dict[str, Any]]:
-    """While run 2 cuts: the DRO moves (estimated on the drip feed), the toolpath highlights
+    """While run 1 cuts: the DRO moves (estimated on the drip feed), the toolpath highlights
     the block the controller executes, on screen where the page's own data puts it, and the
     per-revolution readouts come (returned, to check against the run file)."""
     xs: set[str] = set()
@@ -284,7 +286,7 @@ def _watch_the_machine(page: Page) -> list[dict[str, Any]]:
     def moving() -> bool:
         xs.add(page.text("dro-x"))
         r = page.js("window.cutlab.readouts")
-        if r and r["run"] == 2:
+        if r and r["run"] == 1:
             readouts[r["rev"]] = r
         return len(xs - {"-"}) >= 3 and len(readouts) >= 3
 
@@ -296,41 +298,85 @@ def _watch_the_machine(page: Page) -> list[dict[str, Any]]:
     assert page.text("dro-spindle") == "1200"  # the program's S1200
     assert float(page.text("dro-feed")) > 0
     # the readouts on the page are the last ones received
-    shown = page.js("[...document.querySelectorAll('#readout-mean td')].map(e => e.textContent)")
-    last = page.js("window.cutlab.readouts")
+    shown, last = page.js("[[...document.querySelectorAll('#readout-mean td')]"
+                          ".map(e => e.textContent), window.cutlab.readouts]")  # one moment
     assert shown == [f"{n} {v:.1f}" for n, v in zip(last["channels"], last["mean"])]
     assert re.fullmatch(r"p50 \d+ ms, p95 \d+ ms", page.text("latency")), page.text("latency")
     _toolpath_on_screen(page)
-    return list(readouts.values())
+    # the spectrum: tooth-passing harmonics of the run's speed (1 insert at 1200 rpm: 20 Hz)
+    page.wait("a spectrum", lambda: page.js("window.cutlab.spectrum") is not None)
+    sp = page.js("window.cutlab.spectrum")
+    assert sp["tooth_hz"] == pytest.approx(20.0) and sp["f_hz"][-1] >= 10 * 20.0
+    assert "not known" in page.js("document.getElementById('spectrum-note').textContent")
+    # pause, zoom to 50 ms: the samples as recorded; the whole run: min/max per pixel
+    page.click("pause")
+    t_end = page.js("window.cutlab.latest()")
+    page.js(f"zoomTo({t_end - 0.05}, {t_end})")
+    page.wait("the zoom", lambda: page.js("window.cutlab.view && window.cutlab.view.raw"))
+    zoom = page.js("window.cutlab.view")
+    assert zoom["n"] == len(zoom["t"]) and 350 <= zoom["n"] <= 450  # 8 kHz
+    assert page.js("plot.data[0].length") == zoom["n"]  # drawn as they came
+    page.click("scroll-back")
+    page.wait("the whole run", lambda: page.js("window.cutlab.view && !window.cutlab.view.raw"))
+    assert page.js("window.cutlab.view.n") > 8000
+    page.click("pause")  # follow live again
+    assert page.js("window.cutlab.view") is None
+    return list(readouts.values()), zoom
+
+
+def _zoom_is_the_run_file_s_samples(zoom: dict[str, Any], run: rf.Run) -> None:
+    """The zoomed view's samples are the run file's, time for time (the zeros may differ by
+    the file's drift correction)."""
+    k = [round((t - run.t0_s) * run.rate_hz) for t in zoom["t"]]
+    assert all(abs(t - run.time_s[j]) < 0.5 / run.rate_hz for t, j in zip(zoom["t"], k))
+    assert run.force_n is not None
+    for c in range(len(zoom["min"])):
+        got = zoom["min"][c]
+        want = run.force_n[k, c]
+        assert max(abs(g - w) for g, w in zip(got, want)) < 0.5, c
 
 
 def _toolpath_on_screen(page: Page) -> None:
     """A screenshot of the toolpath canvas: the executing block's colour is drawn along the
-    segments the page's data gives for the block the controller executes (not judged by eye)."""
+    segments the page's data gives for the block the controller executes, and nowhere else
+    (not judged by eye). A screenshot may show the frame before the latest state: the block
+    must agree, on screen and in the page's data, in one of several tries."""
+    why = ""
+    for _ in range(20):
+        before = page.text("executing-block")
+        view, segs_all, rect = page.js(
+            "[window.cutlab.toolpath(), window.cutlab.toolpathSegments(), (() => {"
+            " const c = document.getElementById('toolpath'); const r = c.getBoundingClientRect();"
+            " return [r.x + scrollX + c.clientLeft, r.y + scrollY + c.clientTop, c.clientWidth,"
+            " c.clientHeight]; })()]")  # the canvas's drawing area, page coordinates
+        shot = page.call("Page.captureScreenshot", format="png", captureBeyondViewport=True,
+                         clip={"x": rect[0], "y": rect[1], "width": rect[2], "height": rect[3],
+                               "scale": 1})  # fmt: skip
+        if page.text("executing-block") != before or not view or str(view["block"]) != before:
+            time.sleep(0.1)
+            why = "the executing block changed during every screenshot"
+            continue
+        segs = [x for x in segs_all if x[0] == view["block"]]
+        if not segs:  # a block without motion (modes, M-codes): nothing drawn, the next one
+            why = f"block {view['block']} has no segment in the toolpath"
+            time.sleep(0.1)
+            continue
+        why = _executing_drawn(shot["data"], view, segs)
+        if not why:
+            return
+        time.sleep(0.1)
+    raise AssertionError(why)
+
+
+def _executing_drawn(png_b64: str, view: dict[str, Any], segs: list[list[float]]) -> str:
+    """Why the screenshot does not show the executing block where ``view`` maps ``segs`` ("":
+    it does)."""
+    import base64
     import io
 
     from PIL import Image
 
-    for _ in range(20):  # the block may change between the screenshot and the reading
-        before = page.text("executing-block")
-        view = page.js("window.cutlab.toolpath()")
-        # the canvas's drawing area in page coordinates (inside its border)
-        rect = page.js("(() => { const c = document.getElementById('toolpath'); "
-                       "const r = c.getBoundingClientRect(); return [r.x + scrollX + "
-                       "c.clientLeft, r.y + scrollY + c.clientTop, c.clientWidth, "
-                       "c.clientHeight]; })()")  # fmt: skip
-        shot = page.call("Page.captureScreenshot", format="png",
-                         clip={"x": rect[0], "y": rect[1], "width": rect[2], "height": rect[3],
-                               "scale": 1})  # fmt: skip
-        if page.text("executing-block") == before and view and str(view["block"]) == before:
-            break
-        time.sleep(0.1)
-    else:
-        raise AssertionError("the executing block changed during every screenshot")
-    block = int(before)
-    segs = [s for s in page.js("window.cutlab.toolpathSegments()") if s[0] == block]
-    assert segs, f"block {block} has no segment in the toolpath"
-    img = Image.open(io.BytesIO(__import__("base64").b64decode(shot["data"]))).convert("RGB")
+    img = Image.open(io.BytesIO(base64.b64decode(png_b64))).convert("RGB")
     sx, sy = img.width / view["W"], img.height / view["H"]
 
     def at(x_mm: float, y_mm: float) -> tuple[int, int]:
@@ -338,25 +384,22 @@ def _toolpath_on_screen(page: Page) -> None:
         py = view["H"] - view["pad"] - (y_mm - view["y0"]) * view["k"]
         return round(px * sx), round(py * sy)
 
-    orange = (0xFF, 0x6F, 0x00)
-    hits = 0
-    for s in segs:
-        for f in (0.25, 0.5, 0.75):
-            x, y = at(s[2] + f * (s[4] - s[2]), s[3] + f * (s[5] - s[3]))
-            px = img.getpixel((min(max(x, 0), img.width - 1), min(max(y, 0), img.height - 1)))
-            hits += all(abs(a - b) < 40 for a, b in zip(px, orange))
-    assert hits >= 1, f"block {block}: no executing colour along its segments"
-    # and nowhere far from them: the orange pixels are near the block's segments
+    def orange(xy: tuple[int, int]) -> bool:
+        x, y = min(max(xy[0], 0), img.width - 1), min(max(xy[1], 0), img.height - 1)
+        return all(abs(a - b) < 40 for a, b in zip(img.getpixel((x, y)), (0xFF, 0x6F, 0x00)))
+
+    along = [orange(at(s[2] + f * (s[4] - s[2]), s[3] + f * (s[5] - s[3])))
+             for s in segs for f in (0.25, 0.5, 0.75)]  # fmt: skip
+    if not any(along):
+        return f"block {view['block']}: no executing colour along its segments"
     pts = [(x, y) for x in range(0, img.width, 2) for y in range(0, img.height, 2)
-           if all(abs(a - b) < 40 for a, b in zip(img.getpixel((x, y)), orange))]  # fmt: skip
-    assert pts
+           if orange((x, y))]  # fmt: skip
     ends = [at(s[2], s[3]) for s in segs] + [at(s[4], s[5]) for s in segs]
-    xs = [e[0] for e in ends]
-    ys = [e[1] for e in ends]
-    margin = 8 * max(sx, sy)
-    near = [min(xs) - margin <= x <= max(xs) + margin and min(ys) - margin <= y <= max(ys) + margin
-            for x, y in pts]  # fmt: skip
-    assert all(near), "executing colour drawn away from the block"
+    xs, ys = [e[0] for e in ends], [e[1] for e in ends]
+    m = 8 * max(sx, sy)
+    box = (min(xs) - m, max(xs) + m, min(ys) - m, max(ys) + m)
+    away = [(x, y) for x, y in pts if not (box[0] <= x <= box[1] and box[2] <= y <= box[3])]
+    return f"block {view['block']}: executing colour away from it at {away[:3]}" if away else ""
 
 
 def _readouts_match_the_run_file(readouts: list[dict[str, Any]], run: rf.Run) -> None:

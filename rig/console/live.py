@@ -350,9 +350,17 @@ class LiveCampaign:
             "scaling_coeff": None if info.scaling_coeff is None else info.scaling_coeff.tolist(),
             "volts_to_n": self.cal.volts_to_n.tolist(),
             "spindle_rpm": self.rpms[k] if 0 <= k < self.n_runs else None,
+            "teeth": self._teeth(),
+            # the lobes' chatter frequency when the campaign gives one (no lobes: not known)
+            "chatter_hz": getattr(self.campaign, "chatter_hz", None),
             "zero_v": None,
             "program": [],
         }
+
+    def _teeth(self) -> int | None:
+        tool = getattr(self.campaign, "tool", None)
+        n = getattr(tool, "inserts", None) or getattr(tool, "flutes", None)
+        return int(n) if isinstance(n, int | float) and n > 0 else None
 
     def on_program(self, program: Any) -> None:
         """The program starts: its lines for the program view; the zero from the rest just

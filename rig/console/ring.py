@@ -246,6 +246,11 @@ class RingReader(_Mapped):
         return bool(self.h[_CLOSED])
 
     @property
+    def row_to_sample(self) -> int:
+        """Device sample number less ring row number (rows after a hole keep their time)."""
+        return int(self.h[_ROW_TO_SAMPLE])
+
+    @property
     def written_ns(self) -> int:
         """Wall clock (``time.time_ns``) when the newest block came into the ring (0: none)."""
         return int(self.h[_WRITTEN_NS])

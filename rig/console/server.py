@@ -63,6 +63,10 @@ DEFAULT_PX, DEFAULT_WINDOW_S = 1000, 10.0
 LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
 COMMANDS = ("hold", "resume", "abort")
 WS_MAX_BYTES = 64 * 1024  # a page's messages are < 100 bytes; larger ones are closed (1009)
+POLL_S = 0.005  # how often a connection looks for new samples between frames
+MIN_FRAME_S = 0.015  # frames at most this often (new samples sooner than TICK_S)
+SPECTRUM_N = 4096  # samples per spectrum (0.5 s at 8 kHz: 2 Hz bins)
+SPECTRUM_PX = 400
 LOG_BUDGET = 20  # logged lines of refusals / bad messages per connection (then one more saying so)
 
 
@@ -252,6 +256,19 @@ def _num(x: Any) -> float | None:
     return x if math.isfinite(x) else None
 
 
+def _binned(t: np.ndarray, data: np.ndarray, px: int) -> dict[str, Any]:
+    """Min and max per pixel of ``data`` (n, c) at times ``t``; when there are no more samples
+    than two a pixel, the samples themselves (``raw``: a zoom shows what was recorded)."""
+    n = len(data)
+    if n <= 2 * max(px, 1):
+        vals = np.round(data.T, 3).tolist() if n else [[] for _ in range(data.shape[1])]
+        return {"t": np.round(t, 6).tolist(), "min": vals, "max": vals, "raw": True, "n": n}
+    per = max(1, math.ceil(n / max(px, 1)))
+    b, lo, hi, _ = bins_min_max(data, np.arange(n), per)
+    return {"t": np.round(t[b * per], 5).tolist(), "min": np.round(lo, 2).tolist(),
+            "max": np.round(hi, 2).tolist(), "raw": False, "n": n}  # fmt: skip
+
+
 def _trace(path: Path, t0: float | None, t1: float | None, px: int) -> dict[str, Any]:
     meta = rf.load_run(path, samples=False, repair=False)
     base = meta.t0_s if math.isfinite(meta.t0_s) else 0.0
@@ -259,13 +276,35 @@ def _trace(path: Path, t0: float | None, t1: float | None, px: int) -> dict[str,
     stop = None if t1 is None else max(0.0, t1 - base)
     run = rf.load_run(path, start, stop, repair=False)
     data = run.force_n if run.force_n is not None else run.volts
-    n = len(data)
-    per = max(1, math.ceil(n / max(px, 1)))
-    b, lo, hi, _ = bins_min_max(data, np.arange(n), per)
-    t = run.time_s[b * per] if n else np.zeros(0)
-    return {"t": np.round(t, 5).tolist(), "min": np.round(lo, 2).tolist(),
-            "max": np.round(hi, 2).tolist(), "unit": "N" if run.force_n is not None else "V",
-            "channels": list(run.channel_names)}  # fmt: skip
+    unit = "N" if run.force_n is not None else "V"
+    out = _binned(np.asarray(run.time_s, float), np.asarray(data, float), px)
+    return out | {"unit": unit, "channels": list(run.channel_names)}
+
+
+def _live_trace(ring: RingReader, t0: float | None, t1: float | None, px: int) -> dict[str, Any]:
+    """The live run's forces between ``t0`` and ``t1`` (run clock s; None: its start / now) as
+    the ring still holds them (the whole run unless it outgrew the ring), binned as
+    :func:`_binned`."""
+    c = _Client(px, DEFAULT_WINDOW_S)
+    _, c.meta = ring.get_json("meta")
+    meta = c.meta or {}
+    if not meta.get("rate_hz"):
+        raise ValueError("no live run yet")
+    rate, base = float(meta["rate_hz"]), float(meta.get("t0_s", 0.0))
+    gen = ring.generation
+    first = 0 if t0 is None else max(0, int((t0 - base) * rate))
+    g, start, offset, rows = ring.rows_since(gen, max(0, first - ring.row_to_sample))
+    if g != gen:
+        raise ValueError("a new run began: ask again")
+    t = base + (np.arange(start, start + len(rows)) + offset) / rate
+    keep = np.ones(len(rows), bool) if t1 is None else t <= t1
+    if t0 is not None:
+        keep &= t >= t0
+    data = c._force(rows[keep]) if keep.any() else np.zeros((0, rows.shape[1] if rows.ndim == 2
+                                                                 else 0))  # fmt: skip
+    return _binned(t[keep], data, px) | {"unit": "N", "channels": meta.get("channels", []),
+                                         "run": meta.get("run"), "first_t": _num(t[0]) if len(t)
+                                         else None}  # fmt: skip
 
 
 class _Client:
@@ -280,9 +319,17 @@ class _Client:
         self.runs_sig: tuple[Any, ...] | None = None
         self.live_state: dict[str, Any] | None = None
         self.last_rev = -1
+        self.seen: tuple[int, int] = (-1, -1)
+
+    def news(self, hub: Hub) -> bool:
+        """New samples (or a new run) in the ring since the last frame."""
+        r = hub.ring
+        return r is not None and (r.rows_written, r.generation) != self.seen
 
     def frame(self, hub: Hub) -> dict[str, Any]:
         self.frames += 1
+        if hub.ring is not None:
+            self.seen = (hub.ring.rows_written, hub.ring.generation)
         msg: dict[str, Any] = {"type": "frame", "n": self.frames}
         state = hub.live_state()
         if state != self.live_state:
@@ -314,6 +361,9 @@ class _Client:
                 readouts = self._readouts(ring)
                 if readouts is not None:
                     msg["readouts"] = readouts
+                spectrum = self._spectrum(ring)
+                if spectrum is not None:
+                    msg["spectrum"] = spectrum
         return msg
 
     def _force(self, rows: np.ndarray) -> np.ndarray:
@@ -324,6 +374,35 @@ class _Client:
             volts = rf.raw_to_volts(rows, np.asarray(meta["scaling_coeff"], float))
         zero = np.asarray(meta.get("zero_v") or np.zeros(volts.shape[1]), float)
         return np.einsum("nj,ij->ni", volts - zero, np.asarray(meta["volts_to_n"], float))
+
+    def _spectrum(self, ring: RingReader) -> dict[str, Any] | None:
+        """Amplitude spectrum (N, Hann window) per channel of the newest SPECTRUM_N samples, up
+        to the larger of 10 tooth-passing harmonics and 1 kHz, at most SPECTRUM_PX points (the
+        largest in each); the tooth-passing frequency and the chatter frequency if known."""
+        meta = self.meta or {}
+        rate = float(meta.get("rate_hz") or 0.0)
+        if rate <= 0 or meta.get("zero_v") is None:
+            return None
+        n = SPECTRUM_N
+        g, _, _, rows = ring.rows_since(self.gen, max(0, ring.rows_written - n))
+        if g != self.gen or len(rows) < n:
+            return None
+        f = self._force(rows)
+        win = np.hanning(n)
+        amp = np.abs(np.fft.rfft((f - f.mean(axis=0)) * win[:, None], axis=0)) * 2 / win.sum()
+        freq = np.fft.rfftfreq(n, 1 / rate)
+        rpm = abs(float(meta.get("spindle_rpm") or 0.0))
+        teeth = meta.get("teeth") or 0
+        tooth_hz = rpm / 60 * teeth if rpm and teeth else None
+        top = min(rate / 2, max(1000.0, 10.5 * tooth_hz if tooth_hz else 0.0))
+        k = int(np.searchsorted(freq, top))
+        per = max(1, -(-k // SPECTRUM_PX))
+        m = (k // per) * per
+        peak = amp[:m].reshape(-1, per, amp.shape[1]).max(axis=1)
+        return {"f_hz": np.round(freq[:m:per], 2).tolist(), "amp": np.round(peak.T, 3).tolist(),
+                "df_hz": round(rate / n, 4), "tooth_hz": tooth_hz,
+                "chatter_hz": meta.get("chatter_hz"), "channels": meta.get("channels", []),
+                "unit": "N"}  # fmt: skip
 
     def _readouts(self, ring: RingReader) -> dict[str, Any] | None:
         """Mean, peak and RMS of the last whole revolution per channel, N, as
@@ -631,6 +710,10 @@ def make_app(
         t0 = float(q["t0"]) if q.get("t0") else None
         t1 = float(q["t1"]) if q.get("t1") else None
         px = min(max(int(q.get("px", 1500)), 10), 5000)
+        if q.get("live"):
+            if hub.ring is None:
+                raise ValueError("no live campaign here")
+            return _live_trace(hub.ring, t0, t1, px)
         return _trace(hub.run_path(q["file"]), t0, t1, px)
 
     async def ws_endpoint(ws: WebSocket) -> None:
@@ -659,7 +742,6 @@ def make_app(
 
         reader = asyncio.create_task(receive())
         loop = asyncio.get_running_loop()
-        due = loop.time()
         try:
             while not reader.done():
                 if hub.should_exit:  # the page says so rather than "connection lost"
@@ -669,14 +751,20 @@ def make_app(
                     break
                 while not inbox.empty():
                     await _handle(ws, hub, client, inbox.get_nowait(), peer)
+                due = loop.time() + TICK_S  # from the frame's start: no drift, no pile-up
                 msg = client.frame(hub)
                 sig = hub.runs_signature() if client.frames % 25 == 1 else client.runs_sig
                 if sig != client.runs_sig:
                     client.runs_sig = sig
                     msg["runs"] = await asyncio.to_thread(hub.runs)
                 await ws.send_text(json.dumps(msg, separators=(",", ":"), allow_nan=False))
-                due = max(due + TICK_S, loop.time())  # a fixed rate; late frames do not pile up
-                await asyncio.sleep(due - loop.time())
+                # The next frame: at TICK_S, or sooner when new samples come (not before
+                # MIN_FRAME_S): a block waits for no beat (the sample-to-screen latency).
+                sent = loop.time()
+                while (now := loop.time()) < due and inbox.empty() and not hub.should_exit:
+                    if now - sent >= MIN_FRAME_S and client.news(hub):
+                        break
+                    await asyncio.sleep(min(POLL_S, max(0.0, due - now)))
         except (WebSocketDisconnect, RuntimeError, ConnectionError):
             pass
         finally:

@@ -39,6 +39,7 @@ let liveState = { live: false, alive: false, ended: "" };
 let serverGone = false; // the server said it stops (or the campaign ended): no reconnecting
 let lostSince = null;
 const RECONNECT_FOR_MS = 120000; // then the page says the server is gone and stops trying
+let paused = false; // the live plot holds still (zoom, scroll-back); samples keep coming
 let toolpath = []; // [block, kind, x0, y0, x1, y1] per segment, from the run info
 let tpView = null; // the toolpath canvas's transform (mm -> px), for tests and screenshots
 const latencies = []; // sample-to-screen, ms, the last LAT_N frames with new samples
@@ -49,6 +50,8 @@ window.cutlab = {
   dro: null,
   toolpath: () => tpView,
   toolpathSegments: () => toolpath,
+  latest: () => (bins.t.length ? bins.t[bins.t.length - 1] : null), // run clock s
+  view: null, // the zoomed or whole-run view, while paused
 };
 
 function fmtS(s) {
@@ -111,13 +114,63 @@ function makePlot(channels, unit) {
       bands: bandsOpt,
       scales: { x: { time: false } },
       axes: [{ label: "run clock, s" }, { label: unit }],
-      hooks: { drawClear: [drawBands] },
+      hooks: { drawClear: [drawBands], setSelect: [onSelect] },
+      cursor: { drag: { x: true, y: false, setScale: false } },
       legend: { live: false },
     },
     [[]].concat(channels.flatMap(() => [[], []])),
     $("plot"),
   );
 }
+
+// -- zoom (drag across the plot), pause, scroll back over the whole run: the server sends min and
+// max per pixel, or the samples themselves once the view holds no more than two a pixel ------
+function onSelect(u) {
+  if (u.select.width < 5) return;
+  const t0 = u.posToVal(u.select.left, "x");
+  const t1 = u.posToVal(u.select.left + u.select.width, "x");
+  u.setSelect({ left: 0, top: 0, width: 0, height: 0 }, false);
+  zoomTo(t0, t1);
+}
+
+async function zoomTo(t0, t1) {
+  const q = new URLSearchParams({ px: String(plotWidth()) });
+  if (browsing) q.set("file", browsing);
+  else {
+    q.set("live", "1");
+    setPaused(true);
+  }
+  if (t0 !== undefined) q.set("t0", t0);
+  if (t1 !== undefined) q.set("t1", t1);
+  try {
+    const tr = await getJSON(`/api/trace?${q}`);
+    makePlot(tr.channels, tr.unit);
+    setPlotData(tr.t, tr.min, tr.max);
+    window.cutlab.view = { t0, t1, raw: tr.raw, n: tr.n, t: tr.t, min: tr.min, max: tr.max,
+                           run: tr.run ?? null };
+    $("view-note").textContent = tr.raw
+      ? `${tr.n} samples, as recorded`
+      : `min and max per pixel of ${tr.n} samples`;
+  } catch (e) {
+    $("view-note").textContent = `cannot show that: ${e.message}`;
+  }
+}
+
+function setPaused(on) {
+  paused = on;
+  $("pause").textContent = on ? "Follow live" : "Pause";
+  if (!on) {
+    $("view-note").textContent = "";
+    window.cutlab.view = null;
+    if (meta && !browsing) {
+      makePlot(meta.channels, "N");
+      setPlotData(bins.t, bins.min, bins.max);
+    }
+  }
+}
+
+$("pause").onclick = () => setPaused(!paused && !browsing);
+$("scroll-back").onclick = () => zoomTo();
 
 function setPlotData(t, mins, maxs) {
   if (!plot) return;
@@ -319,6 +372,49 @@ function drawToolpath() {
   cv.dataset.block = exec;
 }
 
+// -- the live spectrum: per channel, tooth-passing harmonics (grey), chatter frequency (red) --
+function drawSpectrum(sp) {
+  window.cutlab.spectrum = sp;
+  const cv = $("spectrum");
+  const ctx = cv.getContext("2d");
+  const W = cv.width, H = cv.height, L = 34, B = 18, T = 6;
+  ctx.clearRect(0, 0, W, H);
+  const fMax = sp.f_hz[sp.f_hz.length - 1] || 1;
+  let aMax = 1e-9;
+  for (const a of sp.amp) for (const v of a) aMax = Math.max(aMax, v);
+  const x = (f) => L + (f / fMax) * (W - L - 4);
+  const y = (a) => H - B - (a / aMax) * (H - B - T);
+  ctx.font = "10px monospace";
+  ctx.fillStyle = "#666";
+  ctx.fillText(`${aMax.toFixed(1)} ${sp.unit}`, 0, T + 8);
+  ctx.fillText("0", L - 10, H - B);
+  ctx.fillText(`${fMax.toFixed(0)} Hz`, W - 48, H - 4);
+  if (sp.tooth_hz) {
+    ctx.strokeStyle = "#b0bec5";
+    ctx.setLineDash([3, 3]);
+    for (let h = 1; h * sp.tooth_hz <= fMax; h++) {
+      ctx.beginPath(); ctx.moveTo(x(h * sp.tooth_hz), T); ctx.lineTo(x(h * sp.tooth_hz), H - B);
+      ctx.stroke();
+    }
+    ctx.setLineDash([]);
+    ctx.fillText(`tooth ${sp.tooth_hz.toFixed(1)} Hz`, L + 2, H - 4);
+  }
+  if (sp.chatter_hz) {
+    ctx.strokeStyle = "#d32f2f";
+    ctx.beginPath(); ctx.moveTo(x(sp.chatter_hz), T); ctx.lineTo(x(sp.chatter_hz), H - B);
+    ctx.stroke();
+  }
+  $("spectrum-note").textContent = sp.chatter_hz
+    ? `chatter ${sp.chatter_hz.toFixed(0)} Hz (lobes)`
+    : "chatter frequency: not known (no lobes)";
+  sp.amp.forEach((a, c) => {
+    ctx.strokeStyle = COLORS[c % COLORS.length];
+    ctx.beginPath();
+    a.forEach((v, i) => (i ? ctx.lineTo(x(sp.f_hz[i]), y(v)) : ctx.moveTo(x(sp.f_hz[i]), y(v))));
+    ctx.stroke();
+  });
+}
+
 function showEvents(events) {
   const last = events[events.length - 1];
   const key = events.length + ":" + (last ? last.wall : "");
@@ -401,7 +497,10 @@ function onMessage(ev) {
   if (msg.status) showStatus(msg.status);
   if (msg.bins) addBins(msg.bins);
   if (msg.readouts) showReadouts(msg.readouts);
-  if (!browsing && plot && (msg.bins || msg.status)) setPlotData(bins.t, bins.min, bins.max);
+  if (msg.spectrum && !paused) drawSpectrum(msg.spectrum);
+  if (!browsing && !paused && plot && (msg.bins || msg.status)) {
+    setPlotData(bins.t, bins.min, bins.max);
+  }
   if (msg.bins && msg.bins.t.length && msg.bins.written_ms) noteLatency(msg.bins.written_ms);
 }
 
@@ -514,6 +613,8 @@ async function browse(file) {
 
 $("browse-live").onclick = () => {
   browsing = null;
+  paused = false;
+  setPaused(false);
   updateControls();
   $("browse").classList.add("hidden");
   if (meta) {
