@@ -105,6 +105,12 @@ class EdgeTable:
     m_inv: np.ndarray
     cos_nu: float
     tangent_height_mm: float  # c of eq 16: where the nose arc meets the major edge
+    # Where the edge sits at height z, from its lowest point: radially (R, + out) on the trailing
+    # and leading sides, and along T (+ ahead) on the leading side (a rake puts the upper edge
+    # behind or ahead of the nose). They place each height's chip for the entry and exit.
+    x_left_mm: np.ndarray | None = None
+    x_right_mm: np.ndarray | None = None
+    t_right_mm: np.ndarray | None = None
 
     @property
     def max_depth_mm(self) -> float:
@@ -147,12 +153,13 @@ def edge_table(
     v = np.concatenate([v_minor, v_arc, v_major])
     s = np.concatenate([[0.0], np.cumsum(np.hypot(np.diff(u), np.diff(v)))])
     x = m[1, 1] * u + m[1, 2] * v
+    tt = m[0, 1] * u + m[0, 2] * v
     z = m[2, 1] * u + m[2, 2] * v
     # The lowest point; with a flat wiper on the floor take its end at the nose.
     i0 = int(np.flatnonzero(z <= z.min() + 1e-12 * max(1.0, r))[-1])
-    z = z - z[i0]
+    z, x, tt = z - z[i0], x - x[i0], tt - tt[i0]
     zl, xl, sl = z[: i0 + 1][::-1], x[: i0 + 1][::-1], s[: i0 + 1][::-1]
-    zr, xr, sr = z[i0:], x[i0:], s[i0:]
+    zr, xr, sr, tr = z[i0:], x[i0:], s[i0:], tt[i0:]
     bad = i0 == len(z) - 1 or np.any(np.diff(zl) < -1e-12) or np.any(np.diff(zr) < -1e-12)
     if not bad and zl[-1] < zr[-1]:
         # A minor edge that never rises (zero lead: a wiper on the floor) ends at the insert's
@@ -172,6 +179,7 @@ def edge_table(
     xrz = _interp_branch(zt, zr, xr, last=False)
     slz = _interp_branch(zt, zl, sl, last=False)
     srz = _interp_branch(zt, zr, sr, last=False)
+    trz = _interp_branch(zt, zr, tr, last=False)
     w = xrz - xlz
     if np.any(np.diff(w) < -1e-9):
         raise AnalysisError(
@@ -181,7 +189,7 @@ def edge_table(
         )
     area = np.concatenate([[0.0], np.cumsum(0.5 * (w[1:] + w[:-1]) * np.diff(zt))])
     tangent = float(z[_EDGE_POINTS + _ARC_POINTS - 2])
-    return EdgeTable(zt, w, area, slz, srz, m, float(m[0, 0]), tangent)
+    return EdgeTable(zt, w, area, slz, srz, m, float(m[0, 0]), tangent, xlz, xrz, trz)
 
 
 def chip_section(table: EdgeTable, h_mm, depth_mm):
@@ -212,3 +220,49 @@ def chip_section(table: EdgeTable, h_mm, depth_mm):
     l_mm = np.interp(d, table.z_mm, table.s_right_mm) - np.interp(lo, table.z_mm, table.s_left_mm)
     l_mm = np.where(d > 0, l_mm, 0.0)
     return s_rra / table.cos_nu, l_mm
+
+
+#: Heights (fractions of the depth) at which a partly engaged chip is integrated: dense near the
+#: floor, where the nose makes the cusp.
+_PART_GRID = np.unique(np.concatenate([np.linspace(0.0, 1.0, 49) ** 3, np.linspace(0.0, 1.0, 97)]))
+
+
+def partial_fraction(table: EdgeTable, h_mm, depth_mm, radius_mm, theta_rad, y_lo_mm, y_hi_mm):
+    """Share of the chip area, and the engaged edge length (mm), of inserts that are partly in
+    the workpiece (across the feed it spans Y' in [y_lo, y_hi]): each height z of the chip lies
+    on its own ray, at the angle theta + (its T offset over its radius) and between the radii
+    radius + max(x_left, x_right - h) and radius + x_right (the current edge and the previous
+    pass's), so a leaning edge enters and leaves over a fraction of a degree, the nose first.
+    Arrays (m,) in, (area share, l_mm) (m,) out; the area is integrated by trapezoids on
+    :data:`_PART_GRID`, the edge's contact by the linear zero of its margin in a slice."""
+    h, d, r0, th, lo, hi = (np.asarray(a, float)[:, None] for a in np.broadcast_arrays(
+        h_mm, depth_mm, radius_mm, theta_rad, y_lo_mm, y_hi_mm))  # fmt: skip
+    z = d * _PART_GRID[None, :]
+    xr = np.interp(z, table.z_mm, table.x_right_mm)
+    xl = np.interp(z, table.z_mm, table.x_left_mm)
+    lag = np.interp(z, table.z_mm, table.t_right_mm) / (r0 + xr)
+    c = np.cos(th + lag)
+    c = np.where(np.abs(c) < 1e-12, 1e-12, c)  # a ray along the block's edge: keep the sign
+    t_lo, t_hi = np.minimum(lo / c, hi / c), np.maximum(lo / c, hi / c)
+    inner, outer = r0 + np.maximum(xl, xr - h), r0 + xr
+    full = np.maximum(outer - inner, 0.0)
+    part = np.maximum(np.minimum(outer, t_hi) - np.maximum(inner, t_lo), 0.0)
+    dz = np.diff(z, axis=1)
+    area_full = (0.5 * (full[:, 1:] + full[:, :-1]) * dz).sum(axis=1)
+    area_part = (0.5 * (part[:, 1:] + part[:, :-1]) * dz).sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = np.where(area_full > 0, area_part / area_full, 0.0)
+
+    def contact(radius: np.ndarray) -> np.ndarray:
+        g = np.minimum(radius - t_lo, t_hi - radius)
+        g0, g1 = g[:, :-1], g[:, 1:]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            f = np.where(g0 > 0, g0, g1) / (np.abs(g0) + np.abs(g1))
+        return np.where((g0 > 0) & (g1 > 0), 1.0, np.where((g0 > 0) ^ (g1 > 0), f, 0.0))
+
+    # The trailing side touches uncut material below the cusp only (w(e) = h).
+    e = np.interp(h, table.width_mm, table.z_mm)
+    ds_r = np.diff(np.interp(z, table.z_mm, table.s_right_mm), axis=1)
+    ds_l = -np.diff(np.interp(np.minimum(z, e), table.z_mm, table.s_left_mm), axis=1)
+    l_mm = (contact(outer) * ds_r + contact(r0 + xl) * ds_l).sum(axis=1)
+    return share, l_mm

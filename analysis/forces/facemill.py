@@ -52,6 +52,7 @@ from analysis.forces._facemill_geometry import (
     EdgeTable,
     chip_section,
     edge_table,
+    partial_fraction,
     projected_angles,
     rotation_inverse,
 )
@@ -188,7 +189,7 @@ def _insert_layout(tool: FaceMill) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     ecc = tool.runout_mm * np.cos(a)
     d_radius = np.empty(z)
     d_radius[order] = ecc[order] - ecc[np.roll(order, -1)]
-    return a, share, d_radius
+    return a, share, d_radius, ecc
 
 
 @dataclass(frozen=True)
@@ -221,8 +222,7 @@ def insert_loads(theta_rad: ArrayLike, tool: FaceMill, cut: FaceMillCut) -> Inse
             f"({tool.depth_limit_mm:.4g} mm for this face mill)"
         )
     radius = tool.radius_mm
-    entry, exit_ = cut.engagement_rad(radius)
-    a, share, d_radius = _insert_layout(tool)
+    a, share, d_radius, ecc = _insert_layout(tool)
     # Broadcast everything to (..., inserts).
     thk = (th[..., None] + a) % (2 * np.pi)
     fk = fz[..., None] * share
@@ -232,12 +232,43 @@ def insert_loads(theta_rad: ArrayLike, tool: FaceMill, cut: FaceMillCut) -> Inse
     if cut.tilt_deg:
         drop = radius * np.sin(np.radians(cut.tilt_deg))
         dk = np.maximum(dk - drop * (1 - np.cos(thk - np.radians(cut.tilt_low_deg))), 0.0)
-    engaged = (thk >= np.asarray(entry)[..., None]) & (thk <= np.asarray(exit_)[..., None])
-    engaged &= dk > 0
     S, l = chip_section(table, h, dk)
-    S = np.where(engaged, S, 0.0)
-    l = np.where(engaged, l, 0.0)
-    return InsertLoads(thk, h, dk, S, l, engaged)
+    if cut.entry_deg is not None and cut.exit_deg is not None:
+        # Given angles: the whole insert in or out at once, at them.
+        entry, exit_ = cut.engagement_rad(radius)
+        engaged = (thk >= np.asarray(entry)[..., None]) & (thk <= np.asarray(exit_)[..., None])
+        engaged &= dk > 0
+        return InsertLoads(thk, h, dk, np.where(engaged, S, 0.0), np.where(engaged, l, 0.0),
+                           engaged)  # fmt: skip
+    # The workpiece's edges: each height of the chip enters and leaves on its own ray (the top
+    # of a 2 mm cut with a 15 deg lead 0.54 mm further out than the nose, and behind it by the
+    # rake), over up to a degree, where the nose's radius alone takes it all in at once.
+    off = np.asarray(cut.center_offset_mm, float)[..., None]
+    half = np.asarray(cut.width_mm, float)[..., None] / 2
+    y_lo, y_hi = np.broadcast_to(off - half, thk.shape), np.broadcast_to(off + half, thk.shape)
+    r0 = radius + ecc
+    c = np.cos(thk)
+    # Bounds of where the chip can be: radii r0 - h .. r0 + x_right(d), angles within the rake's
+    # lag (rays within LAG_RAD of thk), so the rest is wholly in or wholly out.
+    r_top = r0 + np.interp(dk, table.z_mm, table.x_right_mm)
+    lag = np.abs(np.interp(dk, table.z_mm, table.t_right_mm)) / (r0 - h) + 1e-9
+    y_min = np.minimum(np.cos(thk - lag), np.cos(thk + lag))
+    y_max = np.maximum(np.cos(thk - lag), np.cos(thk + lag))
+    y_ext = np.stack([y_min * (r0 - h), y_min * r_top, y_max * (r0 - h), y_max * r_top])
+    ahead = np.sin(thk) > 0
+    live = ahead & (dk > 0) & (h > 0)
+    inside = (y_ext.min(axis=0) >= y_lo) & (y_ext.max(axis=0) <= y_hi)
+    outside = (y_ext.max(axis=0) <= y_lo) | (y_ext.min(axis=0) >= y_hi)
+    full = live & inside
+    part = live & ~inside & ~outside & (np.abs(c) < 1.0)
+    S_out, l_out = np.where(full, S, 0.0), np.where(full, l, 0.0)
+    if part.any():
+        share, lp = partial_fraction(table, h[part], dk[part], np.broadcast_to(r0, thk.shape)[part],
+                                     thk[part], y_lo[part], y_hi[part])  # fmt: skip
+        S_out[part] = S[part] * share
+        l_out[part] = lp
+    engaged = full | (part & (S_out > 0))
+    return InsertLoads(thk, h, dk, S_out, l_out, engaged)
 
 
 def facemill_design(theta_rad: ArrayLike, tool: FaceMill, cut: FaceMillCut) -> np.ndarray:
