@@ -277,27 +277,36 @@ def synthetic_run(
     drift_n_s: Sequence[float] = (0.0, 0.0, 0.0),
     phase_rad: float = 0.0,
     angle_rpm: float | None = None,
+    oversample: int = 16,
 ) -> ForceRun:
     """A force record made from a model: air, ``cut_s`` of steady cutting, air.
 
     ``forces(theta_rad (m,)) -> (m, 3)`` N is the model at cutter angles (called in chunks of
     20 000 samples so memory stays bounded); the angle turns at ``angle_rpm`` (default the
     conditions' spindle rpm) from ``phase_rad``. The true force passes through ``dynamometer``
-    (a DynamometerFilter: modes), then an offset with linear drift and white noise of
-    ``noise_frac`` x the peak resultant force are added.
+    (a DynamometerFilter: modes), computed ``oversample`` times faster than the record and every
+    so many-th sample kept (the dynamometer answers to the force between samples: an insert's
+    edge enters the workpiece within a sample), then an offset with linear drift and white noise
+    of ``noise_frac`` x the peak resultant force are added.
     """
     rng = rng or np.random.default_rng(0)
     rpm = conditions.spindle_rpm if angle_rpm is None else angle_rpm
     n_air, n_cut = int(air_s * rate_hz), int(cut_s * rate_hz)
     n = 2 * n_air + n_cut
     t = np.arange(n) / rate_hz
-    theta = phase_rad + 2 * np.pi * rpm / 60.0 * t
-    f = np.zeros((n, 3))
-    for i in range(n_air, n_air + n_cut, 20_000):
-        j = min(i + 20_000, n_air + n_cut)
+    k = max(1, int(oversample)) if dynamometer is not None else 1
+    theta = phase_rad + 2 * np.pi * rpm / 60.0 * np.arange(n * k) / (rate_hz * k)
+    f = np.zeros((n * k, 3))
+    for i in range(n_air * k, (n_air + n_cut) * k, 20_000):
+        j = min(i + 20_000, (n_air + n_cut) * k)
         f[i:j] = forces(theta[i:j])
     if dynamometer is not None:
-        f = dynamometer.apply(f)
+        if k > 1:
+            from analysis.modal import DynamometerFilter
+
+            dynamometer = DynamometerFilter(dynamometer.modes, dynamometer.rate_hz * k,
+                                            dynamometer.crosstalk)  # fmt: skip
+        f = dynamometer.apply(f)[::k]
     peak = float(np.linalg.norm(f, axis=1).max())
     f += np.asarray(offset_n, float) + t[:, None] * np.asarray(drift_n_s, float)
     f += rng.normal(scale=noise_frac * peak, size=f.shape)
