@@ -185,6 +185,10 @@ def facemill_forces_independent(
     )
 
 
+#: Face mills: forces computed this many times per DAQ sample and passed through the
+#: dynamometer's modes at that rate (the fit filters its model on a grid finer still).
+DYNO_OVERSAMPLE = 4
+
 #: ``[sim] force_model``: where the twin's face-milling forces come from.
 FACEMILL_FORCE_MODELS = {"seed003": facemill_forces, "independent": facemill_forces_independent}
 
@@ -243,6 +247,8 @@ class SimMachine:
         self.chain = DynoChain(
             dyno, rate_hz, signal.noise_n, signal.drift_n_s, signal.hum_n, signal.hum_hz,
             signal.seed, signal.modes,
+            # face mills: the dynamometer answers to an insert's entry between samples (issue 33)
+            oversample=DYNO_OVERSAMPLE if isinstance(tool, FaceMill) else 1,
         )  # fmt: skip
         self.n_slices = n_slices
         modes = tool.modes if tool_modes is None and isinstance(tool, EndMill) else tool_modes
@@ -308,7 +314,8 @@ class SimMachine:
                 f"the DAQ samples at {rate_hz:g} Hz but the machine was built for "
                 f"{self.rate_hz:g} Hz"
             )
-        t = t0_s + np.arange(n) / self.rate_hz
+        k = self.chain.oversample
+        t = t0_s + np.arange(n * k) / (self.rate_hz * k)
         with self._lock:
             f = self.cutting_force(t)
             if n:
