@@ -474,10 +474,13 @@ def simulate(tool: Any, coef: Any, run: Run, rec: Record = Record()) -> tuple[np
         lowest = z_c - dz_k[j]
         maybe = (psi > 0) & (psi < np.pi) & (lowest < 0) & (tc > 0)
         # and near the block (1 mm margins on the radii the edge spans)
-        ys, xs = np.cos(psi), np.sin(psi)
-        maybe &= np.maximum(ys * (radius - 1), ys * (reach + 1)) >= y_lo
-        maybe &= np.minimum(ys * (radius - 1), ys * (reach + 1)) <= y_hi
-        maybe &= x_c + xs * (reach + 1) >= 0
+        # the upper slices' rays lag or lead the nose's by up to lag_max
+        lag_max = float(np.abs(edge.lead_out).max()) + 1e-3
+        yy4 = np.stack([np.cos(psi + s_) * r_ for s_ in (-lag_max, lag_max)
+                        for r_ in (radius - 1, reach + 1)])  # fmt: skip
+        maybe &= yy4.max(axis=0) >= y_lo
+        maybe &= yy4.min(axis=0) <= y_hi
+        maybe &= x_c + (reach + 1) >= 0
         idx = np.flatnonzero(maybe)
         if not idx.size:
             continue
