@@ -293,3 +293,27 @@ def test_the_live_run_zooms_to_raw_samples_and_scrolls_back_binned(tmp_path: Pat
     assert z["raw"] and z["n"] == 101 and z["t"][0] == pytest.approx(5.5)
     assert np.allclose(z["min"][0], 100.0 * (ramp[500:601] - 0.5), atol=1e-3)
     assert np.allclose(z["max"][2], 100.0)
+
+
+def test_history_lists_the_campaigns_from_the_catalogue_or_the_folders(tmp_path: Path) -> None:
+    from analysis.catalog import update_index
+    from rig.console.server import make_app
+
+    lab = tmp_path / "lab"
+    for name, statuses in (("camp", ["success", "abort"]), ("other", ["success"])):
+        (lab / name / "runs").mkdir(parents=True)
+        runs = {f"r{i}": {"status": st, "file": f"runs/{i:03d}.h5"} for i, st in
+                enumerate(statuses)}  # fmt: skip
+        (lab / name / "campaign.json").write_text(json.dumps({"runs": runs}))
+    with _client(make_app(lab / "camp")) as client:
+        h = client.get("/api/history").json()
+    assert "campaign folders" in h["source"]
+    assert [(c["campaign"], c["runs"], c["statuses"], c["this"]) for c in h["campaigns"]] == [
+        ("camp", 2, {"success": 1, "abort": 1}, True), ("other", 1, {"success": 1}, False)]
+    # with a run catalogue of the lab folder: its rows, by campaign
+    _run_file(lab / "camp" / "runs" / "000-a.h5")
+    _run_file(lab / "other" / "runs" / "000-b.h5")
+    update_index([lab])
+    with _client(make_app(lab / "camp")) as client:
+        h = client.get("/api/history").json()
+    assert "run catalogue" in h["source"] and sum(c["runs"] for c in h["campaigns"]) == 2

@@ -222,6 +222,10 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
             page.wait("the run browsed", lambda: "abort" in page.js(
                 "document.getElementById('browse-info').textContent"))  # fmt: skip
             assert page.js("document.querySelectorAll('#browse-blocks li').length") > 3
+            browsed = page.js("[...document.querySelectorAll('[data-testid=browse-events] li')]"
+                              ".map(e => e.textContent).join('; ')")  # fmt: skip
+            assert "console: abort requested" in browsed, browsed
+            page.wait("the history", lambda: "quick: 2 runs" in page.text("history"))
             # then it goes by itself, and the page says so instead of reconnecting forever
             page.wait("the server's goodbye", lambda: "console server has stopped" in page.js(
                 "document.getElementById('ended').textContent"), 40)  # fmt: skip

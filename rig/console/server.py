@@ -7,6 +7,8 @@ in ``<folder>/live.json``; its run files always) or one run file. Endpoints:
 - ``/ws``: 25 frames a second of force min/max bins (one bin per pixel of the page's plot), the
   status (machine, stream, progress, events) when it changes, the runs when they change; the
   page's commands (hold, resume, abort) go to the campaign through the ring;
+- ``/api/history``: run history across campaigns (the run catalogue, else the campaign folders
+  beside this one);
 - ``/api/health``, ``/api/runs``, ``/api/run?file=NAME`` (blocks, events, program) and
   ``/api/trace?file=NAME&t0=&t1=&px=`` (min/max bins of a run file's forces, run clock s).
 
@@ -52,7 +54,7 @@ from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from analysis.errors import ConfigError
+from analysis.errors import AnalysisError, ConfigError
 from analysis.runs import file as rf
 from rig.console.live import LIVE_FILE, TICK_S, TOKEN_ENV, WILDCARD_BINDS, url_of
 from rig.console.ring import RingError, RingReader
@@ -225,6 +227,45 @@ class Hub:
             if p.name == name:
                 return p
         raise ConfigError(f"console: no run file {name!r} here")
+
+
+MAX_HISTORY = 50  # campaigns listed in the history
+
+
+def _history(folder: Path | None) -> dict[str, Any]:
+    """Run history across campaigns: from the run catalogue (``cutlab catalog index``) of this
+    folder or a parent, else from the campaign folders beside this one (their manifests)."""
+    if folder is None:
+        return {"source": "", "campaigns": []}
+    from analysis.catalog.index import INDEX_NAME, load_index
+
+    here = folder.resolve()
+    for d in (here, *list(here.parents)[:3]):
+        index = d / INDEX_NAME
+        if index.is_file():
+            df = load_index(index)
+            out = []
+            for name, g in df.groupby("campaign", sort=True):
+                counts = g["status"].value_counts().to_dict()
+                out.append({"campaign": str(name), "runs": len(g), "statuses": {
+                    str(k): int(v) for k, v in counts.items()},
+                    "latest_utc": str(g["indexed_utc"].max())})  # fmt: skip
+            return {"source": f"the run catalogue {index}", "campaigns": out[:MAX_HISTORY]}
+    out = []
+    for d in sorted(here.parent.iterdir())[: 10 * MAX_HISTORY]:
+        m = d / "campaign.json"
+        if not m.is_file():
+            continue
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            runs = json.loads(m.read_text()).get("runs", {})
+            counts: dict[str, int] = {}
+            for e in runs.values():
+                st = str(e.get("status", "")) if isinstance(e, dict) else ""
+                counts[st] = counts.get(st, 0) + 1
+            out.append({"campaign": d.name, "runs": len(runs), "statuses": counts,
+                        "this": d == here})  # fmt: skip
+    return {"source": f"the campaign folders in {here.parent} (no run catalogue: cutlab "
+            "catalog index)", "campaigns": out[:MAX_HISTORY]}  # fmt: skip
 
 
 def _run_details(path: Path) -> dict[str, Any]:
@@ -694,6 +735,13 @@ def make_app(
     async def runs(request: Request) -> JSONResponse:
         return JSONResponse({"runs": await asyncio.to_thread(hub.runs)})
 
+    async def history(request: Request) -> JSONResponse:
+        try:
+            return JSONResponse(await asyncio.to_thread(_history, folder))
+        except (ConfigError, AnalysisError, OSError, ValueError) as exc:
+            return JSONResponse({"source": f"not shown: {str(exc).splitlines()[0][:200]}",
+                                 "campaigns": []})  # fmt: skip
+
     def _guarded(fn: Any) -> Any:
         async def endpoint(request: Request) -> JSONResponse:
             try:
@@ -791,6 +839,7 @@ def make_app(
         Route("/", index),
         Route("/api/health", health),
         Route("/api/runs", runs),
+        Route("/api/history", history),
         Route("/api/run", _guarded(run_info)),
         Route("/api/trace", _guarded(trace)),
         WebSocketRoute("/ws", ws_endpoint),

@@ -452,6 +452,26 @@ function showLive(live) {
   updateControls();
 }
 
+// -- run history across campaigns (the run catalogue if there is one) ----------------------
+async function showHistory() {
+  try {
+    const h = await getJSON("/api/history");
+    $("history-source").textContent = h.source ? `(${h.source})` : "";
+    const ul = $("history");
+    ul.innerHTML = "";
+    for (const c of h.campaigns) {
+      const li = document.createElement("li");
+      const st = Object.entries(c.statuses).map(([k, v]) => `${v} ${k || "?"}`).join(", ");
+      li.textContent = `${c.campaign}: ${c.runs} runs${st ? " (" + st + ")" : ""}`;
+      if (c.this) li.classList.add("this");
+      ul.appendChild(li);
+    }
+    window.cutlab.history = h;
+  } catch (e) {
+    $("history-source").textContent = `(not shown: ${e.message})`;
+  }
+}
+
 function showRuns(runs) {
   const ul = $("runs");
   ul.innerHTML = "";
@@ -483,7 +503,10 @@ function onMessage(ev) {
   frames += 1;
   $("frame-count").textContent = frames;
   if (msg.live) showLive(msg.live);
-  if (msg.runs) showRuns(msg.runs);
+  if (msg.runs) {
+    showRuns(msg.runs);
+    showHistory();
+  }
   if (msg.meta) {
     meta = msg.meta;
     if (msg.reset) {
@@ -603,6 +626,14 @@ async function browse(file) {
         showTrace(file, b.t0, b.t1);
       };
       ol.appendChild(li);
+    }
+    const ev = $("browse-events");
+    ev.innerHTML = "";
+    for (const e of run.events) {
+      const li = document.createElement("li");
+      li.className = e.kind;
+      li.textContent = `${e.t_s === null ? "" : "t=" + e.t_s.toFixed(3) + " s "}${e.kind}: ${e.message}`;
+      ev.appendChild(li);
     }
     await showTrace(file);
   } catch (e) {
