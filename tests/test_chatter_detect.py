@@ -84,3 +84,39 @@ def test_per_block_verdicts_mark_the_chattering_block_only() -> None:
     r = detect_chatter(f, RATE, rpm, blocks=blocks)
     assert r.chatter and r.chattering_blocks() == [8]
     assert [b.block for b in r.blocks] == [7, 8] and all(b.judged for b in r.blocks)
+
+
+def _three_flute(t: np.ndarray, rpm: float, amp: float = 200.0) -> np.ndarray:
+    w = 2 * math.pi * rpm / 60
+    fx = amp * (0.5 + 0.4 * np.sin(3 * w * t) + 0.2 * np.sin(6 * w * t + 1)) + 6 * np.sin(w * t)
+    return np.column_stack([fx, amp * (0.3 + 0.3 * np.cos(3 * w * t))])
+
+
+def test_a_line_near_a_tooth_harmonic_is_never_chatter_even_off_the_commanded_speed() -> None:
+    """The issue's 'chatter at 297 Hz' (3 flutes, 6000 rpm: 300 Hz tooth passing): a cut whose
+    level falls by a third over the stretch (a ramp spreads each harmonic by a few Hz), the
+    spindle 0.2 % fast, plus a steady line 3 Hz from the tooth frequency: not chatter, and the
+    spindle speed is read from the record."""
+    t = np.arange(int(2 * RATE)) / RATE
+    level = 1 - np.clip((t - 1.2) / 0.8, 0, 1) / 3
+    f = _three_flute(t, 6012.0) * level[:, None] + _noise(t.size)
+    f[:, 0] += 15 * np.sin(2 * math.pi * 297.0 * t)
+    v = indicators(f, RATE, 6000.0)
+    assert v.judged and not v.chatter, v
+    assert v.spindle_rpm_measured == pytest.approx(6012.0, rel=2e-4)
+    # The line is within the band (5 % of the 100.2 Hz spindle frequency): never reported.
+    assert v.band_hz == pytest.approx(5.01, abs=0.01)
+    assert abs(v.frequency_hz - 3 * 6012.0 / 60) > v.band_hz
+
+
+def test_a_decaying_transient_off_the_harmonics_is_not_chatter_a_growing_one_is() -> None:
+    """Energy alone would call both: a stable cut's entry transient at the mode (dying out in
+    the first half) against the same component growing."""
+    t = np.arange(int(2 * RATE)) / RATE
+    mode = np.sin(2 * math.pi * 931.0 * t)
+    decay = 300 * np.exp(-t / 0.5) * mode
+    grow = 60 * np.minimum(np.exp(3 * (t - 1.0)), 1.5) * mode
+    calm = indicators(_tooth_force(t) + _noise(t.size) + decay[:, None], RATE, RPM)
+    loud = indicators(_tooth_force(t) + _noise(t.size) + grow[:, None], RATE, RPM)
+    assert calm.energy_ratio > 0.1 and calm.growth < 0.8 and not calm.chatter
+    assert loud.growth > 1 and loud.chatter
