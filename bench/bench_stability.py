@@ -2,8 +2,11 @@
 fn = 922 Hz, zeta = 0.011, m = 0.03993 kg), 200 speeds 5000-25000 rpm, by ZOA and SD, 1-DOF and
 2-DOF (the same mode in x and y), slot and 5 % down milling; wall and process CPU time (the
 machine is shared: CPU time is the steadier figure). Target: 200 speeds x 2-DOF in 2 s.
+SD is the default, converged per speed (steps doubled until the limit moves by at most 1 %);
+"sd30" is the fixed 30-step count the default used to be.
 Then the convergence table: steps per tooth period vs the minimum critical depth and the median
-and largest change of the limit against the finest discretisation, at 50 speeds.
+and largest change of the limit against the finest discretisation, at 50 speeds, with the
+default (converged) last.
 
     .venv/bin/python bench/bench_stability.py [--repeat 1]
 """
@@ -50,8 +53,10 @@ def main() -> None:
     for dof in (1, 2):
         for ae in (1.0, 0.05):
             c = case(dof, ae)
-            for method in ("zoa", "sd"):
-                w, cpu, lobes = timed(lambda: stability_lobes(c, method), args.repeat)  # noqa: B023
+            for method in ("zoa", "sd30", "sd"):
+                steps = 30 if method == "sd30" else None
+                how = "sd" if method == "sd30" else method
+                w, cpu, lobes = timed(lambda: stability_lobes(c, how, steps), args.repeat)  # noqa: B023
                 rpm, mm = lobes.minimum()
                 flips = sum(k == "flip" for k in lobes.kind)
                 print(f"{c.name:18s}  {method:6s}  {w:6.2f}  {cpu:5.2f}  {mm:12.4f}  {rpm:6.0f}"
@@ -71,6 +76,15 @@ def main() -> None:
             print(f"{c.name:18s}  {m:5d}  {got.min():12.4f}  {np.median(ch):13.1e}"
                   f"  {ch.max():10.1e}  {w:6.2f}")  # fmt: skip
         print(f"{c.name:18s}  {120:5d}  {ref.min():12.4f}  {'(ref)':>13s}")
+        t = time.perf_counter()
+        conv = stability_lobes(c, "sd")
+        w = time.perf_counter() - t
+        ok = np.isfinite(ref) & np.isfinite(conv.depth_limit_mm)
+        ch = np.abs(conv.depth_limit_mm[ok] / ref[ok] - 1)
+        print(f"{c.name:18s}  {'conv':>5s}  {conv.depth_limit_mm.min():12.4f}  "
+              f"{np.median(ch):13.1e}  {ch.max():10.1e}  {w:6.2f}  (steps "
+              f"{conv.steps.min()}-{conv.steps.max()}, doubling check "
+              f"{conv.convergence()['max_change_pct']:.2f} %)")  # fmt: skip
 
 
 if __name__ == "__main__":

