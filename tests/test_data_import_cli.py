@@ -148,3 +148,31 @@ def test_bad_tables_are_one_line_naming_file_and_field(lab, tmp_path, capsys, ta
         line = err.strip().splitlines()[-1]
         assert line.startswith("cutlab: error: ") and "bad.csv" in line and expect in line
     assert not (tmp_path / "o").exists()
+
+
+def test_the_catalogue_keeps_what_the_conditions_table_said(lab, tmp_path, capsys):
+    """The table gives feed_mm_min (not fz) and no mode; the cuts are as wide as the cutter:
+    the catalogue's row keeps the feed the table gave, the teeth and the mode "slot" (imported
+    runs were catalogued with feed_mm_min NaN and a full slot as "down")."""
+    table = tmp_path / "conditions.csv"
+    rows = [r for r in (lab["dir"] / "conditions.csv").read_text().splitlines() if r]
+    head = rows[0].split(",")
+    keep = [i for i, k in enumerate(head) if k != "mode"]
+    table.write_text("\n".join(",".join(r.split(",")[i] for i in keep) for r in rows) + "\n")
+    runs = tmp_path / "runs"
+    assert main(["data", "import", *lab["files"], "--conditions", str(table), "--axes", AXES,
+                 "--tools", str(lab["tools"]), "-o", str(runs)]) == 0  # fmt: skip
+    assert main(["catalog", "index", str(runs)]) == 0
+    capsys.readouterr()
+    assert main(["catalog", "query", "spindle_rpm > 0", "--index", str(runs), "--json"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    rows_out = got["rows"] if isinstance(got, dict) else got
+    stated = {r.split(",")[0]: r.split(",") for r in rows[1:]}
+    assert len(rows_out) == 4
+    for r in rows_out:
+        src = stated[r["run"]]
+        feed = float(src[head.index("feed_mm_min")]) if "feed_mm_min" in head else None
+        if feed is not None:
+            assert r["feed_mm_min"] == pytest.approx(feed)
+        assert r["feed_mm_min"] == r["feed_mm_min"]  # not NaN
+        assert r["mode"] == "slot"

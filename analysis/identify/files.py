@@ -12,6 +12,7 @@ before the shipped ``configs/tools.toml``.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -203,7 +204,27 @@ def _load_export(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer |
                      expected_tool=expected_tool)  # fmt: skip
     _check_tool(path, ex.run.conditions.tool, expected_tool, by)
     _check_material(path, ex.run.conditions.material, opts.materials_path)
-    return ex
+    return replace(ex, stated=_catalogued(ex, expected_tool, opts.tools_path))
+
+
+def _catalogued(ex: Export, expected_tool: str | None, tools_path) -> dict[str, Any]:
+    """What an imported run's catalogue row keeps beside the fitted form: the stated feed (or
+    the one fz, speed and teeth give), the teeth, and the mode: a cut as wide as the end mill
+    is a slot (up and down milling are the same there), not the default "down"."""
+    c = ex.run.conditions
+    out = dict(ex.stated)
+    name = expected_tool or c.tool
+    tool = find_tool(name, tools_path) if name else None
+    teeth = out.get("teeth", out.get("flutes"))
+    if teeth is None and tool is not None:
+        teeth = tool.flutes if isinstance(tool, EndMill) else tool.inserts
+    if teeth is not None:
+        out["teeth"] = int(teeth)
+        out.setdefault("feed_mm_min", c.fz_mm * abs(c.spindle_rpm) * int(teeth))
+    if ("mode" not in out and isinstance(tool, EndMill) and math.isfinite(c.width_mm)
+            and c.width_mm >= tool.diameter_mm * (1 - 1e-9)):  # fmt: skip
+        out["mode"] = "slot"
+    return out
 
 
 def load_exports(

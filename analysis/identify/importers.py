@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -65,6 +65,9 @@ class Export:
     zero: str
     header: dict[str, str]
     source: Path
+    #: the conditions as the header, table, pattern and given pairs stated them (merged, cutlab's
+    #: keys): what a catalogue keeps beside the fitted form (feed_mm_min, teeth, mode)
+    stated: dict[str, Any] = field(default_factory=dict)
 
 
 def _axes_for(t: ForceTable, axes: AxisMap | str | None, dyno: Dynamometer | None) -> AxisMap:
@@ -170,15 +173,18 @@ def load_export(
         )
     m = _axes_for(t, axes, dynamometer)
     force = _forces(t, m)
+    stated: dict[str, Any] = {}
     if isinstance(conditions, RunConditions):
         cond = conditions
     else:
         given = dict(conditions or {})
         head = normalize(t.header, f"{t.path} (header)", "suffix")
-        cond = resolve_conditions(
-            [(f"{t.path} (header)", head), *layers, (f"{t.path} (given conditions)", given)],
-            teeth_of, expected_tool,
-        )  # fmt: skip
+        all_layers = [(f"{t.path} (header)", head), *layers,
+                      (f"{t.path} (given conditions)", given)]  # fmt: skip
+        cond = resolve_conditions(all_layers, teeth_of, expected_tool)
+        for where, raw in all_layers:
+            if raw:
+                stated = merge_conditions(stated, normalize(raw, where))
     if zeroed:
         zero = "--zeroed: taken as zeroed"
     elif zero_file is not None:
@@ -192,7 +198,7 @@ def load_export(
     else:
         zero = _zero_source(force, float(rate), cond.spindle_rpm)
     run = ForceRun(t.path.stem, force, float(rate), cond, "N")
-    return Export(run, m.text, zero, dict(t.header), t.path)
+    return Export(run, m.text, zero, dict(t.header), t.path, stated)
 
 
 def import_run(

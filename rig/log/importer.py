@@ -50,6 +50,11 @@ def write_export_run(ex: Export, path: str | Path, overwrite: bool = False) -> d
               "stored": "forces in N as the samples, unit calibration"}  # fmt: skip
     conditions = {k: v for k, v in asdict(run.conditions).items()
                   if not (isinstance(v, float) and math.isnan(v))}  # fmt: skip
+    # what the header or the conditions table stated beside the fitted form: the feed in
+    # mm/min, the teeth, a slot's mode (the catalogue's columns)
+    for key in ("feed_mm_min", "teeth", "mode"):
+        if key in ex.stated:
+            conditions[key] = ex.stated[key]
     conditions["source_file"] = str(ex.source)
     w = RunWriter(path, info, cal, clock=lambda: 0.0, overwrite=overwrite)
     try:
