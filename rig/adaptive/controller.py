@@ -1,0 +1,500 @@
+"""The adaptive controller: live force in, GRBL real-time overrides out (issue 29).
+
+It is a DAQ sink (``on_start`` / ``on_block`` / ``on_event``, called from the acquisition thread
+in the same process as the run, behind the run's own sink: :class:`AdaptiveDaq`), so it sees
+every block as the run writer does, not a file. Per spindle revolution it reduces the force as
+the AFC report measures evenness (:func:`rig.report.afc.cutting_revolutions`): the mean of the
+feed-plane resultant ``|Fxy|`` over the revolution. Then, in this order:
+
+1. safety: a sample's resultant above ``max_force_n`` -> feed hold at once (the block it came
+   in, at most one DAQ read); no block for ``stall_revs`` revolutions of the run clock beyond
+   one DAQ read (a watchdog thread) -> overrides reset and feed hold; chatter in the last
+   ``chatter_revs`` revolutions (:func:`analysis.chatter.indicators`) -> with a spindle mode, the
+   spindle override to the nearest stable speed of the tool's lobes within 10-200 %, else feed
+   hold. After a hold the controller sends nothing more (the operator, or the run, decides).
+2. air (the revolution's force below ``air_force_n``): overrides back to 100 %.
+3. cutting: outside the dead band (``dead_band_pct`` of the target) the feed override moves
+   toward ``pct * target / force`` (force roughly proportional to the feed per tooth), up by at
+   most ``slew_up_pct`` per revolution, down by at most ``slew_down_pct`` (lowering the load is
+   the safe direction, so it may go faster), within 10-200 % (GRBL 1.1's limits); after a change
+   it waits ``settle_revs`` revolutions (the revolution that mixes both feeds is not judged).
+
+Every decision is an event in the run file (kind ``note``, text ``adaptive: ...``; holds are
+``pause``), every override byte with its run-clock time, the commanded and last reported
+(``Ov:``, ``FS:``) override and feed, the target and the state; :attr:`trace` keeps the same per
+revolution in memory for the report and tests.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import threading
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from analysis.runs import file as rf
+
+#: GRBL 1.1 override limits (config.h: MIN/MAX_FEED_RATE_OVERRIDE, ..._SPINDLE_...), %
+MIN_PCT, MAX_PCT = 10, 200
+MODES = ("feed", "spindle", "both")
+
+
+@dataclass(frozen=True)
+class AdaptiveSettings:
+    """What the loop holds and where it stops (see the module docstring)."""
+
+    mode: str = "feed"
+    target_force_n: float = 500.0
+    max_force_n: float = 2000.0
+    dead_band_pct: float = 5.0
+    slew_up_pct: int = 10
+    slew_down_pct: int = 50
+    settle_revs: int = 1
+    air_force_n: float = 30.0
+    stall_revs: float = 3.0
+    chatter_revs: int = 10
+    min_pct: int = MIN_PCT
+    max_pct: int = MAX_PCT
+
+    def __post_init__(self) -> None:
+        if self.mode not in MODES:
+            raise ValueError(f"adaptive mode {self.mode!r}: expected one of {', '.join(MODES)}")
+        if not 0 < self.target_force_n < self.max_force_n:
+            raise ValueError(
+                f"target_force_n = {self.target_force_n} N, max_force_n = {self.max_force_n} N: "
+                "expected 0 < target < max"
+            )
+        if not MIN_PCT <= self.min_pct <= 100 <= self.max_pct <= MAX_PCT:
+            raise ValueError(f"override range {self.min_pct}..{self.max_pct} %: expected 10..200")
+
+
+@dataclass
+class RevRecord:
+    """One judged revolution: run-clock end time, mean |Fxy| N, state, the override commanded
+    after it (feed, spindle %), the last reported override and feed (None: no report yet)."""
+
+    t_s: float
+    force_n: float
+    state: str
+    feed_pct: int
+    spindle_pct: int
+    reported: tuple[int, ...] | None
+    feed_mm_min: float | None
+
+
+@dataclass
+class Decision:
+    t_s: float
+    kind: str  # feed, spindle, reset, hold
+    reason: str
+    wall_latency_s: float | None = None  # from the block's arrival to the last byte written
+
+
+def nearest_pocket_rpm(
+    lobes: Any, rpm: float, depth_mm: float, min_pct: int = MIN_PCT, max_pct: int = MAX_PCT
+) -> float | None:
+    """The spindle speed nearest ``rpm`` within ``min_pct..max_pct`` % of it whose stability
+    limit (``lobes.depth_limit_mm``) is above ``depth_mm`` with a 10 % margin; None if none."""
+    s = np.asarray(lobes.spindle_rpm, float)
+    lim = np.asarray(lobes.depth_limit_mm, float)
+    ok = (lim > 1.1 * depth_mm) & (s >= rpm * min_pct / 100) & (s <= rpm * max_pct / 100)
+    if not ok.any():
+        return None
+    cand = s[ok]
+    return float(cand[np.argmin(np.abs(cand - rpm))])
+
+
+class AdaptiveController:
+    """See the module docstring. ``streamer`` (set later with :meth:`attach`) needs GRBL's
+    override API: ``feed_override_pct``, ``spindle_override_pct``, ``override``, ``overrides``,
+    ``feed_hold`` and ``last_status``. ``force_of(volts (n, c), t (n,)) -> (n, c) N``;
+    ``channels`` the force channels' names (Fx and Fy are judged)."""
+
+    def __init__(
+        self,
+        settings: AdaptiveSettings,
+        *,
+        spindle_rpm: float,
+        channels: Sequence[str],
+        force_of: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+        clock: Callable[[], float] = time.monotonic,
+        writer: Any = None,
+        lobes: Any = None,
+        depth_mm: float = 0.0,
+        chatter_settings: Any = None,
+        on_hold: Callable[[str], None] | None = None,
+    ) -> None:
+        self.s = settings
+        self.rpm = abs(float(spindle_rpm))
+        if not self.rpm > 0:
+            raise ValueError(f"spindle_rpm = {spindle_rpm}: the loop needs a turning spindle")
+        self.cols = [list(channels).index(c) for c in ("Fx", "Fy") if c in channels] or [0, 1]
+        self.force_of = force_of
+        self.clock = clock
+        self.writer = writer
+        self.lobes, self.depth_mm = lobes, depth_mm
+        self.chatter_settings = chatter_settings
+        self.on_hold = on_hold
+        self.streamer: Any = None
+        self.rate_hz = math.nan
+        self.block_s = math.nan
+        self.t0_s = 0.0
+        self.feed_pct = 100
+        self.spindle_pct = 100
+        self.state = "idle"  # idle, air, cutting, hold
+        self.hold_reason: str | None = None
+        self.trace: list[RevRecord] = []
+        self.decisions: list[Decision] = []
+        self.bytes_sent: list[tuple[float, int]] = []  # (run-clock s, override byte)
+        self.latencies_s: list[float] = []
+        self.cpu_s = 0.0
+        self._lock = threading.RLock()
+        self._acc: list[np.ndarray] = []  # |Fxy| samples of the revolution under way
+        self._acc_n = 0
+        self._win: list[np.ndarray] = []  # Fx, Fy of the last revolutions (chatter)
+        self._win_n = 0
+        self._settle = 0
+        self._last_block_t = math.nan
+        self._armed = False
+        self._stop = threading.Event()
+        self._watch: threading.Thread | None = None
+        self._block_wall = 0.0
+        self.chatter_at_s: float | None = None
+        self.chatter_cleared_s: float | None = None
+
+    # -- wiring ----------------------------------------------------------------------------------
+    def attach(self, streamer: Any) -> None:
+        """The GRBL streamer the overrides go through (once it has opened the port)."""
+        self.streamer = streamer
+
+    def arm(self) -> None:
+        """The program is running: a silent force signal is now a fault (watchdog started)."""
+        with self._lock:
+            self._armed = True
+            self._last_block_t = self.clock()
+        if self._watch is None:
+            self._watch = threading.Thread(target=self._watchdog, name="adaptive-watch",
+                                           daemon=True)  # fmt: skip
+            self._watch.start()
+
+    def close(self) -> None:
+        """Stop watching (the run is over); sends nothing."""
+        with self._lock:
+            self._armed = False
+        self._stop.set()
+        if self._watch is not None and self._watch is not threading.current_thread():
+            self._watch.join(timeout=2.0)
+
+    @property
+    def rev_s(self) -> float:
+        return 60.0 / (self.rpm * self.spindle_pct / 100.0)
+
+    @property
+    def stall_s(self) -> float:
+        """Run-clock s without a block before the signal counts as lost: one DAQ read (the
+        blocks' own spacing) plus ``stall_revs`` revolutions."""
+        return (self.block_s if math.isfinite(self.block_s) else 0.0) + self.s.stall_revs * (
+            60.0 / self.rpm
+        )
+
+    # -- DaqSink ---------------------------------------------------------------------------------
+    def on_start(self, info: Any, t0_s: float) -> None:
+        self.rate_hz = float(info.rate_hz)
+        self.block_s = info.block_samples / self.rate_hz
+        self.t0_s = t0_s
+
+    def on_event(self, event: Any) -> None:
+        if event.kind == rf.EV_STOP:
+            with self._lock:
+                self._armed = False
+
+    def on_block(self, first_sample: int, data: np.ndarray) -> None:
+        """Called by the DAQ's thread with (c, n) volts or codes already scaled by the caller
+        (:class:`AdaptiveDaq` hands volts); judged when a force function is set."""
+        wall0 = time.perf_counter()
+        cpu0 = time.thread_time()
+        try:
+            self._on_block(first_sample, data, wall0)
+        finally:
+            self.cpu_s += time.thread_time() - cpu0
+
+    def push_forces(self, t_end_s: float, force_n: np.ndarray, wall0: float | None = None) -> None:
+        """Judge forces (n, c) N whose last sample is at run-clock ``t_end_s`` (tests and the
+        ring reader call this directly)."""
+        wall0 = time.perf_counter() if wall0 is None else wall0
+        with self._lock:
+            self._last_block_t = t_end_s
+            if self.state == "hold":
+                return
+            f = np.asarray(force_n, float)
+            if not len(f):
+                return
+            fxy = f[:, self.cols]
+            res = np.linalg.norm(f, axis=1)
+            k = int(np.argmax(res))
+            n = len(f)
+            t_first = t_end_s - (n - 1) / self.rate_hz
+            if res[k] > self.s.max_force_n:
+                t_k = t_first + k / self.rate_hz
+                why = f"force {res[k]:.0f} N above max_force_n {self.s.max_force_n:.0f} N"
+                self._hold(f"{why} at t = {t_k:.3f} s", t_end_s, wall0)
+                return
+            self._acc.append(np.hypot(fxy[:, 0], fxy[:, 1]))
+            self._acc_n += n
+            self._win.append(fxy)
+            self._win_n += n
+            spr = int(round(self.rate_hz * self.rev_s))
+            while self._acc_n >= spr and self.state != "hold":
+                allx = np.concatenate(self._acc)
+                rev, rest = allx[:spr], allx[spr:]
+                self._acc, self._acc_n = [rest], len(rest)
+                t_rev = t_end_s - len(rest) / self.rate_hz
+                self._revolution(t_rev, float(rev.mean()), wall0)
+
+    def _on_block(self, first_sample: int, data: np.ndarray, wall0: float) -> None:
+        if self.force_of is None:
+            return
+        n = data.shape[1]
+        t = self.t0_s + (first_sample + np.arange(n)) / self.rate_hz
+        f = self.force_of(np.asarray(data.T, float), t)
+        self.push_forces(float(t[-1]) if n else self.clock(), f, wall0)
+
+    # -- the loop --------------------------------------------------------------------------------
+    def _revolution(self, t_s: float, force_n: float, wall0: float) -> None:
+        s = self.s
+        if self.state == "idle":
+            self.state = "air"
+        if force_n < s.air_force_n:
+            if self.state == "cutting":
+                self._note(t_s, f"cut ended: {force_n:.0f} N below air {s.air_force_n:.0f} N")
+            self.state = "air"
+            self._win, self._win_n = [], 0
+            if self.feed_pct != 100 or self.spindle_pct != 100:
+                self._reset(t_s, "air: overrides back to 100 %", wall0)
+        else:
+            if self.state != "cutting":
+                self._note(t_s, f"cut started: {force_n:.0f} N")
+            self.state = "cutting"
+            if self._settle > 0:
+                self._settle -= 1
+            elif not self._chatter_check(t_s, wall0) and s.mode in ("feed", "both"):
+                self._feed_step(t_s, force_n, wall0)
+        st = getattr(self.streamer, "last_status", None)
+        self.trace.append(RevRecord(
+            t_s, force_n, self.state, self.feed_pct, self.spindle_pct,
+            getattr(self.streamer, "overrides", None) if self.streamer is not None else None,
+            getattr(st, "feed_mm_min", None),
+        ))  # fmt: skip
+
+    def _feed_step(self, t_s: float, force_n: float, wall0: float) -> None:
+        s = self.s
+        err = force_n / s.target_force_n - 1.0
+        if abs(err) * 100.0 <= s.dead_band_pct:
+            return
+        want = self.feed_pct * s.target_force_n / force_n
+        lo = max(s.min_pct, self.feed_pct - s.slew_down_pct)
+        hi = min(s.max_pct, self.feed_pct + s.slew_up_pct)
+        new = int(round(min(max(want, lo), hi)))
+        if new == self.feed_pct:
+            return
+        why = (f"force {force_n:.0f} N, target {s.target_force_n:.0f} N: feed "
+               f"{self.feed_pct} -> {new} %")  # fmt: skip
+        self._send(t_s, "feed", new, why, wall0)
+        self._settle = s.settle_revs
+
+    def _chatter_check(self, t_s: float, wall0: float) -> bool:
+        """Judge the last ``chatter_revs`` revolutions; True when it acted."""
+        s = self.s
+        n_win = int(math.ceil(s.chatter_revs * self.rate_hz * self.rev_s))
+        if self._win_n < n_win:
+            return False
+        w = np.concatenate(self._win)[-n_win:]
+        self._win, self._win_n = [w], len(w)
+        from analysis.chatter import indicators
+
+        try:
+            v = indicators(w, self.rate_hz, self.rpm * self.spindle_pct / 100.0,
+                           self.chatter_settings, floor_n=s.air_force_n)  # fmt: skip
+        except Exception:  # noqa: BLE001 - a window the detector cannot judge is no verdict
+            return False
+        if not v.chatter:
+            if self.chatter_at_s is not None and self.chatter_cleared_s is None:
+                self.chatter_cleared_s = t_s
+                self._note(t_s, f"chatter cleared {t_s - self.chatter_at_s:.3f} s after it was "
+                                "found")  # fmt: skip
+            return False
+        if self.chatter_at_s is None:
+            self.chatter_at_s = t_s
+        what = f"chatter at {v.frequency_hz:.0f} Hz (energy {v.energy_ratio:.2f})"
+        if s.mode in ("spindle", "both") and self.lobes is not None:
+            rpm_now = self.rpm * self.spindle_pct / 100.0
+            pocket = nearest_pocket_rpm(self.lobes, self.rpm, self.depth_mm, s.min_pct, s.max_pct)
+            if pocket is not None and abs(pocket - rpm_now) > 0.005 * self.rpm:
+                pct = int(round(100.0 * pocket / self.rpm))
+                self._send(t_s, "spindle", pct, f"{what}: spindle to the stable pocket "
+                           f"{pocket:.0f} rpm ({pct} %)", wall0)  # fmt: skip
+                self._win, self._win_n = [], 0  # judge the new speed afresh
+                self._settle = s.settle_revs
+                return True
+        self._hold(f"{what}: no stable pocket within {s.min_pct}-{s.max_pct} %"
+                   if s.mode != "feed" else what, t_s, wall0)  # fmt: skip
+        return True
+
+    # -- actions ---------------------------------------------------------------------------------
+    def _send(self, t_s: float, kind: str, pct: int, why: str, wall0: float) -> None:
+        cur = self.feed_pct if kind == "feed" else self.spindle_pct
+        codes = _feed_codes(cur, pct) if kind == "feed" else _spindle_codes(cur, pct)
+        if not self._write(codes, t_s, wall0):
+            return
+        if kind == "feed":
+            self.feed_pct = pct
+        else:
+            self.spindle_pct = pct
+        lat = time.perf_counter() - wall0
+        self.latencies_s.append(lat)
+        self.decisions.append(Decision(t_s, kind, why, lat))
+        self._note(t_s, f"{why}; bytes {' '.join(f'0x{c:02X}' for c in codes)}; "
+                        f"{self._reported()}")  # fmt: skip
+
+    def _write(self, codes: list[int], t_s: float, wall0: float) -> bool:
+        """Each byte through the streamer's ``override`` with its run-clock time; a byte that
+        cannot be written holds (safe by default). False when it held."""
+        st = self.streamer
+        for c in codes:
+            if st is not None:
+                try:
+                    st.override(c)
+                except Exception as exc:  # noqa: BLE001 - a lost link: hold
+                    self._hold(f"override 0x{c:02X} not sent ({exc})", t_s, wall0)
+                    return False
+            self.bytes_sent.append((self.clock(), c))
+        return True
+
+    def _reset(self, t_s: float, why: str, wall0: float) -> None:
+        if self.feed_pct != 100:
+            self._send(t_s, "feed", 100, why, wall0)
+        if self.spindle_pct != 100:
+            self._send(t_s, "spindle", 100, why, wall0)
+
+    def _hold(self, why: str, t_s: float, wall0: float) -> None:
+        """Feed hold first (the machine stops), then overrides back to 100 % (a resume must not
+        start at an adapted feed), then the record."""
+        st = self.streamer
+        if st is not None:
+            try:
+                st.feed_hold()
+            except Exception:  # noqa: BLE001 - nothing better to do from here: the run stops
+                pass
+        self.state = "hold"
+        self.hold_reason = why
+        lat = time.perf_counter() - wall0
+        self.latencies_s.append(lat)
+        self.decisions.append(Decision(t_s, "hold", why, lat))
+        if self.writer is not None:
+            self.writer.event(rf.EV_PAUSE, f"adaptive: {why}: feed hold"[:200], time_s=t_s)
+        if self.feed_pct != 100 or self.spindle_pct != 100:
+            codes = _feed_codes(self.feed_pct, 100) + _spindle_codes(self.spindle_pct, 100)
+            for c in codes:
+                try:
+                    if st is not None:
+                        st.override(c)
+                    self.bytes_sent.append((self.clock(), c))
+                except Exception:  # noqa: BLE001 - held already; the reset is a courtesy
+                    break
+            self.feed_pct = self.spindle_pct = 100
+            self._note(t_s, "held: overrides reset, bytes " + " ".join(f"0x{c:02X}" for c in codes))
+        if self.on_hold is not None:
+            self.on_hold(why)
+
+    def _watchdog(self) -> None:
+        while not self._stop.wait(0.002):
+            with self._lock:
+                if not self._armed or self.state == "hold":
+                    continue
+                now = self.clock()
+                quiet = now - self._last_block_t
+                if quiet > self.stall_s:
+                    self._hold(f"force signal lost: no DAQ block for {quiet:.3f} s (limit "
+                               f"{self.stall_s:.3f} s)", now, time.perf_counter())  # fmt: skip
+
+    # -- record ----------------------------------------------------------------------------------
+    def _reported(self) -> str:
+        st = self.streamer
+        ov = getattr(st, "overrides", None) if st is not None else None
+        last = getattr(st, "last_status", None)
+        fs = getattr(last, "feed_mm_min", None)
+        rpm = getattr(last, "spindle_rpm", None)
+        return (f"reported Ov {'/'.join(map(str, ov)) if ov else '-'} FS "
+                f"{'-' if fs is None else f'{fs:g}'},{'-' if rpm is None else f'{rpm:g}'}; "
+                f"state {self.state}")  # fmt: skip
+
+    def _note(self, t_s: float, text: str) -> None:
+        if self.writer is not None:
+            self.writer.event(rf.EV_NOTE, f"adaptive: {text}"[:200], time_s=t_s)
+
+    def summary(self) -> dict[str, Any]:
+        """Figures for the run's record and the bench."""
+        lat = np.asarray(self.latencies_s, float)
+        cut = [r for r in self.trace if r.state == "cutting"]
+        return {
+            "mode": self.s.mode,
+            "target_force_n": self.s.target_force_n,
+            "revolutions": len(self.trace),
+            "cutting_revolutions": len(cut),
+            "decisions": len(self.decisions),
+            "override_bytes": len(self.bytes_sent),
+            "hold": self.hold_reason,
+            "latency_p50_ms": float(np.percentile(lat, 50) * 1e3) if lat.size else None,
+            "latency_p95_ms": float(np.percentile(lat, 95) * 1e3) if lat.size else None,
+            "cpu_s": self.cpu_s,
+            "chatter_at_s": self.chatter_at_s,
+            "chatter_cleared_s": self.chatter_cleared_s,
+        }
+
+
+def _apply(pct: int, code: int, plus10: int, plus1: int, reset: int) -> int:
+    """GRBL 1.1's arithmetic for one override byte (protocol.c: each step clamps to 10-200 %)."""
+    if code == reset:
+        return 100
+    step = {plus10: 10, plus10 + 1: -10, plus1: 1, plus1 + 1: -1}[code]
+    return min(MAX_PCT, max(MIN_PCT, pct + step))
+
+
+@functools.lru_cache(maxsize=256)
+def _paths_from(cur: int) -> dict[int, tuple[int, ...]]:
+    """Breadth-first over GRBL's five feed bytes (reset, +-10, +-1) from ``cur`` %: the fewest
+    bytes to every reachable %. Clamping counts (12 -> 18 is -10 (10 %), +10, -1, -1)."""
+    best: dict[int, tuple[int, ...]] = {cur: ()}
+    frontier = [cur]
+    while frontier:
+        nxt = []
+        for p in frontier:
+            for code in (0x90, 0x91, 0x92, 0x93, 0x94):
+                q = _apply(p, code, 0x91, 0x93, 0x90)
+                if q not in best:
+                    best[q] = best[p] + (code,)
+                    nxt.append(q)
+        frontier = nxt
+    return best
+
+
+def _steps(cur: int, target: int, plus10: int, plus1: int, reset: int) -> list[int]:
+    """The fewest override bytes from ``cur`` to ``target`` % (feed codes mapped to the
+    spindle's when ``reset`` is the spindle's)."""
+    del plus10, plus1  # the spindle's codes are the feed's moved by 9
+    path = _paths_from(int(cur))[int(target)]
+    shift = reset - 0x90
+    return [c + shift for c in path]  # spindle: 0x99-0x9D, the feed's 0x90-0x94 + 9
+
+
+def _feed_codes(cur: int, target: int) -> list[int]:
+    return [] if cur == target else _steps(cur, target, 0x91, 0x93, 0x90)
+
+
+def _spindle_codes(cur: int, target: int) -> list[int]:
+    return [] if cur == target else _steps(cur, target, 0x9A, 0x9C, 0x99)

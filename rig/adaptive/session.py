@@ -1,0 +1,126 @@
+"""The adaptive controller wired into a campaign run: the rig session's DAQ hands every block to
+the run's own sink first and then to the controller (in the acquisition thread, as the live
+console's tee does), and the session's streamer, once streaming, carries the overrides.
+
+A safety hold of the controller (over-force, signal lost, chatter without a pocket) becomes the
+session's fault, named ``adaptive interlock: ...``: the run records it as an interlock and stops
+the program (feed hold first, then reset), so a held cut never waits for the watchdog.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from analysis.runs import file as rf
+from rig.adaptive.controller import AdaptiveController
+from rig.daq import SAMPLE_FORMAT_RAW
+
+
+class _Tee:
+    """The DAQ sink the DAQ gets: the run's sink, then the controller (zeroed on the first
+    ``zero_samples`` samples per channel, the rest before the cut, as the run zeroes)."""
+
+    def __init__(self, sink: Any, owner: AdaptiveSession) -> None:
+        self.sink, self.o = sink, owner
+        self.info: Any = None
+        self._rest: list[np.ndarray] = []
+        self._rest_n = 0
+
+    def on_start(self, info: Any, t0_s: float) -> None:
+        self.sink.on_start(info, t0_s)
+        self.info = info
+        self.o.ctl.on_start(info, t0_s)
+
+    def on_block(self, first_sample: int, data: np.ndarray) -> None:
+        self.sink.on_block(first_sample, data)
+        o, info = self.o, self.info
+        if o.drop_after_s is not None:  # the twin's signal loss: the controller hears no more
+            if o.ctl.t0_s + (first_sample + data.shape[1]) / info.rate_hz > o.drop_after_s:
+                return
+        if info.sample_format == SAMPLE_FORMAT_RAW:
+            volts = rf.raw_to_volts(data.T, info.scaling_coeff)
+        else:
+            volts = np.array(data.T, dtype=float)
+        if o.ctl.force_of is None:
+            self._rest.append(volts)
+            self._rest_n += len(volts)
+            if self._rest_n < o.zero_samples:
+                return
+            rest = np.concatenate(self._rest)[: o.zero_samples]
+            t_mid = o.ctl.t0_s + (first_sample - self._rest_n + len(volts)) / info.rate_hz
+            cal = o.cal.zeroed(rest, t_mid + 0.5 * len(rest) / info.rate_hz)
+            o.ctl.force_of = cal.force_from_volts
+            self._rest = []
+            return
+        o.ctl.on_block(first_sample, volts.T)
+
+    def on_event(self, event: Any) -> None:
+        self.sink.on_event(event)
+        self.o.ctl.on_event(event)
+
+
+class _Daq:
+    def __init__(self, daq: Any, owner: AdaptiveSession) -> None:
+        self._daq, self._o = daq, owner
+
+    def start(self, sink: Any) -> None:
+        self._daq.start(_Tee(sink, self._o))
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._daq, name)
+
+
+class AdaptiveSession:
+    """A rig session (simulated or real GRBL) with the controller in its loop.
+
+    ``cal`` the dynamometer's sheet (zeroed here on ``zero_samples`` at rest);
+    ``drop_after_s`` (the twin's fault knob) stops handing blocks to the controller after that
+    run-clock time: the recording goes on, the controller hears nothing (signal lost)."""
+
+    def __init__(
+        self, session: Any, ctl: AdaptiveController, cal: Any, zero_samples: int,
+        drop_after_s: float | None = None,
+    ) -> None:  # fmt: skip
+        self._s = session
+        self.ctl = ctl
+        self.cal = cal
+        self.zero_samples = max(2, int(zero_samples))
+        self.drop_after_s = drop_after_s
+        self.daq = _Daq(session.daq, self)
+        self.clock = session.clock
+        ctl.clock = session.clock
+
+    def start(self, program: Any, writer: Any) -> None:
+        self.ctl.writer = writer
+        self._s.start(program, writer)
+        streamer = getattr(self._s, "streamer", None)
+        if streamer is None or not hasattr(streamer, "override"):
+            raise RuntimeError("adaptive: the session's controller has no real-time override")
+        self.ctl.attach(streamer)
+        s = self.ctl.s
+        writer.event(rf.EV_NOTE, f"adaptive: {s.mode}, target {s.target_force_n:g} N, max "
+                     f"{s.max_force_n:g} N, dead band {s.dead_band_pct:g} %, slew +{s.slew_up_pct}"
+                     f"/-{s.slew_down_pct} % per rev, air {s.air_force_n:g} N")  # fmt: skip
+        self.ctl.arm()
+
+    def fault(self) -> str | None:
+        f = self._s.fault()
+        if f is None and self.ctl.hold_reason is not None:
+            return f"adaptive interlock: {self.ctl.hold_reason}"
+        return f
+
+    def finished(self) -> bool:
+        return self._s.finished() or self.ctl.hold_reason is not None
+
+    def stop(self) -> None:
+        self.ctl.close()
+        self._s.stop()
+
+    def close(self) -> None:
+        self.ctl.close()
+        self._s.close()
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._s, name)

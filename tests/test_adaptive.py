@@ -1,0 +1,207 @@
+"""The adaptive controller (issue 29) against a fake GRBL override API and a synthetic plant
+(force proportional to the feed override): byte choice, dead band, slew, air reset, and the
+safety holds. The end-to-end cases on the simulated GRBL over a pty are in
+tests/test_adaptive_twin.py."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from rig.adaptive import AdaptiveController, AdaptiveSettings, nearest_pocket_rpm
+from rig.adaptive.controller import _feed_codes, _spindle_codes
+
+RATE, RPM = 10_000.0, 2000.0
+SPR = 300  # samples per revolution at 2000 rpm, 10 kHz
+
+
+class FakeGrbl:
+    """GRBL 1.1's override arithmetic (protocol.c): each byte steps and clamps to 10..200 %."""
+
+    def __init__(self) -> None:
+        self.feed = self.spindle = 100
+        self.bytes: list[int] = []
+        self.held = 0
+        self.last_status = None
+
+    def override(self, code: int) -> None:
+        self.bytes.append(code)
+        step = {0x91: 10, 0x92: -10, 0x93: 1, 0x94: -1}
+        sstep = {0x9A: 10, 0x9B: -10, 0x9C: 1, 0x9D: -1}
+        if code == 0x90:
+            self.feed = 100
+        elif code in step:
+            self.feed = min(200, max(10, self.feed + step[code]))
+        elif code == 0x99:
+            self.spindle = 100
+        elif code in sstep:
+            self.spindle = min(200, max(10, self.spindle + sstep[code]))
+
+    @property
+    def overrides(self):
+        return (self.feed, 100, self.spindle)
+
+    def feed_hold(self) -> None:
+        self.held += 1
+
+
+def _fewest(cur: int, target: int) -> int:
+    """Breadth-first search over GRBL's feed bytes: the independent count."""
+    seen, q = {cur: 0}, deque([cur])
+    while q:
+        p = q.popleft()
+        if p == target:
+            return seen[p]
+        for nxt in (100, min(200, p + 10), max(10, p - 10), min(200, p + 1), max(10, p - 1)):
+            if nxt not in seen:
+                seen[nxt] = seen[p] + 1
+                q.append(nxt)
+    raise AssertionError
+
+
+def test_override_bytes_reach_target_fewest_within_limits() -> None:
+    rng = np.random.default_rng(1)
+    for cur, target in [(100, 200), (195, 200), (15, 10), (200, 101), (100, 10)] + [
+        tuple(rng.integers(10, 201, 2)) for _ in range(300)
+    ]:
+        g = FakeGrbl()
+        g.feed = g.spindle = int(cur)
+        codes = _feed_codes(int(cur), int(target))
+        for c in codes:
+            g.override(c)
+        assert g.feed == target
+        assert len(codes) == _fewest(int(cur), int(target))
+        for c in _spindle_codes(int(cur), int(target)):
+            g.override(c)
+        assert g.spindle == target
+
+
+def _rev(force_n: float, rng: np.random.Generator, noise_n: float = 2.0) -> np.ndarray:
+    """One revolution of (Fx, Fy, Fz) whose mean |Fxy| is force_n (two teeth' ripple)."""
+    a = np.arange(SPR) * 2 * np.pi / SPR
+    mag = force_n * (1 + 0.2 * np.cos(2 * a))
+    f = np.stack([mag * np.cos(a), mag * np.sin(a), 0.3 * mag], axis=1)
+    return f + rng.normal(0, noise_n, f.shape)
+
+
+def _controller(**kw):
+    s = AdaptiveSettings(**{"target_force_n": 500.0, "max_force_n": 2000.0, **kw})
+    t = [0.0]
+    ctl = AdaptiveController(s, spindle_rpm=RPM, channels=("Fx", "Fy", "Fz"),
+                             clock=lambda: t[0])  # fmt: skip
+    ctl.on_start(SimpleNamespace(rate_hz=RATE, block_samples=SPR), 0.0)
+    g = FakeGrbl()
+    ctl.attach(g)
+    return ctl, g, t
+
+
+def _run(ctl, g, t, k_n_per_pct, revs, rng):
+    """The plant: a revolution's force = k * feed override %; one block per revolution."""
+    forces = []
+    for _ in range(revs):
+        k = k_n_per_pct(len(forces))
+        f = k * g.feed
+        forces.append(f)
+        t[0] += SPR / RATE
+        ctl.push_forces(t[0], _rev(f, rng))
+    return np.array(forces)
+
+
+def test_holds_target_through_a_step_dead_band_and_slew() -> None:
+    rng = np.random.default_rng(2)
+    ctl, g, t = _controller()
+    # 700 N at 100 % for 60 revolutions, then a light step (300 N at 100 %)
+    forces = _run(ctl, g, t, lambda i: 7.0 if i < 60 else 3.0, 160, rng)
+    # settles within the dead band in a few revolutions after each change
+    assert abs(forces[20:60].mean() / 500 - 1) < 0.05
+    assert abs(forces[120:160].mean() / 500 - 1) < 0.05
+    # up by at most 10 % per revolution: the commanded feed per revolution
+    feeds = np.array([r.feed_pct for r in ctl.trace])
+    assert np.diff(feeds).max() <= 10
+    assert feeds.min() >= 10 and feeds.max() <= 200
+    # the same figure the fake GRBL reached
+    assert g.feed == ctl.feed_pct
+    # inside the dead band nothing is sent: the last 30 revolutions send no byte
+    n_before = len(g.bytes)
+    _run(ctl, g, t, lambda i: 3.0, 30, rng)
+    assert len(g.bytes) == n_before
+    assert g.held == 0
+
+
+def test_air_resets_overrides_to_100() -> None:
+    rng = np.random.default_rng(3)
+    ctl, g, t = _controller()
+    _run(ctl, g, t, lambda i: 2.0, 40, rng)  # 200 N at 100 %: feed goes up
+    assert g.feed > 150
+    _run(ctl, g, t, lambda i: 0.0, 3, rng)  # the cut ends
+    assert g.feed == 100 and ctl.feed_pct == 100
+    assert g.bytes[-1] == 0x90 or g.feed == 100
+
+
+def test_over_force_holds_within_the_block() -> None:
+    rng = np.random.default_rng(4)
+    ctl, g, t = _controller(max_force_n=1500.0)
+    _run(ctl, g, t, lambda i: 5.0, 10, rng)
+    assert g.held == 0
+    # a block of half a revolution crossing the limit: held in that very block
+    f = _rev(1700.0, rng)[: SPR // 2]
+    t[0] += 0.015
+    ctl.push_forces(t[0], f)
+    assert g.held == 1 and ctl.state == "hold"
+    assert "above max_force_n" in ctl.hold_reason
+    # nothing more is sent after a hold
+    n = len(g.bytes)
+    _run(ctl, g, t, lambda i: 2.0, 10, rng)
+    assert len(g.bytes) == n and g.held == 1
+
+
+def test_signal_loss_resets_and_holds() -> None:
+    rng = np.random.default_rng(5)
+    ctl, g, t = _controller(stall_revs=3.0)
+    ctl.arm()
+    try:
+        _run(ctl, g, t, lambda i: 2.0, 30, rng)  # feed raised above 100 %
+        assert g.feed > 100 and g.held == 0
+        # the clock runs on, no block comes: held once the run clock passes one read (1 rev)
+        # plus 3 revolutions (0.12 s at 2000 rpm)
+        t[0] += 0.1
+        time.sleep(0.05)
+        assert g.held == 0
+        t[0] += 0.05
+        deadline = time.monotonic() + 5.0
+        while g.held == 0 and time.monotonic() < deadline:
+            time.sleep(0.005)
+        assert g.held == 1
+        assert "signal lost" in ctl.hold_reason
+        assert g.feed == 100  # overrides reset after the hold
+    finally:
+        ctl.close()
+
+
+def test_nearest_pocket() -> None:
+    lobes = SimpleNamespace(spindle_rpm=np.arange(1000, 5001, 100.0),
+                            depth_limit_mm=np.full(41, 0.5))  # fmt: skip
+    lobes.depth_limit_mm[np.arange(41) % 10 == 7] = 5.0  # pockets at 1700, 2700, 3700, 4700
+    assert nearest_pocket_rpm(lobes, 2000, 1.0) == 1700
+    assert nearest_pocket_rpm(lobes, 2000, 1.0, min_pct=90, max_pct=200) == 2700
+    assert nearest_pocket_rpm(lobes, 2000, 1.0, min_pct=95, max_pct=105) is None
+
+
+def test_settings_refuse_nonsense() -> None:
+    with pytest.raises(ValueError, match="mode"):
+        AdaptiveSettings(mode="torque")
+    with pytest.raises(ValueError, match="target"):
+        AdaptiveSettings(target_force_n=3000, max_force_n=2000)
+
+
+def test_threads_left() -> None:
+    # the watchdog thread ends with close()
+    ctl, g, t = _controller()
+    ctl.arm()
+    ctl.close()
+    assert not any(th.name == "adaptive-watch" and th.is_alive() for th in threading.enumerate())
