@@ -256,7 +256,7 @@ def insert_loads(theta_rad: ArrayLike, tool: FaceMill, cut: FaceMillCut) -> Inse
     y_max = np.maximum(np.cos(thk - lag), np.cos(thk + lag))
     y_ext = np.stack([y_min * (r0 - h), y_min * r_top, y_max * (r0 - h), y_max * r_top])
     ahead = np.sin(thk) > 0
-    live = ahead & (dk > 0) & (h > 0)
+    live = ahead & (dk > 0)  # h = 0 (a feed hold): the edge still rubs, ploughing P l
     inside = (y_ext.min(axis=0) >= y_lo) & (y_ext.max(axis=0) <= y_hi)
     outside = (y_ext.max(axis=0) <= y_lo) | (y_ext.min(axis=0) >= y_hi)
     full = live & inside

@@ -273,8 +273,12 @@ def _insert_angles(tool: Any) -> np.ndarray:
 
 
 def _direct(theta: np.ndarray, insert: np.ndarray, fz: np.ndarray, depth: np.ndarray, tool: Any,
-            coef: dict[str, float]) -> np.ndarray:  # fmt: skip
+            coef: dict[str, float], sides: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
     a = _insert_angles(tool)
+    win = None
+    if sides is not None:  # the block's sides across the feed, Y' (m, 2); no ends along it
+        m = len(theta)
+        win = (sides[:, 0], sides[:, 1], np.full(m, -_FAR), np.full(m, _FAR), np.zeros(m))
     z = len(a)
     e = float(getattr(tool, "runout_mm", 0.0) or 0.0) * np.cos(a)
     # angle gaps back to the earlier inserts (over two turns) and who they are
@@ -290,11 +294,12 @@ def _direct(theta: np.ndarray, insert: np.ndarray, fz: np.ndarray, depth: np.nda
         out = np.zeros((len(theta), 3))
         for k in np.unique(insert):
             i = insert == k
+            wi = None if win is None else tuple(w[i] for w in win)
             out[i] = _forces_offset(edge, coef, theta[i], depth[i], d_prev[i],
-                                    np.zeros_like(d_prev[i]), dr[i], None, np.ones(i.sum()),
+                                    np.zeros_like(d_prev[i]), dr[i], wi, np.ones(i.sum()),
                                     float(e[k]))  # fmt: skip
         return out
-    return _forces(edge, coef, theta, depth, d_prev, np.zeros_like(d_prev), dr, None,
+    return _forces(edge, coef, theta, depth, d_prev, np.zeros_like(d_prev), dr, win,
                    np.ones(len(theta)))  # fmt: skip
 
 
@@ -306,11 +311,13 @@ _TABLE_KEYS_PER_CALL = 8
 
 
 @lru_cache(maxsize=256)
-def _table(tool_key: tuple, coef_key: tuple, insert: int, fz: float, depth: float) -> np.ndarray:
+def _table(tool_key: tuple, coef_key: tuple, insert: int, fz: float, depth: float,
+           sides: tuple[float, float] | None = None) -> np.ndarray:  # fmt: skip
     tool, coef = _ToolKey(*tool_key), dict(zip(COEFFICIENTS, coef_key))
     th = np.radians(np.arange(0.0, 180.0 + _TABLE_STEP_DEG / 2, _TABLE_STEP_DEG))
     n = len(th)
-    return _direct(th, np.full(n, insert), np.full(n, fz), np.full(n, depth), tool, coef)
+    sd = None if sides is None else np.tile(np.asarray(sides, float), (n, 1))
+    return _direct(th, np.full(n, insert), np.full(n, fz), np.full(n, depth), tool, coef, sd)
 
 
 @dataclass(frozen=True)
@@ -343,33 +350,52 @@ def insert_forces(
     tool: Any,
     coef: Any,
     exact: bool = False,
+    sides_mm: np.ndarray | None = None,
 ) -> np.ndarray:
     """Forces (m, 3) N of single inserts (the digital twin's call): insert number ``insert`` (m,)
     at immersion angle ``theta_rad`` (m,), the stock top ``depth_mm`` (m,) above its lowest point,
     the cutter at ``fz_mm`` (m,) per tooth; dynamometer axes with the feed along X'. The earlier
     passes are the other inserts at the same depth; ``tool.runout_mm`` (an eccentricity: insert k
     at radius R + e cos a_k) moves the radii. The workpiece is everywhere along the ray (the twin
-    decides which inserts are in it). Steady conditions are tabulated over the angle (see
-    ``_table``) unless ``exact`` or a call holds more than a few distinct conditions."""
+    decides which inserts are in it), or between the block's sides ``sides_mm`` (m, 2): Y' low
+    and high, mm from the cutter axis, each slice entering and leaving on its own ray. Steady
+    conditions are tabulated over the angle (see ``_table``) unless ``exact`` or a call holds
+    more than a few distinct conditions."""
     th = np.asarray(theta_rad, float)
     k_ins = np.asarray(insert, int)
     fz = np.asarray(fz_mm, float)
     depth = np.asarray(depth_mm, float)
     k = _coef(coef)
+    sd = None if sides_mm is None else np.asarray(sides_mm, float).reshape(-1, 2)
     if exact or not th.size:
-        return _direct(th, k_ins, fz, depth, tool, k)
+        return _direct(th, k_ins, fz, depth, tool, k, sd)
     fq, dq = np.round(fz, 5), np.round(depth, 4)
-    keys, inv = np.unique(np.stack([k_ins, fq, dq], axis=1), axis=0, return_inverse=True)
+    cols = [k_ins, fq, dq] + ([] if sd is None else [np.round(sd[:, 0], 4), np.round(sd[:, 1], 4)])
+    keys, inv = np.unique(np.stack(cols, axis=1), axis=0, return_inverse=True)
     if len(keys) > _TABLE_KEYS_PER_CALL:
-        return _direct(th, k_ins, fz, depth, tool, k)
+        return _direct(th, k_ins, fz, depth, tool, k, sd)
     out = np.zeros((len(th), 3))
     tkey, ckey = _ToolKey.of(tool), tuple(k[c] for c in COEFFICIENTS)
     grid = np.radians(np.arange(0.0, 180.0 + _TABLE_STEP_DEG / 2, _TABLE_STEP_DEG))
-    for j, (ins, f, d) in enumerate(keys):
+    for j, key in enumerate(keys):
         i = inv.ravel() == j
-        tab = _table(tkey, ckey, int(ins), float(f), float(d))
+        ins, f, d = key[:3]
+        sides = None if sd is None else (float(key[3]), float(key[4]))
+        tab = _table(tkey, ckey, int(ins), float(f), float(d), sides)
         for c in range(3):
             out[i, c] = np.interp(th[i], grid, tab[:, c])
+    if sd is not None:
+        # an insert crossing a side enters over a fraction of a degree: the table's steps would
+        # cut its corners, so those angles are computed directly (1 mm and the lag as margins)
+        edge = _edge(tool)
+        radius = float(tool.diameter_mm) / 2
+        lag = float(np.abs(edge.lead_out).max()) + 1e-3
+        top = np.interp(depth, edge.z_out, edge.rho_out) + 1
+        yy = np.stack([np.cos(th + s_) * r_ for s_ in (-lag, lag) for r_ in (radius - 1, top)])
+        lo, hi = yy.min(axis=0), yy.max(axis=0)
+        near = ((lo < sd[:, 0]) & (hi > sd[:, 0])) | ((lo < sd[:, 1]) & (hi > sd[:, 1]))
+        if near.any():
+            out[near] = _direct(th[near], k_ins[near], fz[near], depth[near], tool, k, sd[near])
     return out
 
 

@@ -64,6 +64,17 @@ class SignalSettings:
     modes: bool = True
 
 
+class _Sideless:
+    """A block seen without its sides across the feed (the force model takes those)."""
+
+    def __init__(self, block: Any) -> None:
+        self.block = block
+
+    def top_z(self, x_mm: np.ndarray, y_mm: np.ndarray) -> np.ndarray:
+        b = self.block
+        return b.top_z(x_mm, np.clip(y_mm, b.y_min_mm, b.y_max_mm))
+
+
 class BlockStock:
     """An analytic block (``SteppedBlock``-like: anything with ``top_z(x, y)``) as the stock."""
 
@@ -150,27 +161,40 @@ def _summed(
     return _rotate_xy(f, eng.feed_angle_rad)
 
 
-def facemill_forces(eng: FaceMillEngagement, tool: FaceMill, material: Material) -> np.ndarray:
-    """Summed insert forces (n, 3) N in machine axes (seed 003 model with ploughing)."""
+def facemill_forces(
+    eng: FaceMillEngagement, tool: FaceMill, material: Material,
+    strip: tuple[np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:  # fmt: skip
+    """Summed insert forces (n, 3) N in machine axes (seed 003 model with ploughing).
+
+    ``strip``: the block's sides across the feed (Y' low, high per sample, mm from the cutter
+    axis); the model then takes each height of an insert's chip in and out on its own ray
+    (issue 33) and ``eng`` need only say where the insert is over the block along the feed."""
     from analysis.forces import facemill
 
     coef = _truth(material, "facemill")
     # Engagement is decided here per insert, so the model sees one insert at a time over the
-    # whole half turn (its own width-based engagement is switched off).
+    # whole half turn (its own width-based engagement is switched off, or given the block's sides).
     one = tool.model_copy(update={"inserts": 1, "insert_angles_deg": None, "runout_mm": 0.0})
 
     def at(idx: tuple[np.ndarray, ...]) -> np.ndarray:
-        cut = facemill.FaceMillCut(
-            fz_mm=eng.fz_mm[idx[0]], depth_mm=eng.depth_mm[idx], entry_deg=0.0, exit_deg=180.0
-        )
+        if strip is None:
+            cut = facemill.FaceMillCut(fz_mm=eng.fz_mm[idx[0]], depth_mm=eng.depth_mm[idx],
+                                       entry_deg=0.0, exit_deg=180.0)  # fmt: skip
+        else:
+            lo, hi = strip[0][idx[0]], strip[1][idx[0]]
+            mid = 0.5 * (hi + lo)
+            cut = facemill.FaceMillCut(fz_mm=eng.fz_mm[idx[0]], depth_mm=eng.depth_mm[idx],
+                                       width_mm=hi - lo, center_offset_mm=mid)  # fmt: skip
         return facemill.facemill_forces(eng.theta_rad[idx], one, coef, cut)
 
     return _summed(eng, at)
 
 
 def facemill_forces_independent(
-    eng: FaceMillEngagement, tool: FaceMill, material: Material
-) -> np.ndarray:
+    eng: FaceMillEngagement, tool: FaceMill, material: Material,
+    strip: tuple[np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:  # fmt: skip
     """As :func:`facemill_forces`, from :mod:`rig.sim.facemill_independent` (seed 003's equations
     written apart from ``analysis.forces``: the edge sliced axially, each slice's own radius and
     angle): ``[sim] force_model = "independent"``."""
@@ -180,9 +204,10 @@ def facemill_forces_independent(
     return _summed(
         eng,
         lambda idx: insert_forces(
-            eng.theta_rad[idx], idx[1], eng.fz_mm[idx[0]], eng.depth_mm[idx], tool, coef
+            eng.theta_rad[idx], idx[1], eng.fz_mm[idx[0]], eng.depth_mm[idx], tool, coef,
+            sides_mm=None if strip is None else np.stack([strip[0][idx[0]], strip[1][idx[0]]], 1),
         ),
-    )
+    )  # fmt: skip
 
 
 #: Face mills: forces computed this many times per DAQ sample and passed through the
@@ -299,6 +324,12 @@ class SimMachine:
     def _quasi_static(self, t: np.ndarray) -> np.ndarray:
         st = self.timeline.state(t)
         if isinstance(self.tool, FaceMill):
+            strip = self._block_sides(st)
+            if strip is not None:
+                # The block's sides to the force model (each height of the chip on its own ray),
+                # its ends along the feed to the engagement.
+                eng = facemill_engagement(st, self.tool, _Sideless(self.stock.block))
+                return self.facemill_forces(eng, self.tool, self.material, strip)
             eng = facemill_engagement(st, self.tool, self.stock)
             return self.facemill_forces(eng, self.tool, self.material)
         depth = self.stock.z_max_mm - float(np.min(st.position_mm[:, 2]))
@@ -306,6 +337,21 @@ class SimMachine:
             return np.zeros((t.size, 3))
         eng = endmill_engagement(st, self.tool, self.stock, depth, self.n_slices)
         return endmill_forces(eng, self.tool, self.material)
+
+    def _block_sides(self, st: Any) -> tuple[np.ndarray, np.ndarray] | None:
+        """The block's sides as Y' (mm from the cutter axis, the force model's frame) per sample,
+        when the stock is a block with sides along X and the cutter feeds along X; else None."""
+        block = getattr(self.stock, "block", None)
+        if not isinstance(self.stock, BlockStock) or not hasattr(block, "y_min_mm"):
+            return None
+        d = np.asarray(st.direction, float)
+        if np.any(np.abs(d[:, 1]) > 1e-9):
+            return None
+        # Y' = n . (p - c), n the feed direction turned +90 deg, mirrored for M4
+        sgn = np.where(st.spindle_rpm >= 0, 1.0, -1.0) * np.where(d[:, 0] < 0, -1.0, 1.0)
+        cy = st.position_mm[:, 1]
+        a, b = sgn * (block.y_min_mm - cy), sgn * (block.y_max_mm - cy)
+        return np.minimum(a, b), np.maximum(a, b)
 
     def source(self, t0_s: float, n: int, rate_hz: float) -> np.ndarray:
         """Volts (channels, n) for the DAQ: samples at ``t0_s + k / rate_hz``, k = 0..n-1."""
