@@ -346,7 +346,8 @@ def _toolpath_on_screen(page: Page) -> None:
     (not judged by eye). A screenshot may show the frame before the latest state: the block
     must agree, on screen and in the page's data, in one of several tries."""
     why = ""
-    for _ in range(20):
+    t_end = time.monotonic() + 40  # through blocks without motion, and between runs
+    while time.monotonic() < t_end:
         before = page.text("executing-block")
         view, segs_all, rect = page.js(
             "[window.cutlab.toolpath(), window.cutlab.toolpathSegments(), (() => {"

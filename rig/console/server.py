@@ -361,6 +361,7 @@ class _Client:
         self.live_state: dict[str, Any] | None = None
         self.last_rev = -1
         self.seen: tuple[int, int] = (-1, -1)
+        self.written_ns = 0  # the ring's last block already timed on the page
 
     def news(self, hub: Hub) -> bool:
         """New samples (or a new run) in the ring since the last frame."""
@@ -396,7 +397,9 @@ class _Client:
             written_ns = ring.written_ns
             bins = self._bins(ring)
             if bins is not None:
-                bins["written_ms"] = written_ns / 1e6
+                if written_ns != self.written_ns:  # new samples in this frame: their latency
+                    bins["written_ms"] = written_ns / 1e6
+                    self.written_ns = written_ns
                 msg["bins"] = bins
             if self.frames % 5 == 0:  # 5 times a second: a revolution at 300 rpm and up
                 readouts = self._readouts(ring)
@@ -805,6 +808,8 @@ def make_app(
                 if sig != client.runs_sig:
                     client.runs_sig = sig
                     msg["runs"] = await asyncio.to_thread(hub.runs)
+                if "bins" in msg:  # the server's part of the latency ends here
+                    msg["bins"]["sent_ms"] = time.time() * 1e3
                 await ws.send_text(json.dumps(msg, separators=(",", ":"), allow_nan=False))
                 # The next frame: at TICK_S, or sooner when new samples come (not before
                 # MIN_FRAME_S): a block waits for no beat (the sample-to-screen latency).

@@ -43,9 +43,11 @@ let paused = false; // the live plot holds still (zoom, scroll-back); samples ke
 let toolpath = []; // [block, kind, x0, y0, x1, y1] per segment, from the run info
 let tpView = null; // the toolpath canvas's transform (mm -> px), for tests and screenshots
 const latencies = []; // sample-to-screen, ms, the last LAT_N frames with new samples
+const latencyParts = []; // [server ms, page ms] of the same frames
 const LAT_N = 250;
 window.cutlab = {
   latencies,
+  latencyParts,
   readouts: null,
   dro: null,
   toolpath: () => tpView,
@@ -306,12 +308,16 @@ function showReadouts(r) {
 
 // -- sample-to-screen latency: the frame's newest block came into the ring at written_ms (the
 // server's wall clock, this computer's); the frame is on screen at the next animation frame --
-function noteLatency(writtenMs) {
+function noteLatency(writtenMs, sentMs) {
   requestAnimationFrame(() => {
-    const ms = Date.now() - writtenMs;
+    const now = Date.now();
+    const ms = now - writtenMs;
     if (!(ms >= 0 && ms < 60000)) return;
     latencies.push(ms);
+    // the server's part (ring to websocket) and the rest (network, page, paint)
+    latencyParts.push([sentMs - writtenMs, now - sentMs]);
     if (latencies.length > LAT_N) latencies.shift();
+    if (latencyParts.length > LAT_N) latencyParts.shift();
     if (latencies.length % 5 === 0) {
       const q = [...latencies].sort((a, b) => a - b);
       const at = (f) => q[Math.min(q.length - 1, Math.floor(f * q.length))];
@@ -524,7 +530,7 @@ function onMessage(ev) {
   if (!browsing && !paused && plot && (msg.bins || msg.status)) {
     setPlotData(bins.t, bins.min, bins.max);
   }
-  if (msg.bins && msg.bins.t.length && msg.bins.written_ms) noteLatency(msg.bins.written_ms);
+  if (msg.bins && msg.bins.t.length && msg.bins.written_ms) noteLatency(msg.bins.written_ms, msg.bins.sent_ms);
 }
 
 function connect() {
