@@ -8,10 +8,33 @@ import argparse
 from rig.cli._common import count, number, positive, print_json, status
 
 
+def _refuse_adaptive(args: argparse.Namespace) -> None:
+    """``--adaptive`` needs a real-time override on the serial line (GRBL 1.1's 0x90-0x9D
+    bytes); a Fanuc drip feed has none (its override is the panel's dial), so it is refused
+    before anything is opened. (No machine config field declares an external override input.)"""
+    if not args.adaptive:
+        return
+    from rig.dnc import DncError, dnc_machine
+
+    protocol, m = dnc_machine(args.protocol, args.machine)
+    if protocol != "grbl":
+        raise DncError(
+            f"dnc send --adaptive {args.adaptive}: the {protocol} controller of machine "
+            f"{m.name!r} has no real-time override over serial (a drip feed's override is the "
+            "panel's dial); expected a GRBL 1.1 controller (--protocol grbl)"
+        )
+    # GRBL: until the adaptive loop (issue 29 item 1) is wired in here, say so, never ignore it
+    raise DncError(
+        f"dnc send --adaptive {args.adaptive}: the adaptive loop is not available in this build; "
+        "send without --adaptive"
+    )
+
+
 def _send(args: argparse.Namespace) -> int:
     from rig.dnc import StreamFault, halt_on_signals, prepare_send
     from rig.dnc.keys import operator_control
 
+    _refuse_adaptive(args)
     job = prepare_send(
         args.file, args.protocol, machine=args.machine, port=args.port, baud=args.baud,
         timeout_s=args.timeout, start_block=args.start_block, safe_z_mm=args.safe_z,
@@ -157,6 +180,9 @@ def _add_send(dsub: argparse._SubParsersAction) -> None:
     strip = "GRBL: send lines as written (default: no comments, spaces, N and O words)"
     s.add_argument("--no-strip", action="store_true", help=strip)
     s.add_argument("--no-wait-dc1", action="store_true", help="Fanuc: send without waiting for DC1")
+    s.add_argument("--adaptive", choices=("feed", "spindle", "both"),
+                   help="GRBL: hold a force target with real-time overrides (refused for "
+                   "controllers without a real-time override, the Fanuc drip feed)")  # fmt: skip
     s.add_argument("--record", help="write the block record to this CSV file")
     s.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     s.add_argument("--json", action="store_true", help="end with a JSON summary on stdout")

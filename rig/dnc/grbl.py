@@ -39,9 +39,19 @@ at the end, with its receive buffer empty; mid-stream, with a line that had whol
 before the ``?`` unanswered and out of its buffer (Bf, ``$10=3``) or, without Bf, already run
 (the machine stands Idle at the end of its move: GRBL answers a line before it runs it). The
 stream then holds and resets (:meth:`~GrblStreamer.halt`) and stops (fault ``lost-ok``) naming
-the last block known executed. A report whose Bf makes a lost answer likely, or a line of noise, pauses sending: once
-every line sent is answered it goes on (nothing was lost); if neither that nor the fault comes
-within ``pause_timeout_s`` (10 s) the stream is halted (``timeout``) stating GRBL's state.
+the last block known executed. A report whose Bf makes a lost answer likely, or a line of noise,
+pauses sending: once every line sent is answered it goes on (nothing was lost); if neither that
+nor the fault comes within ``pause_timeout_s`` (10 s) the stream is halted (``timeout``) stating
+GRBL's state.
+
+Overrides (:meth:`GrblStreamer.override`, :meth:`~GrblStreamer.feed_override_pct`,
+:meth:`~GrblStreamer.spindle_override_pct`, from any thread while a stream runs): one GRBL 1.1
+real-time byte each (feed 0x90 100 %, 0x91/0x92 +-10 %, 0x93/0x94 +-1 %; rapid 0x95-0x97 100/50/
+25 %; spindle 0x99 100 %, 0x9A/0x9B +-10 %, 0x9C/0x9D +-1 %; feed and spindle 10-200 %), written
+at once past the pacing and the character count (GRBL takes them out of the stream on arrival,
+they never enter its receive buffer), each recorded with its time (``override_log``, the sink's
+``override`` events). ``overrides`` is the last ``Ov:`` GRBL reported (it sends it in the report
+after a change, else every 10-20 reports).
 
 Every wait has a deadline: the handshake as a whole within ``timeout_s``; otherwise nothing that
 shows GRBL at work (an answer, a message, a status report that differs from the last or says
@@ -61,6 +71,7 @@ GRBL answers nothing until a soft reset, ``cutlab dnc reset``, then ``cutlab dnc
 
 from __future__ import annotations
 
+import contextlib
 import queue
 import threading
 import time
@@ -89,6 +100,20 @@ from rig.dnc.program import Program
 from rig.dnc.record import BlockRow
 
 FEED_HOLD, CYCLE_START, STATUS, SOFT_RESET = b"!", b"~", b"?", b"\x18"
+#: GRBL 1.1 real-time override bytes (config.h CMD_*_OVR_*) and what each does
+OVERRIDE_BYTES = {
+    0x90: "feed 100 %", 0x91: "feed +10 %", 0x92: "feed -10 %", 0x93: "feed +1 %",
+    0x94: "feed -1 %", 0x95: "rapid 100 %", 0x96: "rapid 50 %", 0x97: "rapid 25 %",
+    0x99: "spindle 100 %", 0x9A: "spindle +10 %", 0x9B: "spindle -10 %", 0x9C: "spindle +1 %",
+    0x9D: "spindle -1 %",
+}  # fmt: skip
+#: config.h MIN/MAX_FEED_RATE_OVERRIDE and MIN/MAX_SPINDLE_SPEED_OVERRIDE, %
+FEED_OVR_RANGE_PCT = SPINDLE_OVR_RANGE_PCT = (10, 200)
+#: an Ov: report this long (wall s) after our last override byte shows all our bytes applied
+OVR_SETTLE_S = 0.25
+# (reset byte, {step: byte}, index in Ov:) per override
+_OVR_KEYS = {"feed": (0x90, {10: 0x91, -10: 0x92, 1: 0x93, -1: 0x94}, 0),
+             "spindle": (0x99, {10: 0x9A, -10: 0x9B, 1: 0x9C, -1: 0x9D}, 2)}  # fmt: skip
 HANDSHAKE = b"$G\n"  # what a stream sends first (see GrblStreamer._handshake)
 MODES = ("char-counting", "send-response")
 GRBL_RX_BUFFER_BYTES = 127  # of RX_BUFFER_SIZE 128: one byte of margin
@@ -191,6 +216,49 @@ def _is_answer(line: str) -> bool:
     return line == "ok" or line.startswith("error:")
 
 
+def _after_override(value: int | None, code: int) -> int | None:
+    """The feed or spindle override after byte ``code`` as GRBL computes it (None: unknown)."""
+    reset, steps, _ = _OVR_KEYS["feed" if code <= 0x94 else "spindle"]
+    if code == reset:
+        return 100
+    if value is None:
+        return None
+    step = next(k for k, v in steps.items() if v == code)
+    lo, hi = FEED_OVR_RANGE_PCT if code <= 0x94 else SPINDLE_OVR_RANGE_PCT
+    return min(max(value + step, lo), hi)
+
+
+def override_bytes(current: int | None, target: int, which: str = "feed") -> list[int]:
+    """The fewest override bytes taking GRBL's ``which`` override (feed or spindle) from
+    ``current`` % (None: unknown, so the reset first) to ``target`` % (within 10-200 %): a
+    breadth-first search over +-10, +-1 and the reset, with GRBL's clamping at the limits."""
+    reset, steps, _ = _OVR_KEYS[which]
+    lo, hi = FEED_OVR_RANGE_PCT if which == "feed" else SPINDLE_OVR_RANGE_PCT
+    if not lo <= target <= hi:
+        raise ValueError(f"{which} override {target} %: expected {lo}..{hi} %")
+    if current is None:
+        return [reset, *override_bytes(100, target, which)]
+    prev: dict[int, tuple[int, int]] = {}
+    frontier, seen = [current], {current}
+    while target not in seen:
+        nxt = []
+        for v in frontier:
+            for code in (*steps.values(), reset):
+                w = _after_override(v, code)
+                assert w is not None
+                if w not in seen:
+                    seen.add(w)
+                    prev[w] = (v, code)
+                    nxt.append(w)
+        frontier = nxt
+    out: list[int] = []
+    v = target
+    while v != current:
+        v, code = prev[v]
+        out.append(code)
+    return out[::-1]
+
+
 class GrblStreamer(StreamerBase):
     """Stream a program to GRBL (see the module docstring).
 
@@ -263,6 +331,14 @@ class GrblStreamer(StreamerBase):
         self._partial = bytearray()
         self._streaming = threading.Event()
         self._guard_proc: Any = None
+        #: (stream clock s, byte) of every override byte written, in order
+        self.override_log: list[tuple[float, int]] = []
+        self._ovr_lock = threading.RLock()
+        self._ovr_reported: tuple[int, int, int] | None = None
+        # what our bytes have made of the feed, rapid and spindle overrides (None: unknown
+        # until an Ov: report or a reset; GRBL keeps them from one program to the next)
+        self._ovr_cmd: list[int | None] = [None, None, None]
+        self._ovr_written_t = -float("inf")  # perf_counter of the last override byte
         self._begin()
 
     # -- real-time commands (any thread) ---------------------------------------------------------
@@ -291,6 +367,9 @@ class GrblStreamer(StreamerBase):
             # which can only make a lost answer look less likely, never more.
             self._queries.append(link.bytes_written)
         link.write_now(cmd)
+        if cmd == SOFT_RESET:
+            with self._ovr_lock:
+                self._ovr_cmd = [100, 100, 100]  # main.c: a reset restores the defaults
 
     def feed_hold(self) -> None:
         self._rt(FEED_HOLD)
@@ -304,6 +383,64 @@ class GrblStreamer(StreamerBase):
 
     def soft_reset(self) -> None:
         self._rt(SOFT_RESET)
+
+    # -- overrides (any thread; the bytes bypass the receive buffer and the character count) ----
+    def override(self, code: int) -> None:
+        """Write one GRBL 1.1 real-time override byte (:data:`OVERRIDE_BYTES`) now, and record
+        it: ``override_log`` and the sink's ``override`` event, on the stream clock."""
+        if isinstance(code, bool) or not isinstance(code, int) or code not in OVERRIDE_BYTES:
+            raise ValueError(f"GRBL override byte {code!r}: expected one of 0x90-0x97, 0x99-0x9D")
+        with self._ovr_lock:
+            self._rt(bytes([code]))
+            t = self.clock()
+            self._ovr_written_t = time.perf_counter()
+            self.override_log.append((t, code))
+            if code <= 0x94:
+                self._ovr_cmd[0] = _after_override(self._ovr_cmd[0], code)
+            elif code <= 0x97:
+                self._ovr_cmd[1] = {0x95: 100, 0x96: 50, 0x97: 25}[code]
+            else:
+                self._ovr_cmd[2] = _after_override(self._ovr_cmd[2], code)
+            if not self.sink_closed():
+                with contextlib.suppress(ValueError, DncError):  # closed meanwhile
+                    self.sink.event("override", t, f"0x{code:02X} {OVERRIDE_BYTES[code]}")
+
+    @property
+    def overrides(self) -> tuple[int, int, int] | None:
+        """The last (feed %, rapid %, spindle %) GRBL reported (``Ov:``), None before any."""
+        return self._ovr_reported
+
+    def feed_override_pct(self, target: int) -> None:
+        """Send the fewest bytes taking the feed override to ``target`` % (clamped to 10-200)
+        from the last known or commanded value; returns once they are written."""
+        self._override_to("feed", target)
+
+    def spindle_override_pct(self, target: int) -> None:
+        """As :meth:`feed_override_pct` for the spindle override (10-200 %)."""
+        self._override_to("spindle", target)
+
+    def _override_to(self, which: str, target: int) -> None:
+        lo, hi = FEED_OVR_RANGE_PCT if which == "feed" else SPINDLE_OVR_RANGE_PCT
+        goal = min(max(int(round(target)), lo), hi)
+        with self._ovr_lock:
+            for code in override_bytes(self._ovr_cmd[_OVR_KEYS[which][2]], goal, which):
+                self.override(code)
+
+    def _note_overrides(self, raw: bytes) -> None:
+        """An ``Ov:`` field in a status report (reader thread): the reported values; once our
+        last byte is ``OVR_SETTLE_S`` old they are what our bytes made (or a panel's change)."""
+        i = raw.find(b"|Ov:")
+        if i < 0:
+            return
+        field = raw[i + 4 :].split(b"|")[0].split(b">")[0]
+        try:
+            f, r, s = (int(v) for v in field.split(b","))
+        except ValueError:
+            return
+        with self._ovr_lock:
+            self._ovr_reported = (f, r, s)
+            if time.perf_counter() - self._ovr_written_t > OVR_SETTLE_S:
+                self._ovr_cmd = [f, r, s]
 
     def _on_interrupt(self) -> None:
         self._rt_safe(FEED_HOLD)  # first of all: the machine stops
@@ -410,6 +547,8 @@ class GrblStreamer(StreamerBase):
                 return
             raw = bytes(self._partial[:i]).strip()
             del self._partial[: i + 1]
+            if raw.startswith(b"<"):
+                self._note_overrides(raw)
             if raw:
                 self._lines.put((self.clock(), raw.decode("ascii", "replace")))
 

@@ -72,6 +72,7 @@ class SerialLink:
         self._stop = threading.Event()
         self._next_t = 0.0
         self._wlock = threading.Lock()
+        self._rtlock = threading.Lock()  # real-time bytes from several threads (poll, overrides)
         self._thread = threading.Thread(target=self._read_loop, name="dnc-reader", daemon=True)
 
     # -- reader ---------------------------------------------------------------------------------
@@ -177,7 +178,8 @@ class SerialLink:
         """Write bypassing gate and pacing (GRBL real-time commands; counted apart)."""
         if self.lost.is_set():
             raise LinkLost(self.lost_reason)
-        self._raw_write(data, realtime=True)
+        with self._rtlock:  # not the writer's lock: a line held by XOFF or pacing must not wait
+            self._raw_write(data, realtime=True)
 
     def close(self) -> None:
         self._stop.set()

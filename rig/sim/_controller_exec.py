@@ -165,10 +165,11 @@ class ExecutorMixin:
         self._cur = b
         self._seg_i = 0
         self._block_t0 = t0
-        if b.spindle_rpm != self._spindle:
-            self._spindle = b.spindle_rpm
+        rpm = b.spindle_rpm * self._rpm_scale()
+        if rpm != self._spindle:
+            self._spindle = rpm
             for f in self._spindle_listeners:
-                f(t0, b.spindle_rpm)
+                f(t0, rpm)
         if len(b.motion) == 0:
             self._seg_t1 = t0
             return
@@ -179,7 +180,7 @@ class ExecutorMixin:
         assert b is not None
         i = self._seg_i
         m = b.motion
-        dur = float(b.durations_s[i]) * (1.0 - frac0)
+        dur = float(b.durations_s[i]) * (1.0 - frac0) * self._time_scale(b, i)
         self._seg_t0, self._seg_t1, self._seg_frac0 = t0, t0 + dur, frac0
         self.busy_s += dur
         start = self._point(i, frac0) if frac0 > 0 else tuple(map(float, m.start[i]))
@@ -190,7 +191,7 @@ class ExecutorMixin:
             t_end_s=t0 + dur,
             start_mm=start,
             end_mm=tuple(map(float, m.end[i])),
-            spindle_rpm=float(m.spindle_rpm[i]),
+            spindle_rpm=float(m.spindle_rpm[i]) * self._rpm_scale(),
             block=b.seq,
             kind=int(m.kind[i]),
             center_mm=None if np.isnan(c[0]) else tuple(map(float, c)),
@@ -202,6 +203,15 @@ class ExecutorMixin:
         )
         for f in self._seg_listeners:
             f(seg)
+
+    def _time_scale(self, b: _Planned, i: int) -> float:
+        """Protocol hook: the running time of segment ``i`` over its programmed time (GRBL's
+        feed and rapid overrides); 1 without overrides."""
+        return 1.0
+
+    def _rpm_scale(self) -> float:
+        """Protocol hook: the spindle's speed over the programmed one (GRBL's override)."""
+        return 1.0
 
     def _point(self, i: int, frac: float) -> tuple[float, float, float]:
         """Where segment ``i`` of the current block is after ``frac`` of its time."""

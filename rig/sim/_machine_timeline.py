@@ -11,7 +11,7 @@ one clock.
 from __future__ import annotations
 
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -58,8 +58,14 @@ class MotionTimeline:
             return list(self._segs)
 
     def add(self, seg: ExecutedSegment) -> None:
-        """Record a segment (segments arrive in time order)."""
+        """Record a segment (segments arrive in time order). One that starts before the last
+        one's planned end (a feed hold, a GRBL override changing the speed mid-way) ends that one
+        where and when it starts: the stock is cut only as far as the tool went."""
         with self._lock:
+            last = self._segs[-1] if self._segs else None
+            if last is not None and seg.t_start_s < last.t_end_s:
+                cut = replace(last, t_end_s=max(seg.t_start_s, last.t_start_s), end_mm=seg.start_mm)
+                self._segs[-1] = cut
             self._segs.append(seg)
             self._arrays = None
             if seg.spindle_rpm != self._sp_rpm[-1]:

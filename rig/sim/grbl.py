@@ -15,7 +15,14 @@ Behaviour (GRBL 1.1h's source is the reference: ``grbl/serial.c``, ``protocol.c`
 - Serial receive buffer of ``rx_buffer_bytes`` (RX_BUFFER_SIZE 128); a byte arriving into a full
   buffer is dropped and counted in ``overruns`` (the serial ISR does the same, silently).
 - Real-time characters are picked out on arrival, wherever they stand: ``?`` status report, ``!``
-  feed hold, ``~`` cycle start, 0x18 soft reset.
+  feed hold, ``~`` cycle start, 0x18 soft reset, and the overrides (protocol_exec_rt_system):
+  feed 0x90 100 %, 0x91/0x92 +-10 %, 0x93/0x94 +-1 % (10-200 %), rapid 0x95/0x96/0x97 100/50/25
+  %, spindle 0x99 100 %, 0x9A/0x9B +-10 %, 0x9C/0x9D +-1 % (10-200 %). A change is reported in
+  the next status (``Ov:``) and applies from the byte's arrival: the segment running is split
+  there and goes on at the new speed, and every block planned runs at it (planner.c
+  plan_update_velocity_profile_parameters), a feed never above the rapid rate; the spindle
+  turns at the programmed speed x its override (``FS:`` reports it); a byte at a limit changes
+  nothing and is not reported; a reset restores 100 %. Each change is an ``override`` event.
 - A line is read out of the receive buffer only when the previous one is done, filtered as
   protocol.c does (spaces, comments, ``/`` dropped, upper case; more than 79 characters left:
   ``error:11``) and checked by :class:`planning.nc.grbl.GrblParser`, gcode.c's checks, so each
@@ -59,7 +66,10 @@ from 0 among the g-code lines received (``$`` lines not counted).
 Notes
 -----
 How it differs from GRBL: no acceleration planning (segments run at their programmed feed; a hold
-decelerates in a fixed time); an arc runs as one segment while counting its ``mc_arc`` blocks
+decelerates in a fixed time; an override changes the speed at once, where GRBL ramps to it at
+$120-$122, e.g. 300 mm/min in 10 ms at 500 mm/s^2); an override is applied when its byte arrives
+(GRBL's main loop takes it within a pass; a ``?`` in the same pass is reported first); the spindle
+speed is not clamped to $30/$31; an arc runs as one segment while counting its ``mc_arc`` blocks
 in the planner; motion starts as soon as a block is planned (GRBL's auto cycle start waits for a
 full planner or an empty receive buffer); the line rate is emulated on the SimClock (a pty has
 none; a wrong baud rate is garbage); no homing switches, probing or soft limits unless injected.
@@ -75,7 +85,7 @@ from typing import Any
 import numpy as np
 
 from analysis.config import MachineConfig
-from planning.nc import DWELL, NCError
+from planning.nc import DWELL, RAPID, NCError
 from planning.nc.grbl import (
     GRBL_MSG_ALARM_LOCK,
     GRBL_MSG_PGM_END,
@@ -95,6 +105,8 @@ _SETTINGS = {0: 10, 1: 25, 2: 0, 3: 0, 4: 0, 5: 0, 6: 0, 10: 1, 11: 0.010, 12: 0
              32: 0, 100: 250.0, 101: 250.0, 102: 250.0, 110: 500.0, 111: 500.0, 112: 500.0,
              120: 10.0, 121: 10.0, 122: 10.0, 130: 200.0, 131: 200.0, 132: 200.0}  # fmt: skip
 _CRITICAL_ALARMS = (1, 2)  # hard and soft limit: protocol.c blocks until a reset
+# config.h: MIN/MAX_FEED_RATE_OVERRIDE, MIN/MAX_SPINDLE_SPEED_OVERRIDE, %
+FEED_OVR_MIN, FEED_OVR_MAX, SPINDLE_OVR_MIN, SPINDLE_OVR_MAX = 10, 200, 10, 200
 
 
 @dataclass
@@ -155,6 +167,8 @@ class SimGrbl(SimControllerBase):
                     self.grbl.state.home[i] = [float(c) for c in p]
         self.critical = False  # after ALARM:1/2: deaf but to a soft reset
         self._hold_done_at = 0.0
+        self._spindle_prog = 0.0  # programmed rpm (signed) of the last block started
+        self._advanced_t = 0.0  # the executor has run up to this simulated time
         self._grbl_state()
 
     def _grbl_state(self) -> None:
@@ -168,6 +182,8 @@ class SimGrbl(SimControllerBase):
         self._pending: _Pending | None = None
         self._wco_counter = 0
         self._ovr_counter = 0
+        # main.c sets them to their defaults on every (re)start: a reset ends any override
+        self.feed_ovr = self.rapid_ovr = self.spindle_ovr = 100
 
     def start(self) -> str:
         path = super().start()
@@ -195,6 +211,9 @@ class SimGrbl(SimControllerBase):
                 continue
             if b == 0x7E:  # ~
                 self.cycle_start()
+                continue
+            if 0x90 <= b <= 0x9D:  # feed, rapid and spindle overrides
+                self._override(b, t)
                 continue
             if b > 0x7F:  # other real-time (extended ASCII) commands: not in the buffer
                 continue
@@ -225,10 +244,13 @@ class SimGrbl(SimControllerBase):
             return b.blocks
         i = self._seg_i
         rest = float(np.sum(b.durations_s[i + 1 :]))
+        # in programmed time (an override scales the running segment, not the block's total)
         if not self.held and self._seg_t1 > now:
-            rest += self._seg_t1 - now
+            run = self._seg_t1 - self._seg_t0
+            frac = self._seg_frac0 + (1 - self._seg_frac0) * (now - self._seg_t0) / run
+            rest += float(b.durations_s[i]) * (1 - frac)
         elif self.held:
-            rest += (self._seg_t1 - self._seg_t0) * (1 - (self._hold_frac or 0.0))
+            rest += float(b.durations_s[i]) * (1 - (self._hold_frac or 0.0))
         return min(b.blocks, math.ceil(b.blocks * rest / total - 1e-9))
 
     def _planner_used(self) -> int:
@@ -492,7 +514,15 @@ class SimGrbl(SimControllerBase):
         return min(max(v / a, 0.02), 1.0)
 
     def _speed_mm_min(self, b: _Planned) -> float:
+        """The running segment's speed, mm/min: st_get_realtime_rate, overrides included."""
         i = self._seg_i
+        run = self._seg_t1 - self._seg_t0
+        if run <= 0:
+            return 0.0
+        return self._programmed_mm_min(b, i) * float(b.durations_s[i]) * (1 - self._seg_frac0) / run
+
+    def _programmed_mm_min(self, b: _Planned, i: int) -> float:
+        """Segment ``i``'s speed at 100 %, mm/min (0 for a dwell)."""
         if int(b.motion.kind[i]) == DWELL:
             return 0.0
         dur = float(b.durations_s[i])
@@ -501,6 +531,82 @@ class SimGrbl(SimControllerBase):
         d = np.linalg.norm(np.subtract(b.motion.end[i], b.motion.start[i]))
         feed = float(b.motion.feed_mm_min[i])
         return feed if feed == feed and int(b.motion.kind[i]) in (2, 3) else float(d / dur * 60)
+
+    # -- overrides (protocol_exec_rt_system, plan_compute_profile_nominal_speed) ---------------
+    def _override(self, code: int, t: float) -> None:
+        """One override byte arrived at ``t``: the new value within GRBL's limits; a change is
+        reported in the next status (``Ov:``) and applied to the segment running (split there)
+        and to every one after it (the planner recomputes the blocks it holds)."""
+        f, r, s = self.feed_ovr, self.rapid_ovr, self.spindle_ovr
+        if code == 0x90:
+            f = 100
+        elif 0x91 <= code <= 0x94:
+            f += {0x91: 10, 0x92: -10, 0x93: 1, 0x94: -1}[code]
+        elif code <= 0x97:
+            r = {0x95: 100, 0x96: 50, 0x97: 25}[code]
+        elif code == 0x99:
+            s = 100
+        elif 0x9A <= code <= 0x9D:
+            s += {0x9A: 10, 0x9B: -10, 0x9C: 1, 0x9D: -1}[code]
+        else:  # 0x98 is unused in 1.1h
+            return
+        f = min(max(f, FEED_OVR_MIN), FEED_OVR_MAX)
+        s = min(max(s, SPINDLE_OVR_MIN), SPINDLE_OVR_MAX)
+        if (f, r, s) == (self.feed_ovr, self.rapid_ovr, self.spindle_ovr):
+            return  # at a limit: nothing changes, nothing is reported
+        now = max(t, self._advanced_t)  # never before what the executor has already run
+        self._advance(now)
+        self._ovr_counter = 0  # report the change at once
+        if (f, r) != (self.feed_ovr, self.rapid_ovr):
+            self.feed_ovr, self.rapid_ovr = f, r
+            self._replan(now)
+        if s != self.spindle_ovr:
+            self.spindle_ovr = s
+            rpm = self._spindle_prog * self._rpm_scale()
+            if rpm != self._spindle:
+                self._spindle = rpm
+                for fn in self._spindle_listeners:
+                    fn(now, rpm)
+        self._event("override", f"feed {f} %, rapid {r} %, spindle {s} %", now)
+
+    def _replan(self, now: float) -> None:
+        """The running segment goes on from where it is at its new speed (a hold being carried
+        out, or held, takes the new speed when it resumes)."""
+        b = self._cur
+        if b is None or not len(b.motion) or self.held or self._hold_stop_at is not None:
+            return
+        if int(b.motion.kind[self._seg_i]) == DWELL or self._seg_t1 <= now:
+            return
+        run = self._seg_t1 - self._seg_t0
+        frac = self._seg_frac0 + (1 - self._seg_frac0) * (now - self._seg_t0) / run
+        self.busy_s -= self._seg_t1 - now
+        self._start_segment(now, frac)
+
+    def _time_scale(self, b: _Planned, i: int) -> float:
+        kind = int(b.motion.kind[i])
+        if kind == DWELL:
+            return 1.0
+        if kind == RAPID:
+            return 100.0 / self.rapid_ovr
+        if self.feed_ovr == 100:
+            return 1.0
+        v = self._programmed_mm_min(b, i)
+        if v <= 0:
+            return 1.0
+        # the overridden feed stays below the rapid rate (block->rapid_rate)
+        return v / min(v * self.feed_ovr / 100.0, max(self.rapid_mm_min, v))
+
+    def _rpm_scale(self) -> float:
+        return self.spindle_ovr / 100.0
+
+    def _start_block(self, b: _Planned, t0: float) -> None:
+        super()._start_block(b, t0)
+        if self._cur is b:
+            self._spindle_prog = b.spindle_rpm
+
+    def _advance(self, now: float) -> None:
+        super()._advance(now)
+        self._advanced_t = max(self._advanced_t, now)
 
     def _feed_hold_at(self, t: float) -> None:
         now = self.clock.now()
@@ -583,7 +689,7 @@ class SimGrbl(SimControllerBase):
             self._ovr_counter -= 1
         else:
             self._ovr_counter = (20 if busy else 10) - 1
-            out += "|Ov:100,100,100"
+            out += f"|Ov:{self.feed_ovr},{self.rapid_ovr},{self.spindle_ovr}"
             acc = ("S" if self._spindle > 0 else "C" if self._spindle < 0 else "") + (
                 "F" if self.interp.state.coolant else ""
             )
