@@ -236,7 +236,9 @@ def _params() -> list[object]:
         elif broken:
             marks.append(pytest.mark.xfail(reason=str(broken), strict=True))
         elif _slow(c, CASES[:k]):
-            marks.append(pytest.mark.slow)
+            # the command and what it needs (the demo: minutes on a loaded machine) each within
+            # TIMEOUT_S; pytest's default of 300 s would cut them short
+            marks += [pytest.mark.slow, pytest.mark.timeout(2 * TIMEOUT_S + 60)]
         params.append(pytest.param(k, id=c.id, marks=marks))
     return params
 
