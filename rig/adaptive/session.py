@@ -81,19 +81,23 @@ class AdaptiveSession:
 
     def __init__(
         self, session: Any, ctl: AdaptiveController, cal: Any, zero_samples: int,
-        drop_after_s: float | None = None,
+        drop_after_s: float | None = None, drop_relative: bool = False,
     ) -> None:  # fmt: skip
         self._s = session
         self.ctl = ctl
         self.cal = cal
         self.zero_samples = max(2, int(zero_samples))
         self.drop_after_s = drop_after_s
+        self._drop_relative = drop_relative  # drop_after_s counts from the program's start
         self.daq = _Daq(session.daq, self)
         self.clock = session.clock
         ctl.clock = session.clock
 
     def start(self, program: Any, writer: Any) -> None:
         self.ctl.writer = writer
+        if self._drop_relative and self.drop_after_s is not None:
+            self.drop_after_s += self.clock()
+            self._drop_relative = False
         self._s.start(program, writer)
         streamer = getattr(self._s, "streamer", None)
         if streamer is None or not hasattr(streamer, "override"):
@@ -124,3 +128,85 @@ class AdaptiveSession:
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._s, name)
+
+
+def protocol_of(campaign: Any) -> str:
+    """The controller's protocol a campaign streams to (the twin's ``[sim] protocol`` first)."""
+    sim = campaign.spec.sim.protocol if campaign.spec.campaign.rig == "sim" else None
+    return sim or campaign.machine.dialect
+
+
+def max_force_of(campaign: Any) -> float | None:
+    """The hard limit: the tool's ``max_force_n`` if its catalogue defines one, else
+    ``[adaptive] max_force_n``, else ``[suspenders] force_limit_n``."""
+    a = campaign.spec.adaptive
+    for v in (getattr(campaign.tool, "max_force_n", None), a.max_force_n,
+              campaign.spec.suspenders.force_limit_n):  # fmt: skip
+        if v is not None:
+            return float(v)
+    return None
+
+
+def check_adaptive(campaign: Any) -> None:
+    """Refuse a loop the controller cannot close: ConfigError naming the file and the field."""
+    from analysis.errors import ConfigError
+
+    a = campaign.spec.adaptive
+    if a is None:
+        return
+    where = f"{campaign.path}: [adaptive]"
+    proto = protocol_of(campaign)
+    if proto != "grbl":
+        raise ConfigError(
+            f"{where}: the controller {campaign.machine.name} ({proto}) has no real-time override "
+            'over serial; adaptive machining needs GRBL 1.1 ([sim] protocol = "grbl" on the twin)'
+        )
+    mx = max_force_of(campaign)
+    if mx is None:
+        raise ConfigError(f"{where} max_force_n: missing; give it in N (or [suspenders] "
+                         "force_limit_n)")  # fmt: skip
+    if not a.target_force_n < mx:
+        raise ConfigError(f"{where} target_force_n = {a.target_force_n:g}: expected below the "
+                         f"hard limit {mx:g} N")  # fmt: skip
+    known = {m.group for m in campaign.spec.matrix} | {t.group for t in campaign.spec.tests}
+    bad = [g for g in a.groups if g not in known]
+    if bad:
+        raise ConfigError(f"{where} groups: {bad[0]!r} is no group of the matrix (groups: "
+                         f"{', '.join(sorted(known))})")  # fmt: skip
+
+
+def under_loop(campaign: Any, test: Any) -> bool:
+    a = campaign.spec.adaptive
+    return a is not None and (not a.groups or test.group in a.groups)
+
+
+def settings_of(campaign: Any) -> Any:
+    from rig.adaptive.controller import AdaptiveSettings
+
+    a = campaign.spec.adaptive
+    return AdaptiveSettings(
+        mode=a.mode, target_force_n=a.target_force_n, max_force_n=max_force_of(campaign),
+        dead_band_pct=a.dead_band_pct, slew_up_pct=a.slew_up_pct, slew_down_pct=a.slew_down_pct,
+        settle_revs=a.settle_revs, air_force_n=a.air_force_n, stall_revs=a.stall_revs,
+        chatter_revs=a.chatter_revs, min_pct=a.min_pct, max_pct=a.max_pct,
+    )  # fmt: skip
+
+
+def adaptive_session(campaign: Any, test: Any, session: Any, cal: Any) -> Any:
+    """The campaign runner's hook: ``session`` with the controller in its loop when ``test``'s
+    group is under ``[adaptive]``, else ``session`` itself."""
+    if not under_loop(campaign, test):
+        return session
+    check_adaptive(campaign)
+    a = campaign.spec.adaptive
+    rate = campaign.spec.daq.rate_hz or campaign.rig.daq.rate_hz
+    ctl = AdaptiveController(
+        settings_of(campaign), spindle_rpm=test.spindle_rpm, channels=tuple(cal.channel_names),
+        clock=session.clock, depth_mm=test.depth_mm,
+        chatter_settings=campaign.spec.chatter.settings(),
+    )  # fmt: skip
+    zero = int(round(campaign.spec.daq.rest_s * rate))
+    drop = None
+    if a.sim_signal_loss_at_s is not None and campaign.spec.campaign.rig == "sim":
+        drop = a.sim_signal_loss_at_s  # made absolute at the program's start
+    return AdaptiveSession(session, ctl, cal, zero, drop_after_s=drop, drop_relative=True)

@@ -11,6 +11,7 @@ A campaign file has these tables (all lengths mm, feeds mm/min or mm/tooth, spee
     [suspenders]    conditions that pause or stop a run on their own
     [chatter]       optional: how chatter is judged (report and the on_chatter suspender)
     [analysis]      what runs after the campaign (kind and which groups feed it)
+    [adaptive]      optional: GRBL overrides from the live force for some groups (rig.adaptive)
     [[matrix]]      one or more groups; every list-valued field is expanded as a product
     [[tests]]       single tests (scalars only), appended after the matrix
 
@@ -306,6 +307,39 @@ class MatrixEntry(Model):
         return self
 
 
+class AdaptiveSection(Model):
+    """Closed-loop machining (rig.adaptive, GRBL only): real-time overrides from the live force
+    for the runs of ``groups`` (all runs when empty); the other runs are the baseline."""
+
+    mode: Literal["feed", "spindle", "both"] = Field("feed", description="feed, spindle or both")
+    groups: tuple[str, ...] = Field((), description="matrix groups under the loop (empty: all)")
+    target_force_n: float = Field(gt=0, le=1e6, description="N, per-revolution mean |Fxy| held")
+    max_force_n: float | None = Field(
+        None, gt=0, le=1e6, description="N, resultant -> feed hold (default: force_limit_n)"
+    )
+    dead_band_pct: float = Field(5.0, ge=0, le=50, description="%, of the target")
+    slew_up_pct: int = Field(10, ge=1, le=190, description="%, feed override up per revolution")
+    slew_down_pct: int = Field(50, ge=1, le=190, description="%, feed override down per rev")
+    settle_revs: int = Field(1, ge=0, le=100, description="revolutions after a change")
+    air_force_n: float = Field(30.0, gt=0, le=1e5, description="N, below: air (overrides 100 %)")
+    stall_revs: float = Field(3.0, gt=0, le=1000, description="revolutions without a DAQ block")
+    chatter_revs: int = Field(10, ge=4, le=200, description="revolutions the chatter check judges")
+    min_pct: int = Field(10, ge=10, le=100, description="%, lowest override")
+    max_pct: int = Field(200, ge=100, le=200, description="%, highest override")
+    sim_signal_loss_at_s: float | None = Field(
+        None, gt=0, description="sim: s after the program starts the controller hears no more"
+    )
+
+    @model_validator(mode="after")
+    def _below_max(self) -> AdaptiveSection:
+        if self.max_force_n is not None and not self.target_force_n < self.max_force_n:
+            raise ValueError(
+                f"target_force_n = {self.target_force_n:g}, max_force_n = {self.max_force_n:g}: "
+                "expected target < max (N)"
+            )
+        return self
+
+
 class CampaignFile(Model):
     campaign: CampaignSection
     program: ProgramSection
@@ -316,6 +350,7 @@ class CampaignFile(Model):
     chatter: ChatterSection = ChatterSection()
     analysis: AnalysisSection = AnalysisSection()
     feed_rule: FeedRuleSection | None = None
+    adaptive: AdaptiveSection | None = None
     matrix: tuple[MatrixEntry, ...] = ()
     tests: tuple[MatrixEntry, ...] = ()
 

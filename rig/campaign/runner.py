@@ -340,6 +340,10 @@ def run_campaign(
     from rig.log import RunWriter, RunWriterError, free_space_problem
 
     plans = plan_campaign(campaign)
+    if campaign.spec.adaptive is not None:
+        from rig.adaptive.session import check_adaptive
+
+        check_adaptive(campaign)  # refused before anything runs
     if campaign.spec.campaign.rig == "real" and session_factory is None:
         from rig.campaign.real import check_hardware
 
@@ -398,6 +402,10 @@ def run_campaign(
             earlier = set_aside(path)
             (folder / "programs" / f"{plan.file_stem}.nc").write_text(plan.program_text)
             session = factory(campaign, plan, k)
+            if campaign.spec.adaptive is not None:  # GRBL overrides from the live force
+                from rig.adaptive.session import adaptive_session
+
+                session = adaptive_session(campaign, t, session, cal_sheet)
             from rig.dnc import program_from_text
 
             program = program_from_text(plan.program_text, f"{plan.file_stem}.nc", check_nc=False)

@@ -46,6 +46,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     r.add_argument("--json", action="store_true", help="machine-readable summary on stdout")
     r.add_argument("--quiet", action="store_true", help="no progress display")
+    r.add_argument("--adaptive", choices=("feed", "spindle", "both"),
+                   help="GRBL: the [adaptive] loop in this mode (its target and limits: the "
+                   "config's [adaptive])")  # fmt: skip
     r.add_argument("--live", action="store_true",
                    help="serve the live console beside the campaign (--port, --bind); its "
                    "address, printed, carries the session's token")  # fmt: skip
@@ -94,6 +97,8 @@ def _run(args: argparse.Namespace) -> int:
             if line.strip():
                 error_line(line.strip())
         return 2
+    if getattr(args, "adaptive", None):
+        campaign = _with_adaptive(campaign, args.adaptive)
     if args.dry_run:
         progress_note("checking every program")
         return _dry_run(campaign, args.json, args.out)
@@ -126,6 +131,26 @@ def _run(args: argparse.Namespace) -> int:
         status(f"cutlab: campaign stopped; run the same command again to resume ({result.folder})")
         return 130
     return 0 if result.ok else 1
+
+
+def _with_adaptive(campaign, mode: str):  # noqa: ANN001, ANN202 - a Campaign
+    """The campaign with ``[adaptive] mode`` set by ``--adaptive``; refused (one line) without
+    an ``[adaptive]`` table (its target and limits are the config's) or without GRBL."""
+    import dataclasses
+
+    from analysis.errors import ConfigError
+    from rig.adaptive.session import check_adaptive
+
+    a = campaign.spec.adaptive
+    if a is None:
+        raise ConfigError(
+            f"{campaign.path}: --adaptive {mode}: the campaign has no [adaptive] table; add one "
+            "with target_force_n (N) and max_force_n (N) (docs/configuration.md)"
+        )
+    spec = campaign.spec.model_copy(update={"adaptive": a.model_copy(update={"mode": mode})})
+    campaign = dataclasses.replace(campaign, spec=spec)
+    check_adaptive(campaign)
+    return campaign
 
 
 def _runs_done(folder: Path, total: int):  # noqa: ANN202 - a note for the heartbeat
