@@ -5,6 +5,7 @@ take longer, never changes what happens in simulated time)."""
 from __future__ import annotations
 
 import hashlib
+import json
 import re
 import subprocess
 import sys
@@ -92,17 +93,19 @@ def _reduced_feed_sweep(tmp_path: Path, feeds: str, block_length_mm: float) -> P
     return p
 
 
-def _fingerprint(folder: Path) -> dict[str, tuple[int, str, str]]:
-    """Per run file: (samples, sha256 of the force dataset, sha256 of the block table's
-    execution starts)."""
+def _fingerprint(folder: Path) -> dict[str, tuple[int, str, str, str]]:
+    """Per run file: (samples, sha256 of the force dataset, of the zero and drift taken from
+    the rests (what turns its volts into newtons), of the block table's execution starts)."""
     out = {}
     for f in sorted(folder.glob("*/runs/*.h5")):
         with h5py.File(f, "r") as h:
             volts = h[rf.VOLTS][()]
+            zero = [h[k][()] for k in (rf.CAL_ZERO_V, rf.CAL_ZERO_TIME_S, rf.CAL_DRIFT_V_S)]
             exec_s = h[rf.BLOCKS]["exec_s"]
         out[f.name] = (
             volts.shape[0],
             hashlib.sha256(np.ascontiguousarray(volts).tobytes()).hexdigest(),
+            hashlib.sha256(b"".join(np.ascontiguousarray(z).tobytes() for z in zero)).hexdigest(),
             hashlib.sha256(np.ascontiguousarray(exec_s).tobytes()).hexdigest(),
         )
     return out
@@ -155,3 +158,30 @@ def test_the_shipped_feed_sweep_is_bit_identical_beside_two_busy_processes(
 def test_the_demo_campaign_is_bit_identical_beside_two_busy_processes(tmp_path: Path) -> None:
     quiet, busy = _quiet_and_busy(CAMPAIGNS / "facemill-ploughing.toml", tmp_path)
     assert len(quiet) >= 4 and quiet == busy
+
+
+@pytest.mark.faults
+@pytest.mark.parametrize("on_force", ["abort", "hold"])
+def test_a_suspender_stop_is_bit_identical_beside_two_busy_processes(
+    tmp_path: Path, on_force: str
+) -> None:
+    # the quick face-milling campaign of the runner's tests, with a force limit it exceeds: the
+    # hold comes at the end of the DAQ block that went over, the abort at once or 0.3 simulated
+    # s later, and the record ends a rest after the stop, whatever the host's load
+    text = (Path(__file__).parent / "data" / "campaign" / "quick.toml").read_text()
+    text = text.replace('"OUT"', json.dumps(str(tmp_path / "unused"))).replace("FAULTS", "")
+    text += f'\n[suspenders]\nforce_limit_n = 250\non_force = "{on_force}"\nhold_timeout_s = 0.3\n'
+    cfg = tmp_path / "quick.toml"
+    cfg.write_text(text)
+    for out, busy in (("quiet", 0), ("busy", BUSY_PROCESSES)):
+        hogs = [subprocess.Popen([sys.executable, "-c", BUSY_CODE]) for _ in range(busy)]
+        try:
+            res = run_campaign(load_campaign(cfg), out_root=tmp_path / out, progress=False,
+                               only=lambda t: t.index == 0)  # fmt: skip
+        finally:
+            for p in hogs:
+                p.kill()
+                p.wait(timeout=10)
+        assert [r.status for r in res.runs] == ["abort"], [r.reason for r in res.runs]
+    quiet, busy = _fingerprint(tmp_path / "quiet"), _fingerprint(tmp_path / "busy")
+    assert len(quiet) == 1 and quiet == busy

@@ -24,6 +24,7 @@ import math
 import sys
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
@@ -141,6 +142,11 @@ class _Tap:
         self.over_limit: str | None = None
         self.daq_fault: str | None = None
         self._capture: list[tuple[np.ndarray, np.ndarray]] | None = None
+        # the latest blocks, so a capture asked for after its samples came takes them (a
+        # simulated rig's clock waits at the end of a rest, which a fast DAQ may reach before
+        # the runner asks for it: the capture then waited for samples that never came)
+        self.history_samples = 0
+        self._history: deque[tuple[np.ndarray, np.ndarray]] = deque()
         self._capture_n = 0
         self._capture_from = -math.inf
         self._captured = threading.Event()
@@ -176,6 +182,12 @@ class _Tap:
                     self._capture.append((t[keep], volts[keep]))
                 if sum(len(c[0]) for c in self._capture) >= self._capture_n:
                     self._captured.set()
+            if self.history_samples > 0:
+                self._history.append((t, volts))
+                while sum(len(h[0]) for h in self._history) - len(self._history[0][0]) >= (
+                    self.history_samples
+                ):
+                    self._history.popleft()
             if self.monitor:
                 f = self.cal.force_from_volts(volts, t)
                 peak = float(np.max(np.linalg.norm(f, axis=1))) if n else 0.0
@@ -222,6 +234,12 @@ class _Tap:
             self._capture, self._capture_n = [], n
             self._capture_from = from_s
             self._captured.clear()
+            for t, v in self._history:  # what came before the call, from from_s on
+                keep = t >= from_s
+                if keep.any():
+                    self._capture.append((t[keep], v[keep]))
+            if sum(len(c[0]) for c in self._capture) >= n:
+                self._captured.set()
         ok = self._captured.wait(timeout_s)
         with self._lock:
             parts, self._capture = self._capture or [], None
@@ -296,10 +314,21 @@ def execute_run(
     ``analysis.chatter.ChatterSettings``) and holds or aborts as the force limit does."""
     wall0 = time.monotonic()
     held_at: list[float] = []
+    held_sim: list[float] = []  # simulated s of the suspender's hold (a simulated rig)
+    simulated = bool(getattr(session, "simulated", False))
+    sim_gate = getattr(getattr(session, "sim_clock", None), "gate", None) if simulated else None
 
     def hold_now(why: str) -> None:
         session.feed_hold()
         held_at.append(time.monotonic())
+        if sim_gate is not None and not held_sim:
+            # On a simulated rig the suspender's stop comes at a simulated time, not when the
+            # runner's loop happens to look: the clock waits for it there (abort: at the hold;
+            # hold: when the hold has lasted hold_timeout_s), so a busy host changes nothing.
+            t = session.clock()
+            held_sim.append(t)
+            act = on_force if tap.over_limit is not None else on_chatter
+            sim_gate("suspender", t if act == "abort" else t + hold_timeout_s)
         writer.event(rf.EV_PAUSE, f"suspender: {why}: feed hold")
 
     status, reason = STATUS_SUCCESS, "program completed"
@@ -310,9 +339,10 @@ def execute_run(
         watch = _ChatterWatch(tuple(cal.channel_names), rate, abs(spindle_rpm), chatter_floor_n,
                               chatter_settings)  # fmt: skip
     tap = _Tap(writer, cal, force_limit_n, hold_now, watch)
-    simulated = bool(getattr(session, "simulated", False))
     tap.lossless = simulated and hasattr(writer, "put_block")
     n_rest = max(2, int(round(zero_s * rate)))
+    if simulated:  # its clock stops at the end of each rest: keep a rest and two blocks
+        tap.history_samples = n_rest + 2 * daq.info.block_samples
     wait_rest_s = 10.0 + 3 * zero_s / sim_speed
     catch_up_s = 60.0  # wall s a lagging simulated DAQ may take to deliver what it owes
     daq.start(tap)
@@ -382,7 +412,14 @@ def execute_run(
             if tripped is not None and held_at:
                 held_since = held_at[0]
                 act = on_force if tap.over_limit is not None else on_chatter
-                if act == "abort" or time.monotonic() - held_since >= hold_timeout_s:
+                waited_wall_s = time.monotonic() - held_since
+                if held_sim:  # the gate's own expression: the clock stands exactly there
+                    timed_out = session.clock() >= held_sim[0] + hold_timeout_s or (
+                        waited_wall_s >= hold_timeout_s / sim_speed + catch_up_s
+                    )
+                else:
+                    timed_out = waited_wall_s >= hold_timeout_s
+                if act == "abort" or timed_out:
                     status, reason = STATUS_ABORT, f"suspender: {tripped}"
                     break
         if status == STATUS_FAIL:
@@ -426,12 +463,25 @@ def execute_run(
         else:
             # Keep what was acquired up to the stop, even if the DAQ lags the clock (briefly
             # when the DAQ itself failed: it may never deliver again).
-            tap.wait_until(t_end, 5.0 if tap.daq_fault else catch_up_s)
+            if not (held_sim and sim_gate is not None):
+                tap.wait_until(t_end, 5.0 if tap.daq_fault else catch_up_s)
+            else:
+                # a simulated rig stopped by a suspender records a rest of zero_s after the stop
+                # (the spindle stopped), to the end of a DAQ block, the clock waiting there
+                # until the DAQ is stopped: the same samples however busy the host
+                blk, t0_daq = daq.info.block_samples, tap.t0_s
+                k = math.ceil((t_end + zero_s - t0_daq) * rate / blk) * blk
+                sim_gate("suspender", t0_daq + k / rate)
+                tap.wait_until(t0_daq + (k - 1) / rate, catch_up_s)
     except TimeoutError as exc:
         status, reason = STATUS_FAIL, f"DAQ: {exc}"
         session.stop()
     finally:
+        # the DAQ stops before the suspender's gate lifts: a simulated run keeps the samples up
+        # to the stop, not what a slow runner let pass after it
         daq.stop()
+        if sim_gate is not None:
+            sim_gate("suspender", None)
         session.close()
     if tap.daq_fault is not None and status == STATUS_SUCCESS and on_overflow == "continue":
         reason = f"program completed; {tap.daq_fault}"

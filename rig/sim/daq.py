@@ -200,6 +200,11 @@ class SimDaq(Daq):
         self._codes = np.empty((c, block), np.int16) if coeff is not None else None
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        #: lockstep (the simulated rig's campaigns): the clock cannot pass the end of the block
+        #: being read until the sink has taken it, so what the sink decides on a block (a
+        #: suspender's feed hold) acts at that block's end in simulated time, however late the
+        #: host ran this thread
+        self.lockstep = False
 
     @classmethod
     def from_rig(
@@ -276,12 +281,15 @@ class SimDaq(Daq):
         lost = self._lost_ranges()
         i = 0  # device index of the next sample
         nblock = 0
+        gate = f"daq-{id(self)}" if self.lockstep and hasattr(self.clock, "gate") else None
         try:
             while not self._stop.is_set():
                 n = block if self.total_samples is None else min(block, self.total_samples - i)
                 if n <= 0:
                     break
                 t_start = self._t0_s + i / rate
+                if gate is not None:
+                    self.clock.gate(gate, self._t0_s + (i + n) / rate)  # type: ignore[union-attr]
                 if self.clock is not None and not self.clock.sleep_until(
                     self._t0_s + (i + n) / rate, self._stop
                 ):
@@ -296,6 +304,8 @@ class SimDaq(Daq):
             self.error = exc
             sink.on_event(DaqEvent(rf.EV_FAULT, i, f"simulated DAQ failed: {exc}"))
         finally:
+            if gate is not None:
+                self.clock.gate(gate, None)  # type: ignore[union-attr]
             sink.on_event(DaqEvent(rf.EV_STOP, self.samples_acquired, "acquisition stopped"))
             self._done.set()
 

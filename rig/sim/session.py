@@ -92,6 +92,7 @@ class SimSession:
             input_range_v=rig.daq.input_range_v,
             sim_overflow_at=overflow,
         )
+        self.daq.lockstep = True  # a suspender's hold acts at the end of the block it judged
         self.interlock_at_s = sim.sim_interlock_at_s if faults else None
         self.link_timeout_s = sim.link_timeout_s
         self._serial = campaign.machine.serial
