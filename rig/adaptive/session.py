@@ -95,8 +95,9 @@ class AdaptiveSession:
 
     def start(self, program: Any, writer: Any) -> None:
         self.ctl.writer = writer
+        t0 = self.clock()  # the program's start: the loss knob counts from here
         if self._drop_relative and self.drop_after_s is not None:
-            self.drop_after_s += self.clock()
+            self.drop_after_s += t0
             self._drop_relative = False
         self._s.start(program, writer)
         streamer = getattr(self._s, "streamer", None)
@@ -104,9 +105,10 @@ class AdaptiveSession:
             raise RuntimeError("adaptive: the session's controller has no real-time override")
         self.ctl.attach(streamer)
         s = self.ctl.s
-        writer.event(rf.EV_NOTE, f"adaptive: {s.mode}, target {s.target_force_n:g} N, max "
-                     f"{s.max_force_n:g} N, dead band {s.dead_band_pct:g} %, slew +{s.slew_up_pct}"
-                     f"/-{s.slew_down_pct} % per rev, air {s.air_force_n:g} N")  # fmt: skip
+        msg = (f"adaptive: {s.mode}, target {s.target_force_n:g} N, max {s.max_force_n:g} N, "
+               f"dead band {s.dead_band_pct:g} %, slew +{s.slew_up_pct}/-{s.slew_down_pct} % per "
+               f"rev, air {s.air_force_n:g} N")  # fmt: skip
+        writer.event(rf.EV_NOTE, msg, time_s=t0)
         self.ctl.arm()
 
     def fault(self) -> str | None:
