@@ -66,7 +66,7 @@ LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
 COMMANDS = ("hold", "resume", "abort")
 WS_MAX_BYTES = 64 * 1024  # a page's messages are < 100 bytes; larger ones are closed (1009)
 POLL_S = 0.005  # how often a connection looks for new samples between frames
-MIN_FRAME_S = 0.015  # frames at most this often (new samples sooner than TICK_S)
+MIN_FRAME_S = 0.025  # frames of new samples at most this often (the page redraws on each)
 SPECTRUM_N = 4096  # samples per spectrum (0.5 s at 8 kHz: 2 Hz bins)
 SPECTRUM_PX = 400
 LOG_BUDGET = 20  # logged lines of refusals / bad messages per connection (then one more saying so)
@@ -793,6 +793,7 @@ def make_app(
 
         reader = asyncio.create_task(receive())
         loop = asyncio.get_running_loop()
+        last_news = 0.0
         try:
             while not reader.done():
                 if hub.should_exit:  # the page says so rather than "connection lost"
@@ -813,9 +814,10 @@ def make_app(
                 await ws.send_text(json.dumps(msg, separators=(",", ":"), allow_nan=False))
                 # The next frame: at TICK_S, or sooner when new samples come (not before
                 # MIN_FRAME_S): a block waits for no beat (the sample-to-screen latency).
-                sent = loop.time()
+                if "written_ms" in msg.get("bins", {}):
+                    last_news = loop.time()  # frames of new samples: at most every MIN_FRAME_S
                 while (now := loop.time()) < due and inbox.empty() and not hub.should_exit:
-                    if now - sent >= MIN_FRAME_S and client.news(hub):
+                    if now - last_news >= MIN_FRAME_S and client.news(hub):
                         break
                     await asyncio.sleep(min(POLL_S, max(0.0, due - now)))
         except (WebSocketDisconnect, RuntimeError, ConnectionError):

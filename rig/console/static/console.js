@@ -31,6 +31,7 @@ let plotChannels = "";
 let bins = { t: [], min: [], max: [] };
 let bands = [];
 let execBlock = -1;
+let drawnBlock = -1; // the executing block shaded in the plot as last drawn
 let browsing = null; // run file being browsed, or null: live
 let browseSpans = [];
 let programKey = "";
@@ -527,7 +528,11 @@ function onMessage(ev) {
   if (msg.bins) addBins(msg.bins);
   if (msg.readouts) showReadouts(msg.readouts);
   if (msg.spectrum && !paused) drawSpectrum(msg.spectrum);
-  if (!browsing && !paused && plot && (msg.bins || msg.status)) {
+  // Redrawn only for new samples or a new executing block: a software-rendered redraw of the
+  // plot is most of the page's cost, and a loaded computer's browser falls behind on it.
+  const fresh = msg.bins && msg.bins.written_ms;
+  if (!browsing && !paused && plot && (fresh || msg.meta || execBlock !== drawnBlock)) {
+    drawnBlock = execBlock;
     setPlotData(bins.t, bins.min, bins.max);
   }
   if (msg.bins && msg.bins.t.length && msg.bins.written_ms) noteLatency(msg.bins.written_ms, msg.bins.sent_ms);
