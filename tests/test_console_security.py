@@ -202,7 +202,8 @@ def test_a_websocket_without_the_page_s_origin_is_refused(
 @pytest.mark.faults
 def test_data_and_commands_need_the_token(live: tuple[Console, RingWriter]) -> None:
     console, ring = live
-    for path in ("/", "/api/runs", "/api/health", "/api/trace?file=x.h5"):
+    for path in ("/", "/api/runs", "/api/health", "/api/trace?file=x.h5", "/api/history",
+                 "/api/trace?live=1&t0=0&t1=1", "/api/run?file=x.h5"):  # fmt: skip
         assert console.http(path)[0] == 401, path
         assert console.http(path, Authorization="Bearer wrong")[0] == 401, path
         assert console.http(path + ("&" if "?" in path else "?") + "token=wrong")[0] == 401
