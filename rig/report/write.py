@@ -128,6 +128,11 @@ def write_report(campaign_folder: str | Path) -> Report:
     for s in sections:
         if "onset" in s.summary:  # the stability sweep's contract: `onset` at the top level
             summary["onset"] = s.summary["onset"]
+    if campaign.spec.adaptive is not None:  # issue 29: one entry per run under the loop
+        from rig.adaptive.report import adaptive_entries
+
+        summary["adaptive"], adaptive_md = adaptive_entries(campaign, runs)
+        sections.append(Section("adaptive", adaptive_md))
     md = [f"# Campaign {campaign.name}\n", f"{campaign.spec.campaign.description}\n",
           f"Rig: {campaign.spec.campaign.rig}; machine {campaign.machine.name}; tool "
           f"{campaign.spec.campaign.tool}; material {campaign.spec.campaign.material}; "

@@ -1,0 +1,86 @@
+"""The campaign report's ``adaptive`` list (issue 29): one entry per run under the loop, beside
+the same program run without it (the baseline) and the same cut with ``plan feed``'s offline
+feeds (a ``feed_mode = "post-processed"`` run of the campaign)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from rig.adaptive.figures import adaptive_events, cycle_time_s, within_band
+from rig.adaptive.session import under_loop
+
+
+def _same_cut(a: Any, b: Any) -> bool:
+    ca, cb = a.conditions, b.conditions
+    return all(ca.get(k) == cb.get(k) for k in ("spindle_rpm", "depth_mm", "width_mm"))
+
+
+def _chatter_cleared_revs(lr: Any) -> int | None:
+    """Revolutions from the controller's chatter finding to its ``chatter cleared`` note."""
+    found = cleared = None
+    for t, _, msg in adaptive_events(lr.run):
+        if "chatter at" in msg and found is None:
+            found = t
+        if "chatter cleared" in msg and cleared is None:
+            cleared = t
+    if found is None or cleared is None:
+        return None
+    return int(round((cleared - found) * abs(float(lr.conditions["spindle_rpm"])) / 60.0))
+
+
+def adaptive_entries(campaign: Any, runs: list[Any]) -> tuple[list[dict[str, Any]], str]:
+    """(the JSON list, its Markdown) for the finished runs ``runs`` (LoadedRun)."""
+    a = campaign.spec.adaptive
+    if a is None:
+        return [], ""
+
+    def test_of(lr: Any) -> Any:
+        return next(t for t in campaign.tests if t.name == lr.name)
+
+    loop = [lr for lr in runs if under_loop(campaign, test_of(lr))]
+    rest = [lr for lr in runs if lr not in loop]
+    out = []
+    for lr in loop:
+        base = next((b for b in rest if _same_cut(b, lr) and test_of(b).feed_mode ==
+                     test_of(lr).feed_mode and test_of(b).feed_mm_min == test_of(lr).feed_mm_min),
+                    None)  # fmt: skip
+        plan = next((b for b in rest if test_of(b).feed_mode == "post-processed"
+                     and _same_cut(b, lr)), None)  # fmt: skip
+        w = within_band(lr, a.target_force_n)
+        wb = within_band(base, a.target_force_n) if base is not None else None
+        e: dict[str, Any] = {
+            "run": lr.name,
+            "mode": a.mode,
+            "target_force_n": a.target_force_n,
+            "within_10pct": w["within"],
+            "baseline_within_10pct": None if wb is None else wb["within"],
+            "cycle_time_s": cycle_time_s(lr.run),
+            "baseline_cycle_time_s": None if base is None else cycle_time_s(base.run),
+            "plan_feed_cycle_time_s": None if plan is None else cycle_time_s(plan.run),
+            "baseline_run": None if base is None else base.name,
+            "plan_feed_run": None if plan is None else plan.name,
+        }
+        if base is None:
+            e["baseline_reason"] = "no run of the same cut and feed without the loop"
+        if plan is None:
+            e["plan_feed_reason"] = ('no feed_mode = "post-processed" run of the same cut in '
+                                     "the campaign")  # fmt: skip
+        if a.mode != "feed":
+            e["chatter_cleared_revs"] = _chatter_cleared_revs(lr)
+        out.append(e)
+
+    def num(v: Any, f: str) -> str:
+        return "n/a" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, f)
+
+    md = ["Per-revolution mean feed-plane force within +-10 % of the target, share of the "
+          "cutting revolutions (as the AFC report counts them); cycle time from the program's "
+          "start to its last block's end.\n",
+          "| run | mode | target N | within | baseline within | cycle s | baseline cycle s | "
+          "plan feed cycle s |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+    for e in out:
+        md.append(f"| {e['run']} | {e['mode']} | {e['target_force_n']:g} | "
+                  f"{num(e['within_10pct'], '.3f')} | {num(e['baseline_within_10pct'], '.3f')} | "
+                  f"{num(e['cycle_time_s'], '.2f')} | {num(e['baseline_cycle_time_s'], '.2f')} | "
+                  f"{num(e['plan_feed_cycle_time_s'], '.2f')} |")  # fmt: skip
+    return out, "\n".join(md) + "\n"
