@@ -14,6 +14,7 @@ from __future__ import annotations
 import threading
 import time
 
+import numpy as np
 import pytest
 import serial
 from _dnc_helpers import GRBL_LINE_B_S, grbl_bytes, grbl_cfg
@@ -182,41 +183,76 @@ def test_feed_override_from_the_start_scales_a_long_move() -> None:
 
 
 def test_feed_override_mid_move_splits_the_segment() -> None:
-    """A 50 % override arriving at t_o in a 100 mm F600 move: the tool is at 10 (t_o - t0) mm
-    and covers the rest at 5 mm/s, so the block ends at t_o + (100 - 10 (t_o - t0)) / 5; the
+    """A 50 % override arriving at t_o in a 300 mm F600 move: the tool is at 10 (t_o - t0) mm
+    and covers the rest at 5 mm/s, so the block ends at t_o + (300 - 10 (t_o - t0)) / 5; the
     twin's timeline moves at 10 mm/s before t_o and 5 mm/s after, and the segment cut short
     ends where the slow one starts (the stock is cut only as far as the tool went)."""
-    ctl = SimGrbl(clock=SimClock(20.0))
+    ctl = SimGrbl(clock=SimClock(50.0))
     tl = MotionTimeline()
     ctl.add_listener(on_segment=tl.add, on_spindle=tl.add_spindle_breakpoint)
     with ctl:
         c = Client(ctl)
         try:
             assert c.send("G21 G90 S10000 M3") == "ok"
-            assert c.send("G1 X100 F600") == "ok"
+            assert c.send("G1 X300 F600") == "ok"
             deadline = time.monotonic() + 10
-            while "Run" not in c.status() and time.monotonic() < deadline:
-                time.sleep(0.01)
-            time.sleep(0.1)  # about 2 s of the move (x20)
+            while ctl.position_mm()[0] < 10 and time.monotonic() < deadline:
+                time.sleep(0.002)
             c.rt(FEED_DN10, 5)
-            s = c.status()
-            assert "|Ov:50,100,100" in s and "|FS:300,10000" in s, s
+            s = c.status()  # the first report of the run brings WCO; Ov: then the next one
+            assert "|FS:300,10000" in s, s
+            assert c.ov() == "50,100,100"
             c.wait_idle()
         finally:
             c.close()
     t0 = ctl.executed[-1].t_start_s
-    t_end, at = _end_time(t0, 100.0, 600.0, ctl)
+    t_end, at = _end_time(t0, 300.0, 600.0, ctl)
     t_o, x_o, pct = at[-1]  # the five bytes may arrive in more than one read of the pty
-    assert 5.0 < x_o < 95.0 and pct == 50, at
+    assert at[0][1] >= 10.0 and x_o < 295.0 and pct == 50, at
     assert ctl.executed[-1].t_end_s == pytest.approx(t_end, abs=1e-9)
     t_a, x_a, _ = at[0]
     st = tl.state([t_a - 0.5, t_o + 0.5, t_o + 1.0])
     assert st.velocity_mm_s[:, 0] == pytest.approx([10.0, 5.0, 5.0], abs=1e-9)
     assert st.position_mm[:, 0] == pytest.approx([x_a - 5.0, x_o + 2.5, x_o + 5.0], abs=1e-9)
-    assert tl.state([t_end]).position_mm[0, 0] == pytest.approx(100.0)
+    assert tl.state([t_end]).position_mm[0, 0] == pytest.approx(300.0)
     cut = [g for g in tl.segments if g.t_start_s == t0][0]
     assert cut.t_end_s == pytest.approx(at[0][0], abs=1e-12)
     assert cut.end_mm[0] == pytest.approx(at[0][1], abs=1e-9)
+
+
+def test_override_while_held_applies_on_resume_and_busy_refresh() -> None:
+    """Held (``!``, Hold:0) the override changes nothing under way; the move resumes (``~``) at
+    the new feed: 300 mm at F600 held at x_h resumes at 150 %, the rest takes (300 - x_h) / 15 s.
+    While busy, Ov: comes in the report after the change, then every 20th (report.c
+    REPORT_OVR_REFRESH_BUSY_COUNT; one later if the WCO refresh falls on it), never beside WCO."""
+    ctl = SimGrbl(clock=SimClock(20.0), hold_decel_s=0.0)
+    with ctl:
+        c = Client(ctl)
+        try:
+            assert c.send("G21 G90") == "ok"
+            assert c.send("G1 X300 F600") == "ok"
+            deadline = time.monotonic() + 10
+            while ctl.position_mm()[0] < 5 and time.monotonic() < deadline:
+                time.sleep(0.002)
+            c.ser.write(b"!")
+            while "Hold:0" not in c.status() and time.monotonic() < deadline:
+                time.sleep(0.01)
+            c.rt(FEED_UP10, 5)
+            assert c.ov() == "150,100,100"  # the next report, or the one after a WCO
+            x_h = float(c.status().split("MPos:")[1].split(",")[0])
+            c.ser.write(b"~")
+            reports = [c.status() for _ in range(45)]  # 45 reports take far less than the move
+            assert all(r.startswith("<Run") for r in reports), reports[-1]
+            c.wait_idle()
+        finally:
+            c.close()
+    t_resume = [e.t_s for e in ctl.events if e.kind == "resume"][-1]
+    # x_h as reported, to 0.5 um: 3e-5 s of the rest
+    assert ctl.executed[-1].t_end_s == pytest.approx(t_resume + (300 - x_h) / 15.0, abs=1e-4)
+    has_ov = [i for i, r in enumerate(reports) if "|Ov:" in r]
+    assert all("|WCO:" not in reports[i] for i in has_ov)
+    gaps = np.diff(has_ov)
+    assert len(gaps) >= 1 and set(gaps.tolist()) <= {20, 21}, has_ov
 
 
 def test_spindle_override_changes_the_reported_and_the_twins_speed() -> None:
@@ -253,7 +289,8 @@ def test_streamer_override_api_records_and_bypasses_the_count() -> None:
     the bytes never enter GRBL's receive buffer (what it received is exactly the program) and
     the character count is untouched (no overrun, every line answered); the long move's time
     follows the override from its arrival (worked out as above)."""
-    text = "G21 G90\nS10000 M3\n" + "".join(f"G1 X{x} F600\n" for x in (100, 0)) + "M30\n"
+    # 300 mm at F600 is 30 s (0.75 wall s at x40): the override lands well inside it
+    text = "G21 G90\nS10000 M3\n" + "".join(f"G1 X{x} F600\n" for x in (300, 290)) + "M30\n"
     prog = program_from_text(text, "ovr.nc")
     ctl = SimGrbl(clock=SimClock(40.0), status_report_mask=3)
     sink = MemorySink()
@@ -271,9 +308,10 @@ def test_streamer_override_api_records_and_bypasses_the_count() -> None:
         th = threading.Thread(target=lambda: out.update(res=st.send(prog)), daemon=True)
         th.start()
         deadline = time.monotonic() + 20
-        while time.monotonic() < deadline and (not ctl.executed or ctl.position_mm()[0] < 20):
+        # GRBL's Ov: (its 2nd report) first: from an unknown value the helper would reset first
+        while time.monotonic() < deadline and (ctl.position_mm()[0] < 20 or not st.overrides):
             time.sleep(0.005)
-        assert ctl.position_mm()[0] >= 20
+        assert ctl.position_mm()[0] >= 20 and st.overrides == (100, 100, 100)
         st.feed_override_pct(50)
         assert [code for _, code in st.override_log] == [FEED_DN10] * 5
         while time.monotonic() < deadline and st.overrides != (50, 100, 100):
@@ -291,10 +329,12 @@ def test_streamer_override_api_records_and_bypasses_the_count() -> None:
     assert [t for t, _ in evs] == [t for t, _ in st.override_log]
     t_o = [e.t_s for e in ctl.events if e.kind == "override"]
     assert len(t_o) == 5 and t_o[0] >= st.override_log[0][0]  # written, then arrived
-    first = [b for b in ctl.executed if b.text == "G1X100F600"][0]
-    back = [b for b in ctl.executed if b.text == "G1X0F600"][0]
-    assert first.t_end_s == pytest.approx(_end_time(first.t_start_s, 100, 600, ctl)[0], abs=1e-9)
-    assert back.t_end_s - back.t_start_s == pytest.approx(20.0, abs=1e-9)  # all of it at 50 %
+    first = [b for b in ctl.executed if b.text == "G1X300F600"][0]
+    back = [b for b in ctl.executed if b.text == "G1X290F600"][0]
+    t_end, at = _end_time(first.t_start_s, 300, 600, ctl)
+    assert 20 <= at[0][1] < 295, at  # in the first move
+    assert first.t_end_s == pytest.approx(t_end, abs=1e-9)
+    assert back.t_end_s - back.t_start_s == pytest.approx(2.0, abs=1e-9)  # 10 mm all at 50 %
 
 
 @pytest.mark.faults

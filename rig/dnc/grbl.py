@@ -391,8 +391,8 @@ class GrblStreamer(StreamerBase):
         if isinstance(code, bool) or not isinstance(code, int) or code not in OVERRIDE_BYTES:
             raise ValueError(f"GRBL override byte {code!r}: expected one of 0x90-0x97, 0x99-0x9D")
         with self._ovr_lock:
+            t = self.clock()  # before the write: the byte cannot arrive before its time
             self._rt(bytes([code]))
-            t = self.clock()
             self._ovr_written_t = time.perf_counter()
             self.override_log.append((t, code))
             if code <= 0x94:
