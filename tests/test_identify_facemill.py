@@ -2,10 +2,10 @@
 dynamometer's Table 2 modes, an offset with drift; validation at other feeds; bad input.
 
 Circular by construction: the runs are made by ``analysis.forces.facemill`` through the
-dynamometer's modes the fit inverts (both on grids 64 x the rate, the runs' from their first
-sample, the fit's from its phase), so the tests named ``test_regression_*`` say the chain still
-inverts itself, not that seed 003's model is right. The identification judged on data the
-model did not make is tests/test_facemill_independent.py (issue 33)."""
+dynamometer's modes the fit inverts (the runs' on a grid 16 x the rate, the fit's 64 x), so the
+tests named ``test_regression_*`` say the chain still inverts itself, not that seed 003's model
+is right. The identification judged on data the model did not make is
+tests/test_facemill_independent.py (issue 33)."""
 
 from __future__ import annotations
 
@@ -183,9 +183,9 @@ def test_regression_noise_free_runs_give_the_truth_exactly(modes, dyno):
         for d in (0.5, 1.7, 3.0)
     ]
     fit = fit_facemill_runs(runs, TOOL, dyno)
-    # The runs' dynamometer answers on a grid 64 x the rate from their first sample, the fit's
-    # from its phase: an entry's timing differs by up to 1/128 sample (R^2 1 - 1e-9 when both
-    # filtered at the rate, before issue 33).
+    # The runs' dynamometer answers on a grid 16 x the rate, the fit's on one 64 x: an exit's
+    # timing differs by up to 1/32 sample (R^2 1 - 1e-8 here; 1 - 1e-9 when both filtered at the
+    # rate, before issue 33).
     assert fit.fit.r_squared > 1 - 1e-7
     # The phase is found to 1/64 of a sample: that and the grids are the residual error (~4e-5).
     for name in ("K_T_n_mm2", "K_R", "P_T_n_mm", "P_R_n_mm", "K_A", "P_A_n_mm"):

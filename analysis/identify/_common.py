@@ -277,7 +277,7 @@ def synthetic_run(
     drift_n_s: Sequence[float] = (0.0, 0.0, 0.0),
     phase_rad: float = 0.0,
     angle_rpm: float | None = None,
-    oversample: int = 64,
+    oversample: int = 16,
 ) -> ForceRun:
     """A force record made from a model: air, ``cut_s`` of steady cutting, air.
 
