@@ -186,7 +186,7 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
                 return len(seen - {"-", "-1"}) >= 3
 
             page.wait("the executing block to change", blocks_seen, 60)
-            readouts, zoom = _watch_the_machine(page)
+            readouts, zoom, drawn = _watch_the_machine(page)
             page.wait("run 2/2", lambda: page.text("run-progress") == "2/2", 60)
             page.wait("the cut of run 2", lambda: int(page.text("executing-block")) >= 3)
             assert page.text("machine-state") == "Run"
@@ -252,6 +252,7 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
     assert not (tmp_path / "out" / "quick" / "live.json").exists()
     _readouts_match_the_run_file(readouts, rf.load_run(runs[0]))
     _zoom_is_the_run_file_s_samples(zoom, rf.load_run(runs[zoom["run"] - 1]))
+    _the_controller_s_block(drawn, rf.load_run(runs[drawn[0] - 1]))
 
 
 def _buttons(page: Page) -> dict[str, bool]:
@@ -306,7 +307,7 @@ def _watch_the_machine(page: Page) -> list[dict[str, Any]]:
                           ".map(e => e.textContent), window.cutlab.readouts]")  # one moment
     assert shown == [f"{n} {v:.1f}" for n, v in zip(last["channels"], last["mean"])]
     assert re.fullmatch(r"p50 \d+ ms, p95 \d+ ms", page.text("latency")), page.text("latency")
-    _toolpath_on_screen(page)
+    drawn = _toolpath_on_screen(page)
     # the spectrum: tooth-passing harmonics of the run's speed (1 insert at 1200 rpm: 20 Hz)
     page.wait("a spectrum", lambda: page.js("window.cutlab.spectrum") is not None)
     sp = page.js("window.cutlab.spectrum")
@@ -325,7 +326,20 @@ def _watch_the_machine(page: Page) -> list[dict[str, Any]]:
     assert page.js("window.cutlab.view.n") > 8000
     page.click("pause")  # follow live again
     assert page.js("window.cutlab.view") is None
-    return list(readouts.values()), zoom
+    return list(readouts.values()), zoom, drawn
+
+
+def _the_controller_s_block(drawn: tuple[int, float, int], run: rf.Run) -> None:
+    """The block the toolpath highlighted is the one the controller's own record (the run
+    file's block start times) has executing at that moment. A drip feed reports nothing: its
+    executing block is the streamer's prediction, seen lagging the controller by up to 0.17 s
+    on a loaded computer; a block executing within 0.3 s before (0.05 s after) is allowed."""
+    _, t_s, block = drawn
+    b = run.blocks
+    starts = sorted(zip(b["exec_s"].tolist(), b["block"].tolist()))
+    ends = [t for t, _ in starts[1:]] + [run.t0_s + run.duration_s]
+    near = {blk for (t0, blk), t1 in zip(starts, ends) if t0 <= t_s + 0.05 and t1 >= t_s - 0.3}
+    assert block in near, (block, t_s, starts)
 
 
 def _zoom_is_the_run_file_s_samples(zoom: dict[str, Any], run: rf.Run) -> None:
@@ -340,17 +354,19 @@ def _zoom_is_the_run_file_s_samples(zoom: dict[str, Any], run: rf.Run) -> None:
         assert max(abs(g - w) for g, w in zip(got, want)) < 0.5, c
 
 
-def _toolpath_on_screen(page: Page) -> None:
+def _toolpath_on_screen(page: Page) -> tuple[int, float, int]:
     """A screenshot of the toolpath canvas: the executing block's colour is drawn along the
     segments the page's data gives for the block the controller executes, and nowhere else
     (not judged by eye). A screenshot may show the frame before the latest state: the block
-    must agree, on screen and in the page's data, in one of several tries."""
+    must agree, on screen and in the page's data, in one of several tries. Returns (run, run
+    clock s, block) of the screenshot, to check against the controller's record."""
     why = ""
     t_end = time.monotonic() + 40  # through blocks without motion, and between runs
     while time.monotonic() < t_end:
         before = page.text("executing-block")
-        view, segs_all, rect = page.js(
-            "[window.cutlab.toolpath(), window.cutlab.toolpathSegments(), (() => {"
+        view, segs_all, st, rect = page.js(
+            "[window.cutlab.toolpath(), window.cutlab.toolpathSegments(), window.cutlab.status(),"
+            " (() => {"
             " const c = document.getElementById('toolpath'); const r = c.getBoundingClientRect();"
             " return [r.x + scrollX + c.clientLeft, r.y + scrollY + c.clientTop, c.clientWidth,"
             " c.clientHeight]; })()]")  # the canvas's drawing area, page coordinates
@@ -368,7 +384,7 @@ def _toolpath_on_screen(page: Page) -> None:
             continue
         why = _executing_drawn(shot["data"], view, segs)
         if not why:
-            return
+            return st["run"], st["t_now_s"], view["block"]
         time.sleep(0.1)
     raise AssertionError(why)
 

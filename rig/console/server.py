@@ -793,7 +793,7 @@ def make_app(
 
         reader = asyncio.create_task(receive())
         loop = asyncio.get_running_loop()
-        last_news = 0.0
+        last_news, due = 0.0, loop.time()
         try:
             while not reader.done():
                 if hub.should_exit:  # the page says so rather than "connection lost"
@@ -803,7 +803,6 @@ def make_app(
                     break
                 while not inbox.empty():
                     await _handle(ws, hub, client, inbox.get_nowait(), peer)
-                due = loop.time() + TICK_S  # from the frame's start: no drift, no pile-up
                 msg = client.frame(hub)
                 sig = hub.runs_signature() if client.frames % 25 == 1 else client.runs_sig
                 if sig != client.runs_sig:
@@ -816,6 +815,8 @@ def make_app(
                 # MIN_FRAME_S): a block waits for no beat (the sample-to-screen latency).
                 if "written_ms" in msg.get("bins", {}):
                     last_news = loop.time()  # frames of new samples: at most every MIN_FRAME_S
+                if loop.time() >= due:  # the beat's frame: the next beat (late: no pile-up)
+                    due = max(due + TICK_S, loop.time())
                 while (now := loop.time()) < due and inbox.empty() and not hub.should_exit:
                     if now - last_news >= MIN_FRAME_S and client.news(hub):
                         break

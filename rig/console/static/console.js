@@ -53,6 +53,7 @@ window.cutlab = {
   dro: null,
   toolpath: () => tpView,
   toolpathSegments: () => toolpath,
+  status: () => status,
   latest: () => (bins.t.length ? bins.t[bins.t.length - 1] : null), // run clock s
   view: null, // the zoomed or whole-run view, while paused
 };
