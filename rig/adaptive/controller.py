@@ -280,10 +280,14 @@ class AdaptiveController:
             if self.state != "cutting":
                 self._note(t_s, f"cut started: {force_n:.0f} N")
             self.state = "cutting"
+            # the feed step first: it is cheap and its bytes go out before the chatter check's
+            # spectrum is computed (a chatter finding after it still holds or moves the spindle)
             if self._settle > 0:
                 self._settle -= 1
-            elif not self._chatter_check(t_s, wall0) and s.mode in ("feed", "both"):
+            elif s.mode in ("feed", "both"):
                 self._feed_step(t_s, force_n, wall0)
+            if self.state != "hold":
+                self._chatter_check(t_s, wall0)
         st = getattr(self.streamer, "last_status", None)
         self.trace.append(RevRecord(
             t_s, force_n, self.state, self.feed_pct, self.spindle_pct,

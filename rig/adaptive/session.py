@@ -194,6 +194,38 @@ def settings_of(campaign: Any) -> Any:
     )  # fmt: skip
 
 
+#: speeds the lobes are computed at, across the spindle override range (1 % steps cost about
+#: 3 s of CPU for a 2-DOF tool on this machine; the pockets are wider than that)
+LOBE_SPEEDS = 121
+
+
+def lobes_for(campaign: Any, test: Any, min_pct: int, max_pct: int) -> Any:
+    """The stability lobes of ``test``'s cut across the spindle override range: the tool's
+    modes (the twin's ``[sim] tool_modes`` first, else the tool's own), the material's
+    end-mill coefficients (analysis.stability); None without modes (no pocket to go to)."""
+    from analysis.config import EndMill
+    from analysis.stability import StabilityCase, stability_lobes
+
+    tool = campaign.tool
+    sim = campaign.spec.sim
+    modes = sim.tool_modes if campaign.spec.campaign.rig == "sim" and sim.tool_modes else None
+    modes = modes or getattr(tool, "modes", None)
+    coef = getattr(campaign.material, "endmill", None)
+    if not modes or not isinstance(tool, EndMill) or coef is None:
+        return None
+    rpm0 = abs(float(test.spindle_rpm))
+    rpm = np.linspace(rpm0 * min_pct / 100, rpm0 * max_pct / 100, LOBE_SPEEDS)
+    width = float(test.width_mm or tool.diameter_mm)
+    case = StabilityCase(
+        teeth=campaign.teeth, milling="down", radial_immersion=min(width / tool.diameter_mm, 1.0),
+        kt_n_m2=coef.Ktc_n_mm2 * 1e6, kn_n_m2=coef.Krc_n_mm2 * 1e6,
+        f_hz=np.array([m.f_hz for m in modes]), zeta=np.array([m.zeta for m in modes]),
+        k_n_m=np.array([m.k_N_m for m in modes]), direction=tuple(m.axis for m in modes),
+        rpm=rpm, name=f"{campaign.name}-adaptive",
+    )  # fmt: skip
+    return stability_lobes(case, "sd")
+
+
 def adaptive_session(campaign: Any, test: Any, session: Any, cal: Any) -> Any:
     """The campaign runner's hook: ``session`` with the controller in its loop when ``test``'s
     group is under ``[adaptive]``, else ``session`` itself."""
@@ -206,6 +238,7 @@ def adaptive_session(campaign: Any, test: Any, session: Any, cal: Any) -> Any:
         settings_of(campaign), spindle_rpm=test.spindle_rpm, channels=tuple(cal.channel_names),
         clock=session.clock, depth_mm=test.depth_mm,
         chatter_settings=campaign.spec.chatter.settings(),
+        lobes=lobes_for(campaign, test, a.min_pct, a.max_pct) if a.mode != "feed" else None,
     )  # fmt: skip
     zero = int(round(campaign.spec.daq.rest_s * rate))
     drop = None
