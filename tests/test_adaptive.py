@@ -183,13 +183,20 @@ def test_signal_loss_resets_and_holds() -> None:
         ctl.close()
 
 
+def _lobes() -> SimpleNamespace:
+    """Pockets (5 mm) from 1600 to 1800, 2600 to 2800 ... rpm; 0.5 mm elsewhere; 25 rpm apart."""
+    rpm = np.arange(1000, 5001, 25.0)
+    return SimpleNamespace(spindle_rpm=rpm, depth_limit_mm=np.where(
+        (rpm % 1000 >= 600) & (rpm % 1000 <= 800), 5.0, 0.5))  # fmt: skip
+
+
 def test_nearest_pocket() -> None:
-    lobes = SimpleNamespace(spindle_rpm=np.arange(1000, 5001, 100.0),
-                            depth_limit_mm=np.full(41, 0.5))  # fmt: skip
-    lobes.depth_limit_mm[np.arange(41) % 10 == 7] = 5.0  # pockets at 1700, 2700, 3700, 4700
-    assert nearest_pocket_rpm(lobes, 2000, 1.0) == 1700
-    assert nearest_pocket_rpm(lobes, 2000, 1.0, min_pct=90, max_pct=200) == 2700
+    lobes = _lobes()
+    # 2.5 % inside the pocket's edges (on the 25 rpm grid): 1775 +- 44 stays within 1800
+    assert nearest_pocket_rpm(lobes, 2000, 1.0) == 1775
+    assert nearest_pocket_rpm(lobes, 2000, 1.0, min_pct=90, max_pct=200) == 2650
     assert nearest_pocket_rpm(lobes, 2000, 1.0, min_pct=95, max_pct=105) is None
+    assert nearest_pocket_rpm(lobes, 2000, 5.0) is None  # no pocket deep enough
 
 
 def test_settings_refuse_nonsense() -> None:
@@ -205,3 +212,43 @@ def test_threads_left() -> None:
     ctl.arm()
     ctl.close()
     assert not any(th.name == "adaptive-watch" and th.is_alive() for th in threading.enumerate())
+
+
+def _chatter_block(t0: float, n: int, rpm: float, amp_n: float, rng) -> np.ndarray:
+    """n samples from t0 of a two-tooth rotating 200 N force at ``rpm`` plus ``amp_n`` at
+    750 Hz (between the 22nd and 23rd harmonic of 2000 rpm: off the tooth harmonics)."""
+    t = t0 + np.arange(n) / RATE
+    a = 2 * np.pi * rpm / 60 * t
+    mag = 200 * (1 + 0.3 * np.cos(2 * a))
+    ch = amp_n * np.sin(2 * np.pi * 750 * t)
+    f = np.stack([mag * np.cos(a) + ch, mag * np.sin(a) + 0.7 * ch, 0.3 * mag], axis=1)
+    return f + rng.normal(0, 2.0, f.shape)
+
+
+def _chatter_run(ctl, g, t, revs: int, rng, stable_after_change: bool = True) -> None:
+    for _ in range(revs):
+        rpm = RPM * g.spindle / 100
+        # chatter at the commanded speed; gone once the spindle left it (the pocket is stable)
+        amp = 0.0 if (g.spindle != 100 and stable_after_change) else 200.0
+        ctl.push_forces(t[0] + (SPR - 1) / RATE, _chatter_block(t[0], SPR, rpm, amp, rng))
+        t[0] += SPR / RATE
+
+
+def test_chatter_moves_the_spindle_to_the_nearest_pocket() -> None:
+    rng = np.random.default_rng(6)
+    ctl, g, t = _controller(mode="spindle", target_force_n=150.0)
+    ctl.lobes, ctl.depth_mm = _lobes(), 1.0
+    _chatter_run(ctl, g, t, 12, rng)
+    assert g.spindle == 89 and g.held == 0  # 1775 rpm, the nearest pocket (88.75 %)
+    assert g.feed == 100  # spindle mode leaves the feed alone
+    _chatter_run(ctl, g, t, 25, rng)
+    assert ctl.chatter_cleared_s is not None and g.held == 0
+
+
+@pytest.mark.faults
+def test_chatter_without_a_pocket_holds() -> None:
+    rng = np.random.default_rng(7)
+    for mode in ("feed", "spindle"):  # feed: no spindle to move; spindle: no lobes
+        ctl, g, t = _controller(mode=mode, target_force_n=150.0)
+        _chatter_run(ctl, g, t, 12, rng)
+        assert g.held == 1 and "chatter" in ctl.hold_reason

@@ -96,16 +96,28 @@ class Decision:
 
 
 def nearest_pocket_rpm(
-    lobes: Any, rpm: float, depth_mm: float, min_pct: int = MIN_PCT, max_pct: int = MAX_PCT
+    lobes: Any,
+    rpm: float,
+    depth_mm: float,
+    min_pct: int = MIN_PCT,
+    max_pct: int = MAX_PCT,
+    margin_pct: float = 2.5,
 ) -> float | None:
     """The spindle speed nearest ``rpm`` within ``min_pct..max_pct`` % of it whose stability
-    limit (``lobes.depth_limit_mm``) is above ``depth_mm`` with a 10 % margin; None if none."""
+    limit (``lobes.depth_limit_mm``) is above ``depth_mm`` by 10 %, and stays so for
+    ``margin_pct`` % either side (a pocket's edge is where a model error of a percent chatters);
+    None if there is none."""
     s = np.asarray(lobes.spindle_rpm, float)
     lim = np.asarray(lobes.depth_limit_mm, float)
-    ok = (lim > 1.1 * depth_mm) & (s >= rpm * min_pct / 100) & (s <= rpm * max_pct / 100)
-    if not ok.any():
+    ok = lim > 1.1 * depth_mm
+    robust = ok.copy()
+    for i in np.flatnonzero(ok):
+        near = np.abs(s - s[i]) <= s[i] * margin_pct / 100
+        robust[i] = bool(ok[near].all()) and s[near].min() < s[i] < s[near].max()
+    robust &= (s >= rpm * min_pct / 100) & (s <= rpm * max_pct / 100)
+    if not robust.any():
         return None
-    cand = s[ok]
+    cand = s[robust]
     return float(cand[np.argmin(np.abs(cand - rpm))])
 
 
@@ -345,8 +357,13 @@ class AdaptiveController:
                 self._win, self._win_n = [], 0  # judge the new speed afresh
                 self._settle = s.settle_revs
                 return True
-        self._hold(f"{what}: no stable pocket within {s.min_pct}-{s.max_pct} %"
-                   if s.mode != "feed" else what, t_s, wall0)  # fmt: skip
+            if pocket is not None:
+                what += f": still at the pocket {pocket:.0f} rpm"
+            else:
+                what += f": no stable pocket within {s.min_pct}-{s.max_pct} %"
+        elif s.mode != "feed":
+            what += ": no lobes for the tool (no modes)"
+        self._hold(what, t_s, wall0)
         return True
 
     # -- actions ---------------------------------------------------------------------------------
