@@ -318,3 +318,37 @@ def test_history_lists_the_campaigns_from_the_catalogue_or_the_folders(tmp_path:
     with _client(make_app(lab / "camp")) as client:
         h = client.get("/api/history").json()
     assert "run catalogue" in h["source"] and sum(c["runs"] for c in h["campaigns"]) == 2
+
+
+def test_a_console_left_to_browse_gives_its_port_to_the_next_live_campaign(tmp_path: Path) -> None:
+    import socket
+    import time
+
+    from rig.console import live
+
+    pytest.importorskip("uvicorn")
+    folder = tmp_path / "camp"
+    (folder / "runs").mkdir(parents=True)
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    proc = live.start_server(folder, port, "127.0.0.1", "tok")
+    try:
+        live.leave_server(proc, live.url_of("127.0.0.1", port, "tok"))  # the campaign ended
+        os.kill(proc.pid, 0)  # it stays to browse (not waited for: its status is not kept)
+        with pytest.raises(Exception, match="cannot listen"):
+            live.check_port("127.0.0.1", port)
+        live.end_lingering("127.0.0.1", port)  # a new live campaign on that port
+        t_end = time.monotonic() + 10
+        while True:  # the port is free once the old server's socket is gone
+            try:
+                live.check_port("127.0.0.1", port)
+                break
+            except Exception:
+                assert time.monotonic() < t_end, "the port was not given back"
+                time.sleep(0.1)
+    finally:
+        proc.returncode = None
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait(timeout=10)

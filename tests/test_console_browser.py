@@ -231,6 +231,10 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
                 "document.getElementById('ended').textContent"), 40)  # fmt: skip
             assert page.js("document.getElementById('overlay').classList.contains('hidden')")
             _gone(server_pid)
+            from rig.console.live import remove_stale
+
+            remove_stale(tmp_path / "out" / "quick")  # as the next live start does: its note
+            assert not list(Path("/dev/shm").glob(f"cutlab-console-*-{port}.linger"))
     finally:
         if camp.poll() is None:
             camp.terminate()  # SIGTERM: the runner stops safely, the console closes

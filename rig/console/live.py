@@ -633,8 +633,41 @@ def leave_server(proc: subprocess.Popen, url: str) -> None:
         stop_server(proc)
         return
     proc.returncode = 0  # not waited for: it outlives this process (no ResourceWarning)
+    with contextlib.suppress(OSError):  # the next live campaign on this port ends it
+        _linger_file(url).write_text(str(proc.pid))
     print(f"cutlab: the console stays at {url} for {LINGER_S:.0f} s to browse the runs "
           f"(server process {proc.pid})", file=sys.stderr, flush=True)  # fmt: skip
+
+
+def _linger_file(url: str) -> Path:
+    from rig.console.ring import default_ring_path
+
+    port = url.split("/")[2].rsplit(":", 1)[-1]
+    return default_ring_path().parent / f"cutlab-console-{os.getuid()}-{port}.linger"
+
+
+def end_lingering(bind: str, port: int) -> None:
+    """A console this user left on ``port`` to browse a finished campaign is ended, so a new
+    live campaign can take the port (only a process that is still that server)."""
+    f = _linger_file(url_of(bind, port, ""))
+    try:
+        pid = int(f.read_text().strip() or 0)
+    except (OSError, ValueError):
+        return
+    f.unlink(missing_ok=True)
+    try:
+        cmdline = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+    except OSError:
+        return
+    if b"rig.console.server" not in cmdline:
+        return  # the PID is another process's now
+    with contextlib.suppress(OSError):
+        os.kill(pid, 15)
+        t_end = time.monotonic() + 5.0
+        while _pid_alive(pid) and time.monotonic() < t_end:
+            with contextlib.suppress(ChildProcessError):  # our own child: reaped here
+                os.waitpid(pid, os.WNOHANG)
+            time.sleep(0.05)
 
 
 def _pid_alive(pid: int) -> bool:
@@ -697,8 +730,13 @@ def remove_stale(folder: Path) -> list[Path]:
         with contextlib.suppress(OSError):
             pointer.unlink()
             removed.append(pointer)
-    # Rings whose live.json was never written or was removed: those of dead processes of ours.
+    # Rings whose live.json was never written or was removed: those of dead processes of ours;
+    # the notes of lingering consoles that have gone.
     uid = os.getuid()
+    for note in default_ring_path().parent.glob(f"cutlab-console-{uid}-*.linger"):
+        with contextlib.suppress(OSError, ValueError):
+            if not _pid_alive(int(note.read_text().strip() or 0)):
+                note.unlink()
     for ring in default_ring_path().parent.glob("cutlab-live-*.ring"):
         pid = _ring_pid(ring)
         with contextlib.suppress(OSError):
@@ -729,6 +767,7 @@ def live_console(
     folder = campaign_folder(campaign, out_root)
     if serve:
         check_console_extra()
+        end_lingering(bind, port)
         check_port(bind, port)
     folder.mkdir(parents=True, exist_ok=True)
     remove_stale(folder)
