@@ -184,19 +184,26 @@ def test_signal_loss_resets_and_holds() -> None:
 
 
 def _lobes() -> SimpleNamespace:
-    """Pockets (5 mm) from 1600 to 1800, 2600 to 2800 ... rpm; 0.5 mm elsewhere; 25 rpm apart."""
+    """Pockets from 1600 to 1800, 2600 to 2800 ... rpm, 25 rpm apart: triangular, 5 mm at
+    their peaks (1700, 2700 ...) and 3 mm at their edges; 0.5 mm elsewhere."""
     rpm = np.arange(1000, 5001, 25.0)
+    r = rpm % 1000
+    pocket = (r >= 600) & (r <= 800)
     return SimpleNamespace(spindle_rpm=rpm, depth_limit_mm=np.where(
-        (rpm % 1000 >= 600) & (rpm % 1000 <= 800), 5.0, 0.5))  # fmt: skip
+        pocket, 5.0 - 2.0 * np.abs(r - 700) / 100, 0.5))  # fmt: skip
 
 
 def test_nearest_pocket() -> None:
     lobes = _lobes()
-    # 2.5 % inside the pocket's edges (on the 25 rpm grid): 1775 +- 44 stays within 1800
-    assert nearest_pocket_rpm(lobes, 2000, 1.0) == 1775
-    assert nearest_pocket_rpm(lobes, 2000, 1.0, min_pct=90, max_pct=200) == 2650
+    # the pocket's peak, not its edge nearest 2000 rpm (1800)
+    assert nearest_pocket_rpm(lobes, 2000, 1.0) == 1700
+    assert nearest_pocket_rpm(lobes, 2000, 1.0, min_pct=90, max_pct=200) == 2700
     assert nearest_pocket_rpm(lobes, 2000, 1.0, min_pct=95, max_pct=105) is None
     assert nearest_pocket_rpm(lobes, 2000, 5.0) is None  # no pocket deep enough
+    # a plateau (stable at any depth): its middle
+    flat = SimpleNamespace(spindle_rpm=np.arange(1000, 3001, 100.0),
+                           depth_limit_mm=np.r_[np.full(10, 0.5), np.full(11, np.inf)])  # fmt: skip
+    assert nearest_pocket_rpm(flat, 1500, 1.0) == 2500
 
 
 def test_settings_refuse_nonsense() -> None:
@@ -239,7 +246,7 @@ def test_chatter_moves_the_spindle_to_the_nearest_pocket() -> None:
     ctl, g, t = _controller(mode="spindle", target_force_n=150.0)
     ctl.lobes, ctl.depth_mm = _lobes(), 1.0
     _chatter_run(ctl, g, t, 12, rng)
-    assert g.spindle == 89 and g.held == 0  # 1775 rpm, the nearest pocket (88.75 %)
+    assert g.spindle == 85 and g.held == 0  # 1700 rpm, the nearest pocket's peak
     assert g.feed == 100  # spindle mode leaves the feed alone
     _chatter_run(ctl, g, t, 25, rng)
     assert ctl.chatter_cleared_s is not None and g.held == 0
