@@ -259,3 +259,27 @@ def test_chatter_without_a_pocket_holds() -> None:
         ctl, g, t = _controller(mode=mode, target_force_n=150.0)
         _chatter_run(ctl, g, t, 12, rng)
         assert g.held == 1 and "chatter" in ctl.hold_reason
+
+
+@pytest.mark.faults
+def test_cli_refuses_adaptive_without_grbl_or_table(tmp_path, capsys) -> None:
+    """`campaign run --adaptive`: one line naming the file, exit 2, before anything runs."""
+    from pathlib import Path
+
+    from rig.cli import main
+
+    root = Path(__file__).resolve().parent.parent / "configs" / "campaigns"
+    assert main(["campaign", "run", str(root / "afc-step-depth.toml"), "--adaptive", "feed",
+                 "--out", str(tmp_path)]) == 2  # fmt: skip
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("cutlab: error: ")
+    assert "afc-step-depth.toml" in err[0] and "[adaptive]" in err[0]
+    # an [adaptive] table on a Fanuc drip feed: refused naming the controller
+    text = (root / "adaptive-step.toml").read_text().replace('protocol = "grbl"\n', "")
+    text = text.replace('machine = "lab-grbl"', 'machine = "ace-h63"')
+    p = tmp_path / "fanuc.toml"
+    p.write_text(text)
+    assert main(["campaign", "run", str(p), "--adaptive", "feed", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "ace-h63 (fanuc) has no real-time override" in err[0]
+    assert not (tmp_path / "adaptive-step").exists()
