@@ -118,3 +118,35 @@ def test_step_depth_adaptive_feed_holds_the_target(tmp_path: Path) -> None:
     assert wa["within"] >= 0.75
     assert wb["within"] <= 0.25
     assert cycle_time_s(ad.run) > cycle_time_s(base.run)  # the deep steps ran slower
+
+
+@pytest.mark.slow
+def test_live_console_status_shows_the_loop(tmp_path: Path) -> None:
+    """The live ring's status carries the loop's target, force per revolution and overrides."""
+    import threading
+
+    from rig.console import live_console
+
+    c = load_campaign(_config(tmp_path))
+    seen: list[dict] = []
+    with live_console(c, serve=False) as live:
+        done = threading.Event()
+
+        def poll() -> None:
+            while not done.wait(0.01):
+                _, st = live.ring.get_json("status")
+                a = (st or {}).get("adaptive")
+                if a and a.get("force_n") is not None:
+                    seen.append(a)
+
+        th = threading.Thread(target=poll, daemon=True)
+        th.start()
+        try:
+            run_campaign(c, progress=False, only=lambda t: t.group == "adaptive",
+                         **live.run_kwargs())  # fmt: skip
+        finally:
+            done.set()
+            th.join(5.0)
+    assert seen, "no adaptive status in the live ring"
+    assert {a["target_force_n"] for a in seen} == {150.0} and seen[0]["mode"] == "feed"
+    assert any(a["feed_pct"] != 100 for a in seen)  # the loop moved the feed override

@@ -464,6 +464,22 @@ class AdaptiveController:
         if self.writer is not None:
             self.writer.event(rf.EV_NOTE, f"adaptive: {text}"[:200], time_s=t_s)
 
+    def live_status(self) -> dict[str, Any]:
+        """What the live console shows beside the force: target, last revolution's force, the
+        overrides commanded and reported, the state (and why it held)."""
+        last = self.trace[-1] if self.trace else None
+        return {
+            "mode": self.s.mode,
+            "target_force_n": self.s.target_force_n,
+            "max_force_n": self.s.max_force_n,
+            "force_n": None if last is None else round(last.force_n, 1),
+            "feed_pct": self.feed_pct,
+            "spindle_pct": self.spindle_pct,
+            "reported_pct": None if last is None or last.reported is None else list(last.reported),
+            "state": self.state,
+            "hold": self.hold_reason,
+        }
+
     def summary(self) -> dict[str, Any]:
         """Figures for the run's record and the bench."""
         lat = np.asarray(self.latencies_s, float)

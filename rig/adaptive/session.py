@@ -90,6 +90,8 @@ class AdaptiveSession:
         self.drop_after_s = drop_after_s
         self._drop_relative = drop_relative  # drop_after_s counts from the program's start
         self.daq = _Daq(session.daq, self)
+        # the live console (rig.console.live) finds the controller on the session it wraps
+        session.adaptive_controller = ctl
         self.clock = session.clock
         ctl.clock = session.clock
 

@@ -510,6 +510,7 @@ class LiveCampaign:
             self._overrides = machine["overrides_pct"]
         elif self._overrides and machine.get("source") == "GRBL status":
             machine["overrides_pct"] = self._overrides
+        ctl = getattr(s, "adaptive_controller", None)  # set by rig.adaptive's session
         state = str(machine.get("state") or "")
         held = state.startswith(("Hold", "Door")) or (not state and self._held)
         stopped = state.startswith(("Alarm", "Idle"))
@@ -530,6 +531,8 @@ class LiveCampaign:
             "executing_block": executing,
             "executing_line": self._line_of.get(executing),
             "bands": self._bands,
+            # the adaptive loop (rig.adaptive): target, force per revolution, overrides, state
+            "adaptive": None if ctl is None else ctl.live_status(),
         }
 
     # -- the end ---------------------------------------------------------------------------------
