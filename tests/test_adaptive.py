@@ -245,7 +245,9 @@ def test_chatter_moves_the_spindle_to_the_nearest_pocket() -> None:
     rng = np.random.default_rng(6)
     ctl, g, t = _controller(mode="spindle", target_force_n=150.0)
     ctl.lobes, ctl.depth_mm = _lobes(), 1.0
-    _chatter_run(ctl, g, t, 12, rng)
+    _chatter_run(ctl, g, t, 19, rng)
+    assert g.spindle == 100  # one window of 10 revolutions (full at the 10th) is no verdict
+    _chatter_run(ctl, g, t, 2, rng)  # ... the disjoint one 10 revolutions later confirms
     assert g.spindle == 85 and g.held == 0  # 1700 rpm, the nearest pocket's peak
     assert g.feed == 100  # spindle mode leaves the feed alone
     _chatter_run(ctl, g, t, 25, rng)
@@ -257,7 +259,7 @@ def test_chatter_without_a_pocket_holds() -> None:
     rng = np.random.default_rng(7)
     for mode in ("feed", "spindle"):  # feed: no spindle to move; spindle: no lobes
         ctl, g, t = _controller(mode=mode, target_force_n=150.0)
-        _chatter_run(ctl, g, t, 12, rng)
+        _chatter_run(ctl, g, t, 21, rng)
         assert g.held == 1 and "chatter" in ctl.hold_reason
 
 
