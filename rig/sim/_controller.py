@@ -142,7 +142,6 @@ class SimControllerBase(ExecutorMixin):
         self._line_free_t = 0.0
         self._line_t0 = 0.0  # when the line last began to be busy
         self._line_chars = 0  # characters sent on it since then
-        self._line_gap = False  # the line gate was off (DC3): the line may have idled
         self._outbox = bytearray()
         self._plan: deque[_Planned] = deque()
         self._cur: _Planned | None = None
@@ -327,17 +326,8 @@ class SimControllerBase(ExecutorMixin):
                 return
             self._check_line_settings()
             now = self.clock.now()
-            # the line was idle: a new burst starts now; but not while a lockstep stream is
-            # expected and its line gate held (the line never idles because the host was slow:
-            # a moment the clock slipped past the last byte moved every later block by about a
-            # character, 1-5 ms, in 2 of 10 runs), nor for its first byte (from expect_stream)
-            if self.lockstep and self._expecting and self._line_chars == 0:
-                self._line_t0 = self._expect_t  # the stream's first byte: from its expected start
-            elif now > self._line_free_t and not (
-                self.lockstep and self._expecting and not self._line_gap
-            ):
+            if now > self._line_free_t:  # the line was idle: a new burst starts now
                 self._line_t0, self._line_chars = now, 0
-            self._line_gap = False
             self._wire.append((self._line_t0, self._line_chars, data))
             self._line_chars += len(data)
             self._line_free_t = self._line_t0 + self._line_chars * self.char_time_s
@@ -465,8 +455,6 @@ class SimControllerBase(ExecutorMixin):
                 self._event("lockstep", f"no byte for {LINE_GATE_WALL_S:g} wall s: line gate off")
             elif self._stream_wants():
                 line = max(self._line_free_t, self._expect_t)
-            else:
-                self._line_gap = True
         clk.gate(f"line-{id(self)}", line)
 
     def _lift_gates(self) -> None:
