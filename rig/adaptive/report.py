@@ -17,16 +17,23 @@ def _same_cut(a: Any, b: Any) -> bool:
 
 
 def _chatter_cleared_revs(lr: Any) -> int | None:
-    """Revolutions from the controller's chatter finding to its ``chatter cleared`` note."""
+    """Revolutions, at the speed the loop moved the spindle to, from the controller's chatter
+    finding to its ``chatter cleared`` note (None: never cleared)."""
+    import re
+
     found = cleared = None
+    pct = 100.0
     for t, _, msg in adaptive_events(lr.run):
         if "chatter at" in msg and found is None:
             found = t
+            m = re.search(r"pocket \d+ rpm \((\d+) %\)", msg)
+            pct = float(m.group(1)) if m else pct
         if "chatter cleared" in msg and cleared is None:
             cleared = t
     if found is None or cleared is None:
         return None
-    return int(round((cleared - found) * abs(float(lr.conditions["spindle_rpm"])) / 60.0))
+    rpm = abs(float(lr.conditions["spindle_rpm"])) * pct / 100.0
+    return int(round((cleared - found) * rpm / 60.0))
 
 
 def adaptive_entries(campaign: Any, runs: list[Any]) -> tuple[list[dict[str, Any]], str]:
@@ -47,8 +54,9 @@ def adaptive_entries(campaign: Any, runs: list[Any]) -> tuple[list[dict[str, Any
                     None)  # fmt: skip
         plan = next((b for b in rest if test_of(b).feed_mode == "post-processed"
                      and _same_cut(b, lr)), None)  # fmt: skip
-        w = within_band(lr, a.target_force_n)
-        wb = within_band(base, a.target_force_n) if base is not None else None
+        holds = a.mode in ("feed", "both")  # a spindle-only loop holds no force target
+        w = within_band(lr, a.target_force_n) if holds else {"within": None}
+        wb = within_band(base, a.target_force_n) if base is not None and holds else None
         e: dict[str, Any] = {
             "run": lr.name,
             "mode": a.mode,
@@ -66,6 +74,8 @@ def adaptive_entries(campaign: Any, runs: list[Any]) -> tuple[list[dict[str, Any
         if plan is None:
             e["plan_feed_reason"] = ('no feed_mode = "post-processed" run of the same cut in '
                                      "the campaign")  # fmt: skip
+        if not holds:
+            e["within_reason"] = "the spindle mode holds no force target"
         if a.mode != "feed":
             e["chatter_cleared_revs"] = _chatter_cleared_revs(lr)
         out.append(e)
