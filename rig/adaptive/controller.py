@@ -398,7 +398,8 @@ class AdaptiveController:
         lat = time.perf_counter() - wall0
         self.latencies_s.append(lat)
         self.decisions.append(Decision(t_s, kind, why, lat))
-        self._note(t_s, f"{why}; bytes {' '.join(f'0x{c:02X}' for c in codes)}; "
+        t_w = self.bytes_sent[-1][0] if codes else t_s
+        self._note(t_s, f"{why}; bytes {' '.join(f'0x{c:02X}' for c in codes)} at {t_w:.4f} s; "
                         f"{self._reported()}")  # fmt: skip
 
     def _write(self, codes: list[int], t_s: float, wall0: float) -> bool:

@@ -123,12 +123,26 @@ class AdaptiveSession:
         return self._s.finished() or self.ctl.hold_reason is not None
 
     def stop(self) -> None:
-        self.ctl.close()
+        self._end()
         self._s.stop()
 
     def close(self) -> None:
-        self.ctl.close()
+        self._end()
         self._s.close()
+
+    def _end(self) -> None:
+        """Stop the watchdog; the loop's figures go in the run file once."""
+        self.ctl.close()
+        w = self.ctl.writer
+        if w is not None and not getattr(self, "_summarised", False):
+            self._summarised = True
+            m = self.ctl.summary()
+            p50, p95 = m["latency_p50_ms"], m["latency_p95_ms"]
+            lat = "-" if p50 is None else f"{p50:.1f}/{p95:.1f} ms"
+            w.event(rf.EV_NOTE, f"adaptive: summary: {m['revolutions']} revolutions judged "
+                    f"({m['cutting_revolutions']} cutting), {m['decisions']} decisions, "
+                    f"{m['override_bytes']} override bytes, block-to-byte p50/p95 {lat}, CPU "
+                    f"{m['cpu_s']:.2f} s")  # fmt: skip
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._s, name)
