@@ -285,3 +285,31 @@ def test_cli_refuses_adaptive_without_grbl_or_table(tmp_path, capsys) -> None:
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "ace-h63 (fanuc) has no real-time override" in err[0]
     assert not (tmp_path / "adaptive-step").exists()
+
+
+def test_dnc_send_loop_zeroes_judges_and_sends(tmp_path) -> None:
+    """`dnc send --adaptive`'s loop on a simulated GRBL over a pty, with a simulated DAQ in
+    place of the NI device (its synthetic signal, not the cut's): zeroed before the send, every
+    revolution judged, its bytes through the streamer, the DAQ stopped at the end."""
+    from analysis.config import load_rig
+    from rig.adaptive.send import SendLoop
+    from rig.dnc import prepare_send
+    from rig.sim import SimClock, SimDaq, SimGrbl
+
+    prog = tmp_path / "p.nc"
+    prog.write_text("G21 G90\nG1 X5 F600\nM30\n")  # 0.5 s of feed
+    ctl = SimGrbl(clock=SimClock(1.0))
+    port = ctl.start()
+    try:
+        job = prepare_send(str(prog), "grbl", port=port, progress=False, guard=False)
+        daq = SimDaq.from_rig(load_rig(), rate_hz=10_000.0, seconds=30.0, speed=1.0)
+        settings = AdaptiveSettings(target_force_n=100.0, max_force_n=500.0)
+        with SendLoop(job, settings, 2000.0, daq=daq) as loop:
+            job.send()  # a fault would raise StreamFault
+        m = loop.summary
+        assert m["revolutions"] >= 10 and m["hold"] is None
+        # every byte the loop decided went through the streamer (its own record)
+        assert [c for _, c in job.streamer.override_log] == [c for _, c in loop.ctl.bytes_sent]
+        assert daq.wait(5.0)  # stopped by the loop's exit
+    finally:
+        ctl.stop()

@@ -183,6 +183,9 @@ class AdaptiveController:
         self._stop = threading.Event()
         self._watch: threading.Thread | None = None
         self._block_wall = 0.0
+        #: a DAQ on another clock than ``clock`` (a plain send): the watchdog counts from each
+        #: block's arrival, not its samples' time
+        self.stamp_arrival = False
         self.chatter_at_s: float | None = None
         self.chatter_cleared_s: float | None = None
 
@@ -247,7 +250,7 @@ class AdaptiveController:
         ring reader call this directly)."""
         wall0 = time.perf_counter() if wall0 is None else wall0
         with self._lock:
-            self._last_block_t = t_end_s
+            self._last_block_t = self.clock() if self.stamp_arrival else t_end_s
             if self.state == "hold":
                 return
             f = np.asarray(force_n, float)

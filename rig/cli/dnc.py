@@ -4,6 +4,7 @@ controller."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 
 from rig.cli._common import count, number, positive, print_json, status
 
@@ -23,11 +24,14 @@ def _refuse_adaptive(args: argparse.Namespace) -> None:
             f"{m.name!r} has no real-time override over serial (a drip feed's override is the "
             "panel's dial); expected a GRBL 1.1 controller (--protocol grbl)"
         )
-    # GRBL: until the adaptive loop (issue 29 item 1) is wired in here, say so, never ignore it
-    raise DncError(
-        f"dnc send --adaptive {args.adaptive}: the adaptive loop is not available in this build; "
-        "send without --adaptive"
-    )
+    # GRBL: the loop (rig.adaptive.send) needs its target, hard limit and the spindle's speed
+    for opt, val in (("--target-force", args.target_force), ("--max-force", args.max_force),
+                     ("--spindle-rpm", args.spindle_rpm)):  # fmt: skip
+        if val is None:
+            raise DncError(f"dnc send --adaptive {args.adaptive}: {opt} is required (N, N, rpm)")
+    if not args.target_force < args.max_force:
+        raise DncError(f"dnc send --adaptive: --target-force {args.target_force:g} N: expected "
+                       f"below --max-force {args.max_force:g} N")  # fmt: skip
 
 
 def _send(args: argparse.Namespace) -> int:
@@ -48,8 +52,10 @@ def _send(args: argparse.Namespace) -> int:
         status(f"restart at block {job.start_block}: " + "; ".join(job.restart_notes))
     if args.dry_run:
         return _dry_run(job, args)
+    # the DAQ started and zeroed before anything is sent: no force, no send
+    loop = _adaptive_loop(job, args).start() if args.adaptive else contextlib.nullcontext(None)
     status(f"sending {p.name} ({len(p)} blocks) to {job.settings.port} [{job.protocol}]")
-    with operator_control(job.streamer, job.protocol) as ctl:
+    with operator_control(job.streamer, job.protocol) as ctl, loop as adaptive:
         try:
             with halt_on_signals(job.streamer, on_signal=ctl.note):  # Ctrl-C: hold, clean halt
                 res = job.send()
@@ -59,11 +65,23 @@ def _send(args: argparse.Namespace) -> int:
                 print_json({**exc.result.as_dict(), "operator_actions": ctl.actions})
             raise
         ctl.close()
+    extra = {"adaptive": adaptive.summary} if adaptive is not None else {}
     if args.json:
-        print_json({**res.as_dict(), "operator_actions": ctl.actions})
+        print_json({**res.as_dict(), "operator_actions": ctl.actions, **extra})
     else:
         status(res.summary_line())
     return 0
+
+
+def _adaptive_loop(job, args: argparse.Namespace):  # noqa: ANN001, ANN202 - a SendLoop
+    """The rig's DAQ opened and zeroed, the loop on the send's streamer (rig.adaptive.send)."""
+    from rig.adaptive import AdaptiveSettings
+    from rig.adaptive.send import SendLoop
+
+    settings = AdaptiveSettings(mode=args.adaptive, target_force_n=args.target_force,
+                                max_force_n=args.max_force)  # fmt: skip
+    return SendLoop(job, settings, args.spindle_rpm, rig=args.rig,
+                    say=lambda m: status(f"dnc send: {m}"))  # fmt: skip
 
 
 #: blocks of the program shown after the preamble by ``dnc send --dry-run``
@@ -183,6 +201,13 @@ def _add_send(dsub: argparse._SubParsersAction) -> None:
     s.add_argument("--adaptive", choices=("feed", "spindle", "both"),
                    help="GRBL: hold a force target with real-time overrides (refused for "
                    "controllers without a real-time override, the Fanuc drip feed)")  # fmt: skip
+    s.add_argument("--target-force", type=positive("N", 1e6),
+                   help="--adaptive: per-revolution mean |Fxy| to hold, N")  # fmt: skip
+    s.add_argument("--max-force", type=positive("N", 1e6),
+                   help="--adaptive: resultant force that holds the feed, N")  # fmt: skip
+    s.add_argument("--spindle-rpm", type=positive("rpm", 1e6),
+                   help="--adaptive: the program's spindle speed, rpm")  # fmt: skip
+    s.add_argument("--rig", help="--adaptive: the DAQ's rig TOML (default configs/rig.toml)")
     s.add_argument("--record", help="write the block record to this CSV file")
     s.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     s.add_argument("--json", action="store_true", help="end with a JSON summary on stdout")
