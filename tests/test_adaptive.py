@@ -303,11 +303,13 @@ def test_dnc_send_loop_zeroes_judges_and_sends(tmp_path) -> None:
     try:
         job = prepare_send(str(prog), "grbl", port=port, progress=False, guard=False)
         daq = SimDaq.from_rig(load_rig(), rate_hz=10_000.0, seconds=30.0, speed=1.0)
-        settings = AdaptiveSettings(target_force_n=100.0, max_force_n=500.0)
+        # the watchdog counts wall time here (the DAQ's arrivals): 30 revolutions (0.9 s) beyond
+        # the DAQ's 0.1 s reads, so a busy host's scheduling is not a lost signal
+        settings = AdaptiveSettings(target_force_n=100.0, max_force_n=500.0, stall_revs=30.0)
         with SendLoop(job, settings, 2000.0, daq=daq) as loop:
             job.send()  # a fault would raise StreamFault
         m = loop.summary
-        assert m["revolutions"] >= 10 and m["hold"] is None
+        assert m["revolutions"] >= 10 and m["hold"] is None, m
         # every byte the loop decided went through the streamer (its own record)
         assert [c for _, c in job.streamer.override_log] == [c for _, c in loop.ctl.bytes_sent]
         assert daq.wait(5.0)  # stopped by the loop's exit
