@@ -248,6 +248,13 @@ function showStatus(s) {
     showDro(m);
     $("source").textContent = m.source ? `(${m.source})` : "";
   }
+  // the adaptive loop (rig.adaptive): its target beside the force it judged, the overrides
+  const ad = s.adaptive;
+  $("adaptive").textContent = ad
+    ? `${ad.mode}, ${ad.state}: target ${ad.target_force_n} N, last revolution ` +
+      `${ad.force_n === null ? "-" : ad.force_n} N, feed ${ad.feed_pct}%, spindle ` +
+      `${ad.spindle_pct}%` + (ad.hold ? `; held: ${ad.hold}` : "")
+    : "off";
   const str = s.stream;
   if (str) {
     $("protocol").textContent = str.protocol || "";
