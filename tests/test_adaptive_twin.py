@@ -103,7 +103,7 @@ def test_signal_loss_holds_and_resets(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_step_depth_adaptive_feed_holds_the_target(tmp_path: Path) -> None:
-    from rig.adaptive.figures import cycle_time_s, within_band
+    from rig.report.adaptive_figures import cycle_time_s, within_band
     from rig.report.base import load_runs
 
     c = load_campaign(_config(tmp_path, short=False))

@@ -80,9 +80,10 @@ MAY_IMPORT: dict[str, set[str]] = {
     "rig.dnc": {"rig.errors"},
     "rig.log": {"rig.errors", "rig.daq"},
     "rig.sim": {"rig.errors", "rig.daq", "rig.dnc", "rig.log"},
-    "rig.campaign": {"rig.errors", "rig.daq", "rig.dnc", "rig.log", "rig.sim"},
-    "rig.report": {"rig.errors", "rig.daq", "rig.log", "rig.campaign"},
-    "rig.console": {"rig.errors", "rig.daq", "rig.campaign"},
+    "rig.adaptive": {"rig.errors", "rig.daq", "rig.dnc"},
+    "rig.campaign": {"rig.errors", "rig.daq", "rig.dnc", "rig.log", "rig.sim", "rig.adaptive"},
+    "rig.report": {"rig.errors", "rig.daq", "rig.log", "rig.campaign", "rig.adaptive"},
+    "rig.console": {"rig.errors", "rig.daq", "rig.dnc", "rig.campaign"},
     "rig.cli": {
         "rig",
         "rig.errors",
@@ -93,6 +94,7 @@ MAY_IMPORT: dict[str, set[str]] = {
         "rig.campaign",
         "rig.report",
         "rig.console",
+        "rig.adaptive",
     },
 }
 

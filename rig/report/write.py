@@ -129,7 +129,7 @@ def write_report(campaign_folder: str | Path) -> Report:
         if "onset" in s.summary:  # the stability sweep's contract: `onset` at the top level
             summary["onset"] = s.summary["onset"]
     if campaign.spec.adaptive is not None:  # issue 29: one entry per run under the loop
-        from rig.adaptive.report import adaptive_entries
+        from rig.report.adaptive import adaptive_entries
 
         summary["adaptive"], adaptive_md = adaptive_entries(campaign, runs)
         sections.append(Section("adaptive", adaptive_md))

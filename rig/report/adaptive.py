@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from rig.adaptive.figures import adaptive_events, cycle_time_s, within_band
+from rig.report.adaptive_figures import adaptive_events, cycle_time_s, within_band
 from rig.adaptive.session import under_loop
 
 
