@@ -173,7 +173,7 @@ def save_json_atomic(path: Path, data: Any, what: str) -> None:
     except OSError as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()
-        from rig.log._file import disk_full_reason
+        from rig.log import disk_full_reason
 
         why = disk_full_reason(exc.errno, path.parent) or exc.strerror or str(exc)
         kept = "the previous one is kept" if path.exists() else "none was written"

@@ -82,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
         # a full disk (or ulimit -f) under a file the command writes: where, and the free bytes
         from pathlib import Path
 
-        from rig.log._file import disk_full_reason
+        from rig.log import disk_full_reason
 
         where = exc.filename or ""
         why = disk_full_reason(exc.errno, Path(where).parent if where else Path.cwd())

@@ -4,6 +4,7 @@ file for N seconds; ``plan_recording`` + ``record_rig`` as ``cutlab daq record``
 ``import_exports`` (DynoWare / CSV exports into run files, ``cutlab data import``).
 """
 
+from rig.log._file import disk_full_reason
 from rig.log.importer import import_exports, write_export_run
 from rig.log.record import RecordPlan, RecordResult, plan_recording, record, record_rig
 from rig.log.writer import RunWriter, RunWriterError, WriterStats, free_space_problem
@@ -14,6 +15,7 @@ __all__ = [
     "RunWriter",
     "RunWriterError",
     "WriterStats",
+    "disk_full_reason",
     "free_space_problem",
     "import_exports",
     "plan_recording",
