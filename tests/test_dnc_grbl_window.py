@@ -100,9 +100,11 @@ def test_a_lost_ok_is_held_and_stated_mid_stream(mask) -> None:
     kinds = [e.kind for e in events]
     assert kinds.index("ok_dropped") < kinds.index("hold") < kinds.index("reset")
     assert "resumed" not in _kinds(sink)
-    # noticed while streaming (about a second of line later), not when the program ran out
-    assert res.result.blocks_sent < 900
+    # noticed before the program ran out (alone, about a second of line after the loss: under
+    # 900 of 1100 lines sent; in two full-suite runs the streamer had written every line by
+    # then, so how far it got is the host's speed, not a property: not asserted)
     n = len(ctl.executed)
+    assert n < len(grbl_texts(prog))
     assert ctl.executed_texts() == grbl_texts(prog)[:n]
     assert ctl.state_name() == "Idle" and ctl.alarm == ""
 
