@@ -667,13 +667,13 @@ def end_lingering(bind: str, port: int) -> None:
     with contextlib.suppress(OSError):
         os.kill(pid, 15)
         t_end = time.monotonic() + 5.0
-        while _pid_alive(pid) and time.monotonic() < t_end:
+        while pid_alive(pid) and time.monotonic() < t_end:
             with contextlib.suppress(ChildProcessError):  # our own child: reaped here
                 os.waitpid(pid, os.WNOHANG)
             time.sleep(0.05)
 
 
-def _pid_alive(pid: int) -> bool:
+def pid_alive(pid: int) -> bool:
     if pid <= 0:
         return False
     try:
@@ -722,7 +722,7 @@ def remove_stale(folder: Path) -> list[Path]:
     if ptr is not None:
         pid = int(ptr.get("pid", 0) or 0) if isinstance(ptr, dict) else 0
         ring = Path(str(ptr.get("ring", ""))) if isinstance(ptr, dict) else None
-        if pid != os.getpid() and _pid_alive(pid) and ring is not None and _beating(ring):
+        if pid != os.getpid() and pid_alive(pid) and ring is not None and _beating(ring):
             raise ConfigError(
                 f"{pointer}: the live campaign of process {pid} is running in this folder"
             )
@@ -738,12 +738,12 @@ def remove_stale(folder: Path) -> list[Path]:
     uid = os.getuid()
     for note in default_ring_path().parent.glob(f"cutlab-console-{uid}-*.linger"):
         with contextlib.suppress(OSError, ValueError):
-            if not _pid_alive(int(note.read_text().strip() or 0)):
+            if not pid_alive(int(note.read_text().strip() or 0)):
                 note.unlink()
     for ring in default_ring_path().parent.glob("cutlab-live-*.ring"):
         pid = _ring_pid(ring)
         with contextlib.suppress(OSError):
-            if pid and pid != os.getpid() and ring.stat().st_uid == uid and not _pid_alive(pid):
+            if pid and pid != os.getpid() and ring.stat().st_uid == uid and not pid_alive(pid):
                 ring.unlink()
                 removed.append(ring)
     return removed

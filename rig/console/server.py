@@ -56,7 +56,14 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from analysis.errors import AnalysisError, ConfigError
 from analysis.runs import file as rf
-from rig.console.live import LIVE_FILE, TICK_S, TOKEN_ENV, WILDCARD_BINDS, url_of
+from rig.console.live import (
+    LIVE_FILE,
+    TICK_S,
+    TOKEN_ENV,
+    WILDCARD_BINDS,
+    pid_alive,
+    url_of,
+)
 from rig.console.ring import RingError, RingReader
 
 STATIC = Path(__file__).parent / "static"
@@ -84,16 +91,6 @@ def resolve_target(target: str | Path) -> tuple[Path | None, Path | None]:
         f"console: {p}: expected a campaign folder (with runs/ or campaign.json) or a run file "
         "(.h5)"
     )
-
-
-def _pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return pid > 0
 
 
 def bins_min_max(
@@ -162,12 +159,12 @@ class Hub:
         r = self.ring
         if r is None or r.closed:
             return False
-        return r.heartbeat_age_s() < STALE_S and _pid_alive(r.writer_pid)
+        return r.heartbeat_age_s() < STALE_S and pid_alive(r.writer_pid)
 
     def _clean_up(self) -> None:
         """The campaign died without closing: its ring and pointer are left to us."""
         r = self.ring
-        if r is None or _pid_alive(r.writer_pid) or not r.path.exists():
+        if r is None or pid_alive(r.writer_pid) or not r.path.exists():
             return
         with contextlib.suppress(OSError):
             r.path.unlink()
