@@ -114,6 +114,9 @@ class SimControllerBase(ExecutorMixin):
         self.lockstep = False
         self._expecting = False
         self._stream_done = False
+        self._stream_bytes: int | None = None  # what the streamer wrote in all (end_stream)
+        self._bytes_read = 0  # every byte read from the pty, in all
+        self._bytes_read0 = 0  # ... when the stream was expected
         self._line_mark = 0.0  # wall time of the last byte read (or of expect_stream)
         self._expect_t = 0.0
         self._init_state()
@@ -207,6 +210,7 @@ class SimControllerBase(ExecutorMixin):
         self.path = os.ttyname(s)
 
     def _close_pty(self) -> None:
+        self._expecting = False  # what was in the old pty never comes: no line gate for it
         for fd in (self._master, self._slave):
             if fd >= 0:
                 with contextlib.suppress(OSError):
@@ -322,6 +326,7 @@ class SimControllerBase(ExecutorMixin):
         if not data:
             return
         with self._lock:
+            self._bytes_read += len(data)
             if self.silent:
                 return
             self._check_line_settings()
@@ -413,15 +418,28 @@ class SimControllerBase(ExecutorMixin):
         the host was slow), at most :data:`LINE_GATE_WALL_S` wall s per byte."""
         with self._lock:
             self._expecting, self._stream_done = True, False
+            self._stream_bytes = None
+            self._bytes_read0 = self._bytes_read
             self._expect_t = self.clock.now()
             self._line_mark = time.monotonic()
             self._update_gates()
 
-    def end_stream(self) -> None:
-        """The streamer has written all it will: the line gate lifts once it has been read."""
+    def end_stream(self, bytes_written: int | None = None) -> None:
+        """The streamer has written all it will (``bytes_written`` since :meth:`expect_stream`,
+        if it knows): the line gate lifts once that much has been read. A write returns before
+        the pty shows its bytes to the reader (the kernel's flip buffer), so "nothing pending"
+        alone let the clock run past the last chunk now and then (issue 31, item 10)."""
         with self._lock:
             self._stream_done = True
+            self._stream_bytes = bytes_written
             self._update_gates()
+
+    def _stream_read(self) -> bool:
+        """All the streamer wrote has been read (nothing left in the pty)."""
+        got = self._bytes_read - self._bytes_read0
+        if self._stream_bytes is not None and got < self._stream_bytes:
+            return False
+        return not self._pty_pending()
 
     def _stream_wants(self) -> bool:
         """Protocol hook: the streamer sends the moment it can (no wait for an answer whose time
@@ -448,7 +466,7 @@ class SimControllerBase(ExecutorMixin):
         clk.gate(f"ctl-{id(self)}", nxt)
         line = None
         if self._expecting and not (self.alarm or self.silent):
-            if self._stream_done and not self._pty_pending():
+            if self._stream_done and self._stream_read():
                 self._expecting = False
             elif time.monotonic() - self._line_mark > LINE_GATE_WALL_S:
                 self._expecting = False

@@ -195,7 +195,9 @@ class SimSession:
                 if self._fault is None:
                     self._fault = f"DNC: {exc}"
             finally:
-                self.controller.end_stream()
+                link = getattr(self.streamer, "link", None)
+                written = None if link is None else link.bytes_written + link.realtime_bytes
+                self.controller.end_stream(written)
                 self._stream_done.set()
 
         self._thread = threading.Thread(target=stream, name="sim-stream", daemon=True)
