@@ -148,6 +148,7 @@ def test_a_reduced_feed_sweep_is_bit_identical_beside_two_busy_processes(tmp_pat
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1800)
 def test_the_shipped_feed_sweep_is_bit_identical_beside_two_busy_processes(
     tmp_path: Path,
 ) -> None:
@@ -157,6 +158,7 @@ def test_the_shipped_feed_sweep_is_bit_identical_beside_two_busy_processes(
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1800)  # two whole demo campaigns, one beside two busy processes
 def test_the_demo_campaign_is_bit_identical_beside_two_busy_processes(tmp_path: Path) -> None:
     quiet, busy = _quiet_and_busy(CAMPAIGNS / "facemill-ploughing.toml", tmp_path)
     assert len(quiet) >= 4 and quiet == busy
