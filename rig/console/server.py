@@ -56,7 +56,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from analysis.errors import AnalysisError, ConfigError
 from analysis.runs import file as rf
-from rig.console.live import (
+from rig.console.common import (
     LIVE_FILE,
     TICK_S,
     TOKEN_ENV,
