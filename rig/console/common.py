@@ -20,7 +20,6 @@ def url_of(bind: str, port: int, token: str) -> str:
     return f"http://{host}:{port}/?token={token}"
 
 
-
 def pid_alive(pid: int) -> bool:
     if pid <= 0:
         return False

@@ -35,7 +35,6 @@ def bins_min_max(
     return b[starts], lo, hi, int(starts[-1])
 
 
-
 def _binned(t: np.ndarray, data: np.ndarray, px: int) -> dict[str, Any]:
     """Min and max per pixel of ``data`` (n, c) at times ``t``; when there are no more samples
     than two a pixel, the samples themselves (``raw``: a zoom shows what was recorded)."""

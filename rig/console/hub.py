@@ -35,7 +35,6 @@ def resolve_target(target: str | Path) -> tuple[Path | None, Path | None]:
     )
 
 
-
 class Hub:
     """What every connection shares: the target, the ring of a live campaign (reattached when
     ``live.json`` changes), the campaign's liveness."""

@@ -68,7 +68,6 @@ SHOWN_EVENTS = {rf.EV_OVERFLOW, rf.EV_FAULT, rf.EV_GAP, rf.EV_QUEUE_FULL, rf.EV_
                 rf.EV_PAUSE, rf.EV_RESUME, "saturation", "chatter", "alarm", "abort"}  # fmt: skip
 
 
-
 class LiveCampaign:
     """The live side of one campaign (see the module docstring).
 
@@ -386,7 +385,6 @@ class LiveCampaign:
         self._thread.join(timeout=2.0)
         self.guard(self._publish)
         self.ring.close()
-
 
 
 @contextlib.contextmanager

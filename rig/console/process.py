@@ -129,7 +129,6 @@ def end_lingering(bind: str, port: int) -> None:
             time.sleep(0.05)
 
 
-
 def _beating(ring: Path) -> bool:
     """The ring's writer beat within the last 10 s and has not closed it (a PID alone may have
     been reused by another process)."""

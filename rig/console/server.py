@@ -29,7 +29,6 @@ A bad websocket message (not JSON, not an object, NaN or infinity, an unknown ty
 wrong type) is dropped with one logged line and an ``error`` reply; no traceback reaches stderr.
 """
 
-
 from __future__ import annotations
 
 import asyncio
@@ -96,15 +95,6 @@ def make_app(
             return JSONResponse({"source": f"not shown: {str(exc).splitlines()[0][:200]}",
                                  "campaigns": []})  # fmt: skip
 
-    def _guarded(fn: Any) -> Any:
-        async def endpoint(request: Request) -> JSONResponse:
-            try:
-                return JSONResponse(await asyncio.to_thread(fn, request.query_params))
-            except (ConfigError, rf.RunFileError, OSError, KeyError, ValueError) as exc:
-                return JSONResponse({"error": str(exc).splitlines()[0][:300]}, status_code=404)
-
-        return endpoint
-
     def run_info(q: Any) -> dict[str, Any]:
         return _run_details(hub.run_path(q["file"]))
 
@@ -119,69 +109,7 @@ def make_app(
         return _trace(hub.run_path(q["file"]), t0, t1, px)
 
     async def ws_endpoint(ws: WebSocket) -> None:
-        await ws.accept()  # the Guard has checked Host, Origin and token
-        peer = _peer(ws.scope)
-        client = _Client(DEFAULT_PX, DEFAULT_WINDOW_S)
-        # Bounded: a client sending faster than 25 frames a second are read waits (TCP holds it).
-        inbox: asyncio.Queue[dict[str, Any]] = asyncio.Queue(maxsize=256)
-        bad = 0
-
-        async def receive() -> None:
-            nonlocal bad
-            while True:
-                m = await ws.receive()
-                if m["type"] != "websocket.receive":
-                    return  # websocket.disconnect
-                msg, why = parse_message(m.get("text"))
-                if msg is None:
-                    bad += 1
-                    if bad <= LOG_BUDGET:
-                        say(f"dropped a websocket message from {peer}: {why}")
-                    elif bad == LOG_BUDGET + 1:
-                        say(f"more bad websocket messages from {peer}: dropped, not logged")
-                    msg = {"type": "_error", "message": why}
-                await inbox.put(msg)
-
-        reader = asyncio.create_task(receive())
-        loop = asyncio.get_running_loop()
-        last_news, due = 0.0, loop.time()
-        try:
-            while not reader.done():
-                if hub.should_exit:  # the page says so rather than "connection lost"
-                    bye = {"type": "bye", "message": "the console server has stopped"}
-                    await ws.send_text(json.dumps(bye))
-                    await ws.close(1001)
-                    break
-                while not inbox.empty():
-                    await _handle(ws, hub, client, inbox.get_nowait(), peer)
-                msg = client.frame(hub)
-                sig = hub.runs_signature() if client.frames % 25 == 1 else client.runs_sig
-                if sig != client.runs_sig:
-                    client.runs_sig = sig
-                    msg["runs"] = await asyncio.to_thread(hub.runs)
-                if "bins" in msg:  # the server's part of the latency ends here
-                    msg["bins"]["sent_ms"] = time.time() * 1e3
-                await ws.send_text(json.dumps(msg, separators=(",", ":"), allow_nan=False))
-                # The next frame: at TICK_S, or sooner when new samples come (not before
-                # MIN_FRAME_S): a block waits for no beat (the sample-to-screen latency).
-                if "written_ms" in msg.get("bins", {}):
-                    last_news = loop.time()  # frames of new samples: at most every MIN_FRAME_S
-                if loop.time() >= due:  # the beat's frame: the next beat (late: no pile-up)
-                    due = max(due + TICK_S, loop.time())
-                while (now := loop.time()) < due and inbox.empty() and not hub.should_exit:
-                    if now - last_news >= MIN_FRAME_S and client.news(hub):
-                        break
-                    await asyncio.sleep(min(POLL_S, max(0.0, due - now)))
-        except (WebSocketDisconnect, RuntimeError, ConnectionError):
-            pass
-        finally:
-            reader.cancel()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await reader  # its exception (a connection gone mid-read) is retrieved here
-            if reader.done() and not reader.cancelled() and reader.exception() is not None:
-                exc = reader.exception()
-                if not isinstance(exc, WebSocketDisconnect | RuntimeError | ConnectionError):
-                    say(f"websocket from {peer} ended: {type(exc).__name__}: {exc}")
+        await _ws_session(ws, hub)
 
     async def watch() -> None:
         while True:
@@ -210,6 +138,85 @@ def make_app(
     app.state = inner.state
     app.state.token = token
     return app
+
+
+def _guarded(fn: Any) -> Any:
+    """An endpoint answering ``fn(query)`` in a thread; bad input, a missing run: 404, one line."""
+
+    async def endpoint(request: Request) -> JSONResponse:
+        try:
+            return JSONResponse(await asyncio.to_thread(fn, request.query_params))
+        except (ConfigError, rf.RunFileError, OSError, KeyError, ValueError) as exc:
+            return JSONResponse({"error": str(exc).splitlines()[0][:300]}, status_code=404)
+
+    return endpoint
+
+
+async def _ws_session(ws: WebSocket, hub: Hub) -> None:
+    """One page's websocket: frames at TICK_S (sooner for new samples), its messages handled."""
+    await ws.accept()  # the Guard has checked Host, Origin and token
+    peer = _peer(ws.scope)
+    client = _Client(DEFAULT_PX, DEFAULT_WINDOW_S)
+    # Bounded: a client sending faster than 25 frames a second are read waits (TCP holds it).
+    inbox: asyncio.Queue[dict[str, Any]] = asyncio.Queue(maxsize=256)
+    bad = 0
+
+    async def receive() -> None:
+        nonlocal bad
+        while True:
+            m = await ws.receive()
+            if m["type"] != "websocket.receive":
+                return  # websocket.disconnect
+            msg, why = parse_message(m.get("text"))
+            if msg is None:
+                bad += 1
+                if bad <= LOG_BUDGET:
+                    say(f"dropped a websocket message from {peer}: {why}")
+                elif bad == LOG_BUDGET + 1:
+                    say(f"more bad websocket messages from {peer}: dropped, not logged")
+                msg = {"type": "_error", "message": why}
+            await inbox.put(msg)
+
+    reader = asyncio.create_task(receive())
+    loop = asyncio.get_running_loop()
+    last_news, due = 0.0, loop.time()
+    try:
+        while not reader.done():
+            if hub.should_exit:  # the page says so rather than "connection lost"
+                bye = {"type": "bye", "message": "the console server has stopped"}
+                await ws.send_text(json.dumps(bye))
+                await ws.close(1001)
+                break
+            while not inbox.empty():
+                await _handle(ws, hub, client, inbox.get_nowait(), peer)
+            msg = client.frame(hub)
+            sig = hub.runs_signature() if client.frames % 25 == 1 else client.runs_sig
+            if sig != client.runs_sig:
+                client.runs_sig = sig
+                msg["runs"] = await asyncio.to_thread(hub.runs)
+            if "bins" in msg:  # the server's part of the latency ends here
+                msg["bins"]["sent_ms"] = time.time() * 1e3
+            await ws.send_text(json.dumps(msg, separators=(",", ":"), allow_nan=False))
+            # The next frame: at TICK_S, or sooner when new samples come (not before
+            # MIN_FRAME_S): a block waits for no beat (the sample-to-screen latency).
+            if "written_ms" in msg.get("bins", {}):
+                last_news = loop.time()  # frames of new samples: at most every MIN_FRAME_S
+            if loop.time() >= due:  # the beat's frame: the next beat (late: no pile-up)
+                due = max(due + TICK_S, loop.time())
+            while (now := loop.time()) < due and inbox.empty() and not hub.should_exit:
+                if now - last_news >= MIN_FRAME_S and client.news(hub):
+                    break
+                await asyncio.sleep(min(POLL_S, max(0.0, due - now)))
+    except (WebSocketDisconnect, RuntimeError, ConnectionError):
+        pass
+    finally:
+        reader.cancel()
+        with contextlib.suppress(asyncio.CancelledError, Exception):
+            await reader  # its exception (a connection gone mid-read) is retrieved here
+        if reader.done() and not reader.cancelled() and reader.exception() is not None:
+            exc = reader.exception()
+            if not isinstance(exc, WebSocketDisconnect | RuntimeError | ConnectionError):
+                say(f"websocket from {peer} ended: {type(exc).__name__}: {exc}")
 
 
 async def _handle(
