@@ -11,6 +11,8 @@ from typing import Any
 import numpy as np
 
 from analysis.runs import file as rf
+from rig.console.chatter import detected_peak, margin
+from rig.console.forces import force_n
 from rig.console.hub import Hub, _num
 from rig.console.ring import RingReader
 
@@ -100,6 +102,8 @@ class _Client:
         self.last_rev = -1
         self.seen: tuple[int, int] = (-1, -1)
         self.written_ns = 0  # the ring's last block already timed on the page
+        self.status: dict[str, Any] = {}
+        self.trail_version, self.trail_n = -1, 0
 
     def news(self, hub: Hub) -> bool:
         """New samples (or a new run) in the ring since the last frame."""
@@ -129,6 +133,8 @@ class _Client:
         st_seq = ring.seq("status")
         if st_seq != self.status_seq:
             self.status_seq, msg["status"] = ring.get_json("status")
+            self.status = msg["status"] or {}
+        self._trail(hub, msg)
         if self.meta:
             # read before the rows: the newest block in this frame came no earlier (the latency
             # the page shows errs long, never short)
@@ -143,24 +149,38 @@ class _Client:
                 readouts = self._readouts(ring)
                 if readouts is not None:
                     msg["readouts"] = readouts
-                spectrum = self._spectrum(ring)
+                spectrum = self._spectrum(ring, hub)
                 if spectrum is not None:
                     msg["spectrum"] = spectrum
         return msg
 
+    def _trail(self, hub: Hub, msg: dict[str, Any]) -> None:
+        """The executed path's new points (all of them again after a new run or a thinning)."""
+        trail = hub.trail
+        version, n = trail.version, len(trail.points)
+        reset, points = trail.since(self.trail_version, self.trail_n)
+        if reset or points:
+            msg["trail"] = {"run": trail.run, "reset": reset, "points": points}
+        self.trail_version, self.trail_n = version, n
+
     def _force(self, rows: np.ndarray) -> np.ndarray:
         """(n, c) N of the ring's rows (volts or codes): the run's zero and calibration."""
-        meta = self.meta or {}
-        volts = rows.astype(np.float64)
-        if meta.get("sample_format") == rf.SAMPLE_FORMAT_RAW and meta.get("scaling_coeff"):
-            volts = rf.raw_to_volts(rows, np.asarray(meta["scaling_coeff"], float))
-        zero = np.asarray(meta.get("zero_v") or np.zeros(volts.shape[1]), float)
-        return np.einsum("nj,ij->ni", volts - zero, np.asarray(meta["volts_to_n"], float))
+        return force_n(self.meta or {}, rows)
 
-    def _spectrum(self, ring: RingReader) -> dict[str, Any] | None:
+    def _rpm_now(self) -> float:
+        """The spindle speed now: the controller's report (GRBL; the drip feed's program
+        estimate), else the run's programmed speed."""
+        meta = self.meta or {}
+        told = (self.status.get("machine") or {}).get("spindle_rpm")
+        if isinstance(told, int | float) and told > 0:
+            return float(told)
+        return abs(float(meta.get("spindle_rpm") or 0.0))
+
+    def _spectrum(self, ring: RingReader, hub: Hub) -> dict[str, Any] | None:
         """Amplitude spectrum (N, Hann window) per channel of the newest SPECTRUM_N samples, up
-        to the larger of 10 tooth-passing harmonics and 1 kHz, at most SPECTRUM_PX points (the
-        largest in each); the tooth-passing frequency and the chatter frequency if known."""
+        to the larger of 10 tooth-passing harmonics, 1 kHz and 1.25 x the predicted chatter
+        frequency, at most SPECTRUM_PX points (the largest in each); the tooth-passing
+        frequency; the lobes at this speed (:mod:`rig.console.chatter`) and the detected peak."""
         meta = self.meta or {}
         rate = float(meta.get("rate_hz") or 0.0)
         if rate <= 0 or meta.get("zero_v") is None:
@@ -173,18 +193,35 @@ class _Client:
         win = np.hanning(n)
         amp = np.abs(np.fft.rfft((f - f.mean(axis=0)) * win[:, None], axis=0)) * 2 / win.sum()
         freq = np.fft.rfftfreq(n, 1 / rate)
-        rpm = abs(float(meta.get("spindle_rpm") or 0.0))
+        rpm = self._rpm_now()
         teeth = meta.get("teeth") or 0
         tooth_hz = rpm / 60 * teeth if rpm and teeth else None
-        top = min(rate / 2, max(1000.0, 10.5 * tooth_hz if tooth_hz else 0.0))
+        stab = self._stability(hub, rpm)
+        predicted = stab.get("predicted_hz") or 0.0
+        top = min(rate / 2, max(1000.0, 10.5 * tooth_hz if tooth_hz else 0.0, 1.25 * predicted))
         k = int(np.searchsorted(freq, top))
         per = max(1, -(-k // SPECTRUM_PX))
         m = (k // per) * per
         peak = amp[:m].reshape(-1, per, amp.shape[1]).max(axis=1)
         return {"f_hz": np.round(freq[:m:per], 2).tolist(), "amp": np.round(peak.T, 3).tolist(),
-                "df_hz": round(rate / n, 4), "tooth_hz": tooth_hz,
-                "chatter_hz": meta.get("chatter_hz"), "channels": meta.get("channels", []),
+                "df_hz": round(rate / n, 4), "tooth_hz": tooth_hz, "rpm": round(rpm, 1),
+                "chatter_hz": stab.get("predicted_hz"), "stability": stab,
+                "peak": self._peak(f, rate, rpm), "channels": meta.get("channels", []),
                 "unit": "N"}  # fmt: skip
+
+    def _stability(self, hub: Hub, rpm: float) -> dict[str, Any]:
+        meta = self.meta or {}
+        case = meta.get("stability") or {"reason": "no lobes: the campaign gives no cut for them"}
+        lobes = None if "reason" in case or rpm <= 0 else hub.stability.get(meta.get("run"),
+                                                                            case, rpm)  # fmt: skip
+        return margin(lobes, case)
+
+    @staticmethod
+    def _peak(f: np.ndarray, rate: float, rpm: float) -> dict[str, Any]:
+        try:
+            return detected_peak(f, rate, rpm)
+        except Exception as exc:  # noqa: BLE001 - the spectrum shows without it
+            return {"judged": False, "reason": f"no peak: {exc}"[:200]}
 
     def _readouts(self, ring: RingReader) -> dict[str, Any] | None:
         """Mean, peak and RMS of the last whole revolution per channel, N, as

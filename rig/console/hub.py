@@ -15,8 +15,10 @@ import numpy as np
 
 from analysis.errors import ConfigError
 from analysis.runs import file as rf
+from rig.console.chatter import StabilityAt
 from rig.console.common import LIVE_FILE, pid_alive
 from rig.console.ring import RingError, RingReader
+from rig.console.trail import Trail
 
 STALE_S = 3.0  # s without a heartbeat: the campaign process is gone
 
@@ -47,6 +49,8 @@ class Hub:
         self.gone_since: float | None = None
         self.should_exit = False
         self.until_wall: float | None = None  # when a lingering server exits (time.time())
+        self.trail = Trail()  # the executed path (the 3-D view), sampled by the server
+        self.stability = StabilityAt()  # the lobes at the current speed
         self.refresh()
 
     def refresh(self) -> None:

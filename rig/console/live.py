@@ -38,6 +38,7 @@ import numpy as np
 from analysis.runs import file as rf
 from rig.campaign.run import StopRequest
 from rig.campaign.runner import campaign_folder, default_session_factory, plan_campaign
+from rig.console.chatter import stability_case
 from rig.console.common import (  # noqa: F401 - re-exported: the server and the CLI use them
     LINGER_S,
     LIVE_FILE,
@@ -47,6 +48,7 @@ from rig.console.common import (  # noqa: F401 - re-exported: the server and the
     pid_alive,
     url_of,
 )
+from rig.console.health import LoggerHealth
 from rig.console.process import (  # noqa: F401 - re-exported: rig.cli.console, bench
     check_console_extra,
     check_port,
@@ -84,6 +86,7 @@ class LiveCampaign:
         self.expected_wall_s = [p.expected_s / self.speed for p in plans]
         self.run_names = [p.test.name for p in plans]
         self.rpms = [float(p.test.spindle_rpm) for p in plans]
+        self.tests = [p.test for p in plans]
         self.cal = Calibration.from_dynamometer(campaign.rig.dynamometer)
         self.ring = RingWriter(ring_path)
         self.stop = StopRequest()
@@ -96,6 +99,7 @@ class LiveCampaign:
         self._run_wall0 = math.nan
         self._wall0 = time.monotonic()
         self._info: DaqInfo | None = None
+        self._health: LoggerHealth | None = None
         self._t0_s = math.nan
         self._expect = 0
         self._meta: dict[str, Any] = {}
@@ -147,6 +151,7 @@ class LiveCampaign:
 
     def on_start(self, info: DaqInfo, t0_s: float) -> None:
         self._info, self._t0_s, self._expect = info, float(t0_s), 0
+        self._health = LoggerHealth(info.rate_hz, t0_s)
         self._meta = self._run_meta(info, t0_s)
         self.ring.begin_run(self._meta, info.n_channels, info.dtype)
 
@@ -157,6 +162,9 @@ class LiveCampaign:
                       self._t0_s + self._expect / self._info.rate_hz)  # fmt: skip
         self._expect = first_sample + int(data.shape[1])
         self.ring.write(first_sample, data)
+        s, health = self._session, self._health
+        if s is not None and health is not None:
+            health.on_block(data.shape[1], s.clock())
 
     def on_event(self, event: DaqEvent) -> None:
         if event.kind in SHOWN_EVENTS:
@@ -187,11 +195,19 @@ class LiveCampaign:
             "volts_to_n": self.cal.volts_to_n.tolist(),
             "spindle_rpm": self.rpms[k] if 0 <= k < self.n_runs else None,
             "teeth": self._teeth(),
-            # the lobes' chatter frequency when the campaign gives one (no lobes: not known)
-            "chatter_hz": getattr(self.campaign, "chatter_hz", None),
+            # the run's cut for the lobes (the server computes them), or why there are none
+            "stability": self._stability(k),
             "zero_v": None,
             "program": [],
         }
+
+    def _stability(self, k: int) -> dict[str, Any]:
+        if not 0 <= k < self.n_runs:
+            return {"reason": "no run"}
+        try:
+            return stability_case(self.campaign, self.tests[k])
+        except Exception as exc:  # noqa: BLE001 - the live view must never endanger the run
+            return {"reason": f"no lobes: {exc}"[:200]}
 
     def _teeth(self) -> int | None:
         tool = getattr(self.campaign, "tool", None)
@@ -213,7 +229,7 @@ class LiveCampaign:
         meta["program_name"] = program.name
         try:  # the DRO's estimate and the toolpath; a program it cannot read shows without
             path = ProgramPath(program.text, getattr(self.campaign, "machine", None), program.name)
-            meta["toolpath"] = path.toolpath_xy(5000)
+            meta["toolpath"] = path.toolpath(5000)
             self._path = path
         except Exception as exc:  # noqa: BLE001 - the live view must never endanger the run
             meta["toolpath"] = []
@@ -369,7 +385,13 @@ class LiveCampaign:
             "bands": self._bands,
             # the adaptive loop (rig.adaptive): target, force per revolution, overrides, state
             "adaptive": None if ctl is None else ctl.live_status(),
+            "logger": self._logger_status(s, now),
         }
+
+    def _logger_status(self, s: _LiveSession, now: float) -> dict[str, Any] | None:
+        stats = getattr(s.writer, "stats", None)  # the run writer, once the program starts
+        health = self._health
+        return None if health is None else health.status(stats() if stats else None, now)
 
     # -- the end ---------------------------------------------------------------------------------
     def close(self, phase: str = "finished", message: str = "") -> None:

@@ -47,15 +47,16 @@ class ProgramPath:
             t -= d
         return None
 
-    def toolpath_xy(self, max_points: int = 20_000) -> list[list[Any]]:
-        """[block, kind, x0, y0, x1, y1] per segment (mm; arcs as chords), for the page's XY
-        view; at most ``max_points`` segments (a longer program is thinned evenly)."""
+    def toolpath(self, max_points: int = 20_000) -> list[list[Any]]:
+        """[block, kind, x0, y0, x1, y1, z0, z1] per segment (mm; arcs as chords), for the
+        page's XY and 3-D views (Z last: the XY view reads the first six); at most
+        ``max_points`` segments (a longer program is thinned evenly)."""
         m = self.motion
         n = len(m)
         step = max(1, -(-n // max_points))
-        return [[int(m.block[i]), int(m.kind[i]), round(float(m.start[i, 0]), 3),
-                 round(float(m.start[i, 1]), 3), round(float(m.end[i, 0]), 3),
-                 round(float(m.end[i, 1]), 3)] for i in range(0, n, step)
+        a, b = np.round(m.start[:, :3].astype(float), 3), np.round(m.end[:, :3].astype(float), 3)
+        return [[int(m.block[i]), int(m.kind[i]), float(a[i, 0]), float(a[i, 1]), float(b[i, 0]),
+                 float(b[i, 1]), float(a[i, 2]), float(b[i, 2])] for i in range(0, n, step)
                 if m.kind[i] != 4]  # fmt: skip
 
 

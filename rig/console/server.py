@@ -56,6 +56,7 @@ from rig.console.common import TICK_S, TOKEN_ENV, url_of
 from rig.console.frames import DEFAULT_PX, DEFAULT_WINDOW_S, _Client, _live_trace, _trace
 from rig.console.guard import LOG_BUDGET, Guard, _peer, parse_message, say
 from rig.console.hub import Hub, _history, _run_details, resolve_target
+from rig.console.trail import SAMPLE_S as TRAIL_SAMPLE_S
 
 STATIC = Path(__file__).parent / "static"
 WS_MAX_BYTES = 64 * 1024  # a page's messages are < 100 bytes; larger ones are closed (1009)
@@ -118,9 +119,10 @@ def make_app(
 
     @contextlib.asynccontextmanager
     async def lifespan(app: Starlette):  # noqa: ANN202 - an async context
-        task = asyncio.create_task(watch())
+        tasks = [asyncio.create_task(watch()), asyncio.create_task(_follow_trail(hub))]
         yield
-        task.cancel()
+        for task in tasks:
+            task.cancel()
 
     routes = [
         Route("/", index),
@@ -138,6 +140,18 @@ def make_app(
     app.state = inner.state
     app.state.token = token
     return app
+
+
+async def _follow_trail(hub: Hub) -> None:
+    """The executed path sampled from the ring (:mod:`rig.console.trail`); an error is logged
+    once and the path stops growing (the page keeps the rest)."""
+    while True:
+        await asyncio.sleep(TRAIL_SAMPLE_S)
+        try:
+            hub.trail.sample(hub.ring)
+        except Exception as exc:  # noqa: BLE001 - the rest of the console goes on
+            say(f"the executed path stops: {type(exc).__name__}: {exc}")
+            return
 
 
 def _guarded(fn: Any) -> Any:
