@@ -43,6 +43,9 @@ const RECONNECT_FOR_MS = 120000; // then the page says the server is gone and st
 let paused = false; // the live plot holds still (zoom, scroll-back); samples keep coming
 let toolpath = []; // [block, kind, x0, y0, x1, y1] per segment, from the run info
 let tpView = null; // the toolpath canvas's transform (mm -> px), for tests and screenshots
+const view3d = new View3D($("toolpath3d"), $("tp3d-legend"));
+$("tp3d-colour").onchange = (e) => view3d.setColourBy(e.target.value);
+$("tp3d-reset").onclick = () => view3d.reset();
 const latencies = []; // sample-to-screen, ms, the last LAT_N frames with new samples
 const latencyParts = []; // [server ms, page ms] of the same frames
 const LAT_N = 250;
@@ -52,6 +55,10 @@ window.cutlab = {
   readouts: null,
   dro: null,
   toolpath: () => tpView,
+  view3d: () => view3d.state(),
+  project3d: (x, y, z) => view3d.project(x, y, z),
+  trail: () => view3d.trail,
+  logger: null,
   toolpathSegments: () => toolpath,
   status: () => status,
   latest: () => (bins.t.length ? bins.t[bins.t.length - 1] : null), // run clock s
@@ -272,6 +279,10 @@ function showStatus(s) {
   if (s.bands) bands = s.bands;
   showEvents(s.events || []);
   drawToolpath();
+  // the tool stays where it was last reported (between runs, after the end: nothing reported)
+  const pos = (s.machine || {}).pos_mm;
+  if (!browsing && pos) view3d.setPosition(pos);
+  if (s.logger !== undefined) showLogger(s.logger);
   updateControls();
   if (s.command && s.command.seq) {
     $("cmd-note").textContent = `${s.command.cmd}: ${s.command.message}`;
@@ -414,20 +425,75 @@ function drawSpectrum(sp) {
     ctx.setLineDash([]);
     ctx.fillText(`tooth ${sp.tooth_hz.toFixed(1)} Hz`, L + 2, H - 4);
   }
-  if (sp.chatter_hz) {
-    ctx.strokeStyle = "#d32f2f";
-    ctx.beginPath(); ctx.moveTo(x(sp.chatter_hz), T); ctx.lineTo(x(sp.chatter_hz), H - B);
-    ctx.stroke();
-  }
   $("spectrum-note").textContent = sp.chatter_hz
     ? `chatter ${sp.chatter_hz.toFixed(0)} Hz (lobes)`
     : "chatter frequency: not known (no lobes)";
+  showChatter(sp);
   sp.amp.forEach((a, c) => {
     ctx.strokeStyle = COLORS[c % COLORS.length];
     ctx.beginPath();
     a.forEach((v, i) => (i ? ctx.lineTo(x(sp.f_hz[i]), y(v)) : ctx.moveTo(x(sp.f_hz[i]), y(v))));
     ctx.stroke();
   });
+  // the lobes' predicted chatter frequency (black, solid), the detected peak (purple, dashed)
+  const marks = {};
+  const peakHz = sp.peak && sp.peak.peak_hz;
+  // (over the traces; the peak first, with a triangle on top: where the two agree, both stay visible)
+  for (const [f, colour, dash, key] of [[peakHz, "#7b1fa2", [4, 2], "peak_x"],
+                                        [sp.chatter_hz, "#000000", [], "predicted_x"]]) {
+    if (!f || f > fMax) continue;
+    const xf = Math.round(x(f)) + 0.5; // on a pixel's centre: a crisp line
+    ctx.strokeStyle = colour; ctx.lineWidth = 2; ctx.setLineDash(dash);
+    ctx.beginPath(); ctx.moveTo(xf, T); ctx.lineTo(xf, H - B); ctx.stroke();
+    ctx.setLineDash([]); ctx.lineWidth = 1;
+    if (key === "peak_x") {
+      ctx.fillStyle = colour;
+      ctx.beginPath(); ctx.moveTo(xf - 5, T); ctx.lineTo(xf + 5, T); ctx.lineTo(xf, T + 8); ctx.fill();
+    }
+    marks[key] = xf;
+  }
+  window.cutlab.spectrumMarks = marks;
+}
+
+// -- the lobes at this speed beside the detected peak; the stability margin ------------------
+function showChatter(sp) {
+  const st = sp.stability || {};
+  const pk = sp.peak || {};
+  const pred = sp.chatter_hz ? `predicted ${sp.chatter_hz.toFixed(0)} Hz (lobes at ${st.rpm} rpm)` : `predicted: ${st.reason || "not known"}`;
+  const det = pk.peak_hz
+    ? `detected peak ${pk.peak_hz.toFixed(0)} Hz off the spindle harmonics` +
+      (pk.judged ? ` (${pk.chatter ? "chatter" : "no chatter"}: ${(100 * pk.energy_ratio).toFixed(0)} % of the energy, threshold ${(100 * pk.energy_threshold).toFixed(0)} %)` : "")
+    : `detected peak: ${pk.reason || "none"}`;
+  $("chatter-frequency").textContent = `${pred}; ${det}`;
+  const m = $("stability-margin");
+  if (st.depth_limit_mm !== undefined) {
+    m.textContent = st.depth_limit_mm === null
+      ? `depth ${st.depth_mm} mm: stable at every depth searched at ${st.rpm} rpm`
+      : `depth ${st.depth_mm} mm of the ${st.depth_limit_mm.toFixed(3)} mm limit at ${st.rpm} rpm: ` +
+        `${st.depth_pct.toFixed(0)} % (${st.stable ? "stable" : "the lobes predict chatter"})`;
+    m.classList.toggle("flag", st.stable === false);
+  } else {
+    m.textContent = `stability margin: ${st.reason || "not known"}`;
+    m.classList.remove("flag");
+  }
+}
+
+// -- the logger's health: rate achieved vs configured, samples written (flagged beyond 5 %) --
+function showLogger(l) {
+  window.cutlab.logger = l;
+  const el = $("logger-health");
+  if (!l) {
+    el.textContent = "-";
+    el.dataset.flag = "";
+    return;
+  }
+  const rate = l.achieved_hz === null ? "-" : l.achieved_hz.toFixed(0);
+  const wr = l.written_pct === null ? "-" : `${l.written_pct.toFixed(1)} %`;
+  el.textContent = `${rate} of ${l.configured_hz} Hz (${l.rate_dev_pct === null ? "-" : (l.rate_dev_pct > 0 ? "+" : "") + l.rate_dev_pct.toFixed(1) + " %"}), ` +
+    `${wr} written${l.lost ? `, ${l.lost} samples lost` : ""}` +
+    (l.flag ? ` - beyond ${l.tolerance_pct} %: ${l.why}` : l.judged ? ` - within ${l.tolerance_pct} %` : ` (${l.why})`);
+  el.dataset.flag = l.judged ? String(l.flag) : "";
+  el.classList.toggle("flag", !!l.flag);
 }
 
 function showEvents(events) {
@@ -529,9 +595,13 @@ function onMessage(ev) {
       window.cutlab.readouts = null;
     }
     showProgram(meta.program || [], meta.program_name || meta.name || "");
-    if (meta.toolpath) toolpath = meta.toolpath;
+    if (meta.toolpath) {
+      toolpath = meta.toolpath;
+      view3d.setPlanned(toolpath);
+    }
     if (!browsing) makePlot(meta.channels, "N");
   }
+  if (msg.trail) view3d.setTrail(msg.trail.points, msg.trail.reset);
   if (msg.status) showStatus(msg.status);
   if (msg.bins) addBins(msg.bins);
   if (msg.readouts) showReadouts(msg.readouts);
