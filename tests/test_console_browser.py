@@ -459,7 +459,7 @@ output_dir = OUT
 
 [program]
 kind = "slot"
-block_length_mm = 150.0
+block_length_mm = 250.0
 block_width_mm = 30.0
 approach_mm = 1.0
 safe_z_mm = 1.0
@@ -519,13 +519,16 @@ def test_live_page_shows_the_3d_path_the_chatter_frequency_and_the_logger(tmp_pa
             page.wait("frames", lambda: int(page.text("frame-count") or 0) > 5)
             page.wait("the cut", lambda: (page.js("window.cutlab.view3d().trail") or 0) > 10
                       and page.js("window.cutlab.view3d().pos") is not None, 90)  # fmt: skip
-            chatter = _chatter_marker(page)
             first = _tool_on_screen(page)
+            chatter = _chatter_marker(page)
+            # (on a loaded computer the run may have ended meanwhile: the tool stays where it
+            # was last reported, further along)
             page.wait("the tool to move", lambda: page.js("window.cutlab.view3d().pos") != first)
             second = _tool_on_screen(page)
             assert second != first
             _rotates(page)
             logger = _logger_shown(page)
+            lat = sorted(page.js("window.cutlab.latencies"))  # reported, not asserted (wall time)
             camp.wait(timeout=120)
     finally:
         if camp.poll() is None:
@@ -539,7 +542,9 @@ def test_live_page_shows_the_3d_path_the_chatter_frequency_and_the_logger(tmp_pa
     assert camp.returncode == 0, (tmp_path / "campaign.log").read_text()
     run = rf.load_run(next((tmp_path / "out" / "chatter-live" / "runs").glob("*.h5")))
     assert run.rate_hz == logger["configured_hz"]
-    print(f"chatter: {chatter}; logger: {logger}")
+    q = (lambda f: lat[min(len(lat) - 1, int(f * len(lat)))]) if lat else (lambda f: None)
+    print(f"chatter: {chatter}; logger: {logger}; sample to screen p50 {q(0.5)} ms, "
+          f"p95 {q(0.95)} ms of {len(lat)} frames")  # fmt: skip
 
 
 def _console_url(log: Path, camp: subprocess.Popen) -> str:
