@@ -702,3 +702,54 @@ def _logger_shown(page: Page) -> dict[str, Any]:
     assert not lg["flag"] and "within 5 %" in text, text
     assert abs(lg["rate_dev_pct"]) <= 5 and lg["written_pct"] >= 95
     return lg
+
+
+def test_the_logger_flag_when_the_daq_loses_samples(tmp_path: Path) -> None:
+    """A DAQ overflow that loses half a second of samples (blocks of 0.5 s, one lost 1 s into
+    the run; the campaign continues): the page flags the logger beyond 5 %, in red, with the
+    rate it achieved; the run file holds the overflow."""
+    pytest.importorskip("starlette")
+    text = (DATA / "quick.toml").read_text()
+    text = text.replace('"OUT"', json.dumps(str(tmp_path / "out")))
+    text = text.replace("FAULTS", "sim_daq_overflow_at_s = 1.0").replace("speed = 50", "speed = 1")
+    text = text.replace("rate_hz = 8000", "rate_hz = 8000\nread_interval_s = 0.5")
+    text = text.replace("block_length_mm = 10.0", "block_length_mm = 30.0")
+    text = text.replace("depth_mm = [1.0, 2.0]", "depth_mm = 1.0")
+    text += '\n[suspenders]\non_overflow = "continue"\n'
+    cfg = tmp_path / "overflow.toml"
+    cfg.write_text(text)
+    port = _free_port()
+    log = (tmp_path / "campaign.log").open("w")
+    env = {**os.environ, "CUTLAB_CONSOLE_LINGER_S": "0"}
+    camp = subprocess.Popen([sys.executable, "-c", _SCRIPT, str(cfg), str(port)], cwd=ROOT,
+                            stdout=log, stderr=subprocess.STDOUT, env=env)  # fmt: skip
+    try:
+        url = _console_url(tmp_path / "campaign.log", camp)
+        with _chromium(tmp_path) as (ws_url, _):
+            page = Page(ws_url)
+            page.call("Page.enable")
+            page.call("Page.navigate", url=url)
+            page.wait("frames", lambda: int(page.text("frame-count") or 0) > 5)
+            page.wait("the flag", lambda: page.js("window.cutlab.logger?.flag === true"), 90)
+            lg, text, flag, red = page.js(
+                "(() => { const e = document.getElementById('logger-health'); return"
+                " [window.cutlab.logger, e.textContent, e.dataset.flag,"
+                " getComputedStyle(e).color]; })()")  # fmt: skip
+            camp.wait(timeout=120)
+    finally:
+        if camp.poll() is None:
+            camp.terminate()
+            try:
+                camp.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                camp.kill()
+                camp.wait()
+        log.close()
+    assert flag == "true" and red == "rgb(198, 40, 40)", (flag, red)
+    assert lg["judged"] and lg["rate_dev_pct"] < -5 and "sample rate" in lg["why"]
+    # what was received is written (the samples are lost before the logger, not in it)
+    assert lg["written_pct"] == 100 and lg["lost"] == 4000, lg
+    assert f"beyond 5 %: {lg['why']}" in text and text.startswith(f"{lg['achieved_hz']:.0f} of")
+    run = rf.load_run(next((tmp_path / "out" / "quick" / "runs").glob("*.h5")))
+    assert "overflow" in set(run.events["kind"]), (tmp_path / "campaign.log").read_text()
+    print(f"logger flagged: {text}")

@@ -38,7 +38,8 @@ class LoggerHealth:
     def status(self, writer_stats: Any, now_s: float) -> dict[str, Any]:
         """JSON for the page (``writer_stats``: :class:`rig.log.WriterStats` or None before the
         program starts)."""
-        self._history.append((self.arrived_s, self.received))
+        if self.received and (not self._history or self._history[-1][1] != self.received):
+            self._history.append((self.arrived_s, self.received))  # one entry per arrival
         span = self.arrived_s - self.t0_s
         out: dict[str, Any] = {"configured_hz": self.rate_hz, "received": self.received,
                                "tolerance_pct": TOLERANCE_PCT}  # fmt: skip
