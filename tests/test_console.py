@@ -252,8 +252,10 @@ def test_the_drip_feed_dro_is_estimated_from_the_program() -> None:
     assert path.estimate(4, 9.0)["pos_mm"] == pytest.approx([10.0, 0.0, -1.0])  # then it waits
     assert path.estimate(3, 1.8)["pos_mm"] == pytest.approx([0.0, 0.0, 2.0])
     assert path.estimate(0, 0.0) is None  # modes only: the page keeps the last estimate
-    segs = path.toolpath_xy()
-    assert [s[0] for s in segs] == [2, 3, 4, 5] and segs[2][2:] == [0.0, 0.0, 10.0, 0.0]
+    segs = path.toolpath()
+    assert [s[0] for s in segs] == [2, 3, 4, 5] and segs[2][2:6] == [0.0, 0.0, 10.0, 0.0]
+    # Z last (the 3-D view): the plunge from 5 to -1 mm, the cut at -1 mm
+    assert [s[6:] for s in segs] == [[0.0, 5.0], [5.0, -1.0], [-1.0, -1.0], [-1.0, 5.0]]
 
 
 def test_grbl_dro_is_its_status_report() -> None:

@@ -443,3 +443,313 @@ def _readouts_match_the_run_file(readouts: list[dict[str, Any]], run: rf.Run) ->
         for got, want in ((r["mean"], means[k]), (r["peak"], peaks[k]), (r["rms"], rms)):
             for g, w in zip(got, want):
                 assert abs(g - w) <= 0.5 + 0.01 * abs(w), (k, got, list(want))
+
+
+# A chattering slot on the twin's GRBL (configs/campaigns/adaptive-chatter.toml's baseline: the
+# tool's modes at 700 Hz, 0.9 mm deep at 5500 rpm where the lobes allow about 0.75 mm), in real
+# time: GRBL reports the position (the executed path) and the spindle speed (the lobes' speed).
+_CHATTER = """
+[campaign]
+name = "chatter-live"
+machine = "lab-grbl"
+tool = "phi10-flat"
+material = "al6061-t6"
+rig = "sim"
+output_dir = OUT
+
+[program]
+kind = "slot"
+block_length_mm = 250.0
+block_width_mm = 30.0
+approach_mm = 1.0
+safe_z_mm = 1.0
+
+[daq]
+rate_hz = 10000
+rest_s = 0.2
+read_interval_s = 0.011
+
+[sim]
+speed = 1
+noise_n = 2.0
+protocol = "grbl"
+
+[[sim.tool_modes]]
+axis = "x"
+f_hz = 700
+zeta = 0.03
+k_N_m = 1.5e7
+
+[[sim.tool_modes]]
+axis = "y"
+f_hz = 700
+zeta = 0.03
+k_N_m = 1.5e7
+
+[suspenders]
+force_limit_n = 5000
+
+[[matrix]]
+group = "baseline"
+spindle_rpm = 5500
+fz_mm = 0.05
+depth_mm = 0.9
+"""
+
+
+def test_live_page_shows_the_3d_path_the_chatter_frequency_and_the_logger(tmp_path: Path) -> None:
+    """The 3-D view draws the planned and executed paths and the tool where GRBL reports it (on
+    screen where the page's own projection puts it, and following it); the spectrum carries the
+    lobes' chatter frequency at the reported speed as a marker beside the detected peak, and the
+    stability margin; the logger's health is shown within 5 %."""
+    pytest.importorskip("starlette")
+    cfg = tmp_path / "chatter.toml"
+    cfg.write_text(_CHATTER.replace("OUT", json.dumps(str(tmp_path / "out"))))
+    port = _free_port()
+    log = (tmp_path / "campaign.log").open("w")
+    env = {**os.environ, "CUTLAB_CONSOLE_LINGER_S": "0"}
+    camp = subprocess.Popen([sys.executable, "-c", _SCRIPT, str(cfg), str(port)], cwd=ROOT,
+                            stdout=log, stderr=subprocess.STDOUT, env=env)  # fmt: skip
+    try:
+        url = _console_url(tmp_path / "campaign.log", camp)
+        with _chromium(tmp_path) as (ws_url, _):
+            page = Page(ws_url)
+            page.call("Page.enable")
+            page.call("Page.navigate", url=url)
+            page.wait("frames", lambda: int(page.text("frame-count") or 0) > 5)
+            page.wait("the cut", lambda: (page.js("window.cutlab.view3d().trail") or 0) > 10
+                      and page.js("window.cutlab.view3d().pos") is not None, 90)  # fmt: skip
+            first = _tool_on_screen(page)
+            chatter = _chatter_marker(page)
+            # (on a loaded computer the run may have ended meanwhile: the tool stays where it
+            # was last reported, further along)
+            page.wait("the tool to move", lambda: page.js("window.cutlab.view3d().pos") != first)
+            second = _tool_on_screen(page)
+            assert second != first
+            _rotates(page)
+            logger = _logger_shown(page)
+            lat = sorted(page.js("window.cutlab.latencies"))  # reported, not asserted (wall time)
+            camp.wait(timeout=120)
+    finally:
+        if camp.poll() is None:
+            camp.terminate()
+            try:
+                camp.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                camp.kill()
+                camp.wait()
+        log.close()
+    assert camp.returncode == 0, (tmp_path / "campaign.log").read_text()
+    run = rf.load_run(next((tmp_path / "out" / "chatter-live" / "runs").glob("*.h5")))
+    assert run.rate_hz == logger["configured_hz"]
+    q = (lambda f: lat[min(len(lat) - 1, int(f * len(lat)))]) if lat else (lambda f: None)
+    print(f"chatter: {chatter}; logger: {logger}; sample to screen p50 {q(0.5)} ms, "
+          f"p95 {q(0.95)} ms of {len(lat)} frames")  # fmt: skip
+
+
+def _console_url(log: Path, camp: subprocess.Popen) -> str:
+    t_end = time.monotonic() + 90
+    while True:
+        found = re.search(r"live console at (http://127\.0\.0\.1:\d+/\?token=[\w-]+)",
+                          log.read_text())  # fmt: skip
+        if found:
+            return found.group(1)
+        assert camp.poll() is None, log.read_text()
+        assert time.monotonic() < t_end, "the console did not come up"
+        time.sleep(0.1)
+
+
+def _shot(page: Page, testid: str) -> tuple[Any, float, float]:
+    """A screenshot of a canvas's drawing area, with its scale against the canvas's pixels."""
+    import base64
+    import io
+
+    from PIL import Image
+
+    rect, size = page.js(
+        f"(() => {{ const c = document.querySelector('[data-testid=\"{testid}\"]');"
+        " const r = c.getBoundingClientRect(); return [[r.x + scrollX + c.clientLeft,"
+        " r.y + scrollY + c.clientTop, c.clientWidth, c.clientHeight], [c.width, c.height]]; })()")
+    shot = page.call("Page.captureScreenshot", format="png", captureBeyondViewport=True,
+                     clip={"x": rect[0], "y": rect[1], "width": rect[2], "height": rect[3],
+                           "scale": 1})  # fmt: skip
+    img = Image.open(io.BytesIO(base64.b64decode(shot["data"]))).convert("RGB")
+    return img, img.width / size[0], img.height / size[1]
+
+
+def _near(img: Any, x: float, y: float, rgb: tuple[int, int, int], r: int = 3) -> bool:
+    for dx in range(-r, r + 1):
+        for dy in range(-r, r + 1):
+            px = min(max(round(x) + dx, 0), img.width - 1), min(max(round(y) + dy, 0),
+                                                                 img.height - 1)  # fmt: skip
+            if all(abs(a - b) < 40 for a, b in zip(img.getpixel(px), rgb)):
+                return True
+    return False
+
+
+def _tool_on_screen(page: Page) -> list[float]:
+    """The tool's red drawn where the page's projection puts the reported position, and the
+    executed path drawn (coloured, not the background) along its points. Several tries: a
+    screenshot may show the frame before the latest state."""
+    why = ""
+    for _ in range(20):
+        state, pts, proj = page.js(
+            "(() => { const s = window.cutlab.view3d(); const t = window.cutlab.trail();"
+            " const mid = t.slice(1).filter((p, i) => i % 7 === 3).slice(-8);"
+            " return [s, mid.map(p => window.cutlab.project3d(p[1], p[2], p[3])),"
+            " s.pos && window.cutlab.project3d(...s.pos)]; })()")  # fmt: skip
+        img, sx, sy = _shot(page, "toolpath-3d")
+        if page.js("window.cutlab.view3d().frames") != state["frames"] or proj is None:
+            why = "redrawn during the screenshot"
+            continue
+        if not _near(img, proj[0] * sx, proj[1] * sy, (0xD5, 0x00, 0x00)):
+            why = f"no tool colour at {proj}"
+            continue
+        bg = img.getpixel((1, 1))
+        drawn = [_near(img, x * sx, y * sy, bg, 0) is False for x, y in pts]
+        if sum(drawn) < len(drawn) - 1:
+            why = f"the executed path is not drawn at its points: {drawn}"
+            continue
+        return state["pos"]
+    raise AssertionError(why)
+
+
+def _rotates(page: Page) -> None:
+    """A drag across the view rotates it (the projection of a point changes), the wheel zooms
+    it (the page's own handlers, through Chromium's input)."""
+    before = page.js("[window.cutlab.view3d(), window.cutlab.project3d(0, 0, 0)]")
+    page.js("document.getElementById('toolpath3d').scrollIntoView()")
+    x, y = page.js("(() => { const r = document.getElementById('toolpath3d')"
+                   ".getBoundingClientRect(); return [r.x + r.width / 2, r.y + r.height / 2]; })()")
+    for _ in range(3):  # a press may land while the page lays out: pressed again
+        page.call("Input.dispatchMouseEvent", type="mousePressed", x=x, y=y, button="left",
+                  buttons=1, clickCount=1)  # fmt: skip
+        for k in range(1, 7):
+            page.call("Input.dispatchMouseEvent", type="mouseMoved", x=x + 10 * k,
+                      y=y + 2 * k, button="left", buttons=1)  # fmt: skip
+        page.call("Input.dispatchMouseEvent", type="mouseReleased", x=x + 60, y=y + 12,
+                  button="left", buttons=0, clickCount=1)  # fmt: skip
+        if page.js("window.cutlab.view3d().yaw") != before[0]["yaw"]:
+            break
+    # (CDP's mouseWheel does not reach the canvas in headless Chromium here: the page's event)
+    page.js("document.getElementById('toolpath3d').dispatchEvent(new WheelEvent('wheel',"
+            " {deltaY: -100, cancelable: true}))")  # fmt: skip
+    after = page.js("[window.cutlab.view3d(), window.cutlab.project3d(0, 0, 0)]")
+    assert after[0]["yaw"] > before[0]["yaw"] and after[0]["pitch"] >= before[0]["pitch"]
+    assert after[0]["zoom"] == pytest.approx(before[0]["zoom"] * 1.2)
+    assert after[1] != before[1] and after[0]["frames"] > before[0]["frames"]
+
+
+def _chatter_marker(page: Page) -> dict[str, Any]:
+    """The lobes' chatter frequency at the reported speed: a red marker on the spectrum where
+    the page's own scale puts it, its text beside the detected peak, and the margin."""
+    page.wait("the lobes at this speed", lambda: page.js(
+        "!!(window.cutlab.spectrum && window.cutlab.spectrum.stability"
+        " && window.cutlab.spectrum.stability.depth_limit_mm)"), 60)  # fmt: skip
+    page.wait("a detected peak", lambda: page.js(
+        "!!(window.cutlab.spectrum.peak && window.cutlab.spectrum.peak.peak_hz)"), 60)  # fmt: skip
+    why = ""
+    for _ in range(20):
+        sp, marks, text, margin = page.js(
+            "[window.cutlab.spectrum, window.cutlab.spectrumMarks,"
+            " document.getElementById('chatter-frequency').textContent,"
+            " document.getElementById('stability-margin').textContent]")  # fmt: skip
+        img, sx, sy = _shot(page, "spectrum")
+        if page.js("window.cutlab.spectrum") != sp:
+            continue
+        st, pk = sp["stability"], sp["peak"]
+        assert f"predicted {st['predicted_hz']:.0f} Hz (lobes at {st['rpm']:g} rpm)" in text, text
+        assert f"detected peak {pk['peak_hz']:.0f} Hz" in text, text
+        shown = re.search(r"rpm: (\d+) %", margin)  # JS rounds halves up, Python to even
+        assert shown and abs(int(shown.group(1)) - st["depth_pct"]) <= 0.5, margin
+        assert f"depth 0.9 mm of the {st['depth_limit_mm']:.3f} mm limit" in margin, margin
+        if not (5000 < st["rpm"] < 6000):
+            why = f"the spindle at {st['rpm']} rpm (not cutting)"
+            continue
+        assert 650 < st["predicted_hz"] < 750
+        assert st["stable"] is False and "the lobes predict chatter" in margin
+        # A screenshot may show the frame before: the marker where this one's data puts it,
+        # in one of several tries.
+        x = int(marks["predicted_x"] * sx)
+        if max(_red_in(img, c) for c in (x - 1, x, x + 1)) < img.height / 3:
+            why = f"no marker at x = {x}"
+            continue
+        if max(_red_in(img, c) for c in range(img.width) if abs(c - x) > 3) > 10:
+            why = "the marker's colour elsewhere"
+            continue
+        return {"predicted_hz": st["predicted_hz"], "rpm": st["rpm"], "limit_mm":
+                st["depth_limit_mm"], "peak_hz": pk["peak_hz"], "chatter": pk.get("chatter")}
+    raise AssertionError(why or "the spectrum changed during every screenshot")
+
+
+def _red_in(img: Any, x: int) -> int:
+    """Pixels of the chatter marker's black in column ``x``."""
+    column = [img.getpixel((x, y)) for y in range(img.height)]
+    return sum(all(abs(a - b) < 40 for a, b in zip(c, (0x00, 0x00, 0x00))) for c in column)
+
+
+def _logger_shown(page: Page) -> dict[str, Any]:
+    """The logger's health once judged (2 s into the run): the figures the status gives, not
+    flagged (a healthy logger on this machine), within 5 %."""
+    page.wait("the logger judged", lambda: page.js(
+        "!!(window.cutlab.logger && window.cutlab.logger.judged"
+        " && window.cutlab.logger.written_pct !== null)"), 60)  # fmt: skip
+    lg, text, flag = page.js(
+        "[window.cutlab.logger, document.getElementById('logger-health').textContent,"
+        " document.getElementById('logger-health').dataset.flag]")  # fmt: skip
+    assert text.startswith(f"{lg['achieved_hz']:.0f} of {lg['configured_hz']:g} Hz"), text
+    assert flag == str(lg["flag"]).lower()
+    assert not lg["flag"] and "within 5 %" in text, text
+    assert abs(lg["rate_dev_pct"]) <= 5 and lg["written_pct"] >= 95
+    return lg
+
+
+def test_the_logger_flag_when_the_daq_loses_samples(tmp_path: Path) -> None:
+    """A DAQ overflow that loses half a second of samples (blocks of 0.5 s, one lost 1 s into
+    the run; the campaign continues): the page flags the logger beyond 5 %, in red, with the
+    rate it achieved; the run file holds the overflow."""
+    pytest.importorskip("starlette")
+    text = (DATA / "quick.toml").read_text()
+    text = text.replace('"OUT"', json.dumps(str(tmp_path / "out")))
+    text = text.replace("FAULTS", "sim_daq_overflow_at_s = 1.0").replace("speed = 50", "speed = 1")
+    text = text.replace("rate_hz = 8000", "rate_hz = 8000\nread_interval_s = 0.5")
+    text = text.replace("block_length_mm = 10.0", "block_length_mm = 30.0")
+    text = text.replace("depth_mm = [1.0, 2.0]", "depth_mm = 1.0")
+    text += '\n[suspenders]\non_overflow = "continue"\n'
+    cfg = tmp_path / "overflow.toml"
+    cfg.write_text(text)
+    port = _free_port()
+    log = (tmp_path / "campaign.log").open("w")
+    env = {**os.environ, "CUTLAB_CONSOLE_LINGER_S": "0"}
+    camp = subprocess.Popen([sys.executable, "-c", _SCRIPT, str(cfg), str(port)], cwd=ROOT,
+                            stdout=log, stderr=subprocess.STDOUT, env=env)  # fmt: skip
+    try:
+        url = _console_url(tmp_path / "campaign.log", camp)
+        with _chromium(tmp_path) as (ws_url, _):
+            page = Page(ws_url)
+            page.call("Page.enable")
+            page.call("Page.navigate", url=url)
+            page.wait("frames", lambda: int(page.text("frame-count") or 0) > 5)
+            page.wait("the flag", lambda: page.js("window.cutlab.logger?.flag === true"), 90)
+            lg, text, flag, red = page.js(
+                "(() => { const e = document.getElementById('logger-health'); return"
+                " [window.cutlab.logger, e.textContent, e.dataset.flag,"
+                " getComputedStyle(e).color]; })()")  # fmt: skip
+            camp.wait(timeout=120)
+    finally:
+        if camp.poll() is None:
+            camp.terminate()
+            try:
+                camp.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                camp.kill()
+                camp.wait()
+        log.close()
+    assert flag == "true" and red == "rgb(198, 40, 40)", (flag, red)
+    assert lg["judged"] and lg["rate_dev_pct"] < -5 and "sample rate" in lg["why"]
+    # what was received is written (the samples are lost before the logger, not in it)
+    assert lg["written_pct"] == 100 and lg["lost"] == 4000, lg
+    assert f"beyond 5 %: {lg['why']}" in text and text.startswith(f"{lg['achieved_hz']:.0f} of")
+    run = rf.load_run(next((tmp_path / "out" / "quick" / "runs").glob("*.h5")))
+    assert "overflow" in set(run.events["kind"]), (tmp_path / "campaign.log").read_text()
+    print(f"logger flagged: {text}")

@@ -165,7 +165,7 @@ def test_the_loopback_names_are_allowed(live: tuple[Console, RingWriter]) -> Non
 
 
 def test_host_allowlist_of_a_bound_address() -> None:
-    from rig.console.server import _hostname, host_allowed, host_allowlist
+    from rig.console.guard import _hostname, host_allowed, host_allowlist
 
     allow = host_allowlist("192.168.7.20")
     assert allow == {"localhost", "127.0.0.1", "::1", "192.168.7.20"}
@@ -333,7 +333,7 @@ def test_an_oversized_message_closes_cleanly_and_a_flood_is_not_logged_forever(
 def test_message_parser_against_python_s_own_json() -> None:
     # Independent reference: what Python's json module makes of each message, and whether that
     # is a finite number where one is asked for.
-    from rig.console.server import parse_message
+    from rig.console.guard import parse_message
 
     good = ['{"type": "hello", "px": 800, "window_s": 10}', '{"type": "hello", "px": 12.5}',
             '{"type": "cmd", "cmd": "hold"}', '{"type": "hello"}']  # fmt: skip

@@ -25,211 +25,49 @@ import contextlib
 import json
 import math
 import os
-import socket
-import subprocess
 import sys
 import threading
 import time
-import urllib.request
 from collections import deque
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
-from analysis.errors import ConfigError
 from analysis.runs import file as rf
 from rig.campaign.run import StopRequest
 from rig.campaign.runner import campaign_folder, default_session_factory, plan_campaign
-from rig.console.ring import RingError, RingWriter
+from rig.console.chatter import stability_case
+from rig.console.common import (  # noqa: F401 - re-exported: the server and the CLI use them
+    LINGER_S,
+    LIVE_FILE,
+    TICK_S,
+    TOKEN_ENV,
+    WILDCARD_BINDS,
+    pid_alive,
+    url_of,
+)
+from rig.console.health import LoggerHealth
+from rig.console.process import (  # noqa: F401 - re-exported: rig.cli.console, bench
+    check_console_extra,
+    check_port,
+    end_lingering,
+    leave_server,
+    remove_stale,
+    start_server,
+    stop_server,
+)
+from rig.console.program_path import ProgramPath, _jsonable
+from rig.console.ring import RingWriter
+from rig.console.session import LiveSink, _LiveSession, _Tee, machine_report  # noqa: F401
 from rig.daq import Calibration, DaqEvent, DaqInfo
 
-TICK_S = 0.04  # status 25 times a second
-LIVE_FILE = "live.json"  # in the campaign folder while a live campaign runs
-TOKEN_ENV = "CUTLAB_CONSOLE_TOKEN"  # how a live campaign hands its server the token (not argv)
-WILDCARD_BINDS = frozenset({"", "0.0.0.0", "::"})
 MAX_EVENTS = 200
 BANDS_S = 60.0  # the executed blocks sent to the page: those of the longest window it shows
-#: s a live campaign's server stays after the campaign process died (the page says so)
-LINGER_S = float(os.environ.get("CUTLAB_CONSOLE_LINGER_S", "600"))
 #: DAQ and runner event kinds the page lists (the others are bookkeeping)
 SHOWN_EVENTS = {rf.EV_OVERFLOW, rf.EV_FAULT, rf.EV_GAP, rf.EV_QUEUE_FULL, rf.EV_INTERLOCK,
                 rf.EV_PAUSE, rf.EV_RESUME, "saturation", "chatter", "alarm", "abort"}  # fmt: skip
-
-
-class LiveSink(Protocol):
-    """What the console needs beside the run writer: the DAQ sink calls, plus runner events.
-    (Wired today by teeing the DAQ sink; ``RunWriter`` may call it directly later.)"""
-
-    def on_start(self, info: DaqInfo, t0_s: float) -> None: ...
-
-    def on_block(self, first_sample: int, data: np.ndarray) -> None: ...
-
-    def on_event(self, event: DaqEvent) -> None: ...
-
-    def note(self, kind: str, message: str, time_s: float | None = None) -> None: ...
-
-
-class _Tee:
-    """The DAQ sink given to the DAQ: the run's own sink first, then the live ring."""
-
-    def __init__(self, sink: Any, live: LiveCampaign) -> None:
-        self.sink, self.live = sink, live
-
-    def on_start(self, info: DaqInfo, t0_s: float) -> None:
-        self.sink.on_start(info, t0_s)
-        self.live.guard(self.live.on_start, info, t0_s)
-
-    def on_block(self, first_sample: int, data: np.ndarray) -> None:
-        self.sink.on_block(first_sample, data)
-        try:  # guard() inlined: this runs once per block on the acquisition thread
-            self.live.on_block(first_sample, data)
-        except Exception:  # noqa: BLE001 - the live view must never endanger the recording
-            self.live.tap_errors += 1
-
-    def on_event(self, event: DaqEvent) -> None:
-        self.sink.on_event(event)
-        self.live.guard(self.live.on_event, event)
-
-
-class _LiveDaq:
-    def __init__(self, daq: Any, live: LiveCampaign) -> None:
-        self._daq, self._live = daq, live
-
-    def start(self, sink: Any) -> None:
-        self._daq.start(_Tee(sink, self._live))
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._daq, name)
-
-
-class _LiveSession:
-    """A rig session seen by the console: the runner's calls pass through; the runner's own
-    holds, resumes and stops become events."""
-
-    def __init__(self, inner: Any, live: LiveCampaign) -> None:
-        self.inner = inner
-        self.daq = _LiveDaq(inner.daq, live)
-        self.clock = inner.clock
-        self.writer: Any = None
-        self.program: Any = None
-        self._live = live
-
-    def start(self, program: Any, writer: object) -> None:
-        self.program, self.writer = program, writer
-        self._live.guard(self._live.on_program, program)
-        self.inner.start(program, writer)
-
-    def feed_hold(self) -> None:
-        self.inner.feed_hold()
-        self._live._held = True
-        self._live.note(rf.EV_PAUSE, "runner: feed hold")
-
-    def cycle_start(self) -> None:
-        self.inner.cycle_start()
-        self._live._held = False
-        self._live.note(rf.EV_RESUME, "runner: cycle start")
-
-    def stop(self) -> None:
-        self.inner.stop()
-        self._live.note("abort", "runner: stop (feed hold, reset)")
-
-    def close(self) -> None:
-        try:
-            self.inner.close()
-        finally:
-            self._live.on_session_closed(self)
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self.inner, name)
-
-
-def machine_report(session: Any) -> dict[str, Any]:
-    """The machine as its controller reports it: GRBL's last status report; the simulated
-    control's panel; nothing from a drip feed (state "" and source says so)."""
-    streamer = getattr(session, "streamer", None)
-    st = getattr(streamer, "last_status", None)
-    out: dict[str, Any] = {"state": "", "pos_mm": None, "feed_mm_min": None, "spindle_rpm": None}
-    if st is not None:
-        pos = st.wpos_mm
-        wco = getattr(streamer, "_wco", None)
-        if pos is None and st.mpos_mm is not None:
-            off = wco if wco is not None else (0.0, 0.0, 0.0)
-            pos = tuple(m - o for m, o in zip(st.mpos_mm, off))
-        ov = getattr(st, "overrides", None)
-        overrides = dict(zip(("feed", "rapid", "spindle"), ov)) if ov else None
-        return out | {"state": st.full_state, "pos_mm": _round(pos), "source": "GRBL status",
-                      "feed_mm_min": st.feed_mm_min, "spindle_rpm": st.spindle_rpm,
-                      "overrides_pct": overrides, "estimated": False}  # fmt: skip
-    ctrl = getattr(session, "controller", None)  # the simulated rig's control
-    if ctrl is not None:
-        if hasattr(ctrl, "state_name"):
-            state = ctrl.state_name()
-        else:
-            state = "Alarm" if ctrl.alarm else "Hold" if ctrl.held else "Run"
-        pos = ctrl.position_mm() if hasattr(ctrl, "position_mm") else None
-        return out | {"state": state, "pos_mm": _round(pos), "source": "simulated control"}
-    state = getattr(streamer, "controller_state", "") or ""
-    return out | {"state": state, "source": "none: a drip feed reports no state"}
-
-
-class ProgramPath:
-    """The program interpreted with ``planning.nc`` (as the controller will run it): per block
-    its segments' start and end (mm), programmed feed (mm/min), spindle (rpm) and duration at
-    that feed (s). A drip feed reports no position: the DRO is estimated from the executing
-    block's start time and these (no acceleration, no override: marked estimated)."""
-
-    def __init__(self, text: str, machine: Any, name: str = "<program>") -> None:
-        from planning.nc import interpret
-        from rig.dnc.nc import nc_text, segment_durations_s
-
-        m = interpret(nc_text(text), machine, strict=False, file=name)
-        self.rapid_mm_min = float(getattr(machine, "rapid_mm_min", 0) or 10_000.0)
-        self.motion = m
-        dur = segment_durations_s(m, self.rapid_mm_min) if len(m) else np.zeros(0)
-        self.by_block: dict[int, list[int]] = {}
-        for i, b in enumerate(m.block.tolist()):
-            self.by_block.setdefault(int(b), []).append(i)
-        self.dur_s = dur
-
-    def estimate(self, block: int, since_s: float) -> dict[str, Any] | None:
-        """Position, feed, spindle ``since_s`` after ``block`` started (None: no motion known
-        for it, e.g. a block that only sets modes: the caller keeps the last estimate)."""
-        idx = self.by_block.get(block)
-        if not idx:
-            return None
-        m, t = self.motion, max(0.0, since_s)
-        for i in idx:
-            d = float(self.dur_s[i])
-            if t <= d or i == idx[-1]:
-                f = min(1.0, t / d) if d > 0 else 1.0
-                pos = m.start[i] + f * (m.end[i] - m.start[i])  # arcs: along the chord
-                feed = float(m.feed_mm_min[i]) if m.kind[i] != 0 else self.rapid_mm_min
-                return {"pos_mm": _round(pos), "feed_mm_min": _jsonable(round(feed, 1)),
-                        "spindle_rpm": _jsonable(float(m.spindle_rpm[i])),
-                        "block_end_mm": _round(m.end[idx[-1]])}  # fmt: skip
-            t -= d
-        return None
-
-    def toolpath_xy(self, max_points: int = 20_000) -> list[list[Any]]:
-        """[block, kind, x0, y0, x1, y1] per segment (mm; arcs as chords), for the page's XY
-        view; at most ``max_points`` segments (a longer program is thinned evenly)."""
-        m = self.motion
-        n = len(m)
-        step = max(1, -(-n // max_points))
-        return [[int(m.block[i]), int(m.kind[i]), round(float(m.start[i, 0]), 3),
-                 round(float(m.start[i, 1]), 3), round(float(m.end[i, 0]), 3),
-                 round(float(m.end[i, 1]), 3)] for i in range(0, n, step)
-                if m.kind[i] != 4]  # fmt: skip
-
-
-def _round(v: Any) -> list[float] | None:
-    return None if v is None else [round(float(x), 3) for x in v]
-
-
-def _jsonable(x: float) -> float | None:
-    return float(x) if x is not None and math.isfinite(x) else None
 
 
 class LiveCampaign:
@@ -248,6 +86,7 @@ class LiveCampaign:
         self.expected_wall_s = [p.expected_s / self.speed for p in plans]
         self.run_names = [p.test.name for p in plans]
         self.rpms = [float(p.test.spindle_rpm) for p in plans]
+        self.tests = [p.test for p in plans]
         self.cal = Calibration.from_dynamometer(campaign.rig.dynamometer)
         self.ring = RingWriter(ring_path)
         self.stop = StopRequest()
@@ -260,6 +99,7 @@ class LiveCampaign:
         self._run_wall0 = math.nan
         self._wall0 = time.monotonic()
         self._info: DaqInfo | None = None
+        self._health: LoggerHealth | None = None
         self._t0_s = math.nan
         self._expect = 0
         self._meta: dict[str, Any] = {}
@@ -311,6 +151,7 @@ class LiveCampaign:
 
     def on_start(self, info: DaqInfo, t0_s: float) -> None:
         self._info, self._t0_s, self._expect = info, float(t0_s), 0
+        self._health = LoggerHealth(info.rate_hz, t0_s)
         self._meta = self._run_meta(info, t0_s)
         self.ring.begin_run(self._meta, info.n_channels, info.dtype)
 
@@ -321,6 +162,9 @@ class LiveCampaign:
                       self._t0_s + self._expect / self._info.rate_hz)  # fmt: skip
         self._expect = first_sample + int(data.shape[1])
         self.ring.write(first_sample, data)
+        s, health = self._session, self._health
+        if s is not None and health is not None:
+            health.on_block(data.shape[1], s.clock())
 
     def on_event(self, event: DaqEvent) -> None:
         if event.kind in SHOWN_EVENTS:
@@ -351,11 +195,19 @@ class LiveCampaign:
             "volts_to_n": self.cal.volts_to_n.tolist(),
             "spindle_rpm": self.rpms[k] if 0 <= k < self.n_runs else None,
             "teeth": self._teeth(),
-            # the lobes' chatter frequency when the campaign gives one (no lobes: not known)
-            "chatter_hz": getattr(self.campaign, "chatter_hz", None),
+            # the run's cut for the lobes (the server computes them), or why there are none
+            "stability": self._stability(k),
             "zero_v": None,
             "program": [],
         }
+
+    def _stability(self, k: int) -> dict[str, Any]:
+        if not 0 <= k < self.n_runs:
+            return {"reason": "no run"}
+        try:
+            return stability_case(self.campaign, self.tests[k])
+        except Exception as exc:  # noqa: BLE001 - the live view must never endanger the run
+            return {"reason": f"no lobes: {exc}"[:200]}
 
     def _teeth(self) -> int | None:
         tool = getattr(self.campaign, "tool", None)
@@ -377,7 +229,7 @@ class LiveCampaign:
         meta["program_name"] = program.name
         try:  # the DRO's estimate and the toolpath; a program it cannot read shows without
             path = ProgramPath(program.text, getattr(self.campaign, "machine", None), program.name)
-            meta["toolpath"] = path.toolpath_xy(5000)
+            meta["toolpath"] = path.toolpath(5000)
             self._path = path
         except Exception as exc:  # noqa: BLE001 - the live view must never endanger the run
             meta["toolpath"] = []
@@ -533,7 +385,13 @@ class LiveCampaign:
             "bands": self._bands,
             # the adaptive loop (rig.adaptive): target, force per revolution, overrides, state
             "adaptive": None if ctl is None else ctl.live_status(),
+            "logger": self._logger_status(s, now),
         }
+
+    def _logger_status(self, s: _LiveSession, now: float) -> dict[str, Any] | None:
+        stats = getattr(s.writer, "stats", None)  # the run writer, once the program starts
+        health = self._health
+        return None if health is None else health.status(stats() if stats else None, now)
 
     # -- the end ---------------------------------------------------------------------------------
     def close(self, phase: str = "finished", message: str = "") -> None:
@@ -549,204 +407,6 @@ class LiveCampaign:
         self._thread.join(timeout=2.0)
         self.guard(self._publish)
         self.ring.close()
-
-
-# ----------------------------------------------------------------------------------------------
-# The server beside the campaign
-# ----------------------------------------------------------------------------------------------
-
-
-def url_of(bind: str, port: int, token: str) -> str:
-    """The address to open, token included (as notebook servers print theirs)."""
-    b = bind.strip().strip("[]")
-    host = "127.0.0.1" if b in WILDCARD_BINDS else f"[{b}]" if ":" in b else b
-    return f"http://{host}:{port}/?token={token}"
-
-
-def check_console_extra() -> None:
-    """ConfigError naming the install line when the console's packages are missing."""
-    import importlib.util
-
-    missing = [m for m in ("starlette", "uvicorn", "websockets") if not importlib.util.find_spec(m)]
-    if missing:
-        raise ConfigError(
-            f"the live console needs {', '.join(missing)}: pip install -e '.[console]'"
-        )
-
-
-def check_port(bind: str, port: int) -> None:
-    """ConfigError when ``bind:port`` cannot be listened on (in use, no such address)."""
-    if not 0 < port < 65536:
-        raise ConfigError(f"--port = {port}: expected a TCP port 1..65535")
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            s.bind((bind, port))
-        except OSError as exc:
-            raise ConfigError(
-                f"console: cannot listen on {bind}:{port}: {exc.strerror or exc} (another "
-                "console or program uses it? choose another --port)"
-            ) from None
-
-
-def start_server(
-    target: Path, port: int, bind: str, token: str, timeout_s: float = 20.0
-) -> subprocess.Popen:
-    """The console server for ``target`` in its own process (its own session: Ctrl-C at the
-    campaign's terminal is the campaign's), with the session's ``token`` (in its environment,
-    not its command line); returns once it answers."""
-    cmd = [sys.executable, "-m", "rig.console.server", str(target), "--port", str(port),
-           "--bind", bind, "--linger-s", str(LINGER_S)]  # fmt: skip
-    env = {**os.environ, TOKEN_ENV: token}
-    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, start_new_session=True, env=env)
-    url = url_of(bind, port, token).split("?")[0] + "api/health"
-    ask = urllib.request.Request(url, headers={"Authorization": f"Bearer {token}"})
-    t_end = time.monotonic() + timeout_s
-    while time.monotonic() < t_end:
-        if proc.poll() is not None:
-            raise ConfigError(f"console: the server exited at start (status {proc.returncode})")
-        with contextlib.suppress(OSError):
-            with urllib.request.urlopen(ask, timeout=1.0) as r:
-                if r.status == 200:
-                    return proc
-        time.sleep(0.1)
-    proc.terminate()
-    raise ConfigError(f"console: the server did not answer on {url} within {timeout_s:.0f} s")
-
-
-def stop_server(proc: subprocess.Popen, grace_s: float = 1.0) -> None:
-    """Let the page see the final state for ``grace_s``, then end the server."""
-    if proc.poll() is None:
-        time.sleep(grace_s)
-        proc.terminate()
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-
-
-def leave_server(proc: subprocess.Popen, url: str) -> None:
-    """The campaign has ended: its server stays (the page switches to browsing the runs) for
-    ``LINGER_S`` (``CUTLAB_CONSOLE_LINGER_S``), then exits by itself; said on stderr with its
-    process id. Without a linger it is stopped now."""
-    if proc.poll() is not None:
-        return
-    if LINGER_S <= 0:
-        stop_server(proc)
-        return
-    proc.returncode = 0  # not waited for: it outlives this process (no ResourceWarning)
-    with contextlib.suppress(OSError):  # the next live campaign on this port ends it
-        _linger_file(url).write_text(str(proc.pid))
-    print(f"cutlab: the console stays at {url} for {LINGER_S:.0f} s to browse the runs "
-          f"(server process {proc.pid})", file=sys.stderr, flush=True)  # fmt: skip
-
-
-def _linger_file(url: str) -> Path:
-    from rig.console.ring import default_ring_path
-
-    port = url.split("/")[2].rsplit(":", 1)[-1]
-    return default_ring_path().parent / f"cutlab-console-{os.getuid()}-{port}.linger"
-
-
-def end_lingering(bind: str, port: int) -> None:
-    """A console this user left on ``port`` to browse a finished campaign is ended, so a new
-    live campaign can take the port (only a process that is still that server)."""
-    f = _linger_file(url_of(bind, port, ""))
-    try:
-        pid = int(f.read_text().strip() or 0)
-    except (OSError, ValueError):
-        return
-    f.unlink(missing_ok=True)
-    try:
-        cmdline = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
-    except OSError:
-        return
-    if b"rig.console.server" not in cmdline:
-        return  # the PID is another process's now
-    with contextlib.suppress(OSError):
-        os.kill(pid, 15)
-        t_end = time.monotonic() + 5.0
-        while pid_alive(pid) and time.monotonic() < t_end:
-            with contextlib.suppress(ChildProcessError):  # our own child: reaped here
-                os.waitpid(pid, os.WNOHANG)
-            time.sleep(0.05)
-
-
-def pid_alive(pid: int) -> bool:
-    if pid <= 0:
-        return False
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
-def _beating(ring: Path) -> bool:
-    """The ring's writer beat within the last 10 s and has not closed it (a PID alone may have
-    been reused by another process)."""
-    from rig.console.ring import RingReader
-
-    try:
-        r = RingReader(ring)
-    except RingError:
-        return False
-    try:
-        return not r.closed and r.heartbeat_age_s() < 10.0
-    finally:
-        r.close()
-
-
-def _ring_pid(path: Path) -> int:
-    """The writer's PID from a ring file's name (``cutlab-live-PID-N.ring``), else 0."""
-    parts = path.name.split("-")
-    return int(parts[2]) if len(parts) == 4 and parts[2].isdigit() else 0
-
-
-def remove_stale(folder: Path) -> list[Path]:
-    """Remove what a killed live campaign left (issue 31): ``folder/live.json`` and the ring it
-    names when their process is dead, and this user's other rings in the ring folder whose
-    process is dead. A live campaign's are kept; ``live.json`` of another live process in this
-    folder is an error (its campaign runs). Returns what was removed."""
-    from rig.console.ring import default_ring_path
-
-    removed: list[Path] = []
-    pointer = folder / LIVE_FILE
-    try:
-        ptr = json.loads(pointer.read_text())
-    except (OSError, ValueError):
-        ptr = None if not pointer.exists() else {}
-    if ptr is not None:
-        pid = int(ptr.get("pid", 0) or 0) if isinstance(ptr, dict) else 0
-        ring = Path(str(ptr.get("ring", ""))) if isinstance(ptr, dict) else None
-        if pid != os.getpid() and pid_alive(pid) and ring is not None and _beating(ring):
-            raise ConfigError(
-                f"{pointer}: the live campaign of process {pid} is running in this folder"
-            )
-        if ring is not None and ring.name.startswith("cutlab-live-") and ring.suffix == ".ring":
-            with contextlib.suppress(OSError):
-                ring.unlink()
-                removed.append(ring)
-        with contextlib.suppress(OSError):
-            pointer.unlink()
-            removed.append(pointer)
-    # Rings whose live.json was never written or was removed: those of dead processes of ours;
-    # the notes of lingering consoles that have gone.
-    uid = os.getuid()
-    for note in default_ring_path().parent.glob(f"cutlab-console-{uid}-*.linger"):
-        with contextlib.suppress(OSError, ValueError):
-            if not pid_alive(int(note.read_text().strip() or 0)):
-                note.unlink()
-    for ring in default_ring_path().parent.glob("cutlab-live-*.ring"):
-        pid = _ring_pid(ring)
-        with contextlib.suppress(OSError):
-            if pid and pid != os.getpid() and ring.stat().st_uid == uid and not pid_alive(pid):
-                ring.unlink()
-                removed.append(ring)
-    return removed
 
 
 @contextlib.contextmanager

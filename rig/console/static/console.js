@@ -43,6 +43,9 @@ const RECONNECT_FOR_MS = 120000; // then the page says the server is gone and st
 let paused = false; // the live plot holds still (zoom, scroll-back); samples keep coming
 let toolpath = []; // [block, kind, x0, y0, x1, y1] per segment, from the run info
 let tpView = null; // the toolpath canvas's transform (mm -> px), for tests and screenshots
+const view3d = new View3D($("toolpath3d"), $("tp3d-legend"));
+$("tp3d-colour").onchange = (e) => view3d.setColourBy(e.target.value);
+$("tp3d-reset").onclick = () => view3d.reset();
 const latencies = []; // sample-to-screen, ms, the last LAT_N frames with new samples
 const latencyParts = []; // [server ms, page ms] of the same frames
 const LAT_N = 250;
@@ -52,6 +55,10 @@ window.cutlab = {
   readouts: null,
   dro: null,
   toolpath: () => tpView,
+  view3d: () => view3d.state(),
+  project3d: (x, y, z) => view3d.project(x, y, z),
+  trail: () => view3d.trail,
+  logger: null,
   toolpathSegments: () => toolpath,
   status: () => status,
   latest: () => (bins.t.length ? bins.t[bins.t.length - 1] : null), // run clock s
@@ -272,46 +279,13 @@ function showStatus(s) {
   if (s.bands) bands = s.bands;
   showEvents(s.events || []);
   drawToolpath();
+  // the tool stays where it was last reported (between runs, after the end: nothing reported)
+  const pos = (s.machine || {}).pos_mm;
+  if (!browsing && pos) view3d.setPosition(pos);
+  if (s.logger !== undefined) showLogger(s.logger);
   updateControls();
   if (s.command && s.command.seq) {
     $("cmd-note").textContent = `${s.command.cmd}: ${s.command.message}`;
-  }
-}
-
-// -- the DRO: as the controller reports it, or estimated from the program (drip feed) -------
-function fmtNum(v, digits) {
-  return v === null || v === undefined || !isFinite(v) ? "-" : Number(v).toFixed(digits);
-}
-
-function showDro(m) {
-  const p = m.pos_mm || [null, null, null];
-  ["x", "y", "z"].forEach((a, i) => ($(`dro-${a}`).textContent = fmtNum(p[i], 3)));
-  $("dro-feed").textContent = fmtNum(m.feed_mm_min, 0);
-  $("dro-spindle").textContent = fmtNum(m.spindle_rpm, 0);
-  const ov = m.overrides_pct;
-  $("dro-overrides").textContent = ov
-    ? `feed ${ov.feed}%, rapid ${ov.rapid}%, spindle ${ov.spindle}%`
-    : "not reported";
-  $("dro").classList.toggle("estimated", !!m.estimated);
-  $("dro-estimated").classList.toggle("hidden", !m.estimated);
-  $("dro-estimated").title = m.source || "";
-  window.cutlab.dro = m;
-}
-
-// -- per-revolution readouts (the server cuts revolutions as analysis.runs.per_revolution) ---
-function showReadouts(r) {
-  window.cutlab.readouts = r;
-  $("readout-head").textContent = `revolution ${r.rev} at ${r.t_s.toFixed(3)} s (${r.rpm} rpm), ${r.unit}`;
-  for (const what of ["mean", "peak", "rms"]) {
-    const tr = $(`readout-${what}`);
-    tr.dataset.rev = r.rev;
-    while (tr.children.length > 1) tr.removeChild(tr.lastChild);
-    r.channels.forEach((name, c) => {
-      const td = document.createElement("td");
-      td.dataset.channel = name;
-      td.textContent = `${name} ${r[what][c].toFixed(1)}`;
-      tr.appendChild(td);
-    });
   }
 }
 
@@ -346,88 +320,6 @@ function updateControls() {
     $("machine-state").textContent = "ended";
     $("machine-state").className = "state ended";
   }
-}
-
-// -- the toolpath, XY: the program (grey), the cut so far (blue), the executing block --------
-function drawToolpath() {
-  const cv = $("toolpath");
-  const ctx = cv.getContext("2d");
-  const W = cv.width, H = cv.height, pad = 10;
-  ctx.clearRect(0, 0, W, H);
-  if (!toolpath.length) return;
-  let [x0, x1, y0, y1] = [Infinity, -Infinity, Infinity, -Infinity];
-  for (const s of toolpath) {
-    x0 = Math.min(x0, s[2], s[4]); x1 = Math.max(x1, s[2], s[4]);
-    y0 = Math.min(y0, s[3], s[5]); y1 = Math.max(y1, s[3], s[5]);
-  }
-  const k = Math.min((W - 2 * pad) / Math.max(x1 - x0, 1e-6), (H - 2 * pad) / Math.max(y1 - y0, 1e-6));
-  const px = (x) => pad + (x - x0) * k;
-  const py = (y) => H - pad - (y - y0) * k; // Y up
-  const exec = browsing ? -1 : execBlock;
-  const seg = (s, color, width) => {
-    ctx.strokeStyle = color; ctx.lineWidth = width;
-    ctx.beginPath(); ctx.moveTo(px(s[2]), py(s[3])); ctx.lineTo(px(s[4]), py(s[5])); ctx.stroke();
-  };
-  for (const s of toolpath) seg(s, s[1] === 0 ? "#cfd8dc" : "#90a4ae", 1);
-  if (exec >= 0) for (const s of toolpath) if (s[0] < exec && s[1] !== 0) seg(s, "#1e88e5", 2);
-  ctx.lineCap = "round";
-  for (const s of toolpath) {
-    if (s[0] !== exec) continue;
-    seg(s, "#ff6f00", 4);
-    ctx.fillStyle = "#ff6f00"; // a plunge (no XY travel) shows as a dot
-    ctx.beginPath(); ctx.arc(px(s[4]), py(s[5]), 3, 0, 2 * Math.PI); ctx.fill();
-  }
-  ctx.lineCap = "butt";
-  const p = (status.machine || {}).pos_mm;
-  if (!browsing && p) {
-    ctx.fillStyle = "#d32f2f";
-    ctx.beginPath(); ctx.arc(px(p[0]), py(p[1]), 4, 0, 2 * Math.PI); ctx.fill();
-  }
-  tpView = { x0, y0, k, pad, W, H, block: exec, executing_color: "#ff6f00" };
-  cv.dataset.block = exec;
-}
-
-// -- the live spectrum: per channel, tooth-passing harmonics (grey), chatter frequency (red) --
-function drawSpectrum(sp) {
-  window.cutlab.spectrum = sp;
-  const cv = $("spectrum");
-  const ctx = cv.getContext("2d");
-  const W = cv.width, H = cv.height, L = 34, B = 18, T = 6;
-  ctx.clearRect(0, 0, W, H);
-  const fMax = sp.f_hz[sp.f_hz.length - 1] || 1;
-  let aMax = 1e-9;
-  for (const a of sp.amp) for (const v of a) aMax = Math.max(aMax, v);
-  const x = (f) => L + (f / fMax) * (W - L - 4);
-  const y = (a) => H - B - (a / aMax) * (H - B - T);
-  ctx.font = "10px monospace";
-  ctx.fillStyle = "#666";
-  ctx.fillText(`${aMax.toFixed(1)} ${sp.unit}`, 0, T + 8);
-  ctx.fillText("0", L - 10, H - B);
-  ctx.fillText(`${fMax.toFixed(0)} Hz`, W - 48, H - 4);
-  if (sp.tooth_hz) {
-    ctx.strokeStyle = "#b0bec5";
-    ctx.setLineDash([3, 3]);
-    for (let h = 1; h * sp.tooth_hz <= fMax; h++) {
-      ctx.beginPath(); ctx.moveTo(x(h * sp.tooth_hz), T); ctx.lineTo(x(h * sp.tooth_hz), H - B);
-      ctx.stroke();
-    }
-    ctx.setLineDash([]);
-    ctx.fillText(`tooth ${sp.tooth_hz.toFixed(1)} Hz`, L + 2, H - 4);
-  }
-  if (sp.chatter_hz) {
-    ctx.strokeStyle = "#d32f2f";
-    ctx.beginPath(); ctx.moveTo(x(sp.chatter_hz), T); ctx.lineTo(x(sp.chatter_hz), H - B);
-    ctx.stroke();
-  }
-  $("spectrum-note").textContent = sp.chatter_hz
-    ? `chatter ${sp.chatter_hz.toFixed(0)} Hz (lobes)`
-    : "chatter frequency: not known (no lobes)";
-  sp.amp.forEach((a, c) => {
-    ctx.strokeStyle = COLORS[c % COLORS.length];
-    ctx.beginPath();
-    a.forEach((v, i) => (i ? ctx.lineTo(x(sp.f_hz[i]), y(v)) : ctx.moveTo(x(sp.f_hz[i]), y(v))));
-    ctx.stroke();
-  });
 }
 
 function showEvents(events) {
@@ -529,9 +421,13 @@ function onMessage(ev) {
       window.cutlab.readouts = null;
     }
     showProgram(meta.program || [], meta.program_name || meta.name || "");
-    if (meta.toolpath) toolpath = meta.toolpath;
+    if (meta.toolpath) {
+      toolpath = meta.toolpath;
+      view3d.setPlanned(toolpath);
+    }
     if (!browsing) makePlot(meta.channels, "N");
   }
+  if (msg.trail) view3d.setTrail(msg.trail.points, msg.trail.reset);
   if (msg.status) showStatus(msg.status);
   if (msg.bins) addBins(msg.bins);
   if (msg.readouts) showReadouts(msg.readouts);
