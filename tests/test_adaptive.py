@@ -330,7 +330,7 @@ def test_cli_refuses_adaptive_without_grbl_or_table(tmp_path, capsys) -> None:
     p.write_text(text)
     assert main(["campaign", "run", str(p), "--adaptive", "feed", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "ace-h63 (fanuc) has no real-time override" in err[0]
+    assert len(err) == 1 and "fanuc controller of machine 'ace-h63' has no override path" in err[0]
     assert not (tmp_path / "adaptive-step").exists()
 
 

@@ -106,6 +106,7 @@ def test_step_depth_adaptive_feed_holds_the_target(tmp_path: Path) -> None:
     """Seed 001's block at 150 N: the 0.1 mm step is out of reach (its load is the edge's: 74 N
     at 200 %), the controller reports it saturated, and the share within +-10 % is given over
     all the cutting time and over the reachable time apart."""
+    from rig.adaptive.session import target_of
     from rig.report.adaptive_figures import cycle_time_s, saturated_spans, within_band
     from rig.report.base import load_runs
 
@@ -127,6 +128,17 @@ def test_step_depth_adaptive_feed_holds_the_target(tmp_path: Path) -> None:
     # (2000 mm/min: 0.6 s) from the cut's first revolution (3.0 s into the program, +-0.1 s)
     assert 2.9 <= span[0] and span[1] <= 3.0 + 0.6 + 0.1
     assert cycle_time_s(ad.run) > cycle_time_s(base.run)  # the deep steps ran slower
+    # the default target (no target_force_n): the feed rule's reference cut, a 0.7 mm slot at
+    # 1000 mm/min, as the material's coefficients predict it, against what the baseline measured
+    # on its 0.7 mm step (its last 20 mm: the revolutions before the 4.6 mm exit)
+    test = next(t for t in c.tests if t.group == "adaptive")
+    no_target = c.spec.model_copy(update={"adaptive": c.spec.adaptive.model_copy(
+        update={"target_force_n": None})})  # fmt: skip
+    import dataclasses
+
+    predicted, _ = target_of(dataclasses.replace(c, spec=no_target), test)
+    measured = float(np.median(wb["means"][-35:-15]))
+    assert predicted == pytest.approx(measured, rel=0.03)
 
 
 @pytest.mark.slow

@@ -8,7 +8,7 @@ import math
 from typing import Any
 
 from rig.report.adaptive_figures import adaptive_events, cycle_time_s, within_band
-from rig.adaptive.session import under_loop
+from rig.adaptive.session import target_of, under_loop
 
 
 def _same_cut(a: Any, b: Any) -> bool:
@@ -55,13 +55,15 @@ def adaptive_entries(campaign: Any, runs: list[Any]) -> tuple[list[dict[str, Any
         plan = next((b for b in rest if test_of(b).feed_mode == "post-processed"
                      and _same_cut(b, lr)), None)  # fmt: skip
         holds = a.mode in ("feed", "both")  # a spindle-only loop holds no force target
-        target = a.target_force_n
+        target, target_from = target_of(campaign, test_of(lr))
+        holds = holds and target is not None
         w = within_band(lr, target) if holds else {"within": None}
         wb = within_band(base, target) if base is not None and holds else None
         e: dict[str, Any] = {
             "run": lr.name,
             "mode": a.mode,
             "target_force_n": target,
+            "target_from": target_from,
             "within_10pct": w["within"],
             # the same share over the reachable cutting time only: the revolutions the
             # controller did not report saturated (at an override limit, target out of reach)
