@@ -156,7 +156,8 @@ class MachineConfig(Model):
     # real-time bytes on the serial line, a wired input (PMC / analog override driven by a DAQ
     # output), or none. Unset: by dialect (grbl: grbl-realtime; others: none).
     override: Literal["grbl-realtime", "none", "external-analog"] | None = Field(
-        None, description="override path: grbl-realtime, none, external-analog"
+        None,
+        description="how an override reaches the control (unset: by dialect, GRBL's bytes or none)",
     )
 
     @property

@@ -317,7 +317,8 @@ class AdaptiveSection(Model):
         None, gt=0, le=1e6, description="N, per-revolution mean |Fxy| held (default: [feed_rule])"
     )
     max_force_n: float | None = Field(
-        None, gt=0, le=1e6, description="N, resultant -> feed hold (default: force_limit_n)"
+        None, gt=0, le=1e6,
+        description="N, resultant -> feed hold (the lowest of it, the tool's, force_limit_n)",
     )
     dead_band_pct: float = Field(5.0, ge=0, le=50, description="%, of the target")
     slew_up_pct: int = Field(10, ge=1, le=190, description="%, feed override up per revolution")
