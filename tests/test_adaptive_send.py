@@ -29,7 +29,8 @@ def _twin(tmp_path: Path):
     text = text.replace('output_dir = "data/campaigns"',
                         f"output_dir = {json.dumps(str(tmp_path))}")  # fmt: skip
     text = text.replace("block_length_mm = 100.0", "block_length_mm = 30.0")
-    text = text.replace("step_depths_mm = [0.1, 0.25, 0.4, 0.55, 0.7]", "step_depths_mm = [0.4, 0.7]")
+    text = text.replace("step_depths_mm = [0.1, 0.25, 0.4, 0.55, 0.7]",
+                        "step_depths_mm = [0.4, 0.7]")  # fmt: skip
     text = text.replace("speed = 10\n", "speed = 1\n")  # the send paces its line in wall time
     p = tmp_path / "twin.toml"
     p.write_text(text)

@@ -128,6 +128,15 @@ def test_step_depth_adaptive_feed_holds_the_target(tmp_path: Path) -> None:
     # (2000 mm/min: 0.6 s) from the cut's first revolution (3.0 s into the program, +-0.1 s)
     assert 2.9 <= span[0] and span[1] <= 3.0 + 0.6 + 0.1
     assert cycle_time_s(ad.run) > cycle_time_s(base.run)  # the deep steps ran slower
+    # the report's adaptive list says the same, both shares and the saturated time
+    from rig.report.adaptive import adaptive_entries
+
+    (e,), md = adaptive_entries(c, runs)
+    assert e["within_10pct"] == wa["within"] and e["baseline_within_10pct"] == wb["within"]
+    assert e["within_10pct_reachable"] == wa["within_reachable"]
+    assert e["saturated_s"] == pytest.approx(wa["saturated_revolutions"] * REV_S)
+    assert e["target_force_n"] == 150.0 and e["target_from"] == "[adaptive] target_force_n"
+    assert "within (reachable)" in md and "saturated s" in md
     # the default target (no target_force_n): the feed rule's reference cut, a 0.7 mm slot at
     # 1000 mm/min, as the material's coefficients predict it, against what the baseline measured
     # on its 0.7 mm step (its last 20 mm: the revolutions before the 4.6 mm exit)

@@ -22,7 +22,7 @@ class _Tee:
     """The DAQ sink the DAQ gets: the run's sink, then the controller (zeroed on the first
     ``zero_samples`` samples per channel, the rest before the cut, as the run zeroes)."""
 
-    def __init__(self, sink: Any, owner: AdaptiveSession) -> None:
+    def __init__(self, sink: Any, owner: Any) -> None:  # an AdaptiveSession or a SendLoop
         self.sink, self.o = sink, owner
         self.info: Any = None
         self._rest: list[np.ndarray] = []
@@ -236,9 +236,12 @@ def settings_of(campaign: Any, test: Any) -> Any:
     from rig.adaptive.controller import AdaptiveSettings
 
     a = campaign.spec.adaptive
-    target, _ = target_of(campaign, test)
+    target, why = target_of(campaign, test)
+    cap = max_force_of(campaign)
+    if target is None or cap is None:  # check_adaptive refuses both first, naming the file
+        raise ValueError(f"adaptive: no target ({why}) or no hard limit")
     return AdaptiveSettings(
-        mode=a.mode, target_force_n=target, max_force_n=max_force_of(campaign),
+        mode=a.mode, target_force_n=target, max_force_n=cap,
         dead_band_pct=a.dead_band_pct, slew_up_pct=a.slew_up_pct, slew_down_pct=a.slew_down_pct,
         settle_revs=a.settle_revs, air_force_n=a.air_force_n, stall_revs=a.stall_revs,
         chatter_revs=a.chatter_revs, min_pct=a.min_pct, max_pct=a.max_pct,
@@ -289,8 +292,8 @@ def adaptive_session(campaign: Any, test: Any, session: Any, cal: Any) -> Any:
     a = campaign.spec.adaptive
     rate = campaign.spec.daq.rate_hz or campaign.rig.daq.rate_hz
     ctl = AdaptiveController(
-        settings_of(campaign, test), spindle_rpm=test.spindle_rpm, channels=tuple(cal.channel_names),
-        clock=session.clock, depth_mm=test.depth_mm,
+        settings_of(campaign, test), spindle_rpm=test.spindle_rpm,
+        channels=tuple(cal.channel_names), clock=session.clock, depth_mm=test.depth_mm,
         chatter_settings=campaign.spec.chatter.settings(),
         lobes=lobes_for(campaign, test, a.min_pct, a.max_pct) if a.mode != "feed" else None,
     )  # fmt: skip

@@ -7,8 +7,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from rig.report.adaptive_figures import adaptive_events, cycle_time_s, within_band
 from rig.adaptive.session import target_of, under_loop
+from rig.report.adaptive_figures import adaptive_events, cycle_time_s, within_band
 
 
 def _same_cut(a: Any, b: Any) -> bool:
@@ -56,9 +56,11 @@ def adaptive_entries(campaign: Any, runs: list[Any]) -> tuple[list[dict[str, Any
                      and _same_cut(b, lr)), None)  # fmt: skip
         holds = a.mode in ("feed", "both")  # a spindle-only loop holds no force target
         target, target_from = target_of(campaign, test_of(lr))
-        holds = holds and target is not None
-        w = within_band(lr, target) if holds else {"within": None}
-        wb = within_band(base, target) if base is not None and holds else None
+        w: dict[str, Any] = {"within": None}
+        wb: dict[str, Any] | None = None
+        if holds and target is not None:
+            w = within_band(lr, target)
+            wb = within_band(base, target) if base is not None else None
         e: dict[str, Any] = {
             "run": lr.name,
             "mode": a.mode,
