@@ -32,7 +32,6 @@ revolution in memory for the report and tests.
 
 from __future__ import annotations
 
-import functools
 import math
 import threading
 import time
@@ -43,9 +42,11 @@ from typing import Any
 import numpy as np
 
 from analysis.runs import file as rf
+from rig.adaptive.grbl_codes import MAX_PCT, MIN_PCT
+from rig.adaptive.grbl_codes import feed_codes as _feed_codes
+from rig.adaptive.grbl_codes import spindle_codes as _spindle_codes
+from rig.adaptive.pockets import nearest_pocket_rpm
 
-#: GRBL 1.1 override limits (config.h: MIN/MAX_FEED_RATE_OVERRIDE, ..._SPINDLE_...), %
-MIN_PCT, MAX_PCT = 10, 200
 MODES = ("feed", "spindle", "both")
 
 
@@ -99,38 +100,6 @@ class Decision:
     kind: str  # feed, spindle, reset, hold
     reason: str
     wall_latency_s: float | None = None  # from the block's arrival to the last byte written
-
-
-def nearest_pocket_rpm(
-    lobes: Any, rpm: float, depth_mm: float, min_pct: int = MIN_PCT, max_pct: int = MAX_PCT
-) -> float | None:
-    """The peak of the stable pocket nearest ``rpm`` within ``min_pct..max_pct`` % of it: a
-    pocket is a run of speeds whose stability limit (``lobes.depth_limit_mm``) is above
-    ``depth_mm`` by 10 %; its peak the speed of its highest limit (the middle of a plateau).
-    The peak, not the nearest stable speed: a pocket's edge chatters on a model error of a
-    percent (the twin's 0.9 mm slot at 5500 rpm chattered again at the pocket's edge, 5078
-    and 5019 rpm). None if there is none."""
-    s = np.asarray(lobes.spindle_rpm, float)
-    lim = np.asarray(lobes.depth_limit_mm, float)
-    ok = lim > 1.1 * depth_mm
-    peaks = []
-    i = 0
-    while i < len(s):
-        if not ok[i]:
-            i += 1
-            continue
-        j = i
-        while j + 1 < len(s) and ok[j + 1]:
-            j += 1
-        seg = lim[i : j + 1]
-        top = np.flatnonzero(seg >= seg.max() * (1 - 1e-9))
-        peak = float(s[i + top[len(top) // 2]])
-        if rpm * min_pct / 100 <= peak <= rpm * max_pct / 100:  # a peak within the override
-            peaks.append(peak)
-        i = j + 1
-    if not peaks:
-        return None
-    return min(peaks, key=lambda p: abs(p - rpm))
 
 
 class AdaptiveController:
@@ -589,46 +558,3 @@ def _stream_ended(streamer: Any) -> bool:
     """The streamer's record is closed: its program ended (ok or faulted) and its port closes."""
     ended = getattr(streamer, "sink_closed", None)
     return bool(ended()) if callable(ended) else False
-
-
-def _apply(pct: int, code: int, plus10: int, plus1: int, reset: int) -> int:
-    """GRBL 1.1's arithmetic for one override byte (protocol.c: each step clamps to 10-200 %)."""
-    if code == reset:
-        return 100
-    step = {plus10: 10, plus10 + 1: -10, plus1: 1, plus1 + 1: -1}[code]
-    return min(MAX_PCT, max(MIN_PCT, pct + step))
-
-
-@functools.lru_cache(maxsize=256)
-def _paths_from(cur: int) -> dict[int, tuple[int, ...]]:
-    """Breadth-first over GRBL's five feed bytes (reset, +-10, +-1) from ``cur`` %: the fewest
-    bytes to every reachable %. Clamping counts (12 -> 18 is -10 (10 %), +10, -1, -1)."""
-    best: dict[int, tuple[int, ...]] = {cur: ()}
-    frontier = [cur]
-    while frontier:
-        nxt = []
-        for p in frontier:
-            for code in (0x90, 0x91, 0x92, 0x93, 0x94):
-                q = _apply(p, code, 0x91, 0x93, 0x90)
-                if q not in best:
-                    best[q] = best[p] + (code,)
-                    nxt.append(q)
-        frontier = nxt
-    return best
-
-
-def _steps(cur: int, target: int, plus10: int, plus1: int, reset: int) -> list[int]:
-    """The fewest override bytes from ``cur`` to ``target`` % (feed codes mapped to the
-    spindle's when ``reset`` is the spindle's)."""
-    del plus10, plus1  # the spindle's codes are the feed's moved by 9
-    path = _paths_from(int(cur))[int(target)]
-    shift = reset - 0x90
-    return [c + shift for c in path]  # spindle: 0x99-0x9D, the feed's 0x90-0x94 + 9
-
-
-def _feed_codes(cur: int, target: int) -> list[int]:
-    return [] if cur == target else _steps(cur, target, 0x91, 0x93, 0x90)
-
-
-def _spindle_codes(cur: int, target: int) -> list[int]:
-    return [] if cur == target else _steps(cur, target, 0x9A, 0x9C, 0x99)
