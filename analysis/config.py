@@ -152,9 +152,27 @@ class MachineConfig(Model):
     )
     serial: SerialConfig = SerialConfig()
     five_axis: FiveAxis | None = None
+    # How a feed/spindle override reaches the control from outside (rig.adaptive): GRBL 1.1's
+    # real-time bytes on the serial line, a wired input (PMC / analog override driven by a DAQ
+    # output), or none. Unset: by dialect (grbl: grbl-realtime; others: none).
+    override: Literal["grbl-realtime", "none", "external-analog"] | None = Field(
+        None,
+        description="how an override reaches the control (unset: by dialect, GRBL's bytes or none)",
+    )
+
+    @property
+    def override_path(self) -> str:
+        if self.override is not None:
+            return self.override
+        return "grbl-realtime" if self.dialect == "grbl" else "none"
 
     @model_validator(mode="after")
     def _feeds(self) -> MachineConfig:
+        if self.override == "grbl-realtime" and self.dialect != "grbl":
+            raise ValueError(
+                f'override = "grbl-realtime": only GRBL 1.1 takes real-time override bytes '
+                f'(dialect = "{self.dialect}"); expected "none" or "external-analog"'
+            )
         if not self.feed_max_mm_min > self.feed_min_mm_min:
             raise ValueError(
                 f"feed_max_mm_min ({self.feed_max_mm_min}) must exceed feed_min_mm_min "
@@ -243,6 +261,8 @@ class EndMill(Model):
     youngs_modulus_gpa: float | None = Field(
         None, gt=0, le=1500, description="GPa, cutter's E (default by material: HSS, carbide)"
     )
+    # The adaptive loop's hard cap (rig.adaptive): a resultant above it holds the feed.
+    max_force_n: float | None = Field(None, gt=0, le=1e6, description="N, resultant -> feed hold")
 
     @model_validator(mode="after")
     def _geometry(self) -> EndMill:
@@ -293,6 +313,7 @@ class FaceMill(Model):
     )
     runout_mm: float = Field(0.0, ge=0, le=1, description="mm, radial runout per insert")
     holder: Holder = Holder(diameter_mm=60.0, length_mm=50.0)
+    max_force_n: float | None = Field(None, gt=0, le=1e6, description="N, resultant -> feed hold")
 
     @model_validator(mode="after")
     def _geometry(self) -> FaceMill:

@@ -9,7 +9,9 @@ machine's time, and reports:
   same plus the block's length (the oldest sample of the block waited that long in the DAQ: the
   DAQ block included, the issue's figure; target p95 <= 30 ms);
 - override bytes per second of cutting (cutting: the revolutions the controller judged as cut);
-- CPU (the acquisition thread's, inside the controller) per second of cutting.
+- CPU (the acquisition thread's, inside the controller) per second of cutting;
+- the time the controller reported saturated (at an override limit, the target out of reach:
+  the block's 0.1 mm step at 200 %).
 
     .venv/bin/python bench/bench_adaptive.py [--speed 1] [--read-s 0.015]
 """
@@ -76,6 +78,7 @@ def main() -> int:
         "cutting_s": cut_s,
         "override_bytes_per_s": len(ctl.bytes_sent) / cut_s if cut_s else None,
         "cpu_s_per_cutting_s": ctl.cpu_s / (cut_s / args.speed) if cut_s else None,
+        "saturated_s": ctl.summary()["saturated_s"],
     }
     print(json.dumps(out, indent=2))
     return 0

@@ -133,6 +133,53 @@ def test_holds_target_through_a_step_dead_band_and_slew() -> None:
     assert g.held == 0
 
 
+class _Notes:
+    """A run writer that keeps the controller's events (kind, text, time)."""
+
+    def __init__(self) -> None:
+        self.events: list[tuple[str, str, float]] = []
+
+    def event(self, kind: str, message: str = "", *, time_s: float | None = None) -> None:
+        self.events.append((kind, message, time_s))
+
+
+def test_saturation_is_reported_and_timed() -> None:
+    """A step whose load is the edge's (force independent of the feed, as seed 001's 0.1 mm
+    step on the twin: 74 N at 17 % and at 200 %) cannot reach the target at any override: the
+    controller sits at 200 %, says so once, and counts the revolutions and time at the limit;
+    a reachable step after it ends the span."""
+    rng = np.random.default_rng(7)
+    ctl, g, t = _controller(slew_up_pct=50)
+    ctl.writer = _Notes()
+    # 40 revolutions of 150 N whatever the feed, then 40 of 7 N per % (reachable at ~71 %)
+    forces = []
+    for i in range(80):
+        f = 150.0 if i < 40 else 7.0 * g.feed
+        forces.append(f)
+        t[0] += SPR / RATE
+        ctl.push_forces(t[0], _rev(f, rng))
+    ctl.close()
+    sat = [r.saturated for r in ctl.trace]
+    # 100 -> 150 (after the 1st revolution) -> 200 % (after the 3rd, the 2nd settling): from
+    # the 4th revolution on, every one of the edge step is cut at 200 % and saturated
+    assert not any(sat[:3]) and all(sat[3:40]) and not any(sat[40:])
+    (span,) = ctl.saturated_spans
+    assert span[2] == 37
+    assert span[1] - span[0] == pytest.approx(37 * 60 / RPM, abs=1e-9)
+    m = ctl.summary()
+    assert m["saturated_revolutions"] == 37
+    assert m["saturated_s"] == pytest.approx(37 * 60 / RPM)
+    notes = [x for _, x, _ in ctl.writer.events]
+    assert sum("saturated: feed at the 200 % limit" in x for x in notes) == 1
+    assert sum("saturation ended: 37 revolutions at the limit" in x for x in notes) == 1
+    # a target out of reach below: 10 % cannot bring 800 N to 500 N when the load is the edge's
+    ctl2, g2, t2 = _controller(slew_down_pct=90)
+    _run(ctl2, g2, t2, lambda i: 800.0 / g2.feed, 20, rng)
+    assert g2.feed == 10 and ctl2.trace[-1].saturated
+    ctl2.close()
+    assert ctl2.summary()["saturated_revolutions"] >= 10
+
+
 def test_air_resets_overrides_to_100() -> None:
     rng = np.random.default_rng(3)
     ctl, g, t = _controller()
@@ -283,7 +330,7 @@ def test_cli_refuses_adaptive_without_grbl_or_table(tmp_path, capsys) -> None:
     p.write_text(text)
     assert main(["campaign", "run", str(p), "--adaptive", "feed", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "ace-h63 (fanuc) has no real-time override" in err[0]
+    assert len(err) == 1 and "fanuc controller of machine 'ace-h63' has no override path" in err[0]
     assert not (tmp_path / "adaptive-step").exists()
 
 

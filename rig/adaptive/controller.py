@@ -18,6 +18,11 @@ feed-plane resultant ``|Fxy|`` over the revolution. Then, in this order:
    most ``slew_up_pct`` per revolution, down by at most ``slew_down_pct`` (lowering the load is
    the safe direction, so it may go faster), within 10-200 % (GRBL 1.1's limits); after a change
    it waits ``settle_revs`` revolutions (the revolution that mixes both feeds is not judged).
+   A revolution cut at a limit of the override with the force still outside the dead band on
+   the side the limit keeps it from correcting is *saturated*: the target is out of reach there
+   (seed 001's 0.1 mm step makes about 74 N at 200 % and at 17 % alike: its load is the edge's,
+   not the chip's). Saturation is an event when it starts and when it ends (with its revolutions
+   and time), counted in :meth:`summary`, so the report can tell reachable cutting time apart.
 
 Every decision is an event in the run file (kind ``note``, text ``adaptive: ...``; holds are
 ``pause``), every override byte with its run-clock time, the commanded and last reported
@@ -27,7 +32,6 @@ revolution in memory for the report and tests.
 
 from __future__ import annotations
 
-import functools
 import math
 import threading
 import time
@@ -38,9 +42,11 @@ from typing import Any
 import numpy as np
 
 from analysis.runs import file as rf
+from rig.adaptive.grbl_codes import MAX_PCT, MIN_PCT
+from rig.adaptive.grbl_codes import feed_codes as _feed_codes
+from rig.adaptive.grbl_codes import spindle_codes as _spindle_codes
+from rig.adaptive.pockets import nearest_pocket_rpm
 
-#: GRBL 1.1 override limits (config.h: MIN/MAX_FEED_RATE_OVERRIDE, ..._SPINDLE_...), %
-MIN_PCT, MAX_PCT = 10, 200
 MODES = ("feed", "spindle", "both")
 
 
@@ -85,6 +91,7 @@ class RevRecord:
     spindle_pct: int
     reported: tuple[int, ...] | None
     feed_mm_min: float | None
+    saturated: bool = False
 
 
 @dataclass
@@ -93,38 +100,6 @@ class Decision:
     kind: str  # feed, spindle, reset, hold
     reason: str
     wall_latency_s: float | None = None  # from the block's arrival to the last byte written
-
-
-def nearest_pocket_rpm(
-    lobes: Any, rpm: float, depth_mm: float, min_pct: int = MIN_PCT, max_pct: int = MAX_PCT
-) -> float | None:
-    """The peak of the stable pocket nearest ``rpm`` within ``min_pct..max_pct`` % of it: a
-    pocket is a run of speeds whose stability limit (``lobes.depth_limit_mm``) is above
-    ``depth_mm`` by 10 %; its peak the speed of its highest limit (the middle of a plateau).
-    The peak, not the nearest stable speed: a pocket's edge chatters on a model error of a
-    percent (the twin's 0.9 mm slot at 5500 rpm chattered again at the pocket's edge, 5078
-    and 5019 rpm). None if there is none."""
-    s = np.asarray(lobes.spindle_rpm, float)
-    lim = np.asarray(lobes.depth_limit_mm, float)
-    ok = lim > 1.1 * depth_mm
-    peaks = []
-    i = 0
-    while i < len(s):
-        if not ok[i]:
-            i += 1
-            continue
-        j = i
-        while j + 1 < len(s) and ok[j + 1]:
-            j += 1
-        seg = lim[i : j + 1]
-        top = np.flatnonzero(seg >= seg.max() * (1 - 1e-9))
-        peak = float(s[i + top[len(top) // 2]])
-        if rpm * min_pct / 100 <= peak <= rpm * max_pct / 100:  # a peak within the override
-            peaks.append(peak)
-        i = j + 1
-    if not peaks:
-        return None
-    return min(peaks, key=lambda p: abs(p - rpm))
 
 
 class AdaptiveController:
@@ -165,6 +140,7 @@ class AdaptiveController:
         self.feed_pct = 100
         self.spindle_pct = 100
         self.state = "idle"  # idle, air, cutting, hold
+        self.stream_over = False  # the program's stream ended: nothing more to override
         self.hold_reason: str | None = None
         self.trace: list[RevRecord] = []
         self.decisions: list[Decision] = []
@@ -188,6 +164,13 @@ class AdaptiveController:
         self.stamp_arrival = False
         self.chatter_at_s: float | None = None
         self.chatter_cleared_s: float | None = None
+        #: saturation: the revolution judged was cut at an override limit and missed the target
+        #: on the side the limit blocks; (start, end) run-clock s of each stretch
+        self._sat_side: str | None = None  # "max" or "min" while saturated
+        self._sat_t0 = 0.0
+        self._sat_revs = 0
+        self.saturated_spans: list[tuple[float, float, int]] = []  # (start s, end s, revs)
+        self._saturated_now = False
 
     # -- wiring ----------------------------------------------------------------------------------
     def attach(self, streamer: Any) -> None:
@@ -208,6 +191,8 @@ class AdaptiveController:
         """Stop watching (the run is over); sends nothing."""
         with self._lock:
             self._armed = False
+            if self.trace:
+                self._end_saturation(self.trace[-1].t_s)
         self._stop.set()
         if self._watch is not None and self._watch is not threading.current_thread():
             self._watch.join(timeout=2.0)
@@ -251,7 +236,7 @@ class AdaptiveController:
         wall0 = time.perf_counter() if wall0 is None else wall0
         with self._lock:
             self._last_block_t = self.clock() if self.stamp_arrival else t_end_s
-            if self.state == "hold":
+            if self.state == "hold" or self.stream_over:
                 return
             f = np.asarray(force_n, float)
             if not len(f):
@@ -295,6 +280,7 @@ class AdaptiveController:
             if self.state == "cutting":
                 self._note(t_s, f"cut ended: {force_n:.0f} N below air {s.air_force_n:.0f} N")
             self.state = "air"
+            self._end_saturation(t_s)
             self._win, self._win_n = [], 0
             self._verdicts = []
             if self.feed_pct != 100 or self.spindle_pct != 100:
@@ -305,17 +291,21 @@ class AdaptiveController:
             self.state = "cutting"
             # the feed step first: it is cheap and its bytes go out before the chatter check's
             # spectrum is computed (a chatter finding after it still holds or moves the spindle)
+            self._saturated_now = False
+            pct_ran = self.feed_pct  # the override this revolution was cut at
             if self._settle > 0:
                 self._settle -= 1
             elif s.mode in ("feed", "both"):
                 self._feed_step(t_s, force_n, wall0)
+            if s.mode in ("feed", "both"):
+                self._track_saturation(t_s, force_n, pct_ran)
             if self.state != "hold":
                 self._chatter_check(t_s, wall0)
         st = getattr(self.streamer, "last_status", None)
         self.trace.append(RevRecord(
             t_s, force_n, self.state, self.feed_pct, self.spindle_pct,
             getattr(self.streamer, "overrides", None) if self.streamer is not None else None,
-            getattr(st, "feed_mm_min", None),
+            getattr(st, "feed_mm_min", None), self._saturated_now,
         ))  # fmt: skip
 
     def _feed_step(self, t_s: float, force_n: float, wall0: float) -> None:
@@ -333,6 +323,37 @@ class AdaptiveController:
                f"{self.feed_pct} -> {new} %")  # fmt: skip
         self._send(t_s, "feed", new, why, wall0)
         self._settle = s.settle_revs
+
+    def _track_saturation(self, t_s: float, force_n: float, pct_ran: int) -> None:
+        """The revolution ending at ``t_s`` was cut at ``pct_ran`` %: saturated when that is a
+        limit and the force is outside the dead band on the side the limit blocks."""
+        s = self.s
+        err_pct = (force_n / s.target_force_n - 1.0) * 100.0
+        side = None
+        if pct_ran >= s.max_pct and err_pct < -s.dead_band_pct:
+            side = "max"
+        elif pct_ran <= s.min_pct and err_pct > s.dead_band_pct:
+            side = "min"
+        if side != self._sat_side:
+            self._end_saturation(t_s - self.rev_s)
+        if side is None:
+            return
+        self._saturated_now = True
+        if self._sat_side is None:
+            self._sat_side, self._sat_t0, self._sat_revs = side, t_s - self.rev_s, 0
+            lim = s.max_pct if side == "max" else s.min_pct
+            self._note(t_s, f"saturated: feed at the {lim} % limit, force {force_n:.0f} N, target "
+                       f"{s.target_force_n:.0f} N: out of reach here")  # fmt: skip
+        self._sat_revs += 1
+
+    def _end_saturation(self, t_end_s: float) -> None:
+        if self._sat_side is None:
+            return
+        t0, n = self._sat_t0, self._sat_revs
+        self.saturated_spans.append((t0, t_end_s, n))
+        self._sat_side = None
+        self._note(t_end_s, f"saturation ended: {n} revolutions at the limit, {t0:.4f}.."
+                   f"{t_end_s:.4f} s")  # fmt: skip
 
     def _chatter_check(self, t_s: float, wall0: float) -> bool:
         """Judge the last ``chatter_revs`` revolutions; True when it acted."""
@@ -411,13 +432,25 @@ class AdaptiveController:
         st = self.streamer
         for c in codes:
             if st is not None:
+                if _stream_ended(st):
+                    return self._ended(t_s)
                 try:
                     st.override(c)
                 except Exception as exc:  # noqa: BLE001 - a lost link: hold
+                    if _stream_ended(st):  # the program ended (port closed) meanwhile
+                        return self._ended(t_s)
                     self._hold(f"override 0x{c:02X} not sent ({exc})", t_s, wall0)
                     return False
             self.bytes_sent.append((self.clock(), c))
         return True
+
+    def _ended(self, t_s: float) -> bool:
+        """The stream is over (its record closed, the port closing): nothing to override and no
+        fault; the DAQ's last blocks are still judged. Said once."""
+        if not self.stream_over:
+            self._note(t_s, "the stream has ended: no more overrides")
+        self.stream_over = True
+        return False
 
     def _reset(self, t_s: float, why: str, wall0: float) -> None:
         if self.feed_pct != 100:
@@ -436,6 +469,7 @@ class AdaptiveController:
                 pass
         self.state = "hold"
         self.hold_reason = why
+        self._end_saturation(t_s)
         lat = time.perf_counter() - wall0
         self.latencies_s.append(lat)
         self.decisions.append(Decision(t_s, "hold", why, lat))
@@ -458,7 +492,7 @@ class AdaptiveController:
     def _watchdog(self) -> None:
         while not self._stop.wait(0.002):
             with self._lock:
-                if not self._armed or self.state == "hold":
+                if not self._armed or self.state == "hold" or self.stream_over:
                     continue
                 now = self.clock()
                 quiet = now - self._last_block_t
@@ -514,47 +548,13 @@ class AdaptiveController:
             "cpu_s": self.cpu_s,
             "chatter_at_s": self.chatter_at_s,
             "chatter_cleared_s": self.chatter_cleared_s,
+            "saturated_revolutions": sum(1 for r in cut if r.saturated),
+            "saturated_s": sum(60.0 / (self.rpm * r.spindle_pct / 100.0) for r in cut
+                               if r.saturated),  # fmt: skip
         }
 
 
-def _apply(pct: int, code: int, plus10: int, plus1: int, reset: int) -> int:
-    """GRBL 1.1's arithmetic for one override byte (protocol.c: each step clamps to 10-200 %)."""
-    if code == reset:
-        return 100
-    step = {plus10: 10, plus10 + 1: -10, plus1: 1, plus1 + 1: -1}[code]
-    return min(MAX_PCT, max(MIN_PCT, pct + step))
-
-
-@functools.lru_cache(maxsize=256)
-def _paths_from(cur: int) -> dict[int, tuple[int, ...]]:
-    """Breadth-first over GRBL's five feed bytes (reset, +-10, +-1) from ``cur`` %: the fewest
-    bytes to every reachable %. Clamping counts (12 -> 18 is -10 (10 %), +10, -1, -1)."""
-    best: dict[int, tuple[int, ...]] = {cur: ()}
-    frontier = [cur]
-    while frontier:
-        nxt = []
-        for p in frontier:
-            for code in (0x90, 0x91, 0x92, 0x93, 0x94):
-                q = _apply(p, code, 0x91, 0x93, 0x90)
-                if q not in best:
-                    best[q] = best[p] + (code,)
-                    nxt.append(q)
-        frontier = nxt
-    return best
-
-
-def _steps(cur: int, target: int, plus10: int, plus1: int, reset: int) -> list[int]:
-    """The fewest override bytes from ``cur`` to ``target`` % (feed codes mapped to the
-    spindle's when ``reset`` is the spindle's)."""
-    del plus10, plus1  # the spindle's codes are the feed's moved by 9
-    path = _paths_from(int(cur))[int(target)]
-    shift = reset - 0x90
-    return [c + shift for c in path]  # spindle: 0x99-0x9D, the feed's 0x90-0x94 + 9
-
-
-def _feed_codes(cur: int, target: int) -> list[int]:
-    return [] if cur == target else _steps(cur, target, 0x91, 0x93, 0x90)
-
-
-def _spindle_codes(cur: int, target: int) -> list[int]:
-    return [] if cur == target else _steps(cur, target, 0x9A, 0x9C, 0x99)
+def _stream_ended(streamer: Any) -> bool:
+    """The streamer's record is closed: its program ended (ok or faulted) and its port closes."""
+    ended = getattr(streamer, "sink_closed", None)
+    return bool(ended()) if callable(ended) else False

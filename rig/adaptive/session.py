@@ -22,7 +22,7 @@ class _Tee:
     """The DAQ sink the DAQ gets: the run's sink, then the controller (zeroed on the first
     ``zero_samples`` samples per channel, the rest before the cut, as the run zeroes)."""
 
-    def __init__(self, sink: Any, owner: AdaptiveSession) -> None:
+    def __init__(self, sink: Any, owner: Any) -> None:  # an AdaptiveSession or a SendLoop
         self.sink, self.o = sink, owner
         self.info: Any = None
         self._rest: list[np.ndarray] = []
@@ -155,14 +155,43 @@ def protocol_of(campaign: Any) -> str:
 
 
 def max_force_of(campaign: Any) -> float | None:
-    """The hard limit: the tool's ``max_force_n`` if its catalogue defines one, else
-    ``[adaptive] max_force_n``, else ``[suspenders] force_limit_n``."""
+    """The hard limit: the lowest of the tool's ``max_force_n`` (its catalogue's), ``[adaptive]
+    max_force_n`` and ``[suspenders] force_limit_n`` that are given (the config may only lower
+    the tool's cap); None when none is."""
     a = campaign.spec.adaptive
-    for v in (getattr(campaign.tool, "max_force_n", None), a.max_force_n,
-              campaign.spec.suspenders.force_limit_n):  # fmt: skip
-        if v is not None:
-            return float(v)
-    return None
+    given = [float(v) for v in (getattr(campaign.tool, "max_force_n", None), a.max_force_n,
+             campaign.spec.suspenders.force_limit_n) if v is not None]  # fmt: skip
+    return min(given) if given else None
+
+
+def target_of(campaign: Any, test: Any) -> tuple[float | None, str]:
+    """(target N, where it comes from) for ``test``: ``[adaptive] target_force_n``, else the
+    reference load of the campaign's feed rule (seed 001: the slot of ``[feed_rule]
+    reference_depth_mm`` at ``base_feed_mm_min``, the cut known safe at the base feed) as the
+    per-revolution mean |Fxy| the material's end-mill coefficients predict at ``test``'s spindle
+    speed (analysis.forces.evenness, the measure the loop holds); (None, why) without either."""
+    from analysis.config import EndMill
+
+    a = campaign.spec.adaptive
+    if a.target_force_n is not None:
+        return float(a.target_force_n), "[adaptive] target_force_n"
+    rule = campaign.spec.feed_rule
+    if rule is None:
+        return None, "no target_force_n and no [feed_rule] to take the reference load from"
+    coef = getattr(campaign.material, "endmill", None)
+    if not isinstance(campaign.tool, EndMill) or coef is None:
+        return None, (f"the feed rule's reference load needs an end mill and the material's "
+                      f"end-mill coefficients ({campaign.tool.kind}, "
+                      f"{'no' if coef is None else 'has'} coefficients)")  # fmt: skip
+    import numpy as np
+
+    from analysis.forces.evenness import SteadyCut, feed_plane_force_n
+
+    rpm = abs(float(test.spindle_rpm))
+    f = feed_plane_force_n(campaign.tool, coef, SteadyCut(rule.reference_depth_mm, 1.0), rpm,
+                           np.array([rule.base_feed_mm_min]))  # fmt: skip
+    return float(f[0]), (f"the feed rule's reference load: a {rule.reference_depth_mm:g} mm slot "
+                         f"at {rule.base_feed_mm_min:g} mm/min, {rpm:g} rpm")  # fmt: skip
 
 
 def check_adaptive(campaign: Any) -> None:
@@ -173,19 +202,24 @@ def check_adaptive(campaign: Any) -> None:
     if a is None:
         return
     where = f"{campaign.path}: [adaptive]"
-    proto = protocol_of(campaign)
-    if proto != "grbl":
-        raise ConfigError(
-            f"{where}: the controller {campaign.machine.name} ({proto}) has no real-time override "
-            'over serial; adaptive machining needs GRBL 1.1 ([sim] protocol = "grbl" on the twin)'
-        )
+    from rig.adaptive.override import refusal
+
+    why = refusal(campaign.machine, protocol_of(campaign))
+    if why is not None:
+        raise ConfigError(f'{where}: {why} ([sim] protocol = "grbl" on the twin)')
     mx = max_force_of(campaign)
     if mx is None:
-        raise ConfigError(f"{where} max_force_n: missing; give it in N (or [suspenders] "
-                         "force_limit_n)")  # fmt: skip
-    if not a.target_force_n < mx:
-        raise ConfigError(f"{where} target_force_n = {a.target_force_n:g}: expected below the "
-                         f"hard limit {mx:g} N")  # fmt: skip
+        raise ConfigError(f"{where} max_force_n: missing; give it in N (or the tool's max_force_n, "
+                         "or [suspenders] force_limit_n)")  # fmt: skip
+    for t in campaign.tests:
+        if not under_loop(campaign, t):
+            continue
+        target, why = target_of(campaign, t)
+        if target is None:
+            raise ConfigError(f"{where} target_force_n: missing: {why}; give it in N")
+        if not target < mx:
+            raise ConfigError(f"{where} target_force_n = {target:g} N ({why}): expected below "
+                             f"the hard limit {mx:g} N")  # fmt: skip
     known = {m.group for m in campaign.spec.matrix} | {t.group for t in campaign.spec.tests}
     bad = [g for g in a.groups if g not in known]
     if bad:
@@ -198,12 +232,16 @@ def under_loop(campaign: Any, test: Any) -> bool:
     return a is not None and (not a.groups or test.group in a.groups)
 
 
-def settings_of(campaign: Any) -> Any:
+def settings_of(campaign: Any, test: Any) -> Any:
     from rig.adaptive.controller import AdaptiveSettings
 
     a = campaign.spec.adaptive
+    target, why = target_of(campaign, test)
+    cap = max_force_of(campaign)
+    if target is None or cap is None:  # check_adaptive refuses both first, naming the file
+        raise ValueError(f"adaptive: no target ({why}) or no hard limit")
     return AdaptiveSettings(
-        mode=a.mode, target_force_n=a.target_force_n, max_force_n=max_force_of(campaign),
+        mode=a.mode, target_force_n=target, max_force_n=cap,
         dead_band_pct=a.dead_band_pct, slew_up_pct=a.slew_up_pct, slew_down_pct=a.slew_down_pct,
         settle_revs=a.settle_revs, air_force_n=a.air_force_n, stall_revs=a.stall_revs,
         chatter_revs=a.chatter_revs, min_pct=a.min_pct, max_pct=a.max_pct,
@@ -254,8 +292,8 @@ def adaptive_session(campaign: Any, test: Any, session: Any, cal: Any) -> Any:
     a = campaign.spec.adaptive
     rate = campaign.spec.daq.rate_hz or campaign.rig.daq.rate_hz
     ctl = AdaptiveController(
-        settings_of(campaign), spindle_rpm=test.spindle_rpm, channels=tuple(cal.channel_names),
-        clock=session.clock, depth_mm=test.depth_mm,
+        settings_of(campaign, test), spindle_rpm=test.spindle_rpm,
+        channels=tuple(cal.channel_names), clock=session.clock, depth_mm=test.depth_mm,
         chatter_settings=campaign.spec.chatter.settings(),
         lobes=lobes_for(campaign, test, a.min_pct, a.max_pct) if a.mode != "feed" else None,
     )  # fmt: skip

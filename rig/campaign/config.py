@@ -313,9 +313,12 @@ class AdaptiveSection(Model):
 
     mode: Literal["feed", "spindle", "both"] = Field("feed", description="feed, spindle or both")
     groups: tuple[str, ...] = Field((), description="matrix groups under the loop (empty: all)")
-    target_force_n: float = Field(gt=0, le=1e6, description="N, per-revolution mean |Fxy| held")
+    target_force_n: float | None = Field(
+        None, gt=0, le=1e6, description="N, per-revolution mean |Fxy| held (default: [feed_rule])"
+    )
     max_force_n: float | None = Field(
-        None, gt=0, le=1e6, description="N, resultant -> feed hold (default: force_limit_n)"
+        None, gt=0, le=1e6,
+        description="N, resultant -> feed hold (the lowest of it, the tool's, force_limit_n)",
     )
     dead_band_pct: float = Field(5.0, ge=0, le=50, description="%, of the target")
     slew_up_pct: int = Field(10, ge=1, le=190, description="%, feed override up per revolution")
@@ -332,7 +335,8 @@ class AdaptiveSection(Model):
 
     @model_validator(mode="after")
     def _below_max(self) -> AdaptiveSection:
-        if self.max_force_n is not None and not self.target_force_n < self.max_force_n:
+        t, mx = self.target_force_n, self.max_force_n
+        if t is not None and mx is not None and not t < mx:
             raise ValueError(
                 f"target_force_n = {self.target_force_n:g}, max_force_n = {self.max_force_n:g}: "
                 "expected target < max (N)"

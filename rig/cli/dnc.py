@@ -11,19 +11,17 @@ from rig.cli._common import count, number, positive, print_json, status
 
 def _refuse_adaptive(args: argparse.Namespace) -> None:
     """``--adaptive`` needs a real-time override on the serial line (GRBL 1.1's 0x90-0x9D
-    bytes); a Fanuc drip feed has none (its override is the panel's dial), so it is refused
-    before anything is opened. (No machine config field declares an external override input.)"""
+    bytes); a Fanuc drip feed has none (its override is the panel's dial, or an external input:
+    the machine config's ``override``), so it is refused before anything is opened."""
     if not args.adaptive:
         return
+    from rig.adaptive.override import refusal
     from rig.dnc import DncError, dnc_machine
 
     protocol, m = dnc_machine(args.protocol, args.machine)
-    if protocol != "grbl":
-        raise DncError(
-            f"dnc send --adaptive {args.adaptive}: the {protocol} controller of machine "
-            f"{m.name!r} has no real-time override over serial (a drip feed's override is the "
-            "panel's dial); expected a GRBL 1.1 controller (--protocol grbl)"
-        )
+    why = refusal(m, protocol)
+    if why is not None:
+        raise DncError(f"dnc send --adaptive {args.adaptive}: {why} (--protocol grbl)")
     # GRBL: the loop (rig.adaptive.send) needs its target, hard limit and the spindle's speed
     for opt, val in (("--target-force", args.target_force), ("--max-force", args.max_force),
                      ("--spindle-rpm", args.spindle_rpm)):  # fmt: skip

@@ -7,8 +7,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from rig.adaptive.session import target_of, under_loop
 from rig.report.adaptive_figures import adaptive_events, cycle_time_s, within_band
-from rig.adaptive.session import under_loop
 
 
 def _same_cut(a: Any, b: Any) -> bool:
@@ -55,13 +55,23 @@ def adaptive_entries(campaign: Any, runs: list[Any]) -> tuple[list[dict[str, Any
         plan = next((b for b in rest if test_of(b).feed_mode == "post-processed"
                      and _same_cut(b, lr)), None)  # fmt: skip
         holds = a.mode in ("feed", "both")  # a spindle-only loop holds no force target
-        w = within_band(lr, a.target_force_n) if holds else {"within": None}
-        wb = within_band(base, a.target_force_n) if base is not None and holds else None
+        target, target_from = target_of(campaign, test_of(lr))
+        w: dict[str, Any] = {"within": None}
+        wb: dict[str, Any] | None = None
+        if holds and target is not None:
+            w = within_band(lr, target)
+            wb = within_band(base, target) if base is not None else None
         e: dict[str, Any] = {
             "run": lr.name,
             "mode": a.mode,
-            "target_force_n": a.target_force_n,
+            "target_force_n": target,
+            "target_from": target_from,
             "within_10pct": w["within"],
+            # the same share over the reachable cutting time only: the revolutions the
+            # controller did not report saturated (at an override limit, target out of reach)
+            "within_10pct_reachable": w.get("within_reachable"),
+            "saturated_s": w.get("saturated_s"),
+            "saturated_revolutions": w.get("saturated_revolutions"),
             "baseline_within_10pct": None if wb is None else wb["within"],
             "cycle_time_s": cycle_time_s(lr.run),
             "baseline_cycle_time_s": None if base is None else cycle_time_s(base.run),
@@ -84,13 +94,17 @@ def adaptive_entries(campaign: Any, runs: list[Any]) -> tuple[list[dict[str, Any
         return "n/a" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, f)
 
     md = ["Per-revolution mean feed-plane force within +-10 % of the target, share of the "
-          "cutting revolutions (as the AFC report counts them); cycle time from the program's "
-          "start to its last block's end.\n",
-          "| run | mode | target N | within | baseline within | cycle s | baseline cycle s | "
-          "plan feed cycle s |", "|---|---|---|---|---|---|---|---|"]  # fmt: skip
+          "cutting revolutions (as the AFC report counts them), and the same share over the "
+          "reachable revolutions only (those the controller did not report saturated: cut at "
+          "an override limit with the target out of reach; their time is `saturated s`); cycle "
+          "time from the program's start to its last block's end.\n",
+          "| run | mode | target N | within | within (reachable) | saturated s | baseline within "
+          "| cycle s | baseline cycle s | plan feed cycle s |",
+          "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for e in out:
-        md.append(f"| {e['run']} | {e['mode']} | {e['target_force_n']:g} | "
-                  f"{num(e['within_10pct'], '.3f')} | {num(e['baseline_within_10pct'], '.3f')} | "
+        md.append(f"| {e['run']} | {e['mode']} | {num(e['target_force_n'], '.4g')} | "
+                  f"{num(e['within_10pct'], '.3f')} | {num(e['within_10pct_reachable'], '.3f')} | "
+                  f"{num(e['saturated_s'], '.2f')} | {num(e['baseline_within_10pct'], '.3f')} | "
                   f"{num(e['cycle_time_s'], '.2f')} | {num(e['baseline_cycle_time_s'], '.2f')} | "
                   f"{num(e['plan_feed_cycle_time_s'], '.2f')} |")  # fmt: skip
     return out, "\n".join(md) + "\n"
