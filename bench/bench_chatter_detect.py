@@ -218,7 +218,7 @@ def plan(half: str, quick: bool = False) -> list[Cut]:
     return cuts
 
 
-LIVE_REVS = 10  # rig.campaign.run.CHATTER_WINDOW_REVS
+LIVE_REVS = 10  # rig.campaign.chatter_watch.CHATTER_WINDOW_REVS
 LIVE_FLOOR_N = 10.0  # the campaign's chatter_floor_n default
 
 

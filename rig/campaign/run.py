@@ -32,6 +32,7 @@ from typing import Protocol
 import numpy as np
 
 from analysis.runs import file as rf
+from rig.campaign.chatter_watch import ChatterWatch
 from rig.daq import SAMPLE_FORMAT_RAW, Daq, DaqEvent, DaqInfo
 from rig.daq.calibration import Calibration, CalibrationError, compensate, fit_drift
 from rig.dnc import Program
@@ -39,8 +40,6 @@ from rig.dnc import Program
 STATUS_SUCCESS, STATUS_ABORT, STATUS_FAIL = rf.STATUS_SUCCESS, rf.STATUS_ABORT, rf.STATUS_FAIL
 #: s of run clock added to twice the program's expected time before a run is declared hung.
 WATCHDOG_MARGIN_S = 30.0
-#: Revolutions of force the chatter suspender judges (indicators keeps all but one at each end).
-CHATTER_WINDOW_REVS = 10
 #: wall s a simulated DAQ's block waits for room in the writer's queue before it is dropped
 LOSSLESS_WAIT_S = 60.0
 
@@ -85,36 +84,6 @@ class RunOutcome:
     wall_s: float
 
 
-class _ChatterWatch:
-    """The chatter suspender: the last ``revolutions`` of Fx and Fy (N) of the cut, judged after
-    every DAQ read by :func:`analysis.chatter.indicators` (a live window, as detect_run judges a
-    block); revolutions under ``floor_n`` (air, entry) never count as cutting."""
-
-    def __init__(
-        self, channels: tuple[str, ...], rate_hz: float, spindle_rpm: float, floor_n: float,
-        settings: object = None, revolutions: int = CHATTER_WINDOW_REVS,
-    ) -> None:  # fmt: skip
-        self.settings = settings
-        self.cols = [channels.index(c) for c in ("Fx", "Fy") if c in channels] or [0, 1]
-        self.rate_hz, self.spindle_rpm, self.floor_n = rate_hz, spindle_rpm, floor_n
-        self.n = int(math.ceil(revolutions * 60.0 * rate_hz / spindle_rpm))
-        self.window = np.zeros((0, len(self.cols)))
-
-    def push(self, force_n: np.ndarray) -> str | None:
-        """Add a read's forces (n, c) N; a message when the window chatters, else None."""
-        from analysis.chatter import indicators
-
-        self.window = np.vstack([self.window, force_n[:, self.cols]])[-self.n :]
-        if len(self.window) < self.n:
-            return None
-        v = indicators(self.window, self.rate_hz, self.spindle_rpm, self.settings,
-                       floor_n=self.floor_n)  # fmt: skip
-        if not v.chatter:
-            return None
-        return (f"chatter at {v.frequency_hz:.0f} Hz (energy {v.energy_ratio:.2f}, opr "
-                f"{v.opr_ratio:.2f})")  # fmt: skip
-
-
 class _Tap:
     """DAQ sink in front of the run writer: forwards everything; keeps the rest windows for the
     zero and the drift fit; computes forces to watch the force limit; notes DAQ faults."""
@@ -125,7 +94,7 @@ class _Tap:
         cal: Calibration,
         force_limit_n: float | None,
         on_over_limit: Callable[[str], None] | None = None,
-        chatter: _ChatterWatch | None = None,
+        chatter: ChatterWatch | None = None,
     ) -> None:
         self.writer = writer
         self.on_over_limit = on_over_limit
@@ -310,7 +279,7 @@ def execute_run(
 ) -> RunOutcome:
     """Run ``program`` on ``session`` into ``writer`` (already holding conditions and program).
     ``on_chatter`` "hold" or "abort" (with ``spindle_rpm`` > 0) watches the live force for
-    chatter (:class:`_ChatterWatch`, judged with ``chatter_settings``, an
+    chatter (:class:`ChatterWatch`, judged with ``chatter_settings``, an
     ``analysis.chatter.ChatterSettings``) and holds or aborts as the force limit does."""
     wall0 = time.monotonic()
     held_at: list[float] = []
@@ -336,7 +305,7 @@ def execute_run(
     rate = daq.info.rate_hz
     watch = None
     if on_chatter != "none" and spindle_rpm:
-        watch = _ChatterWatch(tuple(cal.channel_names), rate, abs(spindle_rpm), chatter_floor_n,
+        watch = ChatterWatch(tuple(cal.channel_names), rate, abs(spindle_rpm), chatter_floor_n,
                               chatter_settings)  # fmt: skip
     tap = _Tap(writer, cal, force_limit_n, hold_now, watch)
     tap.lossless = simulated and hasattr(writer, "put_block")
