@@ -4,11 +4,28 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
+from analysis.chatter import ChatterSettings, indicators
+
 #: Revolutions of force the chatter suspender judges (indicators keeps all but one at each end).
 CHATTER_WINDOW_REVS = 10
+
+
+@dataclass(frozen=True)
+class ChatterWatchConfig:
+    """The campaign's chatter suspender for one run: ``on_chatter`` ``none`` (off), ``hold``
+    (feed hold, abort after the hold timeout) or ``abort``; the commanded ``spindle_rpm`` (0:
+    off); ``floor_n`` the mean resultant, N, a revolution needs to count as cutting;
+    ``settings`` the detector's thresholds (None: its defaults)."""
+
+    on_chatter: Literal["none", "hold", "abort"] = "none"
+    spindle_rpm: float = 0.0
+    floor_n: float = 10.0
+    settings: ChatterSettings | None = None
 
 
 class ChatterWatch:
@@ -18,7 +35,7 @@ class ChatterWatch:
 
     def __init__(
         self, channels: tuple[str, ...], rate_hz: float, spindle_rpm: float, floor_n: float,
-        settings: object = None, revolutions: int = CHATTER_WINDOW_REVS,
+        settings: ChatterSettings | None = None, revolutions: int = CHATTER_WINDOW_REVS,
     ) -> None:  # fmt: skip
         self.settings = settings
         self.cols = [channels.index(c) for c in ("Fx", "Fy") if c in channels] or [0, 1]
@@ -28,8 +45,6 @@ class ChatterWatch:
 
     def push(self, force_n: np.ndarray) -> str | None:
         """Add a read's forces (n, c) N; a message when the window chatters, else None."""
-        from analysis.chatter import indicators
-
         self.window = np.vstack([self.window, force_n[:, self.cols]])[-self.n :]
         if len(self.window) < self.n:
             return None
