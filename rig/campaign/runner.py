@@ -44,6 +44,7 @@ from analysis import __version__
 from analysis.config import FaceMill
 from analysis.errors import ConfigError, CutlabError
 from analysis.runs import file as rf
+from rig.campaign.chatter_watch import ChatterWatchConfig
 from rig.campaign.config import Campaign, RunConditions, load_campaign
 from rig.campaign.manifest import (
     Manifest,
@@ -56,7 +57,6 @@ from rig.campaign.manifest import (
     utc_now,
 )
 from rig.campaign.programs import CutProgram, generate_program
-from rig.campaign.chatter_watch import ChatterWatchConfig
 from rig.campaign.run import RigSession, RunConfig, StopRequest, Suspenders, execute_run
 from rig.daq import Calibration
 from rig.errors import RigError
