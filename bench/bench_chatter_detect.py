@@ -22,7 +22,8 @@ defaults were chosen, and a held-out half (HELD_RPM) on which the rates are repo
 false positives on stable cuts (and how many of those at a tooth-passing harmonic), missed
 chatter beyond 1.1 x the limit, per group and overall, for the run verdict (detect_chatter on
 the whole record) and for the interlock (indicators on the last 10 revolutions after every
-0.1 s read, as rig.campaign's on_chatter suspender judges).
+0.1 s read, as the on_chatter suspender judged before it became rig.campaign.chatter_watch:
+bench/bench_chatter_live.py sets that one beside these).
 
     .venv/bin/python bench/bench_chatter_detect.py [--half cal|held|both] [--quick]
 """
@@ -218,7 +219,7 @@ def plan(half: str, quick: bool = False) -> list[Cut]:
     return cuts
 
 
-LIVE_REVS = 10  # rig.campaign.run.CHATTER_WINDOW_REVS
+LIVE_REVS = 10  # the former interlock's window (now: bench_chatter_live.py)
 LIVE_FLOOR_N = 10.0  # the campaign's chatter_floor_n default
 
 

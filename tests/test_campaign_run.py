@@ -263,6 +263,7 @@ def test_operator_pause_is_a_feed_hold_and_resume_continues_the_cut(
 
     import rig.campaign.run as runmod
     from rig.campaign.run import StopRequest
+    from rig.campaign.tap import RunTap
 
     answered = threading.Event()
 
@@ -277,7 +278,7 @@ def test_operator_pause_is_a_feed_hold_and_resume_continues_the_cut(
     c = load_campaign(cfg)
     stop = StopRequest()
     pressed = threading.Event()
-    on_block = runmod._Tap.on_block
+    on_block = RunTap.on_block
 
     def press_ctrl_c_during_the_cut(tap, first_sample: int, data) -> None:  # noqa: ANN001
         on_block(tap, first_sample, data)
@@ -285,7 +286,7 @@ def test_operator_pause_is_a_feed_hold_and_resume_continues_the_cut(
             pressed.set()
             stop.request()
 
-    monkeypatch.setattr(runmod._Tap, "on_block", press_ctrl_c_during_the_cut)
+    monkeypatch.setattr(RunTap, "on_block", press_ctrl_c_during_the_cut)
     res = run_campaign(c, progress=False, stop=stop, only=lambda t: t.index == 0)
     assert pressed.is_set() and answered.is_set()
     r = res.runs[0]

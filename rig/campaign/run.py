@@ -24,25 +24,22 @@ import math
 import sys
 import threading
 import time
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Literal, Protocol
 
 import numpy as np
 
 from analysis.runs import file as rf
-from rig.daq import SAMPLE_FORMAT_RAW, Daq, DaqEvent, DaqInfo
+from rig.campaign.chatter_watch import ChatterWatch, ChatterWatchConfig
+from rig.campaign.tap import RunRecorder, RunTap
+from rig.daq import Daq
 from rig.daq.calibration import Calibration, CalibrationError, compensate, fit_drift
 from rig.dnc import Program
 
 STATUS_SUCCESS, STATUS_ABORT, STATUS_FAIL = rf.STATUS_SUCCESS, rf.STATUS_ABORT, rf.STATUS_FAIL
 #: s of run clock added to twice the program's expected time before a run is declared hung.
 WATCHDOG_MARGIN_S = 30.0
-#: Revolutions of force the chatter suspender judges (indicators keeps all but one at each end).
-CHATTER_WINDOW_REVS = 10
-#: wall s a simulated DAQ's block waits for room in the writer's queue before it is dropped
-LOSSLESS_WAIT_S = 60.0
 
 
 class RigSession(Protocol):
@@ -51,7 +48,7 @@ class RigSession(Protocol):
     daq: Daq
     clock: Callable[[], float]
 
-    def start(self, program: Program, writer: object) -> None:
+    def start(self, program: Program, writer: RunRecorder) -> None:
         """Begin streaming ``program`` in the background; blocks are recorded in ``writer``."""
 
     def finished(self) -> bool:
@@ -83,171 +80,6 @@ class RunOutcome:
     peak_force_n: float
     samples: int
     wall_s: float
-
-
-class _ChatterWatch:
-    """The chatter suspender: the last ``revolutions`` of Fx and Fy (N) of the cut, judged after
-    every DAQ read by :func:`analysis.chatter.indicators` (a live window, as detect_run judges a
-    block); revolutions under ``floor_n`` (air, entry) never count as cutting."""
-
-    def __init__(
-        self, channels: tuple[str, ...], rate_hz: float, spindle_rpm: float, floor_n: float,
-        settings: object = None, revolutions: int = CHATTER_WINDOW_REVS,
-    ) -> None:  # fmt: skip
-        self.settings = settings
-        self.cols = [channels.index(c) for c in ("Fx", "Fy") if c in channels] or [0, 1]
-        self.rate_hz, self.spindle_rpm, self.floor_n = rate_hz, spindle_rpm, floor_n
-        self.n = int(math.ceil(revolutions * 60.0 * rate_hz / spindle_rpm))
-        self.window = np.zeros((0, len(self.cols)))
-
-    def push(self, force_n: np.ndarray) -> str | None:
-        """Add a read's forces (n, c) N; a message when the window chatters, else None."""
-        from analysis.chatter import indicators
-
-        self.window = np.vstack([self.window, force_n[:, self.cols]])[-self.n :]
-        if len(self.window) < self.n:
-            return None
-        v = indicators(self.window, self.rate_hz, self.spindle_rpm, self.settings,
-                       floor_n=self.floor_n)  # fmt: skip
-        if not v.chatter:
-            return None
-        return (f"chatter at {v.frequency_hz:.0f} Hz (energy {v.energy_ratio:.2f}, opr "
-                f"{v.opr_ratio:.2f})")  # fmt: skip
-
-
-class _Tap:
-    """DAQ sink in front of the run writer: forwards everything; keeps the rest windows for the
-    zero and the drift fit; computes forces to watch the force limit; notes DAQ faults."""
-
-    def __init__(
-        self,
-        writer: object,
-        cal: Calibration,
-        force_limit_n: float | None,
-        on_over_limit: Callable[[str], None] | None = None,
-        chatter: _ChatterWatch | None = None,
-    ) -> None:
-        self.writer = writer
-        self.on_over_limit = on_over_limit
-        self.chatter = chatter
-        self.chatter_found: str | None = None
-        self.lossless = False
-        self.cal = cal
-        self.force_limit_n = force_limit_n
-        self.monitor = False
-        self.info: DaqInfo | None = None
-        self.t0_s = math.nan
-        self.samples = 0
-        self.peak_force_n = 0.0
-        self.over_limit: str | None = None
-        self.daq_fault: str | None = None
-        self._capture: list[tuple[np.ndarray, np.ndarray]] | None = None
-        # the latest blocks, so a capture asked for after its samples came takes them (a
-        # simulated rig's clock waits at the end of a rest, which a fast DAQ may reach before
-        # the runner asks for it: the capture then waited for samples that never came)
-        self.history_samples = 0
-        self._history: deque[tuple[np.ndarray, np.ndarray]] = deque()
-        self._capture_n = 0
-        self._capture_from = -math.inf
-        self._captured = threading.Event()
-        self._lock = threading.Lock()
-        self._progress = threading.Condition()
-        self.t_last_s = -math.inf  # run-clock time of the last sample delivered
-
-    # -- DaqSink ---------------------------------------------------------------------------------
-    def on_start(self, info: DaqInfo, t0_s: float) -> None:
-        self.info = info
-        self.t0_s = t0_s
-        self.writer.on_start(info, t0_s)
-
-    def on_block(self, first_sample: int, data: np.ndarray) -> None:
-        if self.lossless:
-            # A simulated DAQ waits for the writer (its clock waits with it): a busy host must
-            # not drop samples a quiet one keeps.
-            self.writer.put_block(first_sample, data, timeout_s=LOSSLESS_WAIT_S)
-        else:
-            self.writer.on_block(first_sample, data)
-        info = self.info
-        n = data.shape[1]
-        self.samples = first_sample + n
-        if info.sample_format == SAMPLE_FORMAT_RAW:
-            volts = rf.raw_to_volts(data.T, info.scaling_coeff)
-        else:
-            volts = np.array(data.T, dtype=float)
-        t = self.t0_s + (first_sample + np.arange(n)) / info.rate_hz
-        with self._lock:
-            if self._capture is not None:
-                keep = t >= self._capture_from
-                if keep.any():
-                    self._capture.append((t[keep], volts[keep]))
-                if sum(len(c[0]) for c in self._capture) >= self._capture_n:
-                    self._captured.set()
-            if self.history_samples > 0:
-                self._history.append((t, volts))
-                while sum(len(h[0]) for h in self._history) - len(self._history[0][0]) >= (
-                    self.history_samples
-                ):
-                    self._history.popleft()
-            if self.monitor:
-                f = self.cal.force_from_volts(volts, t)
-                peak = float(np.max(np.linalg.norm(f, axis=1))) if n else 0.0
-                self.peak_force_n = max(self.peak_force_n, peak)
-                if self.force_limit_n is not None and peak > self.force_limit_n:
-                    if self.over_limit is None:
-                        k = int(np.argmax(np.linalg.norm(f, axis=1)))
-                        self.over_limit = (
-                            f"force {peak:.0f} N above the limit {self.force_limit_n:.0f} N at "
-                            f"t = {t[k]:.3f} s"
-                        )
-                        # Act from the acquisition thread: waiting for the runner's next look
-                        # would let the cut go on for its polling interval.
-                        if self.on_over_limit is not None:
-                            self.on_over_limit(self.over_limit)
-                if self.chatter is not None and self.chatter_found is None:
-                    found = self.chatter.push(f)
-                    if found is not None:
-                        self.chatter_found = f"{found} at t = {t[-1]:.3f} s"
-                        if self.on_over_limit is not None:
-                            self.on_over_limit(self.chatter_found)
-        with self._progress:
-            self.t_last_s = float(t[-1]) if n else self.t_last_s
-            self._progress.notify_all()
-
-    def on_event(self, event: DaqEvent) -> None:
-        self.writer.on_event(event)
-        if event.kind in (rf.EV_OVERFLOW, rf.EV_FAULT) and self.daq_fault is None:
-            self.daq_fault = f"DAQ {event.kind} at sample {event.sample}: {event.message}"
-
-    # -- rest windows ----------------------------------------------------------------------------
-    def wait_until(self, t_s: float, timeout_s: float) -> bool:
-        """Wait until the DAQ has delivered the samples up to run-clock time ``t_s`` (a
-        simulated DAQ may lag the clock when the CPU is busy; its samples still come in order)."""
-        with self._progress:
-            return self._progress.wait_for(lambda: self.t_last_s >= t_s, timeout_s)
-
-    def capture(
-        self, n: int, timeout_s: float, from_s: float = -math.inf
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The next ``n`` samples per channel taken at or after run-clock time ``from_s``:
-        (time_s (n,), volts (n, c)); waits for them."""
-        with self._lock:
-            self._capture, self._capture_n = [], n
-            self._capture_from = from_s
-            self._captured.clear()
-            for t, v in self._history:  # what came before the call, from from_s on
-                keep = t >= from_s
-                if keep.any():
-                    self._capture.append((t[keep], v[keep]))
-            if sum(len(c[0]) for c in self._capture) >= n:
-                self._captured.set()
-        ok = self._captured.wait(timeout_s)
-        with self._lock:
-            parts, self._capture = self._capture or [], None
-        if not ok or not parts:
-            raise TimeoutError(f"no samples from the DAQ within {timeout_s:.1f} s")
-        t = np.concatenate([p[0] for p in parts])[:n]
-        v = np.concatenate([p[1] for p in parts])[:n]
-        return t, v
 
 
 class StopRequest:
@@ -287,150 +119,244 @@ def _ask_resume(prompt: str) -> bool:
         return False
 
 
+@dataclass(frozen=True)
+class Suspenders:
+    """What stops a run on its own (the campaign's ``[suspenders]``): the resultant force
+    limit (N; None: no limit) and what it does (``hold``: feed hold, abort after
+    ``hold_timeout_s``; ``abort``: at once); a DAQ overflow ``fail`` or ``continue``;
+    ``watchdog_wall_s`` of wall time beyond the run clock's deadline before a run is hung."""
+
+    force_limit_n: float | None = None
+    on_force: Literal["hold", "abort"] = "hold"
+    hold_timeout_s: float = 0.0
+    on_overflow: Literal["fail", "continue"] = "fail"
+    watchdog_wall_s: float = 10.0
+
+
+@dataclass(frozen=True)
+class RunConfig:
+    """One run's settings: its suspenders, the chatter watch (off unless ``chatter.on_chatter``
+    is ``hold`` or ``abort`` with a spindle speed), ``zero_s`` of rest before and after the
+    cut, the program's ``expected_s`` (the watchdog allows twice that plus
+    :data:`WATCHDOG_MARGIN_S`) and a simulated rig's ``sim_speed`` (1: real time)."""
+
+    suspenders: Suspenders = Suspenders()
+    chatter: ChatterWatchConfig = ChatterWatchConfig()
+    zero_s: float = 0.2
+    expected_s: float = 60.0
+    sim_speed: float = 1.0
+
+
 def execute_run(
     session: RigSession,
     program: Program,
-    writer: object,
+    writer: RunRecorder,
     cal: Calibration,
-    *,
-    force_limit_n: float | None,
-    on_force: str,
-    hold_timeout_s: float,
-    on_overflow: str,
+    config: RunConfig,
     stop: StopRequest,
-    zero_s: float = 0.2,
-    expected_s: float = 60.0,
     progress: Callable[[int, int], None] | None = None,
-    sim_speed: float = 1.0,
-    watchdog_wall_s: float = 10.0,
-    on_chatter: str = "none",
-    spindle_rpm: float = 0.0,
-    chatter_floor_n: float = 10.0,
-    chatter_settings: object = None,
 ) -> RunOutcome:
-    """Run ``program`` on ``session`` into ``writer`` (already holding conditions and program).
-    ``on_chatter`` "hold" or "abort" (with ``spindle_rpm`` > 0) watches the live force for
-    chatter (:class:`_ChatterWatch`, judged with ``chatter_settings``, an
-    ``analysis.chatter.ChatterSettings``) and holds or aborts as the force limit does."""
-    wall0 = time.monotonic()
-    held_at: list[float] = []
-    held_sim: list[float] = []  # simulated s of the suspender's hold (a simulated rig)
-    simulated = bool(getattr(session, "simulated", False))
-    sim_gate = getattr(getattr(session, "sim_clock", None), "gate", None) if simulated else None
+    """Run ``program`` on ``session`` into ``writer`` (already holding conditions and program)
+    with ``config``; ``stop`` is the operator's request, ``progress(done, total)`` is told the
+    blocks executed. Module docstring: the sequence."""
+    return _Run(session, program, writer, cal, config, stop, progress).execute()
 
-    def hold_now(why: str) -> None:
-        session.feed_hold()
-        held_at.append(time.monotonic())
-        if sim_gate is not None and not held_sim:
+
+class _Run:
+    """One run's state between the steps of :func:`execute_run`."""
+
+    def __init__(
+        self, session: RigSession, program: Program, writer: RunRecorder, cal: Calibration,
+        config: RunConfig, stop: StopRequest, progress: Callable[[int, int], None] | None,
+    ) -> None:  # fmt: skip
+        self.wall0 = time.monotonic()
+        self.session, self.program, self.writer, self.stop = session, program, writer, stop
+        self.cfg, self.sus, self.progress = config, config.suspenders, progress
+        self.held_at: list[float] = []
+        self.held_sim: list[float] = []  # simulated s of the suspender's hold (a simulated rig)
+        self.held_since: float | None = None
+        self.simulated = bool(getattr(session, "simulated", False))
+        clock = getattr(session, "sim_clock", None)
+        self.sim_gate: Callable[[str, float | None], None] | None = (
+            getattr(clock, "gate", None) if self.simulated else None
+        )
+        self.status, self.reason = STATUS_SUCCESS, "program completed"
+        self.rate = session.daq.info.rate_hz
+        ch = config.chatter
+        watch = None
+        if ch.on_chatter != "none" and ch.spindle_rpm:
+            watch = ChatterWatch(tuple(cal.channel_names), self.rate, abs(ch.spindle_rpm),
+                                 ch.floor_n, ch.settings)  # fmt: skip
+        self.tap = RunTap(writer, cal, self.sus.force_limit_n, self.hold_now, watch)
+        self.tap.put_block = getattr(writer, "put_block", None) if self.simulated else None
+        self.n_rest = max(2, int(round(config.zero_s * self.rate)))
+        if self.simulated:  # its clock stops at the end of each rest: keep a rest and two blocks
+            self.tap.history_samples = self.n_rest + 2 * session.daq.info.block_samples
+        self.wait_rest_s = 10.0 + 3 * config.zero_s / config.sim_speed
+        self.catch_up_s = 60.0  # wall s a lagging simulated DAQ may take to deliver what it owes
+
+    def _act(self) -> str:
+        """What the tripped suspender does: the force limit's or the chatter watch's action."""
+        return self.sus.on_force if self.tap.over_limit is not None else self.cfg.chatter.on_chatter
+
+    def hold_now(self, why: str) -> None:
+        self.session.feed_hold()
+        self.held_at.append(time.monotonic())
+        if self.sim_gate is not None and not self.held_sim:
             # On a simulated rig the suspender's stop comes at a simulated time, not when the
             # runner's loop happens to look: the clock waits for it there (abort: at the hold;
             # hold: when the hold has lasted hold_timeout_s), so a busy host changes nothing.
-            t = session.clock()
-            held_sim.append(t)
-            act = on_force if tap.over_limit is not None else on_chatter
-            sim_gate("suspender", t if act == "abort" else t + hold_timeout_s)
-        writer.event(rf.EV_PAUSE, f"suspender: {why}: feed hold")
+            t = self.session.clock()
+            self.held_sim.append(t)
+            self.sim_gate("suspender", t if self._act() == "abort" else t + self.sus.hold_timeout_s)
+        self.writer.event(rf.EV_PAUSE, f"suspender: {why}: feed hold")
 
-    status, reason = STATUS_SUCCESS, "program completed"
-    daq = session.daq
-    rate = daq.info.rate_hz
-    watch = None
-    if on_chatter != "none" and spindle_rpm:
-        watch = _ChatterWatch(tuple(cal.channel_names), rate, abs(spindle_rpm), chatter_floor_n,
-                              chatter_settings)  # fmt: skip
-    tap = _Tap(writer, cal, force_limit_n, hold_now, watch)
-    tap.lossless = simulated and hasattr(writer, "put_block")
-    n_rest = max(2, int(round(zero_s * rate)))
-    if simulated:  # its clock stops at the end of each rest: keep a rest and two blocks
-        tap.history_samples = n_rest + 2 * daq.info.block_samples
-    wait_rest_s = 10.0 + 3 * zero_s / sim_speed
-    catch_up_s = 60.0  # wall s a lagging simulated DAQ may take to deliver what it owes
-    daq.start(tap)
-    try:
+    def execute(self) -> RunOutcome:
+        session, tap = self.session, self.tap
+        session.daq.start(tap)
+        try:
+            t_zero, v_zero, cal0 = self._zero_and_start()
+            self._watch()
+            self._conclude()
+            self._record_blocks()
+            self._rest_after(t_zero, v_zero, cal0)
+        except TimeoutError as exc:
+            self.status, self.reason = STATUS_FAIL, f"DAQ: {exc}"
+            session.stop()
+        finally:
+            # the DAQ stops before the suspender's gate lifts: a simulated run keeps the samples
+            # up to the stop, not what a slow runner let pass after it
+            session.daq.stop()
+            if self.sim_gate is not None:
+                self.sim_gate("suspender", None)
+            session.close()
+        if (
+            tap.daq_fault is not None
+            and self.status == STATUS_SUCCESS
+            and (self.sus.on_overflow == "continue")
+        ):
+            self.reason = f"program completed; {tap.daq_fault}"
+        return RunOutcome(self.status, self.reason, tap.peak_force_n, tap.samples,
+                          time.monotonic() - self.wall0)  # fmt: skip
+
+    def _zero_and_start(self) -> tuple[np.ndarray, np.ndarray, Calibration]:
+        """Zero on the rest before the cut, then start streaming: (rest times s, volts, zeroed
+        calibration)."""
+        session, tap, writer = self.session, self.tap, self.writer
         arm = getattr(session, "arm", None)
         if arm is not None:  # a simulated rig: program start and end on its own clock
-            arm(n_rest)
-        t_zero, v_zero = tap.capture(n_rest, wait_rest_s)
-        cal0 = cal.zeroed(v_zero, float(t_zero.mean()))
+            arm(self.n_rest)
+        t_zero, v_zero = tap.capture(self.n_rest, self.wait_rest_s)
+        cal0 = tap.cal.zeroed(v_zero, float(t_zero.mean()))
         tap.cal = cal0
         writer.set_calibration(cal0, "zeroed at rest before the cut (reset/operate)")
         tap.monitor = True
-        writer.event(rf.EV_START, f"streaming {program.name}")
-        session.start(program, writer)
+        writer.event(rf.EV_START, f"streaming {self.program.name}")
+        session.start(self.program, writer)
+        return t_zero, v_zero, cal0
+
+    def _end(self, status: str, reason: str) -> bool:
+        self.status, self.reason = status, reason
+        return True
+
+    def _watch(self) -> None:
+        """Until the control has executed the program, or something ends the run (its status
+        and reason)."""
+        session, cfg = self.session, self.cfg
         # Watchdog on the run clock: a control that stops answering after it has read the whole
         # program (drip feed has no acknowledgement) would otherwise be waited for forever.
-        limit_s = 2.0 * expected_s + WATCHDOG_MARGIN_S
+        limit_s = 2.0 * cfg.expected_s + WATCHDOG_MARGIN_S
         deadline = session.clock() + limit_s
         # ... and in wall time too (``watchdog_wall_s`` more): on a busy computer a simulated
         # link can fall behind its clock.
-        deadline_wall = time.monotonic() + limit_s / sim_speed + watchdog_wall_s
-        held_since: float | None = None
+        deadline_wall = time.monotonic() + limit_s / cfg.sim_speed + self.sus.watchdog_wall_s
         while not session.finished():
             time.sleep(0.02)
-            if progress is not None:
-                progress(*session.progress())
-            if stop.event.is_set():
-                session.feed_hold()
-                writer.event(rf.EV_PAUSE, f"stop ({stop.source or 'no source given'}): feed hold")
-                if not stop.kill and _ask_resume(
-                    "\ncutlab: paused (feed hold). [r]esume or [a]bort? "
-                ):
-                    stop.event.clear()
-                    session.cycle_start()
-                    writer.event(rf.EV_RESUME, "operator: cycle start")
+            if self.progress is not None:
+                self.progress(*session.progress())
+            if self.stop.event.is_set():
+                if self._operator_resumes():
                     continue
-                status, reason = STATUS_ABORT, f"{stop.reason()}: feed hold, stop"
-                break
-            if tap.daq_fault is not None and on_overflow == "fail":
-                status, reason = STATUS_FAIL, tap.daq_fault
-                break
-            medium = getattr(writer, "failure", None)  # disk nearly full, write error
-            if medium is not None:
-                status, reason = STATUS_FAIL, medium
-                break
-            if (
-                held_since is None
-                and not stop.event.is_set()
-                and session.clock() > deadline
-                and time.monotonic() > deadline_wall
-            ):
-                done, total = session.progress()
-                status = STATUS_FAIL
-                reason = (
-                    f"controller stopped answering: the program did not end within {limit_s:.0f}"
-                    f" s (expected {expected_s:.0f} s); {done} of {total} blocks executed"
-                )
-                break
-            fault = session.fault()
-            if fault is not None:
-                status, reason = STATUS_FAIL, fault
-                if "interlock" in fault:
-                    status = STATUS_ABORT
-                    writer.event(rf.EV_INTERLOCK, fault)
-                break
-            tripped = tap.over_limit or tap.chatter_found
-            if tripped is not None and held_at:
-                held_since = held_at[0]
-                act = on_force if tap.over_limit is not None else on_chatter
-                waited_wall_s = time.monotonic() - held_since
-                if held_sim:  # the gate's own expression: the clock stands exactly there
-                    timed_out = session.clock() >= held_sim[0] + hold_timeout_s or (
-                        waited_wall_s >= hold_timeout_s / sim_speed + catch_up_s
-                    )
-                else:
-                    timed_out = waited_wall_s >= hold_timeout_s
-                if act == "abort" or timed_out:
-                    status, reason = STATUS_ABORT, f"suspender: {tripped}"
-                    break
-        if status == STATUS_FAIL:
-            writer.event(rf.EV_FAULT, reason)
-        if status != STATUS_SUCCESS:
+                self._end(STATUS_ABORT, f"{self.stop.reason()}: feed hold, stop")
+                return
+            if self._failed(limit_s, deadline, deadline_wall) or self._suspended():
+                return
+
+    def _operator_resumes(self) -> bool:
+        """Feed hold on the operator's stop; True when the operator resumes the cut."""
+        stop, writer = self.stop, self.writer
+        self.session.feed_hold()
+        writer.event(rf.EV_PAUSE, f"stop ({stop.source or 'no source given'}): feed hold")
+        if not stop.kill and _ask_resume("\ncutlab: paused (feed hold). [r]esume or [a]bort? "):
+            stop.event.clear()
+            self.session.cycle_start()
+            writer.event(rf.EV_RESUME, "operator: cycle start")
+            return True
+        return False
+
+    def _failed(self, limit_s: float, deadline: float, deadline_wall: float) -> bool:
+        """True (status and reason set) when the DAQ, the medium, the watchdog or the control
+        ends the run."""
+        session, tap = self.session, self.tap
+        if tap.daq_fault is not None and self.sus.on_overflow == "fail":
+            return self._end(STATUS_FAIL, tap.daq_fault)
+        medium = getattr(self.writer, "failure", None)  # disk nearly full, write error
+        if medium is not None:
+            return self._end(STATUS_FAIL, medium)
+        if (
+            self.held_since is None
+            and not self.stop.event.is_set()
+            and session.clock() > deadline
+            and time.monotonic() > deadline_wall
+        ):
+            done, total = session.progress()
+            return self._end(STATUS_FAIL, (
+                f"controller stopped answering: the program did not end within {limit_s:.0f}"
+                f" s (expected {self.cfg.expected_s:.0f} s); {done} of {total} blocks executed"
+            ))  # fmt: skip
+        fault = session.fault()
+        if fault is not None:
+            if "interlock" in fault:
+                self.writer.event(rf.EV_INTERLOCK, fault)
+                return self._end(STATUS_ABORT, fault)
+            return self._end(STATUS_FAIL, fault)
+        return False
+
+    def _suspended(self) -> bool:
+        """True (status and reason set) when a tripped suspender aborts the run: at once, or
+        once its hold has lasted ``hold_timeout_s``."""
+        tripped = self.tap.over_limit or self.tap.chatter_found
+        if tripped is None or not self.held_at:
+            return False
+        self.held_since = self.held_at[0]
+        waited_wall_s = time.monotonic() - self.held_since
+        hold_s = self.sus.hold_timeout_s
+        if self.held_sim:  # the gate's own expression: the clock stands exactly there
+            timed_out = self.session.clock() >= self.held_sim[0] + hold_s or (
+                waited_wall_s >= hold_s / self.cfg.sim_speed + self.catch_up_s
+            )
+        else:
+            timed_out = waited_wall_s >= hold_s
+        if self._act() == "abort" or timed_out:
+            return self._end(STATUS_ABORT, f"suspender: {tripped}")
+        return False
+
+    def _conclude(self) -> None:
+        """The fault event and the stop of a run that did not succeed; a control fault noticed
+        after the program ended fails it."""
+        session = self.session
+        if self.status == STATUS_FAIL:
+            self.writer.event(rf.EV_FAULT, self.reason)
+        if self.status != STATUS_SUCCESS:
             session.stop()
         elif session.fault() is not None:
-            status, reason = STATUS_FAIL, session.fault() or ""
-        if progress is not None:
-            progress(*session.progress())
-        # When each block ran, on the run clock: ties every sample to the block cutting then.
+            self.status, self.reason = STATUS_FAIL, session.fault() or ""
+        if self.progress is not None:
+            self.progress(*session.progress())
+
+    def _record_blocks(self) -> None:
+        """When each block ran, on the run clock: ties every sample to the block cutting then."""
+        session, writer = self.session, self.writer
         for seq, t0, t1, text in session.executed_blocks():
             msg = f"executed block {seq} {t0:.6f}..{t1:.6f} s: {text}"
             writer.event(rf.EV_NOTE, msg, time_s=t0)
@@ -443,46 +369,41 @@ def execute_run(
             set_exec(rows, t_starts, complete=True)
             writer.event(rf.EV_NOTE, "block table: execution starts from the controller's "
                                      f"record ({len(rows)} blocks started)")  # fmt: skip
-        # Rest after the cut: zero and drift from both rests (not after a failure: the rig may
-        # not be at rest, so the zero taken before the cut stays).
+
+    def _rest_after(self, t_zero: np.ndarray, v_zero: np.ndarray, cal0: Calibration) -> None:
+        """Rest after the cut: zero and drift from both rests (not after a failure: the rig may
+        not be at rest, so the zero taken before the cut stays)."""
+        session, tap, writer = self.session, self.tap, self.writer
         end_of = getattr(session, "program_end_s", None)
-        t_prog_end = end_of() if end_of is not None and status == STATUS_SUCCESS else None
+        t_prog_end = end_of() if end_of is not None and self.status == STATUS_SUCCESS else None
         t_end = session.clock() if t_prog_end is None else t_prog_end
-        if status == STATUS_SUCCESS:
-            try:
-                t_tail, v_tail = tap.capture(n_rest, wait_rest_s + catch_up_s, from_s=t_end)
-                fit = fit_drift(
-                    np.concatenate([t_zero, t_tail]),
-                    np.vstack([v_zero, v_tail]),
-                    np.ones(len(t_zero) + len(t_tail), bool),
-                    t_ref_s=float(t_zero.mean()),
-                )
-                writer.set_calibration(compensate(cal0, fit), "drift fitted on the rests")
-            except (TimeoutError, CalibrationError) as exc:
-                writer.event(rf.EV_NOTE, f"no drift fit: {exc}")
-        else:
-            # Keep what was acquired up to the stop, even if the DAQ lags the clock (briefly
-            # when the DAQ itself failed: it may never deliver again).
-            if not (held_sim and sim_gate is not None):
-                tap.wait_until(t_end, 5.0 if tap.daq_fault else catch_up_s)
-            else:
-                # a simulated rig stopped by a suspender records a rest of zero_s after the stop
-                # (the spindle stopped), to the end of a DAQ block, the clock waiting there
-                # until the DAQ is stopped: the same samples however busy the host
-                blk, t0_daq = daq.info.block_samples, tap.t0_s
-                k = math.ceil((t_end + zero_s - t0_daq) * rate / blk) * blk
-                sim_gate("suspender", t0_daq + k / rate)
-                tap.wait_until(t0_daq + (k - 1) / rate, catch_up_s)
-    except TimeoutError as exc:
-        status, reason = STATUS_FAIL, f"DAQ: {exc}"
-        session.stop()
-    finally:
-        # the DAQ stops before the suspender's gate lifts: a simulated run keeps the samples up
-        # to the stop, not what a slow runner let pass after it
-        daq.stop()
-        if sim_gate is not None:
-            sim_gate("suspender", None)
-        session.close()
-    if tap.daq_fault is not None and status == STATUS_SUCCESS and on_overflow == "continue":
-        reason = f"program completed; {tap.daq_fault}"
-    return RunOutcome(status, reason, tap.peak_force_n, tap.samples, time.monotonic() - wall0)
+        if self.status != STATUS_SUCCESS:
+            self._keep_until(t_end)
+            return
+        try:
+            t_tail, v_tail = tap.capture(self.n_rest, self.wait_rest_s + self.catch_up_s,
+                                         from_s=t_end)  # fmt: skip
+            fit = fit_drift(
+                np.concatenate([t_zero, t_tail]),
+                np.vstack([v_zero, v_tail]),
+                np.ones(len(t_zero) + len(t_tail), bool),
+                t_ref_s=float(t_zero.mean()),
+            )
+            writer.set_calibration(compensate(cal0, fit), "drift fitted on the rests")
+        except (TimeoutError, CalibrationError) as exc:
+            writer.event(rf.EV_NOTE, f"no drift fit: {exc}")
+
+    def _keep_until(self, t_end: float) -> None:
+        """Keep what was acquired up to the stop, even if the DAQ lags the clock (briefly when
+        the DAQ itself failed: it may never deliver again)."""
+        tap = self.tap
+        if not (self.held_sim and self.sim_gate is not None):
+            tap.wait_until(t_end, 5.0 if tap.daq_fault else self.catch_up_s)
+            return
+        # a simulated rig stopped by a suspender records a rest of zero_s after the stop (the
+        # spindle stopped), to the end of a DAQ block, the clock waiting there until the DAQ is
+        # stopped: the same samples however busy the host
+        blk, t0_daq = self.session.daq.info.block_samples, tap.t0_s
+        k = math.ceil((t_end + self.cfg.zero_s - t0_daq) * self.rate / blk) * blk
+        self.sim_gate("suspender", t0_daq + k / self.rate)
+        tap.wait_until(t0_daq + (k - 1) / self.rate, self.catch_up_s)

@@ -44,6 +44,7 @@ from analysis import __version__
 from analysis.config import FaceMill
 from analysis.errors import ConfigError, CutlabError
 from analysis.runs import file as rf
+from rig.campaign.chatter_watch import ChatterWatchConfig
 from rig.campaign.config import Campaign, RunConditions, load_campaign
 from rig.campaign.manifest import (
     Manifest,
@@ -56,7 +57,7 @@ from rig.campaign.manifest import (
     utc_now,
 )
 from rig.campaign.programs import CutProgram, generate_program
-from rig.campaign.run import RigSession, StopRequest, execute_run
+from rig.campaign.run import RigSession, RunConfig, StopRequest, Suspenders, execute_run
 from rig.daq import Calibration
 from rig.errors import RigError
 
@@ -242,6 +243,19 @@ def default_session_factory(campaign: Campaign) -> SessionFactory:
     return real_session
 
 
+def _run_config(campaign: Campaign, plan: PlannedRun) -> RunConfig:
+    """The run's suspenders, chatter watch and timing from the campaign's config."""
+    spec, sus = campaign.spec, campaign.spec.suspenders
+    return RunConfig(
+        Suspenders(sus.force_limit_n, sus.on_force, sus.hold_timeout_s, sus.on_overflow,
+                   sus.watchdog_wall_s),
+        ChatterWatchConfig(sus.on_chatter, plan.test.spindle_rpm, sus.chatter_floor_n,
+                           spec.chatter.settings()),
+        zero_s=spec.daq.rest_s, expected_s=plan.expected_s,
+        sim_speed=spec.sim.speed if spec.campaign.rig == "sim" else 1.0,
+    )  # fmt: skip
+
+
 def _conditions(campaign: Campaign, plan: PlannedRun) -> dict[str, Any]:
     t = plan.test
     c = campaign.spec.campaign
@@ -421,18 +435,9 @@ def run_campaign(
                 writer.set_rig(_rig_meta(campaign, session))
                 writer.set_program(plan.program_text, f"{plan.file_stem}.nc")
                 bar.set_postfix_str(t.name[:40])
-                outcome = execute_run(
-                    session, program, writer, cal_sheet,
-                    force_limit_n=sus.force_limit_n, on_force=sus.on_force,
-                    hold_timeout_s=sus.hold_timeout_s, on_overflow=sus.on_overflow, stop=stop,
-                    expected_s=plan.expected_s,
-                    sim_speed=campaign.spec.sim.speed if campaign.spec.campaign.rig == "sim"
-                    else 1.0,
-                    progress=_within_run(bar, t.name), watchdog_wall_s=sus.watchdog_wall_s,
-                    zero_s=campaign.spec.daq.rest_s, on_chatter=sus.on_chatter,
-                    spindle_rpm=t.spindle_rpm, chatter_floor_n=sus.chatter_floor_n,
-                    chatter_settings=campaign.spec.chatter.settings(),
-                )  # fmt: skip
+                outcome = execute_run(session, program, writer, cal_sheet,
+                                      _run_config(campaign, plan), stop,
+                                      _within_run(bar, t.name))  # fmt: skip
                 status, reason = outcome.status, outcome.reason
             except BaseException as exc:
                 status, reason = rf.STATUS_FAIL, f"{type(exc).__name__}: {exc}"[:400]
