@@ -45,7 +45,6 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -57,7 +56,7 @@ from analysis.config import (
     get_tool,
     load_machine,
 )
-from analysis.validation import Model, read_toml, validate
+from analysis.validation import JsonObject, Model, read_toml, validate
 from planning.errors import PlanningError
 from planning.nc import DWELL, LINE, RAPID, Motion, segment_time_s
 from planning.nc.arcs import PLANE_AXES, arc_radius_mm, linearize, segment_length_mm
@@ -540,7 +539,7 @@ def _join(motion: Motion, parts: list[tuple[int, Simulation]]) -> Simulation:
     )  # fmt: skip
 
 
-def summary(result: OperationResult) -> dict[str, Any]:
+def summary(result: OperationResult) -> JsonObject:
     """Plain-data summary of one operation's virtual machining (for JSON and tables)."""
     sim = result.simulation
     m = sim.motion
