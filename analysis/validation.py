@@ -244,10 +244,9 @@ def read_toml(path: str | Path) -> tuple[dict[str, object], str]:
         raise ConfigError(f"{p}: not valid TOML: {exc}") from None
 
 
-def validate(
-    model: type[M], data: Mapping[str, object], where: str = "<config>", text: str = ""
-) -> M:
-    """Validate a mapping into ``model``; raise :class:`ConfigError` naming every bad field."""
+def validate(model: type[M], data: object, where: str = "<config>", text: str = "") -> M:
+    """Validate a mapping (or whatever a TOML key held) into ``model``; raise
+    :class:`ConfigError` naming every bad field."""
     try:
         return model.model_validate(data)
     except ValidationError as exc:
