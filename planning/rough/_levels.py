@@ -159,7 +159,7 @@ class LevelGeometry:
 
     def region(
         self, z: float, lo: float | None, lo_region: BaseGeometry | None = None
-    ) -> MultiPolygon | Polygon:
+    ) -> BaseGeometry:
         """The area a level z removes in shoulder (lo, hi): A(lo) - C(z)."""
         a = self.above(lo) if lo_region is None else lo_region
         return a.difference(self.closed(z))
@@ -209,7 +209,7 @@ class LevelGeometry:
         if not out.any():
             return 0.0
         d, _ = tree.query(pts[out])
-        return float(d.max()) + 0.5
+        return float(np.max(d)) + 0.5
 
     def rings(self, z: float, k_max: int) -> list[list[LineString]]:
         """Oriented offset boundaries of the reference contour, ring k at f1 r + k step."""

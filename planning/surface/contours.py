@@ -218,7 +218,7 @@ class SectionMaker:
                     rings.append(xy)
                 if not rings:
                     continue
-                poly = Polygon(rings[0], rings[1:])
+                poly: BaseGeometry = Polygon(rings[0], rings[1:])
                 if not poly.is_valid:
                     poly = shapely.make_valid(poly)
                 polys.extend(_polygons(poly))

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -62,7 +63,7 @@ def _spline_derivative(values: npt.NDArray[np.float64], axis: int) -> npt.NDArra
     if n == 2:
         d = np.diff(values, axis=axis)
         return np.concatenate([d, d], axis=axis)
-    bc = "not-a-knot" if n > 3 else "natural"
+    bc: Literal["not-a-knot", "natural"] = "not-a-knot" if n > 3 else "natural"
     slope: npt.NDArray[np.float64] = CubicSpline(
         np.arange(n, dtype=float), values, axis=axis, bc_type=bc
     )(np.arange(n, dtype=float), 1)
@@ -315,6 +316,7 @@ class FergusonSurface:
             s, t = self.param_grid(4)
             p = self.evaluate(s.ravel(), t.ravel())
             object.__setattr__(self, "_net", (cKDTree(p[:, :2]), s.ravel(), t.ravel()))
+        # attr-defined: _net is cached on the frozen instance just above, on first use
         tree, ns, nt = self._net  # type: ignore[attr-defined]
         q = np.stack([np.ravel(x_mm), np.ravel(y_mm)], 1).astype(float)
         _, i = tree.query(q)
