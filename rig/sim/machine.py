@@ -35,11 +35,12 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from analysis.config import Dynamometer, EndMill, FaceMill, Material, ToolMode
+from analysis.forces import ENDMILL, FACEMILL, model_for
 from rig.errors import RigError
 from rig.sim._machine_engagement import (
     EndMillEngagement,
@@ -141,10 +142,11 @@ def _rotate_xy(f: np.ndarray, beta: np.ndarray) -> np.ndarray:
     return out
 
 
-def _truth(material: Material, kind: str) -> Any:
-    coef = getattr(material, kind)
+def _truth(material: Material, tool: EndMill | FaceMill) -> Any:
+    model = model_for(tool)
+    coef = model.coefficients(material)
     if coef is None:
-        raise RigError(f"material has no {kind} coefficients: the simulator needs a truth")
+        raise RigError(f"material has no {model.name} coefficients: the simulator needs a truth")
     return coef
 
 
@@ -161,7 +163,7 @@ def _summed(
     return _rotate_xy(f, eng.feed_angle_rad)
 
 
-def facemill_forces(
+def twin_facemill_forces(
     eng: FaceMillEngagement, tool: FaceMill, material: Material,
     strip: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:  # fmt: skip
@@ -172,7 +174,7 @@ def facemill_forces(
     (issue 33) and ``eng`` need only say where the insert is over the block along the feed."""
     from analysis.forces import facemill
 
-    coef = _truth(material, "facemill")
+    coef = _truth(material, tool)
     # Engagement is decided here per insert, so the model sees one insert at a time over the
     # whole half turn (its own width-based engagement is switched off, or given the block's sides).
     one = tool.model_copy(update={"inserts": 1, "insert_angles_deg": None, "runout_mm": 0.0})
@@ -186,21 +188,21 @@ def facemill_forces(
             mid = 0.5 * (hi + lo)
             cut = facemill.FaceMillCut(fz_mm=eng.fz_mm[idx[0]], depth_mm=eng.depth_mm[idx],
                                        width_mm=hi - lo, center_offset_mm=mid)  # fmt: skip
-        return facemill.facemill_forces(eng.theta_rad[idx], one, coef, cut)
+        return FACEMILL.forces(eng.theta_rad[idx], one, coef, cut)
 
     return _summed(eng, at)
 
 
-def facemill_forces_independent(
+def twin_facemill_forces_independent(
     eng: FaceMillEngagement, tool: FaceMill, material: Material,
     strip: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:  # fmt: skip
-    """As :func:`facemill_forces`, from :mod:`rig.sim.facemill_independent` (seed 003's equations
-    written apart from ``analysis.forces``: the edge sliced axially, each slice's own radius and
-    angle): ``[sim] force_model = "independent"``."""
+    """As :func:`twin_facemill_forces`, from :mod:`rig.sim.facemill_independent` (seed 003's
+    equations written apart from ``analysis.forces``: the edge sliced axially, each slice's own
+    radius and angle): ``[sim] force_model = "independent"``."""
     from rig.sim.facemill_independent import insert_forces
 
-    coef = _truth(material, "facemill")
+    coef = _truth(material, tool)
     return _summed(
         eng,
         lambda idx: insert_forces(
@@ -215,14 +217,16 @@ def facemill_forces_independent(
 DYNO_OVERSAMPLE = 4
 
 #: ``[sim] force_model``: where the twin's face-milling forces come from.
-FACEMILL_FORCE_MODELS = {"seed003": facemill_forces, "independent": facemill_forces_independent}
+FACEMILL_FORCE_MODELS = {
+    "seed003": twin_facemill_forces, "independent": twin_facemill_forces_independent,
+}  # fmt: skip
 
 
-def endmill_forces(eng: EndMillEngagement, tool: EndMill, material: Material) -> np.ndarray:
+def twin_endmill_forces(eng: EndMillEngagement, tool: EndMill, material: Material) -> np.ndarray:
     """Summed edge-element forces (n, 3) N in machine axes (linear edge-force model)."""
     from analysis.forces import endmill
 
-    coef = _truth(material, "endmill")
+    coef = _truth(material, tool)
     # The chip-breaker overload scales the cutting pressures, i.e. the chip in the linear law.
     h = eng.h_mm * overload_factor(eng, tool)[:, :, None]
     return _summed(
@@ -265,6 +269,7 @@ class SimMachine:
                            f"{', '.join(FACEMILL_FORCE_MODELS)}")  # fmt: skip
         self.facemill_forces = FACEMILL_FORCE_MODELS[force_model]
         self.tool = tool
+        self.model = model_for(tool)
         self.material = material
         self.stock = stock
         self.rate_hz = float(rate_hz)
@@ -273,13 +278,17 @@ class SimMachine:
             dyno, rate_hz, signal.noise_n, signal.drift_n_s, signal.hum_n, signal.hum_hz,
             signal.seed, signal.modes,
             # face mills: the dynamometer answers to an insert's entry between samples (issue 33)
-            oversample=DYNO_OVERSAMPLE if isinstance(tool, FaceMill) else 1,
+            oversample=DYNO_OVERSAMPLE if self.model is FACEMILL else 1,
         )  # fmt: skip
         self.n_slices = n_slices
-        modes = tool.modes if tool_modes is None and isinstance(tool, EndMill) else tool_modes
+        # end mills cut regeneratively with modes; face mills quasi-statically (module docstring)
+        regenerative = self.model is ENDMILL
+        modes = tool_modes
+        if modes is None and regenerative:
+            modes = cast(EndMill, tool).modes
         self.regen = (
-            RegenEndMill(tool, _truth(material, "endmill"), modes, rate_hz, n_slices)
-            if modes and isinstance(tool, EndMill)
+            RegenEndMill(cast(EndMill, tool), _truth(material, tool), modes, rate_hz, n_slices)
+            if modes and regenerative
             else None
         )
         self._lock = threading.Lock()
@@ -323,20 +332,24 @@ class SimMachine:
 
     def _quasi_static(self, t: np.ndarray) -> np.ndarray:
         st = self.timeline.state(t)
-        if isinstance(self.tool, FaceMill):
+        tool = self.tool
+        if FACEMILL.describes(tool):
             strip = self._block_sides(st)
             if strip is not None:
                 # The block's sides to the force model (each height of the chip on its own ray),
                 # its ends along the feed to the engagement.
-                eng = facemill_engagement(st, self.tool, _Sideless(self.stock.block))
-                return self.facemill_forces(eng, self.tool, self.material, strip)
-            eng = facemill_engagement(st, self.tool, self.stock)
-            return self.facemill_forces(eng, self.tool, self.material)
+                sideless = _Sideless(self.stock.block)  # type: ignore[union-attr]
+                eng = facemill_engagement(st, tool, sideless)
+                return self.facemill_forces(eng, tool, self.material, strip)
+            eng = facemill_engagement(st, tool, self.stock)
+            return self.facemill_forces(eng, tool, self.material)
+        if not ENDMILL.describes(tool):
+            raise RigError(f"the twin has no force model for tool kind {tool.kind!r}")
         depth = self.stock.z_max_mm - float(np.min(st.position_mm[:, 2]))
         if depth <= 0:
             return np.zeros((t.size, 3))
-        eng = endmill_engagement(st, self.tool, self.stock, depth, self.n_slices)
-        return endmill_forces(eng, self.tool, self.material)
+        em = endmill_engagement(st, tool, self.stock, depth, self.n_slices)
+        return twin_endmill_forces(em, tool, self.material)
 
     def _block_sides(self, st: Any) -> tuple[np.ndarray, np.ndarray] | None:
         """The block's sides as Y' (mm from the cutter axis, the force model's frame) per sample,
