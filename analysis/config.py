@@ -199,14 +199,26 @@ class Holder(Model):
     spindle_nose_length_mm: float = Field(100.0, gt=0, le=2000, description="mm")
 
 
+class Provenance(Model):
+    """Where a measured figure came from: ``source`` (what was measured, on what), ``date``
+    (ISO), ``command`` (how to measure it again) and the ``file`` it was measured from."""
+
+    source: str = Field(min_length=1)
+    date: str = Field(pattern=r"^\d{4}-\d{2}-\d{2}$", description="YYYY-MM-DD")
+    command: str = ""
+    file: str = ""
+
+
 class ToolMode(Model):
     """One bending mode of the tool (with holder and spindle) at its tip, in one machine direction:
-    what an impact test on the tool gives. The simulated rig's regenerative twin uses them."""
+    what an impact test on the tool gives (``cutlab analyze modal --save``), with its
+    ``provenance``. ``plan check`` computes the stability limit from them."""
 
     axis: Literal["x", "y"]
     f_hz: float = Field(gt=0, le=50_000, description="Hz, natural frequency")
     zeta: float = Field(gt=0, lt=1, description="damping ratio (typically 0.01..0.1)")
     k_N_m: float = Field(gt=0, le=1e10, description="N/m, modal stiffness at the tip")
+    provenance: Provenance | None = None
 
 
 class EndMill(Model):

@@ -19,8 +19,9 @@ How the twin differs from a real machine and dynamometer:
 
 - Engagement is the leading half of the cutter in uncut stock; a reversing path inside one DAQ
   read (0.1 s) sees the stock as it was at the start of that read.
-- An end mill with tool modes (``[[tools.NAME.modes]]`` or the campaign's ``[[sim.tool_modes]]``)
-  cuts regeneratively (:mod:`rig.sim._regen`: tool deflection, the chip left by the earlier
+- An end mill with tool modes (the twin's own structure, :mod:`rig.sim.structure`, or the
+  campaign's ``[[sim.tool_modes]]``; never the catalogue's ``[[tools.NAME.modes]]``, which are
+  measured on the twin by a tap test) cuts regeneratively (:mod:`rig.sim._regen`: tool deflection, the chip left by the earlier
   teeth, chatter where the stability lobes say); without modes, and for face mills, forces are
   quasi-static and only the dynamometer's modes add dynamics. An end mill's ``max_chip_mm``
   limits the feed: above it the chip jams in the chip breaker and the force rises sharply
@@ -51,6 +52,7 @@ from rig.sim._machine_engagement import (
 from rig.sim._machine_signal import DynoChain
 from rig.sim._machine_timeline import ExecutedSegment, MotionTimeline
 from rig.sim._regen import RegenEndMill, overload_factor
+from rig.sim.structure import twin_modes
 
 
 @dataclass(frozen=True)
@@ -247,7 +249,8 @@ class SimMachine:
     stock : :class:`BlockStock` or :class:`ZMapStock`.
     rate_hz : the DAQ's sample rate, Hz.
     signal : disturbances; ``n_slices`` axial slices per flute for end mills.
-    tool_modes : the tool's modes for the regenerative twin (default: the tool's own ``modes``).
+    tool_modes : the tool's modes for the regenerative twin (default: the twin's own structure
+        for the tool's assembly, :func:`rig.sim.structure.twin_modes`).
     force_model : face mills' forces from ``"seed003"`` (``analysis.forces.facemill``) or
         ``"independent"`` (:mod:`rig.sim.facemill_independent`).
     """
@@ -285,7 +288,7 @@ class SimMachine:
         regenerative = self.model is ENDMILL
         modes = tool_modes
         if modes is None and regenerative:
-            modes = cast(EndMill, tool).modes
+            modes = twin_modes(tool)  # the twin's physics, not the catalogue's measured modes
         self.regen = (
             RegenEndMill(cast(EndMill, tool), _truth(material, tool), modes, rate_hz, n_slices)
             if modes and regenerative
