@@ -219,7 +219,7 @@ def test_the_twins_chattering_cut_is_not_passed(tmp_path: Path, capsys) -> None:
     case.write_text(
         f'[tool]\nteeth = 3\n[cut]\nmilling = "down"\nradial_immersion = 1.0\n'
         f"[coefficients]\nKtc_N_mm2 = {coef.Ktc_n_mm2}\nKrc_N_mm2 = {coef.Krc_n_mm2}\n"
-        + "".join(f'[[modes]]\ndirection = "{m["axis"]}"\nf_hz = {m["f_hz"]}\nzeta = {m["zeta"]}'
+        + "".join(f'[[modes]]\naxis = "{m["axis"]}"\nf_hz = {m["f_hz"]}\nzeta = {m["zeta"]}'
                   f'\nk_N_m = {m["k_N_m"]}\n' for m in modes)
         + "[spindle]\nrpm_min = 5500\nrpm_max = 5501\npoints = 2\n"
     )  # fmt: skip
