@@ -277,3 +277,66 @@ def test_independent_facemill_simulator_shares_no_model_code() -> None:
                 todo.append(target)
     shared = sorted(m for m in seen if _unit(m) in ("analysis.forces", "analysis.identify"))
     assert not shared, shared
+
+
+# Force models (issue 30 item 3): a tool's class is tested in the registry only.
+MODEL_REGISTRY = "analysis/forces/models.py"
+MODEL_CLASSES = {"EndMill", "FaceMill"}
+# Modules another engineer owns that still test the class: each may only lose its tests.
+MODEL_ISINSTANCE_PENDING = {
+    "planning/orient/config.py": 1,
+    "planning/orient/tool.py": 1,
+    "planning/rough/part.py": 2,
+    "planning/stock/machining.py": 2,
+    "rig/adaptive/session.py": 1,
+    "rig/campaign/config.py": 8,
+    "rig/campaign/programs.py": 2,
+    "rig/campaign/runner.py": 2,
+    "rig/report/afc.py": 1,
+    "rig/sim/session.py": 2,
+}
+
+
+def _model_class_tests(path: Path) -> int:
+    """``isinstance(x, C)`` / ``isinstance(x, (C, D))`` / ``isinstance(x, C | D)`` with a model
+    class among the Cs."""
+
+    def names(node: ast.expr) -> set[str]:
+        if isinstance(node, ast.Name):
+            return {node.id}
+        if isinstance(node, ast.Attribute):
+            return {node.attr}
+        if isinstance(node, ast.Tuple):
+            return set().union(*(names(e) for e in node.elts))
+        if isinstance(node, ast.BinOp):
+            return names(node.left) | names(node.right)
+        return set()
+
+    return sum(
+        1
+        for node in ast.walk(ast.parse(path.read_text(), str(path)))
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+        and node.func.id == "isinstance" and len(node.args) == 2
+        and names(node.args[1]) & MODEL_CLASSES
+    )  # fmt: skip
+
+
+def test_model_classes_are_tested_in_the_registry_only() -> None:
+    found = {
+        str(p.relative_to(ROOT)): n
+        for pkg in PACKAGES
+        for p in sorted((ROOT / pkg).rglob("*.py"))
+        if (n := _model_class_tests(p)) and str(p.relative_to(ROOT)) != MODEL_REGISTRY
+    }
+    grown = {f: n for f, n in found.items() if n > MODEL_ISINSTANCE_PENDING.get(f, 0)}
+    assert not grown, f"isinstance on a tool's class outside {MODEL_REGISTRY}: {grown}"
+    stale = {f: n for f, n in MODEL_ISINSTANCE_PENDING.items() if found.get(f, 0) < n}
+    assert not stale, f"fewer class tests now, lower MODEL_ISINSTANCE_PENDING: {stale}"
+    assert _model_class_tests(ROOT / MODEL_REGISTRY) >= 1  # the check sees the registry's
+
+
+def test_the_class_test_check_finds_class_tests(tmp_path: Path) -> None:
+    src = tmp_path / "m.py"
+    src.write_text("isinstance(t, EndMill)\nisinstance(t, (int, cfg.FaceMill))\n"
+                   "isinstance(t, EndMill | None)\nisinstance(t, int)\n")  # fmt: skip
+    assert _model_class_tests(src) == 3

@@ -12,7 +12,7 @@ speeds; validated, then held in SI units for the solvers.
     Ktc_N_mm2 = 600.0
     Krc_N_mm2 = 200.0           # radial (normal) coefficient, absolute, not a ratio
     [[modes]]                   # or modes_file = "modes.toml" (`analyze modal --save/--json`)
-    direction = "x"             # x = feed, y = cross-feed
+    axis = "x"                  # x = feed, y = cross-feed (formerly `direction`, still read)
     f_hz = 922.0
     zeta = 0.011
     k_N_m = 1.34e6              # or m_kg
@@ -41,6 +41,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from analysis.errors import ConfigError
+from analysis.modal import renamed_mode_fields
 from analysis.validation import Model, read_toml, validate
 
 __all__ = ["StabilityCase", "load_case"]
@@ -61,11 +62,18 @@ class _Coefficients(Model):
 
 
 class _Mode(Model):
-    direction: Literal["x", "y"] = Field(description='"x" (feed) or "y" (cross-feed)')
+    """A mode in the one mode schema (the tool catalogue's)."""
+
+    axis: Literal["x", "y"] = Field(description='"x" (feed) or "y" (cross-feed)')
     f_hz: float = Field(gt=0, le=100_000, description="Hz, natural frequency")
     zeta: float = Field(gt=0, lt=1, description="damping ratio, 0 < zeta < 1")
     k_N_m: float | None = Field(None, gt=0, description="N/m, modal stiffness")
     m_kg: float | None = Field(None, gt=0, description="kg, modal mass")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _renamed(cls, data: Any) -> Any:
+        return renamed_mode_fields(data)
 
     @model_validator(mode="after")
     def _one_of(self) -> _Mode:
@@ -198,7 +206,7 @@ def load_case(path: str | Path) -> StabilityCase:
         kt, kn = _coefficients_file(p, cfg.coefficients_file or "")
     modes: list[tuple[str, float, float, float]]
     if cfg.modes:
-        modes = [(m.direction, m.f_hz, m.zeta, _stiffness(m)) for m in cfg.modes]
+        modes = [(m.axis, m.f_hz, m.zeta, _stiffness(m)) for m in cfg.modes]
     else:
         modes = _modes_file(p, cfg.modes_file or "")
     d, f, z, k = zip(*modes)
@@ -266,7 +274,7 @@ def _modes_file(cfg_path: Path, name: str) -> list[tuple[str, float, float, floa
 
         ms = load_modes(p)
         rows: list[tuple[object, ...]]
-        rows = [(d, m.frequency_hz, m.damping_ratio, m.stiffness_n_m, m.mass_kg)
+        rows = [(d, m.f_hz, m.zeta, m.k_N_m, m.m_kg)
                 for d, modes in ms.directions.items() for m in modes]  # fmt: skip
     elif isinstance(data, dict) and isinstance(data.get("modes"), list):
         rows = []

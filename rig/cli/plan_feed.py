@@ -18,9 +18,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         "2 bad input, or a program that removes nothing from its stock.",
     )  # fmt: skip
     f.add_argument("program", type=Path, help="NC program (G21 or G20)")
-    f.add_argument("--rules", required=True, help="rule file (TOML) or rule-base name / id; "
+    f.add_argument("--rules", help="rule file (TOML) or rule-base name / id; "
                    "T1=RULE,T2=RULE for a program that changes tools (a tool left out, e.g. a "
-                   "drill, keeps its feeds)")  # fmt: skip
+                   "drill, keeps its feeds); default: each tool's rule from the rule base by "
+                   "tool and --material (a tool it lacks keeps its feeds)")  # fmt: skip
     f.add_argument("--db", type=Path, help="rule base for a name / id (default from lab.toml)")
     _common(f)
     f.add_argument("-o", "--output", type=Path, required=True, help="adjusted program to write")
@@ -75,12 +76,14 @@ def _feed(a: argparse.Namespace) -> int:
     from rig.cli._common import Progress, print_json, print_table, status
 
     step, cap = None, None
-    if a.material and a.tool and "=" in a.tool:
+    # no --rules with T1=A,T2=B: --material only finds each tool's rule in the rule base
+    lookup_only = a.rules is None and bool(a.tool) and "=" in a.tool
+    if a.material and a.tool and "=" in a.tool and not lookup_only:
         raise PlanningError(
             f"--material with --tool {a.tool}: the force and limit options work on a one-tool "
             "program; check the output per tool with `cutlab plan check OUT --tool T1=A,T2=B`"
         )
-    if a.material:  # the limits need the force coefficients
+    if a.material and not lookup_only:  # the limits need the force coefficients
         from planning.limits import coefficients, feed_limiter, limits_for
 
         tool = end_mill(a.tool)
@@ -96,8 +99,8 @@ def _feed(a: argparse.Namespace) -> int:
             stock_spec=a.stock, spacing_mm=a.spacing, report_dir=a.report, progress=bar,
             warn=status, min_piece_mm=a.min_piece, split=not a.no_split,
             check_holder=not a.no_holder_check, force_limit_n=a.force_limit,
-            material=a.material, spindle_rpm=a.spindle, dialect=a.dialect, limit_step=step,
-            feed_cap=cap,
+            material=None if lookup_only else a.material, spindle_rpm=a.spindle,
+            dialect=a.dialect, limit_step=step, feed_cap=cap, rules_material=a.material,
         )  # fmt: skip
     if a.json:
         s.setdefault("violations", [])  # the command contract: always a list
@@ -113,6 +116,10 @@ def _feed(a: argparse.Namespace) -> int:
         status("warning: " + c.message(str(a.program)))
     for n in s["notes"]:
         status("note: " + n)
+    for r in s.get("rule_lookup", ()):  # each tool's rule from the rule base (no --rules)
+        found = f"rule {r['rule']} (group {r['group']})" if r["rule"] else "no rule"
+        status(f"T{r['tool_number']} {r['tool']}: {found}" + (f": {r['reason']}"
+               if r.get("reason") else ""))  # fmt: skip
     rows = (("machining time (s)", "time_%s_s"), ("with acceleration (s)", "accel_time_%s_s"),
             ("max load x feed", "load_rate_max_%s"))  # fmt: skip
     print_table([{"": t, "before": s[k % "before"], "after": s[k % "after"]} for t, k in rows])
