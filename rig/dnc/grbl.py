@@ -77,7 +77,6 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -95,168 +94,32 @@ from planning.nc.grbl import (
 from rig.dnc._stream import Fault, Item, StreamerBase
 from rig.dnc.errors import DncError
 from rig.dnc.execution import ExecTracker, line_paths
+from rig.dnc.grbl_check import GRBL_LINE_CHARS, GRBL_RX_BUFFER_BYTES, TRANSFORM, check_line  # noqa: F401
+from rig.dnc.grbl_overrides import (
+    _OVR_KEYS,
+    FEED_OVR_RANGE_PCT,
+    OVERRIDE_BYTES,
+    OVR_SETTLE_S,
+    SPINDLE_OVR_RANGE_PCT,
+    _after_override,
+    override_bytes,
+)
+from rig.dnc.grbl_status import GrblStatus, parse_status
 from rig.dnc.link import LinkLost, LinkTimeout, SerialLink
 from rig.dnc.program import Program
 from rig.dnc.record import BlockRow
 
 FEED_HOLD, CYCLE_START, STATUS, SOFT_RESET = b"!", b"~", b"?", b"\x18"
-#: GRBL 1.1 real-time override bytes (config.h CMD_*_OVR_*) and what each does
-OVERRIDE_BYTES = {
-    0x90: "feed 100 %", 0x91: "feed +10 %", 0x92: "feed -10 %", 0x93: "feed +1 %",
-    0x94: "feed -1 %", 0x95: "rapid 100 %", 0x96: "rapid 50 %", 0x97: "rapid 25 %",
-    0x99: "spindle 100 %", 0x9A: "spindle +10 %", 0x9B: "spindle -10 %", 0x9C: "spindle +1 %",
-    0x9D: "spindle -1 %",
-}  # fmt: skip
-#: config.h MIN/MAX_FEED_RATE_OVERRIDE and MIN/MAX_SPINDLE_SPEED_OVERRIDE, %
-FEED_OVR_RANGE_PCT = SPINDLE_OVR_RANGE_PCT = (10, 200)
-#: an Ov: report this long (wall s) after our last override byte shows all our bytes applied
-OVR_SETTLE_S = 0.25
-# (reset byte, {step: byte}, index in Ov:) per override
-_OVR_KEYS = {"feed": (0x90, {10: 0x91, -10: 0x92, 1: 0x93, -1: 0x94}, 0),
-             "spindle": (0x99, {10: 0x9A, -10: 0x9B, 1: 0x9C, -1: 0x9D}, 2)}  # fmt: skip
 HANDSHAKE = b"$G\n"  # what a stream sends first (see GrblStreamer._handshake)
 MODES = ("char-counting", "send-response")
-GRBL_RX_BUFFER_BYTES = 127  # of RX_BUFFER_SIZE 128: one byte of margin
-GRBL_LINE_CHARS = 79  # LINE_BUFFER_SIZE 80 incl. the terminating NUL
-TRANSFORM = "stripped comments, spaces, N words and lone O program numbers"
 SILENT_HINT = (
     " (wrong port or baud rate? or GRBL is halted after a hard/soft limit alarm: it then answers "
     "nothing until a soft reset, cutlab dnc reset)"
 )
 
 
-@dataclass(frozen=True)
-class GrblStatus:
-    """A parsed status report. Missing fields are None.
-
-    state : Idle, Run, Hold, Jog, Alarm, Door, Check, Home, Sleep; substate : the ``:n`` of
-    ``Hold:0`` / ``Door:1`` ("" if none); mpos_mm / wpos_mm : one of them per report ($10);
-    wco_mm : work coordinate offset (sent every 10-30 reports); planner_free, rx_free : Bf;
-    line : Ln; feed_mm_min, spindle_rpm : FS (or F); overrides : Ov (feed, rapid, spindle %);
-    pins : Pn letters; accessories : A letters
-    """
-
-    state: str
-    mpos_mm: tuple[float, float, float] | None = None
-    planner_free: int | None = None
-    rx_free: int | None = None
-    feed_mm_min: float | None = None
-    spindle_rpm: float | None = None
-    line: int | None = None
-    substate: str = ""
-    wpos_mm: tuple[float, float, float] | None = None
-    wco_mm: tuple[float, float, float] | None = None
-    overrides: tuple[int, ...] | None = None
-    pins: str = ""
-    accessories: str = ""
-
-    @property
-    def full_state(self) -> str:
-        return f"{self.state}:{self.substate}" if self.substate else self.state
-
-
-def _xyz(nums: list[str]) -> tuple[float, float, float]:
-    return (float(nums[0]), float(nums[1]), float(nums[2]))
-
-
-def parse_status(text: str) -> GrblStatus:
-    """``<Run|MPos:1.000,2.000,0.000|Bf:12,100|FS:600,10000|Ln:42>`` -> GrblStatus (report.c's
-    fields, any order; unknown fields are ignored)."""
-    body = text.strip().removeprefix("<").removesuffix(">")
-    parts = body.split("|")
-    if not parts or not parts[0]:
-        raise DncError(f"GRBL status report {text!r}: no state")
-    state, _, sub = parts[0].partition(":")
-    kw: dict = {"state": state, "substate": sub}
-    for p in parts[1:]:
-        key, _, val = p.partition(":")
-        nums = val.split(",")
-        try:
-            if key == "MPos" and len(nums) >= 3:
-                kw["mpos_mm"] = _xyz(nums)
-            elif key == "WPos" and len(nums) >= 3:
-                kw["wpos_mm"] = _xyz(nums)
-            elif key == "WCO" and len(nums) >= 3:
-                kw["wco_mm"] = _xyz(nums)
-            elif key == "Bf" and len(nums) == 2:
-                kw["planner_free"], kw["rx_free"] = int(nums[0]), int(nums[1])
-            elif key == "FS" and len(nums) == 2:
-                kw["feed_mm_min"], kw["spindle_rpm"] = float(nums[0]), float(nums[1])
-            elif key == "F" and len(nums) == 1:
-                kw["feed_mm_min"] = float(nums[0])
-            elif key == "Ln":
-                kw["line"] = int(val)
-            elif key == "Ov":
-                kw["overrides"] = tuple(int(v) for v in nums)
-            elif key == "Pn":
-                kw["pins"] = val
-            elif key == "A":
-                kw["accessories"] = val
-        except ValueError:
-            raise DncError(f"GRBL status report {text!r}: bad field {p!r}") from None
-    return GrblStatus(**kw)
-
-
-def check_line(text: str, where: str, rx_buffer_bytes: int) -> None:
-    """Raise DncError if GRBL cannot take this line (too long for its buffers)."""
-    if len(text) + 1 > rx_buffer_bytes:
-        raise DncError(
-            f"{where}: line is {len(text) + 1} bytes with its LF; GRBL's receive buffer holds "
-            f"{rx_buffer_bytes} (expected <= {rx_buffer_bytes} bytes)"
-        )
-    f = grbl_filter(text, limit=10**9)
-    if len(f.text) > GRBL_LINE_CHARS:
-        raise DncError(
-            f"{where}: {len(f.text)} characters without spaces and comments; GRBL's line "
-            f"buffer holds {GRBL_LINE_CHARS} (error:11)"
-        )
-
-
 def _is_answer(line: str) -> bool:
     return line == "ok" or line.startswith("error:")
-
-
-def _after_override(value: int | None, code: int) -> int | None:
-    """The feed or spindle override after byte ``code`` as GRBL computes it (None: unknown)."""
-    reset, steps, _ = _OVR_KEYS["feed" if code <= 0x94 else "spindle"]
-    if code == reset:
-        return 100
-    if value is None:
-        return None
-    step = next(k for k, v in steps.items() if v == code)
-    lo, hi = FEED_OVR_RANGE_PCT if code <= 0x94 else SPINDLE_OVR_RANGE_PCT
-    return min(max(value + step, lo), hi)
-
-
-def override_bytes(current: int | None, target: int, which: str = "feed") -> list[int]:
-    """The fewest override bytes taking GRBL's ``which`` override (feed or spindle) from
-    ``current`` % (None: unknown, so the reset first) to ``target`` % (within 10-200 %): a
-    breadth-first search over +-10, +-1 and the reset, with GRBL's clamping at the limits."""
-    reset, steps, _ = _OVR_KEYS[which]
-    lo, hi = FEED_OVR_RANGE_PCT if which == "feed" else SPINDLE_OVR_RANGE_PCT
-    if not lo <= target <= hi:
-        raise ValueError(f"{which} override {target} %: expected {lo}..{hi} %")
-    if current is None:
-        return [reset, *override_bytes(100, target, which)]
-    prev: dict[int, tuple[int, int]] = {}
-    frontier, seen = [current], {current}
-    while target not in seen:
-        nxt = []
-        for v in frontier:
-            for code in (*steps.values(), reset):
-                w = _after_override(v, code)
-                assert w is not None
-                if w not in seen:
-                    seen.add(w)
-                    prev[w] = (v, code)
-                    nxt.append(w)
-        frontier = nxt
-    out: list[int] = []
-    v = target
-    while v != current:
-        v, code = prev[v]
-        out.append(code)
-    return out[::-1]
 
 
 class GrblStreamer(StreamerBase):
