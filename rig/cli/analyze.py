@@ -25,12 +25,12 @@ from __future__ import annotations
 
 import argparse
 
-from rig.cli._common import count, image_file, number, positive
+from rig.cli.common import count, image_file, number, positive
 
 
 def _forces(args: argparse.Namespace) -> int:
     from analysis.identify import ImportOptions, fit_files
-    from rig.cli._common import Progress, print_json, print_table, status
+    from rig.cli.common import Progress, print_json, print_table, status
 
     pairs, table = _conditions_arg(args.conditions)
     opts = ImportOptions(axes=args.axes, table=table, pattern=args.conditions_pattern,
@@ -92,7 +92,7 @@ def _forces(args: argparse.Namespace) -> int:
 
 def _print_trust(out: dict) -> None:
     """How far an end-mill fit holds: per direction, per run, leave-one-out influence."""
-    from rig.cli._common import print_table
+    from rig.cli.common import print_table
 
     if out.get("by_direction"):
         over = f" over {out['by_direction_over']}" if out.get("by_direction_over") else ""
@@ -137,7 +137,7 @@ def _conditions_arg(items: list[str] | None) -> tuple[dict, str | None]:
     .toml, or any existing file)."""
     from pathlib import Path
 
-    from rig.cli._common import parse_conditions
+    from rig.cli.common import parse_conditions
 
     if (
         items
@@ -154,7 +154,7 @@ def _conditions_arg(items: list[str] | None) -> tuple[dict, str | None]:
 
 def _modal(args: argparse.Namespace) -> int:
     from analysis.modal import modal_file
-    from rig.cli._common import print_json, print_table, status
+    from rig.cli.common import print_json, print_table, status
 
     out = modal_file(
         args.file, args.hammer, rate_hz=args.rate, record_s=args.record_s,

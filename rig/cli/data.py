@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import argparse
 
-from rig.cli._common import image_file, nonnegative, positive
+from rig.cli.common import image_file, nonnegative, positive
 
 
 def _is_run_file(path: str) -> bool:
@@ -23,7 +23,7 @@ def _is_run_file(path: str) -> bool:
 
 
 def _info(args: argparse.Namespace) -> int:
-    from rig.cli._common import print_json, print_table
+    from rig.cli.common import print_json, print_table
 
     if not _is_run_file(args.file):
         from analysis.runs.table import table_summary
@@ -69,7 +69,7 @@ def _info(args: argparse.Namespace) -> int:
 
 
 def _plot(args: argparse.Namespace) -> int:
-    from rig.cli._common import print_json, status
+    from rig.cli.common import print_json, status
 
     if _is_run_file(args.file):
         from analysis.runs import load_run, plot_run
@@ -92,8 +92,8 @@ def _plot(args: argparse.Namespace) -> int:
 
 def _import(args: argparse.Namespace) -> int:
     from analysis.identify import ImportOptions
-    from rig.cli._common import Progress, print_json, print_table, status
     from rig.cli.analyze import _conditions_arg
+    from rig.cli.common import Progress, print_json, print_table, status
     from rig.log import import_exports
 
     pairs, table = _conditions_arg(args.conditions)

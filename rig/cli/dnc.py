@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 
-from rig.cli._common import count, number, positive, print_json, status
+from rig.cli.common import count, number, positive, print_json, status
 
 
 def _refuse_adaptive(args: argparse.Namespace) -> None:

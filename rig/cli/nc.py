@@ -20,7 +20,7 @@ import argparse
 import sys
 
 from planning.nc import DIALECTS
-from rig.cli._common import Progress, image_file, print_json, print_table, status
+from rig.cli.common import Progress, image_file, print_json, print_table, status
 
 
 def _interpret(args: argparse.Namespace, *, warn: bool = True, keep_motion: bool = False):

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import add_catalog_options, image_file, positive
+from rig.cli.common import add_catalog_options, image_file, positive
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -72,7 +72,7 @@ def _feed(a: argparse.Namespace) -> int:
     from analysis.config import load_machine
     from planning.errors import PlanningError
     from planning.feed import end_mill, feed_program
-    from rig.cli._common import Progress, print_json, print_table, status
+    from rig.cli.common import Progress, print_json, print_table, status
 
     step, cap = None, None
     if a.material and a.tool and "=" in a.tool:
@@ -127,7 +127,7 @@ def _feed(a: argparse.Namespace) -> int:
 
 def _simulate(a: argparse.Namespace) -> int:
     from planning.feed import simulate_job
-    from rig.cli._common import Progress, print_json, print_table, status
+    from rig.cli.common import Progress, print_json, print_table, status
 
     with Progress("simulate", unit="piece") as bar:
         results, out = simulate_job(

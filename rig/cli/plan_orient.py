@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import add_catalog_options, count
+from rig.cli.common import add_catalog_options, count
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -47,7 +47,7 @@ def _show(v):
 
 def run(args: argparse.Namespace) -> int:
     from planning.orient import run_orient
-    from rig.cli._common import Progress, print_json, print_table, status
+    from rig.cli.common import Progress, print_json, print_table, status
 
     with Progress("orient", "pt") as bar:
 

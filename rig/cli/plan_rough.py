@@ -16,7 +16,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import add_catalog_options, positive
+from rig.cli.common import add_catalog_options, positive
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -63,7 +63,7 @@ LEVEL_COLUMNS = {"order": "order", "z_mm": "z_mm", "area_mm2": "area_mm2", "path
 def run(args: argparse.Namespace) -> int:
     from planning.limits import rough_limiter
     from planning.rough import run_rough
-    from rig.cli._common import Progress, print_json, print_table, status
+    from rig.cli.common import Progress, print_json, print_table, status
 
     with Progress("plan rough", "step") as bar:
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import (
+from rig.cli.common import (
     add_catalog_options,
     count,
     image_file,
