@@ -31,7 +31,6 @@ pause, overflow, interlock, ...) and the exit status with its reason.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import signal
 import sys
 import time
@@ -42,7 +41,7 @@ from typing import Any
 
 from analysis import __version__
 from analysis.config import FaceMill
-from analysis.errors import ConfigError, CutlabError
+from analysis.errors import ConfigError
 from analysis.runs import file as rf
 from rig.campaign.config import Campaign, RunConditions, load_campaign
 from rig.campaign.manifest import (
@@ -55,7 +54,7 @@ from rig.campaign.manifest import (
     start_fresh,
     utc_now,
 )
-from rig.campaign.programs import CutProgram, generate_program
+from rig.campaign.plan import PlannedRun, _dialect, plan_campaign
 from rig.campaign.run import RigSession, StopRequest, execute_run
 from rig.daq import Calibration
 from rig.errors import RigError
@@ -67,24 +66,11 @@ __all__ = [
     "RunRecord",
     "campaign_folder",
     "campaign_status",
-    "dry_run",
     "load_campaign",
     "plan_campaign",
     "run_campaign",
     "run_status",
 ]
-
-
-@dataclass(frozen=True)
-class PlannedRun:
-    """A test with its program, ready to run. ``expected_s``: machine time of the program, s."""
-
-    test: RunConditions
-    cut: CutProgram
-    program_text: str
-    file_stem: str
-    expected_s: float
-    sha256: str
 
 
 @dataclass(frozen=True)
@@ -156,71 +142,6 @@ def _note_interrupted(folder: Path, campaign: Campaign, rows: list[dict[str, Any
         entry = manifest.entry(r["name"])
         if entry and entry.get("status") == rf.STATUS_RUNNING:
             manifest.set(r["name"], status=rf.STATUS_INTERRUPTED, reason=r["reason"])
-
-
-def _dialect(campaign: Campaign) -> str:
-    if campaign.spec.campaign.rig == "sim" and campaign.spec.sim.protocol:
-        return campaign.spec.sim.protocol
-    return campaign.machine.dialect
-
-
-def _post_process(text: str, campaign: Campaign, test: RunConditions, cut: CutProgram) -> str:
-    """The feed post-processor (planning.feed.post, seed 001) over a generated program."""
-    from analysis.config import EndMill
-    from analysis.rules import load_rule
-    from rig.campaign.programs import campaign_rule, post_process_program
-
-    tool = campaign.tool
-    if not isinstance(tool, EndMill):
-        raise ConfigError(f"{campaign.path}: post-processed feeds need an end mill")
-    if test.rule == "campaign":
-        if campaign.spec.feed_rule is None:
-            raise ConfigError(
-                f"{campaign.path}: test {test.index}: rule = 'campaign' needs a [feed_rule] table"
-            )
-        rule = campaign_rule(campaign.spec, tool, f"{campaign.name}-rule")
-        piece = campaign.spec.feed_rule.min_piece_mm
-    else:
-        p = Path(test.rule or "")
-        rule = load_rule(p if p.is_absolute() else campaign.path.parent / p)
-        piece = 2.0
-    out, _ = post_process_program(cut, tool, rule, campaign.machine, piece)
-    return out
-
-
-def plan_campaign(campaign: Campaign) -> list[PlannedRun]:
-    """Generate and check every test's program; the problems of all of them are raised together
-    (one ConfigError, a line each) before anything runs."""
-    out, problems = [], []
-    dialect = _dialect(campaign)
-    for t in campaign.tests:
-        try:
-            out.append(_plan_one(campaign, t, dialect))
-        except CutlabError as exc:
-            where = f"{campaign.path}:{t.source_line}" if t.source_line else str(campaign.path)
-            problems += [f"{where}: test {t.index} ({t.name}): {line}"
-                         for line in str(exc).splitlines()]  # fmt: skip
-    if problems:
-        raise ConfigError("\n".join(dict.fromkeys(problems)))
-    return out
-
-
-def _plan_one(campaign: Campaign, t: RunConditions, dialect: str) -> PlannedRun:
-    from rig.dnc import program_from_text
-
-    cut = generate_program(campaign.spec.program, t, campaign.tool, dialect, t.name)
-    text = cut.text
-    if t.feed_mode == "post-processed":
-        text = _post_process(text, campaign, t, cut)
-    stem = f"{t.index:03d}-{t.name}"
-    program_from_text(text, f"{stem}.nc")
-    sha = hashlib.sha256(text.encode()).hexdigest()
-    return PlannedRun(t, cut, text, stem, _expected_seconds(cut, campaign), sha)
-
-
-def _expected_seconds(cut: CutProgram, campaign: Campaign) -> float:
-    plunge = (campaign.spec.program.safe_z_mm - cut.z_cut_mm) / min(cut.cut_feed_mm_min, 500.0)
-    return 60.0 * (plunge + abs(cut.x_end_mm - cut.x_start_mm) / cut.cut_feed_mm_min) + 1.0
 
 
 # ----------------------------------------------------------------------------------------------
@@ -542,64 +463,3 @@ def _within_run(bar: object, name: str) -> Callable[[int, int], None]:
 # ----------------------------------------------------------------------------------------------
 # Dry run
 # ----------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class DryRun:
-    campaign: str
-    rig: str
-    tests: int
-    programs_checked: int
-    expected_machine_s: float
-    hardware: list[str]
-    problems: list[str]
-    warnings: list[str] = field(default_factory=list)
-
-    @property
-    def ok(self) -> bool:
-        return not self.problems
-
-    def as_dict(self) -> dict[str, Any]:
-        """Every field, the expected machine time rounded to 0.1 s, and ``ok``."""
-        return asdict(self) | {"expected_machine_s": round(self.expected_machine_s, 1),
-                               "ok": self.ok}  # fmt: skip
-
-
-def dry_run(campaign: Campaign, out_root: str | Path | None = None) -> DryRun:
-    """Check what the campaign will use without cutting: every program (feed rules included),
-    the hardware (``rig = "real"``: the NI device, its rate limit, the serial port) and the room
-    on the disk for its runs. The config itself was checked by :func:`load_campaign`. Problems
-    are listed, not raised, so all of them are seen at once."""
-    from rig.log import free_space_problem
-
-    problems: list[str] = []
-    try:
-        plans = plan_campaign(campaign)
-    except ConfigError as exc:
-        plans, problems = [], str(exc).splitlines()
-    if campaign.spec.campaign.rig == "real":
-        from rig.campaign.real import check_hardware
-
-        hardware, missing = check_hardware(campaign)
-        problems += missing
-    else:
-        hardware = ["simulated rig: controller on a pseudo-terminal, simulated DAQ"]
-    rate_hz = campaign.spec.daq.rate_hz or campaign.rig.daq.rate_hz
-    per_s = rate_hz * len(campaign.rig.dynamometer.channels) * 8
-    need = sum(per_s * (p.expected_s + 2 * campaign.spec.daq.rest_s + 10.0) for p in plans)
-    space = free_space_problem(campaign_folder(campaign, out_root), need)
-    problems += [space] if space else []
-    n = len(campaign.tests)
-    return DryRun(
-        campaign.name, campaign.spec.campaign.rig, n, len(plans),
-        sum(p.expected_s for p in plans), hardware, problems, mode_warnings(campaign),
-    )  # fmt: skip
-
-
-def mode_warnings(campaign: Campaign) -> list[str]:
-    """Tooth-passing harmonics of the planned spindle speeds near a dynamometer mode (seed 003
-    3.2: the measured force would be amplified there)."""
-    from analysis.modal import tooth_passing_warnings
-
-    rpms = sorted({t.spindle_rpm for t in campaign.tests})
-    return tooth_passing_warnings(campaign.rig.dynamometer.modes, rpms, campaign.teeth)
