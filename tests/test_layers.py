@@ -303,10 +303,8 @@ MODULES_OVER: dict[str, int] = {
     "rig/sim/_controller.py": 518,
     "rig/sim/facemill_independent.py": 541,
     "rig/sim/grbl.py": 732,
-    # SIZES-TODO
+    # branch sizes (issue 30 item 5) did not get to these yet
     "rig/log/writer.py": 759,
-    "rig/campaign/config.py": 741,
-    "rig/campaign/runner.py": 605,
     "analysis/runs/file.py": 869,
 }
 FUNCTIONS_OVER: dict[str, int] = {
@@ -336,10 +334,6 @@ FUNCTIONS_OVER: dict[str, int] = {
     "rig/campaign/run.py::execute_run": 199,
     "rig/console/server.py::make_app": 144,
     "rig/sim/facemill_independent.py::simulate": 82,
-    # SIZES-TODO
-    "rig/campaign/runner.py::run_campaign": 152,
-    "rig/report/facemill.py::facemill_section": 97,
-    "rig/report/stability.py::stability_sweep_section": 82,
 }
 
 

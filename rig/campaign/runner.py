@@ -258,22 +258,9 @@ def run_campaign(
     ``fresh``: move an earlier run of the campaign aside (``before-<utc>/``) and start over;
     ``force_resume``: resume although inputs changed (the change is recorded in the manifest).
     """
-    from rig.log import RunWriter, RunWriterError, free_space_problem
 
     plans = plan_campaign(campaign)
-    if campaign.spec.adaptive is not None:
-        from rig.adaptive.session import check_adaptive
-
-        check_adaptive(campaign)  # refused before anything runs
-    if campaign.spec.campaign.rig == "real" and session_factory is None:
-        from rig.campaign.real import check_hardware
-
-        _, problems = check_hardware(campaign)
-        if problems:
-            raise RigError(
-                f"{campaign.path}: rig = 'real' but the hardware is not ready:\n  "
-                + "\n  ".join(problems)
-            )
+    _check_ready(campaign, session_factory)
     folder = campaign_folder(campaign, out_root)
     (folder / "runs").mkdir(parents=True, exist_ok=True)
     (folder / "programs").mkdir(exist_ok=True)
@@ -316,69 +303,10 @@ def run_campaign(
                 continue
             if stopped or stop.event.is_set():
                 break
-            rest_s = 2 * campaign.spec.daq.rest_s + 10.0
-            problem = free_space_problem(folder / "runs", bytes_per_s * (plan.expected_s + rest_s))
-            if problem:
-                raise RigError(f"run {t.index} ({t.name}) not started: {problem}")
-            earlier = set_aside(path)
-            (folder / "programs" / f"{plan.file_stem}.nc").write_text(plan.program_text)
-            session = factory(campaign, plan, k)
-            if campaign.spec.adaptive is not None:  # GRBL overrides from the live force
-                from rig.adaptive.session import adaptive_session
-
-                session = adaptive_session(campaign, t, session, cal_sheet)
-            from rig.dnc import program_from_text
-
-            program = program_from_text(plan.program_text, f"{plan.file_stem}.nc", check_nc=False)
-            manifest.set(
-                t.name, index=t.index, group=t.group, file=str(path.relative_to(folder)),
-                status=rf.STATUS_RUNNING, reason="", started_utc=utc_now(),
-                earlier_attempt=str(earlier.name) if earlier else None,
-                conditions=t.as_dict(), program_sha256=plan.sha256,
-            )  # fmt: skip
-            writer = RunWriter(path, session.daq.info, cal_sheet, clock=session.clock)
-            try:
-                writer.set_conditions(_conditions(campaign, plan))
-                writer.set_rig(_rig_meta(campaign, session))
-                writer.set_program(plan.program_text, f"{plan.file_stem}.nc")
-                bar.set_postfix_str(t.name[:40])
-                outcome = execute_run(
-                    session, program, writer, cal_sheet,
-                    force_limit_n=sus.force_limit_n, on_force=sus.on_force,
-                    hold_timeout_s=sus.hold_timeout_s, on_overflow=sus.on_overflow, stop=stop,
-                    expected_s=plan.expected_s,
-                    sim_speed=campaign.spec.sim.speed if campaign.spec.campaign.rig == "sim"
-                    else 1.0,
-                    progress=_within_run(bar, t.name), watchdog_wall_s=sus.watchdog_wall_s,
-                    zero_s=campaign.spec.daq.rest_s, on_chatter=sus.on_chatter,
-                    spindle_rpm=t.spindle_rpm, chatter_floor_n=sus.chatter_floor_n,
-                    chatter_settings=campaign.spec.chatter.settings(),
-                )  # fmt: skip
-                status, reason = outcome.status, outcome.reason
-            except BaseException as exc:
-                status, reason = rf.STATUS_FAIL, f"{type(exc).__name__}: {exc}"[:400]
-                with contextlib.suppress(RunWriterError):
-                    writer.close(status, reason)
-                manifest.set(t.name, status=status, reason=reason, ended_utc=utc_now())
-                raise
-            try:
-                writer.close(status, reason)
-            except RunWriterError as exc:  # the medium failed after the program ended
-                status, reason = rf.STATUS_FAIL, str(exc)
-            if writer.failure is not None and status == rf.STATUS_SUCCESS:
-                status, reason = rf.STATUS_FAIL, writer.failure
-            manifest.set(
-                t.name, status=status, reason=reason, ended_utc=utc_now(),
-                peak_force_n=outcome.peak_force_n, wall_s=round(outcome.wall_s, 3),
-            )  # fmt: skip
-            if writer.failure is not None and writer.failure.startswith(_NO_ROOM):
-                # no room for the next run either: stop here, in one line, files closed
-                raise RigError(f"run {t.index} ({t.name}) stopped: {writer.failure}; free some "
-                               "space and run the same command again to resume")  # fmt: skip
-            records.append(
-                RunRecord(t.index, t.name, t.group, str(path), status, reason, False,
-                          outcome.peak_force_n, outcome.wall_s)
-            )  # fmt: skip
+            rec = _run_one(campaign, plan, k, folder, manifest, factory, stop, cal_sheet, bar,
+                           bytes_per_s)  # fmt: skip
+            records.append(rec)
+            status, reason = rec.status, rec.reason
             bar.update(1)
             if status != rf.STATUS_SUCCESS:
                 bar.write(f"cutlab: run {t.index} {t.name}: {status}: {reason}", file=sys.stderr)
@@ -394,6 +322,98 @@ def run_campaign(
     return CampaignResult(
         campaign.name, folder, tuple(records), stopped, time.monotonic() - wall0, counts
     )
+
+
+def _check_ready(campaign: Campaign, session_factory: SessionFactory | None) -> None:
+    """Refuse before anything runs: an [adaptive] table the controller cannot serve, a real rig
+    whose hardware is not ready."""
+    if campaign.spec.adaptive is not None:
+        from rig.adaptive.session import check_adaptive
+
+        check_adaptive(campaign)  # refused before anything runs
+    if campaign.spec.campaign.rig == "real" and session_factory is None:
+        from rig.campaign.real import check_hardware
+
+        _, problems = check_hardware(campaign)
+        if problems:
+            raise RigError(
+                f"{campaign.path}: rig = 'real' but the hardware is not ready:\n  "
+                + "\n  ".join(problems)
+            )
+
+
+def _run_one(
+    campaign: Campaign, plan: PlannedRun, k: int, folder: Path, manifest: Manifest,
+    factory: SessionFactory, stop: StopRequest, cal_sheet: Calibration, bar: Any,
+    bytes_per_s: float,
+) -> RunRecord:  # fmt: skip
+    """Run test ``k`` of the plan into its run file, the manifest kept up to date."""
+    from rig.log import RunWriter, RunWriterError, free_space_problem
+
+    t = plan.test
+    path = folder / "runs" / f"{plan.file_stem}.h5"
+    sus = campaign.spec.suspenders
+    rest_s = 2 * campaign.spec.daq.rest_s + 10.0
+    problem = free_space_problem(folder / "runs", bytes_per_s * (plan.expected_s + rest_s))
+    if problem:
+        raise RigError(f"run {t.index} ({t.name}) not started: {problem}")
+    earlier = set_aside(path)
+    (folder / "programs" / f"{plan.file_stem}.nc").write_text(plan.program_text)
+    session = factory(campaign, plan, k)
+    if campaign.spec.adaptive is not None:  # GRBL overrides from the live force
+        from rig.adaptive.session import adaptive_session
+
+        session = adaptive_session(campaign, t, session, cal_sheet)
+    from rig.dnc import program_from_text
+
+    program = program_from_text(plan.program_text, f"{plan.file_stem}.nc", check_nc=False)
+    manifest.set(
+        t.name, index=t.index, group=t.group, file=str(path.relative_to(folder)),
+        status=rf.STATUS_RUNNING, reason="", started_utc=utc_now(),
+        earlier_attempt=str(earlier.name) if earlier else None,
+        conditions=t.as_dict(), program_sha256=plan.sha256,
+    )  # fmt: skip
+    writer = RunWriter(path, session.daq.info, cal_sheet, clock=session.clock)
+    try:
+        writer.set_conditions(_conditions(campaign, plan))
+        writer.set_rig(_rig_meta(campaign, session))
+        writer.set_program(plan.program_text, f"{plan.file_stem}.nc")
+        bar.set_postfix_str(t.name[:40])
+        outcome = execute_run(
+            session, program, writer, cal_sheet,
+            force_limit_n=sus.force_limit_n, on_force=sus.on_force,
+            hold_timeout_s=sus.hold_timeout_s, on_overflow=sus.on_overflow, stop=stop,
+            expected_s=plan.expected_s,
+            sim_speed=campaign.spec.sim.speed if campaign.spec.campaign.rig == "sim"
+            else 1.0,
+            progress=_within_run(bar, t.name), watchdog_wall_s=sus.watchdog_wall_s,
+            zero_s=campaign.spec.daq.rest_s, on_chatter=sus.on_chatter,
+            spindle_rpm=t.spindle_rpm, chatter_floor_n=sus.chatter_floor_n,
+            chatter_settings=campaign.spec.chatter.settings(),
+        )  # fmt: skip
+        status, reason = outcome.status, outcome.reason
+    except BaseException as exc:
+        status, reason = rf.STATUS_FAIL, f"{type(exc).__name__}: {exc}"[:400]
+        with contextlib.suppress(RunWriterError):
+            writer.close(status, reason)
+        manifest.set(t.name, status=status, reason=reason, ended_utc=utc_now())
+        raise
+    try:
+        writer.close(status, reason)
+    except RunWriterError as exc:  # the medium failed after the program ended
+        status, reason = rf.STATUS_FAIL, str(exc)
+    if writer.failure is not None and status == rf.STATUS_SUCCESS:
+        status, reason = rf.STATUS_FAIL, writer.failure
+    manifest.set(
+        t.name, status=status, reason=reason, ended_utc=utc_now(),
+        peak_force_n=outcome.peak_force_n, wall_s=round(outcome.wall_s, 3),
+    )  # fmt: skip
+    if writer.failure is not None and writer.failure.startswith(_NO_ROOM):
+        # no room for the next run either: stop here, in one line, files closed
+        raise RigError(f"run {t.index} ({t.name}) stopped: {writer.failure}; free some "
+                       "space and run the same command again to resume")  # fmt: skip
+    return RunRecord(t.index, t.name, t.group, str(path), status, reason, False,
+                     outcome.peak_force_n, outcome.wall_s)  # fmt: skip
 
 
 def tap_records(campaign: Campaign, folder: Path) -> dict[str, Path]:
