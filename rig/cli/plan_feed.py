@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from rig.cli.common import add_catalog_options, image_file, positive
+from rig.cli.options import WRITE_DIALECTS, dialect_option, rule_db_option
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -21,11 +22,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--rules", required=True, help="rule file (TOML) or rule-base name / id; "
                    "T1=RULE,T2=RULE for a program that changes tools (a tool left out, e.g. a "
                    "drill, keeps its feeds)")  # fmt: skip
-    f.add_argument("--db", type=Path, help="rule base for a name / id (default from lab.toml)")
+    rule_db_option(f, "rule base for a name / id (default from lab.toml)")
     _common(f)
     f.add_argument("-o", "--output", type=Path, required=True, help="adjusted program to write")
-    f.add_argument("--dialect", choices=("fanuc", "linuxcnc", "grbl"), default=None,
-                   help="controller to write for (default: the machine's)")  # fmt: skip
+    dialect_option(f, "controller to write for (default: the machine's)", WRITE_DIALECTS)
     f.add_argument("--report", type=Path, help="report folder (default: OUT's folder)")
     f.add_argument(
         "--min-piece", type=positive("mm", 1000), default=5.0, help="shortest split block, mm"

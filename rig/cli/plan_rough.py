@@ -17,6 +17,7 @@ import argparse
 from pathlib import Path
 
 from rig.cli.common import add_catalog_options, positive
+from rig.cli.options import WRITE_DIALECTS, dialect_option
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,8 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--method", choices=("bisection", "equal", "lee", "optimal"), default="bisection"
     )
     p.add_argument("-o", "--output", type=Path, required=True, help="NC program to write")
-    p.add_argument("--dialect", choices=("fanuc", "linuxcnc", "grbl"), default=None,
-                   help="controller to write for (default: the machine's)")  # fmt: skip
+    dialect_option(p, "controller to write for (default: the machine's)", WRITE_DIALECTS)
     p.add_argument("--machine", default=None, help="machine config name or path: its dialect "
                    "and tool changer (default: none, fanuc)")  # fmt: skip
     p.add_argument("--json", action="store_true", help="print everything as JSON")
