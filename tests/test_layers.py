@@ -304,7 +304,7 @@ MODULES_OVER: dict[str, int] = {
     "rig/sim/facemill_independent.py": 541,
     "rig/sim/grbl.py": 732,
     # branch sizes (issue 30 item 5) did not get to these yet
-    "rig/log/writer.py": 759,
+    "rig/log/writer.py": 714,
     "analysis/runs/file.py": 869,
 }
 FUNCTIONS_OVER: dict[str, int] = {
