@@ -6,7 +6,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import add_catalog_options, image_file, positive
+from rig.cli.common import add_catalog_options, image_file, positive
+from rig.cli.options import WRITE_DIALECTS, dialect_option, rule_db_option
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -22,11 +23,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "T1=RULE,T2=RULE for a program that changes tools (a tool left out, e.g. a "
                    "drill, keeps its feeds); default: each tool's rule from the rule base by "
                    "tool and --material (a tool it lacks keeps its feeds)")  # fmt: skip
-    f.add_argument("--db", type=Path, help="rule base for a name / id (default from lab.toml)")
+    rule_db_option(f, "rule base for a name / id (default from lab.toml)")
     _common(f)
     f.add_argument("-o", "--output", type=Path, required=True, help="adjusted program to write")
-    f.add_argument("--dialect", choices=("fanuc", "linuxcnc", "grbl"), default=None,
-                   help="controller to write for (default: the machine's)")  # fmt: skip
+    dialect_option(f, "controller to write for (default: the machine's)", WRITE_DIALECTS)
     f.add_argument("--report", type=Path, help="report folder (default: OUT's folder)")
     f.add_argument(
         "--min-piece", type=positive("mm", 1000), default=5.0, help="shortest split block, mm"
@@ -73,7 +73,7 @@ def _feed(a: argparse.Namespace) -> int:
     from analysis.config import load_machine
     from planning.errors import PlanningError
     from planning.feed import end_mill, feed_program
-    from rig.cli._common import Progress, print_json, print_table, status
+    from rig.cli.common import Progress, print_json, print_table, status
 
     step, cap = None, None
     # no --rules with T1=A,T2=B: --material only finds each tool's rule in the rule base
@@ -134,7 +134,7 @@ def _feed(a: argparse.Namespace) -> int:
 
 def _simulate(a: argparse.Namespace) -> int:
     from planning.feed import simulate_job
-    from rig.cli._common import Progress, print_json, print_table, status
+    from rig.cli.common import Progress, print_json, print_table, status
 
     with Progress("simulate", unit="piece") as bar:
         results, out = simulate_job(
