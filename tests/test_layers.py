@@ -277,3 +277,82 @@ def test_independent_facemill_simulator_shares_no_model_code() -> None:
                 todo.append(target)
     shared = sorted(m for m in seen if _unit(m) in ("analysis.forces", "analysis.identify"))
     assert not shared, shared
+
+
+# -- dialect names are compared only in the dialect registry (issue 30) ------------------------
+# Everything a controller does differently is a rule of its planning.nc.dialects.Dialect, asked
+# by name of the rule. Left outside the registry, each count may only go down:
+# - rig.dnc, rig.sim, rig.campaign, rig.adaptive and rig.cli.dnc compare rig.dnc *protocol*
+#   names (how bytes go down the wire: "fanuc" drip feed or "grbl" ok-paced; the protocols are
+#   the registry's Dialect.protocol, rig.dnc.port.PROTOCOLS), which share their spelling with
+#   the dialects (and rig.campaign.programs, rig.dnc.restart pick the dialect of a protocol);
+# - planning.orient.job refuses GRBL for a program with A/B/C words (the rule is the registry's
+#   Dialect.post.full_words; planning.orient is another package's code).
+DIALECT_COMPARISONS_LEFT = {
+    "planning/orient/job.py": 1,
+    "rig/adaptive/send.py": 1,
+    "rig/adaptive/session.py": 1,
+    "rig/campaign/programs.py": 2,
+    "rig/campaign/real.py": 5,
+    "rig/cli/dnc.py": 1,
+    "rig/dnc/_stream.py": 2,
+    "rig/dnc/connect.py": 1,
+    "rig/dnc/keys.py": 3,
+    "rig/dnc/port.py": 1,
+    "rig/dnc/restart.py": 4,
+    "rig/sim/_controller.py": 1,
+    "rig/sim/controllers.py": 1,
+    "rig/sim/session.py": 2,
+}
+
+
+def _name_literals(node: ast.AST, names: frozenset[str]) -> list[str]:
+    if isinstance(node, ast.Constant) and node.value in names:
+        return [node.value]
+    if isinstance(node, (ast.Tuple, ast.List, ast.Set)):
+        return [n for e in node.elts for n in _name_literals(e, names)]
+    return []
+
+
+def dialect_comparisons(path: Path, names: frozenset[str]) -> list[int]:
+    """Lines of ``path`` that compare (==, !=, in, not in, a match case) a dialect name as a
+    string literal."""
+    ops = (ast.Eq, ast.NotEq, ast.In, ast.NotIn)
+    out = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
+        if isinstance(node, ast.Compare) and any(isinstance(o, ops) for o in node.ops):
+            if any(_name_literals(x, names) for x in (node.left, *node.comparators)):
+                out.append(node.lineno)
+        elif isinstance(node, ast.MatchValue) and _name_literals(node.value, names):
+            out.append(node.lineno)
+    return sorted(out)
+
+
+def test_dialect_names_are_compared_only_in_the_registry() -> None:
+    from planning.nc.dialects import names
+
+    dialect_names = frozenset(names())
+    registry = ROOT / "planning" / "nc" / "dialects"
+    found = {}
+    for pkg in PACKAGES:
+        for path in sorted((ROOT / pkg).rglob("*.py")):
+            if registry not in path.parents:
+                lines = dialect_comparisons(path, dialect_names)
+                if lines:
+                    found[str(path.relative_to(ROOT))] = lines
+    over = {
+        f: lines for f, lines in found.items() if len(lines) > DIALECT_COMPARISONS_LEFT.get(f, 0)
+    }
+    assert not over, (
+        "dialect names compared outside planning/nc/dialects (ask the Dialect for the rule: "
+        f"planning.nc.dialects.get(name).<rule>): {over}"
+    )
+
+
+def test_the_dialect_comparison_check_finds_comparisons(tmp_path: Path) -> None:
+    src = tmp_path / "m.py"
+    src.write_text(
+        'if d == "grbl": pass\nx = d in ("fanuc", "x")\nmatch d:\n    case "grbl": pass\n'
+        'y = {"grbl": 1}[d]\nz = d == "other"\n'
+    )
+    assert dialect_comparisons(src, frozenset({"grbl", "fanuc"})) == [1, 2, 4]

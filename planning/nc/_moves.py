@@ -25,6 +25,7 @@ from planning.nc.arcs import (
     check_radius_linuxcnc,
 )
 from planning.nc.canned import drill_hole, drill_hole_linuxcnc
+from planning.nc.dialects import Dialect
 from planning.nc.motion import ARC_CCW, ARC_CW, DWELL, LINE, RAPID
 from planning.nc.state import ModalState
 
@@ -38,9 +39,9 @@ class Moves:
 
     state: ModalState
     dialect: str
+    rules: Dialect
     arc_tolerance_mm: float
     _spiral_tol_mm: float | None
-    _lcnc: bool
     _reference_warned: bool
     _inverse_f: float
     _feed_max_mm_min: float
@@ -62,14 +63,14 @@ class Moves:
         out.ibuf.extend((kind, st.plane, st.tool, st.coolant, line, block))
 
     def _dwell(self, raw: str, v: dict[str, str], line: int, block: int, out) -> None:
+        d = self.rules
         if "P" in v:
-            t = float(v["P"])
-            t = t / 1000.0 if self.dialect == "fanuc" else t
+            t = d.dwell_seconds(float(v["P"]))
             letter = "P"
-        elif "X" in v and not self._lcnc:
+        elif "X" in v and d.dwell_x:
             t, letter = float(v["X"]), "X"
-        elif self._lcnc:
-            raise self._fail(raw, 0, "G4 dwell needs P (s)", line)
+        elif not d.dwell_x:
+            raise self._fail(raw, 0, f"G4 dwell needs P ({'ms' if d.dwell_p_ms else 's'})", line)
         else:
             raise self._fail(raw, 0, "G4 dwell needs P (ms on Fanuc, s on GRBL) or X (s)", line)
         if t < 0:
@@ -173,7 +174,7 @@ class Moves:
         if g53:
             if mode not in (0, 1):
                 raise self._fail(raw, 0, "G53 needs G0 or G1 in force", line)
-            if self._lcnc and not st.absolute:
+            if self.rules.g53_needs_absolute and not st.absolute:
                 raise self._fail(raw, 0, "G53 cannot be used in incremental mode G91", line)
         if mode == 38:
             self._probe_checks(raw, line, p0, p1)
@@ -184,9 +185,10 @@ class Moves:
             else:
                 kind, feed = LINE, st.feed_mm_min
                 if feed != feed:
-                    lcnc = self._lcnc_length(p0, p1, r0, r1) if self._lcnc else None
+                    along = self.rules.feed_along_xyz
+                    lcnc = self._lcnc_length(p0, p1, r0, r1) if along else None
                     feed = self._need_feed(raw, line, math.dist((*p0, *r0), (*p1, *r1)), lcnc)
-                elif r1 is not r0 and self._lcnc:
+                elif r1 is not r0 and self.rules.feed_along_xyz:
                     feed = self._linuxcnc_rotary_feed(feed, math.dist(p0, p1), r0, r1, p0, p1)
             rpm = st.spindle_dir * st.spindle_speed_rpm
             out.fbuf.extend((*p0, *p1, NAN, NAN, NAN, feed, rpm, 0.0, *r0, *r1))
@@ -195,7 +197,7 @@ class Moves:
             cw = mode == 2
             c = self._arc_center(raw, v, scale, line, p0, p1, cw)
             kind = ARC_CW if cw else ARC_CCW
-            if self._lcnc or st.feed_mode == 93:
+            if self.rules.feed_along_xyz or self.rules.arc_turns_p or st.feed_mode == 93:
                 self._arc(raw, v, line, block, out, kind, p0, p1, c, r0, r1)
             else:  # the common arc
                 feed = self._need_feed(raw, line)
@@ -218,7 +220,7 @@ class Moves:
                              line)  # fmt: skip
         if st.cutter_comp != 40:
             raise self._fail(raw, 0, "G38.x cannot probe with cutter compensation on", line)
-        too_close = 0.254 if self._lcnc else 0.0  # LinuxCNC's 0.01 in / 0.254 mm
+        too_close = self.rules.probe_min_mm  # LinuxCNC's 0.01 in / 0.254 mm
         if math.dist(p0, p1) <= too_close:
             raise self._fail(raw, 0, "G38.x target too close to the start (LinuxCNC: within "
                              "0.254 mm; GRBL: the same point)", line)  # fmt: skip
@@ -228,7 +230,8 @@ class Moves:
         of a move with rotary axes, and LinuxCNC's P turns (full circles first, then the arc)."""
         st = self.state
         cw = kind == ARC_CW
-        turns = self._turns(raw, v, line) if self._lcnc and "P" in v else 1
+        d = self.rules
+        turns = self._turns(raw, v, line) if d.arc_turns_p and "P" in v else 1
         arc = arc_length_mm(p0, p1, c, st.plane, cw)
         ia, ib, ic = PLANE_AXES[st.plane]
         total = 1.0
@@ -240,10 +243,10 @@ class Moves:
         length = math.hypot(arc, math.dist(r0, r1))
         if st.feed_mode == 93:
             unit = INCH_MM if st.inch else 1.0
-            feed = self._need_feed(raw, line, length, (arc, unit) if self._lcnc else None)
+            feed = self._need_feed(raw, line, length, (arc, unit) if d.feed_along_xyz else None)
         else:
             feed = self._need_feed(raw, line)
-        if r1 != r0 and self._lcnc and st.feed_mode != 93 and arc > 0.0:
+        if r1 != r0 and d.feed_along_xyz and st.feed_mode != 93 and arc > 0.0:
             feed *= length / arc  # LinuxCNC's F is along the arc, the rotary axes follow
         if turns == 1:
             self._seg(out, kind, p0, p1, c, feed, 0.0, line, block, r1)
@@ -290,9 +293,9 @@ class Moves:
         rot_mid = self._rotary_to  # LinuxCNC: A B C words name rotary axes to return too
         if named or rot_mid is not None:
             mid = self._target(v, scale, False)
-        elif self.dialect != "fanuc":  # no axis word = all axes straight to the point
+        elif self.rules.home_all_axes:  # no axis word = all axes straight to the point
             named, mid = [0, 1, 2], st.position_mm
-            if self._lcnc:
+            if self.rules.home_rotary:
                 rot_mid = st.rotary_deg
         else:
             raise self._fail(
@@ -340,8 +343,8 @@ class Moves:
         """G29 (Fanuc): the named axes rapid to the last G28/G30 intermediate point, then to the
         programmed point (G91: relative to the intermediate point); the others stay."""
         st = self.state
-        if self.dialect == "grbl":
-            raise self._fail(raw, k, "G29 is not a GRBL command", line)
+        if 290 in self.rules.code_errors:
+            raise self._fail(raw, k, self.rules.code_errors[290], line)
         named = [a for a in range(3) if "XYZ"[a] in v]
         if not named:
             raise self._fail(raw, k, "G29 needs the axes to move (X, Y, Z)", line)
@@ -417,9 +420,8 @@ class Moves:
             raise self._fail(raw, k, "G10 needs L (L2/L20 work offset, L1/L10 tool table)", line)
         lf = float(v["L"])
         ell = round(lf)
-        grbl = self.dialect == "grbl"
-        fanuc = self.dialect == "fanuc"
-        known = (2, 20) if grbl else (2, 1, 10, 11, 12, 13) if fanuc else (0, 1, 2, 10, 11, 20)
+        d = self.rules
+        known = d.g10_l
         if ell != lf or ell not in known:
             raise self._fail(
                 raw, "L", f"G10 L{v['L']} is not one of L{', L'.join(map(str, known))} "
@@ -435,9 +437,9 @@ class Moves:
             raise self._fail(raw, "P", f"G10 P must be a whole number, got {v['P']}", line)
         axes = [a for a in range(3) if "XYZ"[a] in v]
         if ell in (2, 20):
-            top = 6 if (grbl or fanuc) else 9
-            if not (0 if not fanuc else 1) <= p <= top:
-                why = " (the external offset P0 is not supported)" if fanuc and p == 0 else ""
+            low, top = d.g10_p_range
+            if not low <= p <= top:
+                why = " (the external offset P0 is not supported)" if low > 0 and p == 0 else ""
                 raise self._fail(raw, "P", f"G10 L{ell} P must be in 0..{top}, got {p}{why}", line)
             for c in "IJ":
                 if c in v:
@@ -455,7 +457,7 @@ class Moves:
                 val = float(v["XYZ"[a]]) * scale
                 if ell == 20:  # the current position reads val in system idx
                     off[a] = st.position_mm[a] - st.g92_offset_mm[a] - val
-                elif fanuc and not st.absolute:
+                elif d.g10_incremental and not st.absolute:
                     off[a] += val
                 else:
                     off[a] = val
@@ -466,7 +468,7 @@ class Moves:
             if idx == st.work_offset_index:
                 self._set_origin()
             return
-        if fanuc:  # L1 / L10..L13: Fanuc's tool offset memories (not modelled)
+        if not d.g10_tool_table:  # L1 / L10..L13: Fanuc's tool offset memories (not modelled)
             return
         # LinuxCNC L1 (direct), L10 (the current position reads the values), L11 (in G59.3)
         if p < 1:
@@ -499,7 +501,7 @@ class Moves:
         zero, LinuxCNC; GRBL takes Z and only Z, its error 37)."""
         if rot:
             raise self._fail(raw, rot[0], "G43.1: rotary axis offsets are not supported", line)
-        if self.dialect == "grbl" and axes != [2]:
+        if self.rules.g43_1_z_only and axes != [2]:
             letter = next((L for L in "XY" if L in v), None)
             raise self._fail(raw, letter or k, "G43.1 on GRBL takes Z and only Z (error:37)",
                              line)  # fmt: skip
@@ -521,7 +523,7 @@ class Moves:
         st = self.state
         ia, ib, ic = PLANE_AXES[st.plane]
         tol = self.arc_tolerance_mm
-        lcnc = self._lcnc
+        lcnc = self.rules.arc_spiral
         if lcnc:
             tol = LINUXCNC_RADIUS_TOL_MM
         ijk = "IJK"
@@ -587,7 +589,7 @@ class Moves:
         drill = "XYZ"[ic]
         pos = st.position_mm
         oc = st.origin_mm[ic]
-        lcnc = self._lcnc
+        lcnc = self.rules.cycles_rs274ngc
         feed = self._need_feed(raw, line)  # an NCError already (outside the ValueError handler)
         if lcnc and st.motion != cy.mode:  # LinuxCNC: a new cycle needs its words again
             for letter, why in (("R", "the R plane"), (drill, "the hole bottom")):
@@ -621,7 +623,7 @@ class Moves:
                 cy.q_mm = abs(cy.q_number * scale)
             if "P" in v:
                 p = float(v["P"])
-                cy.dwell_s = p / 1000.0 if self.dialect == "fanuc" else p
+                cy.dwell_s = self.rules.dwell_seconds(p)
             if cy.r_mm != cy.r_mm:
                 raise ValueError("canned cycle needs the R plane (R word)")
             if cy.z_mm != cy.z_mm:

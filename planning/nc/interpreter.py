@@ -96,21 +96,16 @@ from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 from planning.nc import _lexer
+from planning.nc import dialects
 from planning.nc._codes import (
-    DIALECTS,
     FAST_LETTERS,
-    GRBL_UNSUPPORTED_G,
-    GRBL_UNSUPPORTED_LETTERS,
-    GRBL_UNSUPPORTED_M,
     INCH_MM,
     LETTERS_GM,
     MOTION_MODE,
     OFFSET_CODES,
     OFFSET_INDEX,
-    g_groups,
     gkey,
     gname,
-    known_m,
 )
 from planning.nc._fast import FastRuns
 from planning.nc._moves import Moves
@@ -153,8 +148,10 @@ class Interpreter(FastRuns, WordRules, Moves):
         Unknown codes/letters and unused words raise (True) or become warnings (False).
     file : str
         Name used in error messages.
-    dialect : {"fanuc", "grbl", "linuxcnc"}, optional
-        Overrides the machine's (see the module docstring for what it changes).
+    dialect : str, optional
+        A name of :data:`planning.nc.dialects.REGISTRY` (fanuc, grbl, linuxcnc ...); overrides
+        the machine's (see the module docstring and :mod:`planning.nc.dialects` for what it
+        changes). ``rules`` is its :class:`~planning.nc.dialects.Dialect`.
     block_delete : bool
         The block-delete switch: True skips blocks starting with ``/``.
     arc_tolerance_mm : float, optional
@@ -216,25 +213,27 @@ class Interpreter(FastRuns, WordRules, Moves):
         self.probing = probing
         self._comp_warned = False
         self.file = str(file)
-        self.dialect = dialect or (machine.dialect if machine is not None else "fanuc")
-        if self.dialect not in DIALECTS:
+        self.dialect = dialect or (machine.dialect if machine is not None else dialects.DEFAULT)
+        if self.dialect not in dialects.REGISTRY:
             raise NCError(
-                f"dialect must be one of {', '.join(DIALECTS)}, got {self.dialect!r}", file=file
+                f"dialect must be one of {', '.join(dialects.DIALECTS)}, got {self.dialect!r}",
+                file=file,
             )
-        self._lcnc = self.dialect == "linuxcnc"
-        self._g_group = g_groups(self.dialect)
-        self._known_m = known_m(self.dialect)
+        d = self.rules = dialects.get(self.dialect)
+        self._g_group = d.g_groups()
+        self._known_m = d.m_codes
+        self._refuses = bool(d.refused_g or d.refused_m or d.refused_letters)
         self.block_delete = block_delete
         tol = arc_tolerance_mm
         if tol is None and machine is not None:
             # LinuxCNC has its own default: only a tolerance the machine file sets overrides it
-            if not self._lcnc or "arc_radius_tolerance_mm" in machine.model_fields_set:
+            if not d.arc_spiral or "arc_radius_tolerance_mm" in machine.model_fields_set:
                 tol = machine.arc_radius_tolerance_mm
         self._spiral_tol_mm = None if tol is None else float(tol)  # LinuxCNC: None = its own
         self.arc_tolerance_mm = DEFAULT_ARC_TOLERANCE_MM if tol is None else float(tol)
         self._peck_default = peck_clearance_mm is None
         if peck_clearance_mm is None:
-            peck_clearance_mm = 0.010 * INCH_MM if self._lcnc else 0.1
+            peck_clearance_mm = d.peck_clearance_mm
         self.peck_clearance_mm = float(peck_clearance_mm)
         if reference_mm is None and machine is not None:
             reference_mm = machine.reference_point_mm
@@ -338,20 +337,22 @@ class Interpreter(FastRuns, WordRules, Moves):
             raise
         self.blocks_seen = block + 1
 
-    def _grbl_words(self, raw: str, words, gcodes, mcodes, line: int) -> None:
-        """GRBL 1.1 answers error:20 to what it does not take: say so before anything is sent."""
+    def _refused_words(self, raw: str, words, gcodes, mcodes, line: int) -> None:
+        """What the control refuses outright (GRBL 1.1's error:20): say so before anything is
+        sent."""
+        d = self.rules
         for key, k in gcodes or ():
-            if key in GRBL_UNSUPPORTED_G:
-                self._problem(raw, k, f"{gname(key)} is not a GRBL 1.1 command", line)
+            if key in d.refused_g:
+                self._problem(raw, k, f"{gname(key)} is not a {d.refusal_name} command", line)
         for key, k in mcodes or ():
-            if key // 10 in GRBL_UNSUPPORTED_M:
-                self._problem(raw, k, f"M{key // 10} is not a GRBL 1.1 command", line)
+            if key // 10 in d.refused_m:
+                self._problem(raw, k, f"M{key // 10} is not a {d.refusal_name} command", line)
         # a line holding only an O program number (and N) is not sent: the GRBL sender strips
         # it (planning.nc.grbl.grbl_send_text), as ``nc check --dialect grbl`` reads it
-        lone_o = [ltr for ltr, _ in words if ltr != "N"] == ["O"]
+        lone_o = d.strips_lone_o and [ltr for ltr, _ in words if ltr != "N"] == ["O"]
         for k, (letter, _) in enumerate(words):
-            if letter in GRBL_UNSUPPORTED_LETTERS and not lone_o:
-                self._problem(raw, k, f"GRBL 1.1 has no {letter} word", line)
+            if letter in d.refused_letters and not lone_o:
+                self._problem(raw, k, f"{d.refusal_name} has no {letter} word", line)
 
     def _cutter_comp_word(self, raw: str, k: int, key: int, line: int) -> None:
         reason = (
@@ -420,8 +421,8 @@ class Interpreter(FastRuns, WordRules, Moves):
             v = None
         if v is None:
             gcodes, mcodes, v = self._sort_words(raw, words, line)
-        if self.dialect == "grbl":
-            self._grbl_words(raw, words, gcodes, mcodes, line)
+        if self._refuses:
+            self._refused_words(raw, words, gcodes, mcodes, line)
 
         # ---- G codes: modes first so this block's words use them
         self._inverse_f = NAN
@@ -435,7 +436,10 @@ class Interpreter(FastRuns, WordRules, Moves):
             explicit_motion, dwell, g53, home, path = self._gcodes(raw, gcodes, line)
             scale = INCH_MM if st.inch else 1.0
             # LinuxCNC reads F before G20/G21 (its order of execution), the others after
-            fscale = scale if inch_before == st.inch or not self._lcnc else INCH_MM / scale
+            fscale = (
+                scale if inch_before == st.inch or not self.rules.feed_before_units
+                else INCH_MM / scale
+            )  # fmt: skip
             if path is not None:
                 self._path_control(raw, v, scale, line, path)
         # ---- other words
@@ -456,7 +460,9 @@ class Interpreter(FastRuns, WordRules, Moves):
 
         # ---- motion
         rotary = self._rotary_to is not None
-        has_axes = ("X" in v or "Y" in v or "Z" in v or rotary) and (not dwell or self._lcnc)
+        has_axes = ("X" in v or "Y" in v or "Z" in v or rotary) and (
+            not dwell or self.rules.dwell_then_move
+        )
         mode = st.motion
         if home is not None:
             self._group0(raw, v, scale, line, block, out, home, has_axes, explicit_motion)
@@ -474,7 +480,7 @@ class Interpreter(FastRuns, WordRules, Moves):
 
     def _dwell_block(self, raw, v, line: int, block: int, out, explicit_motion: bool) -> None:
         """G4: the dwell (Fanuc / GRBL: alone; LinuxCNC: before the block's move)."""
-        if self._lcnc:
+        if self.rules.dwell_then_move:
             if explicit_motion and self.state.motion in (2, 3):
                 raise self._fail(raw, "P", "G4 and G2/G3 cannot share a block (both use P)", line)
         else:
@@ -504,7 +510,7 @@ class Interpreter(FastRuns, WordRules, Moves):
                 )  # fmt: skip
             self._setting(raw, v, scale, line, key, k)
             return
-        if self._rotary_to is not None and not (self._lcnc and key != 290):
+        if self._rotary_to is not None and not (self.rules.home_rotary and key != 290):
             raise self._fail(
                 raw, next(L for L in "ABC" if L in v), f"A/B/C words cannot move in a "
                 f"{gname(key)} block (program the rotary move in its own G0/G1 block)", line,
@@ -596,7 +602,7 @@ class Interpreter(FastRuns, WordRules, Moves):
                 st.arc_absolute = key == 901
             elif grp == 5:
                 # F means something else now: set it again (LinuxCNC: G94 always clears it)
-                if key // 10 != st.feed_mode or (key == 940 and self._lcnc):
+                if key // 10 != st.feed_mode or (key == 940 and self.rules.g94_clears_feed):
                     st.feed_mode = key // 10
                     st.feed_mm_min = st.feed_word = NAN
             elif grp == 7:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from planning.nc.dialects import names as dialect_names
 from rig.cli._common import add_catalog_options, image_file, positive
 
 
@@ -24,7 +25,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--db", type=Path, help="rule base for a name / id (default from lab.toml)")
     _common(f)
     f.add_argument("-o", "--output", type=Path, required=True, help="adjusted program to write")
-    f.add_argument("--dialect", choices=("fanuc", "linuxcnc", "grbl"), default=None,
+    f.add_argument("--dialect", choices=dialect_names(), default=None,
                    help="controller to write for (default: the machine's)")  # fmt: skip
     f.add_argument("--report", type=Path, help="report folder (default: OUT's folder)")
     f.add_argument(

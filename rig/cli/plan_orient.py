@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from planning.nc.dialects import names as dialect_names
 from rig.cli._common import add_catalog_options, count
 
 
@@ -33,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "(default: the one that needed most energy evaluations)")  # fmt: skip
     p.add_argument("--no-plot", action="store_true",
                    help="skip both PNGs (energy map and orientation)")  # fmt: skip
-    p.add_argument("--dialect", choices=("fanuc", "linuxcnc", "grbl"), default=None,
+    p.add_argument("--dialect", choices=dialect_names(), default=None,
                    help="controller to write for (default: the machine's); grbl has no "
                    "rotary axes and is refused")  # fmt: skip
     p.set_defaults(func=run)

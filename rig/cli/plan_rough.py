@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from planning.nc.dialects import names as dialect_names
 from rig.cli._common import add_catalog_options, positive
 
 
@@ -32,7 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--method", choices=("bisection", "equal", "lee", "optimal"), default="bisection"
     )
     p.add_argument("-o", "--output", type=Path, required=True, help="NC program to write")
-    p.add_argument("--dialect", choices=("fanuc", "linuxcnc", "grbl"), default=None,
+    p.add_argument("--dialect", choices=dialect_names(), default=None,
                    help="controller to write for (default: the machine's)")  # fmt: skip
     p.add_argument("--machine", default=None, help="machine config name or path: its dialect "
                    "and tool changer (default: none, fanuc)")  # fmt: skip
