@@ -112,7 +112,7 @@ class SerialConfig(Model):
 #: The controller dialects a machine file may name: the names of planning.nc.dialects.REGISTRY,
 #: whose modules hold each control's rules. Kept here because analysis cannot import planning
 #: (analysis <- planning <- rig); tests/test_nc_dialects.py checks the two lists agree.
-DIALECT_NAMES = ("fanuc", "grbl", "linuxcnc")
+DIALECT_NAMES = ("fanuc", "grbl", "linuxcnc", "mach3")
 
 
 def _known_dialect(name: str) -> str:

@@ -13,12 +13,12 @@ agree). Nothing outside this package compares dialect names (tests/test_layers.p
 
 from __future__ import annotations
 
-from planning.nc.dialects import fanuc, grbl, linuxcnc
+from planning.nc.dialects import fanuc, grbl, linuxcnc, mach3
 from planning.nc.dialects.base import Answer, Dialect, LineRules, PostRules
 
 #: name -> Dialect, in the order the names are listed (``--dialect`` choices, messages)
 REGISTRY: dict[str, Dialect] = {
-    d.name: d for d in (fanuc.DIALECT, grbl.DIALECT, linuxcnc.DIALECT)
+    d.name: d for d in (fanuc.DIALECT, grbl.DIALECT, linuxcnc.DIALECT, mach3.DIALECT)
 }
 DIALECTS: tuple[str, ...] = tuple(REGISTRY)
 DEFAULT = fanuc.DIALECT.name  # without a machine: what the planners write
