@@ -103,7 +103,8 @@ def test_cli_check_motions_and_plan_feed_in_mach3(tmp_path: Path) -> None:
     rep = json.loads(so)
     assert rep["dialect"] == "mach3" and rep["dwell_s"] == pytest.approx(1.5)
     assert {p["word"] for p in rep["dialect_problems"]} == {"O0431", ";"}  # warnings only
-    rc, _, _ = _run(["nc", "motions", str(prog), "--dialect", "mach3", "-o", str(tmp_path / "m.csv")])
+    csv = tmp_path / "m.csv"
+    rc, _, _ = _run(["nc", "motions", str(prog), "--dialect", "mach3", "-o", str(csv)])
     assert rc == 0
 
     from analysis.rules import derive_rule, save_rule, slot_load_percent

@@ -7,8 +7,7 @@ interpreter's ``state``, ``file``, ``strict``, ``warnings`` and machine limits.
 
 from __future__ import annotations
 
-from planning.nc import _lexer
-from planning.nc import dialects
+from planning.nc import _lexer, dialects
 from planning.nc._codes import LETTERS, M_GROUP, gkey, gname
 from planning.nc.errors import NCError, NCWarning
 from planning.nc.state import ModalState

@@ -282,8 +282,8 @@ def _check_word(t: _lexer.Token, gs, rules: dialects.LineRules, d: dialects.Dial
         v = _int_or_none(t.number)
         n = rules.sequence_number_max
         if v is None or v > n:
-            add(t.column, text, dialects.Answer(
-                "alarm", f"sequence number needs 1 to {len(str(n))} digits (N1..N{n})"))  # fmt: skip
+            why = f"sequence number needs 1 to {len(str(n))} digits (N1..N{n})"
+            add(t.column, text, dialects.Answer("alarm", why))
     elif t.letter == "X" and rules.dwell_x is not None and _is_g4(gs):
         add(t.column, text, rules.dwell_x)
     if t.letter == "P" and rules.dwell_p_warn_s is not None and _is_g4(gs):

@@ -95,8 +95,7 @@ import math
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING
 
-from planning.nc import _lexer
-from planning.nc import dialects
+from planning.nc import _lexer, dialects
 from planning.nc._codes import (
     FAST_LETTERS,
     INCH_MM,

@@ -51,7 +51,9 @@ DIALECT = Dialect(
             "alarm", "';' is the end of block on a Fanuc: what follows is read as a new block"
         ),
         lower_case=Answer("alarm", "lower-case address letters are not ISO tape code on a Fanuc"),
-        refused_g={w: Answer(_IMPROPER, f"improper G-code ({why})") for w, why in _REFUSED_G.items()},
+        refused_g={
+            w: Answer(_IMPROPER, f"improper G-code ({why})") for w, why in _REFUSED_G.items()
+        },
         refused_m={m: Answer("alarm", f"M{m} is a LinuxCNC M-code, not a Fanuc one")
                    for m in _LINUXCNC_M},  # fmt: skip
         program_number_max=9999,

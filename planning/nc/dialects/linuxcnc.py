@@ -51,7 +51,8 @@ DIALECT = Dialect(
         max_line_chars=LINE_CHARS,
         refused_g={
             "G29": Answer(
-                "error", "unknown G-code (Fanuc's return from the reference point; LinuxCNC has none)"
+                "error",
+                "unknown G-code (Fanuc's return from the reference point; LinuxCNC has none)",
             )
         },
         o_word=Answer(
