@@ -107,7 +107,7 @@ from planning.nc._codes import (
     gname,
 )
 from planning.nc._fast import FastRuns
-from planning.nc._moves import Moves
+from planning.nc._settings import Settings
 from planning.nc._words import WordRules
 from planning.nc.errors import NCError, NCWarning
 from planning.nc.motion import Motion, MotionBuilder
@@ -136,7 +136,7 @@ class _NullSink:
     fbuf = ibuf = _Drop()
 
 
-class Interpreter(FastRuns, WordRules, Moves):
+class Interpreter(FastRuns, WordRules, Settings):
     """Executes NC blocks one at a time, tracking all modal state.
 
     Parameters
