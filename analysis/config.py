@@ -23,7 +23,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from pydantic import Field, model_validator
+from pydantic import AfterValidator, Field, model_validator
 
 from analysis.errors import ConfigError
 from analysis.validation import Model, load_model
@@ -110,12 +110,26 @@ class SerialConfig(Model):
     program_folder: str = Field("", description="folder of programs served on remote request")
 
 
+#: The controller dialects a machine file may name: the names of planning.nc.dialects.REGISTRY,
+#: whose modules hold each control's rules. Kept here because analysis cannot import planning
+#: (analysis <- planning <- rig); tests/test_nc_dialects.py checks the two lists agree.
+DIALECT_NAMES = ("fanuc", "grbl", "linuxcnc", "mach3")
+
+
+def _known_dialect(name: str) -> str:
+    if name not in DIALECT_NAMES:
+        raise ValueError(f"dialect = {name!r}: expected one of {', '.join(DIALECT_NAMES)}")
+    return name
+
+
 class MachineConfig(Model):
     """A machining centre (or a lab mill) as cutlab needs to know it."""
 
     name: str = Field(min_length=1)
     description: str = ""
-    dialect: Literal["fanuc", "grbl", "linuxcnc"] = Field("fanuc", description="controller dialect")
+    dialect: Annotated[str, AfterValidator(_known_dialect)] = Field(
+        "fanuc", description="controller dialect (one of DIALECT_NAMES)"
+    )
     tool_changer: bool = Field(
         True, description="M6 changes tools (false: a manual change, as on most GRBL mills)"
     )

@@ -35,7 +35,8 @@ Modules: :mod:`~planning.nc.motion` (Motion, kinds), :mod:`~planning.nc.interpre
 :mod:`~planning.nc.edit` (feed edits, split moves), :mod:`~planning.nc.writer`,
 :mod:`~planning.nc.arcs`, :mod:`~planning.nc.canned`, :mod:`~planning.nc.stats`,
 :mod:`~planning.nc.restart`, :mod:`~planning.nc.plot`, :mod:`~planning.nc.check` (a program
-file checked as ``cutlab nc`` shows it), :mod:`~planning.nc.errors`.
+file checked as ``cutlab nc`` shows it), :mod:`~planning.nc.errors`, :mod:`~planning.nc.dialects`
+(one Dialect per controller: ``DIALECTS`` its names, ``get_dialect(name)`` its rules).
 """
 
 from importlib import import_module
@@ -44,11 +45,12 @@ from typing import Any
 # Loaded on first use (PEP 562): `cutlab nc check` needs the interpreter and the statistics, not
 # the program editor, the dialects, the writers or the plots.
 _LAZY = {
-    "planning.nc._codes": ("DIALECTS", "INCH_MM"),
+    "planning.nc._codes": ("INCH_MM",),
     "planning.nc.arcs": ("Linearized", "arc_radius_mm", "arc_sweep_rad", "bounding_box",
                          "linearize", "segment_length_mm", "segment_travel"),
     "planning.nc.check": ("CheckedProgram", "check_program", "write_motions_csv"),
     "planning.nc.dialect": ("DialectProblem", "check_dialect"),
+    "planning.nc.dialects": ("DIALECTS", "Dialect", "get_dialect"),
     "planning.nc.errors": ("NCError", "NCWarning"),
     "planning.nc.interpreter": ("Interpreter",),
     "planning.nc.motion": ("ARC_CCW", "ARC_CW", "DWELL", "FULL_CIRCLE_TOL_MM", "KIND_NAMES",
@@ -81,6 +83,7 @@ __all__ = [
     "CannedCycle",
     "CheckedProgram",
     "DWELL",
+    "Dialect",
     "DialectProblem",
     "FULL_CIRCLE_TOL_MM",
     "INCH_MM",
@@ -105,6 +108,7 @@ __all__ = [
     "check_dialect",
     "check_program",
     "for_dialect",
+    "get_dialect",
     "interpret",
     "interpret_file",
     "iter_motion_chunks",

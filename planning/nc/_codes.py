@@ -4,14 +4,14 @@ G-codes are keyed by ten times their number so ``G90.1`` (901) and ``G91.1`` (91
 integers; groups follow RS-274 numbering (0 = non-modal), except that G80 has a group of its own
 (9, as on Fanuc) so the common ``G80 G0 Z..`` is legal: it cancels the cycle, then G0 applies.
 
-Some codes exist in one dialect only (:data:`DIALECT_ONLY_G`, :data:`DIALECT_ONLY_M`): in the
-others they are unknown codes, as on the real control.
+Some codes exist on some controls only (:data:`SPECIFIC_G`, :data:`SPECIFIC_M`): each dialect of
+:mod:`planning.nc.dialects` says which it knows; on the others they are unknown codes, as on the
+real control. :data:`COMMON_G` and :data:`COMMON_M` are the codes every dialect starts from.
 """
 
 from __future__ import annotations
 
 INCH_MM = 25.4  # mm per inch (G20)
-DIALECTS = ("fanuc", "grbl", "linuxcnc")
 
 # G-code (times 10, so G90.1 is 901) -> modal group (RS-274 numbering; 0 = non-modal)
 G_GROUP = {
@@ -32,22 +32,11 @@ G_GROUP = {
     970: 14,
     80: 15,
 }  # fmt: skip
-# codes one dialect has and the others do not (G28.1/G30.1: GRBL and LinuxCNC)
-DIALECT_ONLY_G = {
-    290: ("fanuc", "grbl"),  # G29 (GRBL refuses it with its own message)
-    281: ("grbl", "linuxcnc"),
-    301: ("grbl", "linuxcnc"),
-    611: ("linuxcnc",),  # G61.1 exact stop
-    922: ("linuxcnc",),
-    923: ("linuxcnc",),
-    591: ("linuxcnc",),
-    592: ("linuxcnc",),
-    593: ("linuxcnc",),
-    970: ("linuxcnc",),  # G97 spindle rpm mode (the only one)
-    80: ("linuxcnc",),  # G8 lathe radius mode (the default: X is a radius)
-    431: ("grbl", "linuxcnc"),  # G43.1 dynamic tool length offset (Fanuc's is another thing)
-    **{k: ("grbl", "linuxcnc") for k in (382, 383, 384, 385)},  # G38.2..G38.5 probing
-}
+# codes some controls have and others do not (each dialect module lists the ones it knows): G29,
+# G28.1/G30.1, G61.1, G92.2/G92.3, G59.1..G59.3, G97, G8 (lathe radius mode), G43.1, G38.2..G38.5
+SPECIFIC_G = frozenset({290, 281, 301, 611, 922, 923, 591, 592, 593, 970, 80, 431,
+                        382, 383, 384, 385})  # fmt: skip
+COMMON_G = frozenset(G_GROUP) - SPECIFIC_G
 # (G38.2..G38.5 all probe alike offline: mode 38)
 MOTION_MODE = {0: 0, 10: 1, 20: 2, 30: 3, 382: 38, 383: 38, 384: 38, 385: 38, 800: 80, 810: 81,
                820: 82, 830: 83}  # fmt: skip
@@ -60,15 +49,10 @@ M_GROUP = {0: "stop", 1: "stop", 2: "stop", 30: "stop", 60: "stop", 3: "spindle"
            52: "override", 53: "override", 62: "output", 63: "output", 64: "output",
            65: "output"}  # fmt: skip
 KNOWN_M = set(M_GROUP)
-# LinuxCNC's overrides (M48-M53), pallet stop M60, M61 Q (set the tool number without a change)
-# and digital outputs M62-M65 P
-DIALECT_ONLY_M = {m: ("linuxcnc",) for m in (48, 49, 50, 51, 52, 53, 60, 61, 62, 63, 64, 65)}
-# What GRBL 1.1 refuses (error:20) of what this interpreter knows: cutter compensation, G43 (it
-# has only G43.1), canned cycles and their return modes, absolute arc centres, path modes other
-# than G61, G52, tool change, and the O, D, H, Q and rotary words (3 axes).
-GRBL_UNSUPPORTED_G = frozenset({410, 420, 430, 810, 820, 830, 980, 990, 901, 640, 520})
-GRBL_UNSUPPORTED_M = frozenset({6})
-GRBL_UNSUPPORTED_LETTERS = frozenset("ODHQABC")
+# overrides M48-M53, pallet stop M60, M61 Q (set the tool number without a change) and digital
+# outputs M62-M65 P: some controls only
+SPECIFIC_M = frozenset({48, 49, 50, 51, 52, 53, 60, 61, 62, 63, 64, 65})
+COMMON_M = frozenset(KNOWN_M) - SPECIFIC_M
 LETTERS = frozenset("ABCDFHIJKLNOPQRSTXYZ")
 LETTERS_GM = LETTERS | {"G", "M"}
 FAST_LETTERS = frozenset("XYZFN")  # blocks with only these words skip the general word checks
@@ -86,16 +70,6 @@ def gkey(num: str) -> int:
 
 def gname(key: int) -> str:
     return f"G{key // 10}" if key % 10 == 0 else f"G{key / 10:g}"
-
-
-def g_groups(dialect: str) -> dict[int, int]:
-    """The G-code -> group table of one dialect (its own codes only)."""
-    return {k: g for k, g in G_GROUP.items() if dialect in DIALECT_ONLY_G.get(k, DIALECTS)}
-
-
-def known_m(dialect: str) -> frozenset[int]:
-    """The M-codes one dialect knows."""
-    return frozenset(m for m in KNOWN_M if dialect in DIALECT_ONLY_M.get(m, DIALECTS))
 
 
 def offset_code(index: int) -> int | float:

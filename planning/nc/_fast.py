@@ -29,6 +29,7 @@ from planning.nc.arcs import (
     LINUXCNC_SPIRAL_REL_TOL,
     PLANE_AXES,
 )
+from planning.nc.dialects import Dialect
 from planning.nc.motion import FULL_CIRCLE_TOL_MM, MotionBuilder
 from planning.nc.state import ModalState
 
@@ -107,6 +108,7 @@ class FastRuns:
     """Runs of plain G0..G3 blocks executed at once (mixin of the Interpreter)."""
 
     state: ModalState
+    rules: Dialect
     fast: bool
 
     def _execute_lines(self, lines: list[str], block: int, out: MotionBuilder) -> None:
@@ -281,7 +283,7 @@ class FastRuns:
         arc = mode >= 2
         cw_all = mode[arc] == 2
         ia, ib, ic = PLANE_AXES[st.plane]
-        lcnc = self._lcnc
+        lcnc = self.rules.arc_spiral  # LinuxCNC's radius rule
         tol = LINUXCNC_RADIUS_TOL_MM if lcnc else self.arc_tolerance_mm
         has_a, has_b, has_n = centre_words[ia][arc], centre_words[ib][arc], centre_words[ic][arc]
         has_r = centre_words[3][arc]

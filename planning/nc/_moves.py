@@ -24,7 +24,7 @@ from planning.nc.arcs import (
     check_radius,
     check_radius_linuxcnc,
 )
-from planning.nc.canned import drill_hole, drill_hole_linuxcnc
+from planning.nc.dialects import Dialect
 from planning.nc.motion import ARC_CCW, ARC_CW, DWELL, LINE, RAPID
 from planning.nc.state import ModalState
 
@@ -38,9 +38,9 @@ class Moves:
 
     state: ModalState
     dialect: str
+    rules: Dialect
     arc_tolerance_mm: float
     _spiral_tol_mm: float | None
-    _lcnc: bool
     _reference_warned: bool
     _inverse_f: float
     _feed_max_mm_min: float
@@ -62,14 +62,14 @@ class Moves:
         out.ibuf.extend((kind, st.plane, st.tool, st.coolant, line, block))
 
     def _dwell(self, raw: str, v: dict[str, str], line: int, block: int, out) -> None:
+        d = self.rules
         if "P" in v:
-            t = float(v["P"])
-            t = t / 1000.0 if self.dialect == "fanuc" else t
+            t = d.dwell_seconds(float(v["P"]))
             letter = "P"
-        elif "X" in v and not self._lcnc:
+        elif "X" in v and d.dwell_x:
             t, letter = float(v["X"]), "X"
-        elif self._lcnc:
-            raise self._fail(raw, 0, "G4 dwell needs P (s)", line)
+        elif not d.dwell_x:
+            raise self._fail(raw, 0, f"G4 dwell needs P ({'ms' if d.dwell_p_ms else 's'})", line)
         else:
             raise self._fail(raw, 0, "G4 dwell needs P (ms on Fanuc, s on GRBL) or X (s)", line)
         if t < 0:
@@ -173,7 +173,7 @@ class Moves:
         if g53:
             if mode not in (0, 1):
                 raise self._fail(raw, 0, "G53 needs G0 or G1 in force", line)
-            if self._lcnc and not st.absolute:
+            if self.rules.g53_needs_absolute and not st.absolute:
                 raise self._fail(raw, 0, "G53 cannot be used in incremental mode G91", line)
         if mode == 38:
             self._probe_checks(raw, line, p0, p1)
@@ -184,9 +184,10 @@ class Moves:
             else:
                 kind, feed = LINE, st.feed_mm_min
                 if feed != feed:
-                    lcnc = self._lcnc_length(p0, p1, r0, r1) if self._lcnc else None
+                    along = self.rules.feed_along_xyz
+                    lcnc = self._lcnc_length(p0, p1, r0, r1) if along else None
                     feed = self._need_feed(raw, line, math.dist((*p0, *r0), (*p1, *r1)), lcnc)
-                elif r1 is not r0 and self._lcnc:
+                elif r1 is not r0 and self.rules.feed_along_xyz:
                     feed = self._linuxcnc_rotary_feed(feed, math.dist(p0, p1), r0, r1, p0, p1)
             rpm = st.spindle_dir * st.spindle_speed_rpm
             out.fbuf.extend((*p0, *p1, NAN, NAN, NAN, feed, rpm, 0.0, *r0, *r1))
@@ -195,7 +196,7 @@ class Moves:
             cw = mode == 2
             c = self._arc_center(raw, v, scale, line, p0, p1, cw)
             kind = ARC_CW if cw else ARC_CCW
-            if self._lcnc or st.feed_mode == 93:
+            if self.rules.feed_along_xyz or self.rules.arc_turns_p or st.feed_mode == 93:
                 self._arc(raw, v, line, block, out, kind, p0, p1, c, r0, r1)
             else:  # the common arc
                 feed = self._need_feed(raw, line)
@@ -218,7 +219,7 @@ class Moves:
                              line)  # fmt: skip
         if st.cutter_comp != 40:
             raise self._fail(raw, 0, "G38.x cannot probe with cutter compensation on", line)
-        too_close = 0.254 if self._lcnc else 0.0  # LinuxCNC's 0.01 in / 0.254 mm
+        too_close = self.rules.probe_min_mm  # LinuxCNC's 0.01 in / 0.254 mm
         if math.dist(p0, p1) <= too_close:
             raise self._fail(raw, 0, "G38.x target too close to the start (LinuxCNC: within "
                              "0.254 mm; GRBL: the same point)", line)  # fmt: skip
@@ -228,7 +229,8 @@ class Moves:
         of a move with rotary axes, and LinuxCNC's P turns (full circles first, then the arc)."""
         st = self.state
         cw = kind == ARC_CW
-        turns = self._turns(raw, v, line) if self._lcnc and "P" in v else 1
+        d = self.rules
+        turns = self._turns(raw, v, line) if d.arc_turns_p and "P" in v else 1
         arc = arc_length_mm(p0, p1, c, st.plane, cw)
         ia, ib, ic = PLANE_AXES[st.plane]
         total = 1.0
@@ -240,10 +242,10 @@ class Moves:
         length = math.hypot(arc, math.dist(r0, r1))
         if st.feed_mode == 93:
             unit = INCH_MM if st.inch else 1.0
-            feed = self._need_feed(raw, line, length, (arc, unit) if self._lcnc else None)
+            feed = self._need_feed(raw, line, length, (arc, unit) if d.feed_along_xyz else None)
         else:
             feed = self._need_feed(raw, line)
-        if r1 != r0 and self._lcnc and st.feed_mode != 93 and arc > 0.0:
+        if r1 != r0 and d.feed_along_xyz and st.feed_mode != 93 and arc > 0.0:
             feed *= length / arc  # LinuxCNC's F is along the arc, the rotary axes follow
         if turns == 1:
             self._seg(out, kind, p0, p1, c, feed, 0.0, line, block, r1)
@@ -290,9 +292,9 @@ class Moves:
         rot_mid = self._rotary_to  # LinuxCNC: A B C words name rotary axes to return too
         if named or rot_mid is not None:
             mid = self._target(v, scale, False)
-        elif self.dialect != "fanuc":  # no axis word = all axes straight to the point
+        elif self.rules.home_all_axes:  # no axis word = all axes straight to the point
             named, mid = [0, 1, 2], st.position_mm
-            if self._lcnc:
+            if self.rules.home_rotary:
                 rot_mid = st.rotary_deg
         else:
             raise self._fail(
@@ -340,8 +342,8 @@ class Moves:
         """G29 (Fanuc): the named axes rapid to the last G28/G30 intermediate point, then to the
         programmed point (G91: relative to the intermediate point); the others stay."""
         st = self.state
-        if self.dialect == "grbl":
-            raise self._fail(raw, k, "G29 is not a GRBL command", line)
+        if 290 in self.rules.code_errors:
+            raise self._fail(raw, k, self.rules.code_errors[290], line)
         named = [a for a in range(3) if "XYZ"[a] in v]
         if not named:
             raise self._fail(raw, k, "G29 needs the axes to move (X, Y, Z)", line)
@@ -362,166 +364,12 @@ class Moves:
             )
         self._two_rapids(tuple(mid), tuple(end), line, block, out)
 
-    # ------------------------------------------------------------------ G10 / G92 / G28.1
-    def _setting(self, raw, v, scale, line, key: int, k: int) -> None:
-        """The codes that set something from the block's words (no motion): G10, G28.1 / G30.1,
-        G43.1, G52, G92, G92.1 / G92.2 / G92.3."""
-        st = self.state
-        code = gname(key)
-        if key == 100:
-            self._g10(raw, v, scale, line, k)
-            return
-        axes = [a for a in range(3) if "XYZ"[a] in v]
-        rot = [c for c in "ABC" if c in v]
-        if key == 431:
-            self._g43_1(raw, v, scale, line, k, axes, rot)
-            return
-        if key in (281, 301, 921, 922, 923):
-            if axes or rot:
-                raise self._fail(
-                    raw, ("XYZ"[axes[0]] if axes else rot[0]), f"{code} takes no axis words", line
-                )
-            if key == 281:
-                st.reference_mm = st.position_mm
-                st.reference_rotary_deg = st.rotary_deg
-            elif key == 301:
-                st.second_reference_mm = st.position_mm
-                st.second_reference_rotary_deg = st.rotary_deg
-            elif key == 921:
-                st.g92_offset_mm = st.g92_saved_mm = (0.0, 0.0, 0.0)
-            elif key == 922:
-                st.g92_offset_mm = (0.0, 0.0, 0.0)
-            else:
-                st.g92_offset_mm = st.g92_saved_mm
-            self._set_origin()
-            return
-        # G92 / G52
-        if not axes and not rot:
-            raise self._fail(raw, k, f"{code} needs at least one axis word", line)
-        for c in rot:  # the rotary axes have no offsets here: only what leaves them as they are
-            now = st.rotary_deg["ABC".index(c)]
-            if float(v[c]) != (now if key == 920 else 0.0):
-                raise self._fail(raw, c, f"{code}: rotary axis offsets are not supported", line)
-        off = list(st.g92_offset_mm)
-        work = st.work_offsets_mm[st.work_offset_index]
-        for a in axes:
-            val = float(v["XYZ"[a]]) * scale
-            off[a] = st.position_mm[a] - work[a] - val if key == 920 else val
-        st.g92_offset_mm = st.g92_saved_mm = (off[0], off[1], off[2])
-        self._set_origin()
-
-    def _g10(self, raw, v, scale, line, k: int) -> None:
-        """G10 L2 / L20 (work offsets) and L1 / L10 / L11 (tool table)."""
-        st = self.state
-        if "L" not in v:
-            raise self._fail(raw, k, "G10 needs L (L2/L20 work offset, L1/L10 tool table)", line)
-        lf = float(v["L"])
-        ell = round(lf)
-        grbl = self.dialect == "grbl"
-        fanuc = self.dialect == "fanuc"
-        known = (2, 20) if grbl else (2, 1, 10, 11, 12, 13) if fanuc else (0, 1, 2, 10, 11, 20)
-        if ell != lf or ell not in known:
-            raise self._fail(
-                raw, "L", f"G10 L{v['L']} is not one of L{', L'.join(map(str, known))} "
-                f"({self.dialect})", line,
-            )  # fmt: skip
-        if ell == 0:  # LinuxCNC: reload the tool table (from the file: nothing known here)
-            return
-        if "P" not in v:
-            raise self._fail(raw, k, f"G10 L{ell} needs P", line)
-        pf = float(v["P"])
-        p = round(pf)
-        if abs(pf - p) > 0.0002:
-            raise self._fail(raw, "P", f"G10 P must be a whole number, got {v['P']}", line)
-        axes = [a for a in range(3) if "XYZ"[a] in v]
-        if ell in (2, 20):
-            top = 6 if (grbl or fanuc) else 9
-            if not (0 if not fanuc else 1) <= p <= top:
-                why = " (the external offset P0 is not supported)" if fanuc and p == 0 else ""
-                raise self._fail(raw, "P", f"G10 L{ell} P must be in 0..{top}, got {p}{why}", line)
-            for c in "IJ":
-                if c in v:
-                    raise self._fail(raw, c, f"G10 L{ell} takes no {c} word", line)
-            if "R" in v and float(v["R"]) != 0.0:
-                raise self._fail(
-                    raw, "R", "G10 L2 R: rotated coordinate systems are not supported", line
-                )
-            for c in "ABC":
-                if c in v and float(v[c]) != (st.rotary_deg["ABC".index(c)] if ell == 20 else 0.0):
-                    raise self._fail(raw, c, "offsets of the rotary axes are not supported", line)
-            idx = st.work_offset_index if p == 0 else p - 1
-            off = list(st.work_offsets_mm[idx])
-            for a in axes:
-                val = float(v["XYZ"[a]]) * scale
-                if ell == 20:  # the current position reads val in system idx
-                    off[a] = st.position_mm[a] - st.g92_offset_mm[a] - val
-                elif fanuc and not st.absolute:
-                    off[a] += val
-                else:
-                    off[a] = val
-            table = list(st.work_offsets_mm)
-            table[idx] = (off[0], off[1], off[2])
-            st.work_offsets_mm = tuple(table)
-            st.work_offsets_set = st.work_offsets_set | {idx}
-            if idx == st.work_offset_index:
-                self._set_origin()
-            return
-        if fanuc:  # L1 / L10..L13: Fanuc's tool offset memories (not modelled)
-            return
-        # LinuxCNC L1 (direct), L10 (the current position reads the values), L11 (in G59.3)
-        if p < 1:
-            raise self._fail(raw, "P", f"G10 L{ell} P (tool number) must be 1 or more", line)
-        if not axes and not any(c in v for c in "ABCRQIJ"):
-            raise self._fail(raw, k, f"G10 L{ell} without offsets has no effect", line)
-        entry = list(st.tool_table.get(p, (0.0, 0.0, 0.0, 0.0)))
-        if ell == 1:
-            for a in axes:
-                entry[a] = float(v["XYZ"[a]]) * scale
-        else:
-            tlo = 0.0
-            if st.tool_length == 43:
-                tlo = st.tool_table.get(st.tool_length_h or st.tool, (0.0, 0.0, 0.0, 0.0))[2]
-            elif st.tool_length == 431:
-                tlo = st.tool_length_offset_mm[2]
-            work = st.work_offsets_mm[8 if ell == 11 else st.work_offset_index]
-            g92 = (0.0, 0.0, 0.0) if ell == 11 else st.g92_offset_mm
-            for a in axes:
-                here = st.position_mm[a] + (tlo if a == 2 else 0.0) - work[a] - g92[a]
-                entry[a] = here - float(v["XYZ"[a]]) * scale
-        if "R" in v:
-            entry[3] = float(v["R"]) * scale
-        table = dict(st.tool_table)
-        table[p] = (entry[0], entry[1], entry[2], entry[3])
-        st.tool_table = table
-
-    def _g43_1(self, raw, v, scale, line, k: int, axes: list[int], rot: list[str]) -> None:
-        """G43.1: the dynamic tool length offset is the axis words (absolute under G91 too; none:
-        zero, LinuxCNC; GRBL takes Z and only Z, its error 37)."""
-        if rot:
-            raise self._fail(raw, rot[0], "G43.1: rotary axis offsets are not supported", line)
-        if self.dialect == "grbl" and axes != [2]:
-            letter = next((L for L in "XY" if L in v), None)
-            raise self._fail(raw, letter or k, "G43.1 on GRBL takes Z and only Z (error:37)",
-                             line)  # fmt: skip
-        off = tuple(float(v["XYZ"[a]]) * scale if a in axes else 0.0 for a in range(3))
-        self.state.tool_length = 431
-        self._set_tool_length_offset(off)  # type: ignore[arg-type]
-
-    def _set_tool_length_offset(self, off: tuple[float, float, float]) -> None:
-        """A new tool length offset: the tool tip does not move, so the current position (in
-        program coordinates) changes by the offset's change."""
-        st = self.state
-        old = st.tool_length_offset_mm
-        if off != old:
-            st.position_mm = tuple(p - (n - o) for p, n, o in zip(st.position_mm, off, old))  # type: ignore[assignment]
-            st.tool_length_offset_mm = off
-
     # ------------------------------------------------------------------ arcs
     def _arc_center(self, raw, v, scale, line, p0, p1, cw: bool) -> tuple[float, float, float]:
         st = self.state
         ia, ib, ic = PLANE_AXES[st.plane]
         tol = self.arc_tolerance_mm
-        lcnc = self._lcnc
+        lcnc = self.rules.arc_spiral
         if lcnc:
             tol = LINUXCNC_RADIUS_TOL_MM
         ijk = "IJK"
@@ -569,145 +417,3 @@ class Moves:
         c = [0.0, 0.0, 0.0]
         c[ia], c[ib], c[ic] = ca, cb, p0[ic]
         return c[0], c[1], c[2]
-
-    # ------------------------------------------------------------------ canned cycles
-    def _canned(
-        self, raw: str, v: dict[str, str], scale: float, line: int, block: int, out
-    ) -> None:
-        """Run one block in a canned-cycle mode: update R/Z/Q/P from its words (G90: absolute;
-        G91: R from the initial level, Z from R) and drill L holes (default 1) at its X/Y. In G18
-        and G19 the drilling axis is Y and X (the plane's normal), the hole position the other
-        two words.
-
-        Errors become NCError naming the first of Z R Q L in the block.
-        """
-        st = self.state
-        cy = st.canned
-        ia, ib, ic = PLANE_AXES[st.plane]
-        drill = "XYZ"[ic]
-        pos = st.position_mm
-        oc = st.origin_mm[ic]
-        lcnc = self._lcnc
-        feed = self._need_feed(raw, line)  # an NCError already (outside the ValueError handler)
-        if lcnc and st.motion != cy.mode:  # LinuxCNC: a new cycle needs its words again
-            for letter, why in (("R", "the R plane"), (drill, "the hole bottom")):
-                if letter not in v:
-                    raise self._fail(raw, 0, f"G{st.motion} needs {why} ({letter} word) when "
-                                     "the cycle starts", line)  # fmt: skip
-            if st.motion == 82 and "P" not in v:
-                raise self._fail(raw, 0, "G82 needs the dwell time P when it starts", line)
-            if st.motion == 83 and "Q" not in v:
-                raise self._fail(raw, 0, "G83 needs the peck depth Q when it starts", line)
-        if cy.initial_z_mm != cy.initial_z_mm:
-            cy.initial_z_mm = pos[ic]
-            # LinuxCNC keeps it in program units (rounded: our position carries float noise)
-            cy.initial_number = round((pos[ic] - oc) / scale, 10)
-        try:
-            if "R" in v:
-                cy.r_number = float(v["R"])
-                r = cy.r_number * scale
-                cy.r_mm = r + oc if st.absolute else cy.initial_z_mm + r
-            if drill in v:
-                cy.z_number = float(v[drill])
-                z = cy.z_number * scale
-                if st.absolute:
-                    cy.z_mm = z + oc
-                elif cy.r_mm == cy.r_mm:
-                    cy.z_mm = cy.r_mm + z
-            if "Q" in v:
-                cy.q_number = float(v["Q"])
-                if lcnc and not cy.q_number > 0.0:
-                    raise ValueError(f"G83 needs a peck depth Q > 0, got {v['Q']}")
-                cy.q_mm = abs(cy.q_number * scale)
-            if "P" in v:
-                p = float(v["P"])
-                cy.dwell_s = p / 1000.0 if self.dialect == "fanuc" else p
-            if cy.r_mm != cy.r_mm:
-                raise ValueError("canned cycle needs the R plane (R word)")
-            if cy.z_mm != cy.z_mm:
-                raise ValueError(f"canned cycle needs the hole bottom ({drill} word)")
-            repeats = 1
-            if "L" in v:
-                repeats = float(v["L"])
-                low = 1 if lcnc else 0
-                if repeats < low or repeats != int(repeats) or repeats > 9999:
-                    raise ValueError(
-                        f"repeat count L must be a whole number {low}..9999, got {v['L']}"
-                    )
-                repeats = int(repeats)
-            vab = {k: v[k] for k in ("XYZ"[ia], "XYZ"[ib]) if k in v}
-            if lcnc:
-                self._holes_linuxcnc(vab, scale, repeats, feed, line, block, out)
-            else:
-                for _ in range(repeats):
-                    t = self._target(vab, scale, False)
-                    p = st.position_mm
-                    moves = drill_hole(
-                        st.motion, (p[ia], p[ib], p[ic]), t[ia], t[ib], cy.r_mm, cy.z_mm,
-                        cy.initial_z_mm, retract_initial=st.retract_initial, q_mm=cy.q_mm,
-                        dwell_s=cy.dwell_s, peck_clearance_mm=self.peck_clearance_mm,
-                    )  # fmt: skip
-                    self._holes(out, moves, feed, line, block, ia, ib, ic)
-            cy.mode = st.motion
-        except ValueError as exc:
-            which = next((L for L in (drill, "R", "Q", "L") if L in v), 0)
-            raise self._fail(raw, which, str(exc), line) from None
-
-    def _holes_linuxcnc(self, vab, scale: float, repeats: int, feed, line, block, out) -> None:
-        """The holes of one block as LinuxCNC's ``convert_cycle_xy`` computes them: along the
-        drilling axis in program units from the words as written (so its comparisons, e.g. the
-        last G83 peck, come out as LinuxCNC's), converted to machine mm at the end."""
-        st = self.state
-        cy = st.canned
-        ia, ib, ic = PLANE_AXES[st.plane]
-        pos = st.position_mm
-        oc = st.origin_mm[ic]
-        old = cy.initial_number
-        if st.absolute:
-            r, bottom = cy.r_number, cy.z_number
-        else:
-            r = cy.r_number + old
-            bottom = r + cy.z_number
-        if r < bottom:
-            raise ValueError(
-                f"hole bottom {bottom:.6g} is above the R plane {r:.6g} (program units)"
-            )
-        # LinuxCNC compares exact program values; ours carry float noise (1e-9: far below any
-        # real difference, far above the noise)
-        here = (pos[ic] - oc) / scale
-        first_above = here - r > 1e-9
-        if r - old > 1e-9:  # below R: straight up to it first
-            up = (pos[ia], pos[ib], r * scale + oc)
-            self._holes(out, [(RAPID, (pos[ia], pos[ib], pos[ic]), up, 0.0)], feed, line, block,
-                        ia, ib, ic)  # fmt: skip
-            old = r
-            first_above = False
-        clear = old if st.retract_initial else r
-        if self._peck_default:  # LinuxCNC's G83_RAPID_DELTA: 0.010 in (times 25.4 in mm)
-            delta = 0.010 if st.inch else 0.010 * 25.4
-        else:
-            delta = self.peck_clearance_mm / scale
-        for n in range(repeats):
-            t = self._target(vab, scale, False)
-            p = st.position_mm
-            moves = drill_hole_linuxcnc(
-                st.motion, (p[ia], p[ib], p[ic]), t[ia], t[ib], r, bottom, clear,
-                approach=here if n == 0 and first_above else None, q=cy.q_number,
-                dwell_s=cy.dwell_s, peck_clearance=delta, scale=scale, offset=oc,
-            )  # fmt: skip
-            self._holes(out, moves, feed, line, block, ia, ib, ic)
-
-    def _holes(self, out, moves, feed: float, line: int, block: int, ia, ib, ic) -> None:
-        """Emit canned-cycle moves given in plane coordinates (a, b, drilling axis)."""
-        st = self.state
-        for kind, q0, q1, dwell_s in moves:
-            f = feed if kind == LINE else NAN
-            if ic == 2:
-                p0, p1 = q0, q1
-            else:
-                a0, a1 = [0.0] * 3, [0.0] * 3
-                a0[ia], a0[ib], a0[ic] = q0
-                a1[ia], a1[ib], a1[ic] = q1
-                p0, p1 = tuple(a0), tuple(a1)
-            self._seg(out, kind, p0, p1, _NOWHERE, f, dwell_s, line, block)
-            st.position_mm = p1

@@ -7,8 +7,8 @@ interpreter's ``state``, ``file``, ``strict``, ``warnings`` and machine limits.
 
 from __future__ import annotations
 
-from planning.nc import _lexer
-from planning.nc._codes import DIALECT_ONLY_G, LETTERS, M_GROUP, gkey, gname
+from planning.nc import _lexer, dialects
+from planning.nc._codes import LETTERS, M_GROUP, gkey, gname
 from planning.nc.errors import NCError, NCWarning
 from planning.nc.state import ModalState
 
@@ -29,7 +29,8 @@ class WordRules:
     _inverse_f: float
     _g_group: dict[int, int]
     _known_m: frozenset[int]
-    _lcnc: bool
+    dialect: str
+    rules: dialects.Dialect
 
     def _problem(self, raw: str, index: int, reason: str, line: int) -> None:
         """Strict: raise; lenient: record a warning about word ``index`` of the block."""
@@ -61,7 +62,7 @@ class WordRules:
             if letter == "G":
                 key = gkey(num)
                 if key not in self._g_group:
-                    have = DIALECT_ONLY_G.get(key)  # another control's code: say whose
+                    have = dialects.knowing_g(key)  # another control's code: say whose
                     where = (
                         f" in the {self.dialect} dialect ({', '.join(have)} have it: a "
                         "machine config of that dialect)"
@@ -137,7 +138,7 @@ class WordRules:
         mode = st.motion
         used = ""
         if mode in (2, 3):
-            used = "IJKRP" if self._lcnc else "IJKR"  # LinuxCNC: P turns
+            used = "IJKRP" if self.rules.arc_turns_p else "IJKR"  # LinuxCNC: P turns
         elif mode >= 81:
             used = "RLPQ"
         extra = None

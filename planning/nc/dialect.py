@@ -1,5 +1,6 @@
-"""What a controller answers to each line of a program: GRBL 1.1h (modelled on its source), Fanuc
-and LinuxCNC (coarser rules).
+"""What a controller answers to each line of a program: GRBL 1.1h (modelled on its source), and
+the controls that read ISO code (Fanuc, LinuxCNC ...: coarser rules, each dialect's
+:class:`~planning.nc.dialects.LineRules`).
 
 :func:`check_dialect` lists the problems of a program for one controller, each as a
 :class:`DialectProblem` naming file:line:column, the word and what the controller answers
@@ -19,7 +20,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-from planning.nc import _lexer
+from planning.nc import _lexer, dialects
 from planning.nc.grbl import (
     GRBL_ERRORS,
     GRBL_LINE_CHARS,
@@ -31,8 +32,8 @@ from planning.nc.grbl import (
     grbl_words,
 )
 
-DIALECTS = ("grbl", "fanuc", "linuxcnc")
-DIALECT_NAMES = {"grbl": "GRBL", "fanuc": "Fanuc", "linuxcnc": "LinuxCNC"}
+DIALECTS = dialects.DIALECTS
+DIALECT_NAMES = dialects.titles()
 
 
 # -- the checker ---------------------------------------------------------------------------------
@@ -81,20 +82,20 @@ def check_dialect(
     strip: bool = True,
     lines: Iterable[int] | None = None,
 ) -> list[DialectProblem]:
-    """The problems of a program for ``dialect`` (grbl, fanuc, linuxcnc), in line order.
+    """The problems of a program for ``dialect`` (a name of :data:`planning.nc.dialects.REGISTRY`),
+    in line order.
 
     ``program_or_text``: NC text, a :class:`~planning.nc.Program` or a sequence of lines.
     ``strip`` (GRBL): the lines are sent as :func:`grbl_send_text` leaves them, as the streamer
     does by default (``False``: sent as written). ``lines``: check only these 1-based lines (the
     GRBL parser state still follows every line before them).
     """
-    if dialect not in DIALECTS:
-        raise ValueError(f"dialect = {dialect!r}: expected one of {', '.join(DIALECTS)}")
+    d = dialects.get(dialect)
     src, name = _source(program_or_text, file)
     only = set(lines) if lines is not None else None
-    if dialect == "grbl":
+    if d.firmware_model:
         return _check_grbl(src, name, strip, only)
-    return _check_iso(src, name, dialect, only)
+    return _check_iso(src, name, d, only)
 
 
 def _grbl_problem(
@@ -208,112 +209,89 @@ def _m_words(text: str) -> set[str]:
     return {f"M{int(float(num))}" for ltr, num, _ in ws if ltr == "M" and num not in ("", ".")}
 
 
-# -- Fanuc and LinuxCNC (coarse) -----------------------------------------------------------------
-_FANUC_REFUSED_G = {
-    "G28.1": "stores the reference point on GRBL/LinuxCNC only",
-    "G30.1": "stores the reference point on GRBL/LinuxCNC only",
-    "G61.1": "LinuxCNC's exact stop",
-    "G92.2": "LinuxCNC's G92 suspend",
-    "G92.3": "LinuxCNC's G92 restore",
-    "G59.1": "LinuxCNC's extra work offset (Fanuc: G54.1 Pn)",
-    "G59.2": "LinuxCNC's extra work offset (Fanuc: G54.1 Pn)",
-    "G59.3": "LinuxCNC's extra work offset (Fanuc: G54.1 Pn)",
-    "G90.1": "arc centres are always incremental on a Fanuc",
-    "G91.1": "arc centres are always incremental on a Fanuc (no G91.1 code)",
-    "G8": "LinuxCNC lathe radius mode",
-}
-_FANUC_REFUSED_M = {
-    m: "a LinuxCNC M-code" for m in (48, 49, 50, 51, 52, 53, 60, 61, 62, 63, 64, 65)
-}
-_LINUXCNC_REFUSED_G = {"G29": "Fanuc's return from the reference point; LinuxCNC has none"}
+# -- controls that read ISO code (coarse: each dialect's LineRules) ------------------------------
 _AXIS_DECIMAL = frozenset("XYZIJKRQUVW")
 
 
+def _is_g4(gs: list[_lexer.Token]) -> bool:
+    return any(g.number.lstrip("0+") in ("4", "4.", "4.0") for g in gs)
+
+
 def _check_iso(
-    src: Sequence[str], name: str, dialect: str, only: set[int] | None
+    src: Sequence[str], name: str, d: dialects.Dialect, only: set[int] | None
 ) -> list[DialectProblem]:
     out: list[DialectProblem] = []
     no_point: list[tuple[int, _lexer.Token]] = []
+    rules = d.lines
     for lineno, raw in enumerate(src, 1):
         if only is not None and lineno not in only:
             continue
 
-        def add(
-            col: int, word: str, answer: str, reason: str, sev: str = "error", ln: int = lineno
-        ) -> None:
-            out.append(DialectProblem(name, ln, col, word, dialect, answer, reason, sev))
+        def add(col: int, word: str, a: dialects.Answer, ln: int = lineno) -> None:
+            out.append(DialectProblem(name, ln, col, word, d.name, a.answer, a.reason, a.severity))
 
         toks = _lexer.tokenize(raw)
-        if dialect == "linuxcnc" and len(raw) > 255:
-            add(1, "", "error", f"line is {len(raw)} characters; LinuxCNC reads at most 255")
+        if rules.max_line_chars is not None and len(raw) > rules.max_line_chars:
+            add(1, "", dialects.Answer("error", f"line is {len(raw)} characters; {d.title} reads "
+                                       f"at most {rules.max_line_chars}"))  # fmt: skip
         words = [t for t in toks if t.kind == "word"]
         gs = [t for t in words if t.letter == "G"]
         for t in toks:
-            if t.kind == "comment" and t.text.startswith(";") and dialect == "fanuc":
-                why = "';' is the end of block on a Fanuc: what follows is read as a new block"
-                add(t.column, ";", "alarm", why)
-            if t.kind == "word" and dialect == "fanuc" and t.text.strip()[:1].islower():
-                add(t.column, t.text.strip(), "alarm",
-                    "lower-case address letters are not ISO tape code on a Fanuc")  # fmt: skip
+            if t.kind == "comment" and t.text.startswith(";") and rules.semicolon:
+                add(t.column, ";", rules.semicolon)
+            if t.kind == "word" and rules.lower_case and t.text.strip()[:1].islower():
+                add(t.column, t.text.strip(), rules.lower_case)
         for t in words:
-            w = f"{t.letter}{_num_name(t.number)}"
-            if t.letter == "G":
-                if dialect == "fanuc" and w in _FANUC_REFUSED_G:
-                    add(t.column, w, "alarm PS0010", f"improper G-code ({_FANUC_REFUSED_G[w]})")
-                if dialect == "linuxcnc" and w in _LINUXCNC_REFUSED_G:
-                    add(t.column, w, "error", f"unknown G-code ({_LINUXCNC_REFUSED_G[w]})")
-            elif t.letter == "M" and dialect == "fanuc":
-                m = _int_or_none(t.number)
-                if m in _FANUC_REFUSED_M:
-                    add(t.column, w, "alarm", f"M{m} is {_FANUC_REFUSED_M[m]}, not a Fanuc one")
-            elif t.letter == "O":
-                v = _int_or_none(t.number)
-                if dialect == "linuxcnc":
-                    add(t.column, t.text.strip(), "error",
-                        "an O word is an o-word (subroutine or flow control) on LinuxCNC; a "
-                        "program number is refused")  # fmt: skip
-                elif v is None or v > 9999:
-                    add(t.column, t.text.strip(), "alarm",
-                        "program number needs 1 to 4 digits (O1..O9999)")  # fmt: skip
-            elif t.letter == "N" and dialect == "fanuc":
-                v = _int_or_none(t.number)
-                if v is None or v > 99999:
-                    add(t.column, t.text.strip(), "alarm",
-                        "sequence number needs 1 to 5 digits (N1..N99999)")  # fmt: skip
-            elif (
-                t.letter == "X"
-                and dialect == "linuxcnc"
-                and any(g.number.lstrip("0+") in ("4", "4.", "4.0") for g in gs)
-            ):
-                add(t.column, t.text.strip(), "error", "LinuxCNC's G4 takes P (seconds), not X")
-            elif (
-                dialect == "fanuc"
-                and t.letter in _AXIS_DECIMAL
-                and "." not in t.number
-                and t.number.strip("+-0")
-            ):
-                no_point.append((lineno, t))
-            if (
-                t.letter == "P"
-                and dialect == "linuxcnc"
-                and any(g.number.lstrip("0+") in ("4", "4.", "4.0") for g in gs)
-            ):
-                v = float(t.number)
-                if v >= 100:
-                    add(t.column, t.text.strip(), "dwells",
-                        f"{v:g} s (P is seconds on LinuxCNC: milliseconds from a Fanuc program?)",
-                        "warning")  # fmt: skip
+            _check_word(t, gs, rules, d, add)
+            if t.letter in _AXIS_DECIMAL and rules.least_increments and "." not in t.number:
+                if t.number.strip("+-0") and not (t.letter == "X" and _is_g4(gs) and rules.dwell_x):
+                    no_point.append((lineno, t))
     if no_point:
         lineno, t = no_point[0]
         more = f" ({len(no_point)} such words)" if len(no_point) > 1 else ""
         out.append(DialectProblem(
-            name, lineno, t.column, t.text.strip(), dialect, "reads it in least increments",
+            name, lineno, t.column, t.text.strip(), d.name, "reads it in least increments",
             f"{t.text.strip()} without a decimal point is {t.number} x 0.001 mm unless "
             f"parameter 3401#0 (DPI) is set{more}",
             "warning",
         ))  # fmt: skip
     out.sort(key=lambda p: (p.line, p.column))
     return out
+
+
+def _check_word(t: _lexer.Token, gs, rules: dialects.LineRules, d: dialects.Dialect, add) -> None:
+    """One word's answers (G and M codes of other controls, O and N numbers, G4 words)."""
+    w = f"{t.letter}{_num_name(t.number)}"
+    text = t.text.strip()
+    if t.letter == "G":
+        if w in rules.refused_g:
+            add(t.column, w, rules.refused_g[w])
+    elif t.letter == "M":
+        m = _int_or_none(t.number)
+        if m in rules.refused_m:
+            add(t.column, w, rules.refused_m[m])
+    elif t.letter == "O":
+        v = _int_or_none(t.number)
+        if rules.o_word is not None:
+            add(t.column, text, rules.o_word)
+        elif rules.program_number_max is not None and (v is None or v > rules.program_number_max):
+            n = rules.program_number_max
+            add(t.column, text, dialects.Answer(
+                "alarm", f"program number needs 1 to {len(str(n))} digits (O1..O{n})"))  # fmt: skip
+    elif t.letter == "N" and rules.sequence_number_max is not None:
+        v = _int_or_none(t.number)
+        n = rules.sequence_number_max
+        if v is None or v > n:
+            why = f"sequence number needs 1 to {len(str(n))} digits (N1..N{n})"
+            add(t.column, text, dialects.Answer("alarm", why))
+    elif t.letter == "X" and rules.dwell_x is not None and _is_g4(gs):
+        add(t.column, text, rules.dwell_x)
+    if t.letter == "P" and rules.dwell_p_warn_s is not None and _is_g4(gs):
+        v = float(t.number)
+        if v >= rules.dwell_p_warn_s:
+            add(t.column, text, dialects.Answer(
+                "dwells", f"{v:g} s (P is seconds on {d.title}: milliseconds from a Fanuc "
+                "program?)", "warning"))  # fmt: skip
 
 
 def _num_name(num: str) -> str:

@@ -95,29 +95,22 @@ import math
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING
 
-from planning.nc import _lexer
+from planning.nc import _lexer, dialects
 from planning.nc._codes import (
-    DIALECTS,
     FAST_LETTERS,
-    GRBL_UNSUPPORTED_G,
-    GRBL_UNSUPPORTED_LETTERS,
-    GRBL_UNSUPPORTED_M,
     INCH_MM,
     LETTERS_GM,
-    MOTION_MODE,
     OFFSET_CODES,
     OFFSET_INDEX,
-    g_groups,
     gkey,
     gname,
-    known_m,
 )
 from planning.nc._fast import FastRuns
-from planning.nc._moves import Moves
+from planning.nc._modes import Modes
 from planning.nc._words import WordRules
 from planning.nc.errors import NCError, NCWarning
 from planning.nc.motion import Motion, MotionBuilder
-from planning.nc.state import CannedCycle, ModalState
+from planning.nc.state import ModalState
 
 if TYPE_CHECKING:
     from analysis.config import MachineConfig
@@ -142,7 +135,7 @@ class _NullSink:
     fbuf = ibuf = _Drop()
 
 
-class Interpreter(FastRuns, WordRules, Moves):
+class Interpreter(FastRuns, WordRules, Modes):
     """Executes NC blocks one at a time, tracking all modal state.
 
     Parameters
@@ -153,8 +146,10 @@ class Interpreter(FastRuns, WordRules, Moves):
         Unknown codes/letters and unused words raise (True) or become warnings (False).
     file : str
         Name used in error messages.
-    dialect : {"fanuc", "grbl", "linuxcnc"}, optional
-        Overrides the machine's (see the module docstring for what it changes).
+    dialect : str, optional
+        A name of :data:`planning.nc.dialects.REGISTRY` (fanuc, grbl, linuxcnc ...); overrides
+        the machine's (see the module docstring and :mod:`planning.nc.dialects` for what it
+        changes). ``rules`` is its :class:`~planning.nc.dialects.Dialect`.
     block_delete : bool
         The block-delete switch: True skips blocks starting with ``/``.
     arc_tolerance_mm : float, optional
@@ -216,25 +211,27 @@ class Interpreter(FastRuns, WordRules, Moves):
         self.probing = probing
         self._comp_warned = False
         self.file = str(file)
-        self.dialect = dialect or (machine.dialect if machine is not None else "fanuc")
-        if self.dialect not in DIALECTS:
+        self.dialect = dialect or (machine.dialect if machine is not None else dialects.DEFAULT)
+        if self.dialect not in dialects.REGISTRY:
             raise NCError(
-                f"dialect must be one of {', '.join(DIALECTS)}, got {self.dialect!r}", file=file
+                f"dialect must be one of {', '.join(dialects.DIALECTS)}, got {self.dialect!r}",
+                file=file,
             )
-        self._lcnc = self.dialect == "linuxcnc"
-        self._g_group = g_groups(self.dialect)
-        self._known_m = known_m(self.dialect)
+        d = self.rules = dialects.get(self.dialect)
+        self._g_group = d.g_groups()
+        self._known_m = d.m_codes
+        self._refuses = bool(d.refused_g or d.refused_m or d.refused_letters)
         self.block_delete = block_delete
         tol = arc_tolerance_mm
         if tol is None and machine is not None:
             # LinuxCNC has its own default: only a tolerance the machine file sets overrides it
-            if not self._lcnc or "arc_radius_tolerance_mm" in machine.model_fields_set:
+            if not d.arc_spiral or "arc_radius_tolerance_mm" in machine.model_fields_set:
                 tol = machine.arc_radius_tolerance_mm
         self._spiral_tol_mm = None if tol is None else float(tol)  # LinuxCNC: None = its own
         self.arc_tolerance_mm = DEFAULT_ARC_TOLERANCE_MM if tol is None else float(tol)
         self._peck_default = peck_clearance_mm is None
         if peck_clearance_mm is None:
-            peck_clearance_mm = 0.010 * INCH_MM if self._lcnc else 0.1
+            peck_clearance_mm = d.peck_clearance_mm
         self.peck_clearance_mm = float(peck_clearance_mm)
         if reference_mm is None and machine is not None:
             reference_mm = machine.reference_point_mm
@@ -338,34 +335,22 @@ class Interpreter(FastRuns, WordRules, Moves):
             raise
         self.blocks_seen = block + 1
 
-    def _grbl_words(self, raw: str, words, gcodes, mcodes, line: int) -> None:
-        """GRBL 1.1 answers error:20 to what it does not take: say so before anything is sent."""
+    def _refused_words(self, raw: str, words, gcodes, mcodes, line: int) -> None:
+        """What the control refuses outright (GRBL 1.1's error:20): say so before anything is
+        sent."""
+        d = self.rules
         for key, k in gcodes or ():
-            if key in GRBL_UNSUPPORTED_G:
-                self._problem(raw, k, f"{gname(key)} is not a GRBL 1.1 command", line)
+            if key in d.refused_g:
+                self._problem(raw, k, f"{gname(key)} is not a {d.refusal_name} command", line)
         for key, k in mcodes or ():
-            if key // 10 in GRBL_UNSUPPORTED_M:
-                self._problem(raw, k, f"M{key // 10} is not a GRBL 1.1 command", line)
+            if key // 10 in d.refused_m:
+                self._problem(raw, k, f"M{key // 10} is not a {d.refusal_name} command", line)
         # a line holding only an O program number (and N) is not sent: the GRBL sender strips
         # it (planning.nc.grbl.grbl_send_text), as ``nc check --dialect grbl`` reads it
-        lone_o = [ltr for ltr, _ in words if ltr != "N"] == ["O"]
+        lone_o = d.strips_lone_o and [ltr for ltr, _ in words if ltr != "N"] == ["O"]
         for k, (letter, _) in enumerate(words):
-            if letter in GRBL_UNSUPPORTED_LETTERS and not lone_o:
-                self._problem(raw, k, f"GRBL 1.1 has no {letter} word", line)
-
-    def _cutter_comp_word(self, raw: str, k: int, key: int, line: int) -> None:
-        reason = (
-            f"{gname(key)} cutter radius compensation is not applied: the motion is the "
-            "programmed path, not the tool centre's"
-        )
-        if self.cutter_comp == "refuse":
-            raise self._fail(
-                raw, k, reason + "; give a program with the compensation resolved (the tool "
-                "centre path, e.g. CAM 'computer' compensation)", line,
-            )  # fmt: skip
-        if not self._comp_warned:
-            self._comp_warned = True
-            self._note(raw, k, reason + " (said once)", line)
+            if letter in d.refused_letters and not lone_o:
+                self._problem(raw, k, f"{d.refusal_name} has no {letter} word", line)
 
     def _set_origin(self) -> None:
         """``state.origin_mm`` from the active work offset and the G92 offset."""
@@ -420,8 +405,8 @@ class Interpreter(FastRuns, WordRules, Moves):
             v = None
         if v is None:
             gcodes, mcodes, v = self._sort_words(raw, words, line)
-        if self.dialect == "grbl":
-            self._grbl_words(raw, words, gcodes, mcodes, line)
+        if self._refuses:
+            self._refused_words(raw, words, gcodes, mcodes, line)
 
         # ---- G codes: modes first so this block's words use them
         self._inverse_f = NAN
@@ -435,7 +420,10 @@ class Interpreter(FastRuns, WordRules, Moves):
             explicit_motion, dwell, g53, home, path = self._gcodes(raw, gcodes, line)
             scale = INCH_MM if st.inch else 1.0
             # LinuxCNC reads F before G20/G21 (its order of execution), the others after
-            fscale = scale if inch_before == st.inch or not self._lcnc else INCH_MM / scale
+            fscale = (
+                scale if inch_before == st.inch or not self.rules.feed_before_units
+                else INCH_MM / scale
+            )  # fmt: skip
             if path is not None:
                 self._path_control(raw, v, scale, line, path)
         # ---- other words
@@ -456,7 +444,9 @@ class Interpreter(FastRuns, WordRules, Moves):
 
         # ---- motion
         rotary = self._rotary_to is not None
-        has_axes = ("X" in v or "Y" in v or "Z" in v or rotary) and (not dwell or self._lcnc)
+        has_axes = ("X" in v or "Y" in v or "Z" in v or rotary) and (
+            not dwell or self.rules.dwell_then_move
+        )
         mode = st.motion
         if home is not None:
             self._group0(raw, v, scale, line, block, out, home, has_axes, explicit_motion)
@@ -474,7 +464,7 @@ class Interpreter(FastRuns, WordRules, Moves):
 
     def _dwell_block(self, raw, v, line: int, block: int, out, explicit_motion: bool) -> None:
         """G4: the dwell (Fanuc / GRBL: alone; LinuxCNC: before the block's move)."""
-        if self._lcnc:
+        if self.rules.dwell_then_move:
             if explicit_motion and self.state.motion in (2, 3):
                 raise self._fail(raw, "P", "G4 and G2/G3 cannot share a block (both use P)", line)
         else:
@@ -504,7 +494,7 @@ class Interpreter(FastRuns, WordRules, Moves):
                 )  # fmt: skip
             self._setting(raw, v, scale, line, key, k)
             return
-        if self._rotary_to is not None and not (self._lcnc and key != 290):
+        if self._rotary_to is not None and not (self.rules.home_rotary and key != 290):
             raise self._fail(
                 raw, next(L for L in "ABC" if L in v), f"A/B/C words cannot move in a "
                 f"{gname(key)} block (program the rotary move in its own G0/G1 block)", line,
@@ -531,156 +521,6 @@ class Interpreter(FastRuns, WordRules, Moves):
                 line,
             )
         self._canned(raw, v, scale, line, block, out)
-
-    def _gcodes(self, raw: str, gcodes: list[tuple[int, int]], line: int):
-        """Apply the block's G codes to the state (one per modal group). Returns
-        ``(explicit_motion, dwell, g53, group0, path)``: whether a group-1/G80 code was given, G4,
-        G53, ``(key, word index)`` of another group-0 code (G10, G28, G92 ...) or None, and the
-        key of a G61/G61.1/G64 or None (applied once the P and Q words are read)."""
-        st = self.state
-        explicit_motion = False
-        dwell = g53 = False
-        home: tuple[int, int] | None = None
-        path = None
-        prev_motion = st.motion
-        table = self._g_group
-        groups: dict[int, int] = {}
-        for key, k in gcodes:
-            grp = table[key]
-            if grp in groups:
-                other = groups[grp]
-                raise _lexer.word_error(
-                    raw,
-                    k,
-                    f"{gname(key)} and {gname(other)} are in the same modal group "
-                    f"(group {grp}) and cannot share a block",
-                    self.file,
-                    line,
-                )
-            groups[grp] = key
-            if grp == 9:  # G80; a G0..G3 in the same block then sets the motion mode
-                g1 = groups.get(1)
-                if g1 is not None and g1 >= 810:
-                    raise _lexer.word_error(
-                        raw, k, f"G80 and {gname(g1)} cannot share a block", self.file, line
-                    )
-                if g1 is None:
-                    st.motion = 80
-                    explicit_motion = True
-            elif grp == 1:
-                if 9 in groups and key >= 810:
-                    raise _lexer.word_error(
-                        raw, k, f"{gname(key)} and G80 cannot share a block", self.file, line
-                    )
-                st.motion = MOTION_MODE[key]
-                explicit_motion = True
-            elif grp == 0:
-                if key == 40:
-                    dwell = True
-                elif key == 530:
-                    g53 = True
-                elif home is not None:
-                    raise _lexer.word_error(
-                        raw, k, f"{gname(key)} and {gname(home[0])} cannot share a block",
-                        self.file, line,
-                    )  # fmt: skip
-                else:
-                    home = (key, k)
-            elif grp == 2:
-                st.plane = key // 10
-            elif grp == 6:
-                st.inch = key == 200
-            elif grp == 3:
-                st.absolute = key == 900
-            elif grp == 4:
-                st.arc_absolute = key == 901
-            elif grp == 5:
-                # F means something else now: set it again (LinuxCNC: G94 always clears it)
-                if key // 10 != st.feed_mode or (key == 940 and self._lcnc):
-                    st.feed_mode = key // 10
-                    st.feed_mm_min = st.feed_word = NAN
-            elif grp == 7:
-                st.cutter_comp = key // 10
-                if st.cutter_comp != 40:
-                    self._cutter_comp_word(raw, k, key, line)
-            elif grp == 8:
-                if key == 431:  # its axis words are the offset: a setting, as G92's are
-                    if home is not None:
-                        raise _lexer.word_error(
-                            raw, k, f"G43.1 and {gname(home[0])} both use the axis words and "
-                            "cannot share a block", self.file, line,
-                        )  # fmt: skip
-                    home = (key, k)
-                else:
-                    st.tool_length = key // 10
-                    self._set_tool_length_offset((0.0, 0.0, 0.0))
-            elif grp == 10:
-                st.retract_initial = key == 980
-            elif grp == 12:  # work offsets
-                st.work_offset = OFFSET_CODES[OFFSET_INDEX[key]]
-                self._set_origin()
-            elif grp == 13:  # G61 / G61.1 / G64
-                path = key
-            # 14 (G97) and 15 (G8): the only modes there are, nothing to record
-        if explicit_motion and (st.motion >= 81) != (prev_motion >= 81):
-            # leaving a cycle, or starting one: its initial level is taken at its first hole
-            st.canned = CannedCycle()
-        if home is not None and dwell:
-            raise _lexer.word_error(
-                raw, home[1], f"G4 and {gname(home[0])} cannot share a block", self.file, line
-            )
-        return explicit_motion, dwell, g53, home, path
-
-    def _path_control(self, raw: str, v: dict[str, str], scale: float, line: int, key: int) -> None:
-        """G61 / G61.1 / G64 P Q: recorded (P: blending tolerance, Q: naive-CAM tolerance; a Q
-        not given is P, as in LinuxCNC)."""
-        st = self.state
-        st.path_control = key // 10 if key % 10 == 0 else key / 10
-        if key != 640:
-            return
-        tol = {}
-        for letter in "PQ":
-            if letter in v:
-                x = float(v[letter])
-                if x < 0:
-                    raise self._fail(raw, letter, f"G64 {letter} must be >= 0", line)
-                tol[letter] = x * scale
-        st.path_tolerance_mm = tol.get("P", 0.0)
-        st.naive_cam_tolerance_mm = tol.get("Q", st.path_tolerance_mm)
-
-    def _mcodes(
-        self, raw: str, mcodes: list[tuple[int, int]], v: dict[str, str], line: int
-    ) -> bool:
-        """Apply the block's M codes (tool change, spindle, coolant, stops); True if it ends the
-        program (M2/M30), which takes effect after the block's motion."""
-        st = self.state
-        if len(mcodes) > 1:
-            self._check_m_groups(raw, mcodes, line)
-        end = False
-        for key, k in mcodes:
-            m = key // 10
-            if m == 6:
-                st.tool = st.tool_selected
-            elif m == 3:
-                st.spindle_dir = 1
-            elif m == 4:
-                st.spindle_dir = -1
-            elif m == 5:
-                st.spindle_dir = 0
-            elif m == 7 or m == 8:
-                st.coolant = True
-            elif m == 9:
-                st.coolant = False
-            elif m == 0 or m == 1 or m == 60:
-                st.stopped = True
-            elif m == 2 or m == 30:
-                end = True
-            elif m == 61:  # LinuxCNC: the tool in the spindle is Q, no change
-                if "Q" not in v:
-                    raise _lexer.word_error(raw, k, "M61 needs the tool number Q", self.file, line)
-                st.tool = self._whole(raw, v, "Q", line)
-            # M48-M53 overrides, M62-M65 outputs: no effect on the motion
-        return end
 
 
 def _point(p: Sequence[float]) -> tuple[float, float, float]:

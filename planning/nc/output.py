@@ -46,28 +46,24 @@ line before them, M0/M1/M2/M30 on the line after.
 from __future__ import annotations
 
 import textwrap
-from dataclasses import replace
 from typing import TYPE_CHECKING
 
-import numpy as np
-
-from planning.nc import _lexer
+from planning.nc import _lexer, dialects
 from planning.nc._codes import INCH_MM, gkey
+from planning.nc._post_check import MOTION_TOL_MM as MOTION_TOL_MM
+from planning.nc._post_check import _is_m6, _verify
 from planning.nc.arcs import PLANE_AXES
 from planning.nc.dialect import check_dialect, refused
 from planning.nc.errors import NCError
 from planning.nc.interpreter import Interpreter
 from planning.nc.motion import ARC_CCW, ARC_CW, DWELL, LINE, RAPID, Motion
 from planning.nc.program import Program, format_number
-from planning.nc.run import interpret
 
 if TYPE_CHECKING:
     from analysis.config import MachineConfig
 
-DIALECTS = ("fanuc", "linuxcnc", "grbl")
+DIALECTS = dialects.DIALECTS
 GRBL_LINE_CHARS = 79  # GRBL 1.1's LINE_BUFFER_SIZE 80 holds 79 characters and the NUL
-LINE_CHARS = {"grbl": GRBL_LINE_CHARS, "linuxcnc": 255}  # LinuxCNC reads 255 characters a line
-MOTION_TOL_MM = 1e-6  # the written program moves like the source within this
 
 _CYCLES = frozenset(range(730, 900, 10)) - {800}  # G73, G74, G76, G81..G89 (G80 cancels)
 _RETURN_MODES = frozenset({980, 990})  # G98 / G99
@@ -79,8 +75,9 @@ _POINT_LETTERS = frozenset("XYZIJKRQUVWABC")  # lengths and angles: Fanuc wants 
 
 
 def default_dialect(machine: MachineConfig | None) -> str:
-    """The machine's controller dialect, or ``"fanuc"`` without a machine."""
-    return machine.dialect if machine is not None else "fanuc"
+    """The machine's controller dialect, or :data:`planning.nc.dialects.DEFAULT` (Fanuc) without
+    a machine."""
+    return machine.dialect if machine is not None else dialects.DEFAULT
 
 
 def for_dialect(
@@ -105,15 +102,16 @@ def for_dialect(
         tool_changer = bool(getattr(machine, "tool_changer", False))
     lines = _Rewriter(program, dialect, source, machine, tool_changer).run()
     out = _copy(program, lines)
-    if dialect == "grbl":  # what GRBL 1.1h would refuse line by line (planning.nc.dialect)
+    d = dialects.get(dialect)
+    if d.post.firmware_check:  # what GRBL 1.1h would refuse line by line (planning.nc.dialect)
         bad = grbl_problems(out, tool_changer=tool_changer)
         bad += [
-            str(p) for p in refused(check_dialect(out, "grbl", strip=False))
+            str(p) for p in refused(check_dialect(out, dialect, strip=False))
             if not (tool_changer and _is_m6(p.word))
         ]  # fmt: skip
         if bad:
-            raise NCError(f"cannot be written for grbl: {bad[0]}", file=program.file)
-    _verify(program, out, dialect, source, machine, keeps_tools=dialect != "grbl" or tool_changer)
+            raise NCError(f"cannot be written for {dialect}: {bad[0]}", file=program.file)
+    _verify(program, out, dialect, source, machine, keeps_tools=d.post.full_words or tool_changer)
     return out
 
 
@@ -141,7 +139,7 @@ def grbl_problems(program: Program | str, *, tool_changer: bool = False) -> list
 
 
 def _dialect(name: str, file: str) -> str:
-    if name not in DIALECTS:
+    if name not in dialects.REGISTRY:
         raise NCError(f"dialect must be one of {', '.join(DIALECTS)}, got {name!r}", file=file)
     return name
 
@@ -160,6 +158,11 @@ def _seconds(value: float) -> str:
     return format_number(value, 6)
 
 
+def _dwell_p(seconds: float, ms: bool) -> str:
+    """A dwell's P number: milliseconds (3 decimals) or seconds (6 decimals)."""
+    return format_number(seconds * 1000.0, 3) if ms else _seconds(seconds)
+
+
 class _Rewriter:
     """One pass over the source blocks with an interpreter alongside (the modal state before and
     after each block, and the segments of the blocks that are expanded)."""
@@ -170,18 +173,20 @@ class _Rewriter:
         self.program = program
         self.dialect = dialect
         self.source = source
-        self.grbl = dialect == "grbl"
+        d = self.target = dialects.get(dialect)
+        self.src = dialects.get(source)
+        self.post = post = d.post
         self.tool_changer = tool_changer
-        self.fanuc = dialect == "fanuc"
         # 10. (Fanuc: without the point 10 is read in least increments, 0.01 mm) or as the
         # program writes it
-        self.dot = self.fanuc or program.style.trailing_dot
-        self.limit = LINE_CHARS.get(dialect)
+        self.dot = post.iso_words or program.style.trailing_dot
+        self.limit = d.max_line_chars
         # canned cycles differ between dialects (LinuxCNC's positioning, GRBL has none)
-        self.expand_cycles = self.grbl or dialect != source
+        self.expand_cycles = not post.canned_cycles or dialect != source
+        self._normalizes = post.iso_words or post.paren_comments
         self.it = Interpreter(
             machine, strict=True, file=program.file, dialect=source,
-            cutter_comp="refuse" if self.grbl else "warn",
+            cutter_comp="warn" if d.cutter_comp else "refuse",
         )  # fmt: skip
 
     # ------------------------------------------------------------------ the pass
@@ -198,18 +203,18 @@ class _Rewriter:
             else:
                 it.skip([raw], first_line=i + 1)
             out += self._block(i, raw, toks, gs, st0, it.state, seg)
-        if self.dialect == "linuxcnc":
-            if not it.state.ended:
-                out.append("M30")
+        if self.post.appends_m30 and not it.state.ended:
+            out.append("M30")
+        if self.post.wraps_percent:
             out = ["%", *out, "%"]
         if self.limit is not None:
             out = [piece for line in out for piece in self._fit(line, self.limit)]
         return out
 
     def _needs_segments(self, gs: set[int], st0) -> bool:
-        if 290 in gs and not self.fanuc:
+        if 290 in gs and not self.post.g29:
             return True
-        if (self.grbl or self.fanuc) and (st0.arc_absolute or 901 in gs):
+        if not self.post.absolute_arc_centres and (st0.arc_absolute or 901 in gs):
             return True
         return self.expand_cycles and (st0.motion >= 81 or bool(gs & _CYCLES))
 
@@ -220,43 +225,39 @@ class _Rewriter:
         )  # fmt: skip
 
     def _block(self, i, raw, toks, gs, st0, st1, seg: Motion | None) -> list[str]:
-        fanuc = self.fanuc
+        rules = self.post
         if st0.ended or st0.tape_marks >= 2:  # after the end: the controller ignores it too
-            return [raw] if fanuc else []
+            return [raw] if rules.keeps_tape else []
         kinds = [t.kind for t in toks if t.kind != "space"]
         if "percent" in kinds:
-            return [raw] if fanuc else []
+            return [raw] if rules.keeps_tape else []
         words = [t for t in toks if t.kind == "word"]
-        if not words:
-            if self.grbl and not raw.strip():
-                return []
-            return [_Block(toks).iso().text()] if fanuc else [raw]
-        if kinds[0] == "delete":  # skipped with block delete on (GRBL ignores the '/': drop)
-            if self.grbl:
-                return []
-            return [_Block(toks).iso().text()] if fanuc else [raw]
+        if not words or kinds[0] == "delete":  # (delete: skipped with block delete on)
+            if rules.drops_blank_and_deleted and (words or not raw.strip()):
+                return []  # (GRBL ignores the '/': the block would run)
+            return [self._normal(_Block(toks)).text()] if self._normalizes else [raw]
         b = _Block(toks)
         pre: list[str] = []
         post: list[str] = []
-        if self.grbl or fanuc:
+        if not rules.absolute_arc_centres:
             self._arc_centres(b, gs, st1, seg)
-        if not fanuc:
+        if not rules.keeps_tape:
             b.drop(lambda t: t.letter == "O")
-            if 800 in gs and gs & _GROUP1:
-                b.drop(lambda t: t.letter == "G" and gkey(t.number) == 800)
+        if not rules.g80_with_motion and 800 in gs and gs & _GROUP1:
+            b.drop(lambda t: t.letter == "G" and gkey(t.number) == 800)
         if self.expand_cycles:
             b.drop(lambda t: t.letter == "G" and gkey(t.number) in _RETURN_MODES)
         if 40 in gs:
             self._dwell(b)
-        if self.dialect == "linuxcnc" and 940 in gs:
+        if self.target.g94_clears_feed and 940 in gs:
             if st0.feed_mode == 94 and st0.feed_mm_min == st0.feed_mm_min and not b.has("F"):
                 b.drop(lambda t: t.letter == "G" and gkey(t.number) == 940)
-        if self.grbl:
-            self._grbl_words(i, raw, b, gs, st0, st1, seg, pre, post)
-        if fanuc:
-            b.iso()
+        if not rules.full_words:
+            self._limited_words(i, raw, b, gs, st0, st1, seg, pre, post)
+        if self._normalizes:
+            self._normal(b)
         cycle = self.expand_cycles and st1.motion >= 81 and not gs & _NON_MODAL
-        if cycle or (290 in gs and not fanuc):
+        if cycle or (290 in gs and not rules.g29):
             if cycle:
                 b.drop(lambda t: t.letter in "XYZRQPL" or (t.letter == "G" and gkey(t.number)
                                                              in _CYCLES))  # fmt: skip
@@ -269,21 +270,27 @@ class _Rewriter:
         return [*pre, text, *post]
 
     # ------------------------------------------------------------------ word rewrites
+    def _normal(self, b: _Block) -> _Block:
+        return b.iso(points=self.post.iso_words, parens=self.post.paren_comments)
+
     def _dwell(self, b: _Block) -> None:
         """G4: P in ms (Fanuc) or s (GRBL, LinuxCNC), X in s; written as the target reads."""
+        src_ms, dst_ms = self.src.dwell_p_ms, self.target.dwell_p_ms
         for k, t in b.words():
             if t.letter not in "PX":
                 continue
             s = float(t.number)
-            if t.letter == "P" and self.source == "fanuc":
+            if t.letter == "P" and src_ms:
                 s /= 1000.0
-            if self.dialect == "fanuc":
-                if t.letter == "P" and self.source != "fanuc":
+            if self.post.dwell_word == "X":
+                if t.letter == "P" and not src_ms:
                     b.set(k, "X" + _seconds(s))
-            elif t.letter == "X" or self.source == "fanuc":
-                b.set(k, "P" + _seconds(s))
+            elif t.letter == "X" or src_ms != dst_ms:
+                b.set(k, "P" + _dwell_p(s, dst_ms))
 
-    def _grbl_words(self, i, raw, b: _Block, gs, st0, st1, seg, pre, post) -> None:
+    def _limited_words(self, i, raw, b: _Block, gs, st0, st1, seg, pre, post) -> None:
+        """GRBL 1.1's words: no G43/H/D/G64, M6 -> an M0 pause (unless a tool changer), no
+        A/B/C."""
         b.drop(lambda t: t.letter == "G" and gkey(t.number) == 430)
         b.drop(lambda t: t.letter in "HD")  # G43 H is gone; D only with G41/G42 (refused)
         if 640 in gs:  # G64 P/Q: blending tolerances; GRBL has G61 only
@@ -312,9 +319,9 @@ class _Rewriter:
         if gs & {901, 911}:
             for k, t in reversed(b.words()):
                 key = gkey(t.number) if t.letter == "G" else 0
-                if key == 901 and self.grbl:
+                if key == 901 and self.post.g91_1:
                     b.set(k, "G91.1")
-                elif key in (901, 911) and self.fanuc:
+                elif key in (901, 911) and not self.post.g91_1:
                     b.drop_at(k)
         if not st1.arc_absolute or seg is None or not len(seg):
             return
@@ -359,8 +366,10 @@ class _Rewriter:
             kind = int(seg.kind[k])
             if kind == DWELL:
                 t = float(seg.dwell_s[k])
-                fanuc = self.fanuc
-                out.append(f"G4 X{format_number(t, 6, True)}" if fanuc else f"G4 P{_seconds(t)}")
+                if self.post.dwell_word == "X":
+                    out.append(f"G4 X{format_number(t, 6, True)}")
+                else:
+                    out.append(f"G4 P{_dwell_p(t, self.target.dwell_p_ms)}")
                 continue
             if kind not in (RAPID, LINE):
                 raise self._fail(i, raw, "an arc in an expanded block (internal)")
@@ -419,19 +428,19 @@ class _Block:
     def has(self, letter: str) -> bool:
         return any(t.letter == letter for _, t in self.words())
 
-    def iso(self) -> _Block:
+    def iso(self, *, points: bool = True, parens: bool = True) -> _Block:
         """Fanuc's ISO code: upper-case words, a decimal point in every length or angle word
-        (``X10`` is 10 least increments on a Fanuc without DPI; ``X10.`` is 10 mm everywhere),
-        ``( )`` comments (``;`` is the end of block there)."""
+        (``X10`` is 10 least increments on a Fanuc without DPI; ``X10.`` is 10 mm everywhere)
+        (``points``), ``( )`` comments (``;`` is the end of block there) (``parens``)."""
         for k, t in enumerate(self.toks):
-            if t.kind == "word":
+            if t.kind == "word" and points:
                 num = t.number
                 if t.letter in _POINT_LETTERS and "." not in num:
                     num += "."
                 text = t.letter + num
                 if text != t.text:
                     self.toks[k] = _lexer.Token("word", text, t.column, t.letter, num)
-            elif t.kind == "comment" and t.text.startswith(";"):
+            elif t.kind == "comment" and t.text.startswith(";") and parens:
                 body = _comment_text(t.text)
                 self.toks[k] = _lexer.Token("comment", f"({body})" if body else "", t.column)
         return self
@@ -478,82 +487,3 @@ class _Block:
 
     def text(self) -> str:
         return "".join(t.text for t in self.toks).strip()
-
-
-# ---------------------------------------------------------------------------------- the check
-
-
-def _reader(dialect: str, machine, program: Program, **kw) -> Motion:
-    return interpret(program, machine, strict=True, dialect=dialect, file=program.file, **kw)
-
-
-def _verify(
-    source_prog: Program, out: Program, dialect: str, source: str, machine, *, keeps_tools: bool
-) -> None:
-    """The written program must move like the source (internal check)."""
-    comp = {"cutter_comp": "refuse"} if dialect == "grbl" else {}
-    before = _reader(source, machine, source_prog, **comp)
-    if dialect == "grbl" and not keeps_tools:
-        after = _reader(dialect, machine, out)
-    elif dialect == "grbl":  # M6 kept for a tool changer: GRBL 1.1 itself would refuse it
-        it = Interpreter(machine, strict=False, file=out.file, dialect="grbl")
-        after = it.run(out.lines)
-        bad = [w for w in it.warnings if not _is_m6(w.word)]
-        known = {w.reason for w in _warnings(source_prog, machine, source)}
-        bad = [w for w in bad if w.reason not in known]
-        if bad:
-            raise NCError(f"GRBL output: {bad[0]}", file=out.file)
-    else:
-        after = _reader(dialect, machine, out)
-    if not keeps_tools:
-        before = replace(before, tool=after.tool) if len(before) == len(after) else before
-    k = _first_difference(before, after)
-    if k is not None:
-        line = int(before.line[k]) if k < len(before) else 0
-        raise NCError(
-            f"the {dialect} program would not move like the source from segment {k} (internal "
-            "check failed); nothing written", file=source_prog.file, line=line,
-        )  # fmt: skip
-
-
-def _is_m6(word: str) -> bool:
-    w = word.strip().upper()
-    try:
-        return w[:1] == "M" and float(w[1:]) == 6.0
-    except ValueError:
-        return False
-
-
-def _warnings(program: Program, machine, dialect: str):
-    it = Interpreter(machine, strict=True, file=program.file, dialect=dialect)
-    it.skip(program.lines)
-    return it.warnings
-
-
-def _first_difference(a: Motion, b: Motion) -> int | None:
-    """Index of the first segment that moves otherwise (None: the same motion)."""
-    n = min(len(a), len(b))
-    bad = []
-    for name in ("kind", "plane", "tool", "coolant"):
-        bad.append(getattr(a, name)[:n] != getattr(b, name)[:n])
-    for name in ("start", "end", "center", "rotary_start_deg", "rotary_end_deg"):
-        x, y = getattr(a, name)[:n], getattr(b, name)[:n]
-        bad.append(~(_close(x, y, MOTION_TOL_MM)).all(axis=1))
-    bad.append(~_close(a.dwell_s[:n], b.dwell_s[:n], MOTION_TOL_MM))
-    bad.append(~_close(a.spindle_rpm[:n], b.spindle_rpm[:n], 1e-9))
-    fa, fb = a.feed_mm_min[:n], b.feed_mm_min[:n]
-    bad.append(~_close(fa, fb, 1e-9 * max(1.0, _finite_max(fa))))
-    mask = np.logical_or.reduce(bad) if bad else np.zeros(n, bool)
-    hits = np.nonzero(mask)[0]
-    if len(hits):
-        return int(hits[0])
-    return None if len(a) == len(b) else n
-
-
-def _close(x, y, tol: float):
-    return np.isclose(x, y, rtol=0.0, atol=tol, equal_nan=True)
-
-
-def _finite_max(x) -> float:
-    f = x[np.isfinite(x)]
-    return float(np.abs(f).max()) if len(f) else 0.0

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 
+from planning.nc import dialects
 from planning.nc.arcs import PLANE_AXES
 from planning.nc.motion import ARC_CCW, ARC_CW, DWELL, LINE, RAPID, Motion
 from planning.nc.program import NumberStyle, Program
@@ -25,7 +26,7 @@ def motion_to_program(
     motion: Motion,
     *,
     style: NumberStyle | None = None,
-    dialect: str = "fanuc",
+    dialect: str = dialects.DEFAULT,
     program_number: int | None = None,
     comment: str | None = None,
     start_mm: tuple[float, float, float] = (0.0, 0.0, 0.0),
@@ -36,8 +37,10 @@ def motion_to_program(
 
     ``start_mm`` is where the machine is before the program (the interpreter's start, 0 0 0);
     when a segment does not start where the previous one ended, a ``G0`` is inserted. Dwells are
-    written ``G4 X<s>`` (Fanuc) or ``G4 P<s>`` (GRBL). ``end`` appends ``M30``.
+    written as ``dialect`` reads them: ``G4 X<s>`` (Fanuc), ``G4 P<s>`` (GRBL, LinuxCNC) or
+    ``G4 P<ms>``. ``end`` appends ``M30``.
     """
+    rules = dialects.get(dialect)
     st = style or NumberStyle()
     fmt = st.format
     out: list[str] = ["%"]
@@ -81,7 +84,7 @@ def motion_to_program(
             out.append(f"G{plane}")
         if kind == DWELL:
             t = float(motion.dwell_s[k])
-            out.append(f"G4 X{format(t, '.3f')}" if dialect == "fanuc" else f"G4 P{t:.3f}")
+            out.append(_dwell(t, rules))
             continue
         s, r0 = motion.start[k], motion.rotary_start_deg[k]
         if any(float(fmt(float(s[a]))) != pos[a] for a in range(3)) or any(
@@ -117,3 +120,9 @@ def motion_to_program(
 def _clean(text: str) -> str:
     """Comment text safe inside ( ): no parentheses, one line."""
     return " ".join(text.replace("(", "[").replace(")", "]").split())
+
+
+def _dwell(t_s: float, rules: dialects.Dialect) -> str:
+    if rules.post.dwell_word == "X":
+        return f"G4 X{format(t_s, '.3f')}"
+    return f"G4 P{t_s * 1000.0:.0f}" if rules.dwell_p_ms else f"G4 P{t_s:.3f}"

@@ -10,7 +10,6 @@ from planning.nc import DIALECTS
 from rig.cli.common import count, positive
 
 #: the order the post-processing commands (plan rough/feed/orient) list the controllers in
-WRITE_DIALECTS = ("fanuc", "linuxcnc", "grbl")
 PORT_HELP = "port name or pyserial URL (default: the machine config's)"
 BAUD_HELP = "override serial.baudrate"
 

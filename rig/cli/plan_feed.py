@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 
 from rig.cli.common import add_catalog_options, image_file, positive
-from rig.cli.options import WRITE_DIALECTS, dialect_option, rule_db_option
+from rig.cli.options import dialect_option, rule_db_option
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -26,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     rule_db_option(f, "rule base for a name / id (default from lab.toml)")
     _common(f)
     f.add_argument("-o", "--output", type=Path, required=True, help="adjusted program to write")
-    dialect_option(f, "controller to write for (default: the machine's)", WRITE_DIALECTS)
+    dialect_option(f, "controller to write for (default: the machine's)")
     f.add_argument("--report", type=Path, help="report folder (default: OUT's folder)")
     f.add_argument(
         "--min-piece", type=positive("mm", 1000), default=5.0, help="shortest split block, mm"

@@ -14,7 +14,7 @@ import argparse
 from pathlib import Path
 
 from rig.cli.common import add_catalog_options, count
-from rig.cli.options import WRITE_DIALECTS, dialect_option
+from rig.cli.options import dialect_option
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -35,7 +35,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-plot", action="store_true",
                    help="skip both PNGs (energy map and orientation)")  # fmt: skip
     dialect_option(p, "controller to write for (default: the machine's); grbl has no rotary axes "
-                   "and is refused", WRITE_DIALECTS)  # fmt: skip
+                   "and is refused")  # fmt: skip
     p.set_defaults(func=run)
     add_catalog_options(p)
 

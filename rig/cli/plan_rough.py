@@ -17,7 +17,7 @@ import argparse
 from pathlib import Path
 
 from rig.cli.common import add_catalog_options, positive
-from rig.cli.options import WRITE_DIALECTS, dialect_option
+from rig.cli.options import dialect_option
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -33,7 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--method", choices=("bisection", "equal", "lee", "optimal"), default="bisection"
     )
     p.add_argument("-o", "--output", type=Path, required=True, help="NC program to write")
-    dialect_option(p, "controller to write for (default: the machine's)", WRITE_DIALECTS)
+    dialect_option(p, "controller to write for (default: the machine's)")
     p.add_argument("--machine", default=None, help="machine config name or path: its dialect "
                    "and tool changer (default: none, fanuc)")  # fmt: skip
     p.add_argument("--json", action="store_true", help="print everything as JSON")

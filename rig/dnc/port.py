@@ -29,9 +29,10 @@ from typing import Any
 import serial
 
 from analysis.config import SerialConfig
+from planning.nc.dialects import protocols
 from rig.dnc.errors import DncError
 
-PROTOCOLS = ("fanuc", "grbl")
+PROTOCOLS = protocols()  # the streaming protocols of planning.nc.dialects: ("fanuc", "grbl")
 
 #: Baud rates a Fanuc reader/punch interface can be set to (parameter I/O channel baud codes).
 FANUC_BAUDS = (50, 100, 110, 150, 200, 300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 76800,
