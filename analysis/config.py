@@ -128,7 +128,7 @@ class MachineConfig(Model):
     name: str = Field(min_length=1)
     description: str = ""
     dialect: Annotated[str, AfterValidator(_known_dialect)] = Field(
-        "fanuc", description="controller dialect (one of DIALECT_NAMES)"
+        "fanuc", description=f"controller dialect: {', '.join(DIALECT_NAMES)}"
     )
     tool_changer: bool = Field(
         True, description="M6 changes tools (false: a manual change, as on most GRBL mills)"
