@@ -130,6 +130,7 @@ def _arc_programs(draw) -> list[str]:
 _SETTINGS = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
+@pytest.mark.long
 @_SETTINGS
 @given(_arc_programs(), st.sampled_from(["fanuc", "linuxcnc", "grbl"]), st.booleans())
 def test_generated_arc_programs_same_with_and_without_the_fast_path(lines, dialect, strict):
