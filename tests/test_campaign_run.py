@@ -150,6 +150,7 @@ def _program_started(folder: Path) -> bool:
     return len(volts) > 0 and bool((events["kind"] == "start").any())
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT])
 def test_killed_or_interrupted_campaign_leaves_valid_files_and_resumes(
     tmp_path: Path, sig: signal.Signals

@@ -143,6 +143,7 @@ def test_generated_arc_programs_same_in_chunks(lines, chunk):
     check_fast_is_slow(lines, chunk=chunk)
 
 
+@pytest.mark.long
 @settings(max_examples=100, deadline=None)
 @given(_arc_programs(), st.sampled_from([0.0005, 0.01, 0.5]))
 def test_arc_tolerance_option(lines, tol):
