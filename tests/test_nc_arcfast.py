@@ -137,6 +137,7 @@ def test_generated_arc_programs_same_with_and_without_the_fast_path(lines, diale
     check_fast_is_slow(lines, dialect=dialect, strict=strict)
 
 
+@pytest.mark.long
 @_SETTINGS
 @given(_arc_programs(), st.integers(1, 40))
 def test_generated_arc_programs_same_in_chunks(lines, chunk):

@@ -85,6 +85,7 @@ def test_generated_programs_same_with_and_without_the_fast_path(lines, dialect, 
     check_fast_is_slow(lines, dialect=dialect, strict=strict)
 
 
+@pytest.mark.long
 @_SETTINGS
 @given(_programs(), st.integers(1, 40))
 def test_generated_programs_same_in_chunks(lines, chunk):
