@@ -1,9 +1,33 @@
-"""Hypothesis profiles. The default run draws the same examples every time (``derandomize``), so
+"""Hypothesis profiles, and the default run in parallel.
+
+The default run draws the same examples every time (``derandomize``), so
 a clean clone's test run is reproducible; ``--hypothesis-profile=explore`` draws new ones each
 run, as the slow fuzzing tier does, to look for what the fixed examples miss."""
 
+import pytest
 from hypothesis import settings
 
 settings.register_profile("fixed", derandomize=True)
 settings.register_profile("explore", derandomize=False)
 settings.load_profile("fixed")  # pytest's --hypothesis-profile, read later, overrides this
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist's own hook, which reads these options
+def pytest_cmdline_main(config: pytest.Config) -> None:
+    """Run in parallel by default when pytest-xdist (the `test` extra) is installed: one worker per
+    core (``-n auto``; with one core, in this process), each test file on one worker (``--dist loadfile``: a module's fixtures are
+    built once, and test_readme_commands.py's commands, which build on each other in one scratch
+    folder, stay in order). Set here, not in addopts, so ``-p no:xdist`` still works; an explicit
+    ``-n`` (``-n 0``: in this process) or ``--dist`` wins."""
+    if not config.pluginmanager.hasplugin("xdist") or hasattr(config, "workerinput"):
+        return  # no xdist, or a worker (whose options xdist has reset)
+    if config.option.numprocesses is not None or config.option.collectonly:
+        return
+    if config.getoption("usepdb", False):
+        return
+    workers = config.hook.pytest_xdist_auto_num_workers(config=config)
+    if workers < 2:
+        return  # one core: in this process, as without xdist
+    config.option.numprocesses = workers
+    if config.option.dist == "no":
+        config.option.dist = "loadfile"

@@ -150,6 +150,7 @@ def _program_started(folder: Path) -> bool:
     return len(volts) > 0 and bool((events["kind"] == "start").any())
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGINT])
 def test_killed_or_interrupted_campaign_leaves_valid_files_and_resumes(
     tmp_path: Path, sig: signal.Signals
@@ -187,6 +188,7 @@ def test_killed_or_interrupted_campaign_leaves_valid_files_and_resumes(
     assert list((folder / "runs").glob("000-*.attempt-1.h5"))
 
 
+@pytest.mark.long
 def test_missing_real_hardware_is_refused_before_anything_runs(tmp_path: Path) -> None:
     cfg = _config(tmp_path)
     cfg.write_text(cfg.read_text().replace('rig = "sim"', 'rig = "real"'))

@@ -318,6 +318,7 @@ def _coefficients(argv, capsys):
 FM_WHERE = "campaign == 'fm' and group == 'g'"
 
 
+@pytest.mark.long
 def test_analyze_over_a_query_matches_the_files_and_caches(indexed, capsys, monkeypatch):
     files = sorted(str(p) for p in (indexed / "fm-campaign" / "runs").glob("00[123]*.h5"))
     want = _coefficients(["analyze", "forces", *files, "--json"], capsys)
@@ -342,6 +343,7 @@ def test_analyze_over_a_query_matches_the_files_and_caches(indexed, capsys, monk
         fit_catalog(indexed, FM_WHERE)
 
 
+@pytest.mark.long
 def test_the_same_query_again_returns_the_stored_fit(indexed, tmp_path, monkeypatch):
     """The fit's result is kept with everything it depends on: asked again over unchanged files
     it is returned as it was; without it the reductions alone are reused; a config file whose
@@ -368,6 +370,7 @@ def test_the_same_query_again_returns_the_stored_fit(indexed, tmp_path, monkeypa
     assert not plots["catalog"]["fit_cached"] and plots["plots"]
 
 
+@pytest.mark.long
 def test_progress_is_dasks_bar_on_stderr(indexed, capsys):
     assert main(["analyze", "forces", "--catalog", str(indexed), "--where", FM_WHERE]) == 0
     cap = capsys.readouterr()
@@ -380,6 +383,7 @@ def quiet_dask():
     logging.getLogger("distributed").setLevel(logging.ERROR)
 
 
+@pytest.mark.long
 def test_local_cluster_gives_the_local_result(indexed, quiet_dask):
     import dask
     from distributed import LocalCluster
@@ -411,6 +415,7 @@ class KillOnce:
         return self.reducer(path)
 
 
+@pytest.mark.long
 def test_a_worker_killed_mid_run_is_retried_with_the_same_result(indexed, tmp_path, quiet_dask):
     import cloudpickle
     from distributed import LocalCluster
@@ -435,6 +440,7 @@ def test_a_worker_killed_mid_run_is_retried_with_the_same_result(indexed, tmp_pa
     np.testing.assert_equal(out["per_run"], local["per_run"])
 
 
+@pytest.mark.long
 def test_a_simulated_campaign_is_indexed_with_its_names_and_attempts(tmp_path):
     from rig.campaign import load_campaign, run_campaign
 
@@ -471,6 +477,7 @@ def test_a_query_reads_the_index_while_an_indexer_writes(indexed):
         con.close()
 
 
+@pytest.mark.long
 def test_the_cache_key_is_the_same_in_every_process(tmp_path):
     """A later command (another process, another hash seed) finds the cached reductions."""
     import subprocess

@@ -106,6 +106,7 @@ def archive(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return root
 
 
+@pytest.mark.long
 def test_catalog_query_takes_the_archive_folder_and_shows_the_path(
     archive: Path, tmp_path: Path
 ) -> None:

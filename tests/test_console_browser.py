@@ -133,6 +133,7 @@ def _has_live_option() -> bool:
     return "--live" in p.stdout
 
 
+@pytest.mark.long
 def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path) -> None:
     pytest.importorskip("starlette")
     pytest.importorskip("websockets")

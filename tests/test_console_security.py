@@ -417,6 +417,7 @@ def test_a_killed_live_campaign_s_ring_and_live_json_go_at_the_next_start(
     assert not mine.exists() and not (folder / "live.json").exists()
 
 
+@pytest.mark.long
 @pytest.mark.faults
 def test_a_console_reading_a_killed_campaign_removes_its_ring(tmp_path: Path) -> None:
     cfg = _config(tmp_path)
@@ -444,6 +445,7 @@ def test_a_console_reading_a_killed_campaign_removes_its_ring(tmp_path: Path) ->
 
 
 # -- the stop's source -----------------------------------------------------------------------------
+@pytest.mark.long
 def test_a_stop_names_its_source(tmp_path: Path) -> None:
     from rig.campaign import load_campaign
     from rig.campaign.run import StopRequest

@@ -281,6 +281,7 @@ def _cli_send(path: str, nc: str) -> subprocess.Popen:
     return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM", "SIGHUP", "SIGKILL"])
 def test_signals_to_dnc_send_hold_the_machine(sig, tmp_path) -> None:
     """Ctrl-C, SIGTERM, a closed terminal: feed hold, Hold:0, soft reset, Idle (exit 2 with the

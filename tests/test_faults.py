@@ -415,6 +415,7 @@ def test_a_refused_feed_plan_writes_nothing(opt, bad, inputs, tmp_path, capsys):
 # ------------------------------------------------------------------ honest outputs
 
 
+@pytest.mark.long
 def test_plan_feed_says_when_the_result_is_slower(inputs, tmp_path, capsys) -> None:
     """A 3000 mm/min slot through a rule whose base feed is 1000 mm/min: about 3x slower."""
     import json

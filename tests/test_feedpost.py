@@ -154,6 +154,7 @@ N21 M30
 """
 
 
+@pytest.mark.long
 def test_roughing_program_geometry_and_limits(tmp_path: Path) -> None:
     stock = ZMap.box(0, 100, 0, 60, bottom_mm=-20, top_mm=0, spacing_mm=0.25)
     rule = derive_rule("rough", 100, 600, 2000, slot_load_percent("flat", 10, 2, 22))
@@ -313,6 +314,7 @@ def test_an_inch_program_gets_the_same_feeds_in_inch_per_minute() -> None:
     assert ins.time_after_s == pytest.approx(mm.time_after_s, rel=1e-3)
 
 
+@pytest.mark.long
 def test_cli_feed_and_simulate(files: Path, capsys) -> None:
     out = files / "out" / "step-adj.nc"
     rc, so, _ = cli(
@@ -482,6 +484,7 @@ def test_stock_at_any_moment() -> None:
     np.testing.assert_allclose(cut.heights_mm, whole.heights_mm)
 
 
+@pytest.mark.long
 def test_cli_feed_with_a_rule_from_the_rule_base(files: Path, capsys) -> None:
     from analysis.rules import GroupKey, RuleBase
 
@@ -625,6 +628,7 @@ def test_shipped_operation_plan_machines_its_programs_in_order(capsys, tmp_path)
     assert 0 < ops["inch-features"]["removed_mm3"] < json.loads(so)["removed_mm3"]
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("dialect", ["grbl", "linuxcnc"])
 def test_cli_feed_writes_the_adjusted_program_for_a_dialect(
     files: Path, capsys, dialect: str
@@ -653,6 +657,7 @@ def test_cli_feed_writes_the_adjusted_program_for_a_dialect(
     np.testing.assert_allclose(b.feed_mm_min, a.feed_mm_min, rtol=1e-12)
 
 
+@pytest.mark.long
 def test_cli_feed_writes_for_the_machines_dialect(files: Path, capsys) -> None:
     grbl_step = files / "grbl-step.nc"  # what a GRBL machine takes: no O number
     grbl_step.write_text(

@@ -210,7 +210,7 @@ def _cli_test(n: int):  # noqa: ANN202
     return test
 
 
-test_cli_arguments_fuzz = _cli_test(FAST)
+test_cli_arguments_fuzz = pytest.mark.long(_cli_test(FAST))  # seconds per command
 test_cli_arguments_fuzz_long = pytest.mark.slow(_cli_test(SLOW))
 
 

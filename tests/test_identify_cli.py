@@ -115,6 +115,7 @@ def slot_exports(tmp_path_factory):
     return truth, files
 
 
+@pytest.mark.long
 def test_endmill_readme_example_merges_conditions_with_each_header(slot_exports, capsys):
     truth, files = slot_exports
     rc = main(["analyze", "forces", *map(str, files), "--model", "endmill", "--tool",
@@ -131,6 +132,7 @@ def test_endmill_readme_example_merges_conditions_with_each_header(slot_exports,
     assert got["Kae_n_mm"] == pytest.approx(truth.Kae_n_mm, abs=0.2)
 
 
+@pytest.mark.long
 def test_condition_missing_from_header_and_flags_names_file_and_key(slot_exports, capsys):
     _, files = slot_exports
     rc = main(["analyze", "forces", *map(str, files), "--tool", "phi10-flat",

@@ -45,6 +45,7 @@ def _runs(tool, mode, ae, modes, seed=0, feeds=FEEDS, depth=2.0):
     ]
 
 
+@pytest.mark.long
 @pytest.mark.parametrize(("mode", "ae"), [("slot", 10.0), ("down", 3.0), ("up", 4.0)])
 def test_flat_end_mill_coefficients_come_back(modes, mode, ae):
     seed = {"slot": 1, "down": 2, "up": 3}[mode]
@@ -58,6 +59,7 @@ def test_flat_end_mill_coefficients_come_back(modes, mode, ae):
     assert s["ci_low"] < 796 < s["ci_high"] or abs(s["value"] - 796) < 3 * s["std_error"] + 2
 
 
+@pytest.mark.long
 def test_ball_end_mill_and_validation_at_other_depth(modes):
     fit = fit_endmill_runs(_runs(BALL, "down", 4.0, modes, seed=3), BALL)
     assert fit.success, fit.message
@@ -68,6 +70,7 @@ def test_ball_end_mill_and_validation_at_other_depth(modes):
     assert cmp.max_error_pct < 3.0
 
 
+@pytest.mark.long
 def test_too_few_runs_one_feed_and_wrong_tool(modes):
     out = fit_endmill_runs(_runs(FLAT, "slot", 10.0, modes, feeds=(0.05, 0.1)), FLAT)
     assert not out.success and "too few runs" in out.message

@@ -97,6 +97,7 @@ def test_regression_without_the_modes_in_the_fit_the_ringing_biases_it(runs_0236
     assert rigid.fit.r_squared < with_modes.fit.r_squared
 
 
+@pytest.mark.long
 def test_regression_validation_at_other_feeds_within_3_percent(fitted, modes, dyno, tmp_path):
     runs = _runs(0.246, modes, seed=7, cut_s=1.5) + _runs(0.345, modes, seed=8, cut_s=1.5)
     avgs = [reduce_run(r, 1) for r in runs]

@@ -71,6 +71,7 @@ def test_a_cut_with_the_air_trimmed_is_all_cutting():
     assert np.allclose(avg.offset_n, 0.0)
 
 
+@pytest.mark.long
 def test_bootstrap_intervals_cover_the_truth_in_most_seeds():
     """20 campaigns of 5 runs, each run's material 1 % off the nominal (a real cut's run-to-run
     scatter): the 95 % bootstrap interval holds K_tc in at least 17."""

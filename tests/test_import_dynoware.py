@@ -113,6 +113,7 @@ def test_bad_axes_are_one_clear_line(text, why):
     assert "\n" not in str(e.value)
 
 
+@pytest.mark.long
 def test_exports_with_air_recover_the_coefficients(lab):
     opts = ImportOptions(axes=TRUE_AXES, tools_path=lab["tools"])
     out = fit_files(lab["air"], "endmill", TOOL, options=opts)

@@ -253,6 +253,7 @@ sys.exit(main(sys.argv[1:]))
 """
 
 
+@pytest.mark.long
 def test_sigkill_mid_recording_keeps_everything_flushed(tmp_path: Path, capsys) -> None:
     """A recorder killed with SIGKILL leaves a file that opens, holds every flushed sample, and
     `data info` says how far it got."""

@@ -63,6 +63,7 @@ def small_part(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return write_toml(root, part_toml(x, y, z, top=43.0, tool="phi10-flat"))
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("dialect", [None, "machine"])
 @pytest.mark.parametrize("machine", MACHINE_PARAMS)
 def test_plan_rough_output_passes_the_machines_check(

@@ -130,18 +130,21 @@ def _arc_programs(draw) -> list[str]:
 _SETTINGS = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
+@pytest.mark.long
 @_SETTINGS
 @given(_arc_programs(), st.sampled_from(["fanuc", "linuxcnc", "grbl"]), st.booleans())
 def test_generated_arc_programs_same_with_and_without_the_fast_path(lines, dialect, strict):
     check_fast_is_slow(lines, dialect=dialect, strict=strict)
 
 
+@pytest.mark.long
 @_SETTINGS
 @given(_arc_programs(), st.integers(1, 40))
 def test_generated_arc_programs_same_in_chunks(lines, chunk):
     check_fast_is_slow(lines, chunk=chunk)
 
 
+@pytest.mark.long
 @settings(max_examples=100, deadline=None)
 @given(_arc_programs(), st.sampled_from([0.0005, 0.01, 0.5]))
 def test_arc_tolerance_option(lines, tol):

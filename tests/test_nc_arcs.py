@@ -75,6 +75,7 @@ def _program(plane, cw, spec, absolute, inch, ca, cb, r, th0, sweep, n0, n1):
     return "\n".join(lines), p0, p1
 
 
+@pytest.mark.long
 @settings(max_examples=300, deadline=None)
 @given(arcs())
 def test_arc_matches_closed_form(case):

@@ -82,6 +82,7 @@ def test_missing_file_is_an_nc_error(tmp_path):
 NC_ALPHABET = "GMXYZIJKRFSTPQLNODHABCEUgxyz0123456789.-+ ()/;%#\t\u00e4"
 
 
+@pytest.mark.long
 @settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(st.text(alphabet=NC_ALPHABET, max_size=30), max_size=8), st.booleans())
 def test_fuzz_random_text_raises_only_nc_error(lines, strict):
@@ -92,6 +93,7 @@ def test_fuzz_random_text_raises_only_nc_error(lines, strict):
         assert err.line >= 1 and err.column >= 1 and err.reason
 
 
+@pytest.mark.long
 @settings(max_examples=200, deadline=None)
 @given(st.text(max_size=200))
 def test_fuzz_any_unicode_raises_only_nc_error(text):
@@ -127,6 +129,7 @@ def near_valid_blocks(draw):
     return " ".join(words)
 
 
+@pytest.mark.long
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(near_valid_blocks(), min_size=1, max_size=12), st.booleans())
 def test_fuzz_near_valid_programs_raise_only_nc_error(blocks, strict):

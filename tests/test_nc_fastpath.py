@@ -78,12 +78,14 @@ def _programs(draw) -> list[str]:
 _SETTINGS = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
+@pytest.mark.long
 @_SETTINGS
 @given(_programs(), st.sampled_from(["fanuc", "linuxcnc", "grbl"]), st.booleans())
 def test_generated_programs_same_with_and_without_the_fast_path(lines, dialect, strict):
     check_fast_is_slow(lines, dialect=dialect, strict=strict)
 
 
+@pytest.mark.long
 @_SETTINGS
 @given(_programs(), st.integers(1, 40))
 def test_generated_programs_same_in_chunks(lines, chunk):

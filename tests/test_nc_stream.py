@@ -233,6 +233,7 @@ def _random_motion(rng, n: int) -> Motion:
     )  # fmt: skip
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("seed", range(6))
 def test_csv_rows_equal_repr_of_every_value(seed) -> None:
     from planning.nc.table import ROWS_PER_WRITE, motion_rows
@@ -250,6 +251,7 @@ def test_csv_rows_equal_repr_of_every_value(seed) -> None:
     assert motion_rows(Motion.empty(), False) == ""
 
 
+@pytest.mark.long
 def test_csv_floats_as_repr_writes_them() -> None:
     from planning.nc.table import _float_text
 

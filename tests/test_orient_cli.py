@@ -22,6 +22,7 @@ def small(text: str, lines: str = "[0.5]", points: int = 6) -> str:
     )
 
 
+@pytest.mark.long
 def test_fan_writes_cl_nc_map_and_summary(tmp_path, capsys):
     cfg = tmp_path / "fan.toml"
     cfg.write_text(small(FAN.read_text(), "[0.1, 0.5]", 5))
@@ -124,6 +125,7 @@ def test_grbl_dialect_is_refused_and_linuxcnc_is_written(tmp_path, capsys):
     assert "O1000" not in text and "G93" in text
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("kind", ["head-table-AC", "head-head-BC"])
 def test_head_table_machine(tmp_path, capsys, kind, monkeypatch):
     conf = tmp_path / "conf"

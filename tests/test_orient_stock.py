@@ -50,6 +50,7 @@ def test_one_pass_leaves_the_cutter_profile_and_gouges_by_its_depth(R, r):
     assert fig.leftover_max_mm == ALLOW  # beyond the pass, the stock is untouched
 
 
+@pytest.mark.long
 def test_two_ball_passes_leave_the_scallop_of_their_stepover():
     R, step = 5.0, 2.2  # the cusp, y = 0, is a grid point
     dex = NormalDexels.on_surface(plane(), (0, 1), (0, 1), 0.05, ALLOW, BELOW)
@@ -85,6 +86,7 @@ def test_a_tilted_flat_cutter_touches_with_its_rim():
     assert (dex.top_mm[mid, np.abs(y) > R] == ALLOW).all()
 
 
+@pytest.mark.long
 def test_fan_example_gouges_less_than_its_tolerance(tmp_path):
     from planning.orient import load_orient, run_orient
 

@@ -33,6 +33,9 @@ from pathlib import Path
 
 import pytest
 
+#: the commands build on each other in one scratch folder and take seconds each: all in `long`
+pytestmark = pytest.mark.long
+
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 

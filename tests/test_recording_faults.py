@@ -218,6 +218,7 @@ os.kill(os.getpid(), 9)
 """
 
 
+@pytest.mark.long
 def test_killed_writer_file_is_repaired_on_first_read_and_reads_interrupted(
     tmp_path: Path,
 ) -> None:

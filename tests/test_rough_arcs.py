@@ -287,6 +287,7 @@ def shipped_bisection():
     return part, planner, planner.plan_bisection()
 
 
+@pytest.mark.long
 def test_shipped_program_with_arcs_passes_the_zmap_check(shipped_bisection):
     part, planner, plan = shipped_bisection
     assert part.config.rough.arc_fit_tol_mm == 0.01

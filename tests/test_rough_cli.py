@@ -64,6 +64,7 @@ def test_bad_config_is_one_line_and_exit_2(tmp_path, capsys):
     assert "Traceback" not in err
 
 
+@pytest.mark.long
 def test_the_program_for_each_controller_dialect(small_part, tmp_path, capsys):
     texts = {}
     for dialect in ("fanuc", "linuxcnc", "grbl"):

@@ -140,6 +140,7 @@ def _quiet_and_busy(config: Path, tmp_path: Path) -> tuple[dict, dict]:
     return _fingerprint(tmp_path / "quiet"), _fingerprint(tmp_path / "busy")
 
 
+@pytest.mark.long
 def test_a_reduced_feed_sweep_is_bit_identical_beside_two_busy_processes(tmp_path: Path) -> None:
     cfg = _reduced_feed_sweep(tmp_path, "600, 800, 1000, 1200", 12.0)
     quiet, busy = _quiet_and_busy(cfg, tmp_path)

@@ -104,6 +104,7 @@ def _export(tmp_path: Path, line_25: str) -> tuple[Path, Path]:
     return export, table
 
 
+@pytest.mark.long
 def test_data_import_refuses_an_inf_sample(tmp_path: Path):
     export, table = _export(tmp_path, "0,001500\t1,5\tinf\t-13,866939")
     out = tmp_path / "runs"
@@ -186,6 +187,7 @@ def test_non_finite_conditions_are_refused(given: list[str], said: str):
     assert parse_conditions(["fz_mm=0.1", "tool=nano"]) == {"fz_mm": 0.1, "tool": "nano"}
 
 
+@pytest.mark.long
 def test_daq_record_refuses_fz_nan(tmp_path: Path):
     out = tmp_path / "rec.h5"
     proc = cutlab("daq", "record", "--sim", "--seconds", "0.2", "-o", out, "--quiet",
@@ -263,6 +265,7 @@ def tcp_scheduler():
 FM_WHERE = "campaign == 'fm' and group == 'g'"
 
 
+@pytest.mark.long
 def test_analyze_on_a_tcp_scheduler_with_and_without_json(lab, tcp_scheduler, capsys):
     import shutil
 
@@ -337,6 +340,7 @@ def _matrix_campaign(tmp_path: Path, n_fz: int, n_depth: int) -> Path:
     return cfg
 
 
+@pytest.mark.long
 def test_a_matrix_of_4_million_runs_is_one_line_at_once(tmp_path: Path):
     cfg = _matrix_campaign(tmp_path, 2000, 2000)
     line = one_error_line(cutlab("campaign", "run", cfg, "--dry-run"))
@@ -379,6 +383,7 @@ os.kill(os.getpid(), signal.SIGKILL)  # as a campaign killed before the run's co
 """
 
 
+@pytest.mark.long
 def test_analyze_forces_on_a_killed_attempt_names_it(tmp_path: Path, capsys):
     path = tmp_path / "001-g-n001.attempt-1.h5"
     script = _KILLED_WRITER.format(tests=str(Path(__file__).parent), path=str(path))

@@ -100,6 +100,7 @@ def test_semi_discretization_converges_to_the_exact_4_tooth_slot_lobes(tmp_path)
     assert lin[1] < lin[0] / 3 and lin[1] > errors[1]
 
 
+@pytest.mark.long
 def test_zoa_equals_sd_for_a_four_tooth_slot_2dof(tmp_path) -> None:
     case = _case(tmp_path, teeth=4, ae=1.0, modes=("x", "y"), points=60)
     zoa = stability_lobes(case, "zoa")
@@ -197,6 +198,7 @@ def _simulate(case, rpm, depth_m, periods=240, per=200):
     return np.array(out)
 
 
+@pytest.mark.long
 def test_low_immersion_flip_lobes_that_zoa_misses(tmp_path) -> None:
     """a/D = 0.05 down milling, 2 teeth: SD finds period-doubling lobes far below ZOA; an
     independent simulation agrees: stable at 0.9 and growing, sign alternating every tooth
@@ -225,6 +227,7 @@ def test_low_immersion_flip_lobes_that_zoa_misses(tmp_path) -> None:
     assert np.all(tail[1:] * tail[:-1] < 0)  # period doubling
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("ae", [1.0, 0.5, 0.1, 0.05])
 @pytest.mark.parametrize("milling", ["up", "down"])
 def test_insperger_benchmark_converges(tmp_path, ae, milling) -> None:

@@ -192,6 +192,7 @@ def _check_detection(summary: dict, truth: TwinTruth, runs) -> tuple[int, int, i
     return counts[True], counts[False], counts[None]
 
 
+@pytest.mark.long
 def test_small_sweep_report_contract_and_detection(tmp_path: Path, capsys) -> None:
     """One speed, three cuts (stable, stable, chatter): the tap test is recorded and analysed,
     `campaign report --json` holds `onset` at the top level, detection equals the truth."""
