@@ -134,7 +134,8 @@ def test_alarm_lock_error_9_and_unlock() -> None:
         assert c.send("G0 X1") == ["error:9"]
         assert c.send("$X") == ["[MSG:Caution: Unlocked]", "ok"]
         assert c.send("$H") == ["error:5"]  # homing disabled ($22=0): STATUS_SETTING_DISABLED
-        assert c.send("G0 X1") == ["ok"]
+        # a 100 s move (a 1 mm rapid took 6 ms: a loaded host sent $H after it had ended)
+        assert c.send("G1 X100 F60") == ["ok"]
         assert c.send("$H") == ["error:8"]  # system.c:173 not Idle while it moves
         c.close()
 
