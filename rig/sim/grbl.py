@@ -179,6 +179,9 @@ class SimGrbl(SimControllerBase):
         self.oks = 0
         self.errors: list[tuple[int, str]] = []
         self.planner_waits = 0  # times a line had to wait for room in the planner
+        #: (line k, simulated s) of each ok answering a g-code line: when GRBL planned it, at
+        #: the event that let it (arrival, room, sync), not when this thread got round to it
+        self.ok_times_s: list[tuple[int, float]] = []
         self._pending: _Pending | None = None
         self._wco_counter = 0
         self._ovr_counter = 0
@@ -266,8 +269,10 @@ class SimGrbl(SimControllerBase):
         """GRBL's main loop: finish the line it is busy with, then read the next ones."""
         while not self.silent and not self.critical:
             if self._pending is not None:
-                if not self._finish_pending():
+                t_ok = self._finish_pending(t)
+                if t_ok is None:
                     return
+                t = t_ok  # the lines behind it are read from then on
                 continue
             if not self._rx_lines:
                 return
@@ -275,28 +280,56 @@ class SimGrbl(SimControllerBase):
             self.fill -= len(raw) + 1
             self._line(raw.decode("ascii", "replace"), max(t, t_arr))
 
-    def _finish_pending(self) -> bool:
+    def _finish_pending(self, t: float) -> float | None:
+        """Answer the pending line if it can be answered by ``t``; the answer's time, or None."""
         p = self._pending
         assert p is not None
         if p.stage == "sync":
             if not self._planner_empty():
-                return False
+                return None
             p.stage = "room"
             if p.planned is not None:
                 self._plan_line(p.planned)
         b = p.planned
+        t_room = None
         if p.res.dwell_s > 0 or p.res.program_flow == "pause":
             if b is not None and not b.done:
-                return False
+                return None
             if p.res.program_flow == "pause" and self.held:
-                return False
-        elif b is not None and b.blocks > 0 and self._planner_used() > self.planner_blocks:
-            return False
+                return None
+        elif b is not None and b.blocks > 0:
+            t_room = self._room_time()
+            if self._planner_used() > self.planner_blocks:
+                return None
         self._pending = None
         if p.res.program_flow == "end":
             self._send(GRBL_MSG_PGM_END.encode() + b"\r\n")
-        self._ok(p.k)
-        return True
+        t_ok = max(p.t, t_room) if t_room is not None else max(t, p.t)
+        self._ok(p.k, t_ok)
+        return t_ok
+
+    def _room_time(self) -> float | None:
+        """When the running line (an arc's mc_arc blocks) will have freed the planner room the
+        pending line waits for, if within its running segment: the answer's time is then this,
+        not the moment this thread ran (late on a loaded host, by seconds at speed 10)."""
+        p, b = self._pending, self._cur
+        if p is None or p.stage != "room" or p.planned is None or p.planned.blocks <= 0:
+            return None
+        if b is None or b.blocks <= 0 or self.held or self._hold_stop_at is not None:
+            return None
+        keep = self.planner_blocks - sum(q.blocks for q in self._plan)  # cur's share, blocks
+        total = float(np.sum(b.durations_s))
+        i = self._seg_i
+        dur, run = float(b.durations_s[i]), self._seg_t1 - self._seg_t0
+        after = float(np.sum(b.durations_s[i + 1 :]))
+        if keep < 0 or total <= 0 or dur <= 0 or run <= 0 or self._seg_frac0 >= 1.0:
+            return None
+        # _remaining_blocks <= keep once the programmed time left is <= keep * total / blocks
+        rest_max = keep * total / b.blocks
+        if not after <= rest_max <= after + dur:
+            return None
+        frac = 1.0 - (rest_max - after) / dur
+        return self._seg_t0 + max(0.0, frac - self._seg_frac0) / (1.0 - self._seg_frac0) * run
 
     def _plan_line(self, planned: _Planned) -> None:
         self._plan.append(planned)
@@ -311,7 +344,9 @@ class SimGrbl(SimControllerBase):
     def _reply(self, msg: bytes) -> None:
         self._send(msg + b"\r\n")
 
-    def _ok(self, k: int | None = None) -> None:
+    def _ok(self, k: int | None = None, t: float | None = None) -> None:
+        if k is not None:
+            self.ok_times_s.append((k, self.clock.now() if t is None else t))
         if k is not None and k == self.sim_drop_ok_at_line:
             self.sim_drop_ok_at_line = None
             self._event("ok_dropped", f"line {k}: its ok is lost")
