@@ -44,8 +44,10 @@ def _check_fanuc(prog, ctl, cfg, res, rec_path) -> None:
     got = bytes(ctl.received)
     assert hashlib.sha256(got).hexdigest() == hashlib.sha256(want).hexdigest()
     assert res.bytes_sent == len(want) and res.blocks_sent == len(prog)
-    # flow control exercised: the buffer filled to the DC3 mark and drained many times
-    assert ctl.xoff_count >= 10 and res.xoff_count >= 10
+    # flow control exercised: the buffer filled to the DC3 mark (10 or 11 times on a quiet host;
+    # 3 to 9 at load 25: how often a wall-paced streamer fills a controller running at x4 is
+    # the host's speed, so only that it happened and both ends counted the same is asserted)
+    assert ctl.xoff_count >= 1 and res.xoff_count == ctl.xoff_count
     assert ctl.overruns == 0 and ctl.alarm == ""
     assert ctl.executed_texts() == [b.text for b in prog.blocks]
     rows = read_csv_record(rec_path)
@@ -94,8 +96,9 @@ def _check_grbl(prog, ctl, res, sink) -> None:
     assert ctl.overruns == 0 and ctl.errors == []
     sent = grbl_texts(prog)  # the comment line is not sent
     assert ctl.executed_texts() == sent
-    # flow control exercised: the planner was full and lines waited many times
-    assert ctl.planner_waits >= 10
+    # flow control exercised: the planner was full and lines waited (many times on a quiet
+    # host, 6-7 at load 25: the host's speed, as above)
+    assert ctl.planner_waits >= 1
     assert res.last_acknowledged_block == prog.blocks[-1].index
     assert res.last_executed_block == prog.blocks[-1].index
     assert res.transform and res.bytes_stripped > 0
