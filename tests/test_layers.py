@@ -83,7 +83,7 @@ MAY_IMPORT: dict[str, set[str]] = {
     "rig.adaptive": {"rig.errors", "rig.daq", "rig.dnc"},
     "rig.campaign": {"rig.errors", "rig.daq", "rig.dnc", "rig.log", "rig.sim", "rig.adaptive"},
     "rig.report": {"rig.errors", "rig.daq", "rig.log", "rig.campaign", "rig.adaptive"},
-    "rig.console": {"rig.errors", "rig.daq", "rig.dnc", "rig.campaign"},
+    "rig.console": {"rig.errors", "rig.daq", "rig.dnc", "rig.adaptive", "rig.campaign"},
     "rig.cli": {
         "rig",
         "rig.errors",
