@@ -121,8 +121,9 @@ def chatter(speed: float) -> int:
     if t_cut is not None and t_move is not None:
         out["cut_to_move_revs"] = round((t_move - t_cut) * rpm0 / 60, 1)
         out["cut_to_move_ms"] = round((t_move - t_cut) * 1e3, 1)
-    if t_move is not None and t_clear is not None:
-        rpm1 = float(re.search(r"pocket (\d+) rpm", move).group(1))
+    found = re.search(r"pocket (\d+) rpm", move or "")
+    if t_move is not None and t_clear is not None and found is not None:
+        rpm1 = float(found.group(1))
         out["move_to_cleared_revs"] = round((t_clear - t_move) * rpm1 / 60, 1)
 
         def judged(run, rpm: float) -> bool:

@@ -360,9 +360,9 @@ class AdaptiveController:
         acted on a confirmed chatter."""
         s = self.s
         if self._chatter is None:
-            rpm_now = self.rpm * self.spindle_pct / 100.0
-            self._chatter = ChatterWatch(self.channels, self.rate_hz, rpm_now, s.air_force_n,
-                                         self.chatter_settings, revolutions=s.chatter_revs)
+            rpm_now, st = self.rpm * self.spindle_pct / 100.0, self.chatter_settings
+            self._chatter = ChatterWatch(self.channels, self.rate_hz, rpm_now, s.air_force_n, st,
+                                         revolutions=s.chatter_revs)  # fmt: skip
         try:
             msg = self._chatter.push(force_n)
         except Exception:  # noqa: BLE001 - a window the detector cannot judge is no verdict
