@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from functools import lru_cache
@@ -217,14 +218,60 @@ class Holder(Model):
     spindle_nose_length_mm: float = Field(100.0, gt=0, le=2000, description="mm")
 
 
+#: One mode schema everywhere (the catalogue's): ``axis``, ``f_hz``, ``zeta``, ``k_N_m``, ``m_kg``
+#: in the tool catalogue, the dynamometer's modes, modes files and stability cases. The former
+#: names are still read, with a deprecation note, so that users' files keep loading.
+MODE_FIELD_RENAMES = {
+    "direction": "axis", "frequency_hz": "f_hz", "damping_ratio": "zeta",
+    "stiffness_n_m": "k_N_m", "mass_kg": "m_kg",
+}  # fmt: skip
+
+
+def renamed_mode_fields(data: Any) -> Any:
+    """A mode's table with its former field names replaced (a deprecation note says which)."""
+    if not isinstance(data, dict):
+        return data
+    old = [k for k in data if k in MODE_FIELD_RENAMES]
+    if not old:
+        return data
+    out = dict(data)
+    for k in old:
+        new = MODE_FIELD_RENAMES[k]
+        if new in out:
+            raise ValueError(f"{k} and {new} both given: {k} is the former name of {new}")
+        out[new] = out.pop(k)
+    pairs = ", ".join(f"{k} -> {MODE_FIELD_RENAMES[k]}" for k in old)
+    warnings.warn(f"deprecated mode field name(s) {pairs}: one mode schema (axis, f_hz, zeta, "
+                  "k_N_m, m_kg); the former names are read for now", FutureWarning,
+                  stacklevel=2)  # fmt: skip
+    return out
+
+
+class Provenance(Model):
+    """Where a measured figure came from: ``source`` (what was measured, on what), ``date``
+    (ISO), ``command`` (how to measure it again) and the ``file`` it was measured from."""
+
+    source: str = Field(min_length=1)
+    date: str = Field(pattern=r"^\d{4}-\d{2}-\d{2}$", description="YYYY-MM-DD")
+    command: str = ""
+    file: str = ""
+
+
 class ToolMode(Model):
     """One bending mode of the tool (with holder and spindle) at its tip, in one machine direction:
-    what an impact test on the tool gives. The simulated rig's regenerative twin uses them."""
+    what an impact test on the tool gives (``cutlab analyze modal --save``), with its
+    ``provenance``. ``plan check`` computes the stability limit from them."""
 
     axis: Literal["x", "y"]
     f_hz: float = Field(gt=0, le=50_000, description="Hz, natural frequency")
     zeta: float = Field(gt=0, lt=1, description="damping ratio (typically 0.01..0.1)")
     k_N_m: float = Field(gt=0, le=1e10, description="N/m, modal stiffness at the tip")
+    provenance: Provenance | None = None
+
+    @model_validator(mode="before")
+    @classmethod
+    def _renamed(cls, data: Any) -> Any:
+        return renamed_mode_fields(data)
 
 
 class EndMill(Model):
@@ -399,11 +446,25 @@ class MaterialLibrary(Model):
 
 
 class Mode(Model):
-    """One structural mode of the dynamometer (seed 003 Table 2)."""
+    """One structural mode of the dynamometer (seed 003 Table 2), in the one mode schema."""
 
     axis: Literal["x", "y", "z"]
-    frequency_hz: float = Field(gt=0, le=200_000, description="Hz")
-    damping_ratio: float = Field(gt=0, lt=1, description="fraction of critical")
+    f_hz: float = Field(gt=0, le=200_000, description="Hz, natural frequency")
+    zeta: float = Field(gt=0, lt=1, description="damping ratio, fraction of critical")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _renamed(cls, data: Any) -> Any:
+        return renamed_mode_fields(data)
+
+    # Former attribute names, for code not yet moved to the one schema.
+    @property
+    def frequency_hz(self) -> float:
+        return self.f_hz
+
+    @property
+    def damping_ratio(self) -> float:
+        return self.zeta
 
 
 class DynoChannel(Model):

@@ -16,7 +16,7 @@ import re
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Literal, TypeVar, get_args, get_origin
+from typing import Any, Literal, TypeAlias, TypeVar, get_args, get_origin
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
@@ -27,6 +27,10 @@ from analysis.errors import ConfigError
 #: the largest magnitude any number in a config may have: beyond it a value is a unit slip or a
 #: typo (1e9 mm is 1000 km), and planning on it would only allocate or loop without end
 MAGNITUDE_LIMIT = 1e9
+
+#: a JSON document as the results' ``to_json`` give it (what ``json.dumps`` writes)
+JsonValue: TypeAlias = str | int | float | bool | None | list["JsonValue"] | dict[str, "JsonValue"]
+JsonObject: TypeAlias = dict[str, JsonValue]
 
 
 def _mentions(annotation: Any, kinds: tuple[type, ...]) -> bool:
@@ -39,7 +43,7 @@ def _mentions(annotation: Any, kinds: tuple[type, ...]) -> bool:
     return any(_mentions(a, kinds) for a in get_args(annotation))
 
 
-def check_number(value: Any, what: str = "value") -> None:
+def check_number(value: object, what: str = "value") -> None:
     """Refuse what is not a plain number of sane size: booleans, text and magnitudes beyond
     :data:`MAGNITUDE_LIMIT` (NaN and inf are pydantic's ``allow_inf_nan``)."""
     if isinstance(value, bool | np.bool_):
@@ -91,7 +95,7 @@ class Model(BaseModel):
 M = TypeVar("M", bound=BaseModel)
 
 
-def find_line(text: str, loc: tuple[Any, ...]) -> int | None:
+def find_line(text: str, loc: tuple[str | int, ...]) -> int | None:
     """Best-effort line of the key named by a pydantic error location (1-based)."""
     keys = [str(k) for k in loc if isinstance(k, str)]
     if not keys:
@@ -120,7 +124,8 @@ def find_line(text: str, loc: tuple[Any, ...]) -> int | None:
 
 
 def _all_models(root: type[BaseModel] = BaseModel) -> list[type[BaseModel]]:
-    out, todo = [], [Model]
+    out: list[type[BaseModel]] = []
+    todo: list[type[BaseModel]] = [Model]
     while todo:
         m = todo.pop()
         out.append(m)
@@ -195,7 +200,7 @@ def _clean_loc(loc: tuple[Any, ...], data: Any) -> tuple[Any, ...]:
 
 
 def format_validation_error(
-    err: ValidationError, model: type[BaseModel], where: str, text: str = "", data: Any = None
+    err: ValidationError, model: type[BaseModel], where: str, text: str = "", data: object = None
 ) -> str:
     """One line per problem: ``file:line: field = value: why (unit)``."""
     out, seen = [], set()
@@ -224,7 +229,7 @@ def format_validation_error(
     return "\n".join(out)
 
 
-def read_toml(path: str | Path) -> tuple[dict[str, Any], str]:
+def read_toml(path: str | Path) -> tuple[dict[str, object], str]:
     """Parse a TOML file; a syntax error names the file and line."""
     p = Path(path)
     try:
@@ -239,8 +244,9 @@ def read_toml(path: str | Path) -> tuple[dict[str, Any], str]:
         raise ConfigError(f"{p}: not valid TOML: {exc}") from None
 
 
-def validate(model: type[M], data: Mapping[str, Any], where: str = "<config>", text: str = "") -> M:
-    """Validate a mapping into ``model``; raise :class:`ConfigError` naming every bad field."""
+def validate(model: type[M], data: object, where: str = "<config>", text: str = "") -> M:
+    """Validate a mapping (or whatever a TOML key held) into ``model``; raise
+    :class:`ConfigError` naming every bad field."""
     try:
         return model.model_validate(data)
     except ValidationError as exc:

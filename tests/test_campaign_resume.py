@@ -167,9 +167,9 @@ def test_dry_run_lists_every_problem_at_once_and_runs_nothing(tmp_path: Path) ->
 def test_dry_run_names_the_tests_whose_programs_fail_and_the_disk(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    from rig.log import writer as writer_mod
+    from rig.log import space as space_mod
 
-    monkeypatch.setattr(writer_mod, "free_bytes", lambda folder: 10 * 10**6)
+    monkeypatch.setattr(space_mod, "free_bytes", lambda folder: 10 * 10**6)
     d = dry_run(load_campaign(_config(tmp_path)))
     assert not d.ok and d.programs_checked == 2
     (space,) = d.problems

@@ -20,7 +20,7 @@ def test_shipped_configs_load() -> None:
     mat = cfg.get_material("al6061-t6")
     assert mat.facemill is not None and mat.facemill.K_T_n_mm2 == 405.4
     rig = cfg.load_rig()
-    assert [m.frequency_hz for m in rig.dynamometer.modes] == [2050, 1810, 3230]
+    assert [m.f_hz for m in rig.dynamometer.modes] == [2050, 1810, 3230]
 
 
 def _write(tmp_path: Path, text: str, name: str = "tools.toml") -> Path:

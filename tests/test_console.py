@@ -207,7 +207,7 @@ def test_run_browser_lists_runs_and_gives_traces_by_block(tmp_path: Path) -> Non
 
 def test_console_command_bad_target_is_one_line(tmp_path: Path) -> None:
     p = subprocess.run(
-        [sys.executable, "-c", "from rig.cli.console import register, _console; import argparse;"
+        [sys.executable, "-c", "from rig.cli.console import register; import argparse;"
          "from rig.cli import main; import sys; sys.exit(main(sys.argv[1:]))",
          "console", str(tmp_path / "nothing"), "--port", "8765"],
         cwd=ROOT, capture_output=True, text=True, timeout=60,

@@ -80,7 +80,7 @@ BAD_NUMBERS = ["nan", "inf", "-inf", "1e400", "true", "", "5e9"]
 
 
 def _validated(action: argparse.Action) -> bool:
-    """The option parses with rig.cli._common.number (finite, in range), not bare float/int."""
+    """The option parses with rig.cli.common.number (finite, in range), not bare float/int."""
     return getattr(action.type, "__qualname__", "").startswith("number.")
 
 
@@ -93,7 +93,7 @@ def _option_cases():
 
 @pytest.mark.parametrize("cmd,opt,action,bad", list(_option_cases()))
 def test_a_bad_number_option_is_one_line(cmd, opt, action, bad, capsys) -> None:
-    assert _validated(action), f"{opt} is not parsed by rig.cli._common.number"
+    assert _validated(action), f"{opt} is not parsed by rig.cli.common.number"
     code, _, err = run([*minimal_argv(cmd), f"{opt}={bad}"], capsys)
     assert code == 2
     assert_one_line_error(err, opt)
@@ -102,9 +102,9 @@ def test_a_bad_number_option_is_one_line(cmd, opt, action, bad, capsys) -> None:
 
 def test_the_command_and_the_configs_share_one_magnitude_limit() -> None:
     from analysis.validation import MAGNITUDE_LIMIT
-    from rig.cli import _common
+    from rig.cli import common
 
-    assert _common.MAGNITUDE_LIMIT == MAGNITUDE_LIMIT
+    assert common.MAGNITUDE_LIMIT == MAGNITUDE_LIMIT
 
 
 # ------------------------------------------------------------------ bad numbers in config files
@@ -434,7 +434,7 @@ def test_plan_feed_says_when_the_result_is_slower(inputs, tmp_path, capsys) -> N
 
 
 def test_progress_prints_plain_lines_when_stderr_is_no_terminal(capsys, monkeypatch) -> None:
-    from rig.cli._common import Progress
+    from rig.cli.common import Progress
 
     monkeypatch.setattr(Progress, "interval_s", 0.0)
     with Progress("reducing runs", "run", total=23) as bar:

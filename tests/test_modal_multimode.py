@@ -254,10 +254,10 @@ def test_save_and_load_round_trip_and_receptance(tmp_path):
 @pytest.mark.parametrize(
     ("line", "why"),
     [
-        ("damping_ratio = 1.5", "damping_ratio = 1.5"),
-        ("damping_ratio = -0.01", "damping_ratio = -0.01"),
-        ("stiffness_n_m = 4.0e7", "disagrees with mass_kg"),
-        ('frequency_hz = "1810"', "frequency_hz"),
+        ("zeta = 1.5", "zeta = 1.5"),
+        ("zeta = -0.01", "zeta = -0.01"),
+        ("k_N_m = 4.0e7", "disagrees with m_kg"),
+        ('f_hz = "1810"', "f_hz"),
         ("damping = 0.03", "unknown key"),
     ],
 )
@@ -265,8 +265,8 @@ def test_load_refuses_bad_values_in_one_line_naming_the_place(tmp_path, line, wh
     from analysis.errors import CutlabError
     from analysis.modal import load_modes
 
-    good = {"frequency_hz": "1810.0", "damping_ratio": "0.03", "stiffness_n_m": "2.0e7",
-            "mass_kg": f"{2e7 / (2 * math.pi * 1810) ** 2!r}"}  # fmt: skip
+    good = {"f_hz": "1810.0", "zeta": "0.03", "k_N_m": "2.0e7",
+            "m_kg": f"{2e7 / (2 * math.pi * 1810) ** 2!r}"}  # fmt: skip
     key = line.split(" = ")[0]
     body = [f"{k} = {v}" for k, v in good.items() if k != key] + [line]
     text = 'format = "cutlab-modes"\nversion = 1\n\n[[modes.x]]\n' + "\n".join(body) + "\n"
@@ -276,3 +276,23 @@ def test_load_refuses_bad_values_in_one_line_naming_the_place(tmp_path, line, wh
         load_modes(p)
     msg = str(exc.value)
     assert "\n" not in msg and why in msg and msg.startswith(f"{p}:")
+
+
+def test_modes_files_use_the_catalogues_mode_schema_and_read_the_former_names(tmp_path):
+    """One mode schema (issue 30): a saved file names f_hz, zeta, k_N_m, m_kg as the tool
+    catalogue does; a file with the former names still loads, with a deprecation note."""
+    from analysis.modal import load_modes, save_modes
+
+    k, f = 2e7, 1810.0
+    m = SimpleNamespace(channel="x", frequency_hz=f, damping_ratio=0.03, stiffness_n_m=k,
+                        mass_kg=k / (2 * math.pi * f) ** 2)  # fmt: skip
+    p, _ = save_modes(tmp_path / "new.toml", [m])
+    text = p.read_text()
+    assert "f_hz = 1810.0" in text and "zeta = 0.03" in text and "k_N_m" in text
+    assert "frequency_hz" not in text.split("\n", 2)[2]  # the header comment aside
+    old = tmp_path / "old.toml"
+    old.write_text('format = "cutlab-modes"\nversion = 1\n\n[[modes.x]]\nfrequency_hz = 1810.0\n'
+                   "damping_ratio = 0.03\n")  # fmt: skip
+    with pytest.warns(FutureWarning, match="frequency_hz -> f_hz, damping_ratio -> zeta"):
+        ms = load_modes(old)
+    assert ms.modes("x")[0].f_hz == 1810.0 and ms.modes("x")[0].zeta == 0.03

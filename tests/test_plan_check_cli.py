@@ -133,7 +133,7 @@ def test_stability_from_tool_modes_matches_analyze_stability(tmp_path: Path, cap
     case = tmp_path / "case.toml"
     case.write_text(f'[tool]\nteeth = 3\n[cut]\nmilling = "down"\nradial_immersion = 1.0\n'
                     f"[coefficients]\nKtc_N_mm2 = {coef.Ktc_n_mm2}\nKrc_N_mm2 = {coef.Krc_n_mm2}\n"
-                    + MODES.format(table="modes", axis="direction")
+                    + MODES.format(table="modes", axis="axis")
                     + "[spindle]\nrpm_min = 6000\nrpm_max = 6001\npoints = 2\n")  # fmt: skip
     lobes = tmp_path / "lobes.csv"
     rc, _, _ = cli(["analyze", "stability", str(case), "-o", str(lobes)], capsys)

@@ -22,9 +22,10 @@ MODES = "".join(
     f'\n[[tools.stiff10.modes]]\naxis = "{ax}"\nf_hz = 1000.0\nzeta = 0.03\nk_N_m = 2.0e7\n'
     for ax in "xy"
 )
-TOOL = ('[tools.stiff10]\nkind = "flat"\ndiameter_mm = 10.0\nflute_length_mm = 22.0\nflutes = 3\n'
-        'helix_deg = 30.0\nstickout_mm = 40.0\nmax_chip_mm = 0.08\ndeflection_tol_mm = 0.05\n'
-        + MODES)  # fmt: skip
+BODY = ('kind = "flat"\ndiameter_mm = 10.0\nflute_length_mm = 22.0\nflutes = 3\n'
+        'helix_deg = 30.0\nstickout_mm = 40.0\nmax_chip_mm = 0.08\ndeflection_tol_mm = 0.05\n')
+# stiff10 with its modes; bare10, a user's tool without any
+TOOL = "[tools.stiff10]\n" + BODY + MODES + "\n[tools.bare10]\n" + BODY
 
 
 def slot(depth_mm: float, z_top_mm: float = 0.0, x0_mm: float = -10.0) -> str:
@@ -76,16 +77,29 @@ def test_a_violation_exits_3(files: Path, capsys) -> None:
 
 
 def test_a_tool_without_modes_is_unchecked_exit_4(files: Path, capsys) -> None:
-    """The same shallow slot with the shipped phi10-flat (no modes): within every limit that
-    was checked, but stability was not: never "within"."""
-    rc, so, _ = cli(check(files, "shallow.nc", "phi10-flat", "--json"), capsys)
+    """The same shallow slot with a user's tool without modes: within every limit that was
+    checked, but stability was not: never "within"."""
+    rc, so, _ = cli(check(files, "shallow.nc", "bare10", "--json"), capsys)
     out = json.loads(so)
     assert rc == 4 and out["verdict"] == "unchecked" and out["violations"] == []
     assert [u["limit"] for u in out["unchecked"]] == ["stability"]
-    assert "phi10-flat has no modes" in out["unchecked"][0]["reason"]
-    rc, so, _ = cli(check(files, "shallow.nc", "phi10-flat"), capsys)
+    assert "bare10 has no modes" in out["unchecked"][0]["reason"]
+    rc, so, _ = cli(check(files, "shallow.nc", "bare10"), capsys)
     assert rc == 4 and "every block within every limit" not in so
     assert "verdict: unchecked" in so and "not checked: stability" in so
+
+
+def test_the_shipped_tool_is_checked_for_stability_by_default(files: Path, capsys) -> None:
+    """phi10-flat carries the modes tapped on the twin (700 Hz, zeta 0.03, 1.5e7 N/m): the slot
+    limit at 6000 rpm is about 0.99 mm (0.79 mm with the margin), so 0.5 mm is within and 3 mm
+    is a stability violation, with no --lobes and no modes given."""
+    rc, so, _ = cli(check(files, "shallow.nc", "phi10-flat", "--json"), capsys)
+    out = json.loads(so)
+    assert rc == 0 and out["verdict"] == "within" and out["unchecked"] == []
+    assert out["limits"]["stability"].startswith("tool modes")
+    rc, so, _ = cli(check(files, "deep.nc", "phi10-flat", "--json"), capsys)
+    out = json.loads(so)
+    assert rc == 3 and "stability" in {v["limit"] for v in out["violations"]}
 
 
 def test_a_machine_without_a_spindle_curve_is_unchecked(files: Path, capsys) -> None:
@@ -192,7 +206,8 @@ def test_the_twins_chattering_cut_is_not_passed(tmp_path: Path, capsys) -> None:
     """The issue's case: a 0.82 mm full slot at 5500 rpm with phi10-flat chatters on the twin
     (stability-sweep: tapped modes 700 Hz, zeta 0.03, 1.5e7 N/m; limit 0.746 mm there). Without
     modes or lobes plan check says "unchecked" (exit 4), never "within"; with the lobes of the
-    twin's modes (`cutlab analyze stability`) it is a stability violation (exit 3)."""
+    twin's modes (`cutlab analyze stability`) it is a stability violation (exit 3); the shipped
+    phi10-flat carries those modes, tapped on the twin, so it is one without --lobes too."""
     import tomllib
 
     from analysis.config import get_material
@@ -204,7 +219,7 @@ def test_the_twins_chattering_cut_is_not_passed(tmp_path: Path, capsys) -> None:
     case.write_text(
         f'[tool]\nteeth = 3\n[cut]\nmilling = "down"\nradial_immersion = 1.0\n'
         f"[coefficients]\nKtc_N_mm2 = {coef.Ktc_n_mm2}\nKrc_N_mm2 = {coef.Krc_n_mm2}\n"
-        + "".join(f'[[modes]]\ndirection = "{m["axis"]}"\nf_hz = {m["f_hz"]}\nzeta = {m["zeta"]}'
+        + "".join(f'[[modes]]\naxis = "{m["axis"]}"\nf_hz = {m["f_hz"]}\nzeta = {m["zeta"]}'
                   f'\nk_N_m = {m["k_N_m"]}\n' for m in modes)
         + "[spindle]\nrpm_min = 5500\nrpm_max = 5501\npoints = 2\n"
     )  # fmt: skip
@@ -219,8 +234,19 @@ def test_the_twins_chattering_cut_is_not_passed(tmp_path: Path, capsys) -> None:
     base = ["plan", "check", str(prog), "--tool", "phi10-flat", "--material", "al6061-t6",
             "--stock", "box:-20,50,-20,20,-20,0", "--spacing", "0.5", "--json"]  # fmt: skip
     rc, so, _ = cli(base, capsys)
+    out = json.loads(so)
+    # the shipped phi10-flat carries the modes tapped on the twin: checked without --lobes
+    assert rc == 3 and out["limits"]["stability"].startswith("tool modes")
+    v = next(v for v in out["violations"] if v["limit"] == "stability")
+    assert v["value"] == pytest.approx(0.82) and v["allowed"] == pytest.approx(0.8 * limit,
+                                                                                rel=0.01)  # fmt: skip
+    # the same cutter without modes (a user's tool): unchecked (exit 4), never "within"
+    tools = tmp_path / "tools.toml"
+    tools.write_text("[tools.bare10]\n" + BODY)
+    bare = [*base[:4], "bare10", "--tools", str(tools), *base[5:]]
+    rc, so, _ = cli(bare, capsys)
     assert rc == 4 and json.loads(so)["verdict"] == "unchecked"
-    rc, so, _ = cli([*base, "--lobes", str(lobes)], capsys)
+    rc, so, _ = cli([*bare, "--lobes", str(lobes)], capsys)
     out = json.loads(so)
     assert rc == 3 and out["verdict"] == "violations"
     v = next(v for v in out["violations"] if v["limit"] == "stability")

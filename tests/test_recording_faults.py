@@ -27,7 +27,7 @@ from analysis.runs import file as rf
 from rig.daq import DaqEvent, DaqInfo
 from rig.errors import RigError
 from rig.log import RunWriter, RunWriterError, plan_recording
-from rig.log import writer as writer_mod
+from rig.log import space as space_mod
 
 pytestmark = pytest.mark.faults
 ROOT = Path(__file__).resolve().parent.parent
@@ -109,7 +109,7 @@ def test_disk_running_low_stops_recording_cleanly_before_it_is_full(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     free = [10**9]
-    monkeypatch.setattr(writer_mod, "free_bytes", lambda folder: free[0])
+    monkeypatch.setattr(space_mod, "free_bytes", lambda folder: free[0])
     info = _info()
     p = tmp_path / "low.h5"
     w = RunWriter(p, info, flush_interval_s=1e-3, min_free_mb=64)
@@ -141,7 +141,7 @@ def test_disk_running_low_stops_recording_cleanly_before_it_is_full(
 def test_recording_without_room_does_not_start(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(writer_mod, "free_bytes", lambda folder: 70 * 10**6)
+    monkeypatch.setattr(space_mod, "free_bytes", lambda folder: 70 * 10**6)
     # 60 s x 20 kHz x 3 channels x 8 B = 28.8 MB (float64 bound) + 64 MB margin > 70 MB free
     with pytest.raises(RigError) as e:
         plan_recording(None, tmp_path / "r.h5", 60.0, rate_hz=20000)

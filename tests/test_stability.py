@@ -37,7 +37,7 @@ K_N_M = MASS * (2 * math.pi * FN) ** 2
 
 def _toml(tmp_path, teeth=2, milling="down", ae=0.05, modes=("x",), points=200, extra=""):
     body = "".join(
-        f'[[modes]]\ndirection = "{d}"\nf_hz = {FN}\nzeta = {ZETA}\nm_kg = {MASS}\n' for d in modes
+        f'[[modes]]\naxis = "{d}"\nf_hz = {FN}\nzeta = {ZETA}\nm_kg = {MASS}\n' for d in modes
     )
     text = (
         f'[tool]\nteeth = {teeth}\n[cut]\nmilling = "{milling}"\nradial_immersion = {ae}\n'

@@ -78,7 +78,7 @@ def test_slot_lobes_agree_with_an_independent_semi_discretization(tmp_path, rpm)
     cfg.write_text(
         f"[tool]\nteeth = {N_TEETH}\n[cut]\nmilling = \"down\"\nradial_immersion = 1.0\n"
         f"[coefficients]\nKtc_N_mm2 = {KT / 1e6}\nKrc_N_mm2 = {KN / 1e6}\n[[modes]]\n"
-        f"direction = \"x\"\nf_hz = 922.0\nzeta = {ZETA}\nm_kg = {MASS}\n[spindle]\n"
+        f"axis = \"x\"\nf_hz = 922.0\nzeta = {ZETA}\nm_kg = {MASS}\n[spindle]\n"
         f"rpm_min = {rpm}\nrpm_max = {rpm + 1}\npoints = 2\n[search]\nsteps_per_period = 60\n"
     )
     ours = float(stability_lobes(load_case(cfg), "sd").depth_limit_mm[0])

@@ -60,6 +60,8 @@ _REDUCTION_CODE = (
     "analysis.identify.conditions",
     "analysis.identify.axes",
     "analysis.runs.steady",
+    "analysis.runs.sync",
+    "analysis.forces.models",
     "analysis.runs.file",
 )
 

@@ -38,11 +38,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from analysis.errors import AnalysisError
+
+if TYPE_CHECKING:
+    from analysis.runs import Run
 
 
 @dataclass(frozen=True)
@@ -129,7 +132,7 @@ class RunChatter:
     def chattering_blocks(self) -> list[int]:
         return [b.block for b in self.blocks if b.chatter]
 
-    def table(self) -> list[dict[str, Any]]:
+    def table(self) -> list[dict[str, object]]:
         return [vars(b).copy() for b in (self.whole, *self.blocks)]
 
 
@@ -318,7 +321,7 @@ def detect_chatter(
                       tuple(verdicts), st)  # fmt: skip
 
 
-def detect_run(run: Any, settings: ChatterSettings | None = None) -> RunChatter:
+def detect_run(run: str | Path | Run, settings: ChatterSettings | None = None) -> RunChatter:
     """Verdicts for a run file (path or ``analysis.runs.Run``), per executed NC block."""
     from analysis.runs import load_run
 

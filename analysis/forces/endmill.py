@@ -106,7 +106,8 @@ class EndMillCut:
 
 
 def _check_tool(tool: EndMill) -> None:
-    if not isinstance(tool, EndMill):
+    # What the model reads of the tool (its class is tested in analysis.forces.models only).
+    if getattr(tool, "flutes", None) is None or getattr(tool, "corner_radius_mm", None) is None:
         raise AnalysisError(
             f"the end-mill model needs a flat, ball or bull end mill, got kind {tool.kind!r} "
             "(use analysis.forces.facemill for face mills)"

@@ -126,7 +126,8 @@ def engagement_angles(
 
 def tool_table(tool: FaceMill) -> EdgeTable:
     """The tabulated insert edge of a face mill (cached)."""
-    if not isinstance(tool, FaceMill):
+    # What the model reads of the tool (its class is tested in analysis.forces.models only).
+    if getattr(tool, "inserts", None) is None or getattr(tool, "lead_angle_deg", None) is None:
         raise AnalysisError(
             f"the face-mill model needs a tool of kind 'facemill', got kind {tool.kind!r}"
         )

@@ -15,7 +15,6 @@ the fit has degrees of freedom left (3 equations per run, 6 unknowns).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from typing import Any
@@ -31,6 +30,7 @@ from analysis.forces.endmill import (
     endmill_forces,
     mean_force_design,
 )
+from analysis.forces.models import ENDMILL
 from analysis.identify._common import (
     ForceRun,
     LinearFit,
@@ -53,16 +53,7 @@ __all__ = ["EndMillFit", "fit_endmill", "fit_endmill_runs", "synthetic_endmill_r
 
 
 def _cut(tool: EndMill, c: RunConditions) -> EndMillCut:
-    mode = c.mode if c.mode in ("up", "down", "slot") else None
-    if mode is None:
-        raise AnalysisError(f"mode = {c.mode!r}: expected 'up', 'down' or 'slot'")
-    ae = tool.diameter_mm if (mode == "slot" or not math.isfinite(c.width_mm)) else c.width_mm
-    if mode != "slot" and not math.isfinite(c.width_mm):
-        raise AnalysisError(
-            f"width_mm missing: an end-mill {mode}-milling run needs the radial width of cut (mm)"
-        )
-    return EndMillCut.from_width(tool, c.fz_mm, c.depth_mm, ae, mode,
-                                 feed_angle_deg=c.feed_angle_deg)  # fmt: skip
+    return ENDMILL.cut(tool, c)
 
 
 @dataclass(frozen=True)
@@ -87,7 +78,7 @@ def fit_endmill(
     averages: Sequence[RunAverage], tool: EndMill, confidence: float = 0.95
 ) -> EndMillFit:
     """Average-force fit over reduced runs (see module docstring)."""
-    if not isinstance(tool, EndMill):
+    if not ENDMILL.describes(tool):
         raise AnalysisError(
             f"tool of kind {getattr(tool, 'kind', type(tool).__name__)!r}: the average-force "
             "method here describes flat, ball and bull end mills (face mills: fit_facemill)"
@@ -131,7 +122,7 @@ def fit_endmill_runs(
     tolerance: float = IDENTIFY_TOLERANCE,
 ) -> EndMillFit:
     """Reduce in-memory runs and fit; runs without steady cutting go to ``rejected``."""
-    if not isinstance(tool, EndMill):
+    if not ENDMILL.describes(tool):
         return fit_endmill([], tool)  # raises: names the tool kind
     avgs, rejected = reduce_runs(runs, tool.flutes, n_bins, tolerance)
     return with_rejected(fit_endmill(avgs, tool), rejected)

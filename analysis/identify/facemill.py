@@ -19,7 +19,6 @@ coefficients (tests, bench, demos).
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -37,6 +36,7 @@ from analysis.forces.facemill import (
     facemill_design,
     facemill_forces,
 )
+from analysis.forces.models import FACEMILL
 from analysis.identify._common import (
     ForceRun,
     LinearFit,
@@ -126,13 +126,7 @@ def _summary_values(p: np.ndarray) -> np.ndarray:
 
 
 def _cut(c: RunConditions) -> FaceMillCut:
-    if not math.isfinite(c.width_mm) or c.width_mm <= 0:
-        raise AnalysisError(
-            f"width_mm = {c.width_mm}: face-mill runs need the workpiece width (mm)"
-        )
-    return FaceMillCut(
-        fz_mm=c.fz_mm, depth_mm=c.depth_mm, width_mm=c.width_mm, center_offset_mm=c.center_offset_mm
-    )
+    return FACEMILL.cut(None, c)
 
 
 def _filter_for(dynamometer, rate_hz: float) -> DynamometerFilter | None:
@@ -240,7 +234,7 @@ def fit_facemill(
     the runs cannot determine the model; raises :class:`AnalysisError` for input that is wrong
     (mixed units, a tool the model cannot describe).
     """
-    if not isinstance(tool, FaceMill):
+    if not FACEMILL.describes(tool):
         raise AnalysisError(
             f"tool of kind {getattr(tool, 'kind', type(tool).__name__)!r}: the seed 003 model "
             "describes face mills only (use analysis.identify.endmill for end mills)"
@@ -331,7 +325,7 @@ def fit_facemill_runs(
 ) -> FaceMillFit:
     """Reduce in-memory runs (steady part within ``tolerance``, offset, averaging) and fit. Runs
     that cannot be reduced (no cutting, too short) are listed in ``rejected`` with the reason."""
-    if not isinstance(tool, FaceMill):
+    if not FACEMILL.describes(tool):
         return fit_facemill([], tool)  # raises: names the tool kind
     avgs, rejected = reduce_runs(runs, tool.inserts, n_bins, tolerance)
     return with_rejected(fit_facemill(avgs, tool, dynamometer), rejected)

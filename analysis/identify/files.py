@@ -30,6 +30,7 @@ from analysis.config import (
     user_catalogs,
 )
 from analysis.errors import AnalysisError, ConfigError
+from analysis.forces.models import ENDMILL, FACEMILL, ForceModel, model_for, model_named
 from analysis.identify._common import (
     CI_NOTE,
     RunAverage,
@@ -80,7 +81,7 @@ def tool_teeth(name: str, tools_path: str | Path | None = None) -> int:
     if not name:
         return 1
     tool = find_tool(name, tools_path)
-    return tool.flutes if isinstance(tool, EndMill) else tool.inserts
+    return model_for(tool).teeth(tool)
 
 
 @dataclass(frozen=True)
@@ -217,11 +218,11 @@ def _catalogued(ex: Export, expected_tool: str | None, tools_path) -> dict[str, 
     tool = find_tool(name, tools_path) if name else None
     teeth = out.get("teeth", out.get("flutes"))
     if teeth is None and tool is not None:
-        teeth = tool.flutes if isinstance(tool, EndMill) else tool.inserts
+        teeth = model_for(tool).teeth(tool)
     if teeth is not None:
         out["teeth"] = int(teeth)
         out.setdefault("feed_mm_min", c.fz_mm * abs(c.spindle_rpm) * int(teeth))
-    if ("mode" not in out and isinstance(tool, EndMill) and math.isfinite(c.width_mm)
+    if ("mode" not in out and ENDMILL.describes(tool) and math.isfinite(c.width_mm)
             and c.width_mm >= tool.diameter_mm * (1 - 1e-9)):  # fmt: skip
         out["mode"] = "slot"
     return out
@@ -332,31 +333,32 @@ def _fit(avgs: list[RunAverage], tool_name: str, model: str | None, dynamometer:
          tools_path: str | Path | None = None):  # fmt: skip
     """(model, tool, fit, statistics) with the model from the tool's kind unless given."""
     tool = find_tool(tool_name, tools_path)
-    model = model or ("facemill" if isinstance(tool, FaceMill) else "endmill")
-    if model == "facemill":
+    force_model = model_named(model) if model else model_for(tool)
+    if force_model is FACEMILL:
         fit = fit_facemill(avgs, tool, dynamometer)
-        return model, tool, fit, _identified(fit, fit.summary or {}, "P_")
-    if not isinstance(tool, EndMill):
+        return force_model.name, tool, fit, _identified(fit, fit.summary or {}, force_model)
+    if not force_model.describes(tool):
         raise AnalysisError(
             f"--model endmill with tool {tool_name!r} of kind {tool.kind!r}: the end-mill "
             "model describes flat, ball and bull end mills"
         )
     fit = fit_endmill(avgs, tool)
-    return model, tool, fit, _identified(fit, fit.fit.as_dict() if fit.fit else {}, "K", "e_n_mm")
+    stats = fit.fit.as_dict() if fit.fit else {}
+    return force_model.name, tool, fit, _identified(fit, stats, force_model)
 
 
 #: The status line's reason for edge (ploughing) terms the adequacy check does not support.
 EDGE_REASON = "the runs do not separate edge forces from a size effect (see model adequacy)"
 
 
-def _identified(fit: Any, stats: dict, prefix: str, suffix: str = "") -> dict:
+def _identified(fit: Any, stats: dict, model: ForceModel) -> dict:
     """Statistics rows marked ``identified`` with a ``status`` ('identified' or 'not identified:
     reason'): the edge (ploughing) rows only when the data support the linear edge-force model
     (fit.adequacy)."""
     edge_ok = fit.adequacy is None or fit.adequacy.edge_identified
     out = {}
     for k, v in stats.items():
-        ok = edge_ok or not (k.startswith(prefix) and k.endswith(suffix))
+        ok = edge_ok or k not in model.edge_keys
         out[k] = {**v, "identified": ok,
                   "status": "identified" if ok else f"not identified: {EDGE_REASON}"}  # fmt: skip
     return out
@@ -426,7 +428,8 @@ def fit_files(
         )
     tool_name = tool or names.pop()
     tool_obj = find_tool(tool_name, opts.tools_path)
-    endmill = isinstance(tool_obj, EndMill) and model != "facemill"
+    force_model = model_named(model) if model else model_for(tool_obj)
+    endmill = force_model is ENDMILL and ENDMILL.describes(tool_obj)
     limits = outside_limits(avgs, tool_obj) if endmill else []
     if limits and not keep:
         out_names = {n for n, _ in limits}
@@ -549,7 +552,7 @@ def auto_axes(
         raise AnalysisError(f"--axes auto fits the end-mill model: the runs name tools "
                             f"{sorted(names) or 'none'}: give --tool NAME")  # fmt: skip
     tool_obj = find_tool(tool or names.pop(), opts.tools_path)
-    if not isinstance(tool_obj, EndMill):
+    if not ENDMILL.describes(tool_obj):
         raise AnalysisError("--axes auto chooses the mapping from the end-mill fit; for "
                             f"{tool_obj.kind} tools give --axes")  # fmt: skip
     base = sorted({n["axes"] for n in notes.values()})
@@ -565,10 +568,7 @@ def auto_axes(
 def _trust(out: dict[str, Any], avgs: list[RunAverage], tool: EndMill, fit: Any) -> None:
     """Per-direction fit, per-run residuals, leave-one-out influence and each coefficient's
     status into the result ``out`` (:mod:`analysis.identify.trust`)."""
-    from analysis.forces.endmill import mean_force_design
-    from analysis.identify.endmill import _cut
-
-    Xr = [mean_force_design(tool, _cut(tool, a.conditions)) for a in avgs]
+    Xr = [ENDMILL.mean_design(tool, ENDMILL.cut(tool, a.conditions)) for a in avgs]
     y = np.stack([a.mean_n for a in avgs])
     resid = y - np.stack([x @ fit.fit.values for x in Xr])
     short = list(SHORT_NAMES)

@@ -23,6 +23,7 @@ import numpy as np
 
 from analysis.config import EndMill, EndMillCoefficients, FaceMill, FaceMillCoefficients
 from analysis.errors import AnalysisError
+from analysis.forces.models import FACEMILL, model_for
 from analysis.identify._common import RunAverage, RunConditions
 
 __all__ = ["Comparison", "compare_runs", "plot_comparison", "plot_waveforms", "predicted_mean"]
@@ -32,18 +33,13 @@ def predicted_mean(
     c: RunConditions, tool: FaceMill | EndMill, coef: FaceMillCoefficients | EndMillCoefficients
 ) -> np.ndarray:
     """Mean force per revolution (3,) N predicted for a run's conditions."""
-    if isinstance(tool, FaceMill):
-        from analysis.forces.facemill import coefficient_vector, facemill_design
-        from analysis.identify.facemill import _cut
-
-        theta = 2 * np.pi * (np.arange(4096) + 0.5) / 4096
-        return facemill_design(theta, tool, _cut(c)).mean(axis=0) @ coefficient_vector(coef)
-    if isinstance(tool, EndMill):
-        from analysis.forces.endmill import coefficient_vector, mean_force_design
-        from analysis.identify.endmill import _cut as em_cut
-
-        return mean_force_design(tool, em_cut(tool, c)) @ coefficient_vector(coef)
-    raise AnalysisError(f"tool of kind {getattr(tool, 'kind', '?')!r} cannot be predicted")
+    try:
+        model = model_for(tool)
+    except AnalysisError:
+        raise AnalysisError(
+            f"tool of kind {getattr(tool, 'kind', '?')!r} cannot be predicted"
+        ) from None
+    return model.mean_design(tool, model.cut(tool, c)) @ model.coefficient_vector(coef)
 
 
 @dataclass(frozen=True)
@@ -85,7 +81,7 @@ def compare_runs(
         err = (pred - meas) / scale * 100
         peak_meas = float(np.linalg.norm(a.waveform_n, axis=1).max())
         peak_pred = float("nan")
-        if isinstance(tool, FaceMill):
+        if FACEMILL.describes(tool):
             from analysis.identify.facemill import predicted_waveform
 
             # The peak of the resultant does not depend on the run's unknown phase.
@@ -214,7 +210,7 @@ def plot_waveforms(
 
     from analysis.identify.facemill import _filter_for, _phase, predicted_waveform
 
-    if not isinstance(tool, FaceMill):
+    if not FACEMILL.describes(tool):
         raise AnalysisError("waveform plots need the face-mill model (end mills: mean forces)")
     runs = list(averages)[:max_runs]
     out = Path(out_dir)

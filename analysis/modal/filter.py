@@ -57,13 +57,13 @@ class DynamometerFilter:
             raise AnalysisError(f"rate_hz = {self.rate_hz}: must be > 0 (Hz)")
         ba = [None, None, None]
         for m in self.modes:
-            if m.frequency_hz >= self.rate_hz / 2:
+            if m.f_hz >= self.rate_hz / 2:
                 raise AnalysisError(
-                    f"mode {m.axis} at {m.frequency_hz} Hz is above the Nyquist frequency "
+                    f"mode {m.axis} at {m.f_hz} Hz is above the Nyquist frequency "
                     f"({self.rate_hz / 2} Hz) of rate_hz = {self.rate_hz}: sample faster"
                 )
-            wn = 2 * np.pi * m.frequency_hz
-            num, den = [wn**2], [1.0, 2 * m.damping_ratio * wn, wn**2]
+            wn = 2 * np.pi * m.f_hz
+            num, den = [wn**2], [1.0, 2 * m.zeta * wn, wn**2]
             bd, ad, _ = signal.cont2discrete((num, den), 1.0 / self.rate_hz, method="zoh")
             ba[AXES.index(m.axis)] = (np.ravel(bd), np.ravel(ad))
         object.__setattr__(self, "_ba", tuple(ba))
@@ -85,7 +85,7 @@ class DynamometerFilter:
         """
         modes = dyno.modes if with_workpiece else dyno.modes_without_workpiece
         if drop_above_nyquist:
-            modes = tuple(m for m in modes if m.frequency_hz < rate_hz / 2)
+            modes = tuple(m for m in modes if m.f_hz < rate_hz / 2)
         ct = np.asarray(dyno.crosstalk, float) if (crosstalk and dyno.crosstalk) else None
         if ct is not None and ct.shape != (3, 3):
             ct = None

@@ -254,7 +254,8 @@ def sweep_runs_from_files(paths: Sequence[str | Path]) -> Sweep:
     The reference load is the seed 001 load of a full slot at the runs' ``depth_mm`` with their
     tool, when every run names the same tool and depth.
     """
-    from analysis.config import EndMill, get_tool
+    from analysis.config import get_tool
+    from analysis.forces.models import ENDMILL
     from analysis.rules.load import slot_load_percent
     from analysis.runs import load_run, steady_window
 
@@ -289,7 +290,7 @@ def sweep_runs_from_files(paths: Sequence[str | Path]) -> Sweep:
                 Path(path).name,
             )
         )
-        if isinstance(tool, EndMill) and isinstance(c.get("depth_mm"), int | float):
+        if ENDMILL.describes(tool) and isinstance(c.get("depth_mm"), int | float):
             cuts.add(
                 (
                     tool.kind,

@@ -333,6 +333,24 @@ class RuleBase:
             raise AnalysisError(f"{self.path}: {_no_exact(key, cands, best, diffs)}")
         return Match(best, False, dist(best), diffs)
 
+    def for_tool(
+        self, tool: str, material: str, tool_diameter_mm: float, flute_length_mm: float
+    ) -> Match | None:
+        """The rule of tool ``tool`` in ``material`` when no rule is named (issue 28): a group
+        whose rule was derived with that tool, else one keyed by the same tool diameter and
+        flute length (seed 001's tool identity; stated as a substitution), the newest first;
+        None when the base has neither (the tool keeps its feeds)."""
+        cands = self._rows("WHERE material = ?", (material,))[::-1]  # the newest first
+        own = [g for g in cands if g.rule.tool == tool]
+        if own:
+            return Match(own[0], True, 0.0, {})
+        same = [g for g in cands
+                if abs(g.key.tool_diameter_mm - tool_diameter_mm) <= 1e-6 * tool_diameter_mm
+                and abs(g.key.flute_length_mm - flute_length_mm) <= 1e-6 * flute_length_mm]  # fmt: skip
+        if not same:
+            return None
+        return Match(same[0], False, 0.0, {"tool": (tool, same[0].rule.tool or "unnamed")})
+
     def export(self, group_id: int, path: str | Path) -> Path:
         """Write a group's rule file exactly as stored."""
         g = self.get(group_id)

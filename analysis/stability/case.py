@@ -12,7 +12,7 @@ speeds; validated, then held in SI units for the solvers.
     Ktc_N_mm2 = 600.0
     Krc_N_mm2 = 200.0           # radial (normal) coefficient, absolute, not a ratio
     [[modes]]                   # or modes_file = "modes.toml" (`analyze modal --save/--json`)
-    direction = "x"             # x = feed, y = cross-feed
+    axis = "x"                  # x = feed, y = cross-feed (formerly `direction`, still read)
     f_hz = 922.0
     zeta = 0.011
     k_N_m = 1.34e6              # or m_kg
@@ -35,12 +35,13 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, TypeGuard
 
 import numpy as np
 from pydantic import Field, model_validator
 
 from analysis.errors import ConfigError
+from analysis.modal import renamed_mode_fields
 from analysis.validation import Model, read_toml, validate
 
 __all__ = ["StabilityCase", "load_case"]
@@ -61,11 +62,18 @@ class _Coefficients(Model):
 
 
 class _Mode(Model):
-    direction: Literal["x", "y"] = Field(description='"x" (feed) or "y" (cross-feed)')
+    """A mode in the one mode schema (the tool catalogue's)."""
+
+    axis: Literal["x", "y"] = Field(description='"x" (feed) or "y" (cross-feed)')
     f_hz: float = Field(gt=0, le=100_000, description="Hz, natural frequency")
     zeta: float = Field(gt=0, lt=1, description="damping ratio, 0 < zeta < 1")
     k_N_m: float | None = Field(None, gt=0, description="N/m, modal stiffness")
     m_kg: float | None = Field(None, gt=0, description="kg, modal mass")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _renamed(cls, data: Any) -> Any:
+        return renamed_mode_fields(data)
 
     @model_validator(mode="after")
     def _one_of(self) -> _Mode:
@@ -196,8 +204,9 @@ def load_case(path: str | Path) -> StabilityCase:
         kt, kn = cfg.coefficients.Ktc_N_mm2, cfg.coefficients.Krc_N_mm2
     else:
         kt, kn = _coefficients_file(p, cfg.coefficients_file or "")
+    modes: list[tuple[str, float, float, float]]
     if cfg.modes:
-        modes = [(m.direction, m.f_hz, m.zeta, _stiffness(m)) for m in cfg.modes]
+        modes = [(m.axis, m.f_hz, m.zeta, _stiffness(m)) for m in cfg.modes]
     else:
         modes = _modes_file(p, cfg.modes_file or "")
     d, f, z, k = zip(*modes)
@@ -212,7 +221,10 @@ def load_case(path: str | Path) -> StabilityCase:
 
 
 def _stiffness(m: _Mode) -> float:
-    return m.k_N_m if m.k_N_m is not None else m.m_kg * (2 * math.pi * m.f_hz) ** 2
+    if m.k_N_m is not None:
+        return m.k_N_m
+    assert m.m_kg is not None  # _Mode._one_of: exactly one of k_N_m and m_kg
+    return m.m_kg * (2 * math.pi * m.f_hz) ** 2
 
 
 def _side_file(cfg_path: Path, name: str, key: str) -> tuple[Path, Any]:
@@ -261,7 +273,8 @@ def _modes_file(cfg_path: Path, name: str) -> list[tuple[str, float, float, floa
         from analysis.modal import load_modes  # the saved file's own loader and validation
 
         ms = load_modes(p)
-        rows = [(d, m.frequency_hz, m.damping_ratio, m.stiffness_n_m, m.mass_kg)
+        rows: list[tuple[object, ...]]
+        rows = [(d, m.f_hz, m.zeta, m.k_N_m, m.m_kg)
                 for d, modes in ms.directions.items() for m in modes]  # fmt: skip
     elif isinstance(data, dict) and isinstance(data.get("modes"), list):
         rows = []
@@ -275,29 +288,34 @@ def _modes_file(cfg_path: Path, name: str) -> list[tuple[str, float, float, floa
             f"{p}: modes_file: expected a cutlab-modes file (`cutlab analyze modal --save`) or "
             "the JSON of `cutlab analyze modal --json`"
         )
-    out = []
+    out: list[tuple[str, float, float, float]] = []
     for i, (d, f, z, k, m) in enumerate(rows):
-        if d not in ("x", "y"):
+        if not isinstance(d, str) or d not in ("x", "y"):
             continue  # z and other channels do not enter a 2-D milling model
         where = f"{p}: mode {i} (direction {d})"
-        checks = (("frequency_hz", f, 0, 100_000, "Hz"), ("damping_ratio", z, 0, 1, "fraction"))
-        for key, v, lo, hi, unit in checks:
-            if not _number(v) or not lo < v < hi:
-                raise ConfigError(f"{where}: {key} = {v!r}: expected {lo} < value < {hi} ({unit})")
+        f_hz = _within(where, "frequency_hz", f, 0, 100_000, "Hz")
+        zeta = _within(where, "damping_ratio", z, 0, 1, "fraction")
         if _number(k) and k > 0:
             stiff = float(k)
         elif _number(m) and m > 0:
-            stiff = float(m) * (2 * math.pi * f) ** 2
+            stiff = float(m) * (2 * math.pi * f_hz) ** 2
         else:
             raise ConfigError(
                 f"{where}: stiffness_n_m = {k!r}: no modal stiffness (N/m) or mass_kg; a force/"
                 "force test gives none: tap the tool with a displacement or acceleration sensor"
             )
-        out.append((d, float(f), float(z), stiff))
+        out.append((d, f_hz, zeta, stiff))
     if not out:
         raise ConfigError(f"{p}: modes_file: no modes in direction x or y")
     return out
 
 
-def _number(v: Any) -> bool:
+def _within(where: str, key: str, v: object, lo: float, hi: float, unit: str) -> float:
+    """``v`` as a float if it is a number with lo < v < hi, else one clear error line."""
+    if not _number(v) or not lo < v < hi:
+        raise ConfigError(f"{where}: {key} = {v!r}: expected {lo} < value < {hi} ({unit})")
+    return float(v)
+
+
+def _number(v: object) -> TypeGuard[float]:
     return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)

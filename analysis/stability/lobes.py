@@ -8,7 +8,6 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -16,6 +15,7 @@ from analysis.errors import AnalysisError
 from analysis.stability.case import StabilityCase
 from analysis.stability.sd import critical_depths, critical_depths_near, discretise
 from analysis.stability.zoa import zoa_lobes, zoa_minimum
+from analysis.validation import JsonObject, JsonValue
 
 __all__ = ["Lobes", "plot_lobes", "stability_lobes"]
 
@@ -54,7 +54,7 @@ class Lobes:
     steps: np.ndarray | None = None
     convergence_rel: np.ndarray | None = None
 
-    def convergence(self) -> dict[str, Any]:
+    def convergence(self) -> JsonObject:
         """The doubling check as JSON: tolerance, largest change seen, speeds not converged."""
         rel = self.convergence_rel
         if rel is None or not np.isfinite(rel).any():
@@ -76,15 +76,15 @@ class Lobes:
         i = int(np.argmin(self.depth_limit_mm))
         return float(self.spindle_rpm[i]), float(self.depth_limit_mm[i])
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> JsonObject:
         """JSON-able result: the rows, with null and a reason where no limit was found."""
-        rows = []
+        rows: list[JsonValue] = []
         steps = self.steps if self.steps is not None else np.full(self.spindle_rpm.size, -1)
         rel = (self.convergence_rel if self.convergence_rel is not None
                else np.full(self.spindle_rpm.size, np.nan))  # fmt: skip
         for n, a, f, k, m, r in zip(self.spindle_rpm, self.depth_limit_mm, self.chatter_hz,
                                     self.kind, steps, rel):  # fmt: skip
-            row: dict[str, Any] = {"spindle_rpm": float(n)}
+            row: JsonObject = {"spindle_rpm": float(n)}
             if self.method == "sd":
                 row["steps"] = int(m) if m > 0 else None
                 row["convergence_pct"] = float(r * 100) if math.isfinite(r) else None
@@ -96,7 +96,7 @@ class Lobes:
                         "chatter_hz": None, "chatter_hz_reason": why, "kind": None}  # fmt: skip
             rows.append(row)
         rpm, mm = self.minimum()
-        low: dict[str, Any] = {"spindle_rpm": rpm, "depth_limit_mm": mm}
+        low: JsonObject = {"spindle_rpm": rpm, "depth_limit_mm": mm}
         if not math.isfinite(mm):
             why = f"stable up to depth_max_mm = {self.depth_max_mm:.4g} mm at every speed"
             low = {"spindle_rpm": None, "spindle_rpm_reason": why, "depth_limit_mm": None,

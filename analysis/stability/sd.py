@@ -24,8 +24,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from analysis.stability.case import StabilityCase
+
+_F = npt.NDArray[np.float64]
+_C = npt.NDArray[np.complex128]
+_I = npt.NDArray[np.intp]
 
 __all__ = [
     "Discretisation", "critical_depths", "critical_depths_near", "discretise", "spectral_radius",
@@ -55,10 +60,13 @@ class Discretisation:
     @property
     def size(self) -> int:
         """Dimension of the transition matrix."""
-        return self.a.shape[0] + self.cp.shape[0] * len(self.entries)
+        return int(self.a.shape[0] + self.cp.shape[0] * len(self.entries))
 
 
-def _steps(case: StabilityCase, m: int):
+_Step = tuple[float, float, float, _I | None]
+
+
+def _steps(case: StabilityCase, m: int) -> list[_Step]:
     """Steps of one tooth period starting at a tooth's entry: length (fraction of the period),
     start angle and angle span (rad), the teeth in cut (None: free flight)."""
     n = case.teeth
@@ -69,7 +77,7 @@ def _steps(case: StabilityCase, m: int):
     # ~1e-13 of the period taken for a free flight (which gave a zero limit).
     r = (b - a) % pitch
     edges = [0.0, pitch] if min(r, pitch - r) < 1e-9 * pitch else [0.0, r, pitch]
-    out = []
+    out: list[_Step] = []
     for lo, hi in zip(edges[:-1], edges[1:]):
         mid = a + (lo + hi) / 2 + pitch * np.arange(n)
         act = np.flatnonzero((mid % (2 * math.pi) > a) & (mid % (2 * math.pi) < b))
@@ -211,7 +219,7 @@ def transition_matrices(d: Discretisation, speed: np.ndarray, depth_m: np.ndarra
     return np.concatenate([y, *(q[j] for j in d.entries)], axis=1)
 
 
-def spectral_radius(d: Discretisation, speed: np.ndarray, depth_m: np.ndarray):
+def spectral_radius(d: Discretisation, speed: np.ndarray, depth_m: np.ndarray) -> tuple[_F, _C]:
     """Spectral radius and the critical multiplier (the largest; Im >= 0 of a pair) per pair."""
     mu = np.linalg.eigvals(transition_matrices(d, speed, depth_m))
     mod = np.abs(mu)
@@ -220,7 +228,7 @@ def spectral_radius(d: Discretisation, speed: np.ndarray, depth_m: np.ndarray):
     return mod[rows, i], mu[rows, i]
 
 
-def critical_depths(d: Discretisation, grid_m: np.ndarray, iterations: int = 3):
+def critical_depths(d: Discretisation, grid_m: np.ndarray, iterations: int = 3) -> tuple[_F, _C]:
     """The lowest unstable depth per speed (m; inf if stable over the whole ``grid_m``) and
     its critical multiplier: march up the ascending depth grid until the spectral radius
     reaches 1, then narrow the bracket by regula falsi on log(radius) (Illinois variant) and
@@ -245,7 +253,7 @@ def critical_depths(d: Discretisation, grid_m: np.ndarray, iterations: int = 3):
 
 
 def critical_depths_near(d: Discretisation, guess_m: np.ndarray, width: float = 0.15,
-                         points: int = 7, iterations: int = 3):  # fmt: skip
+                         points: int = 7, iterations: int = 3) -> tuple[_F, _C]:  # fmt: skip
     """As :func:`critical_depths`, for limits known to lie near ``guess_m`` (finite; from a
     coarser discretisation of the same case): a local march over ``points`` depths from
     guess (1 - width) to guess (1 + width) (5 % apart: finer than the full march's 15 %, so
@@ -274,7 +282,8 @@ def critical_depths_near(d: Discretisation, guess_m: np.ndarray, width: float = 
     return np.where(found, out, np.nan), np.where(found, crit, np.nan)
 
 
-def _narrow(d: Discretisation, lo, f_lo, hi, f_hi, crit, iterations: int):
+def _narrow(d: Discretisation, lo: _F, f_lo: _F, hi: _F, f_hi: _F, crit: _C,
+            iterations: int) -> tuple[_F, _C]:  # fmt: skip
     """Regula falsi (Illinois) on log(radius) inside [lo, hi] where hi is finite."""
     ns = d.tau_s.size
     idx = np.flatnonzero(np.isfinite(hi))

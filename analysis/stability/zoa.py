@@ -17,8 +17,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import numpy.typing as npt
 
 from analysis.stability.case import StabilityCase
+
+_F = npt.NDArray[np.float64]
+_I = npt.NDArray[np.intp]
 
 __all__ = ["zoa_lobes", "zoa_minimum"]
 
@@ -70,7 +74,8 @@ def zoa_lobes(case: StabilityCase, rpm: np.ndarray | None = None) -> tuple[np.nd
     return out_d, out_f
 
 
-def _on_speeds(rpm, w, depth, theta, ok, n_teeth, k):
+def _on_speeds(rpm: _F, w: _F, depth: _F, theta: _F, ok: npt.NDArray[np.bool_],
+               n_teeth: int, k: _I) -> tuple[_I, _F, _F]:  # fmt: skip
     """The lobes ``k`` at the speeds ``rpm``: (speed index, depth, chatter Hz) for every
     segment between neighbouring frequencies on one branch and lobe that passes over a speed."""
     k = k[:, None, None]

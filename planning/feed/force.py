@@ -116,14 +116,15 @@ class ForceModel:
 
     def _evaluate(self, keys: NDArray) -> tuple[NDArray, NDArray]:
         """A and B (k, N_PHI, 3) of the arcs from 0 for keys (k, 2): depth step, end index."""
-        from analysis.forces import EndMillCut, endmill_forces
+        from analysis.forces import EndMillCut, model_for
 
         phi = np.linspace(0.0, 2 * np.pi / self.tool.flutes, N_PHI, endpoint=False)[:, None]
         depth = np.minimum(np.exp(keys[:, 0] * math.log1p(ENGAGEMENT_STEP)),
                            self.tool.flute_length_mm)  # fmt: skip
         end_deg = np.degrees(keys[:, 1] * ARC_STEP_RAD)
-        f0, f1 = (endmill_forces(phi, self.tool, self.coef, EndMillCut(fz, depth, 0.0, end_deg),
-                                 N_DISCS) for fz in (0.1, 0.2))  # fmt: skip
+        model = model_for(self.tool)
+        f0, f1 = (model.forces(phi, self.tool, self.coef, EndMillCut(fz, depth, 0.0, end_deg),
+                               N_DISCS) for fz in (0.1, 0.2))  # fmt: skip
         # two feeds where every tooth in the cut has a chip (at fz = 0 none is cutting)
         a = np.moveaxis(f1 - f0, 0, 1) / 0.1
         return a, np.moveaxis(f0, 0, 1) - 0.1 * a

@@ -177,7 +177,7 @@ def feed_post_options(
 
 def feed_program(
     program_path: str | Path,
-    rule_spec: str,
+    rule_spec: str | None,
     output: str | Path,
     *,
     db: str | Path | None = None,
@@ -190,12 +190,15 @@ def feed_program(
     warn: Callable[[str], None] | None = None,
     dialect: str | None = None,
     limit_step: LimitStep | None = None,
+    rules_material: str | None = None,
     **options: Any,
 ) -> tuple[FeedPostResult, dict[str, Any]]:
     """``cutlab plan feed``: feeds of a program set by the rule's predicted cutting load,
     written to ``output`` for the ``dialect`` controller (default: the machine's; the program is
     read in the machine's) with its report (``report_dir``, default ``output``'s folder).
 
+    ``rule_spec`` None: each tool's rule is looked up in the rule base ``db`` by tool and
+    ``rules_material`` (:func:`lookup_rules`; the summary's ``rule_lookup`` says what was found).
     ``options`` go to :func:`feed_post_options`; ``warn`` hears a rule derived with another
     tool. ``limit_step`` (planning.limits.feed_limiter) checks the adjusted program against the
     machine's and tool's limits before it is written, and may lower feeds further; its report is
@@ -205,8 +208,18 @@ def feed_program(
     """
     if dialect is not None and dialect not in DIALECTS:
         raise PlanningError(f"dialect = {dialect!r}: expected one of {', '.join(DIALECTS)}")
-    rules = resolve_rules(rule_spec, db)  # a missing rule file is named before the program
-    job = load_job(program_path, machine, tool_name, stock_spec, spacing_mm)
+    lookup = None
+    if rule_spec is None:
+        material = rules_material or options.get("material")
+        if not material:
+            raise PlanningError("no --rules: give --material, each tool's rule is looked up in "
+                                "the rule base by tool and material")  # fmt: skip
+        job = load_job(program_path, machine, tool_name, stock_spec, spacing_mm)
+        rules, lookup = lookup_rules(job, material, db, str(program_path))
+        rule_spec = ",".join(f"{k}={v.name}" for k, v in rules.items()) or "(rule base)"
+    else:
+        rules = resolve_rules(rule_spec, db)  # a missing rule file is named before the program
+        job = load_job(program_path, machine, tool_name, stock_spec, spacing_mm)
     sections = tool_sections(job, rules, rule_spec, str(program_path))
     rule = next((sc.rule for sc in sections if sc.rule is not None), None)
     if rule is None:
@@ -242,6 +255,8 @@ def feed_program(
     )  # fmt: skip
     summ["stock"] = job.stock_info
     summ["tools"] = tool_figures(result)
+    if lookup is not None:
+        summ["rule_lookup"] = lookup
     if limits is not None:
         summ.update(verdict=limits["verdict"], violations=limits["violations"],
                     unchecked=limits["unchecked"], limits=limits)  # fmt: skip
@@ -260,6 +275,36 @@ def _drilling(motion: Motion) -> bool:
 
     feed = motion.is_feed
     return bool(feed.any()) and bool(plunge_mask(motion.start[feed], motion.end[feed]).all())
+
+
+def lookup_rules(
+    job: Job, material: str, db: str | Path | None, file: str
+) -> tuple[dict[str, FeedRule], list[dict[str, Any]]]:
+    """Each tool's rule from the rule base by tool and material (``--rules`` not given): the
+    rules found (``{"T1": rule}``) and, per tool, what was found or why none (a drilling run, a
+    tool the base lacks: the tool keeps its feeds)."""
+    op = Operation(Path(file).stem, job.motion, job.tools, file)
+    runs = op.runs()
+    found: dict[str, FeedRule] = {}
+    notes: list[dict[str, Any]] = []
+    with RuleBase(db, create=False) as base:
+        for t, (name, tool) in job.tools.items():
+            row: dict[str, Any] = {"tool_number": t, "tool": name, "rule": None}
+            mine = [(lo, hi) for lo, hi, n in runs if n == t]
+            if mine and all(_drilling(job.motion[lo:hi]) for lo, hi in mine):
+                row["reason"] = "only drills (Z-only feed moves): feeds kept"
+            elif (m := base.for_tool(name, material, tool.diameter_mm,
+                                     tool.flute_length_mm)) is None:  # fmt: skip
+                row["reason"] = (f"the rule base has no rule for {name} in {material}: "
+                                 "feeds kept")  # fmt: skip
+            else:
+                found[f"T{t}"] = m.group.rule
+                row.update(rule=m.group.rule_name, group=m.group.id, exact=m.exact)
+                if not m.exact:
+                    row["reason"] = (f"no rule derived with {name}: group {m.group.id}'s, of the "
+                                     "same diameter and flute length")  # fmt: skip
+            notes.append(row)
+    return found, notes
 
 
 def resolve_rules(rule_spec: str, db: str | Path | None) -> FeedRule | dict[str, FeedRule]:

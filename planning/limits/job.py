@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from analysis.config import EndMill, EndMillCoefficients, MachineConfig, get_material, load_machine
+from analysis.forces import ENDMILL
 from planning.errors import PlanningError
 from planning.feed import cap_feeds, end_mill
 from planning.limits.check import FEED_LIMITS, CheckResult, Pieces, check_motion
@@ -36,7 +37,7 @@ def coefficients(material: str | None) -> EndMillCoefficients:
     """The material's end-mill coefficients (configs/materials.toml)."""
     if not material:
         raise PlanningError("--material is required: the force model needs its [endmill] table")
-    coef = get_material(material).endmill
+    coef = ENDMILL.coefficients(get_material(material))
     if coef is None:
         raise PlanningError(f"material '{material}' has no [endmill] coefficients")
     return coef

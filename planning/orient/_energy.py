@@ -20,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 from scipy.spatial import cKDTree
 
 from planning.orient.tool import (
@@ -43,7 +44,9 @@ class Charges:
     tree: cKDTree
 
     @classmethod
-    def from_points(cls, points, weight_mm2, surface) -> Charges:
+    def from_points(
+        cls, points: np.ndarray, weight_mm2: np.ndarray, surface: np.ndarray
+    ) -> Charges:
         return cls(points, weight_mm2, surface, cKDTree(points))
 
 
@@ -57,14 +60,16 @@ class Site:
     f: np.ndarray
 
 
-def place(tool: ToolSystem, site: Site, alpha: float, beta: float):
+def place(tool: ToolSystem, site: Site, alpha: float, beta: float) -> tuple[np.ndarray, np.ndarray]:
     """Tool axis (3,), tip (3,) mm for one orientation (rad)."""
     u = tool_axis(np.asarray(alpha), np.asarray(beta), site.b, site.f, site.n)
     tip, _ = cutter_position(site.p, site.n, u, tool.R_mm, tool.r_mm)
     return u, tip
 
 
-def near(tree: cKDTree, tool: ToolSystem, tip, u, pad_mm: float) -> np.ndarray:
+def near(
+    tree: cKDTree, tool: ToolSystem, tip: np.ndarray, u: np.ndarray, pad_mm: float
+) -> np.ndarray:
     """Indices of tree points within reach of the tool system placed at tip along u."""
     z, rad = tool.stations()
     centres = tip + z[:, None] * u
@@ -73,7 +78,9 @@ def near(tree: cKDTree, tool: ToolSystem, tip, u, pad_mm: float) -> np.ndarray:
     return np.fromiter(set().union(*hits), dtype=np.intp)
 
 
-def inside_mask(tool: ToolSystem, sd: np.ndarray, which: np.ndarray, tol_mm, clearance_mm):
+def inside_mask(
+    tool: ToolSystem, sd: np.ndarray, which: np.ndarray, tol_mm: float, clearance_mm: float
+) -> npt.NDArray[np.bool_]:
     """True where a point counts as colliding with the tool system (see module docstring)."""
     return np.where(which == 0, sd < -tol_mm, sd < clearance_mm)
 

@@ -74,10 +74,10 @@ def check(
     z_st, r_st = tool.stations()
     centres = tip + z_st[:, None] * u
     hits = mesh.tree.query_ball_point(centres, r_st + 1.0, return_sorted=False)
-    idx = [np.asarray(h, dtype=np.intp) for h in hits if len(h)]
-    if not idx:
+    found = [np.asarray(h, dtype=np.intp) for h in hits if len(h)]
+    if not found:
         return Clearance(True, np.inf, "", "", np.full(3, np.nan))
-    idx = np.unique(np.concatenate(idx))
+    idx = np.unique(np.concatenate(found))
     rho, z = meridian(mesh.vertices[idx], tip, u)
     sd, which = tool.signed_distance(rho, z)
     # Penetration beyond what is allowed, per part: cutter tolerance, holder/nose none.

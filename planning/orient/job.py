@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from analysis.validation import JsonObject, JsonValue
 from planning.errors import PlanningError
 from planning.nc import Program
 from planning.nc.output import default_dialect, for_dialect
@@ -28,6 +29,7 @@ from planning.orient.kinematics import (
     write_cl_csv,
 )
 from planning.orient.planner import (
+    CCPoints,
     assemble,
     axis_jumps_deg,
     build_context,
@@ -49,7 +51,7 @@ STOCK_STEP_MM = 0.1  # tool samples along a move: a bull's 2 mm corner leaves 0.
 STOCK_ALLOWANCE_MM = 1.0  # stock over the design surface before the program
 
 
-def _jump_stats(axis, cc) -> tuple[float, int, float]:
+def _jump_stats(axis: np.ndarray, cc: CCPoints) -> tuple[float, int, float]:
     """Largest axis change between neighbours (deg), the later point, largest per mm on the
     part (deg/mm)."""
     j = axis_jumps_deg(axis, cc.line)
@@ -67,7 +69,7 @@ def run_orient(
     progress: Callable[[int, int], None] | None = None,
     status: Callable[[str], None] | None = None,
     dialect: str | None = None,
-) -> dict:
+) -> JsonObject:
     """Plan the orientation config ``config``, check every orientation on a dense mesh, write
     cl.csv, program.nc, summary.json (and energy_map.png, orientation.png if ``plot``) to
     ``out_dir`` and return the summary. The energy map is drawn at ``map_point`` (default: the
@@ -109,6 +111,7 @@ def run_orient(
         surfaces, tool, ref.tip_mm, ref.axis, pl.check_spacing_mm / 1.5, pl.gouge_tolerance_mm
     )
     if ver.collisions:
+        assert ver.worst is not None  # verify() names the worst of its collisions
         i, c = ver.worst
         raise PlanningError(
             f"{ver.collisions} orientations failed the independent check; worst CL point "
@@ -141,7 +144,7 @@ def run_orient(
     program = for_dialect(Program.parse(fanuc, str(out / "program.nc")), dialect, machine,
                           source="fanuc")  # fmt: skip
     program.write(out / "program.nc")
-    files = [str(out / "cl.csv"), str(out / "program.nc")]
+    files: list[JsonValue] = [str(out / "cl.csv"), str(out / "program.nc")]
     idx = int(np.argmax(res.evaluations)) if map_point is None else map_point
     if plot:
         from planning.orient.plot import plot_axes, plot_energy_map
@@ -158,7 +161,7 @@ def run_orient(
     smoothed = _jump_stats(res.axis, cc)
     after = _jump_stats(ref.axis, ref.cc)
     a_lim = np.asarray(cfg.limits.alpha_deg)
-    summary = {
+    summary: JsonObject = {
         "config": str(config),
         "name": cfg.name,
         "tool": cfg.tool,

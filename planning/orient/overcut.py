@@ -114,7 +114,9 @@ class OvercutCheck:
             keep &= c <= pad[near[:, 0] + 1 + i, near[:, 1] + 1 + j]
         return near[keep]
 
-    def _descend(self, g: _Grid, seeds: np.ndarray, tip, axis) -> tuple[float, np.ndarray]:
+    def _descend(
+        self, g: _Grid, seeds: np.ndarray, tip: np.ndarray, axis: np.ndarray
+    ) -> tuple[float, np.ndarray]:
         """Pattern search for the least cutter distance on the surface from each seed; returns
         the least distance and its point."""
         s = g.surface

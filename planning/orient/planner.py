@@ -22,6 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from analysis.config import EndMill
 from planning.errors import PlanningError
@@ -110,7 +111,14 @@ def cc_points(surface: NurbsSurface, cfg: OrientConfig) -> CCPoints:
     return cc_at(surface, ps.along, u, v, sign, np.concatenate(line))
 
 
-def cc_at(surface: NurbsSurface, along: str, u, v, sign, line) -> CCPoints:
+def cc_at(
+    surface: NurbsSurface,
+    along: str,
+    u: npt.ArrayLike,
+    v: npt.ArrayLike,
+    sign: npt.ArrayLike,
+    line: npt.ArrayLike,
+) -> CCPoints:
     """CC points at parameters (u, v), the feed along +-``along`` (``sign`` per point)."""
     sp = surface.evaluate(np.asarray(u, float), np.asarray(v, float))
     tangent = (sp.su if along == "u" else sp.sv) * np.asarray(sign, float)[:, None]
@@ -158,7 +166,9 @@ def plan_orientation(
     return solve_all(ctx, cc, progress)
 
 
-def solve_all(ctx: _Context, cc: CCPoints, progress=None) -> OrientResult:
+def solve_all(
+    ctx: _Context, cc: CCPoints, progress: Callable[[int, int], None] | None = None
+) -> OrientResult:
     m = len(cc.u)
     th_out = np.full((m, 2), np.nan)
     U_out, clr, secs, nev = np.full(m, np.nan), np.full(m, np.nan), np.zeros(m), np.zeros(m, int)
@@ -187,7 +197,16 @@ def solve_all(ctx: _Context, cc: CCPoints, progress=None) -> OrientResult:
     return assemble(ctx, cc, th_out, U_out, clr, tuple(reasons), secs, nev)
 
 
-def assemble(ctx: _Context, cc: CCPoints, th_out, U_out, clr, reasons, secs, nev) -> OrientResult:
+def assemble(
+    ctx: _Context,
+    cc: CCPoints,
+    th_out: np.ndarray,
+    U_out: np.ndarray,
+    clr: np.ndarray,
+    reasons: tuple[str, ...],
+    secs: np.ndarray,
+    nev: np.ndarray,
+) -> OrientResult:
     """The OrientResult of angles th_out (m, 2) rad (NaN rows: infeasible) at CC points cc."""
     m = len(cc.u)
     ok = ~np.isnan(th_out[:, 0])
@@ -228,7 +247,7 @@ def axis_jumps_deg(axis: np.ndarray, line: np.ndarray) -> np.ndarray:
     """Angle (deg) between the tool axes of consecutive CC points on the same line, shape (m-1,);
     NaN across lines or where a point is infeasible."""
     c = np.clip((axis[1:] * axis[:-1]).sum(1), -1.0, 1.0)
-    out = np.degrees(np.arccos(c))
+    out: npt.NDArray[np.float64] = np.degrees(np.arccos(c))
     out[line[1:] != line[:-1]] = np.nan
     return out
 
@@ -280,8 +299,8 @@ def energy_map(
         raise PlanningError(f"energy map point {index} is outside 0..{len(cc.u) - 1}")
     ctx = build_context(cfg, tool_cfg, surfaces)
     site = Site(cc.point[index], cc.normal[index], cc.binormal[index], cc.feed[index])
-    a = np.linspace(*ctx.bounds[0], n_alpha)
-    b = np.linspace(*ctx.bounds[1], n_beta)
+    a = np.linspace(ctx.bounds[0, 0], ctx.bounds[0, 1], n_alpha)
+    b = np.linspace(ctx.bounds[1, 0], ctx.bounds[1, 1], n_beta)
     E = np.array([[ctx.U(site, np.array([x, y]))[0] for y in b] for x in a])
     th_c = curvature_optimum(ctx, float(cc.kappa_per_mm[index]), np.array([a[0], 0.0]))
     path = [th_c]

@@ -3,10 +3,17 @@ the surfaces with the chosen tool axes (Figs. 9-11). matplotlib is imported on f
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from planning.orient.planner import EnergyMap, OrientResult
+    from planning.surface import NurbsSurface
 
 
-def _plt():
+def _plt() -> ModuleType:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -15,7 +22,7 @@ def _plt():
     return plt
 
 
-def plot_energy_map(emap, path: Path, title: str) -> Path:
+def plot_energy_map(emap: EnergyMap, path: Path, title: str) -> Path:
     """The eq 7 energy over (alpha, beta) with the descent and the chosen angles, as a PNG."""
     import numpy as np
 
@@ -40,7 +47,7 @@ def plot_energy_map(emap, path: Path, title: str) -> Path:
     return Path(path)
 
 
-def plot_axes(surfaces, res, path: Path, title: str) -> Path:
+def plot_axes(surfaces: Sequence[NurbsSurface], res: OrientResult, path: Path, title: str) -> Path:
     """Surfaces as wireframes with the tool axis drawn from each tip (seed 002 Figs. 9-11)."""
     import numpy as np
 

@@ -25,7 +25,7 @@ from planning.orient.planner import CCPoints, OrientResult, assemble
 from planning.orient.tool import tool_axis
 
 
-def angles_of(axis: np.ndarray, b, f, n) -> np.ndarray:
+def angles_of(axis: np.ndarray, b: np.ndarray, f: np.ndarray, n: np.ndarray) -> np.ndarray:
     """(alpha, beta) rad, shape (..., 2), of unit axes in the frames (b, f, n): the inverse of
     :func:`planning.orient.tool.tool_axis` (u . f = sin alpha, u . n = cos alpha cos beta)."""
     alpha = np.arcsin(np.clip((axis * f).sum(-1), -1.0, 1.0))
@@ -93,12 +93,12 @@ def smooth_result(
         if not moved:
             break
     clr = res.clearance_mm.copy()
-    for i in np.flatnonzero(np.abs(th - th0).max(1) > 0):
-        gate = ctx.gate(sites[i], th[i])
+    for k in np.flatnonzero(np.abs(th - th0).max(1) > 0):
+        gate = ctx.gate(sites[k], th[k])
         if gate.ok:
-            clr[i] = gate.min_mm
+            clr[k] = gate.min_mm
         else:
-            th[i] = th0[i]
+            th[k] = th0[k]
     share = (time.perf_counter() - t0) / len(th)
     nev = res.evaluations + (ctx.evals - e0) // len(th)
     return assemble(ctx, cc, th, res.energy, clr, res.reasons, res.seconds + share, nev)

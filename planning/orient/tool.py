@@ -31,6 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from analysis.config import EndMill
 from planning.errors import PlanningError
@@ -47,24 +48,30 @@ def local_frame(normal: np.ndarray, tangent: np.ndarray) -> tuple[np.ndarray, ..
     if np.any(fl < 1e-12):
         raise PlanningError("feed direction is parallel to the surface normal: no local frame")
     f = f / fl
-    return np.cross(n, f), f, n
+    b: np.ndarray = np.cross(n, f)
+    return b, f, n
 
 
-def tool_axis(alpha: np.ndarray, beta: np.ndarray, b, f, n) -> np.ndarray:
+def tool_axis(
+    alpha: npt.ArrayLike, beta: npt.ArrayLike, b: np.ndarray, f: np.ndarray, n: np.ndarray
+) -> np.ndarray:
     """Unit tool axis u for advance alpha and tilt beta (rad); broadcasts to shape (..., 3)."""
     ca, sa = np.cos(alpha)[..., None], np.sin(alpha)[..., None]
     cb, sb = np.cos(beta)[..., None], np.sin(beta)[..., None]
-    return ca * (cb * n - sb * b) + sa * f
+    u: npt.NDArray[np.float64] = ca * (cb * n - sb * b) + sa * f
+    return u
 
 
-def tool_axis_grad(alpha, beta, b, f, n) -> tuple[np.ndarray, np.ndarray]:
+def tool_axis_grad(
+    alpha: npt.ArrayLike, beta: npt.ArrayLike, b: np.ndarray, f: np.ndarray, n: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """(du/dalpha, du/dbeta), each shape (..., 3)."""
     ca, sa = np.cos(alpha)[..., None], np.sin(alpha)[..., None]
     cb, sb = np.cos(beta)[..., None], np.sin(beta)[..., None]
     return -sa * (cb * n - sb * b) + ca * f, ca * (-sb * n - cb * b)
 
 
-def szende_K(alpha, beta, R_mm: float, r_mm: float) -> np.ndarray:
+def szende_K(alpha: npt.ArrayLike, beta: npt.ArrayLike, R_mm: float, r_mm: float) -> np.ndarray:
     """Curvature of the swept surface in the plane normal to the feed, 1/mm (eq 8, corrected).
 
     alpha, beta in rad (broadcast). Flat end mill at alpha = 0: 0 when beta = 0 too (the flat
@@ -97,10 +104,13 @@ def szende_K_grad(alpha: float, beta: float, R_mm: float, r_mm: float) -> np.nda
     dc = np.array([-np.sin(alpha) * np.cos(beta), -np.cos(alpha) * np.sin(beta)])
     dX = -3.0 * np.sqrt(q) * c * dc
     dD = np.array([(R_mm - r_mm) * np.sin(2 * alpha), 0.0]) + r_mm * dX
-    return (dX * D - X * dD) / (D * D)
+    grad: npt.NDArray[np.float64] = (dX * D - X * dD) / (D * D)
+    return grad
 
 
-def cutter_position(p: np.ndarray, n: np.ndarray, u: np.ndarray, R_mm: float, r_mm: float):
+def cutter_position(
+    p: np.ndarray, n: np.ndarray, u: np.ndarray, R_mm: float, r_mm: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Tool tip (bottom centre on the axis) and cutter centre for contact at p, shape (..., 3).
 
     The contact point is where the cutter's outward normal is -n: the corner-circle centre is
@@ -209,7 +219,8 @@ class ToolSystem:
         d_cyl = _sd_cylinder(rho, z, R, r, L)
         d_core = _sd_cylinder(rho, z, R - r, 0.0, L) if R > r else np.full_like(rho, np.inf)
         d_tor = np.hypot(rho - (R - r), z - r) - r if r > 0 else np.full_like(rho, np.inf)
-        return np.minimum(np.minimum(d_cyl, d_core), d_tor)
+        d: npt.NDArray[np.float64] = np.minimum(np.minimum(d_cyl, d_core), d_tor)
+        return d
 
     def stations(self, step_frac: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
         """Spheres covering the tool system: heights z (k,) mm and radii (k,) mm.
@@ -238,7 +249,9 @@ class ToolSystem:
         return np.asarray(pts)
 
 
-def _sd_cylinder(rho, z, a, z0, z1):
+def _sd_cylinder(
+    rho: npt.NDArray[np.float64], z: npt.NDArray[np.float64], a: float, z0: float, z1: float
+) -> npt.NDArray[np.float64]:
     """Signed distance to the solid cylinder of radius a between heights z0 < z1."""
     dx = rho - a
     dz = np.maximum(z0 - z, z - z1)

@@ -39,9 +39,11 @@ A closed polyline (first vertex == last) that is one circle as a whole becomes o
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from planning.errors import PlanningError
 from planning.nc import ARC_CCW, ARC_CW, LINE
@@ -158,7 +160,7 @@ def _line_test(p: np.ndarray, tol: float) -> bool:
     return bool(np.all(np.abs(across) <= tol) and np.all(np.diff(along) >= 0))
 
 
-def _longest(test, i: int, n: int, lo: int) -> int:
+def _longest(test: Callable[[int, int], bool], i: int, n: int, lo: int) -> int:
     """Largest j in [i + lo, n - 1] with test(i, j) true by galloping then bisection; -1 if
     test(i, i + lo) fails."""
     j = i + lo
@@ -243,7 +245,9 @@ def fit_arcs(
     n = p.shape[0]
     kinds, firsts, lasts, centres, radii = [], [], [], [], []
 
-    def emit(kind: int, a: int, b: int, c=(np.nan, np.nan), r: float = np.nan) -> None:
+    def emit(
+        kind: int, a: int, b: int, c: npt.ArrayLike = (np.nan, np.nan), r: float = np.nan
+    ) -> None:
         kinds.append(kind)
         firsts.append(a)
         lasts.append(b)
@@ -278,7 +282,9 @@ def fit_arcs(
                 emit(LINE, i, j)
             else:
                 j = ja
-                kind, c, r = cache[(i, j)]  # type: ignore[misc]
+                hit = cache[(i, j)]
+                assert hit is not None  # arc_ok(i, ja) held: the cached fit is an arc
+                kind, c, r = hit
                 emit(kind, i, j, c, r)
             i = j
     return ArcPath(

@@ -16,12 +16,15 @@ Conventions (all mm, xy in the part's work coordinates):
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 import shapely
 from scipy.spatial import cKDTree
 from shapely.geometry import LineString, MultiPolygon, Polygon, box
+from shapely.geometry.base import BaseGeometry
 from shapely.geometry.polygon import orient
 
 from planning.errors import PlanningError
@@ -30,6 +33,8 @@ from planning.surface.contours import SectionMaker, as_multipolygon
 
 _QUAD_SEGS = 16
 _SAMPLE_MM = 0.5  # spacing of boundary samples for the cover distance
+# A shoulder's cache key: its lower level (None: the top one), or ("x", lo) for a given region
+_Key = float | None | tuple[str, float | None]
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,10 +81,11 @@ class LevelPaths:
         return float(np.sum(np.linalg.norm(starts - ends, axis=1)))
 
 
-def _boundary_samples(geom, step: float) -> np.ndarray:
+def _boundary_samples(geom: BaseGeometry, step: float) -> npt.NDArray[np.float64]:
     """Points every ``step`` mm along all boundaries of a (multi)polygon, (n, 2)."""
     b = shapely.segmentize(geom.boundary, step)
-    return shapely.get_coordinates(b)
+    xy: npt.NDArray[np.float64] = shapely.get_coordinates(b)
+    return xy
 
 
 class LevelGeometry:
@@ -103,7 +109,7 @@ class LevelGeometry:
         step_factor: float = 1.5,
         tolerance_mm: float = 0.01,
         maker: SectionMaker | None = None,
-    ):
+    ) -> None:
         self.surface = surface
         self.maker = maker or SectionMaker(surface, tolerance_mm)
         x0, x1, y0, y1 = stock_xy
@@ -113,9 +119,9 @@ class LevelGeometry:
         self.step = step_factor * self.r
         self._sec: dict[float, MultiPolygon] = {}
         self._clo: dict[float, MultiPolygon] = {}
-        self._tree: dict[float, tuple[cKDTree | None, object]] = {}
-        self._reach: dict[float | None, object] = {}
-        self._cover_pts: dict[float | None, np.ndarray] = {}
+        self._tree: dict[float, tuple[cKDTree, BaseGeometry]] = {}
+        self._reach: dict[_Key, BaseGeometry] = {}
+        self._cover_pts: dict[_Key, np.ndarray] = {}
         self._rings: dict[float, list[list[LineString]]] = {}
         self._area_of: dict[float | None, MultiPolygon | Polygon] = {}
 
@@ -142,7 +148,7 @@ class LevelGeometry:
             return np.zeros((0, 2))
         pts = _boundary_samples(reg, 2.0)  # the cusp varies slowly along a contour
         inner = self.stock.buffer(-1e-6)
-        keep = shapely.contains_xy(inner, pts[:, 0], pts[:, 1])
+        keep: npt.NDArray[np.bool_] = shapely.contains_xy(inner, pts[:, 0], pts[:, 1])
         return pts[keep]
 
     def above(self, lo: float | None) -> MultiPolygon | Polygon:
@@ -151,31 +157,35 @@ class LevelGeometry:
             return self.stock
         return self.closed(lo)
 
-    def region(self, z: float, lo: float | None, lo_region=None) -> MultiPolygon | Polygon:
+    def region(
+        self, z: float, lo: float | None, lo_region: BaseGeometry | None = None
+    ) -> BaseGeometry:
         """The area a level z removes in shoulder (lo, hi): A(lo) - C(z)."""
         a = self.above(lo) if lo_region is None else lo_region
         return a.difference(self.closed(z))
 
     # ------------------------------------------------------------------------------ passes
-    def _reference(self, z: float):
+    def _reference(self, z: float) -> BaseGeometry:
         s = self.section(z)
         if s.is_empty:  # above the part: clear around the stock centre
             return self.stock.centroid.buffer(1e-3)
         return s
 
-    def _ref_tree(self, z: float):
+    def _ref_tree(self, z: float) -> tuple[cKDTree, BaseGeometry]:
         if z not in self._tree:
             ref = self._reference(z)
             self._tree[z] = (cKDTree(_boundary_samples(ref, _SAMPLE_MM)), ref)
         return self._tree[z]
 
-    def _cover_points(self, key, a) -> np.ndarray:
+    def _cover_points(self, key: _Key, a: BaseGeometry) -> np.ndarray:
         """Samples every 1 mm along the boundary of A(lo)."""
         if key not in self._cover_pts:
             self._cover_pts[key] = _boundary_samples(a, 1.0)
         return self._cover_pts[key]
 
-    def cover_distance(self, z: float, lo: float | None, lo_region=None) -> float:
+    def cover_distance(
+        self, z: float, lo: float | None, lo_region: BaseGeometry | None = None
+    ) -> float:
         """Largest distance from the reference contour to material of A(lo), mm.
 
         Outside the reference the distance to it only grows towards the boundary of A, except
@@ -199,7 +209,7 @@ class LevelGeometry:
         if not out.any():
             return 0.0
         d, _ = tree.query(pts[out])
-        return float(d.max()) + 0.5
+        return float(np.max(d)) + 0.5
 
     def rings(self, z: float, k_max: int) -> list[list[LineString]]:
         """Oriented offset boundaries of the reference contour, ring k at f1 r + k step."""
@@ -217,7 +227,7 @@ class LevelGeometry:
             have.append(lines)
         return have[: k_max + 1]
 
-    def _reach_of(self, lo: float | None, a) -> object:
+    def _reach_of(self, lo: _Key, a: BaseGeometry) -> BaseGeometry:
         key = lo
         if key not in self._reach:
             # Centres closer than r to the material (a hair less, so grazing passes drop out).
@@ -226,7 +236,9 @@ class LevelGeometry:
             self._reach[key] = reach
         return self._reach[key]
 
-    def level(self, z: float, lo: float | None, lo_region=None) -> LevelPaths:
+    def level(
+        self, z: float, lo: float | None, lo_region: BaseGeometry | None = None
+    ) -> LevelPaths:
         """Passes, area and path length of level z cut in a shoulder whose lower level is lo."""
         a = self.above(lo) if lo_region is None else lo_region
         # Sections nest (z > lo: C(z) inside C(lo) inside the stock), so no boolean is needed.
@@ -236,9 +248,7 @@ class LevelGeometry:
         dist = self.cover_distance(z, lo, lo_region)
         reach_needed = self.first + self.r
         k_max = max(0, int(np.ceil((dist - reach_needed) / self.step - 1e-9)))
-        reach = (
-            self._reach_of(lo, a) if lo_region is None else self._reach_of(("x", lo), a)  # type: ignore[arg-type]
-        )
+        reach = self._reach_of(lo, a) if lo_region is None else self._reach_of(("x", lo), a)
         passes: list[LevelPass] = []
         pos = None
         for k in range(k_max, -1, -1):  # outside in
@@ -260,7 +270,7 @@ class LevelGeometry:
         return LevelPaths(z, lo, area, tuple(passes))
 
 
-def _order(pieces: list[LineString], pos) -> list[LineString]:
+def _order(pieces: list[LineString], pos: np.ndarray | None) -> list[LineString]:
     """Greedy nearest-start order; closed loops start at their vertex nearest the tool."""
     out = []
     todo = list(pieces)
@@ -301,11 +311,11 @@ class CuspTable:
     def __init__(
         self,
         surface: FergusonSurface,
-        stock_xy,
+        stock_xy: tuple[float, float, float, float],
         per_patch: int = 8,
-        model="paper",
-        contour=None,
-    ):
+        model: str = "paper",
+        contour: Callable[[float], np.ndarray] | None = None,
+    ) -> None:
         if model not in ("paper", "exact"):
             raise PlanningError(f"rough.cusp_model = {model!r}: expected 'paper' or 'exact'")
         p, n = surface.sample(per_patch)
@@ -331,7 +341,8 @@ class CuspTable:
     def _values(self, hi: float, stop: int) -> np.ndarray:
         """Cusp contribution of the samples ``[:stop]`` (those below hi) for upper level hi."""
         if self.model == "paper":
-            return (hi - self.z[:stop]) * self.cosb[:stop]
+            paper: npt.NDArray[np.float64] = (hi - self.z[:stop]) * self.cosb[:stop]
+            return paper
         if hi not in self._col:
             below = int(np.searchsorted(self.z, hi, side="left"))
             q = self.xyz[:below].copy()
@@ -381,9 +392,9 @@ class CuspTable:
             if v.size == 0:
                 continue
             suffix = np.maximum.accumulate(v[::-1])[::-1]  # max over z >= z_i
-            a = np.arange(b)
-            ok = idx[a] < idx[b]
-            out[a[ok], b] = suffix[idx[a[ok]]]
+            rows = np.arange(b)
+            ok = idx[rows] < idx[b]
+            out[rows[ok], b] = suffix[idx[rows[ok]]]
         for a in range(n - 1):
             xyz, cosb = self._lower_contour(float(heights[a]))
             if len(xyz) == 0:

@@ -20,8 +20,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 from scipy.spatial import cKDTree
 
+from analysis.validation import JsonObject
 from planning.errors import PlanningError
 from planning.nc import DWELL, RAPID, Motion, Program, interpret, linearize
 from planning.stock import Cutter, ZMap
@@ -52,7 +54,7 @@ class CheckResult:
     zmap: ZMap
     left_mm: np.ndarray  # (ny, nx) material above the offset surface (normal distance), mm
 
-    def summary(self) -> dict:
+    def summary(self) -> JsonObject:
         return {
             "spacing_mm": self.spacing_mm,
             "cusp_limit_mm": self.cusp_limit_mm,
@@ -84,7 +86,8 @@ class SurfaceHeights:
     def distance_above(self, pts: np.ndarray) -> np.ndarray:
         """Normal distance of points (n, 3) above the surface (tangent plane at nearest sample)."""
         _, i = self._tree.query(pts)
-        return np.einsum("ij,ij->i", pts - self.points[i], self.normals[i])
+        dist: npt.NDArray[np.float64] = np.einsum("ij,ij->i", pts - self.points[i], self.normals[i])
+        return dist
 
 
 def simulate(

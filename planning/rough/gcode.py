@@ -26,8 +26,9 @@ the paper's measure) come from the polylines and do not change.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
 
@@ -97,16 +98,18 @@ def plan_motion(plan: RoughPlan, part: Part, tool_numbers: tuple[int, int] = (1,
     same_tool = part.lee_tool is part.tool
     level_idx = 0  # stored in Motion.block so a plot can colour moves by level
 
-    def add(kind: int, end, feed: float = np.nan, tool: int = 1) -> None:
+    def add(
+        kind: int, to: Sequence[float] | np.ndarray, feed: float = np.nan, tool: int = 1
+    ) -> None:
         nonlocal pos
-        end = [float(end[0]), float(end[1]), float(end[2])]
+        end = [float(to[0]), float(to[1]), float(to[2])]
         if end == pos:
             return
         mb.add(kind, pos, end, feed_mm_min=feed, spindle_rpm=ms.spindle_rpm, tool=tool,
                block=level_idx)  # fmt: skip
         pos = end
 
-    def cut(xy: np.ndarray, z, feed: float, tool: int) -> None:
+    def cut(xy: np.ndarray, z: float | np.ndarray, feed: float, tool: int) -> None:
         """Feed moves through xy (m, 2) from its first point (the current position) at heights
         z (scalar or (m,)): one line per chord, or fitted arcs and lines."""
         nonlocal pos
@@ -150,7 +153,20 @@ def plan_motion(plan: RoughPlan, part: Part, tool_numbers: tuple[int, int] = (1,
     return mb.build()
 
 
-def plan_totals(plan: RoughPlan, part: Part, motion: Motion | None = None) -> dict:
+class PlanTotals(TypedDict):
+    """A plan's totals (JSON-ready): mm, min; ``heights_mm`` in cutting order."""
+
+    levels: int
+    cutting_path_mm: float
+    feed_length_mm: float
+    entry_length_mm: float
+    rapid_length_mm: float
+    time_min: float
+    max_cusp_mm: float
+    heights_mm: list[float]
+
+
+def plan_totals(plan: RoughPlan, part: Part, motion: Motion | None = None) -> PlanTotals:
     """Totals of a plan: levels, cutting path (the paper's measure), feed and rapid, time."""
     from planning.nc import motion_stats
 

@@ -5,20 +5,44 @@ result."""
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
+from typing import TypedDict
 
 from analysis.config import MachineConfig, load_machine
+from analysis.validation import JsonObject, JsonValue
 from planning.errors import PlanningError
 from planning.nc import Program
 from planning.nc.output import DIALECTS, default_dialect, for_dialect
 from planning.rough.check import check_program
-from planning.rough.gcode import MoveSettings, plan_motion, plan_program, plan_totals
+from planning.rough.gcode import MoveSettings, PlanTotals, plan_motion, plan_program, plan_totals
 from planning.rough.part import Part, load_part
 from planning.rough.planner import METHODS, RoughPlan, RoughPlanner
 
 # (planner, chosen plan, its Fanuc program) -> (plan, program, report): planning.limits
-LimitStep = Callable[[RoughPlanner, RoughPlan, Program], tuple[RoughPlan, Program, dict]]
+LimitStep = Callable[[RoughPlanner, RoughPlan, Program], tuple[RoughPlan, Program, JsonObject]]
+
+
+class RoughResult(TypedDict):
+    """What :func:`run_rough` returns (JSON-ready): the chosen plan's levels, every method's
+    totals, the Z-map check, the written files and the limits' report."""
+
+    part: str
+    method: str
+    dialect: str
+    cusp_model: str
+    cusp_mm: float
+    max_depth_mm: float
+    bottom_mm: float
+    top_mm: float
+    levels: list[JsonObject]
+    totals: dict[str, PlanTotals]
+    comparison: dict[str, float | None]
+    check: JsonObject | None
+    program: str
+    png: dict[str, str]
+    violations: JsonValue
+    limits: JsonObject | None
 
 
 def shorter_pct(a: float, b: float) -> float | None:
@@ -26,7 +50,7 @@ def shorter_pct(a: float, b: float) -> float | None:
     return round(100.0 * (1.0 - a / b), 2) if b else None
 
 
-def comparison_pct(totals: dict) -> dict:
+def comparison_pct(totals: Mapping[str, PlanTotals]) -> dict[str, float | None]:
     """The cutting-path comparisons between methods, in % (seed 000's headline numbers)."""
     path = {m: t["cutting_path_mm"] for m, t in totals.items()}
     return {
@@ -49,7 +73,7 @@ def run_rough(
     dialect: str | None = None,
     machine: str | Path | MachineConfig | None = None,
     limits: LimitStep | None = None,
-) -> dict:
+) -> RoughResult:
     """Plan ``config`` (a part file or name) by all four methods, write ``method``'s program to
     ``output`` for the ``dialect`` controller (default: ``machine``'s, a machine config name,
     path or object; else Fanuc), cut it on a Z-map of ``check_spacing_mm`` (unless not
@@ -85,9 +109,9 @@ def run_rough(
     limit_report = None
     if limits is not None:
         chosen, fanuc, limit_report = limits(planner, chosen, fanuc)
-        if "before" in limit_report:
-            say(f"limits: {limit_report['before']['violations']} violations before, "
-                f"{len(limit_report['violations'])} after")  # fmt: skip
+        before, after = limit_report.get("before"), limit_report.get("violations")
+        if isinstance(before, dict) and isinstance(after, list):
+            say(f"limits: {before['violations']} violations before, {len(after)} after")
         else:
             say(f"limits not checked: {limit_report.get('why', '')}")
     program = for_dialect(fanuc, dialect, machine, source="fanuc")  # moves as fanuc does
@@ -107,7 +131,7 @@ def run_rough(
             MoveSettings.of(part).safe_z_mm,
             spacing_mm=check_spacing_mm,
         )
-    pngs = {}
+    pngs: dict[str, str] = {}
     if png:
         from planning.rough.plot import plot_levels, plot_paths, plot_roughed
 

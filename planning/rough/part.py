@@ -17,7 +17,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from analysis.config import EndMill, get_tool
+from analysis.config import EndMill, FaceMill, get_tool
 from analysis.errors import ConfigError
 from analysis.validation import Model, find_line, load_model
 from planning.surface import FergusonSurface
@@ -146,14 +146,13 @@ class Part:
             )
         self.tool: EndMill = tool
         second = config.rough.lee_second_tool
-        self.lee_tool: EndMill = (  # type: ignore[assignment]
-            tool if second is None else self._tool(second, lib, ("rough", "lee_second_tool"))
-        )
-        if not isinstance(self.lee_tool, EndMill) or self.lee_tool.kind != "flat":
+        lee = tool if second is None else self._tool(second, lib, ("rough", "lee_second_tool"))
+        if not isinstance(lee, EndMill) or lee.kind != "flat":
             raise ConfigError(f"{where}: rough.lee_second_tool = {second!r}: needs a flat end mill")
+        self.lee_tool: EndMill = lee
         self.surface = self._surface(config.surface, f"{where}: surface")
 
-    def _tool(self, name: str, lib, loc: tuple[str, str]):
+    def _tool(self, name: str, lib: Path | None, loc: tuple[str, str]) -> EndMill | FaceMill:
         """The named tool; an unknown name is reported at its line of the part file."""
         try:
             return get_tool(name, lib)
@@ -173,6 +172,7 @@ class Part:
     def _surface(self, spec: SurfaceSpec, where: str) -> FergusonSurface:
         if spec.kind == "height_field":
             z = spec.z_mm
+            assert z is not None  # SurfaceSpec's validator: a height field has z_mm
             if len({len(r) for r in z}) != 1:
                 raise ConfigError(f"{where}: surface.z_mm rows have different lengths (mm)")
             return FergusonSurface.from_height_field(

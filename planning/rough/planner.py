@@ -30,10 +30,13 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+import numpy.typing as npt
 
+from analysis.validation import JsonObject
 from planning.errors import PlanningError
 from planning.rough._levels import CuspTable, LevelGeometry, LevelPaths
 from planning.rough.part import Part
@@ -75,7 +78,7 @@ class Level:
     def height_mm(self) -> float:
         return self.hi_mm - self.z_mm
 
-    def row(self) -> dict:
+    def row(self) -> JsonObject:
         return {
             "order": self.order,
             "z_mm": round(self.z_mm, 3),
@@ -126,7 +129,7 @@ class RoughPlanner:
     tool) and the cusp table once; each ``plan_*`` method returns a :class:`RoughPlan`.
     """
 
-    def __init__(self, part: Part, progress=None):
+    def __init__(self, part: Part, progress: Callable[[str], None] | None = None) -> None:
         cfg = part.config
         self.part = part
         self.rough = cfg.rough
@@ -291,7 +294,13 @@ class RoughPlanner:
     def plan(self, method: str) -> RoughPlan:
         if method not in METHODS:
             raise PlanningError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
-        return getattr(self, f"plan_{method}")()
+        planners: dict[str, Callable[[], RoughPlan]] = {
+            "bisection": self.plan_bisection,
+            "equal": self.plan_equal,
+            "lee": self.plan_lee,
+            "optimal": self.plan_optimal,
+        }
+        return planners[method]()
 
     # ------------------------------------------------------------------------------ bisection
     def plan_bisection(self) -> RoughPlan:
@@ -319,6 +328,7 @@ class RoughPlanner:
                 m = mrr_mm3_min(lp.area_mm2, self.feed, hi - z, lp.path_mm)
                 if m > best_mrr:
                     best, best_mrr = float(z), m
+            assert best is not None  # cands is never empty, and every mrr is >= 0
             self._tick(f"bisection: level {best:.2f} mm in shoulder ({lo_z:.2f}, {hi:.2f})")
             levels.append(self._level(len(levels) + 1, best, lo, hi))
             todo.append((lo, best))
@@ -364,7 +374,8 @@ class RoughPlanner:
         """Equal-interval levels every h_cusp (or L if smaller) from the stock top, top down."""
         step = min(self.rough.cusp_mm, self.L)
         heights = self._top_down(step)
-        levels, hi = [], self.top
+        levels: list[Level] = []
+        hi = self.top
         for z in heights:
             levels.append(self._level(len(levels) + 1, z, None, hi))
             hi = z
@@ -384,8 +395,8 @@ class RoughPlanner:
         for z in primary:
             levels.append(self._level(len(levels) + 1, z, None, hi, tool=1))
             hi = z
-        edges: list[float | None] = [None, *sorted(primary), self.top]
-        for lo, top in zip(edges[:-1], edges[1:]):
+        lows: list[float | None] = [None, *sorted(primary)]
+        for lo, top in zip(lows, [*sorted(primary), self.top]):
             lo_z = self.bottom if lo is None else lo
             if self.cusp(lo, top) <= h_c:
                 continue
@@ -439,12 +450,12 @@ class RoughPlanner:
         for c in range(1, n - 1):
             z = float(P[c])
             lo_ok = P[c] - P[:c] > 0
-            for a in np.flatnonzero(lo_ok):
-                lp = self.geom.level(z, None if a == 0 else float(P[a]))
-                path[a, c] = lp.path_mm
-                n_closed[a, c] = lp.n_closed
-                n_pass[a, c] = len(lp.passes)
-                link[a, c] = lp.link_xy_mm
+            for a_lo in np.flatnonzero(lo_ok):
+                lp = self.geom.level(z, None if a_lo == 0 else float(P[a_lo]))
+                path[a_lo, c] = lp.path_mm
+                n_closed[a_lo, c] = lp.n_closed
+                n_pass[a_lo, c] = len(lp.passes)
+                link[a_lo, c] = lp.link_xy_mm
             self._tick(f"optimal: costs at height {c}/{n - 2}")
         cost = self._cost_fn(P, path, n_closed, n_pass, link)
         f = np.zeros((n, n))
@@ -472,7 +483,7 @@ class RoughPlanner:
         todo: deque[tuple[int, int]] = deque([(0, n - 1)])
         while todo:
             a, b = todo.popleft()
-            c = choice[a, b]
+            c = int(choice[a, b])
             if c < 0:
                 continue
             lo = None if a == 0 else float(P[a])
@@ -489,7 +500,14 @@ class RoughPlanner:
             f"objective {r.objective}, {n - 2} candidates",
         )
 
-    def _cost_fn(self, P, path, n_closed, n_pass, link):
+    def _cost_fn(
+        self,
+        P: npt.NDArray[np.float64],
+        path: npt.NDArray[np.float64],
+        n_closed: npt.NDArray[np.float64],
+        n_pass: npt.NDArray[np.float64],
+        link: npt.NDArray[np.float64],
+    ) -> Callable[[int, npt.NDArray[np.intp], int], npt.NDArray[np.float64]]:
         """cost(a, cs, b): vector of level costs for lower a, heights cs, upper b."""
         r, c = self.rough, self.part.config.cutting
         if r.objective == "path":
@@ -500,16 +518,17 @@ class RoughPlanner:
         safe = self.top + r.clearance_mm
         sin_a = math.sin(math.radians(r.ramp_angle_deg))
 
-        def cost(a, cs, b):
+        def cost(a: int, cs: npt.NDArray[np.intp], b: int) -> npt.NDArray[np.float64]:
             z = P[cs]
             enter = P[b] + r.clearance_mm - z
             n_open = n_pass[a, cs] - n_closed[a, cs]
-            return (
+            seconds: npt.NDArray[np.float64] = (
                 path[a, cs] / feed
                 + n_closed[a, cs] * enter / sin_a / feed
                 + n_open * enter / plunge
                 + n_pass[a, cs] * ((safe - z) + (safe - P[b] - r.clearance_mm)) / rapid
                 + link[a, cs] / rapid
             )
+            return seconds
 
         return cost

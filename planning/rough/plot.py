@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING
 
 import numpy as np
 import shapely
@@ -11,8 +13,12 @@ from shapely.geometry import LineString
 from planning.rough.check import CheckResult, SurfaceHeights
 from planning.rough.planner import RoughPlan, RoughPlanner
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
-def _plt():
+
+def _plt() -> ModuleType:
+    """pyplot on the Agg backend (files only, no display)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -21,7 +27,7 @@ def _plt():
     return plt
 
 
-def _save(plt, fig, path: str | Path) -> Path:
+def _save(plt: ModuleType, fig: Figure, path: str | Path) -> Path:
     """Lay out, write and close ``fig``; the PNG path."""
     fig.tight_layout()
     out = Path(path)

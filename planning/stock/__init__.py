@@ -2,10 +2,10 @@
 simulated machining of programs and operation plans, and the stock's picture.
 """
 
+from planning.stock._numba import MAX_ARCS
 from planning.stock.block import SteppedBlock
 from planning.stock.machining import (
     ARC_STEP_RAD,
-    MAX_ARCS,
     Operation,
     OperationPlan,
     Simulation,

@@ -36,7 +36,9 @@ FLAT, BALL, BULL = 0, 1, 2
 _BISECT_ITERATIONS = 48  # interval shrinks 2^-48: far below any grid spacing
 
 
-def profile_mm(kind: int, r_mm: float, rc_mm: float, rho2: NDArray[np.float64]) -> NDArray:
+def profile_mm(
+    kind: int, r_mm: float, rc_mm: float, rho2: NDArray[np.float64]
+) -> NDArray[np.float64]:
     """Height of the cutter's lower surface above its tip at squared radius ``rho2`` (mm^2), mm.
 
     ``+inf`` outside the cutter radius. Shape of ``rho2``.
@@ -115,13 +117,13 @@ def envelope(
 
 def _choi_ball(
     r_mm: float,
-    tp: NDArray,
-    w2: NDArray,
-    k2: NDArray,
+    tp: NDArray[np.float64],
+    w2: NDArray[np.float64],
+    k2: NDArray[np.float64],
     l2: float,
     dz: float,
     za: float,
-) -> NDArray:
+) -> NDArray[np.float64]:
     """Choi's swept-sphere formula (seed 001 Fig. 3), in tip coordinates, with the end caps.
 
     Choi's names: ``d_p`` horizontal length, ``l`` station of the grid point along the path, ``w``
@@ -144,18 +146,18 @@ def _choi_ball(
 def _bull(
     r_mm: float,
     rc_mm: float,
-    tp: NDArray,
-    w2: NDArray,
-    lo: NDArray,
-    hi: NDArray,
+    tp: NDArray[np.float64],
+    w2: NDArray[np.float64],
+    lo: NDArray[np.float64],
+    hi: NDArray[np.float64],
     l2: float,
     dz: float,
     za: float,
-) -> NDArray:
+) -> NDArray[np.float64]:
     """Torus sweep: minimise the convex g(t) on [lo, hi] (closed form when the move is level)."""
     a = r_mm - rc_mm
 
-    def g(t: NDArray) -> NDArray:
+    def g(t: NDArray[np.float64]) -> NDArray[np.float64]:
         rho = np.sqrt(w2 + l2 * (t - tp) ** 2)
         e = np.maximum(rho - a, 0.0)
         return za + t * dz + rc_mm - np.sqrt(np.maximum(rc_mm * rc_mm - e * e, 0.0))
@@ -181,14 +183,14 @@ def envelope_sampled(
     kind: int,
     r_mm: float,
     rc_mm: float,
-    qx: NDArray,
-    qy: NDArray,
+    qx: NDArray[np.float64],
+    qy: NDArray[np.float64],
     dx: float,
     dy: float,
     dz: float,
     za: float,
     samples: int,
-) -> NDArray:
+) -> NDArray[np.float64]:
     """Reference envelope by placing the cutter at ``samples`` positions along the move.
 
     Converges to :func:`envelope` from above as ``samples`` grows; used by tests as an independent

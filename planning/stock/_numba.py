@@ -14,8 +14,11 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
+from typing import TypeVar
 
 import numpy as np
+import numpy.typing as npt
 
 try:  # optional dependency
     if os.environ.get("CUTLAB_NO_NUMBA"):
@@ -26,14 +29,18 @@ try:  # optional dependency
 except ImportError:  # pragma: no cover - exercised when numba is absent
     AVAILABLE = False
 
-    def njit(*args, **kwargs):  # type: ignore[no-redef]
-        def wrap(f):
+    _Fn = TypeVar("_Fn", bound=Callable[..., object])
+
+    # no-redef: the stand-in for numba's njit when numba is absent
+    def njit(*args: object, **kwargs: object) -> Callable[[_Fn], _Fn]:  # type: ignore[no-redef]
+        def wrap(f: _Fn) -> _Fn:
             return f
 
         return wrap
 
 
 _BISECT = 48
+_F = npt.NDArray[np.float64]
 
 
 @njit(cache=True, fastmath=False)
@@ -49,14 +56,19 @@ def _profile(kind: int, r: float, rc: float, rho2: float) -> float:
 
 
 @njit(cache=True, fastmath=False)
-def _bull_g(t, tp, w2, l2, za, dz, a, rc):
+def _bull_g(
+    t: float, tp: float, w2: float, l2: float, za: float, dz: float, a: float, rc: float
+) -> float:
     rho = math.sqrt(w2 + l2 * (t - tp) * (t - tp))
     e = max(rho - a, 0.0)
     return za + t * dz + rc - math.sqrt(max(rc * rc - e * e, 0.0))
 
 
 @njit(cache=True, fastmath=False)
-def _envelope_point(kind, r, rc, qx, qy, dx, dy, dz, za, l2):
+def _envelope_point(
+    kind: int, r: float, rc: float, qx: float, qy: float, dx: float, dy: float, dz: float,
+    za: float, l2: float,
+) -> float:  # fmt: skip
     """Lowest cutter height over one grid point (offset qx, qy from the start), inf if none."""
     r2 = r * r
     if l2 <= 1e-18:
@@ -110,7 +122,10 @@ ARC_SPLIT = 0.25  # a new arc where the engaged height differs this much (relati
 
 
 @njit(cache=True, fastmath=False)
-def leading_arc(h, x0g, y0g, s, xa, ya, za, xb, yb, zb, r, rc, out):
+def leading_arc(
+    h: _F, x0g: float, y0g: float, s: float, xa: float, ya: float, za: float,
+    xb: float, yb: float, zb: float, r: float, rc: float, out: npt.NDArray[np.float32],
+) -> None:  # fmt: skip
     """The engaged arcs of the cutter's periphery at the middle of the move a -> b, before it
     cuts: ``out`` (MAX_ARCS * 3,) = (entry rad, exit rad, engaged height mm) per arc, NaN where
     there is none (all NaN without XY motion).
@@ -176,7 +191,10 @@ def leading_arc(h, x0g, y0g, s, xa, ya, za, xb, yb, zb, r, rc, out):
 
 
 @njit(cache=True, fastmath=False)
-def cut_pieces(h, x0g, y0g, s, bottom, kind, r, rc, pts, removed, depth, arcs):
+def cut_pieces(
+    h: _F, x0g: float, y0g: float, s: float, bottom: float, kind: int, r: float, rc: float,
+    pts: _F, removed: _F, depth: _F, arcs: npt.NDArray[np.float32],
+) -> None:  # fmt: skip
     """Cut the moves ``pts`` (k, 6: x0 y0 z0 x1 y1 z1) in order into ``h`` (ny, nx) in place.
 
     Fills ``removed`` (k,) with mm^3 and ``depth`` (k,) with the deepest height drop, mm; and,

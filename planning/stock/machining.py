@@ -57,7 +57,7 @@ from analysis.config import (
     get_tool,
     load_machine,
 )
-from analysis.validation import Model, read_toml, validate
+from analysis.validation import JsonObject, Model, read_toml, validate
 from planning.errors import PlanningError
 from planning.nc import DWELL, LINE, RAPID, Motion, segment_time_s
 from planning.nc.arcs import PLANE_AXES, arc_radius_mm, linearize, segment_length_mm
@@ -123,18 +123,23 @@ class Simulation:
     piece_depth_mm: NDArray[np.float64]
     contacts: tuple[HolderContact, ...] = ()
     rapid_cut_segments: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, np.int64))
-    piece_arcs: NDArray[np.float64] | None = None
+    piece_arcs: NDArray[np.float32] | None = None
 
     @property
     def piece_length_mm(self) -> NDArray[np.float64]:
-        return np.linalg.norm(self.piece_end_mm - self.piece_start_mm, axis=1)
+        length: NDArray[np.float64] = np.linalg.norm(
+            self.piece_end_mm - self.piece_start_mm, axis=1
+        )
+        return length
 
     @property
     def removed_total_mm3(self) -> float:
         return float(self.removed_mm3.sum())
 
 
-def plunge_mask(start_mm: NDArray, end_mm: NDArray, tol_mm: float = 1e-9) -> NDArray[np.bool_]:
+def plunge_mask(
+    start_mm: NDArray[np.float64], end_mm: NDArray[np.float64], tol_mm: float = 1e-9
+) -> NDArray[np.bool_]:
     """True for Z-only moves (seed 001's plunge formula applies to them)."""
     d = end_mm - start_mm
     return (np.hypot(d[:, 0], d[:, 1]) <= tol_mm) & (np.abs(d[:, 2]) > tol_mm)
@@ -345,9 +350,12 @@ def simulate_motion(
                     line=int(motion.line[s]),
                     part=name,
                     overlap_mm=over,
-                    position_mm=tuple(float(v) for v in p1[k]),  # type: ignore[arg-type]
+                    position_mm=(float(p1[k, 0]), float(p1[k, 1]), float(p1[k, 2])),
                 )
-    per_seg = np.bincount(seg, weights=removed, minlength=len(motion))
+    # float with weights (numpy's stubs say int); no copy
+    per_seg = np.bincount(seg, weights=removed, minlength=len(motion)).astype(
+        np.float64, copy=False
+    )
     rapid_cut = np.nonzero((motion.kind == RAPID) & (per_seg > 1e-9))[0]
     ordered = tuple(sorted(contacts.values(), key=lambda c: (c.block, c.part)))
     return Simulation(motion, seg, p0, p1, removed, per_seg, depth, ordered, rapid_cut, arcs)
@@ -423,9 +431,7 @@ def end_mill(name: str | None, what: str = "--tool") -> EndMill:
         raise PlanningError(f"{what} is required (an end mill of the tool catalogue): {known}")
     tool = get_tool(name)
     if not isinstance(tool, EndMill):
-        raise PlanningError(
-            f"{what} = {name!r} is a {tool.kind}: the Z-map models end mills only"
-        )
+        raise PlanningError(f"{what} = {name!r} is a {tool.kind}: the Z-map models end mills only")
     return tool
 
 
@@ -529,7 +535,7 @@ def _join(motion: Motion, parts: list[tuple[int, Simulation]]) -> Simulation:
     if len(parts) == 1:
         return parts[0][1]
 
-    def cat(name: str, shift: int = 0) -> NDArray:
+    def cat(name: str, shift: int = 0) -> NDArray[Any]:  # each field's own dtype
         return np.concatenate([getattr(s, name) + (lo if shift else 0) for lo, s in parts])
 
     return Simulation(
@@ -540,7 +546,7 @@ def _join(motion: Motion, parts: list[tuple[int, Simulation]]) -> Simulation:
     )  # fmt: skip
 
 
-def summary(result: OperationResult) -> dict[str, Any]:
+def summary(result: OperationResult) -> JsonObject:
     """Plain-data summary of one operation's virtual machining (for JSON and tables)."""
     sim = result.simulation
     m = sim.motion
@@ -586,6 +592,7 @@ class _OperationModel(Model):
         if (self.tool is None) == (self.tools is None):
             raise ValueError("give tool = NAME (one tool) or tools = { T1 = NAME, ... }")
         return self
+
     rule: str | None = Field(None, description="feed rule file or rule-base name")
 
 
@@ -622,6 +629,7 @@ def load_plan(
             prog, machine, strict=strict, cutter_comp="refuse", probing="refuse"
         )
         what = f"{p}: operations[{i}].{'tool' if o.tools is None else 'tools'}"
+        # arg-type: _OperationModel's validator guarantees one of tool and tools is set
         tools = bind_tools(motion, o.tools or o.tool, str(prog), what)  # type: ignore[arg-type]
         ops.append(Operation(o.name, motion, tools, str(prog), o.rule))
     return OperationPlan(stock, ops, machine), [o.rule for o in model.operations]

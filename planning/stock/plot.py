@@ -14,7 +14,7 @@ def save_stock_png(stock: ZMap, path: str | Path, title: str = "stock") -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.colors import LightSource
+    from matplotlib.colors import LightSource, Normalize
 
     h = stock.heights_mm
     step = max(1, int(math.ceil(max(h.shape) / 1500)))  # keep the image a sane size
@@ -28,7 +28,7 @@ def save_stock_png(stock: ZMap, path: str | Path, title: str = "stock") -> Path:
         blend_mode="soft", dx=stock.spacing_mm * step, dy=stock.spacing_mm * step,
     )  # fmt: skip
     ax.imshow(shaded, origin="lower", extent=(xmin, xmax, ymin, ymax))
-    sm = plt.cm.ScalarMappable(cmap="viridis", norm=plt.Normalize(float(hs.min()), float(hs.max())))
+    sm = plt.cm.ScalarMappable(cmap="viridis", norm=Normalize(float(hs.min()), float(hs.max())))
     fig.colorbar(sm, ax=ax, label="height (mm)")
     ax.set_xlabel("x (mm)")
     ax.set_ylabel("y (mm)")

@@ -44,6 +44,7 @@ def _stock_from_model(st: _StockModel, where: str, base: Path, spacing_mm: float
         missing = [k for k in need if getattr(st, k) is None]
         if missing:
             raise PlanningError(f"{where}: stock kind 'box' needs {', '.join(missing)} (mm)")
+        # arg-type: the six are not None past the check above (getattr hides that from mypy)
         return ZMap.box(st.xmin_mm, st.xmax_mm, st.ymin_mm, st.ymax_mm, st.bottom_mm, st.top_mm, s)  # type: ignore[arg-type]
     if st.path is None:
         raise PlanningError(f"{where}: stock kind '{st.kind}' needs path")
@@ -74,7 +75,8 @@ def load_stock(
             raise PlanningError(
                 f"stock {text!r}: expected box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP (six numbers, mm)"
             )
-        return ZMap.box(*vals, spacing_mm or DEFAULT_SPACING_MM)
+        x0, x1, y0, y1, bottom, top = vals
+        return ZMap.box(x0, x1, y0, y1, bottom, top, spacing_mm or DEFAULT_SPACING_MM)
     p = Path(text)
     if not p.exists():
         raise PlanningError(

@@ -78,6 +78,7 @@ class Cutter:
             raise PlanningError(
                 f"tool kind '{kind}': the Z-map models flat, ball and bull end mills only"
             )
+        # attr-defined: any tool of a Z-map kind has these (no isinstance on model classes)
         return cls(kind, tool.diameter_mm / 2, tool.corner_radius_mm)  # type: ignore[attr-defined]
 
     def profile_mm(self, rho_mm: ArrayLike) -> NDArray[np.float64]:
@@ -106,7 +107,7 @@ class PathCut:
     removed_per_move_mm3 : ndarray, shape (n,), mm^3
     """
 
-    move: NDArray[np.int64]
+    move: NDArray[np.intp]
     start_mm: NDArray[np.float64]
     end_mm: NDArray[np.float64]
     removed_mm3: NDArray[np.float64]
@@ -115,7 +116,8 @@ class PathCut:
     @property
     def length_mm(self) -> NDArray[np.float64]:
         """3-D length of each piece, mm."""
-        return np.linalg.norm(self.end_mm - self.start_mm, axis=1)
+        length: NDArray[np.float64] = np.linalg.norm(self.end_mm - self.start_mm, axis=1)
+        return length
 
 
 def split_pieces(
@@ -190,8 +192,8 @@ class ZMap:
         self.spacing_mm = float(spacing_mm)
         self.bottom_mm = float(bottom_mm)
         ny, nx = h.shape
-        self.x_mm = self.x0_mm + (np.arange(nx) + 0.5) * self.spacing_mm
-        self.y_mm = self.y0_mm + (np.arange(ny) + 0.5) * self.spacing_mm
+        self.x_mm = self.x0_mm + (np.arange(nx, dtype=np.float64) + 0.5) * self.spacing_mm
+        self.y_mm = self.y0_mm + (np.arange(ny, dtype=np.float64) + 0.5) * self.spacing_mm
         self._ycol = self.y_mm[:, None]
         #: use the compiled kernel (planning.stock._numba) when numba is installed
         self.compiled = True
@@ -290,7 +292,8 @@ class ZMap:
     @property
     def shape(self) -> tuple[int, int]:
         """(ny, nx) grid points."""
-        return self.heights_mm.shape  # type: ignore[return-value]
+        ny, nx = self.heights_mm.shape
+        return ny, nx
 
     @property
     def extent_mm(self) -> tuple[float, float, float, float]:
@@ -335,8 +338,8 @@ class ZMap:
         Returns the heights of the footprint patch, ``-inf`` outside the footprint (shape of the
         patch); used for holder clearance checks.
         """
-        x0, y0, _ = (float(v) for v in start_mm)  # type: ignore[union-attr]
-        x1, y1, _ = (float(v) for v in end_mm)  # type: ignore[union-attr]
+        x0, y0, _ = (float(v) for v in np.asarray(start_mm, dtype=float))
+        x1, y1, _ = (float(v) for v in np.asarray(end_mm, dtype=float))
         i0, i1, j0, j1 = self._patch(
             min(x0, x1) - radius_mm, max(x0, x1) + radius_mm,
             min(y0, y1) - radius_mm, max(y0, y1) + radius_mm,
@@ -382,7 +385,8 @@ class ZMap:
         )
         n = len(np.asarray(starts_mm).reshape(-1, 3))
         removed = self.cut_pieces(cutter, p0, p1, progress)
-        per_move = np.bincount(move, weights=removed, minlength=n)
+        # float with weights (numpy's stubs say int); no copy
+        per_move = np.bincount(move, weights=removed, minlength=n).astype(np.float64, copy=False)
         return PathCut(move, p0, p1, removed, per_move)
 
     def cut_pieces(
@@ -392,7 +396,7 @@ class ZMap:
         ends_mm: NDArray[np.float64],
         progress: Callable[[int], None] | None = None,
         depth_mm: NDArray[np.float64] | None = None,
-        arcs: NDArray[np.float64] | None = None,
+        arcs: NDArray[np.float32] | None = None,
     ) -> NDArray[np.float64]:
         """Cut linear moves in order as given (no splitting); removed volume per move, mm^3.
 
@@ -412,14 +416,14 @@ class ZMap:
             arcs = None
         if self.compiled and _numba.AVAILABLE and len(p0):
             pts = np.ascontiguousarray(np.concatenate([p0, p1], axis=1))
-            drop = np.zeros(len(p0)) if depth_mm is None else depth_mm
+            drops = np.zeros(len(p0)) if depth_mm is None else depth_mm
             arcs_out = np.zeros((0, 3 * _numba.MAX_ARCS), np.float32) if arcs is None else arcs
             step = 16384 if progress is not None else len(p0)
             for a in range(0, len(p0), step):
                 b = min(a + step, len(p0))
                 _numba.cut_pieces(
                     self.heights_mm, self.x0_mm, self.y0_mm, self.spacing_mm, self.bottom_mm,
-                    kind, float(r), float(rc), pts[a:b], removed[a:b], drop[a:b], arcs_out[a:b],
+                    kind, float(r), float(rc), pts[a:b], removed[a:b], drops[a:b], arcs_out[a:b],
                 )  # fmt: skip
                 if progress is not None:
                     progress(b)
@@ -433,7 +437,7 @@ class ZMap:
                 arc(self.heights_mm, self.x0_mm, self.y0_mm, self.spacing_mm,
                     x0, y0, z0, x1, y1, z1, r, rc, arcs[k])  # fmt: skip
             removed[k], drop = cut_one(kind, r, rc, x0, y0, z0, x1, y1, z1, track)
-            if track:
+            if depth_mm is not None:
                 depth_mm[k] = drop
             if progress is not None and k % 4096 == 4095:
                 progress(k + 1)

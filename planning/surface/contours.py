@@ -20,14 +20,20 @@ the contour, exact on the surface to ``tolerance_mm`` (xy chord deviation, check
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, cast
 
 import contourpy
 import numpy as np
+import numpy.typing as npt
 import shapely
 from shapely.geometry import MultiPolygon, Polygon
+from shapely.geometry.base import BaseGeometry
 from shapely.geometry.polygon import orient
 
 from planning.errors import PlanningError
+
+if TYPE_CHECKING:
+    import contourpy._contourpy as cpy
 from planning.surface.ferguson import FergusonSurface
 
 _NEWTON_STEPS = 12
@@ -50,7 +56,7 @@ class Section:
     tolerance_mm: float
 
     @property
-    def loops(self) -> list[np.ndarray]:
+    def loops(self) -> list[npt.NDArray[np.float64]]:
         """Every contour loop as an (n, 2) array, closed (first point repeated), oriented."""
         out = []
         for poly in self.region.geoms:
@@ -65,12 +71,12 @@ class Section:
 
 def _project(
     surface: FergusonSurface,
-    s: np.ndarray,
-    t: np.ndarray,
+    s: npt.NDArray[np.float64],
+    t: npt.NDArray[np.float64],
     level: float,
-    lock_s: np.ndarray,
-    lock_t: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
+    lock_s: npt.NDArray[np.bool_],
+    lock_t: npt.NDArray[np.bool_],
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """Newton steps in (s, t) onto z(s, t) = level; locked coordinates stay on the surface edge."""
     s, t = s.copy(), t.copy()
     for _ in range(_NEWTON_STEPS):
@@ -90,17 +96,24 @@ def _project(
     return s, t
 
 
-def _seg_dist(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def _seg_dist(
+    p: npt.NDArray[np.float64], a: npt.NDArray[np.float64], b: npt.NDArray[np.float64]
+) -> npt.NDArray[np.float64]:
     """Distance of points p from segments a-b, all (n, 2)."""
     ab = b - a
     L2 = np.sum(ab * ab, 1)
     w = np.clip(np.sum((p - a) * ab, 1) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
-    return np.linalg.norm(p - (a + w[:, None] * ab), axis=1)
+    dist: npt.NDArray[np.float64] = np.linalg.norm(p - (a + w[:, None] * ab), axis=1)
+    return dist
 
 
 def _refine_ring(
-    surface: FergusonSurface, st: np.ndarray, level: float, tol: float, z_node: np.ndarray
-) -> np.ndarray:
+    surface: FergusonSurface,
+    st: npt.NDArray[np.float64],
+    level: float,
+    tol: float,
+    z_node: npt.NDArray[np.float64],
+) -> npt.NDArray[np.float64]:
     """One traced ring (param coords, (n, 2), not closed) -> exact xy ring, (m, 2)."""
     eps = 1e-9
     smax, tmax = surface.s_max, surface.t_max
@@ -137,7 +150,7 @@ def _refine_ring(
     return surface.evaluate(s, t)[:, :2]
 
 
-def _dedupe(ring: np.ndarray) -> np.ndarray:
+def _dedupe(ring: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
     """Drop repeated consecutive vertices and the closing repeat of a traced ring."""
     keep = np.ones(len(ring), bool)
     keep[1:] = np.any(np.abs(np.diff(ring, axis=0)) > 1e-12, axis=1)
@@ -171,7 +184,7 @@ class SectionMaker:
         self.z_min_mm = float(self._z.min())
         self.z_max_mm = float(self._z.max())
 
-    def _z_at_nodes(self, st: np.ndarray) -> np.ndarray:
+    def _z_at_nodes(self, st: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """Net heights at traced vertices that sit on net nodes (else -inf)."""
         ds = self._s_axis[1] - self._s_axis[0]
         dt = self._t_axis[1] - self._t_axis[0]
@@ -190,7 +203,9 @@ class SectionMaker:
         polys: list[Polygon] = []
         if level < self.z_max_mm:
             upper = self.z_max_mm + 1.0
-            all_pts, all_offs = self._gen.filled(level, upper)
+            # fill_type "OuterOffset" (the generator above): points and offsets per polygon
+            filled = cast("cpy.FillReturn_OuterOffset", self._gen.filled(level, upper))
+            all_pts, all_offs = filled
             for pts, offs in zip(all_pts, all_offs):
                 rings = []
                 for a, b in zip(offs[:-1], offs[1:]):
@@ -203,7 +218,7 @@ class SectionMaker:
                     rings.append(xy)
                 if not rings:
                     continue
-                poly = Polygon(rings[0], rings[1:])
+                poly: BaseGeometry = Polygon(rings[0], rings[1:])
                 if not poly.is_valid:
                     poly = shapely.make_valid(poly)
                 polys.extend(_polygons(poly))
@@ -211,7 +226,7 @@ class SectionMaker:
         return Section(level, as_multipolygon(region, sign=1.0), self.tolerance_mm)
 
 
-def _polygons(geom) -> list[Polygon]:
+def _polygons(geom: BaseGeometry) -> list[Polygon]:
     """The polygonal parts of any shapely geometry."""
     if isinstance(geom, Polygon):
         return [geom] if not geom.is_empty else []
@@ -220,7 +235,7 @@ def _polygons(geom) -> list[Polygon]:
     return []
 
 
-def as_multipolygon(geom, sign: float = 1.0) -> MultiPolygon:
+def as_multipolygon(geom: BaseGeometry, sign: float = 1.0) -> MultiPolygon:
     """A MultiPolygon with every part oriented (sign +1: exterior CCW, holes CW)."""
     return MultiPolygon([orient(p, sign=sign) for p in _polygons(geom) if p.area > 0])
 

@@ -26,14 +26,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
+import numpy.typing as npt
 from scipy.interpolate import CubicSpline
 
 from planning.errors import PlanningError
 
 # Hermite basis as a matrix: H(u) = M @ [1, u, u^2, u^3]. Rows: h0 (P0), h1 (P1), h2 (T0), h3 (T1).
-_M = np.array(
+_M: npt.NDArray[np.float64] = np.array(
     [
         [1.0, 0.0, -3.0, 2.0],
         [0.0, 0.0, 3.0, -2.0],
@@ -43,7 +45,7 @@ _M = np.array(
 )
 
 
-def _basis(u: np.ndarray, order: int) -> np.ndarray:
+def _basis(u: npt.NDArray[np.float64], order: int) -> npt.NDArray[np.float64]:
     """Hermite basis values (order 0) or derivatives (1, 2) at ``u``; shape (n, 4)."""
     one, zero = np.ones_like(u), np.zeros_like(u)
     if order == 0:
@@ -55,16 +57,17 @@ def _basis(u: np.ndarray, order: int) -> np.ndarray:
     return mono @ _M.T
 
 
-def _spline_derivative(values: np.ndarray, axis: int) -> np.ndarray:
+def _spline_derivative(values: npt.NDArray[np.float64], axis: int) -> npt.NDArray[np.float64]:
     """d/d(index) of a not-a-knot cubic spline through ``values`` along ``axis`` (2: chord)."""
     n = values.shape[axis]
     if n == 2:
         d = np.diff(values, axis=axis)
         return np.concatenate([d, d], axis=axis)
-    bc = "not-a-knot" if n > 3 else "natural"
-    return CubicSpline(np.arange(n, dtype=float), values, axis=axis, bc_type=bc)(
-        np.arange(n, dtype=float), 1
-    )
+    bc: Literal["not-a-knot", "natural"] = "not-a-knot" if n > 3 else "natural"
+    slope: npt.NDArray[np.float64] = CubicSpline(
+        np.arange(n, dtype=float), values, axis=axis, bc_type=bc
+    )(np.arange(n, dtype=float), 1)
+    return slope
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,15 +82,17 @@ class FergusonSurface:
     up : float — +1 or -1, the sign making ``up * (r_u x r_v)`` point to +z.
     """
 
-    points: np.ndarray
-    r_u: np.ndarray
-    r_v: np.ndarray
-    r_uv: np.ndarray
+    points: npt.NDArray[np.float64]
+    r_u: npt.NDArray[np.float64]
+    r_v: npt.NDArray[np.float64]
+    r_uv: npt.NDArray[np.float64]
     up: float = 1.0
 
     # -------------------------------------------------------------------------------- building
     @classmethod
-    def from_points(cls, points: np.ndarray, *, where: str = "surface grid") -> FergusonSurface:
+    def from_points(
+        cls, points: npt.NDArray[np.float64], *, where: str = "surface grid"
+    ) -> FergusonSurface:
         """Fit the composite surface through a grid of points, shape (nu, nv, 3), mm.
 
         Raises PlanningError for a grid that is too small, holds NaN/inf, or folds over itself
@@ -114,7 +119,12 @@ class FergusonSurface:
 
     @classmethod
     def from_height_field(
-        cls, x_mm: np.ndarray, y_mm: np.ndarray, z_mm: np.ndarray, *, where: str = "height field"
+        cls,
+        x_mm: npt.NDArray[np.float64],
+        y_mm: npt.NDArray[np.float64],
+        z_mm: npt.NDArray[np.float64],
+        *,
+        where: str = "height field",
     ) -> FergusonSurface:
         """Surface through heights ``z_mm[i, j]`` at ``(x_mm[i], y_mm[j])``; x, y increasing."""
         x, y, z = (np.asarray(a, dtype=float) for a in (x_mm, y_mm, z_mm))
@@ -191,11 +201,11 @@ class FergusonSurface:
     # ------------------------------------------------------------------------------ properties
     @property
     def nu(self) -> int:
-        return self.points.shape[0]
+        return int(self.points.shape[0])
 
     @property
     def nv(self) -> int:
-        return self.points.shape[1]
+        return int(self.points.shape[1])
 
     @property
     def s_max(self) -> float:
@@ -205,14 +215,16 @@ class FergusonSurface:
     def t_max(self) -> float:
         return float(self.nv - 1)
 
-    def param_grid(self, per_patch: int) -> tuple[np.ndarray, np.ndarray]:
+    def param_grid(self, per_patch: int) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """Global parameters of a dense net, ``per_patch`` steps per patch; shapes (m_u, m_v)."""
         su = np.linspace(0.0, self.s_max, (self.nu - 1) * per_patch + 1)
         tv = np.linspace(0.0, self.t_max, (self.nv - 1) * per_patch + 1)
         return np.meshgrid(su, tv, indexing="ij")
 
     # ------------------------------------------------------------------------------ evaluation
-    def _gather(self, s: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _gather(
+        self, s: npt.NDArray[np.float64], t: npt.NDArray[np.float64]
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """Hermite geometry matrices G, shape (n, 4, 4, 3), and local u, v for global s, t."""
         s = np.clip(np.asarray(s, dtype=float), 0.0, self.s_max)
         t = np.clip(np.asarray(t, dtype=float), 0.0, self.t_max)
@@ -232,12 +244,17 @@ class FergusonSurface:
         )
         return G, u, v
 
-    def evaluate(self, s: np.ndarray, t: np.ndarray) -> np.ndarray:
+    def evaluate(
+        self, s: npt.NDArray[np.float64], t: npt.NDArray[np.float64]
+    ) -> npt.NDArray[np.float64]:
         """Points r(s, t), shape (n, 3) mm, for global parameters of shape (n,)."""
         G, u, v = self._gather(np.ravel(s), np.ravel(t))
-        return np.einsum("na,nabk,nb->nk", _basis(u, 0), G, _basis(v, 0))
+        r: npt.NDArray[np.float64] = np.einsum("na,nabk,nb->nk", _basis(u, 0), G, _basis(v, 0))
+        return r
 
-    def derivatives(self, s: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, ...]:
+    def derivatives(
+        self, s: npt.NDArray[np.float64], t: npt.NDArray[np.float64]
+    ) -> tuple[npt.NDArray[np.float64], ...]:
         """(r, r_s, r_t), each shape (n, 3): point and first derivatives (mm per unit parameter)."""
         G, u, v = self._gather(np.ravel(s), np.ravel(t))
         bu0, bu1, bv0, bv1 = _basis(u, 0), _basis(u, 1), _basis(v, 0), _basis(v, 1)
@@ -246,16 +263,19 @@ class FergusonSurface:
         rt = np.einsum("na,nabk,nb->nk", bu0, G, bv1)
         return r, rs, rt
 
-    def normals(self, s: np.ndarray, t: np.ndarray) -> np.ndarray:
+    def normals(
+        self, s: npt.NDArray[np.float64], t: npt.NDArray[np.float64]
+    ) -> npt.NDArray[np.float64]:
         """Unit normals n = (s x t) / |s x t| (seed 000 2.2), turned to point up; shape (n, 3)."""
         _, rs, rt = self.derivatives(s, t)
         n = np.cross(rs, rt) * self.up
         norm = np.linalg.norm(n, axis=1, keepdims=True)
         if np.any(norm == 0):
             raise PlanningError("surface normal undefined: degenerate tangents (|s x t| = 0)")
-        return n / norm
+        unit: npt.NDArray[np.float64] = n / norm
+        return unit
 
-    def grid_normals(self) -> np.ndarray:
+    def grid_normals(self) -> npt.NDArray[np.float64]:
         """Unit normals at the grid points, shape (nu, nv, 3)."""
         gs, gt = np.meshgrid(np.arange(self.nu, dtype=float), np.arange(self.nv, dtype=float))
         n = self.normals(gs.T.ravel(), gt.T.ravel())
@@ -273,7 +293,7 @@ class FergusonSurface:
         moved = self.points + distance_mm * self.grid_normals()
         return FergusonSurface.from_points(moved, where=f"offset surface (d = {distance_mm} mm)")
 
-    def sample(self, per_patch: int) -> tuple[np.ndarray, np.ndarray]:
+    def sample(self, per_patch: int) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """Dense points and unit normals, shapes (m_u, m_v, 3) each."""
         s, t = self.param_grid(per_patch)
         _, rs, rt = self.derivatives(s.ravel(), t.ravel())
@@ -282,7 +302,9 @@ class FergusonSurface:
         n /= np.linalg.norm(n, axis=1, keepdims=True)
         return r.reshape(*s.shape, 3), n.reshape(*s.shape, 3)
 
-    def locate(self, x_mm: np.ndarray, y_mm: np.ndarray, iterations: int = 10) -> np.ndarray:
+    def locate(
+        self, x_mm: npt.NDArray[np.float64], y_mm: npt.NDArray[np.float64], iterations: int = 10
+    ) -> npt.NDArray[np.float64]:
         """Global parameters (n, 2) of the surface points above (x, y); NaN off the surface.
 
         Newton steps on the xy map from the nearest point of a dense net (a KD-tree); the xy map
@@ -294,6 +316,7 @@ class FergusonSurface:
             s, t = self.param_grid(4)
             p = self.evaluate(s.ravel(), t.ravel())
             object.__setattr__(self, "_net", (cKDTree(p[:, :2]), s.ravel(), t.ravel()))
+        # attr-defined: _net is cached on the frozen instance just above, on first use
         tree, ns, nt = self._net  # type: ignore[attr-defined]
         q = np.stack([np.ravel(x_mm), np.ravel(y_mm)], 1).astype(float)
         _, i = tree.query(q)
@@ -312,7 +335,9 @@ class FergusonSurface:
         st[off] = np.nan
         return st
 
-    def height_at(self, x_mm: np.ndarray, y_mm: np.ndarray) -> np.ndarray:
+    def height_at(
+        self, x_mm: npt.NDArray[np.float64], y_mm: npt.NDArray[np.float64]
+    ) -> npt.NDArray[np.float64]:
         """z of the surface above each (x, y), mm, same shape as x; NaN off the surface."""
         st = self.locate(x_mm, y_mm)
         ok = np.isfinite(st[:, 0])

@@ -18,7 +18,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from splipy import BSplineBasis, Surface
+import numpy.typing as npt
+from splipy.basis import BSplineBasis
+from splipy.surface import Surface
 
 from planning.errors import PlanningError
 
@@ -34,15 +36,15 @@ class SurfacePoints:
     :meth:`NurbsSurface.normal_curvature`.
     """
 
-    u: np.ndarray
-    v: np.ndarray
-    point: np.ndarray
-    su: np.ndarray
-    sv: np.ndarray
-    suu: np.ndarray
-    suv: np.ndarray
-    svv: np.ndarray
-    normal: np.ndarray
+    u: npt.NDArray[np.float64]
+    v: npt.NDArray[np.float64]
+    point: npt.NDArray[np.float64]
+    su: npt.NDArray[np.float64]
+    sv: npt.NDArray[np.float64]
+    suu: npt.NDArray[np.float64]
+    suv: npt.NDArray[np.float64]
+    svv: npt.NDArray[np.float64]
+    normal: npt.NDArray[np.float64]
 
 
 class NurbsSurface:
@@ -61,10 +63,10 @@ class NurbsSurface:
     def __init__(
         self,
         degree: tuple[int, int],
-        knots_u: np.ndarray,
-        knots_v: np.ndarray,
-        control_points_mm: np.ndarray,
-        weights: np.ndarray | None = None,
+        knots_u: npt.NDArray[np.float64],
+        knots_v: npt.NDArray[np.float64],
+        control_points_mm: npt.NDArray[np.float64],
+        weights: npt.NDArray[np.float64] | None = None,
         orientation: int = 1,
         name: str = "surface",
     ) -> None:
@@ -99,17 +101,24 @@ class NurbsSurface:
         self.control_points_mm = cp
 
     # ------------------------------------------------------------------------------------------
-    def _clip(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _clip(
+        self, u: npt.NDArray[np.float64], v: npt.NDArray[np.float64]
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         u = np.clip(np.atleast_1d(np.asarray(u, float)), *self.u_range)
         v = np.clip(np.atleast_1d(np.asarray(v, float)), *self.v_range)
-        return np.broadcast_arrays(u, v)
+        u_b, v_b = np.broadcast_arrays(u, v)
+        return u_b, v_b
 
-    def _h(self, u: np.ndarray, v: np.ndarray, d: tuple[int, int]) -> np.ndarray:
+    def _h(
+        self, u: npt.NDArray[np.float64], v: npt.NDArray[np.float64], d: tuple[int, int]
+    ) -> npt.NDArray[np.float64]:
         if d == (0, 0):
             return np.asarray(self._hom(u, v, tensor=False)).reshape(-1, 4)
         return np.asarray(self._hom.derivative(u, v, d=d, tensor=False)).reshape(-1, 4)
 
-    def evaluate(self, u: np.ndarray, v: np.ndarray, normals: bool = True) -> SurfacePoints:
+    def evaluate(
+        self, u: npt.NDArray[np.float64], v: npt.NDArray[np.float64], normals: bool = True
+    ) -> SurfacePoints:
         """Points and derivatives up to second order at paired parameters (shape (n,) each).
 
         Raises PlanningError naming the first point whose normal is degenerate
@@ -144,14 +153,18 @@ class NurbsSurface:
             nrm = self.orientation * c / length[:, None]
         return SurfacePoints(u, v, S, Su, Sv, Suu, Suv, Svv, nrm)
 
-    def points(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    def points(
+        self, u: npt.NDArray[np.float64], v: npt.NDArray[np.float64]
+    ) -> npt.NDArray[np.float64]:
         """Positions at paired parameters, shape (n, 3), mm."""
         u, v = self._clip(u, v)
         A = self._h(u.ravel(), v.ravel(), (0, 0))
         return A[:, :3] / A[:, 3:]
 
     @staticmethod
-    def normal_curvature(sp: SurfacePoints, direction: np.ndarray) -> np.ndarray:
+    def normal_curvature(
+        sp: SurfacePoints, direction: npt.NDArray[np.float64]
+    ) -> npt.NDArray[np.float64]:
         """Normal curvature (1/mm) along tangent ``direction`` (shape (n, 3), need not be unit).
 
         The direction is projected on the tangent plane and written as ``t = S_u du + S_v dv``
@@ -168,10 +181,11 @@ class NurbsSurface:
         dv = (E * b - F * a) / det
         first = E * du * du + 2 * F * du * dv + G * dv * dv
         second = L * du * du + 2 * M * du * dv + N * dv * dv
-        return second / first
+        kappa: npt.NDArray[np.float64] = second / first
+        return kappa
 
     # ------------------------------------------------------------------------------------------
-    def grid(self, n_u: int, n_v: int) -> tuple[np.ndarray, np.ndarray]:
+    def grid(self, n_u: int, n_v: int) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """Parameter grid (n_u, n_v) covering the surface, each array shape (n_u * n_v,)."""
         uu = np.linspace(*self.u_range, n_u)
         vv = np.linspace(*self.v_range, n_v)
@@ -186,7 +200,9 @@ class NurbsSurface:
         lv = np.linalg.norm(np.diff(P, axis=1), axis=2).sum(1).max()
         return float(lu), float(lv)
 
-    def triangulate(self, spacing_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    def triangulate(
+        self, spacing_mm: float
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """A triangle mesh with edges about ``spacing_mm`` long.
 
         Returns vertices (m, 3) mm, all exactly on the surface, and faces (k, 3) int.
@@ -206,7 +222,7 @@ class NurbsSurface:
 
     def iso_path(
         self, along: str, fixed: float, n_points: int, span: tuple[float, float] = (0.0, 1.0)
-    ) -> tuple[np.ndarray, np.ndarray]:
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """CC points along one iso-parameter line (the seed's CC paths).
 
         ``along`` "u": v = ``fixed`` and u runs over ``span`` (fractions of the u range);
@@ -222,7 +238,7 @@ class NurbsSurface:
         raise PlanningError(f"path direction along = {along!r}: expected 'u' or 'v'")
 
 
-def clamped_uniform_knots(n_ctrl: int, degree: int) -> np.ndarray:
+def clamped_uniform_knots(n_ctrl: int, degree: int) -> npt.NDArray[np.float64]:
     """Open uniform knot vector on [0, 1] for ``n_ctrl`` control points of ``degree``."""
     inner = np.linspace(0.0, 1.0, n_ctrl - degree + 1)
     return np.concatenate([np.zeros(degree), inner, np.ones(degree)])

@@ -37,7 +37,7 @@ class LobeCut:
 
 def lobe_cut(campaign: Any, test: Any) -> LobeCut | str:
     """``test``'s cut in ``campaign`` for the lobes, or why there are none (one line)."""
-    from analysis.config import EndMill
+    from analysis.forces import ENDMILL
 
     tool = getattr(campaign, "tool", None)
     spec = getattr(campaign, "spec", None)
@@ -48,7 +48,7 @@ def lobe_cut(campaign: Any, test: Any) -> LobeCut | str:
     coef = getattr(getattr(campaign, "material", None), "endmill", None)
     if not modes:
         return f"{NO_LOBES}: the tool has no modes ([[tools.NAME.modes]] or [[sim.tool_modes]])"
-    if not isinstance(tool, EndMill) or coef is None:
+    if not ENDMILL.describes(tool) or coef is None:
         return (f"{NO_LOBES}: lobes are computed for end mills with the material's end-mill "
                 "coefficients")  # fmt: skip
     width = float(test.width_mm) if math.isfinite(test.width_mm) else float(tool.diameter_mm)

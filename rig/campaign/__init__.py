@@ -3,12 +3,11 @@ rig, the manifest of what was done.
 """
 
 from rig.campaign.config import load_campaign
+from rig.campaign.dryrun import dry_run, mode_warnings
 from rig.campaign.runner import (
     CampaignResult,
     campaign_folder,
     campaign_status,
-    dry_run,
-    mode_warnings,
     plan_campaign,
     run_campaign,
     run_status,

@@ -31,7 +31,6 @@ pause, overflow, interlock, ...) and the exit status with its reason.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import signal
 import sys
 import time
@@ -42,7 +41,7 @@ from typing import Any
 
 from analysis import __version__
 from analysis.config import FaceMill
-from analysis.errors import ConfigError, CutlabError
+from analysis.errors import ConfigError
 from analysis.runs import file as rf
 from rig.campaign.chatter_watch import ChatterWatchConfig
 from rig.campaign.config import Campaign, RunConditions, load_campaign
@@ -56,7 +55,7 @@ from rig.campaign.manifest import (
     start_fresh,
     utc_now,
 )
-from rig.campaign.programs import CutProgram, generate_program
+from rig.campaign.plan import PlannedRun, _dialect, plan_campaign
 from rig.campaign.run import RigSession, RunConfig, StopRequest, Suspenders, execute_run
 from rig.daq import Calibration
 from rig.errors import RigError
@@ -68,24 +67,11 @@ __all__ = [
     "RunRecord",
     "campaign_folder",
     "campaign_status",
-    "dry_run",
     "load_campaign",
     "plan_campaign",
     "run_campaign",
     "run_status",
 ]
-
-
-@dataclass(frozen=True)
-class PlannedRun:
-    """A test with its program, ready to run. ``expected_s``: machine time of the program, s."""
-
-    test: RunConditions
-    cut: CutProgram
-    program_text: str
-    file_stem: str
-    expected_s: float
-    sha256: str
 
 
 @dataclass(frozen=True)
@@ -157,71 +143,6 @@ def _note_interrupted(folder: Path, campaign: Campaign, rows: list[dict[str, Any
         entry = manifest.entry(r["name"])
         if entry and entry.get("status") == rf.STATUS_RUNNING:
             manifest.set(r["name"], status=rf.STATUS_INTERRUPTED, reason=r["reason"])
-
-
-def _dialect(campaign: Campaign) -> str:
-    if campaign.spec.campaign.rig == "sim" and campaign.spec.sim.protocol:
-        return campaign.spec.sim.protocol
-    return campaign.machine.dialect
-
-
-def _post_process(text: str, campaign: Campaign, test: RunConditions, cut: CutProgram) -> str:
-    """The feed post-processor (planning.feed.post, seed 001) over a generated program."""
-    from analysis.config import EndMill
-    from analysis.rules import load_rule
-    from rig.campaign.programs import campaign_rule, post_process_program
-
-    tool = campaign.tool
-    if not isinstance(tool, EndMill):
-        raise ConfigError(f"{campaign.path}: post-processed feeds need an end mill")
-    if test.rule == "campaign":
-        if campaign.spec.feed_rule is None:
-            raise ConfigError(
-                f"{campaign.path}: test {test.index}: rule = 'campaign' needs a [feed_rule] table"
-            )
-        rule = campaign_rule(campaign.spec, tool, f"{campaign.name}-rule")
-        piece = campaign.spec.feed_rule.min_piece_mm
-    else:
-        p = Path(test.rule or "")
-        rule = load_rule(p if p.is_absolute() else campaign.path.parent / p)
-        piece = 2.0
-    out, _ = post_process_program(cut, tool, rule, campaign.machine, piece)
-    return out
-
-
-def plan_campaign(campaign: Campaign) -> list[PlannedRun]:
-    """Generate and check every test's program; the problems of all of them are raised together
-    (one ConfigError, a line each) before anything runs."""
-    out, problems = [], []
-    dialect = _dialect(campaign)
-    for t in campaign.tests:
-        try:
-            out.append(_plan_one(campaign, t, dialect))
-        except CutlabError as exc:
-            where = f"{campaign.path}:{t.source_line}" if t.source_line else str(campaign.path)
-            problems += [f"{where}: test {t.index} ({t.name}): {line}"
-                         for line in str(exc).splitlines()]  # fmt: skip
-    if problems:
-        raise ConfigError("\n".join(dict.fromkeys(problems)))
-    return out
-
-
-def _plan_one(campaign: Campaign, t: RunConditions, dialect: str) -> PlannedRun:
-    from rig.dnc import program_from_text
-
-    cut = generate_program(campaign.spec.program, t, campaign.tool, dialect, t.name)
-    text = cut.text
-    if t.feed_mode == "post-processed":
-        text = _post_process(text, campaign, t, cut)
-    stem = f"{t.index:03d}-{t.name}"
-    program_from_text(text, f"{stem}.nc")
-    sha = hashlib.sha256(text.encode()).hexdigest()
-    return PlannedRun(t, cut, text, stem, _expected_seconds(cut, campaign), sha)
-
-
-def _expected_seconds(cut: CutProgram, campaign: Campaign) -> float:
-    plunge = (campaign.spec.program.safe_z_mm - cut.z_cut_mm) / min(cut.cut_feed_mm_min, 500.0)
-    return 60.0 * (plunge + abs(cut.x_end_mm - cut.x_start_mm) / cut.cut_feed_mm_min) + 1.0
 
 
 # ----------------------------------------------------------------------------------------------
@@ -351,22 +272,9 @@ def run_campaign(
     ``fresh``: move an earlier run of the campaign aside (``before-<utc>/``) and start over;
     ``force_resume``: resume although inputs changed (the change is recorded in the manifest).
     """
-    from rig.log import RunWriter, RunWriterError, free_space_problem
 
     plans = plan_campaign(campaign)
-    if campaign.spec.adaptive is not None:
-        from rig.adaptive.session import check_adaptive
-
-        check_adaptive(campaign)  # refused before anything runs
-    if campaign.spec.campaign.rig == "real" and session_factory is None:
-        from rig.campaign.real import check_hardware
-
-        _, problems = check_hardware(campaign)
-        if problems:
-            raise RigError(
-                f"{campaign.path}: rig = 'real' but the hardware is not ready:\n  "
-                + "\n  ".join(problems)
-            )
+    _check_ready(campaign, session_factory)
     folder = campaign_folder(campaign, out_root)
     (folder / "runs").mkdir(parents=True, exist_ok=True)
     (folder / "programs").mkdir(exist_ok=True)
@@ -409,60 +317,10 @@ def run_campaign(
                 continue
             if stopped or stop.event.is_set():
                 break
-            rest_s = 2 * campaign.spec.daq.rest_s + 10.0
-            problem = free_space_problem(folder / "runs", bytes_per_s * (plan.expected_s + rest_s))
-            if problem:
-                raise RigError(f"run {t.index} ({t.name}) not started: {problem}")
-            earlier = set_aside(path)
-            (folder / "programs" / f"{plan.file_stem}.nc").write_text(plan.program_text)
-            session = factory(campaign, plan, k)
-            if campaign.spec.adaptive is not None:  # GRBL overrides from the live force
-                from rig.adaptive.session import adaptive_session
-
-                session = adaptive_session(campaign, t, session, cal_sheet)
-            from rig.dnc import program_from_text
-
-            program = program_from_text(plan.program_text, f"{plan.file_stem}.nc", check_nc=False)
-            manifest.set(
-                t.name, index=t.index, group=t.group, file=str(path.relative_to(folder)),
-                status=rf.STATUS_RUNNING, reason="", started_utc=utc_now(),
-                earlier_attempt=str(earlier.name) if earlier else None,
-                conditions=t.as_dict(), program_sha256=plan.sha256,
-            )  # fmt: skip
-            writer = RunWriter(path, session.daq.info, cal_sheet, clock=session.clock)
-            try:
-                writer.set_conditions(_conditions(campaign, plan))
-                writer.set_rig(_rig_meta(campaign, session))
-                writer.set_program(plan.program_text, f"{plan.file_stem}.nc")
-                bar.set_postfix_str(t.name[:40])
-                outcome = execute_run(session, program, writer, cal_sheet,
-                                      _run_config(campaign, plan), stop,
-                                      _within_run(bar, t.name))  # fmt: skip
-                status, reason = outcome.status, outcome.reason
-            except BaseException as exc:
-                status, reason = rf.STATUS_FAIL, f"{type(exc).__name__}: {exc}"[:400]
-                with contextlib.suppress(RunWriterError):
-                    writer.close(status, reason)
-                manifest.set(t.name, status=status, reason=reason, ended_utc=utc_now())
-                raise
-            try:
-                writer.close(status, reason)
-            except RunWriterError as exc:  # the medium failed after the program ended
-                status, reason = rf.STATUS_FAIL, str(exc)
-            if writer.failure is not None and status == rf.STATUS_SUCCESS:
-                status, reason = rf.STATUS_FAIL, writer.failure
-            manifest.set(
-                t.name, status=status, reason=reason, ended_utc=utc_now(),
-                peak_force_n=outcome.peak_force_n, wall_s=round(outcome.wall_s, 3),
-            )  # fmt: skip
-            if writer.failure is not None and writer.failure.startswith(_NO_ROOM):
-                # no room for the next run either: stop here, in one line, files closed
-                raise RigError(f"run {t.index} ({t.name}) stopped: {writer.failure}; free some "
-                               "space and run the same command again to resume")  # fmt: skip
-            records.append(
-                RunRecord(t.index, t.name, t.group, str(path), status, reason, False,
-                          outcome.peak_force_n, outcome.wall_s)
-            )  # fmt: skip
+            rec = _run_one(campaign, plan, k, folder, manifest, factory, stop, cal_sheet, bar,
+                           bytes_per_s)  # fmt: skip
+            records.append(rec)
+            status, reason = rec.status, rec.reason
             bar.update(1)
             if status != rf.STATUS_SUCCESS:
                 bar.write(f"cutlab: run {t.index} {t.name}: {status}: {reason}", file=sys.stderr)
@@ -478,6 +336,87 @@ def run_campaign(
     return CampaignResult(
         campaign.name, folder, tuple(records), stopped, time.monotonic() - wall0, counts
     )
+
+
+def _check_ready(campaign: Campaign, session_factory: SessionFactory | None) -> None:
+    """Refuse before anything runs: an [adaptive] table the controller cannot serve, a real rig
+    whose hardware is not ready."""
+    if campaign.spec.adaptive is not None:
+        from rig.adaptive.session import check_adaptive
+
+        check_adaptive(campaign)  # refused before anything runs
+    if campaign.spec.campaign.rig == "real" and session_factory is None:
+        from rig.campaign.real import check_hardware
+
+        _, problems = check_hardware(campaign)
+        if problems:
+            raise RigError(
+                f"{campaign.path}: rig = 'real' but the hardware is not ready:\n  "
+                + "\n  ".join(problems)
+            )
+
+
+def _run_one(
+    campaign: Campaign, plan: PlannedRun, k: int, folder: Path, manifest: Manifest,
+    factory: SessionFactory, stop: StopRequest, cal_sheet: Calibration, bar: Any,
+    bytes_per_s: float,
+) -> RunRecord:  # fmt: skip
+    """Run test ``k`` of the plan into its run file, the manifest kept up to date."""
+    from rig.log import RunWriter, RunWriterError, free_space_problem
+
+    t = plan.test
+    path = folder / "runs" / f"{plan.file_stem}.h5"
+    rest_s = 2 * campaign.spec.daq.rest_s + 10.0
+    problem = free_space_problem(folder / "runs", bytes_per_s * (plan.expected_s + rest_s))
+    if problem:
+        raise RigError(f"run {t.index} ({t.name}) not started: {problem}")
+    earlier = set_aside(path)
+    (folder / "programs" / f"{plan.file_stem}.nc").write_text(plan.program_text)
+    session = factory(campaign, plan, k)
+    if campaign.spec.adaptive is not None:  # GRBL overrides from the live force
+        from rig.adaptive.session import adaptive_session
+
+        session = adaptive_session(campaign, t, session, cal_sheet)
+    from rig.dnc import program_from_text
+
+    program = program_from_text(plan.program_text, f"{plan.file_stem}.nc", check_nc=False)
+    manifest.set(
+        t.name, index=t.index, group=t.group, file=str(path.relative_to(folder)),
+        status=rf.STATUS_RUNNING, reason="", started_utc=utc_now(),
+        earlier_attempt=str(earlier.name) if earlier else None,
+        conditions=t.as_dict(), program_sha256=plan.sha256,
+    )  # fmt: skip
+    writer = RunWriter(path, session.daq.info, cal_sheet, clock=session.clock)
+    try:
+        writer.set_conditions(_conditions(campaign, plan))
+        writer.set_rig(_rig_meta(campaign, session))
+        writer.set_program(plan.program_text, f"{plan.file_stem}.nc")
+        bar.set_postfix_str(t.name[:40])
+        outcome = execute_run(session, program, writer, cal_sheet, _run_config(campaign, plan),
+                              stop, _within_run(bar, t.name))  # fmt: skip
+        status, reason = outcome.status, outcome.reason
+    except BaseException as exc:
+        status, reason = rf.STATUS_FAIL, f"{type(exc).__name__}: {exc}"[:400]
+        with contextlib.suppress(RunWriterError):
+            writer.close(status, reason)
+        manifest.set(t.name, status=status, reason=reason, ended_utc=utc_now())
+        raise
+    try:
+        writer.close(status, reason)
+    except RunWriterError as exc:  # the medium failed after the program ended
+        status, reason = rf.STATUS_FAIL, str(exc)
+    if writer.failure is not None and status == rf.STATUS_SUCCESS:
+        status, reason = rf.STATUS_FAIL, writer.failure
+    manifest.set(
+        t.name, status=status, reason=reason, ended_utc=utc_now(),
+        peak_force_n=outcome.peak_force_n, wall_s=round(outcome.wall_s, 3),
+    )  # fmt: skip
+    if writer.failure is not None and writer.failure.startswith(_NO_ROOM):
+        # no room for the next run either: stop here, in one line, files closed
+        raise RigError(f"run {t.index} ({t.name}) stopped: {writer.failure}; free some "
+                       "space and run the same command again to resume")  # fmt: skip
+    return RunRecord(t.index, t.name, t.group, str(path), status, reason, False,
+                     outcome.peak_force_n, outcome.wall_s)  # fmt: skip
 
 
 def tap_records(campaign: Campaign, folder: Path) -> dict[str, Path]:
@@ -547,64 +486,3 @@ def _within_run(bar: object, name: str) -> Callable[[int, int], None]:
 # ----------------------------------------------------------------------------------------------
 # Dry run
 # ----------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class DryRun:
-    campaign: str
-    rig: str
-    tests: int
-    programs_checked: int
-    expected_machine_s: float
-    hardware: list[str]
-    problems: list[str]
-    warnings: list[str] = field(default_factory=list)
-
-    @property
-    def ok(self) -> bool:
-        return not self.problems
-
-    def as_dict(self) -> dict[str, Any]:
-        """Every field, the expected machine time rounded to 0.1 s, and ``ok``."""
-        return asdict(self) | {"expected_machine_s": round(self.expected_machine_s, 1),
-                               "ok": self.ok}  # fmt: skip
-
-
-def dry_run(campaign: Campaign, out_root: str | Path | None = None) -> DryRun:
-    """Check what the campaign will use without cutting: every program (feed rules included),
-    the hardware (``rig = "real"``: the NI device, its rate limit, the serial port) and the room
-    on the disk for its runs. The config itself was checked by :func:`load_campaign`. Problems
-    are listed, not raised, so all of them are seen at once."""
-    from rig.log import free_space_problem
-
-    problems: list[str] = []
-    try:
-        plans = plan_campaign(campaign)
-    except ConfigError as exc:
-        plans, problems = [], str(exc).splitlines()
-    if campaign.spec.campaign.rig == "real":
-        from rig.campaign.real import check_hardware
-
-        hardware, missing = check_hardware(campaign)
-        problems += missing
-    else:
-        hardware = ["simulated rig: controller on a pseudo-terminal, simulated DAQ"]
-    rate_hz = campaign.spec.daq.rate_hz or campaign.rig.daq.rate_hz
-    per_s = rate_hz * len(campaign.rig.dynamometer.channels) * 8
-    need = sum(per_s * (p.expected_s + 2 * campaign.spec.daq.rest_s + 10.0) for p in plans)
-    space = free_space_problem(campaign_folder(campaign, out_root), need)
-    problems += [space] if space else []
-    n = len(campaign.tests)
-    return DryRun(
-        campaign.name, campaign.spec.campaign.rig, n, len(plans),
-        sum(p.expected_s for p in plans), hardware, problems, mode_warnings(campaign),
-    )  # fmt: skip
-
-
-def mode_warnings(campaign: Campaign) -> list[str]:
-    """Tooth-passing harmonics of the planned spindle speeds near a dynamometer mode (seed 003
-    3.2: the measured force would be amplified there)."""
-    from analysis.modal import tooth_passing_warnings
-
-    rpms = sorted({t.spindle_rpm for t in campaign.tests})
-    return tooth_passing_warnings(campaign.rig.dynamometer.modes, rpms, campaign.teeth)

@@ -21,7 +21,7 @@ PLAN_COMMANDS = ("plan_rough", "plan_feed", "plan_orient", "plan_check")
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from rig.cli._common import Parser
+    from rig.cli.common import Parser
 
     parser = Parser(
         prog="cutlab",
@@ -43,7 +43,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    from rig.cli._common import error_line, heartbeat_for
+    from rig.cli.common import error_line, heartbeat_for
 
     try:
         with heartbeat_for(args):  # a line every 5 s on stderr when it is not a terminal

@@ -25,12 +25,13 @@ from __future__ import annotations
 
 import argparse
 
-from rig.cli._common import count, image_file, number, positive
+from rig.cli.common import count, image_file, number, positive
+from rig.cli.options import json_option, rate_option, rig_option
 
 
 def _forces(args: argparse.Namespace) -> int:
     from analysis.identify import ImportOptions, fit_files
-    from rig.cli._common import Progress, print_json, print_table, status
+    from rig.cli.common import Progress, print_json, print_table, status
 
     pairs, table = _conditions_arg(args.conditions)
     opts = ImportOptions(axes=args.axes, table=table, pattern=args.conditions_pattern,
@@ -92,7 +93,7 @@ def _forces(args: argparse.Namespace) -> int:
 
 def _print_trust(out: dict) -> None:
     """How far an end-mill fit holds: per direction, per run, leave-one-out influence."""
-    from rig.cli._common import print_table
+    from rig.cli.common import print_table
 
     if out.get("by_direction"):
         over = f" over {out['by_direction_over']}" if out.get("by_direction_over") else ""
@@ -137,7 +138,7 @@ def _conditions_arg(items: list[str] | None) -> tuple[dict, str | None]:
     .toml, or any existing file)."""
     from pathlib import Path
 
-    from rig.cli._common import parse_conditions
+    from rig.cli.common import parse_conditions
 
     if (
         items
@@ -154,7 +155,7 @@ def _conditions_arg(items: list[str] | None) -> tuple[dict, str | None]:
 
 def _modal(args: argparse.Namespace) -> int:
     from analysis.modal import modal_file
-    from rig.cli._common import print_json, print_table, status
+    from rig.cli.common import print_json, print_table, status
 
     out = modal_file(
         args.file, args.hammer, rate_hz=args.rate, record_s=args.record_s,
@@ -206,15 +207,14 @@ def _register_forces(psub: argparse._SubParsersAction) -> None:
     f.add_argument("--model", choices=("facemill", "endmill"), default=None,
                    help="force model (default: from the tool's kind)")  # fmt: skip
     f.add_argument("--tool", default=None, help="tool name in configs/tools.toml")
-    f.add_argument("--rig", default=None, help="rig config (default configs/rig.toml)")
+    rig_option(f)
     f.add_argument(
         "--conditions", nargs="*", metavar="KEY=VALUE|TABLE",
         help="conditions applied over each run's own (file header or run file), key by key "
         "(spindle_rpm=600 depth_mm=2 mode=slot ...), or a table (.csv/.toml, one row per file: "
         "file,spindle_rpm,feed_mm_min|fz_mm,ap_mm,ae_mm[,teeth,tool,mode])",
     )  # fmt: skip
-    f.add_argument("--rate", type=positive("Hz", 10_000_000), default=None,
-                   help="Hz, for exports without a rate")  # fmt: skip
+    rate_option(f)
     add_import_options(f)
     f.add_argument(
         "--steady-tolerance", type=number("fraction", 0, 1, lo_open=True),
@@ -228,7 +228,7 @@ def _register_forces(psub: argparse._SubParsersAction) -> None:
     f.add_argument("--keep", action="store_true",
                    help="fit runs beyond the tool's limits too (max_chip_mm): by default they "
                    "are named and left out")  # fmt: skip
-    f.add_argument("--json", action="store_true", help="JSON on stdout")
+    json_option(f)
     f.set_defaults(func=_forces)
 
 
@@ -281,8 +281,7 @@ def _register_modal(psub: argparse._SubParsersAction) -> None:
         help="the columns of a file without a header row, in order, units in brackets: "
         "e.g. time[s],hammer[N],accel[m/s^2] (the rate from the time column, or --rate)",
     )  # fmt: skip
-    m.add_argument("--rate", type=positive("Hz", 10_000_000), default=None,
-                   help="Hz, for files without a rate")  # fmt: skip
+    rate_option(m, "files")
     m.add_argument("--record-s", type=positive("s", 3600), default=0.08,
                    help="s of record per hit (at least 0.01 s and 128 samples)")  # fmt: skip
     m.add_argument("--window-end", type=number("", 0, 1, lo_open=True), default=0.05,
@@ -296,7 +295,7 @@ def _register_modal(psub: argparse._SubParsersAction) -> None:
     m.add_argument("--rpm", type=positive("rpm", 1_000_000), nargs="*", default=None,
                    help="planned spindle speeds to check against the modes")  # fmt: skip
     m.add_argument("--teeth", type=count(1, 1000), default=1, help="teeth of the planned cutter")
-    m.add_argument("--rig", default=None, help="rig config (default configs/rig.toml)")
+    rig_option(m)
     m.add_argument("--plot", type=image_file, default=None, metavar="PNG",
                    help="write the FRF and coherence")  # fmt: skip
     m.add_argument("--stabilisation", type=image_file, default=None, metavar="PNG",
@@ -306,5 +305,5 @@ def _register_modal(psub: argparse._SubParsersAction) -> None:
         help="write the modes per direction (frequency, damping, modal stiffness and mass) for "
         "a stability calculation; .toml or .json",
     )  # fmt: skip
-    m.add_argument("--json", action="store_true", help="JSON on stdout")
+    json_option(m)
     m.set_defaults(func=_modal)

@@ -13,7 +13,7 @@ import argparse
 import contextlib
 from pathlib import Path
 
-from rig.cli._common import (
+from rig.cli.common import (
     add_catalog_options,
     error_line,
     print_json,

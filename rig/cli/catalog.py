@@ -23,7 +23,7 @@ import argparse
 
 def _index(args: argparse.Namespace) -> int:
     from analysis.catalog import update_index
-    from rig.cli._common import Progress, print_json, status
+    from rig.cli.common import Progress, print_json, status
 
     with Progress("indexing run files", "file", quiet=args.json) as bar:
         out = update_index(args.dirs, args.index, progress=bar)
@@ -42,7 +42,7 @@ def _query(args: argparse.Namespace) -> int:
     import sys
 
     from analysis.catalog import MAIN_COLUMNS, query_runs, records
-    from rig.cli._common import print_json, print_table
+    from rig.cli.common import print_json, print_table
 
     df = query_runs(args.expr, _where(args))
     if args.json:
@@ -58,7 +58,7 @@ def _query(args: argparse.Namespace) -> int:
 
 def _show(args: argparse.Namespace) -> int:
     from analysis.catalog import show_run
-    from rig.cli._common import print_json
+    from rig.cli.common import print_json
 
     row = show_run(args.run, _where(args))
     if args.json:

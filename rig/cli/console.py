@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 
-from rig.cli._common import count, nonnegative, status
+from rig.cli.common import count, nonnegative, status
 
 DEFAULT_PORT = 8765
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import argparse
 
-from rig.cli._common import (
+from rig.cli.common import (
     Progress,
     count,
     nonnegative,

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import argparse
 
-from rig.cli._common import image_file, nonnegative, positive
+from rig.cli.common import image_file, nonnegative
+from rig.cli.options import json_option, rate_option, rig_option
 
 
 def _is_run_file(path: str) -> bool:
@@ -23,7 +24,7 @@ def _is_run_file(path: str) -> bool:
 
 
 def _info(args: argparse.Namespace) -> int:
-    from rig.cli._common import print_json, print_table
+    from rig.cli.common import print_json, print_table
 
     if not _is_run_file(args.file):
         from analysis.runs.table import table_summary
@@ -69,7 +70,7 @@ def _info(args: argparse.Namespace) -> int:
 
 
 def _plot(args: argparse.Namespace) -> int:
-    from rig.cli._common import print_json, status
+    from rig.cli.common import print_json, status
 
     if _is_run_file(args.file):
         from analysis.runs import load_run, plot_run
@@ -92,8 +93,8 @@ def _plot(args: argparse.Namespace) -> int:
 
 def _import(args: argparse.Namespace) -> int:
     from analysis.identify import ImportOptions
-    from rig.cli._common import Progress, print_json, print_table, status
     from rig.cli.analyze import _conditions_arg
+    from rig.cli.common import Progress, print_json, print_table, status
     from rig.log import import_exports
 
     pairs, table = _conditions_arg(args.conditions)
@@ -131,9 +132,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     psub.required = True
     i = psub.add_parser("info", help="what a run file or a DynoWare/CSV export holds")
     i.add_argument("file", help="run file (.h5) or DynoWare/CSV export")
-    i.add_argument("--rate", type=positive("Hz", 10_000_000), default=None,
-                   help="Hz, for exports without a rate")
-    i.add_argument("--json", action="store_true", help="JSON on stdout")
+    rate_option(i)
+    json_option(i)
     i.set_defaults(func=_info)
     g = psub.add_parser("plot", help="force traces of a run file or an export as a PNG")
     g.add_argument("file", help="run file (.h5) or DynoWare/CSV export")
@@ -142,9 +142,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="s after the first sample")  # fmt: skip
     g.add_argument("--stop-s", type=nonnegative("s"), default=None,
                    help="s after the first sample")  # fmt: skip
-    g.add_argument("--rate", type=positive("Hz", 10_000_000), default=None,
-                   help="Hz, for exports without a rate")
-    g.add_argument("--json", action="store_true", help="JSON on stdout")
+    rate_option(g)
+    json_option(g)
     g.set_defaults(func=_plot)
     m = psub.add_parser("import", help="DynoWare/CSV exports into run files (.h5)")
     m.add_argument("files", nargs="+", help="DynoWare/CSV exports")
@@ -155,10 +154,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "feed_mm_min|fz_mm,ap_mm,ae_mm[,teeth,tool,mode]) or KEY=VALUE pairs for every file",
     )  # fmt: skip
     m.add_argument("--tool", default=None, help="tool name (configs/tools.toml or --tools)")
-    m.add_argument("--rate", type=positive("Hz", 10_000_000), default=None,
-                   help="Hz, for exports without a rate")
-    m.add_argument("--rig", default=None, help="rig config (default configs/rig.toml)")
+    rate_option(m)
+    rig_option(m)
     add_import_options(m)
     m.add_argument("--force", action="store_true", help="replace existing run files")
-    m.add_argument("--json", action="store_true", help="JSON on stdout")
+    json_option(m)
     m.set_defaults(func=_import)

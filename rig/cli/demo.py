@@ -44,7 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from rig.cli._common import print_json, print_table, status
+    from rig.cli.common import print_json, print_table, status
     from rig.report import run_demo
 
     out = args.out or ("out/demo-independent" if args.forces == "independent" else "out/demo")

@@ -6,7 +6,8 @@ from __future__ import annotations
 import argparse
 import contextlib
 
-from rig.cli._common import count, number, positive, print_json, status
+from rig.cli.common import count, number, positive, print_json, status
+from rig.cli.options import json_option, rig_option, serial_options
 
 
 def _refuse_adaptive(args: argparse.Namespace) -> None:
@@ -176,11 +177,7 @@ def _add_send(dsub: argparse._SubParsersAction) -> None:
         "overrides) and plunges at the program's plunge feed (--plunge-feed if it has none).",
     )  # fmt: skip
     s.add_argument("file", help="NC program")
-    s.add_argument("--port", help="port name or pyserial URL (default: the machine config's)")
-    s.add_argument("--protocol", required=True, help="fanuc or grbl")
-    s.add_argument("--machine", help="machine name or TOML (default ace-h63 / lab-grbl)")
-    s.add_argument("--baud", type=count(1, 4_000_000, "baud"), help="override serial.baudrate")
-    s.add_argument("--timeout", type=positive("s", 3600), help="override serial.timeout_s, s")
+    serial_options(s, "machine name or TOML (default ace-h63 / lab-grbl)", protocol=True)
     s.add_argument(
         "--start-block", type=count(0), default=0, help="restart at this block (0-based)"
     )
@@ -205,10 +202,10 @@ def _add_send(dsub: argparse._SubParsersAction) -> None:
                    help="--adaptive: resultant force that holds the feed, N")  # fmt: skip
     s.add_argument("--spindle-rpm", type=positive("rpm", 1e6),
                    help="--adaptive: the program's spindle speed, rpm")  # fmt: skip
-    s.add_argument("--rig", help="--adaptive: the DAQ's rig TOML (default configs/rig.toml)")
+    rig_option(s, "--adaptive: the DAQ's rig TOML (default configs/rig.toml)")
     s.add_argument("--record", help="write the block record to this CSV file")
     s.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
-    s.add_argument("--json", action="store_true", help="end with a JSON summary on stdout")
+    json_option(s, "end with a JSON summary on stdout")
     s.set_defaults(func=_send)
 
 
@@ -224,27 +221,19 @@ def register(sub: argparse._SubParsersAction) -> None:
         ("reset", "GRBL: clean soft reset (feed hold and Hold:0 first if it moves)"),
     ):
         g = dsub.add_parser(name, help=text)
-        g.add_argument("--port", help="port name or pyserial URL (default: the machine config's)")
-        g.add_argument("--machine", help="machine name or TOML (default lab-grbl)")
-        g.add_argument("--baud", type=count(1, 4_000_000, "baud"), help="override serial.baudrate")
-        g.add_argument("--timeout", type=positive("s", 3600), help="override serial.timeout_s, s")
-        g.add_argument("--json", action="store_true", help="a JSON reply on stdout")
+        serial_options(g, "machine name or TOML (default lab-grbl)")
+        json_option(g, "a JSON reply on stdout")
         g.set_defaults(func=_grbl)
     r = dsub.add_parser("serve", help="answer remote program requests from a Fanuc control")
-    r.add_argument("--port", help="port name or pyserial URL (default: the machine config's)")
-    r.add_argument("--machine", help="machine name or TOML (default ace-h63)")
+    serial_options(r, "machine name or TOML (default ace-h63)", baud_help=None, timeout=False)
     r.add_argument("--folder", help="program folder (default: serial.program_folder)")
     r.add_argument("--once", action="store_true", help="serve one request, then exit")
-    r.add_argument("--json", action="store_true", help="a JSON summary per request on stdout")
+    json_option(r, "a JSON summary per request on stdout")
     r.set_defaults(func=_serve)
     c = dsub.add_parser("sim-controller", help="run a simulated controller on a pseudo-terminal")
-    c.add_argument("--protocol", required=True, help="fanuc or grbl")
-    c.add_argument("--machine", help="machine name or TOML (default ace-h63 / lab-grbl)")
-    c.add_argument(
-        "--baud",
-        type=count(1, 4_000_000, "baud"),
-        help="emulated baud rate (default: the machine config's)",
-    )
+    serial_options(c, "machine name or TOML (default ace-h63 / lab-grbl)", port=False,
+                   protocol=True, baud_help="emulated baud rate (default: the machine config's)",
+                   timeout=False)  # fmt: skip
     c.add_argument(
         "--speed", type=positive("x real time", 1e6), default=1.0, help="simulated s per wall s"
     )
@@ -253,5 +242,5 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     knob = "fault knob, e.g. stop_answering_after_block=100, alarm_at_block=50,2"
     c.add_argument("--sim", action="append", default=[], metavar="KNOB=VALUE", help=knob)
-    c.add_argument("--json", action="store_true", help="end with a JSON summary on stdout")
+    json_option(c, "end with a JSON summary on stdout")
     c.set_defaults(func=_sim_controller)

@@ -19,8 +19,8 @@ from __future__ import annotations
 import argparse
 import sys
 
-from planning.nc import DIALECTS
-from rig.cli._common import Progress, image_file, print_json, print_table, status
+from rig.cli.common import Progress, image_file, print_json, print_table, status
+from rig.cli.options import dialect_option, json_option
 
 
 def _interpret(args: argparse.Namespace, *, warn: bool = True, keep_motion: bool = False):
@@ -122,9 +122,7 @@ def _add_parser(nsub, name: str, text: str, func) -> argparse.ArgumentParser:
     lenient_help = "report unknown codes as warnings instead of errors"
     p.add_argument("--lenient", action="store_true", help=lenient_help)
     if name != "check":  # check's --dialect also lists what the control would refuse
-        p.add_argument("--dialect", choices=DIALECTS, default=None,
-                       help="interpret as this controller does (default: the machine's, "
-                            "else fanuc)")  # fmt: skip
+        dialect_option(p, "interpret as this controller does (default: the machine's, else fanuc)")
     p.set_defaults(func=func)
     return p
 
@@ -136,14 +134,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     nsub.required = True
     p = _add_parser(nsub, "check", "parse + interpret; print lengths, time, bbox (or the error)",
                     _check)  # fmt: skip
-    p.add_argument("--json", action="store_true", help="machine-readable output")
-    p.add_argument("--dialect", choices=DIALECTS, default=None,
-                   help="interpret as this controller does (default: the machine's, else "
-                        "fanuc) and list what it would refuse (exit 2 if any)")  # fmt: skip
+    json_option(p, "machine-readable output")
+    dialect_option(p, "interpret as this controller does (default: the machine's, else fanuc) "
+                   "and list what it would refuse (exit 2 if any)")  # fmt: skip
     p = _add_parser(nsub, "motions", "one row per canonical motion segment", _motions)
     p.add_argument("--csv", action="store_true", help="CSV to stdout (or to -o)")
     p.add_argument("-o", "--output", default=None, help="write CSV to this file")
-    p.add_argument("--json", action="store_true", help="JSON records")
+    json_option(p, "JSON records")
     p = _add_parser(nsub, "plot", "PNG of the tool path (3-D and top views)", _plot)
     p.add_argument("-o", "--output", type=image_file, required=True, help="PNG path")
-    p.add_argument("--json", action="store_true", help="machine-readable output")
+    json_option(p, "machine-readable output")

@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import add_catalog_options, positive
+from rig.cli.common import add_catalog_options, positive
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -50,7 +50,7 @@ VERDICT_EXIT = {"within": 0, "violations": 3, "unchecked": 4}
 
 
 def print_violations(violations: list[dict], limit: int = 20) -> None:
-    from rig.cli._common import print_table
+    from rig.cli.common import print_table
 
     if not violations:
         return
@@ -74,7 +74,7 @@ def print_verdict(out: dict) -> None:
 
 
 def print_stock(stock: dict) -> None:
-    from rig.cli._common import status
+    from rig.cli.common import status
 
     if stock.get("source") == "derived":
         status(f"stock: {stock['spec']} (derived: {stock['how']})")
@@ -82,7 +82,7 @@ def print_stock(stock: dict) -> None:
 
 def run(a: argparse.Namespace) -> int:
     from planning.limits import check_job
-    from rig.cli._common import Progress, print_json, print_table, status
+    from rig.cli.common import Progress, print_json, print_table, status
 
     with Progress("simulate", unit="piece") as bar:
         _, out = check_job(

@@ -6,7 +6,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import add_catalog_options, image_file, positive
+from rig.cli.common import add_catalog_options, image_file, positive
+from rig.cli.options import WRITE_DIALECTS, dialect_option, rule_db_option
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -18,14 +19,14 @@ def register(sub: argparse._SubParsersAction) -> None:
         "2 bad input, or a program that removes nothing from its stock.",
     )  # fmt: skip
     f.add_argument("program", type=Path, help="NC program (G21 or G20)")
-    f.add_argument("--rules", required=True, help="rule file (TOML) or rule-base name / id; "
+    f.add_argument("--rules", help="rule file (TOML) or rule-base name / id; "
                    "T1=RULE,T2=RULE for a program that changes tools (a tool left out, e.g. a "
-                   "drill, keeps its feeds)")  # fmt: skip
-    f.add_argument("--db", type=Path, help="rule base for a name / id (default from lab.toml)")
+                   "drill, keeps its feeds); default: each tool's rule from the rule base by "
+                   "tool and --material (a tool it lacks keeps its feeds)")  # fmt: skip
+    rule_db_option(f, "rule base for a name / id (default from lab.toml)")
     _common(f)
     f.add_argument("-o", "--output", type=Path, required=True, help="adjusted program to write")
-    f.add_argument("--dialect", choices=("fanuc", "linuxcnc", "grbl"), default=None,
-                   help="controller to write for (default: the machine's)")  # fmt: skip
+    dialect_option(f, "controller to write for (default: the machine's)", WRITE_DIALECTS)
     f.add_argument("--report", type=Path, help="report folder (default: OUT's folder)")
     f.add_argument(
         "--min-piece", type=positive("mm", 1000), default=5.0, help="shortest split block, mm"
@@ -72,15 +73,17 @@ def _feed(a: argparse.Namespace) -> int:
     from analysis.config import load_machine
     from planning.errors import PlanningError
     from planning.feed import end_mill, feed_program
-    from rig.cli._common import Progress, print_json, print_table, status
+    from rig.cli.common import Progress, print_json, print_table, status
 
     step, cap = None, None
-    if a.material and a.tool and "=" in a.tool:
+    # no --rules with T1=A,T2=B: --material only finds each tool's rule in the rule base
+    lookup_only = a.rules is None and bool(a.tool) and "=" in a.tool
+    if a.material and a.tool and "=" in a.tool and not lookup_only:
         raise PlanningError(
             f"--material with --tool {a.tool}: the force and limit options work on a one-tool "
             "program; check the output per tool with `cutlab plan check OUT --tool T1=A,T2=B`"
         )
-    if a.material:  # the limits need the force coefficients
+    if a.material and not lookup_only:  # the limits need the force coefficients
         from planning.limits import coefficients, feed_limiter, limits_for
 
         tool = end_mill(a.tool)
@@ -96,8 +99,8 @@ def _feed(a: argparse.Namespace) -> int:
             stock_spec=a.stock, spacing_mm=a.spacing, report_dir=a.report, progress=bar,
             warn=status, min_piece_mm=a.min_piece, split=not a.no_split,
             check_holder=not a.no_holder_check, force_limit_n=a.force_limit,
-            material=a.material, spindle_rpm=a.spindle, dialect=a.dialect, limit_step=step,
-            feed_cap=cap,
+            material=None if lookup_only else a.material, spindle_rpm=a.spindle,
+            dialect=a.dialect, limit_step=step, feed_cap=cap, rules_material=a.material,
         )  # fmt: skip
     if a.json:
         s.setdefault("violations", [])  # the command contract: always a list
@@ -113,6 +116,10 @@ def _feed(a: argparse.Namespace) -> int:
         status("warning: " + c.message(str(a.program)))
     for n in s["notes"]:
         status("note: " + n)
+    for r in s.get("rule_lookup", ()):  # each tool's rule from the rule base (no --rules)
+        found = f"rule {r['rule']} (group {r['group']})" if r["rule"] else "no rule"
+        status(f"T{r['tool_number']} {r['tool']}: {found}" + (f": {r['reason']}"
+               if r.get("reason") else ""))  # fmt: skip
     rows = (("machining time (s)", "time_%s_s"), ("with acceleration (s)", "accel_time_%s_s"),
             ("max load x feed", "load_rate_max_%s"))  # fmt: skip
     print_table([{"": t, "before": s[k % "before"], "after": s[k % "after"]} for t, k in rows])
@@ -127,7 +134,7 @@ def _feed(a: argparse.Namespace) -> int:
 
 def _simulate(a: argparse.Namespace) -> int:
     from planning.feed import simulate_job
-    from rig.cli._common import Progress, print_json, print_table, status
+    from rig.cli.common import Progress, print_json, print_table, status
 
     with Progress("simulate", unit="piece") as bar:
         results, out = simulate_job(

@@ -13,7 +13,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import add_catalog_options, count
+from rig.cli.common import add_catalog_options, count
+from rig.cli.options import WRITE_DIALECTS, dialect_option
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -33,9 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "(default: the one that needed most energy evaluations)")  # fmt: skip
     p.add_argument("--no-plot", action="store_true",
                    help="skip both PNGs (energy map and orientation)")  # fmt: skip
-    p.add_argument("--dialect", choices=("fanuc", "linuxcnc", "grbl"), default=None,
-                   help="controller to write for (default: the machine's); grbl has no "
-                   "rotary axes and is refused")  # fmt: skip
+    dialect_option(p, "controller to write for (default: the machine's); grbl has no rotary axes "
+                   "and is refused", WRITE_DIALECTS)  # fmt: skip
     p.set_defaults(func=run)
     add_catalog_options(p)
 
@@ -47,7 +47,7 @@ def _show(v):
 
 def run(args: argparse.Namespace) -> int:
     from planning.orient import run_orient
-    from rig.cli._common import Progress, print_json, print_table, status
+    from rig.cli.common import Progress, print_json, print_table, status
 
     with Progress("orient", "pt") as bar:
 

@@ -16,7 +16,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import add_catalog_options, positive
+from rig.cli.common import add_catalog_options, positive
+from rig.cli.options import WRITE_DIALECTS, dialect_option
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,8 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "--method", choices=("bisection", "equal", "lee", "optimal"), default="bisection"
     )
     p.add_argument("-o", "--output", type=Path, required=True, help="NC program to write")
-    p.add_argument("--dialect", choices=("fanuc", "linuxcnc", "grbl"), default=None,
-                   help="controller to write for (default: the machine's)")  # fmt: skip
+    dialect_option(p, "controller to write for (default: the machine's)", WRITE_DIALECTS)
     p.add_argument("--machine", default=None, help="machine config name or path: its dialect "
                    "and tool changer (default: none, fanuc)")  # fmt: skip
     p.add_argument("--json", action="store_true", help="print everything as JSON")
@@ -63,7 +63,7 @@ LEVEL_COLUMNS = {"order": "order", "z_mm": "z_mm", "area_mm2": "area_mm2", "path
 def run(args: argparse.Namespace) -> int:
     from planning.limits import rough_limiter
     from planning.rough import run_rough
-    from rig.cli._common import Progress, print_json, print_table, status
+    from rig.cli.common import Progress, print_json, print_table, status
 
     with Progress("plan rough", "step") as bar:
 

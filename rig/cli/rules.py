@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import (
+from rig.cli.common import (
     add_catalog_options,
     count,
     image_file,
@@ -14,6 +14,7 @@ from rig.cli._common import (
     print_table,
     status,
 )
+from rig.cli.options import json_option, rule_db_option
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -76,29 +77,29 @@ def _register_base(rs: argparse._SubParsersAction) -> None:
     _key_args(a)
     a.add_argument("--note", default="")
     a.add_argument("--replace", action="store_true", help="replace the group's existing rule")
-    a.add_argument("--db", type=Path, help="rule base (default from configs/lab.toml)")
-    a.add_argument("--json", action="store_true")
+    rule_db_option(a, "rule base (default from configs/lab.toml)")
+    json_option(a, None)
     a.set_defaults(func=_add)
     ls = rs.add_parser("list", help="the machining groups in the rule base")
-    ls.add_argument("--db", type=Path)
-    ls.add_argument("--json", action="store_true")
+    rule_db_option(ls)
+    json_option(ls, None)
     ls.set_defaults(func=_list)
     sh = rs.add_parser("show", help="one rule: its bins (by rule name, group id or rule file)")
     sh.add_argument("rule", help="rule name or group id in the rule base, or a rule file")
-    sh.add_argument("--db", type=Path)
+    rule_db_option(sh)
     sh.add_argument("--png", type=image_file, help="plot load vs feed with the bins")
-    sh.add_argument("--json", action="store_true")
+    json_option(sh, None)
     sh.set_defaults(func=_show)
     lk = rs.add_parser("lookup", help="the rule for a job: exact key or nearest match (stated)")
     _key_args(lk)
     lk.add_argument("--exact", action="store_true", help="fail unless the key matches exactly")
-    lk.add_argument("--db", type=Path)
-    lk.add_argument("--json", action="store_true")
+    rule_db_option(lk)
+    json_option(lk, None)
     lk.set_defaults(func=_lookup)
     ex = rs.add_parser("export", help="write a stored rule to a file, exactly as stored")
     ex.add_argument("rule", help="rule name or group id")
     ex.add_argument("-o", "--output", type=Path, required=True)
-    ex.add_argument("--db", type=Path)
+    rule_db_option(ex)
     ex.set_defaults(func=_export)
 
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli._common import count, image_file, positive
+from rig.cli.common import count, image_file, positive
 
 
 def register_stability(psub: argparse._SubParsersAction) -> None:
@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
 
     from analysis.errors import AnalysisError
     from analysis.stability import load_case, plot_lobes, stability_lobes
-    from rig.cli._common import print_json, status
+    from rig.cli.common import print_json, status
 
     case = load_case(args.config)
     if args.max_depth is not None:

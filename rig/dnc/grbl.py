@@ -32,17 +32,8 @@ for a 29-byte line at 115200 baud, more in a USB adapter). Every ``?`` is noted 
 written before it; its report was made after those arrived (one byte stream, in order), so a
 report's ``Bf`` is compared with those bytes only, never with what is unanswered now.
 
-A lost or garbled ``ok`` (line noise) leaves the character count short forever. It is declared
-only from GRBL's own state, never from a count alone: Idle (or Hold:0, with Bf) with nothing in
-its planner while lines are unanswered, report after report for ``lost_ok_confirm_s`` (1 s) --
-at the end, with its receive buffer empty; mid-stream, with a line that had wholly reached it
-before the ``?`` unanswered and out of its buffer (Bf, ``$10=3``) or, without Bf, already run
-(the machine stands Idle at the end of its move: GRBL answers a line before it runs it). The
-stream then holds and resets (:meth:`~GrblStreamer.halt`) and stops (fault ``lost-ok``) naming
-the last block known executed. A report whose Bf makes a lost answer likely, or a line of noise,
-pauses sending: once every line sent is answered it goes on (nothing was lost); if neither that
-nor the fault comes within ``pause_timeout_s`` (10 s) the stream is halted (``timeout``) stating
-GRBL's state.
+A lost or garbled ``ok`` (line noise) leaves the character count short forever; it is declared
+only from GRBL's own state, never from a count alone (:mod:`rig.dnc.grbl_lost`).
 
 Overrides (:meth:`GrblStreamer.override`, :meth:`~GrblStreamer.feed_override_pct`,
 :meth:`~GrblStreamer.spindle_override_pct`, from any thread while a stream runs): one GRBL 1.1
@@ -53,10 +44,8 @@ they never enter its receive buffer), each recorded with its time (``override_lo
 ``override`` events). ``overrides`` is the last ``Ov:`` GRBL reported (it sends it in the report
 after a change, else every 10-20 reports).
 
-Every wait has a deadline: the handshake as a whole within ``timeout_s``; otherwise nothing that
-shows GRBL at work (an answer, a message, a status report that differs from the last or says
-Hold) for ``timeout_s`` is a ``timeout``: noise lines and a repeated report keep no wait alive.
-A dwell's time is allowed for.
+Every wait has a deadline: the handshake as a whole within ``timeout_s``; otherwise silence
+(:mod:`rig.dnc.grbl_receive`: nothing that shows GRBL at work) for ``timeout_s`` is a ``timeout``.
 
 Halting: :meth:`GrblStreamer.halt` sends feed hold ``!``, waits for ``Hold:0`` (the motion has
 stopped), then, with ``reset``, soft reset 0x18: GRBL ends Idle, without the ``ALARM:3`` a reset
@@ -72,191 +61,43 @@ GRBL answers nothing until a soft reset, ``cutlab dnc reset``, then ``cutlab dnc
 from __future__ import annotations
 
 import contextlib
-import queue
 import threading
 import time
-from collections import deque
-from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from analysis.config import SerialConfig
-from planning.nc.dialect import check_dialect, refused
-from planning.nc.grbl import (
-    GRBL_ERRORS,
-    GRBL_PLANNER_BLOCKS,
-    GrblParser,
-    grbl_alarm_text,
-    grbl_filter,
-    grbl_send_text,
-)
+from planning.nc.grbl import GRBL_ERRORS, GRBL_PLANNER_BLOCKS
 from rig.dnc._stream import Fault, Item, StreamerBase
 from rig.dnc.errors import DncError
 from rig.dnc.execution import ExecTracker, line_paths
+from rig.dnc.grbl_check import (  # noqa: F401 - check_line: importable from here
+    GRBL_RX_BUFFER_BYTES,
+    TRANSFORM,
+    check_line,
+    prepare_lines,
+)
+from rig.dnc.grbl_halt import (  # noqa: F401 - the real-time bytes, importable from here
+    CYCLE_START,
+    FEED_HOLD,
+    HANDSHAKE,
+    SOFT_RESET,
+    STATUS,
+    GrblControl,
+)
+from rig.dnc.grbl_lost import LostAnswers
+from rig.dnc.grbl_overrides import (  # noqa: F401 - override_bytes: importable from here
+    OVERRIDE_BYTES,
+    OverrideState,
+    override_bytes,
+)
+from rig.dnc.grbl_receive import GrblReceiver, is_answer
+from rig.dnc.grbl_status import GrblStatus, parse_status  # noqa: F401 - importable from here
+from rig.dnc.grbl_window import Window
 from rig.dnc.link import LinkLost, LinkTimeout, SerialLink
 from rig.dnc.program import Program
 from rig.dnc.record import BlockRow
 
-FEED_HOLD, CYCLE_START, STATUS, SOFT_RESET = b"!", b"~", b"?", b"\x18"
-#: GRBL 1.1 real-time override bytes (config.h CMD_*_OVR_*) and what each does
-OVERRIDE_BYTES = {
-    0x90: "feed 100 %", 0x91: "feed +10 %", 0x92: "feed -10 %", 0x93: "feed +1 %",
-    0x94: "feed -1 %", 0x95: "rapid 100 %", 0x96: "rapid 50 %", 0x97: "rapid 25 %",
-    0x99: "spindle 100 %", 0x9A: "spindle +10 %", 0x9B: "spindle -10 %", 0x9C: "spindle +1 %",
-    0x9D: "spindle -1 %",
-}  # fmt: skip
-#: config.h MIN/MAX_FEED_RATE_OVERRIDE and MIN/MAX_SPINDLE_SPEED_OVERRIDE, %
-FEED_OVR_RANGE_PCT = SPINDLE_OVR_RANGE_PCT = (10, 200)
-#: an Ov: report this long (wall s) after our last override byte shows all our bytes applied
-OVR_SETTLE_S = 0.25
-# (reset byte, {step: byte}, index in Ov:) per override
-_OVR_KEYS = {"feed": (0x90, {10: 0x91, -10: 0x92, 1: 0x93, -1: 0x94}, 0),
-             "spindle": (0x99, {10: 0x9A, -10: 0x9B, 1: 0x9C, -1: 0x9D}, 2)}  # fmt: skip
-HANDSHAKE = b"$G\n"  # what a stream sends first (see GrblStreamer._handshake)
 MODES = ("char-counting", "send-response")
-GRBL_RX_BUFFER_BYTES = 127  # of RX_BUFFER_SIZE 128: one byte of margin
-GRBL_LINE_CHARS = 79  # LINE_BUFFER_SIZE 80 incl. the terminating NUL
-TRANSFORM = "stripped comments, spaces, N words and lone O program numbers"
-SILENT_HINT = (
-    " (wrong port or baud rate? or GRBL is halted after a hard/soft limit alarm: it then answers "
-    "nothing until a soft reset, cutlab dnc reset)"
-)
-
-
-@dataclass(frozen=True)
-class GrblStatus:
-    """A parsed status report. Missing fields are None.
-
-    state : Idle, Run, Hold, Jog, Alarm, Door, Check, Home, Sleep; substate : the ``:n`` of
-    ``Hold:0`` / ``Door:1`` ("" if none); mpos_mm / wpos_mm : one of them per report ($10);
-    wco_mm : work coordinate offset (sent every 10-30 reports); planner_free, rx_free : Bf;
-    line : Ln; feed_mm_min, spindle_rpm : FS (or F); overrides : Ov (feed, rapid, spindle %);
-    pins : Pn letters; accessories : A letters
-    """
-
-    state: str
-    mpos_mm: tuple[float, float, float] | None = None
-    planner_free: int | None = None
-    rx_free: int | None = None
-    feed_mm_min: float | None = None
-    spindle_rpm: float | None = None
-    line: int | None = None
-    substate: str = ""
-    wpos_mm: tuple[float, float, float] | None = None
-    wco_mm: tuple[float, float, float] | None = None
-    overrides: tuple[int, ...] | None = None
-    pins: str = ""
-    accessories: str = ""
-
-    @property
-    def full_state(self) -> str:
-        return f"{self.state}:{self.substate}" if self.substate else self.state
-
-
-def _xyz(nums: list[str]) -> tuple[float, float, float]:
-    return (float(nums[0]), float(nums[1]), float(nums[2]))
-
-
-def parse_status(text: str) -> GrblStatus:
-    """``<Run|MPos:1.000,2.000,0.000|Bf:12,100|FS:600,10000|Ln:42>`` -> GrblStatus (report.c's
-    fields, any order; unknown fields are ignored)."""
-    body = text.strip().removeprefix("<").removesuffix(">")
-    parts = body.split("|")
-    if not parts or not parts[0]:
-        raise DncError(f"GRBL status report {text!r}: no state")
-    state, _, sub = parts[0].partition(":")
-    kw: dict = {"state": state, "substate": sub}
-    for p in parts[1:]:
-        key, _, val = p.partition(":")
-        nums = val.split(",")
-        try:
-            if key == "MPos" and len(nums) >= 3:
-                kw["mpos_mm"] = _xyz(nums)
-            elif key == "WPos" and len(nums) >= 3:
-                kw["wpos_mm"] = _xyz(nums)
-            elif key == "WCO" and len(nums) >= 3:
-                kw["wco_mm"] = _xyz(nums)
-            elif key == "Bf" and len(nums) == 2:
-                kw["planner_free"], kw["rx_free"] = int(nums[0]), int(nums[1])
-            elif key == "FS" and len(nums) == 2:
-                kw["feed_mm_min"], kw["spindle_rpm"] = float(nums[0]), float(nums[1])
-            elif key == "F" and len(nums) == 1:
-                kw["feed_mm_min"] = float(nums[0])
-            elif key == "Ln":
-                kw["line"] = int(val)
-            elif key == "Ov":
-                kw["overrides"] = tuple(int(v) for v in nums)
-            elif key == "Pn":
-                kw["pins"] = val
-            elif key == "A":
-                kw["accessories"] = val
-        except ValueError:
-            raise DncError(f"GRBL status report {text!r}: bad field {p!r}") from None
-    return GrblStatus(**kw)
-
-
-def check_line(text: str, where: str, rx_buffer_bytes: int) -> None:
-    """Raise DncError if GRBL cannot take this line (too long for its buffers)."""
-    if len(text) + 1 > rx_buffer_bytes:
-        raise DncError(
-            f"{where}: line is {len(text) + 1} bytes with its LF; GRBL's receive buffer holds "
-            f"{rx_buffer_bytes} (expected <= {rx_buffer_bytes} bytes)"
-        )
-    f = grbl_filter(text, limit=10**9)
-    if len(f.text) > GRBL_LINE_CHARS:
-        raise DncError(
-            f"{where}: {len(f.text)} characters without spaces and comments; GRBL's line "
-            f"buffer holds {GRBL_LINE_CHARS} (error:11)"
-        )
-
-
-def _is_answer(line: str) -> bool:
-    return line == "ok" or line.startswith("error:")
-
-
-def _after_override(value: int | None, code: int) -> int | None:
-    """The feed or spindle override after byte ``code`` as GRBL computes it (None: unknown)."""
-    reset, steps, _ = _OVR_KEYS["feed" if code <= 0x94 else "spindle"]
-    if code == reset:
-        return 100
-    if value is None:
-        return None
-    step = next(k for k, v in steps.items() if v == code)
-    lo, hi = FEED_OVR_RANGE_PCT if code <= 0x94 else SPINDLE_OVR_RANGE_PCT
-    return min(max(value + step, lo), hi)
-
-
-def override_bytes(current: int | None, target: int, which: str = "feed") -> list[int]:
-    """The fewest override bytes taking GRBL's ``which`` override (feed or spindle) from
-    ``current`` % (None: unknown, so the reset first) to ``target`` % (within 10-200 %): a
-    breadth-first search over +-10, +-1 and the reset, with GRBL's clamping at the limits."""
-    reset, steps, _ = _OVR_KEYS[which]
-    lo, hi = FEED_OVR_RANGE_PCT if which == "feed" else SPINDLE_OVR_RANGE_PCT
-    if not lo <= target <= hi:
-        raise ValueError(f"{which} override {target} %: expected {lo}..{hi} %")
-    if current is None:
-        return [reset, *override_bytes(100, target, which)]
-    prev: dict[int, tuple[int, int]] = {}
-    frontier, seen = [current], {current}
-    while target not in seen:
-        nxt = []
-        for v in frontier:
-            for code in (*steps.values(), reset):
-                w = _after_override(v, code)
-                assert w is not None
-                if w not in seen:
-                    seen.add(w)
-                    prev[w] = (v, code)
-                    nxt.append(w)
-        frontier = nxt
-    out: list[int] = []
-    v = target
-    while v != current:
-        v, code = prev[v]
-        out.append(code)
-    return out[::-1]
 
 
 class GrblStreamer(StreamerBase):
@@ -327,18 +168,12 @@ class GrblStreamer(StreamerBase):
         self.garbled: list[str] = []
         self.halt_report = ""
         self.tracker: ExecTracker | None = None
-        self._lines: queue.Queue[tuple[float, str]] = queue.Queue()
-        self._partial = bytearray()
         self._streaming = threading.Event()
         self._guard_proc: Any = None
+        self._ovr = OverrideState()  # kept from one stream to the next, as GRBL keeps them
         #: (stream clock s, byte) of every override byte written, in order
-        self.override_log: list[tuple[float, int]] = []
-        self._ovr_lock = threading.RLock()
-        self._ovr_reported: tuple[int, int, int] | None = None
-        # what our bytes have made of the feed, rapid and spindle overrides (None: unknown
-        # until an Ov: report or a reset; GRBL keeps them from one program to the next)
-        self._ovr_cmd: list[int | None] = [None, None, None]
-        self._ovr_written_t = -float("inf")  # perf_counter of the last override byte
+        self.override_log = self._ovr.log
+        self._ctl = GrblControl(self)
         self._begin()
 
     # -- real-time commands (any thread) ---------------------------------------------------------
@@ -365,11 +200,10 @@ class GrblStreamer(StreamerBase):
             # (one byte stream), so the report it brings back was made after they arrived.
             # Taken before the write: a line being written meanwhile counts as not yet sent,
             # which can only make a lost answer look less likely, never more.
-            self._queries.append(link.bytes_written)
+            self._rx.queries.append(link.bytes_written)
         link.write_now(cmd)
         if cmd == SOFT_RESET:
-            with self._ovr_lock:
-                self._ovr_cmd = [100, 100, 100]  # main.c: a reset restores the defaults
+            self._ovr.after_reset()
 
     def feed_hold(self) -> None:
         self._rt(FEED_HOLD)
@@ -390,17 +224,10 @@ class GrblStreamer(StreamerBase):
         it: ``override_log`` and the sink's ``override`` event, on the stream clock."""
         if isinstance(code, bool) or not isinstance(code, int) or code not in OVERRIDE_BYTES:
             raise ValueError(f"GRBL override byte {code!r}: expected one of 0x90-0x97, 0x99-0x9D")
-        with self._ovr_lock:
+        with self._ovr.lock:
             t = self.clock()  # before the write: the byte cannot arrive before its time
             self._rt(bytes([code]))
-            self._ovr_written_t = time.perf_counter()
-            self.override_log.append((t, code))
-            if code <= 0x94:
-                self._ovr_cmd[0] = _after_override(self._ovr_cmd[0], code)
-            elif code <= 0x97:
-                self._ovr_cmd[1] = {0x95: 100, 0x96: 50, 0x97: 25}[code]
-            else:
-                self._ovr_cmd[2] = _after_override(self._ovr_cmd[2], code)
+            self._ovr.wrote(t, code)
             if not self.sink_closed():
                 with contextlib.suppress(ValueError, DncError):  # closed meanwhile
                     self.sink.event("override", t, f"0x{code:02X} {OVERRIDE_BYTES[code]}")
@@ -408,7 +235,7 @@ class GrblStreamer(StreamerBase):
     @property
     def overrides(self) -> tuple[int, int, int] | None:
         """The last (feed %, rapid %, spindle %) GRBL reported (``Ov:``), None before any."""
-        return self._ovr_reported
+        return self._ovr.reported
 
     def feed_override_pct(self, target: int) -> None:
         """Send the fewest bytes taking the feed override to ``target`` % (clamped to 10-200)
@@ -420,47 +247,21 @@ class GrblStreamer(StreamerBase):
         self._override_to("spindle", target)
 
     def _override_to(self, which: str, target: int) -> None:
-        lo, hi = FEED_OVR_RANGE_PCT if which == "feed" else SPINDLE_OVR_RANGE_PCT
-        goal = min(max(int(round(target)), lo), hi)
-        with self._ovr_lock:
-            for code in override_bytes(self._ovr_cmd[_OVR_KEYS[which][2]], goal, which):
+        with self._ovr.lock:
+            for code in self._ovr.bytes_to(which, target):
                 self.override(code)
-
-    def _note_overrides(self, raw: bytes) -> None:
-        """An ``Ov:`` field in a status report (reader thread): the reported values; once our
-        last byte is ``OVR_SETTLE_S`` old they are what our bytes made (or a panel's change)."""
-        i = raw.find(b"|Ov:")
-        if i < 0:
-            return
-        field = raw[i + 4 :].split(b"|")[0].split(b">")[0]
-        try:
-            f, r, s = (int(v) for v in field.split(b","))
-        except ValueError:
-            return
-        with self._ovr_lock:
-            self._ovr_reported = (f, r, s)
-            if time.perf_counter() - self._ovr_written_t > OVR_SETTLE_S:
-                self._ovr_cmd = [f, r, s]
 
     def _on_interrupt(self) -> None:
         self._rt_safe(FEED_HOLD)  # first of all: the machine stops
 
     def _begin(self) -> None:
-        self._queries: deque[int] = deque()  # bytes written before each '?' not yet answered
-        self._report_written: int | None = None  # ... before the '?' of the last report
-        self._alive_key: tuple | None = None
-        self._noise = self._noise_reports = 0
-        self._noise_example = ""
+        self._rx = GrblReceiver(self)  # what GRBL sends, fresh for each stream
+        self._lost = LostAnswers(self)
         self._extra_wait_s = 0.0  # a dwell under way lengthens the silence allowed
-        self._pause_since: float | None = None
         self._hold_t0: float | None = None  # first report of a hold under way
-        self._idle_hits: tuple[float, int] | None = None  # (since, reports): see _check_lost
         self._resume_t = -float("inf")  # the last cycle start sent, stream clock
-        self._partial.clear()
-        while not self._lines.empty():
-            self._lines.get_nowait()
         self._reports = self._starved_reports = 0
-        self._heard_any = self._seen_run = False
+        self._seen_run = False
         self.last_status = None
         self.garbled = []
         self.halt_report = ""
@@ -470,63 +271,21 @@ class GrblStreamer(StreamerBase):
         self._acked_pos = -1
         self._sent_pos = -1
         self._last_io = time.perf_counter()
-        self._lost_since: float | None = None
-        self._lost_reports = 0
         self._results: list[Any] = []
         self.tracker = None
         self._tracking = True
-        self._suspect = ""  # why the answers no longer match the lines (sending paused)
-        self._drift_reports = 0
 
     # -- before the port opens ---------------------------------------------------------------------
     def _prepare(self, program: Program, items: list[Item]) -> list[Item]:
-        out: list[Item] = []
-        stripped = 0
-        for it in items:
-            sent = grbl_send_text(it.text) if self.strip else it.text.strip()
-            stripped += len(it.text) - len(sent)
-            if sent:
-                out.append(Item(it.block, it.line, sent, it.source or it.text))
+        out, self._results, stripped, refusals = prepare_lines(
+            program, items, strip=self.strip, rx_buffer_bytes=self.rx_buffer_bytes
+        )
         if self.strip:
             self.transform, self.bytes_stripped = TRANSFORM, stripped
-        problems = refused(check_dialect(program.text, "grbl", file=program.name, strip=self.strip))
-        listed = {p.line for p in problems}
-        lines: list[str] = [str(p) for p in problems]
-        parser = GrblParser()
-        self._results = []
-        for k, it in enumerate(out):
-            where = f"{program.name}:{it.line}"
-            if it.block < 0:
-                where = f"restart preamble line {k + 1}"
-            if len(it.text) + 1 > self.rx_buffer_bytes and (it.line not in listed or it.block < 0):
-                lines.append(
-                    f"{where}: {len(it.text) + 1} bytes with its LF: more than the "
-                    f"{self.rx_buffer_bytes} bytes GRBL's receive buffer may hold"
-                )
-            if it.text.startswith("$"):
-                self._results.append(None)
-                continue
-            f = grbl_filter(it.text)
-            if f.overflow:
-                if it.line not in listed or it.block < 0:
-                    n = len(grbl_filter(it.text, 10**9).text)
-                    lines.append(
-                        f"{where}: GRBL error:11: line overflow: {n} characters without spaces "
-                        f"and comments; GRBL's line buffer holds {GRBL_LINE_CHARS}"
-                    )
-                self._results.append(None)
-                continue
-            res = parser.parse(f.text)
-            self._results.append(res if res.ok else None)
-            if not res.ok and (it.line not in listed or it.block < 0):
-                lines.append(
-                    f"{where}: {res.word}: GRBL error:{res.code} "
-                    f"{GRBL_ERRORS.get(res.code, '')} (as sent: {it.text})"
-                )
-        if lines:
+        if refusals:
             raise DncError(
-                f"{program.name}: GRBL 1.1h would refuse {len(lines)} line(s); nothing was sent:\n"
-                + "\n".join(lines)
+                f"{program.name}: GRBL 1.1h would refuse {len(refusals)} line(s); nothing was "
+                "sent:\n" + "\n".join(refusals)
             )
         return out
 
@@ -537,108 +296,7 @@ class GrblStreamer(StreamerBase):
             from rig.dnc.guard import HoldGuard
 
             self._guard_proc = HoldGuard.start_for(ser)
-        return SerialLink(ser, pace_bytes_per_s=self.pace, on_data=self._on_data)
-
-    def _on_data(self, data: bytes) -> None:
-        self._partial.extend(data)
-        while True:
-            i = self._partial.find(b"\n")
-            if i < 0:
-                return
-            raw = bytes(self._partial[:i]).strip()
-            del self._partial[: i + 1]
-            if raw.startswith(b"<"):
-                self._note_overrides(raw)
-            if raw:
-                self._lines.put((self.clock(), raw.decode("ascii", "replace")))
-
-    def _next_line(self, heard: list[float], deadline: float, what: str) -> str:
-        """The next line GRBL sends that is not a status report; messages and alarms among them
-        are kept in ``messages`` (answers are not). A ``timeout`` fault at ``deadline``
-        (perf_counter) whatever arrives meanwhile (noise, status reports)."""
-        while True:
-            if time.perf_counter() > deadline:
-                head = f"GRBL did not answer {what} within {self.cfg.timeout_s:g} s"
-                raise Fault("timeout", self._no_answer(head))
-            ev = self._get(heard)
-            if ev is None:
-                self._check_interrupt()
-                continue
-            line = ev[1]
-            if line.startswith("<"):
-                continue
-            if not line.startswith("[GC:") and not _is_answer(line):
-                self.messages.append(line)
-            return line
-
-    def _no_answer(self, head: str) -> str:
-        """Why a wait ended (``head``), and what came instead of an answer (timeout fault)."""
-        if self._noise:
-            got = (f"{self._noise} line(s) that are not GRBL's (e.g. {self._noise_example!r}: "
-                   "wrong baud rate, wrong device or line noise)")  # fmt: skip
-        elif self._noise_reports:
-            got = f"only status reports that did not change ({self._noise_reports})"
-        elif self._heard_any:
-            got = "no answer"
-        else:
-            got = "nothing" + SILENT_HINT
-        return f"{head}: received {got}"
-
-    def _alive(self, line: str, st: GrblStatus | None) -> bool:
-        """Does this line show GRBL at work? Answers and messages do; a status report does when
-        it differs from the last one or says the machine is held (an operator's hold, a door);
-        noise and a repeated report do not, so neither keeps a wait going for ever."""
-        if st is None:
-            return line.startswith(("ok", "error:", "ALARM:", "Grbl", "[", "$", ">"))
-        if st.state in ("Hold", "Door", "Sleep", "Home"):
-            return True
-        key = (st.full_state, st.mpos_mm, st.wpos_mm, st.planner_free, st.rx_free)
-        changed = key != self._alive_key
-        self._alive_key = key
-        return changed
-
-    def _get(self, heard: list[float], timeout: float = 0.05) -> tuple[float, str] | None:
-        """Next line from GRBL or None after ``timeout``; faults on silence (nothing that shows
-        GRBL at work, :meth:`_alive`, for the serial timeout) or a lost port."""
-        link = self.link
-        assert link is not None
-        if link.lost.is_set():
-            raise Fault("port-lost", link.lost_reason)
-        if time.perf_counter() - heard[0] > self.cfg.timeout_s + self._extra_wait_s:
-            limit = self.cfg.timeout_s + self._extra_wait_s
-            raise Fault("timeout", self._no_answer(f"no answer from GRBL for {limit:g} s"))
-        try:
-            item = self._lines.get(timeout=timeout)
-        except queue.Empty:
-            return None
-        if item[1].startswith("<"):
-            if self._queries:  # the i-th report answers at least the i-th '?'
-                self._report_written = self._queries.popleft()
-            try:
-                st = parse_status(item[1])
-            except DncError:
-                self.garbled.append(item[1])
-                return None
-            if self._alive(item[1], st):
-                heard[0] = time.perf_counter()
-                self._heard_any = True
-            else:
-                self._noise_reports += 1
-            self.last_status = st
-            self.controller_state = st.full_state
-            if st.wco_mm is not None:
-                self._wco = st.wco_mm
-            self._seen_run = self._seen_run or st.state in ("Run", "Hold")
-            if self._streaming.is_set() and self._seen_run:
-                self._reports += 1
-                self._starved_reports += st.state == "Idle"
-        elif self._alive(item[1], None):
-            heard[0] = time.perf_counter()
-            self._heard_any = True
-        else:
-            self._noise += 1
-            self._noise_example = self._noise_example or item[1][:40]
-        return item
+        return SerialLink(ser, pace_bytes_per_s=self.pace, on_data=self._rx.on_data)
 
     def _poll_status(self) -> None:
         period = 1.0 / self.status_hz
@@ -668,7 +326,7 @@ class GrblStreamer(StreamerBase):
             poller.start()
         clean = False
         try:
-            self._handshake()
+            self._ctl.handshake()
             self._make_tracker(items)
             self._stream(items)
             clean = True
@@ -686,95 +344,6 @@ class GrblStreamer(StreamerBase):
             if self._guard_proc is not None:
                 self._guard_proc.release(hold=not clean)
                 self._guard_proc = None
-
-    def _handshake(self) -> None:
-        heard = [time.perf_counter()]
-        # "$G" (parser state) is answered "[GC:...]" then "ok" in every state (GRBL 1.1 refuses
-        # "$I" and "$$" while running or held). Answers still on their way from an earlier
-        # stream (error:9 for lines that arrived after an alarm, late oks) come before "[GC:" and
-        # are dropped here: taken as this stream's, they would let the character counting
-        # overfill GRBL's receive buffer.
-        self._check_interrupt()
-        # one deadline for the whole handshake: noise or status reports do not extend it
-        deadline = time.perf_counter() + self.cfg.timeout_s
-        self._write(HANDSHAKE)
-        what = "$G (parser state)"
-        while not (line := self._next_line(heard, deadline, what)).startswith("[GC:"):
-            pass  # stale answers of an earlier stream are dropped; alarms and messages are kept
-        while not _is_answer(line := self._next_line(heard, deadline, what)):
-            pass
-        if line != "ok":
-            raise Fault("error", f"GRBL answered $G (parser state) with {line}")
-        try:
-            st = self._wait_status(heard, lambda s: True, deadline)
-        except TimeoutError:
-            head = f"GRBL sent no status report within {self.cfg.timeout_s:g} s of '?'"
-            raise Fault("timeout", self._no_answer(head)) from None
-        if st.planner_free is not None and st.state == "Idle":
-            self._planner_cap = st.planner_free
-            self._rx_cap = st.rx_free
-        if st.state == "Alarm":
-            if not self.unlock:
-                raise Fault(
-                    "alarm",
-                    "GRBL is in its Alarm state (after an alarm or a reset in motion); check the "
-                    "machine and its position, then unlock (cutlab dnc unlock, or --unlock)",
-                )
-            self._write(b"$X\n")
-            deadline = time.perf_counter() + self.cfg.timeout_s
-            while True:
-                if time.perf_counter() > deadline:
-                    head = f"GRBL did not answer $X within {self.cfg.timeout_s:g} s"
-                    raise Fault("timeout", self._no_answer(head))
-                ev = self._get(heard)
-                if ev is None or ev[1].startswith("<"):
-                    continue
-                if _is_answer(ev[1]):
-                    break
-                self.messages.append(ev[1])
-            if ev[1] != "ok":
-                raise Fault("alarm", f"GRBL refused to unlock: {ev[1]}")
-
-    def _wait_status(
-        self,
-        heard: list[float],
-        ok: Callable[[GrblStatus], bool],
-        deadline: float | None = None,
-        on_line: Callable[[float, str], None] | None = None,
-    ) -> GrblStatus:
-        """Poll until a fresh status report satisfies ``ok``; lines that are not status reports
-        go to ``on_line`` (default: kept in ``messages``; ALARM and a reset banner are faults).
-        TimeoutError after ``deadline`` (perf_counter)."""
-        self.last_status = None
-        self._rt_safe(STATUS)
-        last_poll = time.perf_counter()
-        while True:
-            if deadline is not None and time.perf_counter() > deadline:
-                raise TimeoutError
-            ev = self._get(heard)
-            now = time.perf_counter()
-            if ev is None:
-                if self.status_hz <= 0 or now - last_poll > 1.0:
-                    self._rt_safe(STATUS)
-                    last_poll = now
-                continue
-            t, line = ev
-            if line.startswith("<"):
-                st = self.last_status
-                if st is None:
-                    continue
-                self._track(t, st)
-                if ok(st):
-                    return st
-                if self.status_hz <= 0:
-                    self._rt_safe(STATUS)
-                continue
-            if on_line is not None:
-                on_line(t, line)
-            elif line.startswith("ALARM:"):
-                raise Fault("alarm", self._alarm_reason(line, "while finishing the motion"))
-            else:
-                self.messages.append(line)
 
     def _make_tracker(self, items: list[Item]) -> None:
         start = (0.0, 0.0, 0.0)
@@ -808,97 +377,34 @@ class GrblStreamer(StreamerBase):
         self._executing(tr.pop_started(), tr.current, tr.done)
 
     def _stream(self, items: list[Item]) -> None:
-        # (position, bytes, send time, the link's bytes written once the line was)
-        inflight: deque[tuple[int, int, float, int]] = deque()
-        used = 0
-        i = 0
+        w = Window(items, self.mode == "char-counting", self.rx_buffer_bytes)
         heard = [time.perf_counter()]
-        counting = self.mode == "char-counting"
-        link = self.link
-        assert link is not None
         self._streaming.set()
         self._last_io = time.perf_counter()
         try:
-            while i < len(items) or inflight:
+            while w.more():
                 self._check_interrupt()
-                if self._suspect:
-                    self._check_pause(inflight, heard)
-                while i < len(items) and not self._suspect:
-                    data = items[i].text.encode("ascii") + b"\n"
-                    fits = used + len(data) <= self.rx_buffer_bytes if counting else not inflight
-                    if not fits:
-                        break
-                    self._check_interrupt()
-                    t = self.clock()
-                    self._write(data)
-                    inflight.append((i, len(data), t, link.bytes_written))
-                    used += len(data)
-                    self.blocks_sent += 1
-                    self._sent_pos = i
-                    self._last_io = time.perf_counter()
-                    self._lost_since = None
-                    if items[i].block >= 0:
-                        self.last_sent_block = items[i].block
-                    i += 1
+                if self._lost.suspect:
+                    self._lost.check_pause(w.inflight, heard)
+                self._fill(w)
                 # a dwell under way answers after it: its time is not silence
-                r0 = self._results[inflight[0][0]] if inflight and self._results else None
+                r0 = self._results[w.inflight[0][0]] if w.inflight and self._results else None
                 self._extra_wait_s = r0.dwell_s if r0 is not None and r0.dwell_s else 0.0
-                ev = self._get(heard)
+                ev = self._rx.get(heard)
                 if ev is None:
                     continue
                 t_ans, line = ev
                 if line.startswith("<"):
                     if self.last_status is not None:
                         self._track(t_ans, self.last_status)
-                        self._check_lost(inflight, items, self.last_status, heard)
-                    continue
-                if _is_answer(line):
-                    self._lost_since = None
-                    self._last_io = time.perf_counter()
-                    if not inflight:
-                        self.messages.append(line)
-                        continue
-                    pos, n, t_send, _ = inflight.popleft()
-                    used -= n
-                    it = items[pos]
-                    status = line if line.startswith("error") else "ok"
-                    self._answered(pos, BlockRow(it.block, it.line, it.text, n, t_send, t_ans,
-                                                 status))  # fmt: skip
-                    if status != "ok":
-                        code = int(line.split(":")[1]) if line[6:].isdigit() else -1
-                        why = GRBL_ERRORS.get(code, "")
-                        where = f"block {it.block} (line {it.line})" if it.block >= 0 else (
-                            "the restart preamble")  # fmt: skip
-                        reason = f"{line} ({why}) for {where}: {it.text}"
-                        if self.halt_on_error:
-                            reason += "; " + self.halt(reset=self.reset_after_halt, heard=heard)
-                        raise Fault("error", reason)
-                    self._acked_pos = pos
-                    if self.tracker is not None:
-                        self.tracker.set_origin(t_ans)
-                    if it.block >= 0:
-                        self.last_ack_block = it.block
-                    continue
-                if line.startswith(("ALARM:", "Grbl")):
-                    self._tracking = False
-                if line.startswith("ALARM:"):
-                    raise Fault("alarm", self._alarm_reason(line, "mid-stream"))
-                if line.startswith("Grbl"):
-                    raise Fault(
-                        "reset",
-                        f"GRBL was reset mid-stream (banner {line!r}): the lines in its buffers "
-                        "were discarded",
-                    )
-                if line.startswith(("[", "$", ">")):
-                    self.messages.append(line)
-                    continue
-                self.garbled.append(line)  # not a GRBL answer: line noise
-                self.messages.append(line)
-                if inflight and not self._suspect:  # maybe an answer: stop sending, let it drain
-                    self._pause(f"received {line!r}, not a GRBL answer (line noise)")
+                        self._lost.check(w.inflight, items, self.last_status, heard)
+                elif is_answer(line):
+                    self._on_answer(w, t_ans, line, heard)
+                else:
+                    self._on_other_line(w, line)
             self._streaming.clear()
             if self.wait_idle:
-                self._wait_idle(heard)
+                self._ctl.wait_idle(heard)
         except Fault as f:
             if f.kind in ("interrupted", "stopped"):
                 f.reason += "; " + self.halt(reset=self.reset_after_halt, heard=heard)
@@ -907,275 +413,76 @@ class GrblStreamer(StreamerBase):
             raise
         finally:
             self._streaming.clear()
-            for pos, n, t, _ in inflight:
+            for pos, n, t, _ in w.inflight:
                 it = items[pos]
                 self._answered(pos, BlockRow(it.block, it.line, it.text, n, t,
                                              status="unacknowledged"))  # fmt: skip
 
-    def _alarm_reason(self, line: str, when: str) -> str:
-        try:
-            code = int(line.split(":")[1])
-        except (IndexError, ValueError):
-            return f"{line} {when}"
-        return f"{grbl_alarm_text(code)} ({line} {when}; GRBL discarded the lines in its buffers)"
-
-    # -- lost answers ------------------------------------------------------------------------------
-    def _pause(self, why: str) -> None:
-        """Stop sending until every line sent is answered (then go on: nothing was lost) or GRBL
-        stands Idle with empty buffers (an answer was lost); :meth:`_check_pause` keeps it
-        within ``pause_timeout_s``."""
-        self._suspect = why
-        self._pause_since = time.perf_counter()
-        self.sink.event("paused", self.clock(), f"sending paused: {why}")
-
-    def _check_pause(self, inflight: deque, heard: list[float]) -> None:
-        now = time.perf_counter()
-        if not inflight:  # every line sent was answered: the count is right, go on
-            self.sink.event("resumed", self.clock(), f"every line answered; was: {self._suspect}")
-            self._suspect = ""
-            self._pause_since = None
-            self._drift_reports = 0
-            return
-        st = self.last_status
-        if self._pause_since is None or (st is not None and st.state in ("Hold", "Door")):
-            self._pause_since = now  # an operator's hold is not the streamer's pause
-            return
-        if now - self._pause_since <= self.pause_timeout_s:
-            return
-        state = "no status report"
-        if st is not None:
-            state = st.full_state
-            if st.planner_free is not None:
-                state += f", Bf {st.planner_free},{st.rx_free}"
-        reason = (
-            f"sending paused for {self.pause_timeout_s:g} s ({self._suspect}) and in that time "
-            f"neither did the {len(inflight)} unanswered line(s) get their answers nor did GRBL "
-            f"stand Idle with empty buffers (GRBL: {state})"
-        )
-        raise Fault("timeout", reason + "; " + self.halt(reset=self.reset_after_halt, heard=heard))
-
-    def _check_lost(
-        self, inflight: deque, items: list[Item], st: GrblStatus, heard: list[float]
-    ) -> None:
-        """A report may make a lost answer *likely* (Bf: GRBL's receive buffer holds less than
-        had reached it unanswered): sending pauses. Only GRBL's state *shows* it: Idle (or
-        Hold:0) with nothing in the planner nor the receive buffer while lines are unanswered,
-        report after report for ``lost_ok_confirm_s``: the fault, after a feed hold."""
-        now = time.perf_counter()
-        s_q = self._report_written
-        if st.rx_free is not None and self._rx_cap and inflight and s_q is not None:
-            # The unanswered bytes written before the '?' this report answers had all reached
-            # GRBL when it made the report (one byte stream, in order); bytes written after it
-            # may still be on the wire and are not counted. GRBL holds them in its receive
-            # buffer, except the line it is busy with or reading (the oldest unanswered, if
-            # nothing was lost); 1 byte of margin (1.1h's count of a wrapped ring is one short).
-            arrived = sum(min(n, max(0, s_q - (end - n))) for _, n, _, end in inflight)
-            held = self._rx_cap - st.rx_free
-            if arrived - held - inflight[0][1] - 1 > 0:
-                self._drift_reports += 1
-                if self._drift_reports >= 3 and not self._suspect:
-                    self._pause(
-                        f"GRBL's receive buffer held {held} bytes when {arrived} unanswered bytes "
-                        "had reached it, 3 reports in a row: an answer may have been lost"
-                    )
-            else:
-                self._drift_reports = 0
-        pause_line = False
-        if inflight and self._results:
-            r0 = self._results[inflight[0][0]]
-            pause_line = r0 is not None and r0.program_flow == "pause"  # M0: Hold:0 till ~
-        cap = self._planner_cap
-        stopped = st.state == "Idle" or (
-            st.full_state == "Hold:0" and st.planner_free is not None and cap is not None
-            and not pause_line
-        )  # fmt: skip
-        planner_empty = st.planner_free is None or cap is None or st.planner_free >= cap
-        res = self._results[inflight[0][0]] if inflight and self._results else None
-        dwell = res.dwell_s if res is not None and res.dwell_s else 0.0
-        bf = st.rx_free is not None and st.planner_free is not None and bool(self._rx_cap)
-        if stopped and planner_empty and s_q is not None:
-            # Mid-stream (needs Bf, $10=3): GRBL stands with an empty planner, yet the oldest
-            # unanswered line had wholly reached it before the '?' and is not in its receive
-            # buffer. Busy with it (out of the buffer, not planned yet) lasts milliseconds;
-            # seen at every such report spanning lost_ok_confirm_s (and a dwell), an answer is
-            # missing: after a lost ok each later ok is taken for the line before its own, so
-            # one line too many stays unanswered whichever it is. (A starved GRBL goes Idle
-            # between lines while the stream goes on: the wait for silence below would come
-            # only at the end.)
-            # Without Bf ($10=1): the machine stands Idle at the end of that line's move, so it
-            # ran it, and GRBL answers a line before it runs it.
-            hit = False
-            if inflight and inflight[0][3] <= s_q:
-                n0 = inflight[0][1]
-                arrived = sum(min(n, max(0, s_q - (end - n))) for _, n, _, end in inflight)
-                if bf:
-                    hit = self._rx_cap - st.rx_free <= arrived - n0 + 1  # type: ignore[operator]
-                else:
-                    hit = st.state == "Idle" and self._ran(inflight[0][0], st)
-            if not hit:
-                self._idle_hits = None
-            else:
-                since, n_rep = self._idle_hits or (now, 0)
-                self._idle_hits = (since, n_rep + 1)
-                if n_rep + 1 >= 3 and now - since >= self.lost_ok_confirm_s + dwell:
-                    upto = max(k for k, _, _, end in inflight if end <= s_q)
-                    self._lost_answers(inflight, items, st, heard, arrived_upto=upto)
-        empty = (
-            stopped
-            and planner_empty
-            and (st.rx_free is None or st.rx_free >= (self._rx_cap or 128) - 1)
-        )
-        if not inflight or not empty:
-            self._lost_since = None
-            return
-        # the line time of what is outstanding, and a dwell under way, are allowed for
-        wait = self.lost_ok_confirm_s
-        nbytes = sum(n for _, n, _, _ in inflight)
-        wait += nbytes * 10.0 / max(self.cfg.baudrate, 1) + dwell
-        if now - self._last_io < wait:
-            return
-        if self._lost_since is None:
-            self._lost_since = now
-            self._lost_reports = 0
-        self._lost_reports += 1
-        if now - self._lost_since < self.lost_ok_confirm_s or self._lost_reports < 3:
-            return
-        self._lost_answers(inflight, items, st, heard)
-
-    def _ran(self, k: int, st: GrblStatus) -> bool:
-        """The machine stands at the end of line ``k``'s move, away from its start."""
-        tr = self.tracker
-        pos = self._work_pos(st)
-        if tr is None or pos is None or not 0 <= k < len(tr.paths) or not tr.paths[k].moves:
-            return False
-        pts = tr.paths[k].points
-        p = np.asarray(pos, float)
-        return bool(
-            np.linalg.norm(pts[-1] - p) <= tr.tol_mm and np.linalg.norm(pts[0] - p) > 2 * tr.tol_mm
-        )
-
-    def _lost_answers(
-        self,
-        inflight: deque,
-        items: list[Item],
-        st: GrblStatus,
-        heard: list[float],
-        arrived_upto: int | None = None,
-    ) -> None:
-        """The lost-answer fault; ``arrived_upto``: mid-stream, the last line known to have
-        reached GRBL (the lines after it may be on the wire; the halt's reset discards them)."""
-        last = items[self._sent_pos] if arrived_upto is None else items[arrived_upto]
-        upto_pos = self._sent_pos if arrived_upto is None else arrived_upto
-        tr = self.tracker
-        pos = self._work_pos(st)
-        known = -1
-        if tr is not None and pos is not None:
-            # GRBL processed every line that reached it: the last one whose move ends where the
-            # machine stands, and all before it, ran (an answer lost might have been an error:N)
-            j = tr.line_ending_at(pos, range(upto_pos + 1))
-            if j >= 0:
-                known = j
-                tr.finish_all(j, self.clock())
-                self._executing(tr.pop_started(), tr.current, tr.done)
-        why = f" ({self._suspect})" if self._suspect else ""
-        where = ""
-        if pos is not None:
-            where = f"; the machine stands at X{pos[0]:.3f} Y{pos[1]:.3f} Z{pos[2]:.3f}"
-            if known >= 0:
-                b = items[known].block
-                where += f", the end of block {b}" if b >= 0 else ", the end of the preamble"
-        upto = f"up to block {last.block}" if last.block >= 0 else "of the restart preamble"
-        if arrived_upto is None:
-            reason = (
-                f"GRBL is {st.full_state} with empty buffers, so it has processed every line sent "
-                f"({upto}), but {len(inflight)} answer(s) never came: lost or garbled on the line"
-                f"{why}; which line they belonged to cannot be told{where}; nothing more was sent"
-            )
-        else:
-            reason = (
-                f"GRBL stood {st.full_state} with an empty planner, report after report, while a "
-                f"line that had reached it stayed unanswered, so it had processed the lines "
-                f"{upto} but an answer never came: lost or garbled on the line{why}; "
-                f"which line it belonged to cannot be told{where}; sending stopped, and the "
-                "lines still on their way are discarded by the reset"
-            )
-        raise Fault("lost-ok", reason + "; " + self.halt(reset=self.reset_after_halt, heard=heard))
-
-    # -- ending --------------------------------------------------------------------------------
-    def _wait_idle(self, heard: list[float]) -> None:
-        """After the last ok: wait for a status report saying Idle (the motion has run)."""
-
-        def on_line(t: float, line: str) -> None:
-            if line.startswith(("ALARM:", "Grbl")):
-                self._tracking = False
-            if line.startswith("ALARM:"):
-                raise Fault("alarm", self._alarm_reason(line, "while finishing the motion"))
-            if line.startswith("Grbl"):
-                raise Fault("reset", f"GRBL was reset while finishing the motion ({line!r})")
-            self.messages.append(line)
-
-        def idle(st: GrblStatus) -> bool:
+    def _fill(self, w: Window) -> None:
+        """Send what the window takes now (nothing while sending is paused)."""
+        link = self.link
+        assert link is not None
+        while not self._lost.suspect and (data := w.next_data()) is not None:
             self._check_interrupt()
-            return st.state == "Idle"
+            t = self.clock()
+            self._write(data)
+            it = w.sent(len(data), t, link.bytes_written)
+            self.blocks_sent += 1
+            self._sent_pos = w.next - 1
+            self._last_io = time.perf_counter()
+            self._lost.lost_since = None
+            if it.block >= 0:
+                self.last_sent_block = it.block
 
-        self._wait_status(heard, idle, on_line=on_line)
+    def _on_answer(self, w: Window, t_ans: float, line: str, heard: list[float]) -> None:
+        """``ok`` or ``error:N``: the oldest line in flight's (an error halts and faults)."""
+        self._lost.lost_since = None
+        self._last_io = time.perf_counter()
+        if not w.inflight:
+            self.messages.append(line)
+            return
+        pos, n, t_send = w.answered()
+        it = w.items[pos]
+        status = line if line.startswith("error") else "ok"
+        self._answered(pos, BlockRow(it.block, it.line, it.text, n, t_send, t_ans, status))
+        if status != "ok":
+            code = int(line.split(":")[1]) if line[6:].isdigit() else -1
+            why = GRBL_ERRORS.get(code, "")
+            where = f"block {it.block} (line {it.line})" if it.block >= 0 else (
+                "the restart preamble")  # fmt: skip
+            reason = f"{line} ({why}) for {where}: {it.text}"
+            if self.halt_on_error:
+                reason += "; " + self.halt(reset=self.reset_after_halt, heard=heard)
+            raise Fault("error", reason)
+        self._acked_pos = pos
         if self.tracker is not None:
-            self.tracker.finish_all(self._acked_pos, self.clock())
-            tr = self.tracker
-            self._executing(tr.pop_started(), tr.current, tr.done)
+            self.tracker.set_origin(t_ans)
+        if it.block >= 0:
+            self.last_ack_block = it.block
+
+    def _on_other_line(self, w: Window, line: str) -> None:
+        """Not a status report nor an answer: an alarm or a reset ends the stream; a message is
+        kept; anything else is line noise (it may have been an answer: sending pauses)."""
+        if line.startswith(("ALARM:", "Grbl")):
+            self._tracking = False
+        if line.startswith("ALARM:"):
+            raise Fault("alarm", self._ctl.alarm_reason(line, "mid-stream"))
+        if line.startswith("Grbl"):
+            raise Fault(
+                "reset",
+                f"GRBL was reset mid-stream (banner {line!r}): the lines in its buffers "
+                "were discarded",
+            )
+        if line.startswith(("[", "$", ">")):
+            self.messages.append(line)
+            return
+        self.garbled.append(line)  # not a GRBL answer: line noise
+        self.messages.append(line)
+        if w.inflight and not self._lost.suspect:  # maybe an answer: stop sending, let it drain
+            self._lost.pause(f"received {line!r}, not a GRBL answer (line noise)")
 
     def halt(self, reset: bool = True, heard: list[float] | None = None) -> str:
         """Feed hold, wait for Hold:0 (motion stopped), then with ``reset`` a soft reset (GRBL
         Idle, its buffers flushed, no alarm). Returns what happened, for the fault message; it
         never raises for GRBL's behaviour (only for a lost port, as a Fault)."""
-        heard = heard if heard is not None else [time.perf_counter()]
-        self._rt_safe(FEED_HOLD)
-        deadline = time.perf_counter() + self.halt_timeout_s
-        lines: list[str] = []
-
-        def keep(t: float, line: str) -> None:
-            lines.append(line)
-
-        try:
-            st = self._wait_status(
-                heard,
-                lambda s: s.full_state == "Hold:0" or s.state in ("Idle", "Alarm", "Door"),
-                deadline,
-                on_line=keep,
-            )
-        except TimeoutError:
-            self.halt_report = (
-                f"feed hold sent; GRBL did not report Hold:0 within {self.halt_timeout_s:g} s "
-                "(not reset, to keep it from ALARM:3)"
-            )
-            return self.halt_report
-        except Fault as f:
-            if f.kind == "port-lost":
-                raise
-            self.halt_report = f"feed hold sent; then {f.reason}"
-            return self.halt_report
-        self.messages.extend(lines)
-        if st.state == "Alarm":
-            self.halt_report = "GRBL is in Alarm"
-            return self.halt_report
-        if not reset:
-            self.halt_report = f"machine held ({st.full_state}); resume with cycle start (~)"
-            return self.halt_report
-        lines.clear()
-        self._tracking = False  # what the reset flushes was not executed
-        self._rt_safe(SOFT_RESET)
-        try:
-            st = self._wait_status(
-                heard, lambda s: any(x.startswith("Grbl") for x in lines), deadline, on_line=keep
-            )
-        except (TimeoutError, Fault):
-            self.halt_report = "feed hold, Hold:0, soft reset sent; no banner came back"
-            return self.halt_report
-        alarms = [x for x in lines if x.startswith("ALARM:")]
-        self.messages.extend(lines)
-        state = st.full_state
-        if alarms:
-            self.halt_report = f"feed hold, Hold:0, then reset: {alarms[0]} ({state})"
-        else:
-            self.halt_report = f"feed hold, Hold:0, then soft reset: GRBL {state}, no alarm"
-        return self.halt_report
+        return self._ctl.halt(reset, heard)

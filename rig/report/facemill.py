@@ -74,22 +74,7 @@ def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section
     if not fit.success:
         (out / "coefficients.json").write_text(json.dumps(summary, indent=2))
         return Section("facemill-coefficients", "\n".join(md), summary)
-    rows = []
-    for name in COEFFS:
-        s = fit.summary[name]
-        row = {"coefficient": name, "identified": s["value"], "std_error": s["std_error"],
-               "ci_low": s["ci_low"], "ci_high": s["ci_high"],
-               "boot_ci_low": s["boot_ci_low"], "boot_ci_high": s["boot_ci_high"]}  # fmt: skip
-        # the status beside the number (issue 27): ploughing terms the runs do not support
-        edge_ok = fit.adequacy is None or fit.adequacy.edge_identified
-        row["status"] = ("identified" if edge_ok or not name.startswith("P_") else
-                         "not identified: the runs do not separate ploughing from a size effect "
-                         "(see model adequacy)")  # fmt: skip
-        if truth is not None:
-            tv = float(truth[name])
-            row["truth"] = tv
-            row["error_pct"] = 100.0 * (s["value"] - tv) / tv if tv else math.nan
-        rows.append(row)
+    rows = _coefficient_rows(fit, truth)
     pd.DataFrame(rows).to_csv(out / "coefficients.csv", index=False)
     summary["coefficients"] = rows
     summary["r_squared"] = fit.fit.r_squared
@@ -98,22 +83,7 @@ def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section
         summary["max_error_pct_seed003"] = max(abs(r["error_pct"]) for r in rows[:4])
     md += ["", md_table(rows), "", CI_NOTE, BOOT_NOTE, "", fit.adequacy.line()]
     # Validation: predicted vs measured mean forces of every run (identification runs too).
-    vrows = []
-    for lr in ident + valid:
-        meas = lr.steady_means
-        if not meas["revs"]:
-            continue
-        pred = _predicted_mean(campaign.tool, fit.coefficients, lr.conditions)
-        row = {"run": lr.name, "group": lr.group, "fz_mm": lr.conditions["fz_mm"],
-               "depth_mm": lr.conditions["depth_mm"]}  # fmt: skip
-        for k, a in enumerate("xyz"):
-            m = meas[f"F{a}_mean_N"]
-            row[f"F{a}_measured_N"] = m
-            row[f"F{a}_predicted_N"] = float(pred[k])
-        res_m = math.hypot(meas["Fx_mean_N"], meas["Fy_mean_N"])
-        res_p = math.hypot(float(pred[0]), float(pred[1]))
-        row["Fxy_error_pct"] = 100.0 * (res_p - res_m) / res_m if res_m else math.nan
-        vrows.append(row)
+    vrows = _validation_rows(campaign, fit, ident + valid)
     pd.DataFrame(vrows).to_csv(out / "validation.csv", index=False)
     v_only = [r for r in vrows if r["group"] in spec.validate_groups]
     if v_only:
@@ -150,6 +120,48 @@ def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section
     ]
     return Section("facemill-coefficients", "\n".join(md), summary,
                    ("coefficients.csv", "validation.csv", "coefficients.json"))  # fmt: skip
+
+
+def _coefficient_rows(fit: Any, truth: Any) -> list[dict[str, Any]]:
+    """One row per coefficient: the value, its intervals, its status and (seed 003) the truth."""
+    rows = []
+    for name in COEFFS:
+        s = fit.summary[name]
+        row = {"coefficient": name, "identified": s["value"], "std_error": s["std_error"],
+               "ci_low": s["ci_low"], "ci_high": s["ci_high"],
+               "boot_ci_low": s["boot_ci_low"], "boot_ci_high": s["boot_ci_high"]}  # fmt: skip
+        # the status beside the number (issue 27): ploughing terms the runs do not support
+        edge_ok = fit.adequacy is None or fit.adequacy.edge_identified
+        row["status"] = ("identified" if edge_ok or not name.startswith("P_") else
+                         "not identified: the runs do not separate ploughing from a size effect "
+                         "(see model adequacy)")  # fmt: skip
+        if truth is not None:
+            tv = float(truth[name])
+            row["truth"] = tv
+            row["error_pct"] = 100.0 * (s["value"] - tv) / tv if tv else math.nan
+        rows.append(row)
+    return rows
+
+
+def _validation_rows(campaign: Any, fit: Any, runs: list[LoadedRun]) -> list[dict[str, Any]]:
+    """Predicted (identified model) against measured mean forces, per run with steady cutting."""
+    vrows = []
+    for lr in runs:
+        meas = lr.steady_means
+        if not meas["revs"]:
+            continue
+        pred = _predicted_mean(campaign.tool, fit.coefficients, lr.conditions)
+        row = {"run": lr.name, "group": lr.group, "fz_mm": lr.conditions["fz_mm"],
+               "depth_mm": lr.conditions["depth_mm"]}  # fmt: skip
+        for k, a in enumerate("xyz"):
+            m = meas[f"F{a}_mean_N"]
+            row[f"F{a}_measured_N"] = m
+            row[f"F{a}_predicted_N"] = float(pred[k])
+        res_m = math.hypot(meas["Fx_mean_N"], meas["Fy_mean_N"])
+        res_p = math.hypot(float(pred[0]), float(pred[1]))
+        row["Fxy_error_pct"] = 100.0 * (res_p - res_m) / res_m if res_m else math.nan
+        vrows.append(row)
+    return vrows
 
 
 def _plot_fit(campaign: Any, coef: Any, ident: list[LoadedRun], path: Path) -> None:

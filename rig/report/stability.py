@@ -156,7 +156,6 @@ def stability_sweep_section(
     campaign: Any, runs: list[LoadedRun], out: Path, folder: Path
 ) -> Section:
     """The section (module docstring); ``summary["onset"]`` is the per-speed list."""
-    from analysis.chatter import detect_run
     from analysis.stability import stability_lobes
 
     if not runs:
@@ -178,15 +177,7 @@ def stability_sweep_section(
     if campaign.spec.campaign.rig == "sim" and true_modes:
         truth = [(m.axis, m.f_hz, m.zeta, m.k_N_m) for m in true_modes]
         true_lobes = stability_lobes(_case(campaign, runs, truth, rpm), method)
-    verdicts, cut_rows = [], []
-    for r in runs:
-        rc = detect_run(r.run, campaign.spec.chatter.settings())
-        n, d = float(r.conditions["spindle_rpm"]), float(r.conditions["depth_mm"])
-        verdicts.append((n, d, rc.chatter))
-        cut_rows.append({"run": r.index, "spindle_rpm": n, "depth_mm": d, "chatter": rc.chatter,
-                         "chatter_hz": rc.frequency_hz if rc.chatter else math.nan,
-                         "energy_ratio": rc.whole.energy_ratio,
-                         "opr_ratio": rc.whole.opr_ratio})  # fmt: skip
+    verdicts, cut_rows = _judged_cuts(campaign, runs)
     predicted = {n: _limit_at(lobes, n) for n in tested}
     tol = campaign.spec.analysis.onset_tolerance_pct
     rows = onset_rows(verdicts, predicted, tol)
@@ -234,3 +225,19 @@ def stability_sweep_section(
     }
     return Section(TITLE, "\n".join(md), summary,
                    ("onset.csv", "lobes.csv", "modes.toml", "lobes.png"))  # fmt: skip
+
+
+def _judged_cuts(campaign: Any, runs: list[LoadedRun]) -> tuple[list, list[dict[str, Any]]]:
+    """Each cut judged by the chatter detector: (rpm, depth, chatter) and a row for the table."""
+    from analysis.chatter import detect_run
+
+    verdicts, cut_rows = [], []
+    for r in runs:
+        rc = detect_run(r.run, campaign.spec.chatter.settings())
+        n, d = float(r.conditions["spindle_rpm"]), float(r.conditions["depth_mm"])
+        verdicts.append((n, d, rc.chatter))
+        cut_rows.append({"run": r.index, "spindle_rpm": n, "depth_mm": d, "chatter": rc.chatter,
+                         "chatter_hz": rc.frequency_hz if rc.chatter else math.nan,
+                         "energy_ratio": rc.whole.energy_ratio,
+                         "opr_ratio": rc.whole.opr_ratio})  # fmt: skip
+    return verdicts, cut_rows

@@ -19,8 +19,9 @@ How the twin differs from a real machine and dynamometer:
 
 - Engagement is the leading half of the cutter in uncut stock; a reversing path inside one DAQ
   read (0.1 s) sees the stock as it was at the start of that read.
-- An end mill with tool modes (``[[tools.NAME.modes]]`` or the campaign's ``[[sim.tool_modes]]``)
-  cuts regeneratively (:mod:`rig.sim._regen`: tool deflection, the chip left by the earlier
+- An end mill with tool modes (the twin's own structure, :mod:`rig.sim.structure`, or the
+  campaign's ``[[sim.tool_modes]]``; never the catalogue's ``[[tools.NAME.modes]]``, which are
+  measured on the twin by a tap test) cuts regeneratively (:mod:`rig.sim._regen`: tool deflection, the chip left by the earlier
   teeth, chatter where the stability lobes say); without modes, and for face mills, forces are
   quasi-static and only the dynamometer's modes add dynamics. An end mill's ``max_chip_mm``
   limits the feed: above it the chip jams in the chip breaker and the force rises sharply
@@ -35,11 +36,12 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from analysis.config import Dynamometer, EndMill, FaceMill, Material, ToolMode
+from analysis.forces import ENDMILL, FACEMILL, model_for
 from rig.errors import RigError
 from rig.sim._machine_engagement import (
     EndMillEngagement,
@@ -50,6 +52,7 @@ from rig.sim._machine_engagement import (
 from rig.sim._machine_signal import DynoChain
 from rig.sim._machine_timeline import ExecutedSegment, MotionTimeline
 from rig.sim._regen import RegenEndMill, overload_factor
+from rig.sim.structure import twin_modes
 
 
 @dataclass(frozen=True)
@@ -141,10 +144,11 @@ def _rotate_xy(f: np.ndarray, beta: np.ndarray) -> np.ndarray:
     return out
 
 
-def _truth(material: Material, kind: str) -> Any:
-    coef = getattr(material, kind)
+def _truth(material: Material, tool: EndMill | FaceMill) -> Any:
+    model = model_for(tool)
+    coef = model.coefficients(material)
     if coef is None:
-        raise RigError(f"material has no {kind} coefficients: the simulator needs a truth")
+        raise RigError(f"material has no {model.name} coefficients: the simulator needs a truth")
     return coef
 
 
@@ -161,7 +165,7 @@ def _summed(
     return _rotate_xy(f, eng.feed_angle_rad)
 
 
-def facemill_forces(
+def twin_facemill_forces(
     eng: FaceMillEngagement, tool: FaceMill, material: Material,
     strip: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:  # fmt: skip
@@ -172,7 +176,7 @@ def facemill_forces(
     (issue 33) and ``eng`` need only say where the insert is over the block along the feed."""
     from analysis.forces import facemill
 
-    coef = _truth(material, "facemill")
+    coef = _truth(material, tool)
     # Engagement is decided here per insert, so the model sees one insert at a time over the
     # whole half turn (its own width-based engagement is switched off, or given the block's sides).
     one = tool.model_copy(update={"inserts": 1, "insert_angles_deg": None, "runout_mm": 0.0})
@@ -186,21 +190,21 @@ def facemill_forces(
             mid = 0.5 * (hi + lo)
             cut = facemill.FaceMillCut(fz_mm=eng.fz_mm[idx[0]], depth_mm=eng.depth_mm[idx],
                                        width_mm=hi - lo, center_offset_mm=mid)  # fmt: skip
-        return facemill.facemill_forces(eng.theta_rad[idx], one, coef, cut)
+        return FACEMILL.forces(eng.theta_rad[idx], one, coef, cut)
 
     return _summed(eng, at)
 
 
-def facemill_forces_independent(
+def twin_facemill_forces_independent(
     eng: FaceMillEngagement, tool: FaceMill, material: Material,
     strip: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:  # fmt: skip
-    """As :func:`facemill_forces`, from :mod:`rig.sim.facemill_independent` (seed 003's equations
-    written apart from ``analysis.forces``: the edge sliced axially, each slice's own radius and
-    angle): ``[sim] force_model = "independent"``."""
+    """As :func:`twin_facemill_forces`, from :mod:`rig.sim.facemill_independent` (seed 003's
+    equations written apart from ``analysis.forces``: the edge sliced axially, each slice's own
+    radius and angle): ``[sim] force_model = "independent"``."""
     from rig.sim.facemill_independent import insert_forces
 
-    coef = _truth(material, "facemill")
+    coef = _truth(material, tool)
     return _summed(
         eng,
         lambda idx: insert_forces(
@@ -215,14 +219,16 @@ def facemill_forces_independent(
 DYNO_OVERSAMPLE = 4
 
 #: ``[sim] force_model``: where the twin's face-milling forces come from.
-FACEMILL_FORCE_MODELS = {"seed003": facemill_forces, "independent": facemill_forces_independent}
+FACEMILL_FORCE_MODELS = {
+    "seed003": twin_facemill_forces, "independent": twin_facemill_forces_independent,
+}  # fmt: skip
 
 
-def endmill_forces(eng: EndMillEngagement, tool: EndMill, material: Material) -> np.ndarray:
+def twin_endmill_forces(eng: EndMillEngagement, tool: EndMill, material: Material) -> np.ndarray:
     """Summed edge-element forces (n, 3) N in machine axes (linear edge-force model)."""
     from analysis.forces import endmill
 
-    coef = _truth(material, "endmill")
+    coef = _truth(material, tool)
     # The chip-breaker overload scales the cutting pressures, i.e. the chip in the linear law.
     h = eng.h_mm * overload_factor(eng, tool)[:, :, None]
     return _summed(
@@ -243,7 +249,8 @@ class SimMachine:
     stock : :class:`BlockStock` or :class:`ZMapStock`.
     rate_hz : the DAQ's sample rate, Hz.
     signal : disturbances; ``n_slices`` axial slices per flute for end mills.
-    tool_modes : the tool's modes for the regenerative twin (default: the tool's own ``modes``).
+    tool_modes : the tool's modes for the regenerative twin (default: the twin's own structure
+        for the tool's assembly, :func:`rig.sim.structure.twin_modes`).
     force_model : face mills' forces from ``"seed003"`` (``analysis.forces.facemill``) or
         ``"independent"`` (:mod:`rig.sim.facemill_independent`).
     """
@@ -265,6 +272,7 @@ class SimMachine:
                            f"{', '.join(FACEMILL_FORCE_MODELS)}")  # fmt: skip
         self.facemill_forces = FACEMILL_FORCE_MODELS[force_model]
         self.tool = tool
+        self.model = model_for(tool)
         self.material = material
         self.stock = stock
         self.rate_hz = float(rate_hz)
@@ -273,13 +281,17 @@ class SimMachine:
             dyno, rate_hz, signal.noise_n, signal.drift_n_s, signal.hum_n, signal.hum_hz,
             signal.seed, signal.modes,
             # face mills: the dynamometer answers to an insert's entry between samples (issue 33)
-            oversample=DYNO_OVERSAMPLE if isinstance(tool, FaceMill) else 1,
+            oversample=DYNO_OVERSAMPLE if self.model is FACEMILL else 1,
         )  # fmt: skip
         self.n_slices = n_slices
-        modes = tool.modes if tool_modes is None and isinstance(tool, EndMill) else tool_modes
+        # end mills cut regeneratively with modes; face mills quasi-statically (module docstring)
+        regenerative = self.model is ENDMILL
+        modes = tool_modes
+        if modes is None and regenerative:
+            modes = twin_modes(tool)  # the twin's physics, not the catalogue's measured modes
         self.regen = (
-            RegenEndMill(tool, _truth(material, "endmill"), modes, rate_hz, n_slices)
-            if modes and isinstance(tool, EndMill)
+            RegenEndMill(cast(EndMill, tool), _truth(material, tool), modes, rate_hz, n_slices)
+            if modes and regenerative
             else None
         )
         self._lock = threading.Lock()
@@ -323,20 +335,24 @@ class SimMachine:
 
     def _quasi_static(self, t: np.ndarray) -> np.ndarray:
         st = self.timeline.state(t)
-        if isinstance(self.tool, FaceMill):
+        tool = self.tool
+        if FACEMILL.describes(tool):
             strip = self._block_sides(st)
             if strip is not None:
                 # The block's sides to the force model (each height of the chip on its own ray),
                 # its ends along the feed to the engagement.
-                eng = facemill_engagement(st, self.tool, _Sideless(self.stock.block))
-                return self.facemill_forces(eng, self.tool, self.material, strip)
-            eng = facemill_engagement(st, self.tool, self.stock)
-            return self.facemill_forces(eng, self.tool, self.material)
+                sideless = _Sideless(self.stock.block)  # type: ignore[union-attr]
+                eng = facemill_engagement(st, tool, sideless)
+                return self.facemill_forces(eng, tool, self.material, strip)
+            eng = facemill_engagement(st, tool, self.stock)
+            return self.facemill_forces(eng, tool, self.material)
+        if not ENDMILL.describes(tool):
+            raise RigError(f"the twin has no force model for tool kind {tool.kind!r}")
         depth = self.stock.z_max_mm - float(np.min(st.position_mm[:, 2]))
         if depth <= 0:
             return np.zeros((t.size, 3))
-        eng = endmill_engagement(st, self.tool, self.stock, depth, self.n_slices)
-        return endmill_forces(eng, self.tool, self.material)
+        em = endmill_engagement(st, tool, self.stock, depth, self.n_slices)
+        return twin_endmill_forces(em, tool, self.material)
 
     def _block_sides(self, st: Any) -> tuple[np.ndarray, np.ndarray] | None:
         """The block's sides as Y' (mm from the cutter axis, the force model's frame) per sample,

@@ -9,6 +9,9 @@ is resolved, then every ``OVERSAMPLE``-th step is kept), and white noise on both
 
 Columns: ``time_s``, ``hammer [N]`` and ``d<axis> [m]`` (displacement, a laser or capacitive
 probe) or ``a<axis> [m/s^2]`` (an accelerometer).
+
+``python -m rig.sim tap TOOL AXIS OUT.csv`` taps the twin's own structure for a catalogue tool
+(:mod:`rig.sim.structure`): how the shipped tools' catalogue modes were measured (issue 28).
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from analysis.config import ToolMode
 from analysis.errors import ConfigError
 from rig.sim._regen import modal_zoh
 
-__all__ = ["tap_test_record"]
+__all__ = ["tap_test_record", "tap_twin"]
 
 #: Internal steps per output sample: a 0.2 ms pulse spans ~40 steps at 51.2 kHz.
 OVERSAMPLE = 4
@@ -74,3 +77,20 @@ def tap_test_record(
     np.savetxt(out, np.column_stack([t[keep], ham, resp]), delimiter=",", fmt="%.9g",
                header=f"time_s,hammer [N],{col}", comments="")  # fmt: skip
     return out
+
+
+def tap_twin(
+    tool_name: str, axis: str, path: str | Path, rate_hz: float = 12_800.0, seed: int = 0,
+    tools_path: str | Path | None = None,
+) -> Path:  # fmt: skip
+    """Tap the twin's own structure of catalogue tool ``tool_name`` along ``axis`` (tool-tip
+    displacement) into ``path``."""
+    from analysis.config import get_tool
+    from rig.sim.structure import twin_modes
+
+    modes = twin_modes(get_tool(tool_name, tools_path))
+    if not modes:
+        raise ConfigError(f"tap test: the twin has no structure for tool {tool_name!r} "
+                          "(rig/sim/structure.toml)")  # fmt: skip
+    return tap_test_record(modes, axis, path, "disp", rate_hz, seed=seed)
+
