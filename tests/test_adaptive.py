@@ -292,9 +292,11 @@ def test_chatter_moves_the_spindle_to_the_nearest_pocket() -> None:
     rng = np.random.default_rng(6)
     ctl, g, t = _controller(mode="spindle", target_force_n=150.0)
     ctl.lobes, ctl.depth_mm = _lobes(), 1.0
-    _chatter_run(ctl, g, t, 19, rng)
-    assert g.spindle == 100  # one window of 10 revolutions (full at the 10th) is no verdict
-    _chatter_run(ctl, g, t, 2, rng)  # ... the disjoint one 10 revolutions later confirms
+    # the live watch (analysis.chatter.live): a verdict when its 20 revolutions are full and then
+    # every 0.1 s of samples (1000 here, 3.3 revolutions of 300)
+    _chatter_run(ctl, g, t, 23, rng)
+    assert g.spindle == 100  # one chattering verdict (at the 20th revolution) is not acted on
+    _chatter_run(ctl, g, t, 1, rng)  # ... the next, 0.1 s of samples later, confirms
     assert g.spindle == 85 and g.held == 0  # 1700 rpm, the nearest pocket's peak
     assert g.feed == 100  # spindle mode leaves the feed alone
     _chatter_run(ctl, g, t, 25, rng)
@@ -306,7 +308,7 @@ def test_chatter_without_a_pocket_holds() -> None:
     rng = np.random.default_rng(7)
     for mode in ("feed", "spindle"):  # feed: no spindle to move; spindle: no lobes
         ctl, g, t = _controller(mode=mode, target_force_n=150.0)
-        _chatter_run(ctl, g, t, 21, rng)
+        _chatter_run(ctl, g, t, 24, rng)
         assert g.held == 1 and "chatter" in ctl.hold_reason
 
 

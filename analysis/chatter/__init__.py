@@ -6,7 +6,8 @@ of the part off the harmonics over the stretch. Defaults calibrated on the regen
 (bench/bench_chatter_detect.py).
 
 ``detect_run(path_or_run)`` for a run file, ``detect_chatter(forces, rate, rpm, blocks=...)`` for
-arrays, ``indicators(...)`` for one stretch (a live window, as an interlock would judge it).
+arrays, ``indicators(...)`` for one stretch; ``ChatterWatch`` judges a live force read by read
+(:mod:`analysis.chatter.live`: the campaign's chatter suspender and the adaptive controller).
 """
 
 from analysis.chatter.detect import (
@@ -17,9 +18,11 @@ from analysis.chatter.detect import (
     detect_run,
     indicators,
 )
+from analysis.chatter.live import ChatterWatch
 
 __all__ = [
     "ChatterSettings",
+    "ChatterWatch",
     "RunChatter",
     "StretchChatter",
     "detect_chatter",

@@ -8,8 +8,10 @@ feed-plane resultant ``|Fxy|`` over the revolution. Then, in this order:
 
 1. safety: a sample's resultant above ``max_force_n`` -> feed hold at once (the block it came
    in, at most one DAQ read); no block for ``stall_revs`` revolutions of the run clock beyond
-   one DAQ read (a watchdog thread) -> overrides reset and feed hold; chatter in the last
-   ``chatter_revs`` revolutions (:func:`analysis.chatter.indicators`) -> with a spindle mode, the
+   one DAQ read (a watchdog thread) -> overrides reset and feed hold; chatter confirmed by the
+   live watch the campaign's suspender uses (:class:`analysis.chatter.ChatterWatch`: the last
+   ``chatter_revs`` revolutions cut at a steady level, a verdict per 0.1 s of samples, two
+   chattering verdicts in a row whose power off the harmonics holds) -> with a spindle mode, the
    spindle override to the nearest stable speed of the tool's lobes within 10-200 %, else feed
    hold. After a hold the controller sends nothing more (the operator, or the run, decides).
 2. air (the revolution's force below ``air_force_n``): overrides back to 100 %.
@@ -41,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis.chatter import ChatterWatch
 from analysis.runs import file as rf
 from rig.adaptive.grbl_codes import MAX_PCT, MIN_PCT
 from rig.adaptive.grbl_codes import feed_codes as _feed_codes
@@ -63,7 +66,7 @@ class AdaptiveSettings:
     settle_revs: int = 1
     air_force_n: float = 30.0
     stall_revs: float = 3.0
-    chatter_revs: int = 10
+    chatter_revs: int = 20
     min_pct: int = MIN_PCT
     max_pct: int = MAX_PCT
 
@@ -126,6 +129,7 @@ class AdaptiveController:
         self.rpm = abs(float(spindle_rpm))
         if not self.rpm > 0:
             raise ValueError(f"spindle_rpm = {spindle_rpm}: the loop needs a turning spindle")
+        self.channels = tuple(channels)
         self.cols = [list(channels).index(c) for c in ("Fx", "Fy") if c in channels] or [0, 1]
         self.force_of = force_of
         self.clock = clock
@@ -150,9 +154,8 @@ class AdaptiveController:
         self._lock = threading.RLock()
         self._acc: list[np.ndarray] = []  # |Fxy| samples of the revolution under way
         self._acc_n = 0
-        self._win: list[np.ndarray] = []  # Fx, Fy of the last revolutions (chatter)
-        self._verdicts: list[bool] = []  # the chatter verdict of each judged revolution
-        self._win_n = 0
+        self._chatter: ChatterWatch | None = None  # the live chatter watch at today's speed
+        self._verdict: Any = None  # its latest verdict already seen
         self._settle = 0
         self._last_block_t = math.nan
         self._armed = False
@@ -253,8 +256,6 @@ class AdaptiveController:
                 return
             self._acc.append(np.hypot(fxy[:, 0], fxy[:, 1]))
             self._acc_n += n
-            self._win.append(fxy)
-            self._win_n += n
             spr = int(round(self.rate_hz * self.rev_s))
             while self._acc_n >= spr and self.state != "hold":
                 allx = np.concatenate(self._acc)
@@ -262,6 +263,10 @@ class AdaptiveController:
                 self._acc, self._acc_n = [rest], len(rest)
                 t_rev = t_end_s - len(rest) / self.rate_hz
                 self._revolution(t_rev, float(rev.mean()), wall0)
+            # after the revolutions' feed steps: their bytes go out before the chatter window's
+            # spectrum is computed (a chatter finding after them still holds or moves the spindle)
+            if self.state == "cutting":
+                self._chatter_check(f, t_end_s, wall0)
 
     def _on_block(self, first_sample: int, data: np.ndarray, wall0: float) -> None:
         if self.force_of is None:
@@ -281,16 +286,13 @@ class AdaptiveController:
                 self._note(t_s, f"cut ended: {force_n:.0f} N below air {s.air_force_n:.0f} N")
             self.state = "air"
             self._end_saturation(t_s)
-            self._win, self._win_n = [], 0
-            self._verdicts = []
+            self._chatter = None  # a new cut is judged afresh
             if self.feed_pct != 100 or self.spindle_pct != 100:
                 self._reset(t_s, "air: overrides back to 100 %", wall0)
         else:
             if self.state != "cutting":
                 self._note(t_s, f"cut started: {force_n:.0f} N")
             self.state = "cutting"
-            # the feed step first: it is cheap and its bytes go out before the chatter check's
-            # spectrum is computed (a chatter finding after it still holds or moves the spindle)
             self._saturated_now = False
             pct_ran = self.feed_pct  # the override this revolution was cut at
             if self._settle > 0:
@@ -299,8 +301,6 @@ class AdaptiveController:
                 self._feed_step(t_s, force_n, wall0)
             if s.mode in ("feed", "both"):
                 self._track_saturation(t_s, force_n, pct_ran)
-            if self.state != "hold":
-                self._chatter_check(t_s, wall0)
         st = getattr(self.streamer, "last_status", None)
         self.trace.append(RevRecord(
             t_s, force_n, self.state, self.feed_pct, self.spindle_pct,
@@ -355,40 +355,27 @@ class AdaptiveController:
         self._note(t_end_s, f"saturation ended: {n} revolutions at the limit, {t0:.4f}.."
                    f"{t_end_s:.4f} s")  # fmt: skip
 
-    def _chatter_check(self, t_s: float, wall0: float) -> bool:
-        """Judge the last ``chatter_revs`` revolutions; True when it acted."""
+    def _chatter_check(self, force_n: np.ndarray, t_s: float, wall0: float) -> bool:
+        """The block's forces into the live chatter watch (at the speed cut now); True when it
+        acted on a confirmed chatter."""
         s = self.s
-        n_win = int(math.ceil(s.chatter_revs * self.rate_hz * self.rev_s))
-        if self._win_n < n_win:
-            return False
-        w = np.concatenate(self._win)[-n_win:]
-        self._win, self._win_n = [w], len(w)
-        from analysis.chatter import indicators
-
+        if self._chatter is None:
+            rpm_now, st = self.rpm * self.spindle_pct / 100.0, self.chatter_settings
+            self._chatter = ChatterWatch(self.channels, self.rate_hz, rpm_now, s.air_force_n, st,
+                                         revolutions=s.chatter_revs)  # fmt: skip
         try:
-            v = indicators(w, self.rate_hz, self.rpm * self.spindle_pct / 100.0,
-                           self.chatter_settings, floor_n=s.air_force_n)  # fmt: skip
+            msg = self._chatter.push(force_n)
         except Exception:  # noqa: BLE001 - a window the detector cannot judge is no verdict
             return False
-        self._verdicts.append(bool(v.chatter))
-        # Acted on only when the disjoint window ``chatter_revs`` earlier chattered too: on the
-        # twin a stable 0.9 mm slot at 4675 rpm flagged 1-2 of 100-119 windows of 10 revolutions
-        # (lines near the 24th spindle harmonic), never two disjoint ones; the chattering one at
-        # 5500 rpm flagged 59 of 117, the first confirmation 10 revolutions after the first flag.
-        back = (
-            self._verdicts[-1 - s.chatter_revs] if len(self._verdicts) > s.chatter_revs else False
-        )
-        if not v.chatter or not back:
-            if v.chatter:
-                return False
-            if self.chatter_at_s is not None and self.chatter_cleared_s is None:
-                self.chatter_cleared_s = t_s
-                self._note(t_s, f"chatter cleared {t_s - self.chatter_at_s:.3f} s after it was "
-                                "found")  # fmt: skip
+        v, seen = self._chatter.last, self._verdict
+        self._verdict = v
+        if msg is None:
+            if v is not None and v is not seen and not v.chatter:
+                self._cleared(t_s)
             return False
         if self.chatter_at_s is None:
             self.chatter_at_s = t_s
-        what = f"chatter at {v.frequency_hz:.0f} Hz (energy {v.energy_ratio:.2f})"
+        what = msg
         if s.mode in ("spindle", "both") and self.lobes is not None:
             rpm_now = self.rpm * self.spindle_pct / 100.0
             pocket = nearest_pocket_rpm(self.lobes, self.rpm, self.depth_mm, s.min_pct, s.max_pct)
@@ -396,8 +383,7 @@ class AdaptiveController:
                 pct = int(round(100.0 * pocket / self.rpm))
                 self._send(t_s, "spindle", pct, f"{what}: spindle to the stable pocket "
                            f"{pocket:.0f} rpm ({pct} %)", wall0)  # fmt: skip
-                self._win, self._win_n = [], 0  # judge the new speed afresh
-                self._verdicts = []
+                self._chatter = None  # judge the new speed afresh
                 self._settle = s.settle_revs
                 return True
             if pocket is not None:
@@ -408,6 +394,12 @@ class AdaptiveController:
             what += ": no lobes for the tool (no modes)"
         self._hold(what, t_s, wall0)
         return True
+
+    def _cleared(self, t_s: float) -> None:
+        """A steady window judged stable after chatter was found: said once."""
+        if self.chatter_at_s is not None and self.chatter_cleared_s is None:
+            self.chatter_cleared_s = t_s
+            self._note(t_s, f"chatter cleared {t_s - self.chatter_at_s:.3f} s after it was found")
 
     # -- actions ---------------------------------------------------------------------------------
     def _send(self, t_s: float, kind: str, pct: int, why: str, wall0: float) -> None:

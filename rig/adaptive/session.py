@@ -256,31 +256,19 @@ LOBE_SPAN_PCT = (50, 150)
 
 
 def lobes_for(campaign: Any, test: Any, min_pct: int, max_pct: int) -> Any:
-    """The stability lobes of ``test``'s cut across the spindle override range: the tool's
-    modes (the twin's ``[sim] tool_modes`` first, else the tool's own), the material's
-    end-mill coefficients (analysis.stability); None without modes (no pocket to go to)."""
-    from analysis.config import EndMill
-    from analysis.stability import StabilityCase, stability_lobes
+    """The stability lobes of ``test``'s cut across the spindle override range
+    (:func:`rig.adaptive.cut.lobe_cut`: the twin's ``[sim] tool_modes`` first, else the tool's
+    own; the material's end-mill coefficients); None without them (no pocket to go to)."""
+    from analysis.stability import stability_lobes
+    from rig.adaptive.cut import lobe_cut
 
-    tool = campaign.tool
-    sim = campaign.spec.sim
-    modes = sim.tool_modes if campaign.spec.campaign.rig == "sim" and sim.tool_modes else None
-    modes = modes or getattr(tool, "modes", None)
-    coef = getattr(campaign.material, "endmill", None)
-    if not modes or not isinstance(tool, EndMill) or coef is None:
+    cut = lobe_cut(campaign, test)
+    if isinstance(cut, str):
         return None
     rpm0 = abs(float(test.spindle_rpm))
     lo, hi = max(min_pct, LOBE_SPAN_PCT[0]), min(max_pct, LOBE_SPAN_PCT[1])
     rpm = np.linspace(rpm0 * lo / 100, rpm0 * hi / 100, LOBE_SPEEDS)
-    width = float(test.width_mm or tool.diameter_mm)
-    case = StabilityCase(
-        teeth=campaign.teeth, milling="down", radial_immersion=min(width / tool.diameter_mm, 1.0),
-        kt_n_m2=coef.Ktc_n_mm2 * 1e6, kn_n_m2=coef.Krc_n_mm2 * 1e6,
-        f_hz=np.array([m.f_hz for m in modes]), zeta=np.array([m.zeta for m in modes]),
-        k_n_m=np.array([m.k_N_m for m in modes]), direction=tuple(m.axis for m in modes),
-        rpm=rpm, name=f"{campaign.name}-adaptive",
-    )  # fmt: skip
-    return stability_lobes(case, "sd")
+    return stability_lobes(cut.case(rpm, f"{campaign.name}-adaptive"), "sd")
 
 
 def adaptive_session(campaign: Any, test: Any, session: Any, cal: Any) -> Any:

@@ -290,7 +290,7 @@ class AdaptiveSection(Model):
     settle_revs: int = Field(1, ge=0, le=100, description="revolutions after a change")
     air_force_n: float = Field(30.0, gt=0, le=1e5, description="N, below: air (overrides 100 %)")
     stall_revs: float = Field(3.0, gt=0, le=1000, description="revolutions without a DAQ block")
-    chatter_revs: int = Field(10, ge=4, le=200, description="revolutions the chatter check judges")
+    chatter_revs: int = Field(20, ge=4, le=200, description="revolutions the chatter check judges")
     min_pct: int = Field(10, ge=10, le=100, description="%, lowest override")
     max_pct: int = Field(200, ge=100, le=200, description="%, highest override")
     sim_signal_loss_at_s: float | None = Field(

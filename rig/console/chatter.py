@@ -1,10 +1,10 @@
 """The lobes' chatter frequency and the stability margin on the page, beside the spectrum's
 detected peak.
 
-- Campaign side, once per run (:func:`stability_case`): the run's cut as the lobes see it (the
-  tool's modes: the twin's ``[sim] tool_modes`` first, else the tool's own, as
-  ``rig.adaptive.lobes_for``; the material's end-mill coefficients; teeth, immersion, depth),
-  put in the run info; or why there are no lobes. Nothing is computed there: the campaign
+- Campaign side, once per run (:func:`stability_case`): the run's cut as the lobes see it
+  (:func:`rig.adaptive.cut.lobe_cut`, as the adaptive controller's pockets: the tool's modes,
+  the material's end-mill coefficients, teeth, immersion; and the depth), put in the run info;
+  or why there are no lobes. Nothing is computed there: the campaign
   process keeps its time for the logger.
 - Server side (:class:`StabilityAt`): the lobes at the current spindle speed
   (:func:`analysis.stability.stability_lobes`, semi-discretization, 0.3-0.9 s a speed) in a
@@ -26,34 +26,23 @@ import numpy as np
 #: the lobes are recomputed when the spindle speed moves by more than this (a 1 % move shifts a
 #: lobe's flank by about as much; the computation costs 0.3-0.9 s of CPU)
 RPM_STEP_REL = 0.01
-NO_LOBES = "no lobes"
 
 
 def stability_case(campaign: Any, test: Any) -> dict[str, Any]:
-    """The run's cut for the lobes as JSON, or ``{"reason": ...}`` when there are none."""
-    from analysis.config import EndMill
+    """The run's cut for the lobes as JSON (:func:`rig.adaptive.cut.lobe_cut`), or
+    ``{"reason": ...}`` when there are none."""
+    from rig.adaptive.cut import lobe_cut
 
-    tool = getattr(campaign, "tool", None)
-    spec = getattr(campaign, "spec", None)
-    sim = getattr(spec, "sim", None)
-    is_sim = getattr(getattr(spec, "campaign", None), "rig", "") == "sim"
-    modes = sim.tool_modes if is_sim and sim is not None and sim.tool_modes else None
-    modes = modes or getattr(tool, "modes", None)
-    coef = getattr(getattr(campaign, "material", None), "endmill", None)
-    if not modes:
-        return {"reason": f"{NO_LOBES}: the tool has no modes ([[tools.NAME.modes]] or "
-                "[[sim.tool_modes]])"}  # fmt: skip
-    if not isinstance(tool, EndMill) or coef is None:
-        return {"reason": f"{NO_LOBES}: lobes are computed for end mills with the material's "
-                "end-mill coefficients"}  # fmt: skip
-    width = float(test.width_mm) if math.isfinite(test.width_mm) else float(tool.diameter_mm)
+    cut = lobe_cut(campaign, test)
+    if isinstance(cut, str):
+        return {"reason": cut}
     return {
-        "teeth": int(campaign.teeth),
+        "teeth": cut.teeth,
         "milling": "down",
-        "radial_immersion": min(width / tool.diameter_mm, 1.0),
-        "kt_n_m2": coef.Ktc_n_mm2 * 1e6,
-        "kn_n_m2": coef.Krc_n_mm2 * 1e6,
-        "modes": [[m.axis, float(m.f_hz), float(m.zeta), float(m.k_N_m)] for m in modes],
+        "radial_immersion": cut.radial_immersion,
+        "kt_n_m2": cut.kt_n_m2,
+        "kn_n_m2": cut.kn_n_m2,
+        "modes": [list(m) for m in cut.modes],
         "depth_mm": float(test.depth_mm),
         "spindle_rpm": abs(float(test.spindle_rpm)),
     }
@@ -62,15 +51,10 @@ def stability_case(campaign: Any, test: Any) -> dict[str, Any]:
 def lobes_at(case: dict[str, Any], rpm: float) -> dict[str, Any]:
     """The limiting depth (mm; None: stable at every depth searched), chatter frequency (Hz)
     and kind of instability of ``case`` at ``rpm``."""
-    from analysis.stability import StabilityCase, stability_lobes
+    from analysis.stability import endmill_case, stability_lobes
 
-    axis, f_hz, zeta, k = zip(*case["modes"])
-    sc = StabilityCase(
-        teeth=case["teeth"], milling=case["milling"], radial_immersion=case["radial_immersion"],
-        kt_n_m2=case["kt_n_m2"], kn_n_m2=case["kn_n_m2"], f_hz=np.array(f_hz, float),
-        zeta=np.array(zeta, float), k_n_m=np.array(k, float), direction=tuple(axis),
-        rpm=np.array([rpm], float), name="console",
-    )  # fmt: skip
+    sc = endmill_case(case["modes"], case["kt_n_m2"], case["kn_n_m2"], case["teeth"],
+                      case["radial_immersion"], [rpm], "console")  # fmt: skip
     lobes = stability_lobes(sc, "sd")
     limit, hz = float(lobes.depth_limit_mm[0]), float(lobes.chatter_hz[0])
     return {"rpm": round(rpm, 1), "depth_limit_mm": round(limit, 4) if math.isfinite(limit)
