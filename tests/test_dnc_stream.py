@@ -47,7 +47,8 @@ def _check_fanuc(prog, ctl, cfg, res, rec_path) -> None:
     # flow control exercised: the buffer filled to the DC3 mark (10 or 11 times on a quiet host;
     # 3 to 9 at load 25: how often a wall-paced streamer fills a controller running at x4 is
     # the host's speed, so only that it happened and both ends counted the same is asserted)
-    assert ctl.xoff_count >= 1 and res.xoff_count == ctl.xoff_count
+    # (the last DC3 may come after the streamer has written its last byte and closed)
+    assert ctl.xoff_count >= 1 and 1 <= res.xoff_count <= ctl.xoff_count
     assert ctl.overruns == 0 and ctl.alarm == ""
     assert ctl.executed_texts() == [b.text for b in prog.blocks]
     rows = read_csv_record(rec_path)
