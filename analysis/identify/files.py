@@ -46,7 +46,7 @@ from analysis.identify.conditions import (
     resolve_conditions,
 )
 from analysis.identify.endmill import fit_endmill
-from analysis.identify.facemill import fit_facemill
+from analysis.identify.facemill import entry_s, fit_facemill
 from analysis.identify.importers import NO_AIR_ZEROED, Export, load_export
 from analysis.identify.trust import (
     by_direction,
@@ -168,8 +168,11 @@ def _reduce_file(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer |
                                       expected_tool)  # fmt: skip
             _check_tool(path, cond.tool, expected_tool, by)
             _check_material(path, cond.material, opts.materials_path)
-            avg = reduce_run_file(path, teeth_of(expected_tool or cond.tool), cond,
-                                  tolerance=tolerance)  # fmt: skip
+            name = expected_tool or cond.tool
+            # a face mill's entry: the geometry bounds it, the force level cannot (issue 33)
+            after_s = entry_s(find_tool(name, opts.tools_path), cond) if name else 0.0
+            avg = reduce_run_file(path, teeth_of(name), cond, tolerance=tolerance,
+                                  engaged_after_s=after_s)  # fmt: skip
         except AnalysisError as exc:
             if meta.complete:
                 raise
@@ -187,8 +190,9 @@ def _reduce_file(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer |
         zero = (meta.rig or {}).get("import", {}).get("zero", "air or the amplifier's zero")
         return avg, {"axes": axes.text, "zero": zero}  # type: ignore[union-attr]
     ex = _load_export(path, given, dynamometer, rate_hz, expected_tool, by, opts)
-    avg = reduce_run(ex.run, teeth_of(expected_tool or ex.run.conditions.tool),
-                     tolerance=tolerance)  # fmt: skip
+    name = expected_tool or ex.run.conditions.tool
+    after_s = entry_s(find_tool(name, opts.tools_path), ex.run.conditions) if name else 0.0
+    avg = reduce_run(ex.run, teeth_of(name), tolerance=tolerance, engaged_after_s=after_s)
     return avg, {"axes": ex.axes, "zero": ex.zero}
 
 
