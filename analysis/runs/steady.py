@@ -404,12 +404,12 @@ def engaged_revolutions(
     cannot: an offset cut's force grows by under 2 % over the entry's last seconds, and those
     revolutions would count as steady. The record shows the entry when it has air before the
     first cutting revolution and the level's steady stretch (from revolution ``level_start``)
-    begins at least half that time after it; a cut that is steady at once (a plunge, a record
-    made without an entry) keeps its level-based window."""
+    begins at least a quarter of that time after it; a cut that is steady at once (a plunge, a
+    record made without an entry) keeps its level-based window."""
     if not engaged_after_s > 0 or not cutting.any() or cutting[0]:
         return cutting
     first = int(np.argmax(cutting))
-    if (level_start - first) * period_s < 0.5 * engaged_after_s:
+    if (level_start - first) * period_s < 0.25 * engaged_after_s:
         return cutting
     out = cutting.copy()
     out[: first + int(np.ceil(engaged_after_s / period_s))] = False
