@@ -304,6 +304,12 @@ def fit_facemill(
     msg = f"fitted {len(averages)} runs ({len(y)} points), R^2 = {fit.r_squared:.5f}"
     if not adequacy.edge_identified:
         msg += f"; ploughing coefficients P_T, P_R, P_A not identified: {adequacy.reason}"
+        if len(adequacy.feeds_mm) == 1:
+            # l and S both grow with depth at one feed; only the nose's cusp splits them
+            msg += (
+                " (K_T, K_R, K_A hold the feed's force per mm of depth; their split from "
+                "P_T, P_R, P_A rests on the nose's cusp alone: a few % on K_R, K_A)"
+            )
     return FaceMillFit(True, msg, coef, fit, summary, tuple(phases), res_runs, names,
                        adequacy=adequacy)  # fmt: skip
 
