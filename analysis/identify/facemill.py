@@ -50,7 +50,6 @@ from analysis.identify._common import (
     ratio_with_error,
     reduce_run,
     reduce_run_file,
-    reduce_runs,
     synthetic_run,
     too_few_runs,
     validation_line,
@@ -303,15 +302,21 @@ def fit_facemill(
     res_runs = tuple(r.reshape(-1, 3) for r in np.split(resid, np.cumsum(n_per)[:-1]))
     msg = f"fitted {len(averages)} runs ({len(y)} points), R^2 = {fit.r_squared:.5f}"
     if not adequacy.edge_identified:
-        msg += f"; ploughing coefficients P_T, P_R, P_A not identified: {adequacy.reason}"
-        if len(adequacy.feeds_mm) == 1:
-            # l and S both grow with depth at one feed; only the nose's cusp splits them
-            msg += (
-                " (K_T, K_R, K_A hold the feed's force per mm of depth; their split from "
-                "P_T, P_R, P_A rests on the nose's cusp alone: a few % on K_R, K_A)"
-            )
+        msg += _not_identified(adequacy)
     return FaceMillFit(True, msg, coef, fit, summary, tuple(phases), res_runs, names,
                        adequacy=adequacy)  # fmt: skip
+
+
+def _not_identified(adequacy: Adequacy) -> str:
+    """The message's clause for ploughing coefficients the runs do not identify."""
+    msg = f"; ploughing coefficients P_T, P_R, P_A not identified: {adequacy.reason}"
+    if len(adequacy.feeds_mm) == 1:
+        # l and S both grow with depth at one feed; only the nose's cusp splits them
+        msg += (
+            " (K_T, K_R, K_A hold the feed's force per mm of depth; their split from "
+            "P_T, P_R, P_A rests on the nose's cusp alone: a few % on K_R, K_A)"
+        )
+    return msg
 
 
 def _row(fit: LinearFit, i: int) -> dict[str, float]:
@@ -351,6 +356,16 @@ def entry_s(tool: Any, c: RunConditions) -> float:
     return float(max(front - np.sqrt(radius**2 - far**2), 0.0) / v_mm_s)
 
 
+def tool_entry_s(name: str, c: RunConditions, tools_path: Any = None) -> float:
+    """:func:`entry_s` of a catalogued tool (the user's ``tools_path`` first); 0 without one."""
+    from analysis.config import get_tool, user_catalogs
+
+    if not name:
+        return 0.0
+    with user_catalogs(tools=tools_path):
+        return entry_s(get_tool(name), c)
+
+
 def fit_facemill_runs(
     runs: Sequence[ForceRun],
     tool: FaceMill,
@@ -362,8 +377,13 @@ def fit_facemill_runs(
     that cannot be reduced (no cutting, too short) are listed in ``rejected`` with the reason."""
     if not isinstance(tool, FaceMill):
         return fit_facemill([], tool)  # raises: names the tool kind
-    avgs, rejected = reduce_runs(runs, tool.inserts, n_bins, tolerance,
-                                 lambda c: entry_s(tool, c))  # fmt: skip
+    check_units(runs)
+    avgs, rejected = [], []
+    for r in runs:  # as reduce_runs, each with its entry time
+        try:
+            avgs.append(reduce_run(r, tool.inserts, n_bins, tolerance, entry_s(tool, r.conditions)))
+        except AnalysisError as exc:
+            rejected.append((r.name, str(exc)))
     return with_rejected(fit_facemill(avgs, tool, dynamometer), rejected)
 
 

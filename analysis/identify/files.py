@@ -46,7 +46,7 @@ from analysis.identify.conditions import (
     resolve_conditions,
 )
 from analysis.identify.endmill import fit_endmill
-from analysis.identify.facemill import entry_s, fit_facemill
+from analysis.identify.facemill import fit_facemill, tool_entry_s
 from analysis.identify.importers import NO_AIR_ZEROED, Export, load_export
 from analysis.identify.trust import (
     by_direction,
@@ -153,7 +153,6 @@ def _reduce_file(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer |
                  rate_hz: float | None, expected_tool: str | None, by: str,
                  tolerance: float, opts: ImportOptions) -> tuple[RunAverage, dict[str, str]]:
     """The run's revolution average and its notes (``axes``, ``zero``)."""  # fmt: skip
-
     def teeth_of(name: str) -> int:
         return tool_teeth(name, opts.tools_path)
 
@@ -169,10 +168,8 @@ def _reduce_file(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer |
             _check_tool(path, cond.tool, expected_tool, by)
             _check_material(path, cond.material, opts.materials_path)
             name = expected_tool or cond.tool
-            # a face mill's entry: the geometry bounds it, the force level cannot (issue 33)
-            after_s = entry_s(find_tool(name, opts.tools_path), cond) if name else 0.0
             avg = reduce_run_file(path, teeth_of(name), cond, tolerance=tolerance,
-                                  engaged_after_s=after_s)  # fmt: skip
+                                  entry_s=tool_entry_s(name, cond, opts.tools_path))
         except AnalysisError as exc:
             if meta.complete:
                 raise
@@ -190,9 +187,8 @@ def _reduce_file(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer |
         zero = (meta.rig or {}).get("import", {}).get("zero", "air or the amplifier's zero")
         return avg, {"axes": axes.text, "zero": zero}  # type: ignore[union-attr]
     ex = _load_export(path, given, dynamometer, rate_hz, expected_tool, by, opts)
-    name = expected_tool or ex.run.conditions.tool
-    after_s = entry_s(find_tool(name, opts.tools_path), ex.run.conditions) if name else 0.0
-    avg = reduce_run(ex.run, teeth_of(name), tolerance=tolerance, engaged_after_s=after_s)
+    avg = reduce_run(ex.run, teeth_of(expected_tool or ex.run.conditions.tool),
+                     tolerance=tolerance)  # fmt: skip
     return avg, {"axes": ex.axes, "zero": ex.zero}
 
 

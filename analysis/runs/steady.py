@@ -378,9 +378,7 @@ def steady_from_stats(
         lo, hi, outliers = _steady_stretch(level, engaged, tolerance)
     lo, hi = lo + 1, hi - 1  # the first and last steady revolutions may hold the transition
     if hi - lo < 3:
-        why = ""
-        if engaged is not cutting:
-            why = f" after the entry ({engaged_after_s:.3g} s from first touch to full engagement)"
+        why = "" if engaged is cutting else f" after the geometry's {engaged_after_s:.3g} s entry"
         raise NoSteadyCutError(
             f"only {max(hi - lo, 0)} steady cutting revolutions (of {int(cutting.sum())} cutting)"
             f"{why}: need at least 3 whose mean stays within {tolerance:.0%} of the median"
