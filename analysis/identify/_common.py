@@ -185,14 +185,14 @@ def default_bins(rate_hz: float, period_s: float) -> int:
 
 
 def reduce_run(
-    run: ForceRun, teeth: int, n_bins: int | None = None, tolerance: float = IDENTIFY_TOLERANCE
-) -> RunAverage:
+    run: ForceRun, teeth: int, n_bins: int | None = None, tolerance: float = IDENTIFY_TOLERANCE,
+    entry_s: float = 0.0) -> RunAverage:  # fmt: skip
     """Steady part, offset removal, synchronous average and tooth peaks of an in-memory run.
 
     ``tolerance``: revolutions whose mean stays within this fraction of the median count as
     steady (:func:`analysis.runs.steady.find_steady`); the default
     :data:`analysis.runs.steady.IDENTIFY_TOLERANCE` keeps a face mill's partial engagement out.
-    """
+    ``entry_s``: the geometry's entry time (:func:`analysis.runs.steady.engaged_revolutions`)."""
     x = np.asarray(run.force_n, float)
     if x.ndim != 2 or x.shape[1] != 3:
         raise AnalysisError(f"run {run.name}: forces have shape {x.shape}: expected (n, 3) N")
@@ -204,7 +204,7 @@ def reduce_run(
     c = run.conditions
     try:
         try:
-            part = find_steady(x, run.rate_hz, c.spindle_rpm, tolerance=tolerance)
+            part = find_steady(x, run.rate_hz, c.spindle_rpm, tolerance, engaged_after_s=entry_s)
         except NoAirError:
             # Cut from start to end (the operator trimmed the air): the record's own zero.
             part = find_steady(x, run.rate_hz, c.spindle_rpm, tolerance, offset_n=np.zeros(3))
@@ -540,14 +540,14 @@ def iter_run_chunks(
 def reduce_run_file(
     path, teeth: int, conditions: RunConditions | None = None, n_bins: int | None = None,
     chunk_samples: int = CHUNK_SAMPLES, progress=None, tolerance: float = IDENTIFY_TOLERANCE,
-) -> RunAverage:  # fmt: skip
+    entry_s: float = 0.0) -> RunAverage:  # fmt: skip
     """:func:`reduce_run` streamed from an HDF5 run file in two passes over chunks.
 
     Pass 1 gathers per-revolution statistics (steady part, offset, drift); the revolution period
     is refined on the steady part's first :data:`PROBE_SAMPLES` (at least 4 revolutions); pass 2
     averages the steady part synchronously. Memory: the chunk and the probe (and the window's
     arrays while it is read and calibrated) plus O(revolutions + bins). ``tolerance``: the
-    steady window, as :func:`reduce_run`.
+    steady window, as :func:`reduce_run`; ``entry_s`` likewise.
 
     One BLAS thread: its only BLAS call, the calibration's (m, 3) x (3, 3) product, is no faster
     on two, and OpenBLAS's idle threads spin, taking the core a second reduction (a dask task
@@ -558,12 +558,12 @@ def reduce_run_file(
 
     with threadpool_limits(limits=1, user_api="blas"):
         return _reduce_run_file(path, teeth, conditions, n_bins, chunk_samples, progress,
-                                tolerance)  # fmt: skip
+                                tolerance, entry_s)  # fmt: skip
 
 
 def _reduce_run_file(
     path, teeth: int, conditions: RunConditions | None, n_bins: int | None, chunk_samples: int,
-    progress, tolerance: float,
+    progress, tolerance: float, entry_s: float = 0.0,
 ) -> RunAverage:  # fmt: skip
     from analysis.runs import load_run
 
@@ -586,7 +586,7 @@ def _reduce_run_file(
             progress(len(idx))
     try:
         try:
-            part = steady_from_stats(stats, rate, c.spindle_rpm, tolerance)
+            part = steady_from_stats(stats, rate, c.spindle_rpm, tolerance, None, entry_s)
         except NoAirError:
             part = steady_from_stats(stats, rate, c.spindle_rpm, tolerance, np.zeros(3))
     except AnalysisError as exc:

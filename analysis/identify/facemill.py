@@ -50,7 +50,6 @@ from analysis.identify._common import (
     ratio_with_error,
     reduce_run,
     reduce_run_file,
-    reduce_runs,
     synthetic_run,
     too_few_runs,
     validation_line,
@@ -297,9 +296,21 @@ def fit_facemill(
     res_runs = tuple(r.reshape(-1, 3) for r in np.split(resid, np.cumsum(n_per)[:-1]))
     msg = f"fitted {len(averages)} runs ({len(y)} points), R^2 = {fit.r_squared:.5f}"
     if not adequacy.edge_identified:
-        msg += f"; ploughing coefficients P_T, P_R, P_A not identified: {adequacy.reason}"
+        msg += _not_identified(adequacy)
     return FaceMillFit(True, msg, coef, fit, summary, tuple(phases), res_runs, names,
                        adequacy=adequacy)  # fmt: skip
+
+
+def _not_identified(adequacy: Adequacy) -> str:
+    """The message's clause for ploughing coefficients the runs do not identify."""
+    msg = f"; ploughing coefficients P_T, P_R, P_A not identified: {adequacy.reason}"
+    if len(adequacy.feeds_mm) == 1:
+        # l and S both grow with depth at one feed; only the nose's cusp splits them
+        msg += (
+            " (K_T, K_R, K_A hold the feed's force per mm of depth; their split from "
+            "P_T, P_R, P_A rests on the nose's cusp alone: a few % on K_R, K_A)"
+        )
+    return msg
 
 
 def _row(fit: LinearFit, i: int) -> dict[str, float]:
@@ -316,6 +327,39 @@ def _ratio_row(fit: LinearFit, num: int, den: int) -> dict[str, float]:
     return {"value": v, "std_error": se, "ci_low": lo, "ci_high": hi}
 
 
+def entry_s(tool: Any, c: RunConditions) -> float:
+    """Seconds from a face mill's first touch of a block it is fed into along X' to its arc
+    being wholly over the block (the geometry's bound on the entry; 0 for a tool without a lead
+    angle, i.e. not a face mill, or conditions that do not place the block). The first touch is
+    the top of the cut's edge (depth x tan(lead) beyond the radius) on the ray nearest the
+    feed's line inside the block's width; the arc is in once its ends, on the block's far side
+    across the feed, are past the block's front. At 1 mm/s (0.1 mm/tooth, one insert, 600 rpm)
+    a 125 mm cutter 20 mm off a 50 mm block's centre takes 19.3-19.9 s (0.5-3 mm deep), centred
+    5.4-6.0 s: revolutions in that time can lie within 2 % of the steady level, not steady."""
+    lead = getattr(tool, "lead_angle_deg", None)
+    teeth = getattr(tool, "inserts", None)
+    v_mm_s = c.fz_mm * (teeth or 0) * abs(c.spindle_rpm) / 60.0
+    if lead is None or not v_mm_s > 0 or not np.isfinite(c.width_mm) or c.width_mm <= 0:
+        return 0.0
+    radius = float(tool.diameter_mm) / 2
+    reach = radius + max(c.depth_mm, 0.0) * float(np.tan(np.radians(lead)))
+    y = np.array([-0.5, 0.5]) * c.width_mm + c.center_offset_mm
+    near = 0.0 if y[0] <= 0.0 <= y[1] else float(np.abs(y).min())
+    far = min(float(np.abs(y).max()), radius)
+    front = np.sqrt(max(reach**2 - near**2, 0.0))
+    return float(max(front - np.sqrt(radius**2 - far**2), 0.0) / v_mm_s)
+
+
+def tool_entry_s(name: str, c: RunConditions, tools_path: Any = None) -> float:
+    """:func:`entry_s` of a catalogued tool (the user's ``tools_path`` first); 0 without one."""
+    from analysis.config import get_tool, user_catalogs
+
+    if not name:
+        return 0.0
+    with user_catalogs(tools=tools_path):
+        return entry_s(get_tool(name), c)
+
+
 def fit_facemill_runs(
     runs: Sequence[ForceRun],
     tool: FaceMill,
@@ -327,7 +371,13 @@ def fit_facemill_runs(
     that cannot be reduced (no cutting, too short) are listed in ``rejected`` with the reason."""
     if not FACEMILL.describes(tool):
         return fit_facemill([], tool)  # raises: names the tool kind
-    avgs, rejected = reduce_runs(runs, tool.inserts, n_bins, tolerance)
+    check_units(runs)
+    avgs, rejected = [], []
+    for r in runs:  # as reduce_runs, each with its entry time
+        try:
+            avgs.append(reduce_run(r, tool.inserts, n_bins, tolerance, entry_s(tool, r.conditions)))
+        except AnalysisError as exc:
+            rejected.append((r.name, str(exc)))
     return with_rejected(fit_facemill(avgs, tool, dynamometer), rejected)
 
 

@@ -47,7 +47,7 @@ from analysis.identify.conditions import (
     resolve_conditions,
 )
 from analysis.identify.endmill import fit_endmill
-from analysis.identify.facemill import fit_facemill
+from analysis.identify.facemill import fit_facemill, tool_entry_s
 from analysis.identify.importers import NO_AIR_ZEROED, Export, load_export
 from analysis.identify.trust import (
     by_direction,
@@ -154,7 +154,6 @@ def _reduce_file(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer |
                  rate_hz: float | None, expected_tool: str | None, by: str,
                  tolerance: float, opts: ImportOptions) -> tuple[RunAverage, dict[str, str]]:
     """The run's revolution average and its notes (``axes``, ``zero``)."""  # fmt: skip
-
     def teeth_of(name: str) -> int:
         return tool_teeth(name, opts.tools_path)
 
@@ -169,8 +168,9 @@ def _reduce_file(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer |
                                       expected_tool)  # fmt: skip
             _check_tool(path, cond.tool, expected_tool, by)
             _check_material(path, cond.material, opts.materials_path)
-            avg = reduce_run_file(path, teeth_of(expected_tool or cond.tool), cond,
-                                  tolerance=tolerance)  # fmt: skip
+            name = expected_tool or cond.tool
+            avg = reduce_run_file(path, teeth_of(name), cond, tolerance=tolerance,
+                                  entry_s=tool_entry_s(name, cond, opts.tools_path))
         except AnalysisError as exc:
             if meta.complete:
                 raise

@@ -35,6 +35,7 @@ __all__ = [
     "SteadyPart",
     "SyncAverager",
     "ToothPeaks",
+    "engaged_revolutions",
     "find_steady",
     "per_revolution",
     "refine_period",
@@ -278,20 +279,21 @@ class RevolutionStats:
 
 def find_steady(
     force_n: ArrayLike, rate_hz: float, spindle_rpm: float, tolerance: float = 0.05,
-    refine: bool = True, offset_n: ArrayLike | None = None,
+    refine: bool = True, offset_n: ArrayLike | None = None, engaged_after_s: float = 0.0,
 ) -> SteadyPart:  # fmt: skip
     """Locate the steady cutting part of a record (n, c) and estimate its offset.
 
     Air revolutions are those whose mean and spread match the quietest revolution's; the offset
     is their mean (a straight line in time if there is air before and after the cut). Give
-    ``offset_n`` to skip the estimate (a record with no air in it).
+    ``offset_n`` to skip the estimate (a record with no air in it). ``engaged_after_s``: see
+    :func:`engaged_revolutions`.
     """
     x = np.asarray(force_n, float)
     if x.ndim != 2 or len(x) == 0:
         raise AnalysisError(f"force record has shape {x.shape}: expected (n, channels) N")
     stats = RevolutionStats(rate_hz, spindle_rpm, len(x), x.shape[1])
     stats.add(x, 0)
-    part = steady_from_stats(stats, rate_hz, spindle_rpm, tolerance, offset_n)
+    part = steady_from_stats(stats, rate_hz, spindle_rpm, tolerance, offset_n, engaged_after_s)
     if refine:
         seg = x[part.window]
         period = refine_period(
@@ -303,7 +305,7 @@ def find_steady(
 
 def steady_from_stats(
     stats: RevolutionStats, rate_hz: float, spindle_rpm: float, tolerance: float = 0.05,
-    offset_n: ArrayLike | None = None,
+    offset_n: ArrayLike | None = None, engaged_after_s: float = 0.0,
 ) -> SteadyPart:  # fmt: skip
     """:func:`find_steady` from per-revolution statistics (the period is the nominal one)."""
     if not 0.0 < tolerance < 1.0:
@@ -363,11 +365,15 @@ def steady_from_stats(
         cutting = ~air
     level = np.linalg.norm(means - off_at0 - t_rev[:, None] * drift, axis=1)
     lo, hi, outliers = _steady_stretch(level, cutting, tolerance)
+    engaged = engaged_revolutions(cutting, engaged_after_s, 60.0 / abs(spindle_rpm), lo)
+    if engaged is not cutting:
+        lo, hi, outliers = _steady_stretch(level, engaged, tolerance)
     lo, hi = lo + 1, hi - 1  # the first and last steady revolutions may hold the transition
     if hi - lo < 3:
+        why = "" if engaged is cutting else f" after the geometry's {engaged_after_s:.3g} s entry"
         raise NoSteadyCutError(
-            f"only {max(hi - lo, 0)} steady cutting revolutions (of {int(cutting.sum())} cutting): "
-            f"need at least 3 whose mean stays within {tolerance:.0%} of the median"
+            f"only {max(hi - lo, 0)} steady cutting revolutions (of {int(cutting.sum())} cutting)"
+            f"{why}: need at least 3 whose mean stays within {tolerance:.0%} of the median"
         )
     start, stop = int(edges[lo]), int(edges[hi])
     off0 = off_at0 + drift * start / rate_hz
@@ -377,6 +383,27 @@ def steady_from_stats(
         int(cutting[:lo].sum()), int(cutting[hi:].sum()),
         int(outliers),
     )  # fmt: skip
+
+
+def engaged_revolutions(
+    cutting: np.ndarray, engaged_after_s: float, period_s: float, level_start: int
+) -> np.ndarray:
+    """The cutting revolutions at least ``engaged_after_s`` after the first one, the cutter's
+    first touch, when the record shows that entry; else ``cutting`` itself. The geometry gives
+    the time (a face mill fed into a block: until its arc is wholly over it); the force level
+    cannot: an offset cut's force grows by under 2 % over the entry's last seconds, and those
+    revolutions would count as steady. The record shows the entry when it has air before the
+    first cutting revolution and the level's steady stretch (from revolution ``level_start``)
+    begins at least a quarter of that time after it; a cut that is steady at once (a plunge, a
+    record made without an entry) keeps its level-based window."""
+    if not engaged_after_s > 0 or not cutting.any() or cutting[0]:
+        return cutting
+    first = int(np.argmax(cutting))
+    if (level_start - first) * period_s < 0.25 * engaged_after_s:
+        return cutting
+    out = cutting.copy()
+    out[: first + int(np.ceil(engaged_after_s / period_s))] = False
+    return out
 
 
 def _air_line(
