@@ -241,7 +241,7 @@ MODE_FIELD_RENAMES = {
 }  # fmt: skip
 
 
-def renamed_mode_fields(data: Any) -> Any:
+def renamed_mode_fields(data: object) -> object:
     """A mode's table with its former field names replaced (a deprecation note says which)."""
     if not isinstance(data, dict):
         return data

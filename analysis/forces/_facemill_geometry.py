@@ -38,6 +38,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from analysis.errors import AnalysisError
 
@@ -46,7 +47,9 @@ _EDGE_POINTS = 400
 _TABLE_POINTS = 4001
 
 
-def projected_angles(lead_rad, radial_rake_rad, axial_rake_rad):
+def projected_angles(
+    lead_rad: ArrayLike, radial_rake_rad: ArrayLike, axial_rake_rad: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """theta_1, theta_2, theta_3 of seed 003 eqs 5-7 (eqs 6-7 corrected, see module docstring).
 
     Parameters are arrays (any broadcastable shape), radians. Returns three arrays, radians.
@@ -63,7 +66,9 @@ def projected_angles(lead_rad, radial_rake_rad, axial_rake_rad):
     return t1, t2, t3
 
 
-def rotation_inverse(lead_rad, radial_rake_rad, axial_rake_rad):
+def rotation_inverse(
+    lead_rad: ArrayLike, radial_rake_rad: ArrayLike, axial_rake_rad: ArrayLike
+) -> NDArray[np.float64]:
     """[M]^-1 of seed 003 eq 9: columns are T', R', A' expressed in T, R, A.
 
     ``[T, R, A]^T = M_inv @ [T', R', A']^T`` (eq 8); eq 15's [M'] is its transpose.
@@ -108,16 +113,18 @@ class EdgeTable:
     # Where the edge sits at height z, from its lowest point: radially (R, + out) on the trailing
     # and leading sides, and along T (+ ahead) on the leading side (a rake puts the upper edge
     # behind or ahead of the nose). They place each height's chip for the entry and exit.
-    x_left_mm: np.ndarray | None = None
-    x_right_mm: np.ndarray | None = None
-    t_right_mm: np.ndarray | None = None
+    x_left_mm: np.ndarray
+    x_right_mm: np.ndarray
+    t_right_mm: np.ndarray
 
     @property
     def max_depth_mm(self) -> float:
         return float(self.z_mm[-1])
 
 
-def _interp_branch(zt, zb, vb, last: bool):
+def _interp_branch(
+    zt: NDArray[np.float64], zb: NDArray[np.float64], vb: NDArray[np.float64], last: bool
+) -> NDArray[np.float64]:
     """Interpolate a branch quantity at heights zt; on flat runs of zb keep the point nearest the
     nose (last=False) or farthest from it (last=True)."""
     keep = np.ones(len(zb), bool)
@@ -192,7 +199,9 @@ def edge_table(
     return EdgeTable(zt, w, area, slz, srz, m, float(m[0, 0]), tangent, xlz, xrz, trz)
 
 
-def chip_section(table: EdgeTable, h_mm, depth_mm):
+def chip_section(
+    table: EdgeTable, h_mm: ArrayLike, depth_mm: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Chip area on the rake face S (eq 13) and engaged edge length l (eq 16).
 
     Parameters
@@ -227,7 +236,10 @@ def chip_section(table: EdgeTable, h_mm, depth_mm):
 _PART_GRID = np.unique(np.concatenate([np.linspace(0.0, 1.0, 49) ** 3, np.linspace(0.0, 1.0, 97)]))
 
 
-def partial_fraction(table: EdgeTable, h_mm, depth_mm, radius_mm, theta_rad, y_lo_mm, y_hi_mm):
+def partial_fraction(
+    table: EdgeTable, h_mm: ArrayLike, depth_mm: ArrayLike, radius_mm: ArrayLike,
+    theta_rad: ArrayLike, y_lo_mm: ArrayLike, y_hi_mm: ArrayLike,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:  # fmt: skip
     """Share of the chip area, and the engaged edge length (mm), of inserts that are partly in
     the workpiece (across the feed it spans Y' in [y_lo, y_hi]): each height z of the chip lies
     on its own ray, at the angle theta + (its T offset over its radius) and between the radii

@@ -34,11 +34,12 @@ closed forms for flat end mills), ``PARAMETERS``, ``coefficient_vector``,
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, TypedDict, Unpack
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from analysis.config import EndMill, EndMillCoefficients
 from analysis.errors import AnalysisError
@@ -79,6 +80,14 @@ def immersion_angles(
     raise AnalysisError(f"milling mode {mode!r}: expected 'up', 'down' or 'slot'")
 
 
+class CutExtras(TypedDict, total=False):
+    """The fields of :class:`EndMillCut` besides the engagement (:meth:`EndMillCut.from_width`)."""
+
+    feed_angle_deg: ArrayLike
+    runout_mm: float | None
+    runout_angle_deg: float
+
+
 @dataclass(frozen=True)
 class EndMillCut:
     """Conditions of an end-milling cut; fields broadcast with the rotation angles.
@@ -99,7 +108,7 @@ class EndMillCut:
     @classmethod
     def from_width(
         cls, tool: EndMill, fz_mm: ArrayLike, depth_mm: ArrayLike, ae_mm: ArrayLike,
-        mode: Literal["up", "down", "slot"] = "down", **kw,
+        mode: Literal["up", "down", "slot"] = "down", **kw: Unpack[CutExtras],
     ) -> EndMillCut:  # fmt: skip
         st, ex = immersion_angles(ae_mm, tool.diameter_mm, mode)
         return cls(fz_mm, depth_mm, np.degrees(st), np.degrees(ex), **kw)
@@ -114,7 +123,9 @@ def _check_tool(tool: EndMill) -> None:
         )
 
 
-def _discs(tool: EndMill, depth: np.ndarray, n_discs: int):
+def _discs(
+    tool: EndMill, depth: NDArray[np.float64], n_discs: int
+) -> tuple[NDArray[np.float64], ...]:  # z, db, rho, sin kappa, cos kappa
     """Disc mid-heights z, chip widths db, radii rho and sin/cos kappa, each (..., n_discs)."""
     R, rc = tool.radius_mm, tool.corner_radius_mm
     frac = np.linspace(0.0, 1.0, n_discs + 1)
@@ -248,7 +259,9 @@ def endmill_forces(
     n_discs: int = 24,
 ) -> np.ndarray:  # fmt: skip
     """Workpiece forces in machine axes, shape (..., 3), N, at tool rotation angles ``phi_rad``."""
-    return endmill_design(phi_rad, tool, cut, n_discs) @ coefficient_vector(coef)
+    design = endmill_design(phi_rad, tool, cut, n_discs)
+    out: NDArray[np.float64] = design @ coefficient_vector(coef)
+    return out
 
 
 def mean_force_design(tool: EndMill, cut: EndMillCut, n_phi: int = 720) -> np.ndarray:
@@ -265,7 +278,9 @@ def mean_force_design(tool: EndMill, cut: EndMillCut, n_phi: int = 720) -> np.nd
     ex = np.broadcast_to(np.radians(np.asarray(cut.exit_deg, float)), fz.shape)
     if tool.kind == "flat" and e == 0:
         n = tool.flutes
-        c2 = lambda f: f(ex) - f(st)  # noqa: E731
+        def c2(f: Callable[[NDArray[np.float64]], NDArray[np.float64]]) -> NDArray[np.float64]:
+            return f(ex) - f(st)
+
         kc = n * a * fz / (8 * np.pi)
         ke = n * a / (2 * np.pi)
         d = np.zeros(fz.shape + (3, 6))
@@ -283,7 +298,8 @@ def mean_force_design(tool: EndMill, cut: EndMillCut, n_phi: int = 720) -> np.nd
         return _rotate_feed(d, cut.feed_angle_deg)
     phi = np.linspace(0.0, 2 * np.pi, n_phi, endpoint=False)
     phi = phi.reshape((n_phi,) + (1,) * fz.ndim)
-    return endmill_design(phi, tool, cut).mean(axis=0)
+    out: NDArray[np.float64] = endmill_design(phi, tool, cut).mean(axis=0)
+    return out
 
 
 def peak_force(
@@ -294,4 +310,5 @@ def peak_force(
     phi = np.linspace(0.0, 2 * np.pi / tool.flutes, n_phi, endpoint=False)
     phi = phi.reshape((n_phi,) + (1,) * len(shape))
     f = endmill_forces(phi, tool, coef, cut)
-    return np.linalg.norm(f, axis=-1).max(axis=0)
+    out: NDArray[np.float64] = np.linalg.norm(f, axis=-1).max(axis=0)
+    return out

@@ -22,6 +22,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from analysis.config import EndMill, EndMillCoefficients
 from analysis.errors import AnalysisError
@@ -50,7 +51,8 @@ def feed_plane_force_n(
     phi = np.linspace(0.0, 2 * np.pi, n_phi, endpoint=False).reshape((n_phi,) + (1,) * f.ndim)
     ec = EndMillCut(fz, cut.depth_mm, cut.entry_deg, cut.exit_deg)
     forces = endmill_forces(phi, tool, coef, ec)
-    return np.hypot(forces[..., 0], forces[..., 1]).mean(axis=0)
+    out: NDArray[np.float64] = np.hypot(forces[..., 0], forces[..., 1]).mean(axis=0)
+    return out
 
 
 def force_cv(
@@ -132,7 +134,9 @@ class ForceTable:
         f = np.asarray(feeds_mm_min, dtype=float)
         return force_cv(self.force(f), f, self.lengths_mm, self.rpm)
 
-    def front(self, feed_min_mm_min: float, feed_max_mm_min: float, n_levels: int = 2000):
+    def front(
+        self, feed_min_mm_min: float, feed_max_mm_min: float, n_levels: int = 2000
+    ) -> EvennessFront:
         """The equal-force family (module doc) within [feed_min, feed_max], inside the grid."""
         lo = max(feed_min_mm_min, self.feeds_mm_min[0])
         hi = min(feed_max_mm_min, self.feeds_mm_min[-1])
@@ -153,7 +157,9 @@ class ForceTable:
         """Least maximum feed, mm/min, at which a CV <= ``cv`` is reachable within ``time_s``
         (inf if not even at the top of the table). Raising the maximum only adds choices, so
         the answer is found by bisection."""
-        ok = lambda fmax: self.front(feed_min_mm_min, fmax).least_cv(time_s) <= cv  # noqa: E731
+        def ok(fmax: float) -> bool:
+            return self.front(feed_min_mm_min, fmax).least_cv(time_s) <= cv
+
         lo, hi = feed_min_mm_min, float(self.feeds_mm_min[-1])
         if not ok(hi):
             return float("inf")

@@ -44,7 +44,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from analysis.config import FaceMill, FaceMillCoefficients
 from analysis.errors import AnalysisError
@@ -83,7 +83,9 @@ DYNO_FROM_TOOL = np.diag([1.0, -1.0, -1.0])
 PARAMETERS = ("P_T_n_mm", "K_T_n_mm2", "P_R_n_mm", "KRKT_n_mm2", "P_A_n_mm", "KAKT_n_mm2")
 
 
-def chip_thickness(theta_rad: ArrayLike, fz_mm: ArrayLike, radius_mm: float, exact: bool = True):
+def chip_thickness(
+    theta_rad: ArrayLike, fz_mm: ArrayLike, radius_mm: float, exact: bool = True
+) -> NDArray[np.float64]:
     """Seed 003 eq 1: chip thickness CI(theta), mm (negative behind the cutter).
 
     ``exact``: R + f sin(theta) - sqrt(R^2 - f^2 cos^2(theta)) (the seed prints f, not f^2,
@@ -91,9 +93,12 @@ def chip_thickness(theta_rad: ArrayLike, fz_mm: ArrayLike, radius_mm: float, exa
     """
     th = np.asarray(theta_rad, float)
     f = np.asarray(fz_mm, float)
+    out: NDArray[np.float64]
     if not exact:
-        return f * np.sin(th)
-    return radius_mm + f * np.sin(th) - np.sqrt(radius_mm**2 - (f * np.cos(th)) ** 2)
+        out = f * np.sin(th)
+        return out
+    out = radius_mm + f * np.sin(th) - np.sqrt(radius_mm**2 - (f * np.cos(th)) ** 2)
+    return out
 
 
 def tool_from_insert_axes(theta_rad: ArrayLike) -> np.ndarray:
@@ -140,7 +145,9 @@ def tool_table(tool: FaceMill) -> EdgeTable:
     )
 
 
-def chip_area_and_edge_length(tool: FaceMill, h_mm: ArrayLike, depth_mm: ArrayLike):
+def chip_area_and_edge_length(
+    tool: FaceMill, h_mm: ArrayLike, depth_mm: ArrayLike
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Chip area on the rake face S (mm^2, eqs 11-13) and engaged edge length l (mm, eq 16).
 
     ``h_mm`` is the chip thickness CI in the radial direction, ``depth_mm`` the axial depth of cut;
@@ -173,7 +180,7 @@ class FaceMillCut:
         return engagement_angles(self.width_mm, radius_mm, self.center_offset_mm)
 
 
-def _insert_layout(tool: FaceMill) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _insert_layout(tool: FaceMill) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Angles a_k (rad), feed share of each insert and its radius change vs the insert before."""
     z = tool.inserts
     if tool.insert_angles_deg is None:
@@ -327,4 +334,5 @@ def facemill_forces(
     ``theta_rad`` (shape (...)) is the cutter rotation angle (insert 0's position, see module
     docstring); ``cut``'s fields broadcast with it.
     """
-    return facemill_design(theta_rad, tool, cut) @ coefficient_vector(coef)
+    out: NDArray[np.float64] = facemill_design(theta_rad, tool, cut) @ coefficient_vector(coef)
+    return out

@@ -135,7 +135,8 @@ class FaceMillModel(_Base):
     def mean_design(self, tool: FaceMill, cut: _fm.FaceMillCut) -> np.ndarray:
         n = _FACEMILL_MEAN_ANGLES
         theta = 2 * np.pi * (np.arange(n) + 0.5) / n
-        return _fm.facemill_design(theta, tool, cut).mean(axis=0)
+        out: np.ndarray = _fm.facemill_design(theta, tool, cut).mean(axis=0)
+        return out
 
     def coefficient_vector(self, coef: FaceMillCoefficients) -> np.ndarray:
         return _fm.coefficient_vector(coef)

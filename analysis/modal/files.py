@@ -15,7 +15,6 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -30,6 +29,7 @@ from analysis.modal.hammer import (
     tooth_passing_warnings,
 )
 from analysis.runs import FORCE_UNIT_TO_N, load_run, read_force_table
+from analysis.validation import JsonObject, JsonValue
 
 __all__ = ["hammer_file_record", "modal_file"]
 
@@ -43,7 +43,9 @@ _UNITS = {
 }  # fmt: skip
 
 
-def _response_column(path, name: str, unit: str, response: str | None) -> tuple[str, float]:
+def _response_column(
+    path: str | Path, name: str, unit: str, response: str | None
+) -> tuple[str, float]:
     """(kind, factor to SI) of one response column."""
     u = unit.strip().lower()
     if not u:
@@ -195,7 +197,7 @@ def modal_file(
     stabilisation_png: str | Path | None = None,
     save: str | Path | None = None,
     columns: str | Sequence[str] | None = None,
-) -> dict[str, Any]:
+) -> JsonObject:
     """Modes of a hammer-test file as a JSON-able dict: hits used and double, modes per axis
     (with modal stiffness, mass and damping for a displacement or acceleration response, a
     force response's share of the static gain otherwise), skipped channels, the rig config's
@@ -211,12 +213,12 @@ def modal_file(
     rec = hammer_file_record(path, hammer, rate_hz, response, columns)
     res = modal_analysis(rec, record_s=record_s, window_end=window_end)
     rig = load_rig(rig_path or None)
-    warn = list(res.warnings)
+    warn: list[JsonValue] = list(res.warnings)
     if spindle_rpm:
         warn += tooth_passing_warnings(res.modes, spindle_rpm, teeth)
-    modes = []
+    modes: list[JsonValue] = []
     for m in res.modes:
-        row = {
+        row: JsonObject = {
             "axis": m.channel,
             "frequency_hz": m.frequency_hz,
             "damping_ratio": m.damping_ratio,
@@ -237,7 +239,7 @@ def modal_file(
             row.update(stiffness_n_m=m.stiffness_n_m, mass_kg=m.mass_kg,
                        damping_n_s_m=m.damping_n_s_m)  # fmt: skip
         modes.append(row)
-    out: dict[str, Any] = {
+    out: JsonObject = {
         "file": str(Path(path)),
         "hits_used": list(res.hits_used),
         "double_hits": list(res.double_hits),
@@ -261,5 +263,5 @@ def modal_file(
     if save:
         saved, notes = save_modes(save, res.modes, source=Path(path).name)
         out["saved"] = str(saved)
-        out["warnings"] += notes
+        warn += notes  # the list out["warnings"] holds
     return out

@@ -23,15 +23,19 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 from scipy import signal
 
 from analysis.config import Dynamometer, Mode
 from analysis.errors import AnalysisError
 
-AXES = ("x", "y", "z")
+#: a discrete filter's numerator and denominator
+_BA = tuple[NDArray[np.float64], NDArray[np.float64]]
+
+AXES: tuple[Literal["x"], Literal["y"], Literal["z"]] = ("x", "y", "z")
 
 __all__ = ["AXES", "DynamometerFilter", "FilterState"]
 
@@ -47,15 +51,17 @@ class DynamometerFilter:
     modes: tuple[Mode, ...]
     rate_hz: float
     crosstalk: np.ndarray | None = None
-    _ba: tuple = field(init=False, repr=False, compare=False)
+    _ba: tuple[_BA | None, ...] = field(init=False, repr=False, compare=False)
     # Harmonic responses by (harmonics, period): a fit's phase search filters one run's
     # regressors some 35 times at the same period, and freqz was half of that work.
-    _harmonics: dict = field(init=False, repr=False, compare=False, default_factory=dict)
+    _harmonics: dict[tuple[int, float], NDArray[np.complex128]] = field(
+        init=False, repr=False, compare=False, default_factory=dict
+    )
 
     def __post_init__(self) -> None:
         if not self.rate_hz > 0:
             raise AnalysisError(f"rate_hz = {self.rate_hz}: must be > 0 (Hz)")
-        ba = [None, None, None]
+        ba: list[_BA | None] = [None, None, None]
         for m in self.modes:
             if m.f_hz >= self.rate_hz / 2:
                 raise AnalysisError(
@@ -64,7 +70,8 @@ class DynamometerFilter:
                 )
             wn = 2 * np.pi * m.f_hz
             num, den = [wn**2], [1.0, 2 * m.zeta * wn, wn**2]
-            bd, ad, _ = signal.cont2discrete((num, den), 1.0 / self.rate_hz, method="zoh")
+            tf = (np.array(num), np.array(den))
+            bd, ad, _ = signal.cont2discrete(tf, 1.0 / self.rate_hz, method="zoh")
             ba[AXES.index(m.axis)] = (np.ravel(bd), np.ravel(ad))
         object.__setattr__(self, "_ba", tuple(ba))
         if self.crosstalk is not None:
@@ -97,7 +104,7 @@ class DynamometerFilter:
     ) -> DynamometerFilter:
         """Modes given as x, y, z frequency (Hz) and damping-ratio lists."""
         modes = tuple(
-            Mode(axis=a, frequency_hz=f, damping_ratio=z)
+            Mode(axis=a, f_hz=f, zeta=z)
             for a, f, z in zip(AXES, frequencies_hz, damping)
         )
         return cls(modes, float(rate_hz))
@@ -149,7 +156,7 @@ class FilterState:
     """Running state of a :class:`DynamometerFilter` for block-by-block filtering."""
 
     filt: DynamometerFilter
-    zi: list
+    zi: list[NDArray[np.float64] | None]
 
     def process(self, block_n: ArrayLike) -> np.ndarray:
         """Filter the next block, shape (n, 3) N -> (n, 3) N."""

@@ -37,11 +37,17 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from analysis.errors import AnalysisError
+
+if TYPE_CHECKING:
+    from analysis.config import Mode
+    from analysis.modal.stabilisation import Stabilisation
 
 __all__ = [
     "MAX_HITS",
@@ -124,7 +130,7 @@ class ModalResult:
     coherence: np.ndarray
     skipped: tuple[tuple[str, str], ...] = ()
     warnings: tuple[str, ...] = field(default_factory=tuple)
-    stabilisation: dict = field(default_factory=dict)
+    stabilisation: dict[str, Stabilisation] = field(default_factory=dict)
     channels: tuple[str, ...] = ()
 
 
@@ -187,7 +193,9 @@ def double_hit(pulse_n: ArrayLike, rate_hz: float, double_frac: float = 0.1) -> 
     return bool(np.any(x[end:] > double_frac * peak))
 
 
-def half_power(freq_hz: np.ndarray, mag: np.ndarray, lo_hz: float, hi_hz: float):
+def half_power(
+    freq_hz: NDArray[np.float64], mag: NDArray[np.float64], lo_hz: float, hi_hz: float
+) -> tuple[float, float]:
     """Peak frequency and damping from the half-power (-3 dB) bandwidth of |H| in [lo, hi].
 
     zeta = (f2 - f1) / (2 f_peak), with the crossings linearly interpolated. NaN if a crossing
@@ -218,7 +226,10 @@ def half_power(freq_hz: np.ndarray, mag: np.ndarray, lo_hz: float, hi_hz: float)
     return float(fp), float((f2 - f1) / (2 * fp))
 
 
-def _h1(exc: np.ndarray, resp: np.ndarray, rate_hz: float, window: str, resp_type: str = "d"):
+def _h1(
+    exc: NDArray[np.float64], resp: NDArray[np.float64], rate_hz: float, window: str,
+    resp_type: str = "d",
+) -> tuple[NDArray[np.float64], NDArray[np.complex128], NDArray[np.float64]]:  # fmt: skip
     """H1 FRF and coherence with pyFRF: exc (hits, n), resp (hits, c, n) -> f, H (c, k), coh;
     ``resp_type`` 'a' turns an accelerance into a receptance."""
     import pyFRF
@@ -256,14 +267,16 @@ def _hammer_band_hz(exc: np.ndarray, rate_hz: float) -> float:
     return float(min(f[low[0]] if len(low) else np.inf, 0.45 * rate_hz))
 
 
-def _mode_frf(residue: float, f_hz: float, zeta: float, at_hz):
+def _mode_frf(
+    residue: float, f_hz: float, zeta: float, at_hz: ArrayLike
+) -> NDArray[np.complex128]:
     """R / (w_r^2 - w^2 + 2 i zeta w_r w): one mode's part of a driving-point FRF."""
     wr, w = 2 * math.pi * f_hz, 2 * math.pi * np.asarray(at_hz, float)
-    return residue / (wr * wr - w * w + 2j * zeta * wr * w)
+    return np.asarray(residue / (wr * wr - w * w + 2j * zeta * wr * w), np.complex128)
 
 
 def _channel_modes(
-    name: str, kind: str, st, freq: np.ndarray, frf_raw: np.ndarray, coh: np.ndarray,
+    name: str, kind: str, st: Stabilisation, freq: np.ndarray, frf_raw: np.ndarray, coh: np.ndarray,
     sigma_w: float, min_coherence: float, notes: list[str],
 ) -> list[ModeEstimate]:  # fmt: skip
     """The stabilisation's modes of one channel with the window's damping taken out, coherence
@@ -308,8 +321,8 @@ def _channel_modes(
             w.append(f"{name}: mode at {f_true:.0f} Hz has residue {residue:.3g} <= 0: not a "
                      "driving-point FRF (hammer and sensor apart?); no modal mass")  # fmt: skip
         # Half-power only where the other modes add < 10 % to this one's peak.
-        others = sum(_mode_frf(r, m[1], m[2], f_true) for r, m in zip(res, chosen)
-                     if m[1] != f_true)  # fmt: skip
+        others: complex = sum(complex(_mode_frf(r, m[1], m[2], f_true)) for r, m in zip(res, chosen)
+                              if m[1] != f_true)  # fmt: skip
         fh = zh = math.nan
         if abs(others) < 0.1 * abs(_mode_frf(residue, f_true, z_true, f_true)):
             fh, zh = half_power(freq, np.abs(frf_raw), max(lo, 0.8 * f_true),
@@ -327,7 +340,7 @@ def _channel_modes(
     return out
 
 
-def _cluster_spread(st, f_hz: float, df_hz: float) -> tuple[float, float]:
+def _cluster_spread(st: Stabilisation, f_hz: float, df_hz: float) -> tuple[float, float]:
     """Standard deviation of frequency (with the step's resolution, df / sqrt(12)) and of
     damping over the counted poles within the stabilisation's tolerance of ``f_hz``."""
     from analysis.modal.stabilisation import FREQ_TOL
@@ -434,7 +447,7 @@ def modal_analysis(
 
 
 def tooth_passing_warnings(
-    modes: Sequence, spindle_rpm: ArrayLike, teeth: int, harmonics: int = 10,
+    modes: Sequence[Mode | ModeEstimate], spindle_rpm: ArrayLike, teeth: int, harmonics: int = 10,
     margin: float = 0.1,
 ) -> list[str]:  # fmt: skip
     """Warnings for harmonics k * rpm / 60 * teeth (k = 1..harmonics) of planned tests that lie
@@ -456,10 +469,9 @@ def tooth_passing_warnings(
     return out
 
 
-def plot_frf(result: ModalResult, path):
+def plot_frf(result: ModalResult, path: str | Path) -> Path:
     """PNG: |H1| and coherence per channel with modes (receptance for a displacement or
     acceleration response), the identified modes marked."""
-    from pathlib import Path
 
     import matplotlib
 

@@ -31,7 +31,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import tomli_w
@@ -41,6 +41,9 @@ from pydantic import Field, model_validator
 from analysis.config import renamed_mode_fields
 from analysis.errors import AnalysisError, ConfigError
 from analysis.validation import Model, read_toml, validate
+
+if TYPE_CHECKING:
+    from analysis.modal.hammer import ModeEstimate
 
 __all__ = ["ModalMode", "ModeSet", "load_modes", "renamed_mode_fields", "save_modes"]
 
@@ -182,7 +185,7 @@ def load_modes(path: str | Path) -> ModeSet:
 
 
 def save_modes(
-    path: str | Path, modes: Sequence, source: str = "", merge: bool = True,
+    path: str | Path, modes: Sequence[ModeEstimate], source: str = "", merge: bool = True,
 ) -> tuple[Path, list[str]]:  # fmt: skip
     """Write ``modes`` (``ModeEstimate``-like: ``channel``, ``frequency_hz``, ``damping_ratio``,
     ``stiffness_n_m``, ``mass_kg``; NaN stiffness = none) as a modes file in the one mode schema
@@ -190,7 +193,7 @@ def save_modes(
     ``modes`` do not have are kept (a tap in x, then one in y, into one file). Returns the path
     and notes: directions kept, modes left out (stiffer than 1e9 N/m: they do not limit a cut)."""
     p = Path(path)
-    dirs: dict[str, list[dict]] = {}
+    dirs: dict[str, list[dict[str, float]]] = {}
     notes = []
     for m in sorted(modes, key=lambda m: (m.channel, m.frequency_hz)):
         row = {"f_hz": float(m.frequency_hz), "zeta": float(m.damping_ratio)}

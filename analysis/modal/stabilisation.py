@@ -21,9 +21,13 @@ from __future__ import annotations
 import contextlib
 import io
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from analysis.errors import AnalysisError
 
@@ -53,7 +57,7 @@ class Stabilisation:
     state: tuple[np.ndarray, ...]
     modes: tuple[tuple[int, int], ...]
     band_hz: tuple[float, float]
-    model: object
+    model: Any  # sdypy-EMA's Model: untyped
 
     def cluster_size(self, k: int) -> int:
         """How many counted poles the ``k``-th mode's cluster holds."""
@@ -81,7 +85,8 @@ def stabilise(
     poles = tuple(np.asarray(p, complex) for p in model.all_poles)
     fr = tuple(np.asarray(f, float) for f in model.pole_freq)
     xi = tuple(np.asarray(x, float) for x in model.pole_xi)
-    states, runs = [], []
+    states: list[NDArray[np.int_]] = []
+    runs: list[NDArray[np.int_]] = []
     for o in range(len(poles)):
         phys = (fr[o] > lo) & (fr[o] < hi) & (xi[o] > 0) & (xi[o] < MAX_DAMPING)
         state = phys.astype(int)
@@ -108,7 +113,11 @@ def stabilise(
                          modes, (float(lo), float(hi)), model)  # fmt: skip
 
 
-def _clusters(fr, xi, states) -> tuple[tuple[int, int], ...]:
+def _clusters(
+    fr: Sequence[NDArray[np.float64]],
+    xi: Sequence[NDArray[np.float64]],
+    states: Sequence[NDArray[np.int_]],
+) -> tuple[tuple[int, int], ...]:
     """(order index, pole index) of the representative of each cluster of counted poles."""
     pts = [(fr[o][i], xi[o][i], o, i) for o, s in enumerate(states) for i in np.flatnonzero(s == 4)]
     if not pts:
@@ -133,7 +142,9 @@ def _clusters(fr, xi, states) -> tuple[tuple[int, int], ...]:
     return tuple(out)
 
 
-def modal_constants(stab: Stabilisation, modes: list[tuple[int, int]]) -> np.ndarray:
+def modal_constants(
+    stab: Stabilisation, modes: list[tuple[int, int]]
+) -> NDArray[np.complex128]:
     """LSFD modal constants A_r (sdypy-EMA ``get_constants``, lower and upper residuals in the
     fit) of the chosen poles: H(w) = sum A_r / (i w - s_r) + conj(A_r) / (i w - conj(s_r))."""
     if not modes:
@@ -146,15 +157,15 @@ def modal_constants(stab: Stabilisation, modes: list[tuple[int, int]]) -> np.nda
             _, a = model.get_constants(method="lsfd", whose_poles="own")
         except np.linalg.LinAlgError as exc:
             raise AnalysisError(f"LSFD of the modal constants failed: {exc}") from None
-    return np.asarray(a, complex)[0]
+    out: NDArray[np.complex128] = np.asarray(a, complex)[0]
+    return out
 
 
-def plot_stabilisation(stabs: dict[str, Stabilisation], frf: dict[str, np.ndarray], freq_hz,
-                       chosen: dict[str, list[float]], path):  # fmt: skip
+def plot_stabilisation(stabs: dict[str, Stabilisation], frf: dict[str, NDArray[np.complex128]],
+                       freq_hz: NDArray[np.float64], chosen: dict[str, list[float]],
+                       path: str | Path) -> Path:  # fmt: skip
     """PNG: per channel the stabilisation diagram (model order against pole frequency, by
     stability) over |H|, the chosen modes marked."""
-    from pathlib import Path
-
     import matplotlib
 
     matplotlib.use("Agg")

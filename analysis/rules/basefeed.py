@@ -30,6 +30,9 @@ from numpy.typing import NDArray
 from analysis.errors import AnalysisError
 from analysis.runs import per_revolution
 
+#: how the slope and vibration indicators combine into a flag
+Criterion = Literal["any", "both", "slope", "vibration"]
+
 
 @dataclass(frozen=True)
 class SweepRun:
@@ -51,7 +54,7 @@ class BaseFeedSettings:
     slope_ratio: float = 1.6
     vibration_ratio: float = 2.0
     min_reference_intervals: int = 2
-    criterion: Literal["any", "both", "slope", "vibration"] = "any"
+    criterion: Criterion = "any"
     harmonic_band_hz: float | None = (
         None  # half-width around each spindle harmonic; default 2 % of f_spindle
     )

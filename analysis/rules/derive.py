@@ -8,17 +8,18 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from analysis.errors import AnalysisError
 from analysis.rules.basefeed import (
     BaseFeedResult,
     BaseFeedSettings,
+    Criterion,
     find_base_feed,
     sweep_runs_from_files,
 )
 from analysis.rules.rule import N_BINS, FeedRule, derive_rule, load_rule
 from analysis.rules.rulebase import GroupExistsError, GroupKey, RuleBase, default_path
+from analysis.validation import JsonObject, JsonValue
 
 MIN_SWEEP_RUNS = 4  # fewer runs than this: no base-feed detection
 
@@ -35,7 +36,7 @@ class DerivedRule:
     reference_load_pct: float
     detection: BaseFeedResult | None  # None with fewer than MIN_SWEEP_RUNS runs
 
-    def summary(self, rule_path: str | Path) -> dict[str, Any]:
+    def summary(self, rule_path: str | Path) -> JsonObject:
         """Plain data for JSON: the rule file (as written to ``rule_path``), the choices made,
         the sweep's runs and intervals (empty without detection) and the bins."""
         det = self.detection
@@ -47,10 +48,15 @@ class DerivedRule:
             "min_feed_mm_min": self.min_feed_mm_min,
             "max_feed_mm_min": self.max_feed_mm_min,
             "reference_load_pct": self.reference_load_pct,
-            "runs": [vars(r) for r in det.runs] if det else [],
-            "intervals": det.table() if det else [],
-            "bins": self.rule.table(),
+            "runs": _rows([vars(r) for r in det.runs]) if det else [],
+            "intervals": _rows(det.table()) if det else [],
+            "bins": _rows(self.rule.table()),
         }
+
+
+def _rows(rows: Sequence[Mapping[str, JsonValue]]) -> list[JsonValue]:
+    """Rows of scalars as JSON values (a copy: lists of dicts are invariant in their type)."""
+    return [dict(r) for r in rows]
 
 
 def derive_from_sweep(
@@ -66,7 +72,7 @@ def derive_from_sweep(
     n_bins: int = N_BINS,
     slope_ratio: float = BaseFeedSettings.slope_ratio,
     vibration_ratio: float = BaseFeedSettings.vibration_ratio,
-    criterion: str = BaseFeedSettings.criterion,
+    criterion: Criterion = BaseFeedSettings.criterion,
 ) -> DerivedRule:
     """Seed 001 steps 2-3 from feed-sweep run files: the base feed (detected with
     :class:`BaseFeedSettings` of the ratios and criterion, unless given), the feed limits
@@ -80,7 +86,7 @@ def derive_from_sweep(
     if base_feed_mm_min is not None:
         base = base_feed_mm_min
         how = f"base feed {base_feed_mm_min:g} mm/min given with --base-feed"
-    elif found is not None and found.found:
+    elif found is not None and found.found and found.base_feed_mm_min is not None:
         base, how = found.base_feed_mm_min, found.message
     else:
         why = found.message if found is not None else f"only {len(sweep.runs)} runs"
@@ -103,19 +109,21 @@ def derive_from_sweep(
     return DerivedRule(rule, base, how, lo, hi, ref, found)
 
 
-def _as_key(key: GroupKey | Mapping[str, Any]) -> GroupKey:
-    return key if isinstance(key, GroupKey) else GroupKey(**key)
+def _as_key(key: GroupKey | Mapping[str, str | float]) -> GroupKey:
+    if isinstance(key, GroupKey):
+        return key
+    return GroupKey(**key)  # type: ignore[arg-type]  # __post_init__ checks each field's value
 
 
 def add_rule_file(
     rule_path: str | Path,
-    key: GroupKey | Mapping[str, Any],
+    key: GroupKey | Mapping[str, str | float],
     db: str | Path | None = None,
     *,
     note: str = "",
     replace: bool = False,
     on_create: Callable[[Path], None] | None = None,
-) -> tuple[dict[str, Any], Path]:
+) -> tuple[JsonObject, Path]:
     """Store a rule file for group ``key`` (a :class:`GroupKey` or its fields) in the rule base
     ``db`` (default :func:`default_path`, created if missing: ``on_create(path)`` is told
     first). Returns the stored group's summary and the base's path."""
@@ -139,13 +147,13 @@ def _open(db: str | Path | None) -> RuleBase:
     return RuleBase(db, create=False)
 
 
-def list_groups(db: str | Path | None = None) -> list[dict[str, Any]]:
+def list_groups(db: str | Path | None = None) -> list[JsonObject]:
     """Every group of the rule base ``db``, as summaries."""
     with _open(db) as rb:
         return [g.summary() for g in rb.list()]
 
 
-def rule_info(spec: str, db: str | Path | None = None) -> tuple[FeedRule, dict[str, Any]]:
+def rule_info(spec: str, db: str | Path | None = None) -> tuple[FeedRule, JsonObject]:
     """A rule by file (an existing ``.toml``), rule name or group id in the base ``db``, and
     its settings and bins as plain data (``from`` says where it was found)."""
     p = Path(spec)
@@ -155,7 +163,7 @@ def rule_info(spec: str, db: str | Path | None = None) -> tuple[FeedRule, dict[s
         with _open(db) as rb:
             g = rb.find(spec)
             rule, where = g.rule, f"group {g.id} of {rb.path}"
-    info = {
+    info: JsonObject = {
         "name": rule.name,
         "from": where,
         "min_feed_mm_min": rule.min_feed_mm_min,
@@ -165,14 +173,16 @@ def rule_info(spec: str, db: str | Path | None = None) -> tuple[FeedRule, dict[s
         "exponent": rule.exponent,
         "description": rule.description,
         "source": rule.source,
-        "bins": rule.table(),
+        "bins": _rows(rule.table()),
     }
     return rule, info
 
 
 def lookup_group(
-    key: GroupKey | Mapping[str, Any], db: str | Path | None = None, exact_only: bool = False
-) -> dict[str, Any]:
+    key: GroupKey | Mapping[str, str | float],
+    db: str | Path | None = None,
+    exact_only: bool = False,
+) -> JsonObject:
     """The rule base's group for ``key`` (a :class:`GroupKey` or its fields): exact, else the
     nearest, stated; as plain data."""
     with _open(db) as rb:

@@ -137,7 +137,8 @@ class FeedRule:
         """The continuous relation the bins approximate, clamped to [min, max], mm/min."""
         load = np.maximum(np.asarray(load_pct, dtype=float), 1e-300)
         f = self.base_feed_mm_min * (self.reference_load_pct / load) ** self.exponent
-        return np.clip(f, self.min_feed_mm_min, self.max_feed_mm_min)
+        out: NDArray[np.float64] = np.clip(f, self.min_feed_mm_min, self.max_feed_mm_min)
+        return out
 
     def table(self) -> list[dict[str, float]]:
         """One dict per bin: load_min_pct, load_max_pct, feed_mm_min."""

@@ -28,7 +28,7 @@ from pathlib import Path
 from analysis.config import REPO_ROOT, config_dir
 from analysis.errors import AnalysisError, ConfigError
 from analysis.rules.rule import FeedRule, rule_from_toml, rule_to_toml
-from analysis.validation import read_toml
+from analysis.validation import JsonObject, read_toml
 
 SCHEMA_VERSION = 1
 
@@ -120,7 +120,7 @@ class Group:
     def rule(self) -> FeedRule:
         return rule_from_toml(self.rule_toml, f"rule base group {self.id}")
 
-    def summary(self) -> dict[str, object]:
+    def summary(self) -> JsonObject:
         return {
             "id": self.id,
             **asdict(self.key),
@@ -136,7 +136,7 @@ class Match:
     group: Group
     exact: bool
     distance: float
-    differences: dict[str, tuple[object, object]]  # field -> (asked, found)
+    differences: dict[str, tuple[str | float, str | float]]  # field -> (asked, found)
 
     def statement(self) -> str:
         if self.exact:
@@ -267,7 +267,7 @@ class RuleBase:
 
     # -- reading ------------------------------------------------------------------------------
 
-    def _rows(self, where: str = "", args: tuple = ()) -> list[Group]:
+    def _rows(self, where: str = "", args: tuple[object, ...] = ()) -> list[Group]:
         cols = [f.name for f in fields(GroupKey)]
         q = (
             f"SELECT id, {', '.join(cols)}, base_feed_mm_min, rule_name, rule_toml, note, "
@@ -317,7 +317,7 @@ class RuleBase:
             )
 
         def dist(g: Group) -> float:
-            d = sum(
+            d: float = sum(
                 w * abs(getattr(g.key, f) - getattr(key, f)) / getattr(key, f)
                 for f, w in _WEIGHTS.items()
             )
@@ -360,7 +360,7 @@ class RuleBase:
         return p
 
     def integrity_ok(self) -> bool:
-        return self._con.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+        return bool(self._con.execute("PRAGMA integrity_check").fetchone()[0] == "ok")
 
 
 def _no_exact(

@@ -6,7 +6,6 @@ from planning.feed._write import cap_feeds
 from planning.feed.force import ForceModel
 from planning.feed.job import (
     Job,
-    end_mill,
     feed_post_options,
     feed_program,
     load_job,
@@ -15,6 +14,7 @@ from planning.feed.job import (
 )
 from planning.feed.post import FeedPostOptions, FeedPostResult, post_process
 from planning.feed.report import write_report
+from planning.stock.machining import end_mill
 
 __all__ = [
     "FeedPostOptions",

@@ -26,10 +26,17 @@ N_PHI = 36  # tooth-period samples of the peak force
 N_DISCS = 12  # axial discs of the force tables (the twin slices its cutter in 12 too)
 ENGAGEMENT_STEP = 0.02  # relative rounding (up) of the depth for the force tables
 MAX_CACHED = 50_000  # force tables kept per tool and material (1.7 kB each)
-_TABLES: dict[tuple[str, str], dict[tuple[int, int], tuple[NDArray, NDArray]]] = {}
+_Tables = tuple[NDArray[np.float64], NDArray[np.float64]]
+_TABLES: dict[tuple[str, str], dict[tuple[int, int], _Tables]] = {}
 
 
-def _arcs(sim: Simulation, c: NDArray, depth_mm: NDArray, ae_mm: NDArray, d_mm: float) -> NDArray:
+def _arcs(
+    sim: Simulation,
+    c: NDArray[np.bool_],
+    depth_mm: NDArray[np.float64],
+    ae_mm: NDArray[np.float64],
+    d_mm: float,
+) -> NDArray[np.float64]:
     """Engaged arcs per cutting piece, (k, MAX_ARCS, 3): entry rad, exit rad, depth mm (NaN
     rows: no more arcs); the strip where the Z-map found none (module docstring)."""
     from analysis.forces.endmill import immersion_angles
@@ -55,8 +62,8 @@ class ForceModel:
         tool: EndMill,
         coef: EndMillCoefficients,
         sim: Simulation,
-        rpm: NDArray,
-        cutting: NDArray | None = None,
+        rpm: NDArray[np.float64],
+        cutting: NDArray[np.bool_] | None = None,
     ) -> None:
         self.tool, self.coef = tool, coef
         length = sim.piece_length_mm
@@ -87,12 +94,12 @@ class ForceModel:
         table = np.full(len(ends), len(uniq))  # the last table is no force
         table[has] = inv.ravel()
         self._exit_table, self._entry_table = table.reshape(2, -1, MAX_ARCS)
-        self._tables: tuple[NDArray, NDArray] | None = None
+        self._tables: _Tables | None = None
 
-    def _fz(self, feed_mm_min: NDArray) -> NDArray:
+    def _fz(self, feed_mm_min: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.maximum(feed_mm_min, 1e-9) / (self.tool.flutes * self.rpm)
 
-    def _force_tables(self) -> tuple[NDArray, NDArray]:
+    def _force_tables(self) -> _Tables:
         """Force over a tooth period per distinct engagement, (m + 1, N_PHI, 3) each (the last:
         no arc), as F(fz) = fz A + B: the edge model is affine in the chip thickness, which is
         affine in fz (fz sin(phi), plus runout). Each (depth, end angle) is evaluated once per
@@ -114,7 +121,7 @@ class ForceModel:
                             np.stack([cache[k][1] for k in self._keys] + [none]))  # fmt: skip
         return self._tables
 
-    def _evaluate(self, keys: NDArray) -> tuple[NDArray, NDArray]:
+    def _evaluate(self, keys: NDArray[np.int64]) -> _Tables:
         """A and B (k, N_PHI, 3) of the arcs from 0 for keys (k, 2): depth step, end index."""
         from analysis.forces import EndMillCut, model_for
 
@@ -129,7 +136,9 @@ class ForceModel:
         a = np.moveaxis(f1 - f0, 0, 1) / 0.1
         return a, np.moveaxis(f0, 0, 1) - 0.1 * a
 
-    def forces_n(self, fz: NDArray, mean: bool = False) -> tuple[NDArray, ...]:
+    def forces_n(
+        self, fz: NDArray[np.float64], mean: bool = False
+    ) -> tuple[NDArray[np.float64], ...]:
         """(peak resultant, peak lateral[, mean resultant over a tooth period]) force per
         cutting piece at feeds per tooth ``fz``, N."""
         a_tab, b_tab = self._force_tables()
@@ -147,7 +156,7 @@ class ForceModel:
             lateral[sl] = np.linalg.norm(f[..., :2], axis=-1).max(1)
         return (force, lateral, mean_n) if mean else (force, lateral)
 
-    def force_n(self, feed_mm_min: NDArray) -> NDArray:
+    def force_n(self, feed_mm_min: NDArray[np.float64]) -> NDArray[np.float64]:
         """Peak force of every piece at the given feeds (all pieces), N (NaN where not
         cutting)."""
         out = np.full(len(self.cutting), np.nan)
@@ -155,7 +164,7 @@ class ForceModel:
             out[self.cutting] = self.forces_n(self._fz(feed_mm_min[self.cutting]))[0]
         return out
 
-    def feed_cap(self, limit_n: float) -> NDArray:
+    def feed_cap(self, limit_n: float) -> NDArray[np.float64]:
         """Feed of every piece at which its peak force reaches ``limit_n``, mm/min (inf where
         none: not cutting, or never that high; 0: above it at the smallest feed)."""
         cap = np.full(len(self.cutting), np.inf)
@@ -163,12 +172,12 @@ class ForceModel:
             cap[self.cutting] = self.force_cap_fz(limit_n, None) * self.tool.flutes * self.rpm
         return cap
 
-    def force_cap_fz(self, f_lim: float | None, d_lim: float | None) -> NDArray:
+    def force_cap_fz(self, f_lim: float | None, d_lim: float | None) -> NDArray[np.float64]:
         """Largest fz per cutting piece with peak force <= f_lim and peak lateral force <=
         d_lim, by bisection in log(fz) (the peak forces grow with fz), from below; 0 where even
         1e-5 mm is too much, inf where 2 mm is not."""
 
-        def ok(fz: NDArray) -> NDArray:
+        def ok(fz: NDArray[np.float64]) -> NDArray[np.float64]:
             force, lateral = self.forces_n(fz)
             good = np.ones(len(fz), bool)
             if f_lim is not None:

@@ -20,14 +20,15 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TypedDict, Unpack
 
 import numpy as np
 
 from analysis.config import EndMill, MachineConfig, get_material, load_machine
 from analysis.rules import FeedRule, RuleBase, load_rule
+from analysis.validation import JsonObject, JsonValue
 from planning.errors import PlanningError
-from planning.feed.post import FeedPostOptions, FeedPostResult, Section, post_process
+from planning.feed.post import FeedCap, FeedPostOptions, FeedPostResult, Section, post_process
 from planning.feed.report import write_report
 from planning.nc import Motion, Program, interpret
 from planning.nc.output import DIALECTS, default_dialect, for_dialect
@@ -46,7 +47,19 @@ from planning.stock.machining import (
 
 Progress = Callable[[int, int], None]  # (pieces done, pieces in all)
 # (adjusted program, starting stock, machine) -> (program, report): planning.limits
-LimitStep = Callable[[Program, ZMap, MachineConfig], tuple[Program, dict[str, Any]]]
+LimitStep = Callable[[Program, ZMap, MachineConfig], tuple[Program, JsonObject]]
+
+
+class FeedOptions(TypedDict, total=False):
+    """The keywords of :func:`feed_post_options`."""
+
+    min_piece_mm: float
+    split: bool
+    check_holder: bool
+    force_limit_n: float | None
+    material: str | None
+    spindle_rpm: float | None
+    feed_cap: FeedCap | None
 
 
 #: the derived stock's top: Z0 (work zero on the stock top, the usual convention) when every
@@ -57,7 +70,7 @@ STOCK_ALLOWANCE_MM = 1.0
 def job_stock(
     motion: Motion, radius_mm: float, stock_spec: str | None, spacing_mm: float | None,
     file: str = "<program>",
-) -> tuple[ZMap, dict[str, Any]]:  # fmt: skip
+) -> tuple[ZMap, JsonObject]:  # fmt: skip
     """The starting stock and where it came from (printed and in JSON): ``stock_spec`` (see
     :func:`load_stock`), else a box over the program's feed moves: their XY extent plus the
     widest cutter's ``radius_mm``, bottom 1 mm below the deepest, top at Z0, or
@@ -78,6 +91,7 @@ def job_stock(
     r = radius_mm
     box = (float(lo[0]) - r, float(hi[0]) + r, float(lo[1]) - r, float(hi[1]) + r, bottom, top)
     spec = "box:" + ",".join(f"{v:.6g}" for v in box)
+    info: JsonObject
     info = {"source": "derived", "spec": spec, "allowance_mm": STOCK_ALLOWANCE_MM,
             "how": "the feed moves' XY extent plus the cutter radius; top at Z0, or "
                    f"{STOCK_ALLOWANCE_MM:g} mm above the highest level cut if that is not below "
@@ -86,7 +100,7 @@ def job_stock(
     return load_stock(spec, spacing_mm), info
 
 
-def refuse_no_removal(removed_mm3: float, stock: dict[str, Any], file: str) -> None:
+def refuse_no_removal(removed_mm3: float, stock: JsonObject, file: str) -> None:
     """A program that removes nothing from its stock is an error naming the stock: its times
     and loads would say nothing of the part (every feed raised to the rule's maximum)."""
     if removed_mm3 <= 1e-6:
@@ -106,7 +120,7 @@ class Job:
     program: Program
     motion: Motion
     stock: ZMap
-    stock_info: dict[str, Any] = field(default_factory=dict)  # where the stock came from
+    stock_info: JsonObject = field(default_factory=dict)  # where the stock came from
 
     @property
     def tool(self) -> EndMill:
@@ -153,7 +167,7 @@ def feed_post_options(
     force_limit_n: float | None = None,
     material: str | None = None,
     spindle_rpm: float | None = None,
-    feed_cap: Callable | None = None,
+    feed_cap: FeedCap | None = None,
 ) -> FeedPostOptions:
     """The post-processor's options; a force limit needs a ``material`` (configs/materials.toml)
     with end-mill force coefficients."""
@@ -191,8 +205,8 @@ def feed_program(
     dialect: str | None = None,
     limit_step: LimitStep | None = None,
     rules_material: str | None = None,
-    **options: Any,
-) -> tuple[FeedPostResult, dict[str, Any]]:
+    **options: Unpack[FeedOptions],
+) -> tuple[FeedPostResult, JsonObject]:
     """``cutlab plan feed``: feeds of a program set by the rule's predicted cutting load,
     written to ``output`` for the ``dialect`` controller (default: the machine's; the program is
     read in the machine's) with its report (``report_dir``, default ``output``'s folder).
@@ -209,6 +223,7 @@ def feed_program(
     if dialect is not None and dialect not in DIALECTS:
         raise PlanningError(f"dialect = {dialect!r}: expected one of {', '.join(DIALECTS)}")
     lookup = None
+    rules: FeedRule | dict[str, FeedRule]
     if rule_spec is None:
         material = rules_material or options.get("material")
         if not material:
@@ -263,9 +278,10 @@ def feed_program(
     else:
         why = "no --material: the limits need its force coefficients"
         summ.update(verdict="unchecked", violations=[], unchecked=[{"limit": "all", "reason": why}])
-    summ["slower_than_input"] = _slower(summ)
-    if summ["slower_than_input"] and warn is not None:
-        warn(f"warning: {summ['slower_than_input']}")
+    slower = _slower(result.time_before_s, result.time_after_s)  # as in the summary
+    summ["slower_than_input"] = slower
+    if slower and warn is not None:
+        warn(f"warning: {slower}")
     return result, summ
 
 
@@ -279,17 +295,17 @@ def _drilling(motion: Motion) -> bool:
 
 def lookup_rules(
     job: Job, material: str, db: str | Path | None, file: str
-) -> tuple[dict[str, FeedRule], list[dict[str, Any]]]:
+) -> tuple[dict[str, FeedRule], list[JsonValue]]:
     """Each tool's rule from the rule base by tool and material (``--rules`` not given): the
     rules found (``{"T1": rule}``) and, per tool, what was found or why none (a drilling run, a
     tool the base lacks: the tool keeps its feeds)."""
     op = Operation(Path(file).stem, job.motion, job.tools, file)
     runs = op.runs()
     found: dict[str, FeedRule] = {}
-    notes: list[dict[str, Any]] = []
+    notes: list[JsonValue] = []
     with RuleBase(db, create=False) as base:
         for t, (name, tool) in job.tools.items():
-            row: dict[str, Any] = {"tool_number": t, "tool": name, "rule": None}
+            row: JsonObject = {"tool_number": t, "tool": name, "rule": None}
             mine = [(lo, hi) for lo, hi, n in runs if n == t]
             if mine and all(_drilling(job.motion[lo:hi]) for lo, hi in mine):
                 row["reason"] = "only drills (Z-only feed moves): feeds kept"
@@ -326,10 +342,10 @@ def tool_sections(
     runs = op.runs()
     if isinstance(spec, FeedRule):
         if len(job.tools) > 1:
-            t = ",".join(f"T{n}=RULE" for n in job.tools)
+            each = ",".join(f"T{n}=RULE" for n in job.tools)
             raise PlanningError(
                 f"{file}: the program changes tools ({', '.join(f'T{n}' for n in job.tools)}) "
-                f"and --rules = {rule_spec!r} is one rule: give each tool's ({t}; a tool left "
+                f"and --rules = {rule_spec!r} is one rule: give each tool's ({each}; a tool left "
                 "out keeps its feeds)"
             )
         spec = {f"T{t}": spec for t in job.tools}
@@ -354,11 +370,11 @@ def tool_sections(
     return out
 
 
-def tool_figures(result: FeedPostResult) -> list[dict[str, Any]]:
+def tool_figures(result: FeedPostResult) -> list[JsonValue]:
     """Per tool run: its rule (None: feeds kept), removed volume, and the time of its blocks
     with feed moves before and after, s (rapid-only blocks do not change)."""
     sim, bt = result.simulation, result.blocks
-    out = []
+    out: list[JsonValue] = []
     for sc in result.sections:
         blocks = np.unique(result.motion_before.block[sc.lo : sc.hi])
         k = np.isin(bt.block, blocks)
@@ -377,8 +393,7 @@ def tool_figures(result: FeedPostResult) -> list[dict[str, Any]]:
 SLOWER_WARN_PCT = 3.0
 
 
-def _slower(summ: dict[str, Any]) -> str | None:
-    before, after = summ["time_before_s"], summ["time_after_s"]
+def _slower(before: float, after: float) -> str | None:
     if not before > 0 or after <= before * (1 + SLOWER_WARN_PCT / 100):
         return None
     return (
@@ -386,6 +401,11 @@ def _slower(summ: dict[str, Any]) -> str | None:
         f"({after / before:.2f}x): the rule's feeds for these loads are below the program's "
         "(check the rule, its tool and the program's feeds)"
     )
+
+
+def _number(v: JsonValue) -> float:
+    assert isinstance(v, int | float)  # a summary's numbers
+    return v
 
 
 def simulate_job(
@@ -398,14 +418,14 @@ def simulate_job(
     check_holder: bool = True,
     png: str | Path | None = None,
     progress: Progress | None = None,
-) -> tuple[list[OperationResult], dict[str, Any]]:
+) -> tuple[list[OperationResult], JsonObject]:
     """``cutlab plan simulate``: virtual machining of an operation plan (a ``.toml``: its own
     stock, machine and tools) or of one program with ``tool_name`` on its stock; the final
     stock's picture to ``png``. Returns the operations' results and the summary as plain data.
     """
     if Path(program_path).suffix.lower() == ".toml":
         plan, _ = load_plan(program_path, spacing_mm)
-        stock_info = {"source": "operation plan", "spec": str(program_path)}
+        stock_info: JsonObject = {"source": "operation plan", "spec": str(program_path)}
     else:
         job = load_job(program_path, machine, tool_name, stock_spec, spacing_mm)
         op = Operation(Path(program_path).stem, job.motion, job.tools, str(program_path))
@@ -416,14 +436,14 @@ def simulate_job(
     results = plan.run(check_holder=check_holder, progress=cb)
     rows = [summary(r) for r in results]
     if png:
-        title = f"stock after {', '.join(r['operation'] for r in rows)}"
+        title = f"stock after {', '.join(str(r['operation']) for r in rows)}"
         save_stock_png(plan.stock, png, title)
-    out = {
-        "operations": rows,
+    out: JsonObject = {
+        "operations": list(rows),
         "stock_volume_before_mm3": start_volume,
         "stock_volume_after_mm3": plan.stock.volume_mm3(),
-        "removed_mm3": sum(r["removed_mm3"] for r in rows),
-        "time_s": sum(r["time_s"] for r in rows),
+        "removed_mm3": sum(_number(r["removed_mm3"]) for r in rows),
+        "time_s": sum(_number(r["time_s"]) for r in rows),
         "png": str(png) if png else None,
         "stock": stock_info,
     }

@@ -27,13 +27,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from analysis.config import EndMill, EndMillCoefficients, MachineConfig
 from analysis.rules import FeedRule, cutting_load_percent
+from analysis.validation import JsonObject
 from planning.errors import PlanningError
 from planning.feed._write import (
     feed_runs,
@@ -54,6 +55,12 @@ from planning.stock.machining import (
     simulate_motion,
 )
 from planning.stock.machining import _join as _join  # one simulation of consecutive slices
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+#: a per-piece feed cap: (simulation, rpm per piece) -> highest feed per piece, mm/min
+FeedCap = Callable[[Simulation, NDArray[np.float64]], NDArray[np.float64]]
 
 
 @dataclass(frozen=True)
@@ -80,7 +87,7 @@ class FeedPostOptions:
     coefficients: EndMillCoefficients | None = None
     spindle_rpm: float | None = None
     feed_step_mm_min: float = 1.0
-    feed_cap: Callable[[Simulation, NDArray], NDArray] | None = None
+    feed_cap: FeedCap | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.min_piece_mm) and self.min_piece_mm > 0):
@@ -127,7 +134,7 @@ class BlockTable:
     time_after_s: NDArray[np.float64]
     force_max_n: NDArray[np.float64] | None = None  # predicted peak force at the new feed, N
 
-    def to_dataframe(self) -> Any:
+    def to_dataframe(self) -> pd.DataFrame:
         import pandas as pd
 
         cols = {k: getattr(self, k) for k in self.__dataclass_fields__}
@@ -170,7 +177,7 @@ class FeedPostResult:
         after = np.nan_to_num(self.piece_load_pct * self.piece_feed_mm_min)
         return float(before.max(initial=0.0)), float(after.max(initial=0.0))
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JsonObject:
         before, after = self.load_rate_max()
         bins = np.bincount(
             self.rule.bin_of(self.blocks.load_pct[self.blocks.removed_mm3 > 0]),
@@ -229,7 +236,7 @@ def post_process(
     stock: ZMap,
     machine: MachineConfig | None = None,
     options: FeedPostOptions | None = None,
-    progress: Any = None,
+    progress: Callable[[int, int], None] | None = None,
     sections: list[Section] | None = None,
 ) -> FeedPostResult:
     """Adjust the feeds of ``program`` (interpreted as ``motion``) by predicted load.
@@ -413,7 +420,9 @@ def post_process(
     )
 
 
-def _block_max(piece_block: NDArray, values: NDArray, blocks: NDArray) -> NDArray | None:
+def _block_max(
+    piece_block: NDArray[np.int_], values: NDArray[np.float64], blocks: NDArray[np.int_]
+) -> NDArray[np.float64] | None:
     """Largest value per block (NaN where none), or None when every value is NaN."""
     if np.all(np.isnan(values)):
         return None

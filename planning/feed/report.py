@@ -13,7 +13,9 @@ from planning.feed.post import FeedPostResult
 from planning.stock import save_stock_png
 
 
-def write_report(result: FeedPostResult, folder: str | Path, stem: str = "feedpost") -> dict:
+def write_report(
+    result: FeedPostResult, folder: str | Path, stem: str = "feedpost"
+) -> dict[str, Path]:
     """Write ``stem``-blocks.csv, -load-feed.png, -histogram.png, -stock.png; return the paths."""
     import matplotlib
 
@@ -58,10 +60,11 @@ def write_report(result: FeedPostResult, folder: str | Path, stem: str = "feedpo
 
     rule = result.rule
     summ = result.summary()
-    counts = summ["load_histogram_path_mm"]
+    counts, blocks = summ["load_histogram_path_mm"], summ["load_histogram"]
+    assert isinstance(counts, list) and isinstance(blocks, list)  # summary() makes lists
     fig, ax = plt.subplots(figsize=(8, 4), dpi=110)
-    ax.bar(np.arange(rule.n_bins), counts, color="tab:red")
-    for i, nb in enumerate(summ["load_histogram"]):
+    ax.bar(np.arange(rule.n_bins), np.asarray(counts, float), color="tab:red")
+    for i, nb in enumerate(blocks):
         if nb:
             ax.annotate(f"{nb}", (i, counts[i]), ha="center", va="bottom", fontsize=7)
     ax.set_xticks(np.arange(rule.n_bins))

@@ -24,13 +24,15 @@ averaged over the block reads.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from analysis.config import EndMill, EndMillCoefficients
+from analysis.validation import JsonObject, JsonValue
 from planning.errors import PlanningError
 from planning.feed import ForceModel
 from planning.limits.model import (
@@ -41,6 +43,9 @@ from planning.limits.model import (
 )
 from planning.nc import Motion
 from planning.stock import Simulation, ZMap, simulate_motion
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 PIECE_MM = 2.5  # pieces of the check's Z-map run, mm (plan feed's default: min piece / 2)
 FEED_LIMITS = ("force", "deflection", "power", "torque", "chip")  # cured by a lower feed
@@ -57,7 +62,7 @@ class Pieces(ForceModel):
         coef: EndMillCoefficients,
         limits: Limits,
         sim: Simulation,
-        rpm: NDArray,
+        rpm: NDArray[np.float64],
     ) -> None:
         feed_move = sim.motion.is_feed[sim.piece_segment]  # a rapid that cuts is a crash
         cutting = (sim.piece_removed_mm3 > 1e-9) & (sim.piece_length_mm > 0) & (rpm > 0)
@@ -71,7 +76,7 @@ class Pieces(ForceModel):
             self.depth_allowed_mm = modal_depth_limit_mm(tool, coef, self.rpm, imm)
         self.depth_allowed_mm = self.depth_allowed_mm * limits.stability_margin
 
-    def _power_parts_kw(self) -> tuple[NDArray, NDArray]:
+    def _power_parts_kw(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Power = a feed + b, kW: a from K_tc x removal rate, b from the edge force."""
         a = self.coef.Ktc_n_mm2 * self.area_mm2 / 60.0 * 1e-6  # per mm/min of feed
         v = cutting_speed_mm_s(self.tool.diameter_mm, self.rpm)
@@ -80,10 +85,10 @@ class Pieces(ForceModel):
         edge_n = self.coef.Kte_n_mm * edge_mm
         return a, edge_n * v * 1e-6
 
-    def _torque_per_kw(self) -> NDArray:
+    def _torque_per_kw(self) -> NDArray[np.float64]:
         return 1e3 * 60.0 / (2 * np.pi * self.rpm)  # T (N m) per kW at this speed
 
-    def quantities(self, feed_mm_min: NDArray) -> dict[str, NDArray]:
+    def quantities(self, feed_mm_min: NDArray[np.float64]) -> dict[str, NDArray[np.float64]]:
         """Value per limit, one per cutting piece (feeds of the cutting pieces)."""
         fz = self._fz(feed_mm_min)
         force, lateral, mean_n = self.forces_n(fz, mean=True)
@@ -97,18 +102,19 @@ class Pieces(ForceModel):
         out["mean_force"] = mean_n
         return out
 
-    def allowed(self) -> dict[str, Any]:
+    def allowed(self) -> dict[str, float | NDArray[np.float64]]:
         """Allowed value per limit that is on (scalars, or per piece for stability)."""
         lim = self.limits
-        out: dict[str, Any] = {"force": lim.force_n, "deflection": lim.deflection_mm,
+        out: dict[str, float | NDArray[np.float64] | None]
+        out = {"force": lim.force_n, "deflection": lim.deflection_mm,
                                "power": lim.power_kw, "torque": lim.torque_nm,
                                "chip": lim.chip_mm}  # fmt: skip
-        out = {k: v for k, v in out.items() if v is not None}
+        on = {k: v for k, v in out.items() if v is not None}
         if lim.has_stability:
-            out["stability"] = self.depth_allowed_mm
-        return out
+            on["stability"] = self.depth_allowed_mm
+        return on
 
-    def feed_cap_mm_min(self) -> NDArray:
+    def feed_cap_mm_min(self) -> NDArray[np.float64]:
         """Highest feed per cutting piece within every feed-driven limit, mm/min (inf: none;
         0: not even the smallest feed)."""
         lim = self.limits
@@ -135,12 +141,12 @@ class Pieces(ForceModel):
 class CheckResult:
     """Per cutting block: the worst value of each quantity; the violations; the pieces."""
 
-    blocks: Any  # pandas DataFrame, one row per cutting block
-    violations: list[dict[str, Any]]
+    blocks: pd.DataFrame  # one row per cutting block
+    violations: list[dict[str, Any]]  # JSON rows (block, line, limit, value, allowed, ...)
     limits: Limits
     pieces: Pieces
     simulation: Simulation
-    piece_values: dict[str, NDArray] = field(repr=False, default_factory=dict)
+    piece_values: dict[str, NDArray[np.float64]] = field(repr=False, default_factory=dict)
 
     def block_caps(self) -> dict[int, float]:
         """Block -> the highest feed its pieces allow (blocks with a finite cap only)."""
@@ -151,26 +157,27 @@ class CheckResult:
         return {int(b): float(out[b]) for b in np.unique(blk) if math.isfinite(out[b])}
 
     @property
-    def piece_block(self) -> NDArray:
+    def piece_block(self) -> NDArray[np.int_]:
         sim = self.simulation
-        return sim.motion.block[sim.piece_segment][self.pieces.cutting]
+        out: NDArray[np.int_] = sim.motion.block[sim.piece_segment][self.pieces.cutting]
+        return out
 
-    def summary(self) -> dict[str, Any]:
-        worst = {}
+    def summary(self) -> JsonObject:
+        worst: JsonObject = {}
         for k in LIMIT_UNITS:
             col = f"{k}_ratio"
             if col in self.blocks and len(self.blocks) and self.blocks[col].notna().any():
-                i = int(self.blocks[col].idxmax())
-                row = self.blocks.loc[i]
+                # idxmax of the default index: the first largest ratio, NaN skipped
+                row = self.blocks.iloc[int(np.nanargmax(self.blocks[col].to_numpy(float)))]
                 worst[k] = {"block": int(row["block"]), "value": float(row[k]),
                             "allowed": float(row[f"{k}_allowed"]),
                             "margin_pct": round(100 * (1 - float(row[col])), 2)}  # fmt: skip
-        unchecked = [{"limit": k, "reason": r} for k, r in self.limits.unchecked]
+        unchecked: list[JsonValue] = [{"limit": k, "reason": r} for k, r in self.limits.unchecked]
         if not len(self.blocks):
             unchecked.append({"limit": "all", "reason": "no block removes stock"})
         return {
             "verdict": verdict(self.violations, unchecked),
-            "violations": self.violations,
+            "violations": list(self.violations),
             "unchecked": unchecked,
             "limits": self.limits.to_json(),
             "cutting_blocks": int(len(self.blocks)),
@@ -178,7 +185,7 @@ class CheckResult:
         }
 
 
-def verdict(violations: list, unchecked: list) -> str:
+def verdict(violations: Sequence[object], unchecked: Sequence[object]) -> str:
     """The verdict: "violations" if any block breaks a limit; else "unchecked" if a limit could
     not be checked (a check that could not run is never "within"); else "within"."""
     if violations:
@@ -255,7 +262,12 @@ def evaluate(
     return CheckResult(pd.DataFrame(cols), violations, limits, pieces, sim, values)
 
 
-def _block_mean(sim: Simulation, cutting: NDArray, value: NDArray, blocks: NDArray) -> NDArray:
+def _block_mean(
+    sim: Simulation,
+    cutting: NDArray[np.bool_],
+    value: NDArray[np.float64],
+    blocks: NDArray[np.int_],
+) -> NDArray[np.float64]:
     """Time mean of a cutting piece's ``value`` over each block's feed pieces (0 in the air),
     as a force record reduced per executing block reads it."""
     motion = sim.motion
@@ -282,7 +294,7 @@ def check_motion(
     spindle_rpm: float | None = None,
     piece_mm: float = PIECE_MM,
     file: str = "",
-    progress: Any = None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> CheckResult:
     """Machine ``motion`` on ``stock`` (lowered in place) and check every cutting block."""
     sim = simulate_motion(stock, tool, motion, piece_mm=piece_mm, check_holder=False,

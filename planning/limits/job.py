@@ -13,21 +13,34 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from analysis.config import EndMill, EndMillCoefficients, MachineConfig, get_material, load_machine
 from analysis.forces import ENDMILL
+from analysis.validation import JsonObject, JsonValue
 from planning.errors import PlanningError
 from planning.feed import cap_feeds, end_mill
 from planning.limits.check import FEED_LIMITS, CheckResult, Pieces, check_motion
 from planning.limits.model import Limits, limits_for
 from planning.nc import Motion, Program, interpret, motion_stats
-from planning.stock import ZMap
+from planning.stock import Simulation, ZMap
 from planning.stock.machining import bind_tools
+
+if TYPE_CHECKING:
+    from planning.rough import Part, RoughPlan, RoughPlanner
+    from planning.rough.job import LimitStep
+
+#: progress of a Z-map run: (pieces done, pieces in all)
+Progress = Callable[[int, int], None]
+#: per-piece feed cap of planning.feed.FeedPostOptions: (simulation, rpm per piece) -> mm/min
+FeedCap = Callable[[Simulation, NDArray[np.float64]], NDArray[np.float64]]
+#: the check of a written program: (program, start stock, machine) -> (program, report)
+CheckStep = Callable[[Program, ZMap, MachineConfig | None], tuple[Program, JsonObject]]
 
 SPLIT_SLACK = 1.1  # sub-levels: depth / (needed reduction x this)
 ROUNDS = 4  # split-and-recheck rounds before the remaining blocks get lower feeds
@@ -37,7 +50,7 @@ def coefficients(material: str | None) -> EndMillCoefficients:
     """The material's end-mill coefficients (configs/materials.toml)."""
     if not material:
         raise PlanningError("--material is required: the force model needs its [endmill] table")
-    coef = ENDMILL.coefficients(get_material(material))
+    coef: EndMillCoefficients | None = ENDMILL.coefficients(get_material(material))
     if coef is None:
         raise PlanningError(f"material '{material}' has no [endmill] coefficients")
     return coef
@@ -45,7 +58,7 @@ def coefficients(material: str | None) -> EndMillCoefficients:
 
 def _check(
     program: Program, machine: MachineConfig | None, tool: EndMill, coef: EndMillCoefficients,
-    limits: Limits, stock: ZMap, spindle_rpm: float | None, progress: Any = None,
+    limits: Limits, stock: ZMap, spindle_rpm: float | None, progress: Progress | None = None,
     dialect: str | None = None,
 ) -> tuple[Motion, CheckResult]:  # fmt: skip
     """``dialect``: the program's (default the machine's; the rough planner writes Fanuc)."""
@@ -62,7 +75,7 @@ def _time_s(motion: Motion, machine: MachineConfig | None) -> float:
 
 def _lower_feeds(
     program: Program, motion: Motion, machine: MachineConfig | None, res: CheckResult
-) -> tuple[Program, list[dict[str, Any]]]:
+) -> tuple[Program, list[JsonValue]]:
     """Blocks over a feed-driven limit run at their cap (floored to 1 mm/min, not below the
     machine's minimum feed); what was lowered."""
     bad = {v["block"] for v in res.violations if v["limit"] in FEED_LIMITS}
@@ -70,8 +83,9 @@ def _lower_feeds(
         return program, []
     caps = res.block_caps()
     f_min = machine.feed_min_mm_min if machine is not None else 1.0
-    new = {b: max(math.floor(caps[b]), f_min) for b in bad if b in caps}
+    new: dict[int, float] = {b: max(math.floor(caps[b]), f_min) for b in bad if b in caps}
     feeds = res.blocks.set_index("block")["feed_mm_min"]
+    done: list[JsonValue]
     done = [{"block": b, "feed_before_mm_min": float(feeds[b]), "feed_after_mm_min": float(f)}
             for b, f in sorted(new.items())]  # fmt: skip
     return cap_feeds(program, motion, machine, new), done
@@ -80,21 +94,23 @@ def _lower_feeds(
 def feed_limiter(
     tool: EndMill, coef: EndMillCoefficients, limits: Limits, *, fix: bool,
     spindle_rpm: float | None = None,
-) -> tuple[Callable | None, Callable]:  # fmt: skip
+) -> tuple[FeedCap | None, CheckStep]:  # fmt: skip
     """(the per-piece feed cap for :class:`planning.feed.FeedPostOptions` (None unless ``fix``),
     the step that checks the written program: ``(program, start stock, machine) -> (program,
     report)``)."""
 
-    def cap(sim, rpm):
+    def cap(sim: Simulation, rpm: NDArray[np.float64]) -> NDArray[np.float64]:
         out = np.full(len(sim.piece_segment), np.inf)
         pieces = Pieces(tool, coef, limits, sim, rpm)
         out[pieces.cutting] = pieces.feed_cap_mm_min()
         return out
 
-    def adjust(program: Program, stock: ZMap, machine: MachineConfig | None):
+    def adjust(
+        program: Program, stock: ZMap, machine: MachineConfig | None
+    ) -> tuple[Program, JsonObject]:
         motion, res = _check(program, machine, tool, coef, limits, stock, spindle_rpm)
         found = len(res.violations)
-        lowered: list[dict[str, Any]] = []
+        lowered: list[JsonValue] = []
         t0 = t1 = _time_s(motion, machine)
         if fix and res.violations:
             program, lowered = _lower_feeds(program, motion, machine, res)
@@ -109,14 +125,16 @@ def feed_limiter(
 def rough_limiter(
     *, fix: bool, machine: str | Path | MachineConfig | None = None, material: str | None = None,
     lobes: str | Path | None = None, spacing_mm: float = 1.0,
-) -> Callable:  # fmt: skip
+) -> LimitStep:  # fmt: skip
     """The limit step of ``plan rough``: ``(planner, plan, program) -> (plan, program, report)``
     (see the module's docstring), for the part's tool and material (``material`` overrides the
     part's ``cutting.material``) on ``machine``, on a Z-map of the stock box every
     ``spacing_mm``."""
     m = load_machine(machine) if isinstance(machine, (str, Path)) else machine
 
-    def hook(planner, plan, program: Program):
+    def hook(
+        planner: RoughPlanner, plan: RoughPlan, program: Program
+    ) -> tuple[RoughPlan, Program, JsonObject]:
         part = planner.part
         mat = material or part.config.cutting.material
         if not mat:
@@ -134,7 +152,7 @@ def rough_limiter(
     return hook
 
 
-def _level_of_block(plan, part, motion: Motion) -> dict[int, int]:
+def _level_of_block(plan: RoughPlan, part: Part, motion: Motion) -> dict[int, int]:
     """Program block -> level index: the writer gives every feed segment its own block, in the
     order of the plan's motion (whose block field is the level)."""
     from planning.rough import plan_motion
@@ -146,21 +164,25 @@ def _level_of_block(plan, part, motion: Motion) -> dict[int, int]:
     return dict(zip(motion.block[b].tolist(), pm.block[a].tolist()))
 
 
-def _rough(planner, plan, program, tool, coef, limits, stock, machine, fix):
+def _rough(
+    planner: RoughPlanner, plan: RoughPlan, program: Program, tool: EndMill,
+    coef: EndMillCoefficients, limits: Limits, stock: ZMap, machine: MachineConfig | None,
+    fix: bool,
+) -> tuple[RoughPlan, Program, JsonObject]:  # fmt: skip
     """The rough limit step proper (see :func:`rough_limiter`)."""
     from planning.rough import plan_program
 
     part = planner.part
 
-    def totals(plan, motion, res) -> dict[str, Any]:
+    def totals(plan: RoughPlan, motion: Motion, res: CheckResult) -> dict[str, float]:
         return {"violations": len(res.violations), "levels": len(plan.levels),
                 "cutting_path_mm": round(plan.path_mm, 2),
                 "time_s": round(_time_s(motion, machine), 2)}  # fmt: skip
 
     motion, res = _check(program, machine, tool, coef, limits, stock, None, dialect="fanuc")
     before = totals(plan, motion, res)
-    splits: list[dict[str, Any]] = []
-    lowered: list[dict[str, Any]] = []
+    splits: list[JsonValue] = []
+    lowered: list[JsonValue] = []
     if fix and res.violations:
         dh = part.config.rough.dh_mm
         for _ in range(ROUNDS):
@@ -182,14 +204,15 @@ def _rough(planner, plan, program, tool, coef, limits, stock, machine, fix):
         if lowered:
             motion, res = _check(program, machine, tool, coef, limits, stock, None, dialect="fanuc")
     after = totals(plan, motion, res)
-    report = {**res.summary(), "before": before, "after": after, "levels_split": splits,
+    report: JsonObject
+    report = {**res.summary(), "before": dict(before), "after": dict(after), "levels_split": splits,
               "feeds_lowered": lowered,
               "time_lost_s": round(after["time_s"] - before["time_s"], 2),
               "path_added_mm": round(after["cutting_path_mm"] - before["cutting_path_mm"], 2)}
     return plan, program, report
 
 
-def _split_needs(res: CheckResult, level_of: dict[int, int], plan) -> dict[int, int]:
+def _split_needs(res: CheckResult, level_of: dict[int, int], plan: RoughPlan) -> dict[int, int]:
     """Level index -> sub-levels it needs: a stability violation always splits; a force-type
     one splits when that costs less time than the lower feed (k levels ~ k x the path, against
     feed / cap x the time)."""
@@ -220,7 +243,9 @@ def _is_drilling(motion: Motion) -> bool:
     return bool(feed.any()) and bool(plunge_mask(motion.start[feed], motion.end[feed]).all())
 
 
-def _lobes_for(lobes: str | Path | None, tools: dict, file: str) -> dict[int, str | None]:
+def _lobes_for(
+    lobes: str | Path | None, tools: dict[int, tuple[str, EndMill]], file: str
+) -> dict[int, str | None]:
     """``--lobes FILE`` (a one-tool program) or ``T1=FILE,T2=FILE``: the table of each tool."""
     from planning.stock.machining import parse_tool_spec
 
@@ -257,8 +282,8 @@ def check_job(
     force_limit_n: float | None = None,
     spindle_rpm: float | None = None,
     plot: str | Path | None = None,
-    progress: Any = None,
-) -> tuple[list[CheckResult], dict[str, Any]]:
+    progress: Progress | None = None,
+) -> tuple[list[CheckResult], JsonObject]:
     """``cutlab plan check``: every block of a program against the limits of its tool and
     machine, each tool's section (``tool_name`` ``T1=A,T2=B`` for a program that changes tools)
     with its own cutter and limits on the one stock; the per-block quantities to ``plot`` (PNG).
@@ -294,6 +319,7 @@ def check_job(
                                "time_s": round(float(time_s[lo:hi].sum()), 3)}  # fmt: skip
         if _is_drilling(sub):
             sim = simulate_motion(stock, tool, sub, piece_mm=PIECE_MM, check_holder=False)
+            unchecked: list[JsonValue]
             unchecked = [{"limit": "all", "reason": f"T{t} {name} only drills or plunges (Z-only "
                           "feed moves): the end-mill force model does not cover them"}]  # fmt: skip
             row |= {"removed_mm3": round(sim.removed_total_mm3, 3), "cutting_blocks": 0,
@@ -315,24 +341,25 @@ def check_job(
         sections.append(row)
     removed = sum(r["removed_mm3"] for r in sections)
     refuse_no_removal(removed, stock_info, file)
-    violations = []
+    violations: list[JsonValue] = []
     unchecked = []
-    for row, res in _paired(sections, results):
+    for row, checked in _paired(sections, results):
         tag = f"T{row['tool_number']}" if len(tools) > 1 else None
-        if res is not None:
-            violations += [v | ({"tool": tag} if tag else {}) for v in res.violations]
+        if checked is not None:
+            violations += [v | ({"tool": tag} if tag else {}) for v in checked.violations]
         unchecked += [u | ({"tool": tag} if tag else {}) for u in row["unchecked"]]
     worst: dict[str, Any] = {}
     for row in sections:
         for k, w in row.get("worst", {}).items():
             if k not in worst or w["margin_pct"] < worst[k]["margin_pct"]:
                 worst[k] = w | ({"tool": f"T{row['tool_number']}"} if len(tools) > 1 else {})
-    out = {"program": file, "tool": tool_name, "material": material, "machine": m.name,
+    out: JsonObject = {"program": file, "tool": tool_name, "material": material, "machine": m.name,
            "verdict": verdict(violations, unchecked), "violations": violations,
            "unchecked": unchecked, "limits": first_limits,
            "cutting_blocks": sum(r["cutting_blocks"] for r in sections), "worst": worst,
            "stock": stock_info, "removed_mm3": round(removed, 3),
-           "time_s": round(float(time_s.sum()), 3), "tools": sections, "png": None}  # fmt: skip
+           "time_s": round(float(time_s.sum()), 3), "tools": list(sections),
+           "png": None}  # fmt: skip
     if plot:
         from planning.limits.plot import plot_check
 
@@ -340,7 +367,9 @@ def check_job(
     return results, out
 
 
-def _paired(sections: list[dict], results: list[CheckResult]):
+def _paired(
+    sections: list[dict[str, Any]], results: list[CheckResult]
+) -> Iterator[tuple[dict[str, Any], CheckResult | None]]:
     """Each section with its check (None for a drilling section), in program order."""
     it = iter(results)
     for row in sections:

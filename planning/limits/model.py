@@ -23,12 +23,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from analysis.config import EndMill, EndMillCoefficients, MachineConfig
+from analysis.validation import JsonObject
 from planning.errors import PlanningError
 
 #: Young's modulus of cutter materials, N/mm^2: handbook values (HSS M2/M42 about 210-220 GPa;
@@ -47,22 +47,26 @@ def second_moment_mm4(diameter_mm: float) -> float:
     return math.pi * diameter_mm**4 / 64.0
 
 
-def cantilever_deflection_mm(force_n: Any, length_mm: float, e_n_mm2: float, i_mm4: float) -> Any:
+def cantilever_deflection_mm(
+    force_n: ArrayLike, length_mm: float, e_n_mm2: float, i_mm4: float
+) -> NDArray[np.float64]:
     """Tip deflection of a cantilever under a tip load, d = F L^3 / (3 E I), mm."""
     return np.asarray(force_n) * length_mm**3 / (3.0 * e_n_mm2 * i_mm4)
 
 
-def cutting_speed_mm_s(diameter_mm: float, rpm: Any) -> Any:
+def cutting_speed_mm_s(diameter_mm: float, rpm: ArrayLike) -> NDArray[np.float64]:
     """Surface speed v = pi D n / 60, mm/s."""
     return math.pi * diameter_mm * np.asarray(rpm) / 60.0
 
 
-def spindle_power_kw(tangential_n: Any, diameter_mm: float, rpm: Any) -> Any:
+def spindle_power_kw(
+    tangential_n: ArrayLike, diameter_mm: float, rpm: ArrayLike
+) -> NDArray[np.float64]:
     """Cutting power P = F_t v, kW (F_t: the mean tangential force summed over the teeth)."""
     return np.asarray(tangential_n) * cutting_speed_mm_s(diameter_mm, rpm) * 1e-6
 
 
-def spindle_torque_nm(tangential_n: Any, diameter_mm: float) -> Any:
+def spindle_torque_nm(tangential_n: ArrayLike, diameter_mm: float) -> NDArray[np.float64]:
     """Spindle torque T = F_t D / 2, N m."""
     return np.asarray(tangential_n) * diameter_mm / 2.0 * 1e-3
 
@@ -94,7 +98,7 @@ class LobesTable:
     depth_limit_mm: NDArray[np.float64]  # inf where stable at every depth searched
     source: str = ""
 
-    def depth_mm(self, rpm: NDArray) -> NDArray:
+    def depth_mm(self, rpm: NDArray[np.float64]) -> NDArray[np.float64]:
         """Interpolated in speed; outside the table's speeds: its nearest end (stated)."""
         return np.interp(rpm, self.spindle_rpm, self.depth_limit_mm)
 
@@ -162,7 +166,7 @@ class Limits:
     def has_stability(self) -> bool:
         return self.lobes is not None or self.stability_modes
 
-    def to_json(self) -> dict[str, Any]:
+    def to_json(self) -> JsonObject:
         lobes = None
         if self.lobes is not None:
             lobes = self.lobes.source
@@ -236,8 +240,11 @@ def limits_for(
 
 
 def modal_depth_limit_mm(
-    tool: EndMill, coef: EndMillCoefficients, rpm: NDArray, immersion: NDArray
-) -> NDArray:
+    tool: EndMill,
+    coef: EndMillCoefficients,
+    rpm: NDArray[np.float64],
+    immersion: NDArray[np.float64],
+) -> NDArray[np.float64]:
     """Chatter-free depth from the tool's modes (analysis.stability, semi-discretization, down
     milling) at each (speed, radial immersion ae/D); immersions rounded up to IMMERSION_STEP,
     one case per distinct pair. inf where no lobe is found."""

@@ -3,9 +3,13 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from planning.limits.check import CheckResult
 from planning.limits.model import LIMIT_UNITS
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 
 def plot_check(res: CheckResult | list[CheckResult], path: str | Path, title: str = "") -> Path:
@@ -49,7 +53,7 @@ def plot_check(res: CheckResult | list[CheckResult], path: str | Path, title: st
     return _save(fig, path, title)
 
 
-def _save(fig, path: str | Path, title: str) -> Path:
+def _save(fig: Figure, path: str | Path, title: str) -> Path:
     import matplotlib.pyplot as plt
 
     fig.suptitle(title or "limits per block")
