@@ -459,7 +459,23 @@ class MaterialLibrary(Model):
 # ----------------------------------------------------------------------------------------------
 
 
-class Mode(Model):
+class FormerModeNames:
+    """The former attribute names of a mode (``frequency_hz``, ``damping_ratio``), for code not
+    yet moved to the one mode schema (``f_hz``, ``zeta``)."""
+
+    f_hz: float
+    zeta: float
+
+    @property
+    def frequency_hz(self) -> float:
+        return self.f_hz
+
+    @property
+    def damping_ratio(self) -> float:
+        return self.zeta
+
+
+class Mode(Model, FormerModeNames):
     """One structural mode of the dynamometer (seed 003 Table 2), in the one mode schema."""
 
     axis: Literal["x", "y", "z"]
@@ -471,14 +487,6 @@ class Mode(Model):
     def _renamed(cls, data: Any) -> Any:
         return renamed_mode_fields(data)
 
-    # Former attribute names, for code not yet moved to the one schema.
-    @property
-    def frequency_hz(self) -> float:
-        return self.f_hz
-
-    @property
-    def damping_ratio(self) -> float:
-        return self.zeta
 
 
 class DynoChannel(Model):

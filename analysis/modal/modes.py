@@ -38,7 +38,7 @@ import tomli_w
 from numpy.typing import ArrayLike
 from pydantic import Field, model_validator
 
-from analysis.config import renamed_mode_fields
+from analysis.config import FormerModeNames, renamed_mode_fields
 from analysis.errors import AnalysisError, ConfigError
 from analysis.validation import Model, read_toml, validate
 
@@ -53,7 +53,7 @@ MAX_STIFFNESS_N_M = 1e9
 
 
 @dataclass(frozen=True)
-class ModalMode:
+class ModalMode(FormerModeNames):
     """One mode of a direction: natural frequency (Hz), damping ratio, modal stiffness (N/m) and
     mass (kg), these two None where the response was a force."""
 
@@ -69,14 +69,7 @@ class ModalMode:
             return None
         return 2 * self.zeta * math.sqrt(self.k_N_m * self.m_kg)
 
-    # Former attribute names, for code not yet moved to the one mode schema.
-    @property
-    def frequency_hz(self) -> float:
-        return self.f_hz
-
-    @property
-    def damping_ratio(self) -> float:
-        return self.zeta
+    # Former attribute names (FormerModeNames gives frequency_hz, damping_ratio).
 
     @property
     def stiffness_n_m(self) -> float | None:
