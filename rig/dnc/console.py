@@ -158,9 +158,11 @@ def _reset(con: _Console, st0: GrblStatus | None, wait: float) -> GrblReply:
     if st0 is not None and (st0.state in ("Run", "Jog", "Home") or st0.full_state == "Hold:1"):
         con.rt(FEED_HOLD)
         end = time.perf_counter() + wait
+        idle = 0  # Idle twice: one may be a report from before the hold (rig.dnc.grbl_halt)
         while time.perf_counter() < end:
             st = con.status(max(0.1, end - time.perf_counter()))
-            if st is not None and (st.full_state == "Hold:0" or st.state in ("Idle", "Alarm")):
+            idle = idle + 1 if st is not None and st.state == "Idle" else 0
+            if st is not None and (st.full_state == "Hold:0" or st.state == "Alarm" or idle >= 2):
                 held = f"held first ({st.full_state}), "
                 break
         else:

@@ -150,13 +150,17 @@ class GrblControl:
         def keep(t: float, line: str) -> None:
             lines.append(line)
 
+        idle_reports = [0]
+
+        def stopped(s: GrblStatus) -> bool:
+            # GRBL answers '!' with Hold, from Idle too (protocol.c), so an Idle read now may be
+            # a report made before the hold arrived (a '?' in flight) over a decelerating
+            # machine, where a reset is ALARM:3: Idle counts only when the next report says it too
+            idle_reports[0] = idle_reports[0] + 1 if s.state == "Idle" else 0
+            return s.full_state == "Hold:0" or s.state in ("Alarm", "Door") or idle_reports[0] >= 2
+
         try:
-            st = self.wait_status(
-                heard,
-                lambda s: s.full_state == "Hold:0" or s.state in ("Idle", "Alarm", "Door"),
-                deadline,
-                on_line=keep,
-            )
+            st = self.wait_status(heard, stopped, deadline, on_line=keep)
         except TimeoutError:
             self.s.halt_report = (
                 f"feed hold sent; GRBL did not report Hold:0 within {self.s.halt_timeout_s:g} s "
