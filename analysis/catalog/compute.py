@@ -43,13 +43,36 @@ import time
 from collections.abc import Sequence
 from importlib.util import find_spec
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 from analysis import __version__
 from analysis.catalog.index import index_file
 from analysis.catalog.query import query_runs
 from analysis.errors import AnalysisError
 from analysis.identify import fit_files
+
+if TYPE_CHECKING:
+    from collections.abc import Mapping
+
+    from distributed import Client
+    from typing_extensions import Unpack
+
+    from analysis.identify.files import ImportOptions
+
+
+class FitOptions(TypedDict, total=False):
+    """What :func:`fit_catalog` hands to :func:`analysis.identify.fit_files`."""
+
+    model: str | None
+    tool: str | None
+    overrides: Mapping[str, object] | None
+    rig_path: str | Path | None
+    rate_hz: float | None
+    tolerance: float
+    validate: Sequence[str | Path] | None
+    plot_dir: str | Path | None
+    options: ImportOptions | None
+    keep: bool
 
 LOCAL_SCHEDULERS = ("threads", "processes", "sync", "synchronous", "single-threaded")
 #: Modules whose code decides a file's reduction: an edit to them invalidates the cache.
@@ -70,7 +93,7 @@ def cache_dir(index: Path) -> Path:
     return index.with_suffix(".cache")
 
 
-def reduction_key(reducer: Any) -> str:
+def reduction_key(reducer: object) -> str:
     """What besides the file decides a reduction: version, the code and the parameters."""
     code = [Path(find_spec(m).origin).read_text() for m in _REDUCTION_CODE]  # type: ignore
     return _digest(__version__, repr(reducer), *code)
@@ -80,7 +103,7 @@ def _digest(*parts: str) -> str:
     return hashlib.sha256("\n".join(parts).encode()).hexdigest()[:24]
 
 
-def _fit_key(rows: Any, fit_kw: dict[str, Any]) -> str | None:
+def _fit_key(rows: Any, fit_kw: FitOptions) -> str | None:
     """The key of a fit's result (module docstring), None when the fit has side effects."""
     if fit_kw.get("plot_dir") or fit_kw.get("validate"):
         return None
@@ -93,7 +116,9 @@ def _fit_key(rows: Any, fit_kw: dict[str, Any]) -> str | None:
             return repr(v) + "".join(content(getattr(v, f)) for f in v.__dataclass_fields__)
         return repr(v)
 
-    package = Path(find_spec("analysis").origin).parent  # type: ignore[arg-type]
+    spec = find_spec("analysis")
+    assert spec is not None and spec.origin is not None  # this very module is in it
+    package = Path(spec.origin).parent
     code = [p.read_text() for p in sorted(package.rglob("*.py"))]
     configs = [content(p) for p in sorted(config_dir().glob("*.toml"))]
     runs = [f"{r.file}:{r.sha256}" for r in rows.itertuples()]
@@ -138,7 +163,7 @@ def distributed_address(scheduler: str | None) -> str | None:
     return str(address)
 
 
-def connect(address: str) -> Any:
+def connect(address: str) -> Client:
     """A ``distributed.Client`` of the scheduler at ``address`` (not made the default client),
     or one line within :data:`CONNECT_TIMEOUT_S` saying it cannot be reached."""
     from distributed import Client
@@ -180,8 +205,8 @@ def connect(address: str) -> Any:
                             f"{CONNECT_TIMEOUT_S:g} s ({why})") from None  # fmt: skip
 
 
-def compute(tasks: Sequence[Any], scheduler: str | None = None, progress: bool = False,
-            client: Any = None) -> list:  # fmt: skip
+def compute(tasks: Sequence[object], scheduler: str | None = None, progress: bool = False,
+            client: Client | None = None) -> list[object]:  # fmt: skip
     """Compute dask ``tasks`` on ``scheduler`` (see the module docstring), or on ``client`` (a
     ``distributed.Client`` already connected), with dask's progress bar on stderr when
     ``progress``."""
@@ -200,7 +225,9 @@ def compute(tasks: Sequence[Any], scheduler: str | None = None, progress: bool =
     from distributed import progress as show_progress
 
     own = client is None
-    client = connect(address) if own else client
+    if client is None:
+        assert address is not None  # (no client and no address returned above)
+        client = connect(address)
     try:
         futures = client.compute(list(tasks))
         if progress:
@@ -208,7 +235,7 @@ def compute(tasks: Sequence[Any], scheduler: str | None = None, progress: bool =
             # client unless told (this one is not the default: "No clients found")
             with contextlib.redirect_stdout(sys.stderr):
                 show_progress(futures, scheduler=client.scheduler.address)
-        return client.gather(futures)
+        return list(client.gather(futures))
     finally:
         if own:
             client.close()
@@ -219,12 +246,12 @@ class CachedMapper:
     the other reductions as dask tasks; counts ``cached`` and ``reduced`` files."""
 
     def __init__(self, cache: Path, hashes: dict[str, str | None], scheduler: str | None = None,
-                 progress: bool = False, client: Any = None) -> None:  # fmt: skip
+                 progress: bool = False, client: Client | None = None) -> None:  # fmt: skip
         self.cache, self.hashes = cache, hashes
         self.scheduler, self.progress, self.client = scheduler, progress, client
         self.cached = self.reduced = 0
 
-    def __call__(self, reducer: Any, paths: Sequence[Any]) -> list:
+    def __call__(self, reducer: Any, paths: Sequence[Any]) -> list[Any]:
         import dask
 
         key = reduction_key(reducer)
@@ -238,8 +265,8 @@ class CachedMapper:
                        self.client)  # fmt: skip
         for i, r in zip(todo, done):
             results[i] = r
-            if entries[i]:
-                _store(entries[i], r)
+            if e := entries[i]:
+                _store(e, r)
         self.cached += len(paths) - len(todo)
         self.reduced += len(todo)
         return results
@@ -268,8 +295,8 @@ def fit_catalog(
     where: str | None = None,
     scheduler: str | None = None,
     progress: bool = False,
-    **fit_kw: Any,
-) -> dict[str, Any]:
+    **fit_kw: Unpack[FitOptions],
+) -> dict[str, object]:
     """:func:`analysis.identify.fit_files` over the runs of the catalogue ``index`` (its file or
     folder) that match ``where`` (all without), the reductions on dask (``scheduler``) and
     cached, the result cached too (module docstring); ``fit_kw`` as fit_files takes them. The

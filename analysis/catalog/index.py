@@ -35,9 +35,12 @@ from typing import Any
 import pandas as pd
 
 from analysis.errors import AnalysisError
+from analysis.validation import JsonObject
 
 #: The index file's name inside an indexed folder (``--index`` puts it elsewhere).
 INDEX_NAME = ".cutlab-catalog.sqlite"
+#: A parameter of an SQL condition on the index (a column's constant)
+SqlValue = str | int | float | None
 SCHEMA_VERSION = 1
 RUN_SUFFIXES = (".h5", ".hdf5")
 #: Columns of the ``runs`` table (and of the frame :func:`load_index` returns), with SQL types.
@@ -128,13 +131,14 @@ def _number(c: dict[str, Any], *keys: str) -> float:
     return math.nan
 
 
-def _manifest(folder: Path, cache: dict[Path, dict[str, Any]]) -> dict[str, Any]:
+def _manifest(folder: Path, cache: dict[Path, JsonObject]) -> JsonObject:
     """The campaign manifest (``campaign.json``) of a campaign folder, {} without one."""
     if folder not in cache:
         try:
-            cache[folder] = json.loads((folder / "campaign.json").read_text())
+            doc = json.loads((folder / "campaign.json").read_text())
         except (OSError, ValueError):
-            cache[folder] = {}
+            doc = None
+        cache[folder] = doc if isinstance(doc, dict) else {}
     return cache[folder]
 
 
@@ -143,7 +147,7 @@ def _is_current(path: Path, root: Path) -> bool:
     return ".attempt-" not in path.name and not any(p.startswith("before-") for p in parts)
 
 
-def read_row(path: Path, root: Path, manifests: dict[Path, dict[str, Any]]) -> dict[str, Any]:
+def read_row(path: Path, root: Path, manifests: dict[Path, JsonObject]) -> dict[str, object]:
     """The index row of a run file (metadata only; no force data is read)."""
     from analysis.runs import load_run
 
@@ -159,8 +163,9 @@ def read_row(path: Path, root: Path, manifests: dict[Path, dict[str, Any]]) -> d
     c = run.conditions
     folder = path.parent.parent if path.parent.name == "runs" else path.parent
     man = _manifest(folder, manifests)
-    entry = next((e for e in man.get("runs", {}).values()
-                  if Path(str(e.get("file", ""))).stem == path.stem), {})  # fmt: skip
+    runs = man.get("runs")
+    entry = next((e for e in (runs.values() if isinstance(runs, dict) else ()) if isinstance(e, dict)
+                  and Path(str(e.get("file", ""))).stem == path.stem), {})  # fmt: skip
     feed = _number(c, "feed_mm_min")
     fz = _number(c, "fz_mm")
     teeth, rpm = _number(c, "teeth"), _number(c, "spindle_rpm")
@@ -218,7 +223,7 @@ def update_index(
     dirs: Sequence[str | Path],
     index: str | Path | None = None,
     progress: Callable[[int, int], None] | None = None,
-) -> dict[str, Any]:
+) -> dict[str, object]:
     """Index the run files under ``dirs`` into ``index`` (default ``dirs[0]/`` :data:`INDEX_NAME`):
     new and changed files are read, unchanged ones skipped, rows of files gone from ``dirs``
     removed. Returns the counts (files, added, updated, removed, unchanged, unreadable, running),
@@ -238,7 +243,7 @@ def update_index(
     base = ipath.parent.resolve()
     files = sorted({f: r for r in reversed(roots) for f in _run_files(r)}.items())
     counts = dict.fromkeys(("added", "updated", "removed", "unchanged"), 0)
-    manifests: dict[Path, dict[str, Any]] = {}
+    manifests: dict[Path, JsonObject] = {}
     with connect(ipath, write=True) as con:
         known = {r[0]: r[1:] for r in con.execute(
             "SELECT path, size_bytes, mtime_ns, status FROM runs")}  # fmt: skip
@@ -287,7 +292,7 @@ def _write(con: sqlite3.Connection, rows: list[dict[str, Any]]) -> None:
 
 
 def load_index(
-    index: str | Path | None = None, where_sql: str = "", params: Sequence[Any] = ()
+    index: str | Path | None = None, where_sql: str = "", params: Sequence[SqlValue] = ()
 ) -> pd.DataFrame:
     """The index as a frame, one row per run file, columns :data:`COLUMNS` plus ``file`` (the
     absolute path), sorted by campaign, run and path; ``where_sql`` (with ``params``) an SQL

@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import ast
 import json
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
-from analysis.catalog.index import COLUMNS, index_file, load_index
+from analysis.catalog.index import COLUMNS, SqlValue, index_file, load_index
 from analysis.errors import AnalysisError
 
 #: Columns shown by default (the query's result has them all).
@@ -42,7 +43,7 @@ def _shown(expr: str) -> str:
     return repr(text if len(text) <= 80 else text[:60] + " ... " + text[-15:])
 
 
-def check_query(expr: str, columns: Any) -> None:
+def check_query(expr: str, columns: Iterable[str]) -> None:
     """Raise unless ``expr`` is a plain comparison expression over ``columns`` (one line)."""
     where = f"query {_shown(expr)}"
     try:
@@ -53,7 +54,8 @@ def check_query(expr: str, columns: Any) -> None:
     except (RecursionError, MemoryError):  # the parser's own limit (e.g. 5000 x "not")
         raise AnalysisError(f"{where}: nested too deeply to parse; at most {MAX_QUERY_DEPTH} "
                             "levels") from None  # fmt: skip
-    terms, depth, todo = 0, 0, [(tree, 1)]
+    terms, depth = 0, 0
+    todo: list[tuple[ast.AST, int]] = [(tree, 1)]
     while todo:  # (not ast.walk: the depth too)
         node, d = todo.pop()
         depth = max(depth, d)
@@ -100,13 +102,13 @@ def _value(node: ast.AST, column: str) -> tuple[bool, Any]:
     return isinstance(v, int | float), (sign * v if isinstance(v, int | float) else None)
 
 
-def sql_prefilter(expr: str) -> tuple[str, list[Any]]:
+def sql_prefilter(expr: str) -> tuple[str, list[SqlValue]]:
     """An SQL condition that every row ``expr`` selects meets (checked expressions only): the
     comparisons of an index column with a constant of its type joined by ``and`` at the top.
     SQLite then reads a query's rows, not the whole index; pandas still decides each row, so
     what pandas does with NaN, ``or``, ``not`` and mixed types is unchanged."""
     parts: list[str] = []
-    params: list[Any] = []
+    params: list[SqlValue] = []
 
     def compare(a: ast.AST, op: ast.cmpop, b: ast.AST) -> None:
         if not isinstance(a, ast.Name) and type(op) in _FLIPPED:
@@ -156,10 +158,11 @@ def query_runs(expr: str | None, index: str | Path | None = None) -> pd.DataFram
     return out.reset_index(drop=True)
 
 
-def records(df: pd.DataFrame) -> list[dict[str, Any]]:
+def records(df: pd.DataFrame) -> list[dict[str, object]]:
     """JSON-able rows (``conditions`` and ``events`` as objects, NaN as None)."""
-    out = []
-    for row in df.astype(object).where(df.notna(), None).to_dict("records"):
+    out: list[dict[str, object]] = []
+    for record in df.astype(object).where(df.notna(), None).to_dict("records"):
+        row = {str(k): v for k, v in record.items()}
         for key in ("conditions", "events"):
             if isinstance(row.get(key), str):
                 row[key] = json.loads(row[key])
@@ -167,7 +170,7 @@ def records(df: pd.DataFrame) -> list[dict[str, Any]]:
     return out
 
 
-def show_run(name: str, index: str | Path | None = None) -> dict[str, Any]:
+def show_run(name: str, index: str | Path | None = None) -> dict[str, object]:
     """The index row of one run: ``name`` is a run (file stem), ``CAMPAIGN/RUN`` or a path."""
     df = load_index(index)
     campaign, _, run = name.rpartition("/")

@@ -86,7 +86,7 @@ import math
 import os
 import re
 import socket
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -251,7 +251,7 @@ def volts_to_force(
         dt = dt - (zero_time_s if math.isfinite(zero_time_s) else 0.0)
         corrected -= dt[:, None] * drift_v_s
     # einsum (BLAS through tensordot) is 2-3x faster than ``@`` for an (n, 3) x (3, 3) product.
-    return np.einsum("nj,ij->ni", corrected, volts_to_n, optimize=True)
+    return np.asarray(np.einsum("nj,ij->ni", corrected, volts_to_n, optimize=True))
 
 
 @dataclass(frozen=True)
@@ -324,18 +324,18 @@ class Run:
         return blocks[np.where(k >= 0, k, len(rows))]
 
 
-def writer_identity() -> dict[str, Any]:
+def writer_identity() -> dict[str, object]:
     """The writing process (pid, host), stored in a new run's status so that a reader can tell a
     live writer from a dead one."""
     return {"pid": os.getpid(), "host": socket.gethostname()}
 
 
-def writer_alive(status: dict[str, Any]) -> bool:
+def writer_alive(status: Mapping[str, object]) -> bool:
     """The writer named in a run's status (:func:`writer_identity`) still runs. A writer on another
     host cannot be checked and is taken as alive; a file that names none (older files) as dead."""
-    w = status.get("writer") or {}
-    pid = w.get("pid")
-    if not isinstance(pid, int) or pid <= 0:
+    w = status.get("writer")
+    pid = w.get("pid") if isinstance(w, dict) else None
+    if not isinstance(w, dict) or not isinstance(pid, int) or pid <= 0:
         return False
     if w.get("host") != socket.gethostname():
         return True
@@ -615,7 +615,7 @@ def _check_format(f: h5py.File, p: Path) -> None:
         )
 
 
-def names_attr(v: Any) -> tuple[str, ...]:
+def names_attr(v: np.ndarray | list[str] | bytes | str) -> tuple[str, ...]:
     return tuple(x.decode() if isinstance(x, bytes) else str(x) for x in np.atleast_1d(v))
 
 
@@ -625,31 +625,31 @@ def _text(f: h5py.File, name: str) -> str:
 
 
 def _json(f: h5py.File, name: str) -> dict[str, Any]:
-    t = _text(f, name)
-    if not t:
-        return {}
-    try:
-        return json.loads(t)
-    except json.JSONDecodeError:  # half-written under SWMR is impossible; a corrupt file is not
-        raise RunFileError(f"{f.filename}: /{meta_path(name)} is not valid JSON") from None
+    try:  # half-written under SWMR is impossible; a corrupt file is not
+        doc = json.loads(_text(f, name) or "{}")
+    except json.JSONDecodeError:
+        doc = None
+    if not isinstance(doc, dict):
+        raise RunFileError(f"{f.filename}: /{meta_path(name)} is not a valid JSON object")
+    return doc
 
 
 def _table(f: h5py.File, path: str) -> np.ndarray:
     dtype = EVENT_DTYPE if path == EVENTS else BLOCK_DTYPE
     if path not in f:
         return np.zeros(0, dtype=dtype)
-    rows = f[path][()]
+    rows: np.ndarray = f[path][()]
     if rows.dtype == dtype:
         return rows
     out = np.zeros(len(rows), dtype=dtype)  # an older format: fields it lacks are NaN
-    for name in dtype.names:
-        out[name] = rows[name] if name in rows.dtype.names else np.nan
+    for name in dtype.names or ():
+        out[name] = rows[name] if name in (rows.dtype.names or ()) else np.nan
     return out
 
 
 def events_frame(rows: np.ndarray) -> pd.DataFrame:
     """Events table rows (EVENT_DTYPE) as a DataFrame with str columns."""
-    df = pd.DataFrame({n: rows[n] for n in EVENT_DTYPE.names})
+    df = pd.DataFrame({n: rows[n] for n in EVENT_DTYPE.names or ()})
     for col in ("kind", "message"):
         df[col] = [b.decode("utf-8", "replace") for b in rows[col]]
     return df
@@ -657,7 +657,7 @@ def events_frame(rows: np.ndarray) -> pd.DataFrame:
 
 def blocks_frame(rows: np.ndarray) -> pd.DataFrame:
     """NC blocks table rows (BLOCK_DTYPE) as a DataFrame with str text."""
-    df = pd.DataFrame({n: rows[n] for n in BLOCK_DTYPE.names})
+    df = pd.DataFrame({n: rows[n] for n in BLOCK_DTYPE.names or ()})
     df["text"] = [b.decode("utf-8", "replace") for b in rows["text"]]
     return df
 
@@ -682,7 +682,7 @@ def stored_to_device_index(n_stored: int, events: np.ndarray, start: int = 0) ->
     if not len(stored_at):
         return idx
     # Every hole at or before a stored sample shifts it by that hole's loss.
-    return idx + cum[np.searchsorted(stored_at, idx, side="right")]
+    return np.asarray(idx + cum[np.searchsorted(stored_at, idx, side="right")])
 
 
 def device_to_stored_index(device: int, n_stored: int, events: np.ndarray) -> int:

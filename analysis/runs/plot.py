@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -121,7 +122,7 @@ def plot_run(run: rf.Run, out: str | Path, max_points: int = 4000) -> Path:
     return _save(fig, out)
 
 
-def _save(fig, out: str | Path) -> Path:
+def _save(fig: Any, out: str | Path) -> Path:
     import matplotlib.pyplot as plt
 
     fig.tight_layout()

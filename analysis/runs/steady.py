@@ -201,7 +201,7 @@ class SteadyPart:
     def corrected(self, force_n: np.ndarray, first_sample: int, rate_hz: float) -> np.ndarray:
         """Subtract offset and drift from samples starting at absolute index ``first_sample``."""
         t = (first_sample + np.arange(len(force_n)) - self.window.start) / rate_hz
-        return force_n - self.offset_n - t[:, None] * self.drift_n_s
+        return np.asarray(force_n - self.offset_n - t[:, None] * self.drift_n_s)
 
 
 class RevolutionStats:
@@ -244,10 +244,11 @@ class RevolutionStats:
         increasing, when the record has holes."""
         x = np.asarray(chunk, float)
         n = len(x)
-        if np.ndim(first_sample) == 0 or (n and first_sample[-1] - first_sample[0] == n - 1):
+        each = None if np.ndim(first_sample) == 0 else np.asarray(first_sample)
+        if each is None or (n and each[-1] - each[0] == n - 1):
             # Contiguous samples (a record without holes): the revolutions' first samples
             # from the edges, without a revolution number per sample.
-            i0 = int(first_sample if np.ndim(first_sample) == 0 else first_sample[0])
+            i0 = int(first_sample) if each is None else int(each[0])
             lo = max(int(np.searchsorted(self._first, i0, side="right")) - 1, 0)
             hi = min(int(np.searchsorted(self._first, i0 + n, side="left")), self.n_rev)
             cut = np.clip(self._first[lo : hi + 1] - i0, 0, n)

@@ -10,7 +10,7 @@ from analysis.runs.file import LOSS_KINDS, load_run
 __all__ = ["run_summary"]
 
 
-def run_summary(path: str | Path) -> dict[str, Any]:
+def run_summary(path: str | Path) -> dict[str, object]:
     """Status, channels, rate, sample counts, duration, event counts, data gaps (with their time
     in s), NC blocks, program, conditions, calibration and software version of a run file; the
     samples are not read."""
@@ -35,13 +35,15 @@ def run_summary(path: str | Path) -> dict[str, Any]:
         "events": {str(k): int(v) for k, v in counts.items()},
         "gaps": [
             {
-                "kind": r.kind,
-                "sample": int(r.sample),
-                "lost": int(r.lost),
-                "time_s": float(r.sample / run.rate_hz),
-                "message": r.message,
+                "kind": kind,
+                "sample": int(sample),
+                "lost": int(lost),
+                "time_s": float(sample / run.rate_hz),
+                "message": message,
             }
-            for r in gaps.itertuples()
+            for kind, sample, lost, message in zip(
+                gaps["kind"], gaps["sample"].to_numpy(), gaps["lost"].to_numpy(), gaps["message"]
+            )
         ],
         "nc_blocks": len(run.blocks),
         "program": run.program_info,

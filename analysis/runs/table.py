@@ -20,6 +20,7 @@ import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -242,14 +243,14 @@ def _header(lines: list[str]) -> dict[str, str]:
     return header
 
 
-def _time_column(names) -> int | None:
+def _time_column(names: Sequence[str]) -> int | None:
     for k, n in enumerate(names):
         if n.strip().lower() in _TIME_NAMES:
             return k
     return None
 
 
-def table_summary(path: str | Path, rate_hz: float | None = None) -> dict[str, Any]:
+def table_summary(path: str | Path, rate_hz: float | None = None) -> dict[str, object]:
     """What an export holds (`cutlab data info` on a DynoWare / CSV file): columns and units,
     rate, samples, duration, the header lines, decimal mark and separator."""
     t = read_force_table(path)
