@@ -284,16 +284,11 @@ MODEL_REGISTRY = "analysis/forces/models.py"
 MODEL_CLASSES = {"EndMill", "FaceMill"}
 # Modules another engineer owns that still test the class: each may only lose its tests.
 MODEL_ISINSTANCE_PENDING = {
-    "planning/orient/config.py": 1,
-    "planning/orient/tool.py": 1,
-    "planning/rough/part.py": 2,
-    "planning/stock/machining.py": 2,
     "rig/adaptive/session.py": 1,
     "rig/campaign/config.py": 8,
     "rig/campaign/plan.py": 1,
     "rig/campaign/programs.py": 2,
     "rig/campaign/runner.py": 1,
-    "rig/report/afc.py": 1,
     "rig/sim/session.py": 2,
 }
 
@@ -357,7 +352,7 @@ MODULES_OVER: dict[str, int] = {
     "analysis/identify/files.py": 604,
     "planning/nc/interpreter.py": 527,
     "planning/rough/planner.py": 534,
-    "planning/stock/machining.py": 656,
+    "planning/stock/machining.py": 653,
     "planning/stock/zmap.py": 511,
     "rig/adaptive/controller.py": 560,
     "rig/sim/_controller.py": 536,

@@ -23,6 +23,7 @@ from analysis.config import (
     load_machine,
 )
 from analysis.errors import ConfigError
+from analysis.forces import ENDMILL
 from analysis.validation import Model, read_toml, validate
 from planning.surface import NurbsSurface
 
@@ -156,7 +157,7 @@ def load_orient(path: str | Path) -> tuple[OrientConfig, EndMill, MachineConfig]
     data, text = read_toml(path)
     cfg = validate(OrientConfig, data, str(path), text)
     tool = get_tool(cfg.tool)
-    if not isinstance(tool, EndMill):
+    if not ENDMILL.describes(tool):
         raise ConfigError(f"{path}: tool = {cfg.tool!r} is a {tool.kind}: 5-axis needs an end mill")
     machine = load_machine(cfg.machine)
     return cfg, tool, machine

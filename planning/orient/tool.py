@@ -34,6 +34,7 @@ import numpy as np
 import numpy.typing as npt
 
 from analysis.config import EndMill
+from analysis.forces import ENDMILL
 from planning.errors import PlanningError
 
 
@@ -164,7 +165,7 @@ class ToolSystem:
     @classmethod
     def from_endmill(cls, tool: EndMill, name: str = "tool") -> ToolSystem:
         """From a validated tool config (configs/tools.toml); face mills are not for 5-axis."""
-        if not isinstance(tool, EndMill):
+        if not ENDMILL.describes(tool):
             raise PlanningError(f"{name}: 5-axis orientation needs an end mill, got {tool.kind}")
         h = tool.holder
         return cls(

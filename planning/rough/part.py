@@ -19,6 +19,7 @@ from pydantic import Field, model_validator
 
 from analysis.config import EndMill, FaceMill, get_tool
 from analysis.errors import ConfigError
+from analysis.forces import ENDMILL
 from analysis.validation import Model, find_line, load_model
 from planning.surface import FergusonSurface
 
@@ -139,7 +140,7 @@ class Part:
         self.where = where
         lib = self._lib(config.tool.library)
         tool = self._tool(config.tool.name, lib, ("tool", "name"))
-        if not isinstance(tool, EndMill) or tool.kind != "flat":
+        if not ENDMILL.describes(tool) or tool.kind != "flat":
             raise ConfigError(
                 f"{where}: tool.name = {config.tool.name!r} is a {getattr(tool, 'kind', '?')} "
                 "tool: Z-level roughing (seed 000) needs a flat end mill"
@@ -147,7 +148,7 @@ class Part:
         self.tool: EndMill = tool
         second = config.rough.lee_second_tool
         lee = tool if second is None else self._tool(second, lib, ("rough", "lee_second_tool"))
-        if not isinstance(lee, EndMill) or lee.kind != "flat":
+        if not ENDMILL.describes(lee) or lee.kind != "flat":
             raise ConfigError(f"{where}: rough.lee_second_tool = {second!r}: needs a flat end mill")
         self.lee_tool: EndMill = lee
         self.surface = self._surface(config.surface, f"{where}: surface")

@@ -51,12 +51,8 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import Field, model_validator
 
-from analysis.config import (
-    EndMill,
-    MachineConfig,
-    get_tool,
-    load_machine,
-)
+from analysis.config import EndMill, MachineConfig, get_tool, load_machine
+from analysis.forces import ENDMILL
 from analysis.validation import JsonObject, Model, read_toml, validate
 from planning.errors import PlanningError
 from planning.nc import DWELL, LINE, RAPID, Motion, segment_time_s
@@ -427,10 +423,10 @@ def end_mill(name: str | None, what: str = "--tool") -> EndMill:
     from analysis.config import load_tools
 
     if not name:
-        known = ", ".join(sorted(k for k, t in load_tools().items() if isinstance(t, EndMill)))
+        known = ", ".join(sorted(k for k, t in load_tools().items() if ENDMILL.describes(t)))
         raise PlanningError(f"{what} is required (an end mill of the tool catalogue): {known}")
     tool = get_tool(name)
-    if not isinstance(tool, EndMill):
+    if not ENDMILL.describes(tool):
         raise PlanningError(f"{what} = {name!r} is a {tool.kind}: the Z-map models end mills only")
     return tool
 

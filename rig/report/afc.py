@@ -188,14 +188,13 @@ def _feed_limit_bound(
 ) -> dict[str, Any]:
     """The evenness any feeds within the rule's limits can reach (module doc); {} when the
     campaign has no end mill, no end-mill coefficients, no feed rule or no depth steps."""
-    from analysis.config import EndMill
-    from analysis.forces import ForceTable, SteadyCut
+    from analysis.forces import ENDMILL, ForceTable, SteadyCut
 
     fr = campaign.spec.feed_rule
     coef = campaign.material.endmill
     edges = const.conditions.get("block", {}).get("step_x_mm", [])
     depths = campaign.spec.program.step_depths_mm
-    if fr is None or coef is None or not isinstance(campaign.tool, EndMill) or not depths:
+    if fr is None or coef is None or not ENDMILL.describes(campaign.tool) or not depths:
         return {}
     if len(edges) != len(depths) + 1:
         return {}
