@@ -235,7 +235,15 @@ function highlightBlock(ol, block) {
     li.classList.toggle("exec", on);
     if (on) hit = li;
   }
-  if (hit) hit.scrollIntoView({ block: "nearest" });
+  if (hit) scrollWithin(ol, hit);
+}
+
+// The list's own scroll, not the window's (scrollIntoView scrolled the whole page to the program
+// on every status, 25 a second: the operator could not keep the 3-D view or the spectrum in sight)
+function scrollWithin(list, item) {
+  const r = item.getBoundingClientRect(), o = list.getBoundingClientRect();
+  if (r.top < o.top) list.scrollTop -= o.top - r.top;
+  else if (r.bottom > o.bottom) list.scrollTop += r.bottom - o.bottom;
 }
 
 // -- status ----------------------------------------------------------------------------------
