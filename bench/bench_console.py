@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import secrets
 import shutil
 import socket
@@ -308,9 +309,10 @@ def main() -> None:
         trials = ", ".join(f"{x[0] * 100:.2f}" for x in paced[k])
         print(f"  {k:8s} {med_k * 100:6.2f} %   (trials, %: {trials})")
     print(f"frames received by a client: {statistics.median(rates + rates2):.1f} per s")
-    load = sum((STATIC / f).stat().st_size for f in
-               ("index.html", "console.js", "console.css", "uPlot.iife.min.js", "uPlot.min.css"))
-    print(f"page load: {load / 1024:.1f} KiB (html, js, css, uPlot)")
+    # every file the page loads (index.html names them: the panels and the 3-D view too)
+    names = re.findall(r'(?:src|href)="/static/([^"]+)"', (STATIC / "index.html").read_text())
+    load = sum((STATIC / f).stat().st_size for f in ["index.html", *names])
+    print(f"page load: {load / 1024:.1f} KiB (html and the {len(names)} files it loads)")
     _print_page(args, page)
 
 

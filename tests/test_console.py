@@ -191,6 +191,15 @@ def test_run_browser_lists_runs_and_gives_traces_by_block(tmp_path: Path) -> Non
         spans = [(b["block"], b["t0"], b["t1"]) for b in info["blocks"]]
         assert spans == [(0, 2.0, 2.5), (1, 2.5, 4.0), (2, 4.0, 5.0)]
         assert info["program"] == ["G0 X0", "G1 X10 F100", "M30"]
+        # its toolpath: G1 X10 from its start at 2.5 s, done when the next block began at 4.0 s
+        # (6 s at F100, squeezed into the 1.5 s it took), the tool at X0 before; volts: no force
+        path = info["path"]
+        assert [s[:6] for s in path["toolpath"] if s[1] == 1] == [[1, 1, 0.0, 0.0, 10.0, 0.0]]
+        moving = [p for p in path["trail"] if p[0] >= 2.5]
+        assert moving[0][:2] == [2.5, 0.0] and moving[-1][:2] == [4.0, 10.0]
+        assert all(abs(p[1] - 10 * (p[0] - 2.5) / 1.5) < 1e-3 for p in moving)
+        assert all(p[1] == 0.0 for p in path["trail"] if p[0] < 2.5)
+        assert all(p[5] is None for p in path["trail"]) and "estimated" in path["source"]
         # block 1 (2.5 .. 4.0 s) in 15 bins of 100 samples: volts ramp 0.5 .. 2.0 V
         tr = client.get("/api/trace", params={"file": "000-a.h5", "t0": 2.5, "t1": 4.0,
                                               "px": 15}).json()  # fmt: skip

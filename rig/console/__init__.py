@@ -15,7 +15,8 @@ the toolpath), :mod:`~rig.console.health` (the logger's health), :mod:`~rig.cons
 (the server's process); the server side (needs the ``console`` extra):
 :mod:`~rig.console.server` (the Starlette app), :mod:`~rig.console.guard` (Host, Origin,
 token), :mod:`~rig.console.hub` (the target, history), :mod:`~rig.console.frames` (frames and
-traces), :mod:`~rig.console.trail` (the executed path), :mod:`~rig.console.chatter` (the lobes
+traces), :mod:`~rig.console.trail` (the executed path), :mod:`~rig.console.run_path` (a
+browsed run's toolpath from its file), :mod:`~rig.console.chatter` (the lobes
 at the current speed, the detected peak); :mod:`~rig.console.common` (what both share);
 ``static/`` (the page: console.js, panels.js, view3d.js; uPlot vendored with its licence).
 """

@@ -9,7 +9,8 @@ in ``<folder>/live.json``; its run files always) or one run file. Endpoints:
   page's commands (hold, resume, abort) go to the campaign through the ring;
 - ``/api/history``: run history across campaigns (the run catalogue, else the campaign folders
   beside this one);
-- ``/api/health``, ``/api/runs``, ``/api/run?file=NAME`` (blocks, events, program) and
+- ``/api/health``, ``/api/runs``, ``/api/run?file=NAME`` (blocks, events, program, the
+  toolpath: :mod:`rig.console.run_path`) and
   ``/api/trace?file=NAME&t0=&t1=&px=`` (min/max bins of a run file's forces, run clock s).
 
 Run files are opened read-only (never repaired from here). Access (:class:`Guard`, issue 31): a
@@ -56,6 +57,7 @@ from rig.console.common import TICK_S, TOKEN_ENV, url_of
 from rig.console.frames import DEFAULT_PX, DEFAULT_WINDOW_S, _Client, _live_trace, _trace
 from rig.console.guard import LOG_BUDGET, Guard, _peer, parse_message, say
 from rig.console.hub import Hub, _history, _run_details, resolve_target
+from rig.console.run_path import run_toolpath
 from rig.console.trail import SAMPLE_S as TRAIL_SAMPLE_S
 
 STATIC = Path(__file__).parent / "static"
@@ -97,7 +99,8 @@ def make_app(
                                  "campaigns": []})  # fmt: skip
 
     def run_info(q: Any) -> dict[str, Any]:
-        return _run_details(hub.run_path(q["file"]))
+        path = hub.run_path(q["file"])
+        return _run_details(path) | {"path": run_toolpath(path)}  # the toolpath views'
 
     def trace(q: Any) -> dict[str, Any]:
         t0 = float(q["t0"]) if q.get("t0") else None

@@ -42,6 +42,7 @@ let lostSince = null;
 const RECONNECT_FOR_MS = 120000; // then the page says the server is gone and stops trying
 let paused = false; // the live plot holds still (zoom, scroll-back); samples keep coming
 let toolpath = []; // [block, kind, x0, y0, x1, y1] per segment, from the run info
+let browsePath = null; // a browsed run's {toolpath, trail, source} (rig.console.run_path)
 let tpView = null; // the toolpath canvas's transform (mm -> px), for tests and screenshots
 const view3d = new View3D($("toolpath3d"), $("tp3d-legend"));
 $("tp3d-colour").onchange = (e) => view3d.setColourBy(e.target.value);
@@ -59,7 +60,8 @@ window.cutlab = {
   project3d: (x, y, z) => view3d.project(x, y, z),
   trail: () => view3d.trail,
   logger: null,
-  toolpathSegments: () => toolpath,
+  toolpathSegments: () => shownToolpath(),
+  browsePath: () => browsePath,
   status: () => status,
   latest: () => (bins.t.length ? bins.t[bins.t.length - 1] : null), // run clock s
   view: null, // the zoomed or whole-run view, while paused
@@ -235,7 +237,15 @@ function highlightBlock(ol, block) {
     li.classList.toggle("exec", on);
     if (on) hit = li;
   }
-  if (hit) hit.scrollIntoView({ block: "nearest" });
+  if (hit) scrollWithin(ol, hit);
+}
+
+// The list's own scroll, not the window's (scrollIntoView scrolled the whole page to the program
+// on every status, 25 a second: the operator could not keep the 3-D view or the spectrum in sight)
+function scrollWithin(list, item) {
+  const r = item.getBoundingClientRect(), o = list.getBoundingClientRect();
+  if (r.top < o.top) list.scrollTop -= o.top - r.top;
+  else if (r.bottom > o.bottom) list.scrollTop += r.bottom - o.bottom;
 }
 
 // -- status ----------------------------------------------------------------------------------
@@ -281,7 +291,7 @@ function showStatus(s) {
   drawToolpath();
   // the tool stays where it was last reported (between runs, after the end: nothing reported)
   const pos = (s.machine || {}).pos_mm;
-  if (!browsing && pos) view3d.setPosition(pos);
+  if (pos) view3d.setPosition(pos); // the live one's, shown when not browsing
   if (s.logger !== undefined) showLogger(s.logger);
   updateControls();
   if (s.command && s.command.seq) {
@@ -542,6 +552,7 @@ async function browse(file) {
       };
       ol.appendChild(li);
     }
+    showBrowsePath(run.path);
     const ev = $("browse-events");
     ev.innerHTML = "";
     for (const e of run.events) {
@@ -557,8 +568,19 @@ async function browse(file) {
   }
 }
 
+// a browsed run's toolpath in both views (from its run file), or the live run's again (null)
+function showBrowsePath(path) {
+  browsePath = path || null;
+  const last = browsePath && browsePath.trail.length ? browsePath.trail[browsePath.trail.length - 1] : null;
+  view3d.show(browsePath && { planned: browsePath.toolpath, trail: browsePath.trail,
+                              pos: last ? last.slice(1, 4) : null });
+  $("toolpath-source").textContent = browsePath ? `(browsed run: ${browsePath.source})` : "";
+  drawToolpath();
+}
+
 $("browse-live").onclick = () => {
   browsing = null;
+  showBrowsePath(null);
   paused = false;
   setPaused(false);
   updateControls();

@@ -42,14 +42,20 @@ function showReadouts(r) {
 }
 
 // -- the toolpath, XY: the program (grey), the cut so far (blue), the executing block --------
+// (a browsed run: its program, and its executed path as estimated from its run file, in blue)
+function shownToolpath() {
+  return browsing && browsePath ? browsePath.toolpath : toolpath;
+}
+
 function drawToolpath() {
   const cv = $("toolpath");
   const ctx = cv.getContext("2d");
   const W = cv.width, H = cv.height, pad = 10;
   ctx.clearRect(0, 0, W, H);
-  if (!toolpath.length) return;
+  const segs = shownToolpath();
+  if (!segs.length) return;
   let [x0, x1, y0, y1] = [Infinity, -Infinity, Infinity, -Infinity];
-  for (const s of toolpath) {
+  for (const s of segs) {
     x0 = Math.min(x0, s[2], s[4]); x1 = Math.max(x1, s[2], s[4]);
     y0 = Math.min(y0, s[3], s[5]); y1 = Math.max(y1, s[3], s[5]);
   }
@@ -61,22 +67,30 @@ function drawToolpath() {
     ctx.strokeStyle = color; ctx.lineWidth = width;
     ctx.beginPath(); ctx.moveTo(px(s[2]), py(s[3])); ctx.lineTo(px(s[4]), py(s[5])); ctx.stroke();
   };
-  for (const s of toolpath) seg(s, s[1] === 0 ? "#cfd8dc" : "#90a4ae", 1);
-  if (exec >= 0) for (const s of toolpath) if (s[0] < exec && s[1] !== 0) seg(s, "#1e88e5", 2);
+  for (const s of segs) seg(s, s[1] === 0 ? "#cfd8dc" : "#90a4ae", 1);
+  if (exec >= 0) for (const s of segs) if (s[0] < exec && s[1] !== 0) seg(s, "#1e88e5", 2);
   ctx.lineCap = "round";
-  for (const s of toolpath) {
+  for (const s of segs) {
     if (s[0] !== exec) continue;
     seg(s, "#ff6f00", 4);
     ctx.fillStyle = "#ff6f00"; // a plunge (no XY travel) shows as a dot
     ctx.beginPath(); ctx.arc(px(s[4]), py(s[5]), 3, 0, 2 * Math.PI); ctx.fill();
   }
   ctx.lineCap = "butt";
-  const p = (status.machine || {}).pos_mm;
-  if (!browsing && p) {
+  const trail = browsing && browsePath ? browsePath.trail : [];
+  if (trail.length > 1) {
+    ctx.strokeStyle = "#1e88e5"; ctx.lineWidth = 2;
+    ctx.beginPath();
+    trail.forEach((p, i) => (i ? ctx.lineTo(px(p[1]), py(p[2])) : ctx.moveTo(px(p[1]), py(p[2]))));
+    ctx.stroke();
+  }
+  // the tool: where it is now, or where a browsed run left it
+  const p = browsing ? (trail.length ? trail[trail.length - 1].slice(1) : null) : (status.machine || {}).pos_mm;
+  if (p) {
     ctx.fillStyle = "#d32f2f";
     ctx.beginPath(); ctx.arc(px(p[0]), py(p[1]), 4, 0, 2 * Math.PI); ctx.fill();
   }
-  tpView = { x0, y0, k, pad, W, H, block: exec, executing_color: "#ff6f00" };
+  tpView = { x0, y0, k, pad, W, H, block: exec, executing_color: "#ff6f00", browsed: !!(browsing && browsePath) };
   cv.dataset.block = exec;
 }
 

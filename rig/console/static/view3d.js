@@ -23,9 +23,10 @@ class View3D {
   constructor(canvas, legend) {
     this.cv = canvas;
     this.legend = legend;
-    this.planned = []; // [block, kind, x0, y0, x1, y1, z0, z1]
-    this.trail = []; // [t, x, y, z, feed, force]
-    this.pos = null; // [x, y, z] mm
+    // what is shown: the live run's paths, or a browsed run's (show()); live updates go on
+    // into the live ones meanwhile
+    this.live = { planned: [], trail: [], pos: null };
+    this.d = this.live;
     this.colourBy = "force";
     this.reset();
     this.lastDraw = 0;
@@ -68,16 +69,31 @@ class View3D {
     this.request(true);
   }
 
-  setPlanned(segs) { this.planned = segs || []; this._fit = null; this.request(); }
+  get planned() { return this.d.planned; } // [block, kind, x0, y0, x1, y1, z0, z1]
+  get trail() { return this.d.trail; } // [t, x, y, z, feed, force]
+  get pos() { return this.d.pos; } // [x, y, z] mm
+
+  // the live run's paths (drawn while they are the ones shown)
+  setPlanned(segs) {
+    this.live.planned = segs || [];
+    if (this.d === this.live) { this._fit = null; this.request(); }
+  }
   setTrail(points, reset) {
-    if (reset) this.trail = points.slice();
-    else for (const p of points) this.trail.push(p);
-    this.request();
+    if (reset) this.live.trail = points.slice();
+    else for (const p of points) this.live.trail.push(p);
+    if (this.d === this.live) this.request();
   }
   setPosition(p) {
-    const same = p && this.pos && p[0] === this.pos[0] && p[1] === this.pos[1] && p[2] === this.pos[2];
-    this.pos = p && p.length >= 3 && p[2] !== null ? p.slice(0, 3) : null;
-    if (!same) this.request();
+    const q = this.live.pos;
+    const same = p && q && p[0] === q[0] && p[1] === q[1] && p[2] === q[2];
+    this.live.pos = p && p.length >= 3 && p[2] !== null ? p.slice(0, 3) : null;
+    if (!same && this.d === this.live) this.request();
+  }
+  // a browsed run's paths ({planned, trail, pos}), or null: the live run's again
+  show(data) {
+    this.d = data || this.live;
+    this._fit = null;
+    this.request(true);
   }
   setColourBy(what) { this.colourBy = what; this.request(true); }
 
@@ -188,6 +204,7 @@ class View3D {
   state() {
     return { yaw: this.yaw, pitch: this.pitch, zoom: this.zoom, W: this.cv.width, H: this.cv.height,
              colourBy: this.colourBy, pos: this.pos, planned: this.planned.length,
+             shown: this.d === this.live ? "live" : "browsed",
              trail: this.trail.length, frames: this.frames, tool_colour: V3D_TOOL,
              range: this._range().slice(1) };
   }
