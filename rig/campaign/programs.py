@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.config import EndMill, FaceMill
+from planning.nc.dialects import get as get_dialect
 from planning.nc.program import format_number
 from planning.stock import SteppedBlock
 from rig.campaign.config import ProgramSection, RunConditions
@@ -41,19 +42,21 @@ def _num(x: float) -> str:
 
 
 class _Writer:
-    """Collects blocks; Fanuc gets N words every block, GRBL none."""
+    """Collects blocks; a tape program (Fanuc: the posts keep its O number) gets an O number and N
+    words every block, the others (GRBL, LinuxCNC, Mach3) a title comment and no N words."""
 
     def __init__(self, dialect: str, number: int, title: str) -> None:
         self.dialect = dialect
+        self.tape = get_dialect(dialect).post.keeps_tape
         self.lines: list[str] = []
         self._n = 0
-        if dialect == "fanuc":
+        if self.tape:
             self.lines.append(f"O{number:04d} ({title[:60].upper()})")
         else:
             self.lines.append(f"({title[:70]})")
 
     def add(self, words: str) -> None:
-        if self.dialect == "fanuc":
+        if self.tape:
             self._n += 10
             self.lines.append(f"N{self._n} {words}")
         else:
