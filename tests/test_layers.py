@@ -288,13 +288,10 @@ MODEL_ISINSTANCE_PENDING = {
     "planning/orient/tool.py": 1,
     "planning/rough/part.py": 2,
     "planning/stock/machining.py": 2,
-    "rig/adaptive/session.py": 1,
     "rig/campaign/config.py": 8,
     "rig/campaign/plan.py": 1,
-    "rig/campaign/programs.py": 2,
     "rig/campaign/runner.py": 1,
     "rig/report/afc.py": 1,
-    "rig/sim/session.py": 2,
 }
 
 

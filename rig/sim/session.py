@@ -24,7 +24,7 @@ import math
 import threading
 from typing import Any
 
-from analysis.config import EndMill
+from analysis.forces.models import ENDMILL
 from rig.dnc import DncError, Program, StreamFault, protocol_of
 from rig.dnc.sinks import LoggerSink
 from rig.errors import RigError
@@ -35,7 +35,7 @@ from rig.sim.machine import BlockStock, SignalSettings, SimMachine, ZMapStock
 
 def _make_stock(campaign: Any, plan: Any) -> BlockStock | ZMapStock:
     tool = campaign.tool
-    if not isinstance(tool, EndMill):
+    if not ENDMILL.describes(tool):
         return BlockStock(plan.cut.block)
     return ZMapStock(plan.cut.block.to_zmap(tool), tool)
 
@@ -59,7 +59,7 @@ class SimSession:
         read_s = campaign.spec.daq.read_interval_s or rig.daq.read_interval_s
         faults = run_index == sim.sim_fault_run
         tool = campaign.tool
-        if sim.tool_max_chip_mm is not None and isinstance(tool, EndMill):
+        if sim.tool_max_chip_mm is not None and ENDMILL.describes(tool):
             tool = tool.model_copy(update={"max_chip_mm": sim.tool_max_chip_mm})
         self.machine = SimMachine(
             tool,
