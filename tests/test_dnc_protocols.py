@@ -9,8 +9,14 @@ import pytest
 from analysis.config import DIALECT_NAMES, REALTIME_OVERRIDE_DIALECTS, load_machine
 from planning.nc import DWELL, interpret
 from planning.nc.dialects import get, protocols
-from rig.dnc import DncError, StreamProtocol, program_from_text, protocol_of, restart_plan
-from rig.dnc import streamer_class
+from rig.dnc import (
+    DncError,
+    StreamProtocol,
+    program_from_text,
+    protocol_of,
+    restart_plan,
+    streamer_class,
+)
 from rig.dnc.port import PROTOCOLS
 from rig.dnc.protocols import FALLBACK, REGISTRY
 from rig.sim import controller_class

@@ -61,6 +61,14 @@ class StreamProtocol:
         """The dialect it streams (its interpretation, refusals and dwell units)."""
         return get(self.dialect_name)
 
+    def takes_compensation(self, cutter_comp: int, tool_length: int) -> bool:
+        """Whether a restart may restore cutter compensation ``cutter_comp`` (40, 41, 42) and
+        tool length ``tool_length`` (43, 49): the dialect has G41/G42 and does not refuse G43."""
+        d = self.dialect
+        return (cutter_comp == 40 or d.cutter_comp) and (
+            tool_length != 43 or 430 not in d.refused_g
+        )
+
 
 FANUC = StreamProtocol(
     name="fanuc",

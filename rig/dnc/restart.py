@@ -216,13 +216,10 @@ def restart_plan(
     if state.ended:
         raise DncError(f"{where}: the program ended (M2/M30) before that block")
     rules = protocol_of(protocol)
-    d = rules.dialect
-    if (state.cutter_comp != 40 and not d.cutter_comp) or (
-        state.tool_length == 43 and 430 in d.refused_g
-    ):
+    if not rules.takes_compensation(state.cutter_comp, state.tool_length):
         raise DncError(
             f"{where}: needs G{state.cutter_comp}/G{state.tool_length} compensation, which "
-            f"{d.title} does not take"
+            f"{rules.title} does not take"
         )
     cycle = state.motion >= 81
     if cycle and not state.absolute:
