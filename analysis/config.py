@@ -110,10 +110,11 @@ class SerialConfig(Model):
     program_folder: str = Field("", description="folder of programs served on remote request")
 
 
-#: The controller dialects a machine file may name: the names of planning.nc.dialects.REGISTRY,
-#: whose modules hold each control's rules. Kept here because analysis cannot import planning
-#: (analysis <- planning <- rig); tests/test_nc_dialects.py checks the two lists agree.
+#: The dialects a machine file may name (the names of planning.nc.dialects.REGISTRY, whose modules
+#: hold each control's rules), and those streamed with real-time override bytes (rig.dnc.protocols'
+#: realtime_bytes). Data here as analysis cannot import planning or rig; tests check they agree.
 DIALECT_NAMES = ("fanuc", "grbl", "linuxcnc", "mach3")
+REALTIME_OVERRIDE_DIALECTS = ("grbl",)
 
 
 def _known_dialect(name: str) -> str:
@@ -167,9 +168,8 @@ class MachineConfig(Model):
     )
     serial: SerialConfig = SerialConfig()
     five_axis: FiveAxis | None = None
-    # How a feed/spindle override reaches the control from outside (rig.adaptive): GRBL 1.1's
-    # real-time bytes on the serial line, a wired input (PMC / analog override driven by a DAQ
-    # output), or none. Unset: by dialect (grbl: grbl-realtime; others: none).
+    # How an override reaches the control from outside (rig.adaptive): GRBL 1.1's real-time bytes,
+    # a wired input (PMC / analog override from a DAQ output), or none; unset: by dialect.
     override: Literal["grbl-realtime", "none", "external-analog"] | None = Field(
         None,
         description="how an override reaches the control (unset: by dialect, GRBL's bytes or none)",
@@ -179,11 +179,11 @@ class MachineConfig(Model):
     def override_path(self) -> str:
         if self.override is not None:
             return self.override
-        return "grbl-realtime" if self.dialect == "grbl" else "none"
+        return "grbl-realtime" if self.dialect in REALTIME_OVERRIDE_DIALECTS else "none"
 
     @model_validator(mode="after")
     def _feeds(self) -> MachineConfig:
-        if self.override == "grbl-realtime" and self.dialect != "grbl":
+        if self.override == "grbl-realtime" and self.dialect not in REALTIME_OVERRIDE_DIALECTS:
             raise ValueError(
                 f'override = "grbl-realtime": only GRBL 1.1 takes real-time override bytes '
                 f'(dialect = "{self.dialect}"); expected "none" or "external-analog"'

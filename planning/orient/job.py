@@ -16,7 +16,7 @@ import numpy as np
 
 from analysis.validation import JsonObject, JsonValue
 from planning.errors import PlanningError
-from planning.nc import Program
+from planning.nc import Program, get_dialect
 from planning.nc.output import default_dialect, for_dialect
 from planning.orient.between import Scene, refine
 from planning.orient.check import verify
@@ -80,10 +80,10 @@ def run_orient(
     config, out = Path(config), Path(out_dir)
     cfg, tool_cfg, machine = load_orient(config)
     dialect = dialect or default_dialect(machine)
-    if dialect == "grbl":
+    if not get_dialect(dialect).post.full_words:  # no A/B/C words written there
         raise PlanningError(
-            f"{config}: --dialect grbl: GRBL has no rotary axes (A, B, C), so it cannot run a "
-            "5-axis program; use fanuc or linuxcnc"
+            f"{config}: --dialect {dialect}: {get_dialect(dialect).title} has no rotary axes "
+            "(A, B, C), so it cannot run a 5-axis program; use fanuc or linuxcnc"
         )
     say = status or (lambda msg: None)
     surfaces = [s.build() for s in cfg.surfaces]

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from rig.dnc.protocols import protocol_of
+
 #: the override paths the loop can drive
 DRIVEN = ("grbl-realtime",)
 
@@ -17,7 +19,7 @@ def override_path(machine: Any, protocol: str) -> str:
     """The path for ``machine`` streamed as ``protocol``: a GRBL stream is GRBL's real-time
     bytes (the twin's ``[sim] protocol = "grbl"`` included); otherwise the machine config's
     ``override`` (by dialect when unset)."""
-    if protocol == "grbl":
+    if protocol_of(protocol).realtime_bytes:
         return "grbl-realtime"
     path = getattr(machine, "override_path", None)
     return path if path is not None else "none"

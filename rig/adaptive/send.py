@@ -12,7 +12,7 @@ from typing import Any
 
 from rig.adaptive.controller import AdaptiveController, AdaptiveSettings
 from rig.adaptive.session import _Tee
-from rig.dnc import DncError
+from rig.dnc import DncError, protocol_of
 
 #: wall s the DAQ may take to deliver the zeroing rest before the send is refused
 ZERO_WAIT_S = 10.0
@@ -48,7 +48,7 @@ class SendLoop:
         from analysis.config import load_rig
         from rig.daq.calibration import Calibration
 
-        if getattr(job, "protocol", "grbl") != "grbl":
+        if not protocol_of(getattr(job, "protocol", "grbl")).realtime_bytes:
             raise DncError(f"--adaptive: the {job.protocol} controller has no real-time override")
         rig_cfg = load_rig(rig) if rig else load_rig()
         if daq is None:

@@ -170,7 +170,7 @@ def target_of(campaign: Any, test: Any) -> tuple[float | None, str]:
     reference_depth_mm`` at ``base_feed_mm_min``, the cut known safe at the base feed) as the
     per-revolution mean |Fxy| the material's end-mill coefficients predict at ``test``'s spindle
     speed (analysis.forces.evenness, the measure the loop holds); (None, why) without either."""
-    from analysis.config import EndMill
+    from analysis.forces.models import ENDMILL
 
     a = campaign.spec.adaptive
     if a.target_force_n is not None:
@@ -179,7 +179,7 @@ def target_of(campaign: Any, test: Any) -> tuple[float | None, str]:
     if rule is None:
         return None, "no target_force_n and no [feed_rule] to take the reference load from"
     coef = getattr(campaign.material, "endmill", None)
-    if not isinstance(campaign.tool, EndMill) or coef is None:
+    if not ENDMILL.describes(campaign.tool) or coef is None:
         return None, (f"the feed rule's reference load needs an end mill and the material's "
                       f"end-mill coefficients ({campaign.tool.kind}, "
                       f"{'no' if coef is None else 'has'} coefficients)")  # fmt: skip

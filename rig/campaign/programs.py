@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from analysis.config import EndMill, FaceMill
+from analysis.forces.models import FACEMILL
+from planning.nc.dialects import get as get_dialect
 from planning.nc.program import format_number
 from planning.stock import SteppedBlock
 from rig.campaign.config import ProgramSection, RunConditions
@@ -41,19 +43,21 @@ def _num(x: float) -> str:
 
 
 class _Writer:
-    """Collects blocks; Fanuc gets N words every block, GRBL none."""
+    """Collects blocks; a tape program (Fanuc: the posts keep its O number) gets an O number and N
+    words every block, the others (GRBL, LinuxCNC, Mach3) a title comment and no N words."""
 
     def __init__(self, dialect: str, number: int, title: str) -> None:
         self.dialect = dialect
+        self.tape = get_dialect(dialect).post.keeps_tape
         self.lines: list[str] = []
         self._n = 0
-        if dialect == "fanuc":
+        if self.tape:
             self.lines.append(f"O{number:04d} ({title[:60].upper()})")
         else:
             self.lines.append(f"({title[:70]})")
 
     def add(self, words: str) -> None:
-        if self.dialect == "fanuc":
+        if self.tape:
             self._n += 10
             self.lines.append(f"N{self._n} {words}")
         else:
@@ -92,7 +96,8 @@ def generate_program(
         tops = (0.0,)
     # The path: a face mill runs with its centre offset in Y (seed 003 cuts symmetrically by
     # default); an end mill cuts a slot (width = D) or a side cut of width w on the +Y side.
-    if isinstance(tool, FaceMill):
+    face_mill = FACEMILL.describes(tool)
+    if face_mill:
         y_path = prog.offset_y_mm
         block = SteppedBlock(-half_w, half_w, edges, tops)
     else:
@@ -100,7 +105,7 @@ def generate_program(
         y_path = prog.offset_y_mm + (0.0 if w >= tool.diameter_mm else half_w + r - w)
         block = SteppedBlock(-half_w, half_w, edges, tops)
     x_start = -r - prog.approach_mm
-    if isinstance(tool, FaceMill):
+    if face_mill:
         x_end = _exit_x(length, r, y_path, block, prog.approach_mm)
     else:
         x_end = length + r + prog.approach_mm

@@ -20,7 +20,7 @@ import threading
 import time
 from typing import Any
 
-from rig.dnc import DncError, Program, StreamFault
+from rig.dnc import DncError, Program, StreamFault, protocol_of
 from rig.dnc.sinks import LoggerSink
 from rig.errors import RigError
 
@@ -94,6 +94,7 @@ class RealSession:
 
         self.campaign = campaign
         self.protocol = campaign.machine.dialect
+        self.rules = protocol_of(self.protocol)  # asked once: streamer, end, feed hold
         self.clock = time.monotonic
         names = [ch.name for ch in campaign.rig.dynamometer.channels]
         self.daq = NiDaq(_daq_config(campaign), names, clock=self.clock)
@@ -105,10 +106,10 @@ class RealSession:
         self.streamer: Any = None
 
     def start(self, program: Program, writer: object) -> None:
-        from rig.dnc import FanucStreamer, GrblStreamer
+        from rig.dnc import streamer_class
 
         self._program = program
-        cls = GrblStreamer if self.protocol == "grbl" else FanucStreamer
+        cls = streamer_class(self.rules.name)
         self.streamer = cls(self.campaign.machine.serial, sink=LoggerSink(writer),
                             clock=self.clock)  # fmt: skip
         t0 = self.clock()
@@ -133,7 +134,7 @@ class RealSession:
             return True
         if not self._done.is_set():
             return False
-        if self.protocol == "grbl":
+        if self.rules.end_known:
             return True  # the streamer waited for Idle
         return self.clock() >= self._t_start + self.expected_s + FANUC_END_MARGIN_S
 
@@ -151,13 +152,13 @@ class RealSession:
         return self.streamer.executed_blocks() if self.streamer is not None else []
 
     def feed_hold(self) -> None:
-        if self.protocol == "grbl" and self.streamer is not None:
+        if self.rules.realtime_bytes and self.streamer is not None:
             self.streamer.feed_hold()
         else:
             print("cutlab: press FEED HOLD on the control now", file=sys.stderr, flush=True)
 
     def cycle_start(self) -> None:
-        if self.protocol == "grbl" and self.streamer is not None:
+        if self.rules.realtime_bytes and self.streamer is not None:
             self.streamer.cycle_start()
         else:
             print("cutlab: press CYCLE START on the control", file=sys.stderr, flush=True)
@@ -165,7 +166,7 @@ class RealSession:
     def stop(self) -> None:
         if self.streamer is None:
             return
-        if self.protocol != "grbl":
+        if not self.rules.realtime_bytes:
             print("cutlab: press RESET on the control (spindle stop)", file=sys.stderr, flush=True)
         self.streamer.stop()  # GRBL: feed hold, wait for Hold:0, then soft reset (no ALARM:3)
 

@@ -12,8 +12,9 @@ Quick tour::
     plan = restart_plan(program, 120, "fanuc", machine)   # arcs, cycles made complete
     st.send(program, start_block=120, preamble=plan.preamble, replaced=plan.replaced)
 
-Modules: :mod:`~rig.dnc.port` (settings per protocol, opening), :mod:`~rig.dnc.link` (reader
-thread, DC1/DC3 gate, pacing), :mod:`~rig.dnc.fanuc`, :mod:`~rig.dnc.eia` (EIA tape code),
+Modules: :mod:`~rig.dnc.protocols` (each protocol's rules, :func:`protocol_of`),
+:mod:`~rig.dnc.port` (settings per protocol, opening), :mod:`~rig.dnc.link` (reader thread,
+DC1/DC3 gate, pacing), :mod:`~rig.dnc.fanuc`, :mod:`~rig.dnc.eia` (EIA tape code),
 :mod:`~rig.dnc.grbl`, :mod:`~rig.dnc.sinks` (the record into a run file),
 :mod:`~rig.dnc.restart`, :mod:`~rig.dnc.remote` (remote program request),
 :mod:`~rig.dnc.record` (the block record and its sinks), :mod:`~rig.dnc.progress`,
@@ -25,13 +26,21 @@ controllers that speak these protocols on a pseudo-terminal are :mod:`rig.sim.fa
 :mod:`rig.sim.grbl`.
 """
 
-from rig.dnc.connect import SendJob, dnc_machine, prepare_send, remote_server, serial_settings
+from rig.dnc.connect import (
+    SendJob,
+    dnc_machine,
+    prepare_send,
+    remote_server,
+    serial_settings,
+    streamer_class,
+)
 from rig.dnc.console import GrblReply, grbl_command
 from rig.dnc.errors import DncError, StreamFault
 from rig.dnc.fanuc import FanucStreamer
 from rig.dnc.grbl import GrblStatus, GrblStreamer, parse_status
 from rig.dnc.guard import HoldGuard, halt_on_signals
 from rig.dnc.program import Block, Program, load_program, program_from_text
+from rig.dnc.protocols import StreamProtocol, protocol_of
 from rig.dnc.record import BlockRow, BlockSink, CsvSink, MemorySink, read_csv_record
 from rig.dnc.remote import RemoteServer, parse_request
 from rig.dnc.restart import RestartPlan, restart_blocks, restart_plan
@@ -54,6 +63,7 @@ __all__ = [
     "RestartPlan",
     "SendJob",
     "StreamFault",
+    "StreamProtocol",
     "StreamResult",
     "dnc_machine",
     "grbl_command",
@@ -63,9 +73,11 @@ __all__ = [
     "parse_status",
     "prepare_send",
     "program_from_text",
+    "protocol_of",
     "read_csv_record",
     "remote_server",
     "restart_blocks",
     "restart_plan",
     "serial_settings",
+    "streamer_class",
 ]

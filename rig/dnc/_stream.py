@@ -15,6 +15,7 @@ from rig.dnc.link import LinkLost, LinkTimeout, SerialLink
 from rig.dnc.port import check_settings, is_pty, line_bytes_per_s, open_port
 from rig.dnc.program import Program
 from rig.dnc.progress import Progress
+from rig.dnc.protocols import protocol_of
 from rig.dnc.record import BlockRow, BlockSink, MemorySink
 from rig.dnc.result import StreamResult
 
@@ -80,6 +81,7 @@ class StreamerBase:
         progress: bool = False,
     ) -> None:
         check_settings(cfg, self.protocol)
+        self.rules = protocol_of(self.protocol)  # what the protocol does, asked by rule
         self.cfg = cfg
         self.sink: BlockSink = sink if sink is not None else MemorySink()
         self.clock = clock if clock is not None else time.time
@@ -247,7 +249,7 @@ class StreamerBase:
 
     def _fault_message(self, fault: Fault, result: StreamResult) -> str:
         last = result.last_acknowledged_block
-        what = "acknowledged" if self.protocol == "grbl" else "fully sent"
+        what = self.rules.done
         done = result.last_executed_block
         msg = f"{self.protocol} stream stopped ({fault.kind}): {fault.reason}"
         msg += f"; last {what} block: {last}"
@@ -360,6 +362,6 @@ class StreamerBase:
         self.sink.append_blocks(rows)
         if self.link is not None:
             extra = ""
-            if self.protocol == "grbl":
+            if self.rules.paced_by_ok:  # answered lines: the last acknowledged is known
                 extra = f"ack {self.last_ack_block} exec {self.executing_block}"
             self._progress.update(len(rows), self.link.bytes_written - self._bytes0, extra)

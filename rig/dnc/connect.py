@@ -15,6 +15,7 @@ from rig.dnc.fanuc import FanucStreamer
 from rig.dnc.grbl import GrblStreamer
 from rig.dnc.port import check_protocol, check_settings
 from rig.dnc.program import Program, load_program
+from rig.dnc.protocols import protocol_of
 from rig.dnc.record import CsvSink, MemorySink
 from rig.dnc.remote import RemoteServer
 from rig.dnc.restart import RestartPlan, restart_plan
@@ -23,21 +24,29 @@ from rig.dnc.result import StreamResult
 if TYPE_CHECKING:
     from analysis.config import MachineConfig, SerialConfig
 
-#: the machine each protocol uses when none is named
-DEFAULT_MACHINE = {"fanuc": "ace-h63", "grbl": "lab-grbl"}
+#: each protocol's streamer, by the protocol it speaks
+STREAMERS: dict[str, type[FanucStreamer] | type[GrblStreamer]] = {
+    cls.protocol: cls for cls in (FanucStreamer, GrblStreamer)
+}
+
+
+def streamer_class(protocol: str) -> type[FanucStreamer] | type[GrblStreamer]:
+    """The streamer of ``protocol`` (a dialect without one: see :func:`protocol_of`)."""
+    return STREAMERS[protocol_of(protocol).name]
 
 
 def dnc_machine(protocol: str, name: str | None = None) -> tuple[str, MachineConfig]:
     """(checked protocol, machine): ``name`` (a config name or TOML path; None: the protocol's
-    :data:`DEFAULT_MACHINE`) loaded and checked to speak ``protocol``."""
+    ``default_machine``) loaded and checked to speak ``protocol``."""
     from analysis.config import load_machine
 
     protocol = check_protocol(protocol)
-    m = load_machine(name or DEFAULT_MACHINE[protocol])
+    default = protocol_of(protocol).default_machine
+    m = load_machine(name or default)
     if m.dialect != protocol:
         raise DncError(
             f"machine {m.name!r} has dialect = {m.dialect!r} but --protocol is {protocol!r}; "
-            f"pick a {protocol} machine (e.g. --machine {DEFAULT_MACHINE[protocol]})"
+            f"pick a {protocol} machine (e.g. --machine {default})"
         )
     return protocol, m
 
@@ -126,15 +135,12 @@ def prepare_send(
         program, start_block, protocol, m, safe_z_mm, plunge_feed_mm_min
     )
     sink = CsvSink(record_csv) if record_csv else MemorySink()
-    if protocol == "fanuc":
-        st: FanucStreamer | GrblStreamer = FanucStreamer(
-            cfg, sink=sink, progress=progress, wait_for_dc1=fanuc_wait_dc1, machine=m
-        )
-    else:
-        st = GrblStreamer(
-            cfg, sink=sink, progress=progress, mode=grbl_mode, unlock=grbl_unlock,
-            strip=grbl_strip, guard=guard, machine=m,
-        )  # fmt: skip
+    kw: dict[str, Any]
+    if protocol_of(protocol).paced_by_ok:  # ok pacing: its mode, $X unlock, stripping, watchdog
+        kw = dict(mode=grbl_mode, unlock=grbl_unlock, strip=grbl_strip, guard=guard)
+    else:  # drip feed: the control's DC1 starts the stream
+        kw = dict(wait_for_dc1=fanuc_wait_dc1)
+    st = streamer_class(protocol)(cfg, sink=sink, progress=progress, machine=m, **kw)
     return SendJob(protocol, program, cfg, st, start_block, plan.preamble, plan.replaced,
                    tuple(plan.notes))  # fmt: skip
 

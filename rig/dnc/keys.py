@@ -34,6 +34,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from rig.dnc.errors import DncError
+from rig.dnc.protocols import protocol_of
 
 #: key -> action
 KEYS = {"!": "hold", " ": "hold", "~": "resume", "r": "resume", "R": "resume", "q": "abort",
@@ -63,6 +64,7 @@ class OperatorControl:
     ) -> None:
         self.streamer = streamer
         self.protocol = protocol
+        self.rules = protocol_of(protocol)
         self.say = say or _stderr
         self.confirm_s = confirm_s
         self.actions: list[dict[str, Any]] = []
@@ -151,7 +153,7 @@ class OperatorControl:
         return ""
 
     def _hold(self, source: str) -> str:
-        if self.protocol != "grbl":
+        if not self.rules.realtime_bytes:
             return "a Fanuc takes no feed hold over the line: press FEED HOLD on the control"
         self.streamer.feed_hold()
         state = self._wait_state(lambda s: s.startswith("Hold"), self.confirm_s, idle_ok=True)
@@ -160,7 +162,7 @@ class OperatorControl:
         return f"'!' sent: GRBL {state}"
 
     def _resume(self, source: str) -> str:
-        if self.protocol != "grbl":
+        if not self.rules.realtime_bytes:
             return "a Fanuc takes no cycle start over the line: press CYCLE START on the control"
         if self._state() == "Hold:1":  # GRBL ignores '~' while the hold decelerates
             self._wait_state(lambda s: s != "Hold:1", self.confirm_s)
@@ -172,7 +174,7 @@ class OperatorControl:
         return f"'~' sent: GRBL {state}"
 
     def _abort(self, source: str) -> str:
-        if self.protocol != "grbl":
+        if not self.rules.realtime_bytes:
             return ("feeding stopped; a Fanuc takes no feed hold over the line: it runs what it "
                     "has buffered, press FEED HOLD or RESET on the control")  # fmt: skip
         return "'!' sent; the stream halts: Hold:0, then soft reset (0x18)"

@@ -8,8 +8,8 @@ for a simulated controller by changing one string.
 What each protocol accepts (anything else is a :class:`~rig.dnc.errors.DncError` naming the field):
 
 - ``fanuc``: 7 or 8 data bits, any parity, 1 or 2 stop bits, a Fanuc baud rate
-  (:data:`FANUC_BAUDS`), flow control ``xonxoff`` (DC1/DC3), ``rtscts`` or ``none``; tape code
-  ISO, or EIA (:mod:`rig.dnc.eia`) which needs 8 data bits and no UART parity.
+  (:data:`rig.dnc.protocols.FANUC_BAUDS`), flow control ``xonxoff`` (DC1/DC3), ``rtscts`` or
+  ``none``; tape code ISO, or EIA (:mod:`rig.dnc.eia`) which needs 8 data bits and no UART parity.
 - ``grbl``: 8N1 only, flow control ``none`` (GRBL answers ``ok``; it sends no DC1/DC3 and an
   Arduino has no RTS/CTS lines).
 
@@ -31,12 +31,9 @@ import serial
 from analysis.config import SerialConfig
 from planning.nc.dialects import protocols
 from rig.dnc.errors import DncError
+from rig.dnc.protocols import protocol_of
 
 PROTOCOLS = protocols()  # the streaming protocols of planning.nc.dialects: ("fanuc", "grbl")
-
-#: Baud rates a Fanuc reader/punch interface can be set to (parameter I/O channel baud codes).
-FANUC_BAUDS = (50, 100, 110, 150, 200, 300, 600, 1200, 2400, 4800, 9600, 19200, 38400, 76800,
-               86400, 115200)  # fmt: skip
 
 #: End-of-block bytes per config value.
 EOB_BYTES = {"LF": b"\n", "CRLF": b"\r\n", "CR": b"\r"}
@@ -60,25 +57,25 @@ def line_bytes_per_s(cfg: SerialConfig) -> float:
 
 def check_settings(cfg: SerialConfig, protocol: str, where: str = "serial") -> None:
     """Raise :class:`DncError` if ``protocol``'s controller cannot take these settings."""
-    check_protocol(protocol)
+    p = protocol_of(check_protocol(protocol))
     bad: list[str] = []
-    if protocol == "grbl":
+    if p.serial_8n1_only:
         if cfg.bytesize != 8:
-            bad.append(f"{where}.bytesize = {cfg.bytesize}: GRBL talks 8N1 only (expected 8)")
+            bad.append(f"{where}.bytesize = {cfg.bytesize}: {p.title} talks 8N1 only (expected 8)")
         if cfg.parity != "N":
-            bad.append(f"{where}.parity = {cfg.parity!r}: GRBL talks 8N1 only (expected 'N')")
+            bad.append(f"{where}.parity = {cfg.parity!r}: {p.title} talks 8N1 only (expected 'N')")
         if cfg.stopbits != 1:
-            bad.append(f"{where}.stopbits = {cfg.stopbits}: GRBL talks 8N1 only (expected 1)")
+            bad.append(f"{where}.stopbits = {cfg.stopbits}: {p.title} talks 8N1 only (expected 1)")
         if cfg.flow_control != "none":
             bad.append(
-                f"{where}.flow_control = {cfg.flow_control!r}: GRBL paces the sender with 'ok' "
-                "answers and has no DC1/DC3 or RTS/CTS (expected 'none')"
+                f"{where}.flow_control = {cfg.flow_control!r}: {p.title} paces the sender with "
+                "'ok' answers and has no DC1/DC3 or RTS/CTS (expected 'none')"
             )
     else:
-        if cfg.baudrate not in FANUC_BAUDS:
+        if p.bauds is not None and cfg.baudrate not in p.bauds:
             bad.append(
-                f"{where}.baudrate = {cfg.baudrate}: not a Fanuc reader/punch baud rate "
-                f"(expected one of {', '.join(map(str, FANUC_BAUDS))} baud)"
+                f"{where}.baudrate = {cfg.baudrate}: not a {p.title} reader/punch baud rate "
+                f"(expected one of {', '.join(map(str, p.bauds))} baud)"
             )
         if cfg.code == "EIA" and (cfg.bytesize != 8 or cfg.parity != "N"):
             bad.append(

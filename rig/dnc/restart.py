@@ -72,8 +72,8 @@ from planning.nc import (
 from rig.dnc.errors import DncError
 from rig.dnc.nc import modal_state_at, nc_text
 from rig.dnc.program import Program
+from rig.dnc.protocols import protocol_of
 
-_GRBL_DROP = re.compile(r"\b(G98|G99|G90\.1|M6|G64(\s*[PQ]\s*[-+.\d]+)*)\b")
 _MOTION = {0: "G0", 1: "G1", 2: "G2", 3: "G3"}
 _MOTION_WORDS = {0.0, 1.0, 2.0, 3.0, 80.0, 81.0, 82.0, 83.0}
 _COMMENT = re.compile(r"\([^)]*\)|;.*$")
@@ -215,10 +215,11 @@ def restart_plan(
     where = f"{program.name}: restart at block {block} (line {block + 1})"
     if state.ended:
         raise DncError(f"{where}: the program ended (M2/M30) before that block")
-    if protocol == "grbl" and (state.cutter_comp != 40 or state.tool_length == 43):
+    rules = protocol_of(protocol)
+    if not rules.takes_compensation(state.cutter_comp, state.tool_length):
         raise DncError(
-            f"{where}: needs G{state.cutter_comp}/G{state.tool_length} compensation, which GRBL "
-            "does not take"
+            f"{where}: needs G{state.cutter_comp}/G{state.tool_length} compensation, which "
+            f"{rules.title} does not take"
         )
     cycle = state.motion >= 81
     if cycle and not state.absolute:
@@ -243,8 +244,8 @@ def restart_plan(
         replaced = _complete(program, block, state, protocol, machine, where)
     out = [f"(RESTART AT BLOCK {block} LINE {block + 1})"]
     for text in pre:
-        if protocol == "grbl":
-            text = " ".join(_GRBL_DROP.sub("", text).split())
+        if rules.preamble_drop is not None:
+            text = " ".join(rules.preamble_drop.sub("", text).split())
         if text:
             out.append(text)
     return RestartPlan(block, out, replaced, app.notes(), app)
@@ -296,7 +297,7 @@ def _complete(
     where: str,
 ) -> dict[int, str]:
     """The first block from ``block`` on that moves, made to carry its motion mode."""
-    dialect = "grbl" if protocol == "grbl" else "fanuc"
+    dialect = protocol_of(protocol).dialect_name
     try:
         it = Interpreter(machine, dialect=dialect, state=state, file=program.name)  # type: ignore[arg-type]
     except NCError as exc:
@@ -382,7 +383,7 @@ def _cycle_text(text: str, st: object, protocol: str, where: str) -> str:
     if mode == 83 and "Q" not in have and math.isfinite(cy.q_mm):
         words.append(f"Q{_fmt(cy.q_mm * scale)}")
     if mode == 82 and "P" not in have and cy.dwell_s:
-        p = cy.dwell_s * 1000.0 if protocol == "fanuc" else cy.dwell_s
+        p = cy.dwell_s * 1000.0 if protocol_of(protocol).dialect.dwell_p_ms else cy.dwell_s
         words.append(f"P{_fmt(p)}")
     f = float(st.feed_mm_min) * scale  # type: ignore[attr-defined]
     if "F" not in have and math.isfinite(f):

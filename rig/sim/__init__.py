@@ -4,7 +4,12 @@ the session that ties them together for a campaign; the tool's tap test (:mod:`r
 """
 
 from rig.sim.clock import SimClock
-from rig.sim.controllers import controller_summary, run_controller, sim_controller
+from rig.sim.controllers import (
+    controller_class,
+    controller_summary,
+    run_controller,
+    sim_controller,
+)
 from rig.sim.daq import SimDaq
 from rig.sim.fanuc import SimFanuc
 from rig.sim.grbl import SimGrbl
@@ -18,6 +23,7 @@ __all__ = [
     "SimFanuc",
     "SimGrbl",
     "SimMachine",
+    "controller_class",
     "controller_summary",
     "run_controller",
     "sim_controller",

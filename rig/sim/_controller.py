@@ -21,6 +21,7 @@ from collections.abc import Callable
 
 from analysis.config import MachineConfig
 from planning.nc import Interpreter
+from rig.dnc.protocols import FALLBACK, protocol_of
 from rig.errors import RigError
 from rig.sim._controller_exec import (  # noqa: F401 - the records are part of this API
     ControllerEvent,
@@ -162,10 +163,8 @@ class SimControllerBase(ExecutorMixin):
 
     def _new_interpreter(self) -> None:
         """A fresh modal state; the machine stays where it is."""
-        dialect = self.protocol if self.protocol in ("fanuc", "grbl") else "fanuc"
-        self.interp = Interpreter(
-            self.machine, file=f"<{self.protocol} controller>", dialect=dialect
-        )
+        d = protocol_of(self.protocol or FALLBACK).dialect_name  # the dialect it streams
+        self.interp = Interpreter(self.machine, file=f"<{self.protocol} controller>", dialect=d)
         self.interp.state.position_mm = self._pos
         self._seq = 0
 

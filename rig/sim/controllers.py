@@ -10,6 +10,7 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from rig.dnc import DncError
+from rig.dnc.protocols import protocol_of
 from rig.sim.clock import SimClock
 from rig.sim.fanuc import SimFanuc
 from rig.sim.grbl import SimGrbl
@@ -17,7 +18,14 @@ from rig.sim.grbl import SimGrbl
 if TYPE_CHECKING:
     from analysis.config import MachineConfig
 
-_CLASSES: dict[str, type[SimFanuc] | type[SimGrbl]] = {"fanuc": SimFanuc, "grbl": SimGrbl}
+#: each simulated controller, by the protocol it speaks
+_CLASSES: dict[str, type[SimFanuc] | type[SimGrbl]] = {c.protocol: c for c in (SimFanuc, SimGrbl)}
+
+
+def controller_class(protocol: str) -> type[SimFanuc] | type[SimGrbl]:
+    """The simulated controller of ``protocol`` (a dialect without one: see
+    :func:`rig.dnc.protocols.protocol_of`)."""
+    return _CLASSES[protocol_of(protocol).name]
 
 
 def parse_knobs(items: Sequence[str]) -> dict[str, Any]:
@@ -74,7 +82,7 @@ def sim_controller(
     if not speed > 0:
         raise DncError(f"--speed = {speed}: must be > 0 (simulated s per wall s)")
     kw |= {"clock": SimClock(speed), "baudrate": baud or machine.serial.baudrate}
-    if protocol == "fanuc":
+    if not protocol_of(protocol).serial_8n1_only:  # a tape reader takes the machine's framing
         s = machine.serial
         kw |= {"bytesize": s.bytesize, "parity": s.parity, "stopbits": s.stopbits,
                "flow_control": s.flow_control}  # fmt: skip

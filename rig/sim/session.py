@@ -24,8 +24,8 @@ import math
 import threading
 from typing import Any
 
-from analysis.config import EndMill
-from rig.dnc import DncError, Program, StreamFault
+from analysis.forces.models import ENDMILL
+from rig.dnc import DncError, Program, StreamFault, protocol_of
 from rig.dnc.sinks import LoggerSink
 from rig.errors import RigError
 from rig.sim.clock import SimClock
@@ -35,7 +35,7 @@ from rig.sim.machine import BlockStock, SignalSettings, SimMachine, ZMapStock
 
 def _make_stock(campaign: Any, plan: Any) -> BlockStock | ZMapStock:
     tool = campaign.tool
-    if not isinstance(tool, EndMill):
+    if not ENDMILL.describes(tool):
         return BlockStock(plan.cut.block)
     return ZMapStock(plan.cut.block.to_zmap(tool), tool)
 
@@ -47,6 +47,7 @@ class SimSession:
         sim = campaign.spec.sim
         rig = campaign.rig
         self.protocol = sim.protocol or campaign.machine.dialect
+        self.rules = protocol_of(self.protocol)  # asked once: which streamer and controller
         # Nothing moves in simulated time before the run arms it (:meth:`arm`): the DAQ's first
         # sample is at t = 0 however long the host took to get there.
         self.sim_clock = SimClock(sim.speed, gates={"arm": 0.0})
@@ -58,7 +59,7 @@ class SimSession:
         read_s = campaign.spec.daq.read_interval_s or rig.daq.read_interval_s
         faults = run_index == sim.sim_fault_run
         tool = campaign.tool
-        if sim.tool_max_chip_mm is not None and isinstance(tool, EndMill):
+        if sim.tool_max_chip_mm is not None and ENDMILL.describes(tool):
             tool = tool.model_copy(update={"max_chip_mm": sim.tool_max_chip_mm})
         self.machine = SimMachine(
             tool,
@@ -117,10 +118,9 @@ class SimSession:
             kw["sim_stop_answering_after_block"] = sim.sim_controller_stall_after_block
         if faults and sim.sim_alarm_at_block is not None:
             kw["sim_alarm_at_block"] = (sim.sim_alarm_at_block, 1)
-        if self.protocol == "grbl":
-            from rig.sim.grbl import SimGrbl as Ctrl
-        else:
-            from rig.sim.fanuc import SimFanuc as Ctrl
+        from rig.sim.controllers import controller_class
+
+        Ctrl = controller_class(self.rules.name)
         baud = campaign.machine.serial.baudrate
         return Ctrl(campaign.machine, clock=self.sim_clock, baudrate=baud, **kw)
 
@@ -170,12 +170,12 @@ class SimSession:
 
     # -- RigSession ------------------------------------------------------------------------------
     def start(self, program: Program, writer: object) -> None:
-        from rig.dnc import FanucStreamer, GrblStreamer
+        from rig.dnc import streamer_class
         from rig.dnc.port import line_bytes_per_s
 
         self._program = program
         cfg = self._serial.model_copy(update={"port": self.port, "timeout_s": self.link_timeout_s})
-        cls = GrblStreamer if self.protocol == "grbl" else FanucStreamer
+        cls = streamer_class(self.rules.name)
         # The controller receives at the baud rate in simulated time, so the streamer paces
         # at the line rate times the clock's speed (on a pty it would pace in wall time and
         # starve a controller that runs faster than real time).
