@@ -43,6 +43,7 @@ from analysis.config import (
     user_catalogs,
 )
 from analysis.errors import ConfigError
+from analysis.forces import ENDMILL, FACEMILL
 from analysis.validation import read_toml, validate
 from rig.campaign.schema import (  # noqa: F401 - the tables, importable from here as before
     AdaptiveSection,
@@ -110,7 +111,7 @@ class Campaign:
 
 
 def _teeth(tool: EndMill | FaceMill) -> int:
-    return tool.inserts if isinstance(tool, FaceMill) else tool.flutes
+    return tool.inserts if FACEMILL.describes(tool) else tool.flutes
 
 
 def _as_list(v: Any) -> list[Any]:
@@ -171,7 +172,7 @@ def expand_matrix(
     for k, e in enumerate(entries):
         line = lines[k] if lines and k < len(lines) else None
         feeds = _as_list(e.fz_mm if e.fz_mm is not None else e.feed_mm_min)
-        width_default = tool.diameter_mm if isinstance(tool, EndMill) else block_width_mm
+        width_default = tool.diameter_mm if ENDMILL.describes(tool) else block_width_mm
         widths = _as_list(e.width_mm if e.width_mm is not None else width_default)
         depths = _as_list(e.depth_mm)
         for rpm, feed, depth, width, mode, rep in itertools.product(
@@ -225,7 +226,7 @@ def check_tests(
         place = f"{where}:{line}" if line else where
         found.setdefault((place, msg), []).append(t)
 
-    depth_limit = tool.depth_limit_mm if isinstance(tool, FaceMill) else tool.flute_length_mm
+    depth_limit = tool.depth_limit_mm if FACEMILL.describes(tool) else tool.flute_length_mm
     sweep = program.kind == "feed-sweep"
     for t in tests:
         for f in list(program.sweep_feeds_mm_min) if sweep else [t.feed_mm_min]:
@@ -250,10 +251,10 @@ def check_tests(
             if not d == d:  # NaN
                 add(t, fields, "depth_mm missing: give the axial depth of cut (mm)", steps)
             elif d > depth_limit:
-                kind = "usable insert edge" if isinstance(tool, FaceMill) else "flute length"
+                kind = "usable insert edge" if FACEMILL.describes(tool) else "flute length"
                 add(t, fields, f"depth_mm = {d:g} is beyond the {kind} of tool "
                     f"'{program_tool(tool)}' ({depth_limit:.3g} mm)", steps)  # fmt: skip
-        if isinstance(tool, EndMill) and t.width_mm > tool.diameter_mm + 1e-9:
+        if ENDMILL.describes(tool) and t.width_mm > tool.diameter_mm + 1e-9:
             add(t, ("width_mm",), f"width_mm = {t.width_mm:g} exceeds the tool diameter "
                 f"{tool.diameter_mm:g} mm (one pass cuts at most a slot)")  # fmt: skip
         if t.width_mm == t.width_mm and t.width_mm > program.block_width_mm + 1e-9:
@@ -262,11 +263,11 @@ def check_tests(
         if t.feed_mode == "post-processed" and not t.rule:
             add(t, ("feed_mode",), "feed_mode = 'post-processed' needs rule = 'FILE' (a rule)")
     problems = [f"{place}: {_which(ts)}: {msg}" for (place, msg), ts in found.items()]
-    if isinstance(tool, FaceMill) and program.kind != "facemill-pass":
+    if FACEMILL.describes(tool) and program.kind != "facemill-pass":
         problems.append(
             f"{where}: program.kind = '{program.kind}' needs an end mill, got a face mill"
         )
-    if isinstance(tool, EndMill) and program.kind == "facemill-pass":
+    if ENDMILL.describes(tool) and program.kind == "facemill-pass":
         problems.append(f"{where}: program.kind = 'facemill-pass' needs a face mill tool")
     if problems:
         raise ConfigError("\n".join(problems))
@@ -356,7 +357,7 @@ def load_campaign(path: str | Path) -> Campaign:
         problems.append(str(exc))
     rig = load("rig_config", load_rig, c.rig_config)
     if c.rig == "sim" and tool is not None and material is not None:
-        need = "facemill" if isinstance(tool, FaceMill) else "endmill"
+        need = "facemill" if FACEMILL.describes(tool) else "endmill"
         if getattr(material, need) is None:
             problems.append(
                 f"{where(camp_line, 'material')}: campaign.material = {c.material!r} has no "
@@ -403,8 +404,8 @@ def _rate_problems(spec: CampaignFile, rig: RigConfig, where: str) -> list[str]:
     return out
 
 
-_ANALYSIS_TOOL = {"facemill-coefficients": FaceMill, "feed-rule": EndMill, "afc-compare": EndMill,
-                  "stability-sweep": EndMill}  # fmt: skip
+_ANALYSIS_TOOL = {"facemill-coefficients": FACEMILL, "feed-rule": ENDMILL, "afc-compare": ENDMILL,
+                  "stability-sweep": ENDMILL}  # fmt: skip
 
 
 def _analysis_problems(
@@ -420,8 +421,8 @@ def _analysis_problems(
             out.append(f"{where}: analysis.{field} = {list(getattr(a, field))}: no group "
                        f"{unknown[0]!r}; expected one of {sorted(groups)}")  # fmt: skip
     need = _ANALYSIS_TOOL.get(a.kind)
-    if need is not None and tool is not None and not isinstance(tool, need):
-        kind = "a face mill" if need is FaceMill else "an end mill"
+    if need is not None and tool is not None and not need.describes(tool):
+        kind = "a face mill" if need is FACEMILL else "an end mill"
         out.append(f"{where}: analysis.kind = {a.kind!r} needs {kind}, tool "
                    f"{spec.campaign.tool!r} is not one")  # fmt: skip
     if a.kind == "afc-compare" and len(a.compare_groups) != 2:

@@ -32,12 +32,12 @@ def _dialect(campaign: Campaign) -> str:
 
 def _post_process(text: str, campaign: Campaign, test: RunConditions, cut: CutProgram) -> str:
     """The feed post-processor (planning.feed.post, seed 001) over a generated program."""
-    from analysis.config import EndMill
+    from analysis.forces import ENDMILL
     from analysis.rules import load_rule
     from rig.campaign.programs import campaign_rule, post_process_program
 
     tool = campaign.tool
-    if not isinstance(tool, EndMill):
+    if not ENDMILL.describes(tool):
         raise ConfigError(f"{campaign.path}: post-processed feeds need an end mill")
     if test.rule == "campaign":
         if campaign.spec.feed_rule is None:

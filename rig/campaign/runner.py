@@ -40,8 +40,8 @@ from pathlib import Path
 from typing import Any
 
 from analysis import __version__
-from analysis.config import FaceMill
 from analysis.errors import ConfigError
+from analysis.forces import FACEMILL
 from analysis.runs import file as rf
 from rig.campaign.chatter_watch import ChatterWatchConfig
 from rig.campaign.config import Campaign, RunConditions, load_campaign
@@ -186,7 +186,7 @@ def _conditions(campaign: Campaign, plan: PlannedRun) -> dict[str, Any]:
         "program_kind": campaign.spec.program.kind,
         "tool": c.tool,
         "tool_spec": campaign.tool.model_dump(),
-        "tool_kind": "facemill" if isinstance(campaign.tool, FaceMill) else campaign.tool.kind,
+        "tool_kind": "facemill" if FACEMILL.describes(campaign.tool) else campaign.tool.kind,
         "teeth": campaign.teeth,
         "material": c.material,
         "machine": campaign.machine.name,
