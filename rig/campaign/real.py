@@ -18,17 +18,20 @@ from __future__ import annotations
 import sys
 import threading
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rig.dnc import DncError, Program, StreamFault, protocol_of
 from rig.dnc.sinks import LoggerSink
 from rig.errors import RigError
 
+if TYPE_CHECKING:
+    from rig.campaign.config import Campaign
+
 #: Seconds added to a Fanuc program's estimated remaining time before the run is taken as done.
 FANUC_END_MARGIN_S = 3.0
 
 
-def _daq_config(campaign: Any) -> Any:
+def _daq_config(campaign: Campaign) -> Any:
     over = {
         k: v
         for k, v in campaign.spec.daq.model_dump().items()
@@ -37,7 +40,7 @@ def _daq_config(campaign: Any) -> Any:
     return campaign.rig.daq.model_copy(update=over)
 
 
-def check_hardware(campaign: Any) -> tuple[list[str], list[str]]:
+def check_hardware(campaign: Campaign) -> tuple[list[str], list[str]]:
     """(what was found, what is missing and how to fix it) for ``rig = "real"``. Opens the
     serial port and lists NI devices; sends nothing."""
     from rig.daq.ni import HOW_TO_CONFIGURE
@@ -89,7 +92,7 @@ def check_hardware(campaign: Any) -> tuple[list[str], list[str]]:
 class RealSession:
     """One run on the lab's rig (see the module docstring)."""
 
-    def __init__(self, campaign: Any, plan: Any, run_index: int) -> None:
+    def __init__(self, campaign: Campaign, plan: Any, run_index: int) -> None:
         from rig.daq.ni import NiDaq
 
         self.campaign = campaign
@@ -177,6 +180,6 @@ class RealSession:
         self.daq.close()
 
 
-def real_session(campaign: Any, plan: Any, run_index: int) -> RealSession:
+def real_session(campaign: Campaign, plan: Any, run_index: int) -> RealSession:
     """The campaign runner's session factory for ``rig = "real"``."""
     return RealSession(campaign, plan, run_index)

@@ -19,16 +19,19 @@ from __future__ import annotations
 
 import math
 import threading
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from rig.campaign.config import Campaign
 
 #: the lobes are recomputed when the spindle speed moves by more than this (a 1 % move shifts a
 #: lobe's flank by about as much; the computation costs 0.3-0.9 s of CPU)
 RPM_STEP_REL = 0.01
 
 
-def stability_case(campaign: Any, test: Any) -> dict[str, Any]:
+def stability_case(campaign: Campaign, test: Any) -> dict[str, Any]:
     """The run's cut for the lobes as JSON (:func:`rig.adaptive.cut.lobe_cut`), or
     ``{"reason": ...}`` when there are none."""
     from rig.adaptive.cut import lobe_cut

@@ -31,7 +31,7 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -63,6 +63,9 @@ from rig.console.ring import RingWriter
 from rig.console.session import LiveSink, _LiveSession, _Tee, machine_report  # noqa: F401
 from rig.daq import Calibration, DaqEvent, DaqInfo
 
+if TYPE_CHECKING:
+    from rig.campaign.config import Campaign
+
 MAX_EVENTS = 200
 BANDS_S = 60.0  # the executed blocks sent to the page: those of the longest window it shows
 #: DAQ and runner event kinds the page lists (the others are bookkeeping)
@@ -76,7 +79,9 @@ class LiveCampaign:
     ``folder``: the campaign's folder (``live.json`` there points servers at the ring).
     """
 
-    def __init__(self, campaign: Any, folder: Path, ring_path: str | Path | None = None) -> None:
+    def __init__(
+        self, campaign: Campaign, folder: Path, ring_path: str | Path | None = None
+    ) -> None:
         self.campaign = campaign
         self.folder = Path(folder)
         plans = plan_campaign(campaign)
@@ -129,7 +134,7 @@ class LiveCampaign:
     ) -> Callable[[Any, Any, int], Any]:
         make = inner or default_session_factory(self.campaign)
 
-        def factory(campaign: Any, plan: Any, k: int) -> _LiveSession:
+        def factory(campaign: Campaign, plan: Any, k: int) -> _LiveSession:
             session = _LiveSession(make(campaign, plan, k), self)
             with self._lock:
                 self._session, self._run_k = session, k
@@ -411,7 +416,7 @@ class LiveCampaign:
 
 @contextlib.contextmanager
 def live_console(
-    campaign: Any,
+    campaign: Campaign,
     out_root: str | Path | None = None,
     *,
     port: int = 8765,

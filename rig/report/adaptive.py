@@ -5,10 +5,13 @@ feeds (a ``feed_mode = "post-processed"`` run of the campaign)."""
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rig.adaptive.session import target_of, under_loop
 from rig.report.adaptive_figures import adaptive_events, cycle_time_s, within_band
+
+if TYPE_CHECKING:
+    from rig.campaign.config import Campaign
 
 
 def _same_cut(a: Any, b: Any) -> bool:
@@ -36,7 +39,7 @@ def _chatter_cleared_revs(lr: Any) -> int | None:
     return int(round((cleared - found) * rpm / 60.0))
 
 
-def adaptive_entries(campaign: Any, runs: list[Any]) -> tuple[list[dict[str, Any]], str]:
+def adaptive_entries(campaign: Campaign, runs: list[Any]) -> tuple[list[dict[str, Any]], str]:
     """(the JSON list, its Markdown) for the finished runs ``runs`` (LoadedRun)."""
     a = campaign.spec.adaptive
     if a is None:

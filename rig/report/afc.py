@@ -23,12 +23,15 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
 from rig.report.base import LoadedRun, Section, md_table
+
+if TYPE_CHECKING:
+    from rig.campaign.config import Campaign
 
 #: A revolution cuts when its mean resultant exceeds this fraction of the run's 95th percentile
 #: (and the air level by 6 sigma): entry and exit ramps of a few revolutions are left out.
@@ -74,7 +77,7 @@ def program_feed_time_s(text: str, machine: Any) -> float:
     return float(motion_stats(m, machine).feed_time_s)
 
 
-def afc_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section:
+def afc_section(campaign: Campaign, runs: list[LoadedRun], out: Path) -> Section:
     groups = campaign.spec.analysis.compare_groups or ("constant", "adjusted")
     const = [lr for lr in runs if lr.group == groups[0]]
     adj = [lr for lr in runs if lr.group == groups[1]]
@@ -184,7 +187,11 @@ def _cv_verdict(cv_ratio: float, best: float | None, cv_target: float) -> dict[s
 
 
 def _feed_limit_bound(
-    campaign: Any, const: LoadedRun, time_saving_pct: float, cv_target: float, time_target: float
+    campaign: Campaign,
+    const: LoadedRun,
+    time_saving_pct: float,
+    cv_target: float,
+    time_target: float,
 ) -> dict[str, Any]:
     """The evenness any feeds within the rule's limits can reach (module doc); {} when the
     campaign has no end mill, no end-mill coefficients, no feed rule or no depth steps."""
@@ -278,7 +285,7 @@ def _feed_along_x(text: str, machine: Any) -> tuple[np.ndarray, np.ndarray]:
     return xs, fs
 
 
-def _plot(campaign: Any, const: LoadedRun, adj: LoadedRun, stats: dict, path: Path) -> None:
+def _plot(campaign: Campaign, const: LoadedRun, adj: LoadedRun, stats: dict, path: Path) -> None:
     from rig.report.plots import _plt
 
     plt = _plt()

@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -15,6 +15,9 @@ import pandas as pd
 from analysis.errors import AnalysisError
 from analysis.identify import CI_NOTE
 from rig.report.base import LoadedRun, Section, md_table
+
+if TYPE_CHECKING:
+    from rig.campaign.config import Campaign
 
 #: Said under the table: what the bootstrap intervals are.
 BOOT_NOTE = (
@@ -53,7 +56,7 @@ def _truth(runs: list[LoadedRun]) -> dict[str, float] | None:
     return None
 
 
-def facemill_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section:
+def facemill_section(campaign: Campaign, runs: list[LoadedRun], out: Path) -> Section:
     from analysis.identify import fit_facemill_runs
 
     spec = campaign.spec.analysis
@@ -143,7 +146,7 @@ def _coefficient_rows(fit: Any, truth: Any) -> list[dict[str, Any]]:
     return rows
 
 
-def _validation_rows(campaign: Any, fit: Any, runs: list[LoadedRun]) -> list[dict[str, Any]]:
+def _validation_rows(campaign: Campaign, fit: Any, runs: list[LoadedRun]) -> list[dict[str, Any]]:
     """Predicted (identified model) against measured mean forces, per run with steady cutting."""
     vrows = []
     for lr in runs:
@@ -164,7 +167,7 @@ def _validation_rows(campaign: Any, fit: Any, runs: list[LoadedRun]) -> list[dic
     return vrows
 
 
-def _plot_fit(campaign: Any, coef: Any, ident: list[LoadedRun], path: Path) -> None:
+def _plot_fit(campaign: Campaign, coef: Any, ident: list[LoadedRun], path: Path) -> None:
     from rig.report.plots import _plt
 
     plt = _plt()

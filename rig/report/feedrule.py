@@ -11,15 +11,18 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import pandas as pd
 
 from analysis.errors import AnalysisError
 from rig.report.base import LoadedRun, Section, md_table
 
+if TYPE_CHECKING:
+    from rig.campaign.config import Campaign
 
-def feed_rule_section(campaign: Any, runs: list[LoadedRun], out: Path) -> Section:
+
+def feed_rule_section(campaign: Campaign, runs: list[LoadedRun], out: Path) -> Section:
     from analysis.rules import (
         derive_rule,
         find_base_feed,

@@ -22,13 +22,16 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 
 from analysis.errors import AnalysisError
 from rig.report.base import LoadedRun, Section, md_table
+
+if TYPE_CHECKING:
+    from rig.campaign.config import Campaign
 
 TITLE = "Stability sweep"
 #: The lobes are computed from this fraction below the slowest tested speed to this above the
@@ -37,7 +40,7 @@ RPM_MARGIN = 0.25
 LOBE_POINTS = 121
 
 
-def _measured_modes(campaign: Any, folder: Path, out: Path) -> tuple[Any, list[str]]:
+def _measured_modes(campaign: Campaign, folder: Path, out: Path) -> tuple[Any, list[str]]:
     """The tap records' modes (a ModeSet), saved to ``out/modes.toml``, and warnings."""
     from analysis.modal import load_modes, modal_file
 
@@ -55,7 +58,7 @@ def _measured_modes(campaign: Any, folder: Path, out: Path) -> tuple[Any, list[s
     return load_modes(saved), notes
 
 
-def _case(campaign: Any, runs: list[LoadedRun], modes: list[tuple[str, float, float, float]],
+def _case(campaign: Campaign, runs: list[LoadedRun], modes: list[tuple[str, float, float, float]],
           rpm: np.ndarray) -> Any:  # fmt: skip
     """The stability case of the sweep's cut with ``modes`` (direction, f Hz, zeta, k N/m)."""
     from analysis.stability import StabilityCase
@@ -153,7 +156,7 @@ def _plot(path: Path, lobes: Any, true_lobes: Any, verdicts: list, rows: list, t
 
 
 def stability_sweep_section(
-    campaign: Any, runs: list[LoadedRun], out: Path, folder: Path
+    campaign: Campaign, runs: list[LoadedRun], out: Path, folder: Path
 ) -> Section:
     """The section (module docstring); ``summary["onset"]`` is the per-speed list."""
     from analysis.stability import stability_lobes
@@ -227,7 +230,7 @@ def stability_sweep_section(
                    ("onset.csv", "lobes.csv", "modes.toml", "lobes.png"))  # fmt: skip
 
 
-def _judged_cuts(campaign: Any, runs: list[LoadedRun]) -> tuple[list, list[dict[str, Any]]]:
+def _judged_cuts(campaign: Campaign, runs: list[LoadedRun]) -> tuple[list, list[dict[str, Any]]]:
     """Each cut judged by the chatter detector: (rpm, depth, chatter) and a row for the table."""
     from analysis.chatter import detect_run
 
