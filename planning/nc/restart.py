@@ -31,7 +31,7 @@ preamble would approach a position the real machine does not have.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 from planning.nc._codes import INCH_MM
 from planning.nc.errors import NCError
@@ -44,7 +44,7 @@ def restart_preamble(
     *,
     safe_z_mm: float | None = None,
     style: NumberStyle | None = None,
-    work_offsets_mm: dict[int, tuple[float, float, float]] | None = None,
+    work_offsets_mm: Mapping[int | float, tuple[float, float, float]] | None = None,
     plunge_feed: bool = False,
 ) -> list[str]:
     """NC blocks (texts, no line ends) that bring a controller into ``state``.
