@@ -1,18 +1,21 @@
 """Moves of the interpreter (private): segment output, targets, feeds (G94 and G93), lines, arcs,
-dwells, G28/G30 reference returns, canned cycles and the settings of group 0 (G10, G92 ...).
+dwells, G38 probe moves and G28/G30/G29 reference returns.
 
-:class:`Moves` is a mixin of :class:`~planning.nc.interpreter.Interpreter`; it uses the
-interpreter's ``state``, options and the error helpers of :class:`~planning.nc._words.WordRules`.
-Segments go to a :class:`~planning.nc.motion.MotionBuilder` (``out``) as one flat float row and
-one flat int row each.
+:class:`Moves` is a part of :class:`~planning.nc.interpreter.Interpreter`: it works on the
+interpreter's :class:`~planning.nc._context.Context` (state, options, error helpers). Segments go
+to a :class:`~planning.nc.motion.MotionBuilder` (``out``) as one flat float row and one flat int
+row each.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
+from typing import cast
 
 from planning.nc import _lexer
 from planning.nc._codes import INCH_MM, gname
+from planning.nc._context import Context, Point, Sink
 from planning.nc.arcs import (
     LINUXCNC_CENTER_TOL_INCH,
     LINUXCNC_CENTER_TOL_MM,
@@ -24,61 +27,53 @@ from planning.nc.arcs import (
     check_radius,
     check_radius_linuxcnc,
 )
-from planning.nc.dialects import Dialect
 from planning.nc.motion import ARC_CCW, ARC_CW, DWELL, LINE, RAPID
-from planning.nc.state import ModalState
 
 NAN = math.nan
 _NOWHERE = (NAN, NAN, NAN)
 _TINY_UNITS = 1e-7  # LinuxCNC: an axis moves if it moves more than this (program units)
+Vec = Sequence[float]  # a point or direction (x, y, z) or rotary angles (a, b, c)
 
 
 class Moves:
-    """Motion execution of the Interpreter (mixin): lines, arcs, dwells and canned cycles."""
+    """Motion execution of the Interpreter (a part: works on ``ctx``): lines, arcs, dwells,
+    probe moves and reference returns; :meth:`seg`, :meth:`target` and :meth:`need_feed` serve
+    the canned cycles too."""
 
-    state: ModalState
-    dialect: str
-    rules: Dialect
-    arc_tolerance_mm: float
-    _spiral_tol_mm: float | None
-    _reference_warned: bool
-    _inverse_f: float
-    _feed_max_mm_min: float
-    _rotary_to: tuple[float, float, float] | None
-    peck_clearance_mm: float
-    _peck_default: bool
+    def __init__(self, ctx: Context) -> None:
+        self.ctx = ctx
 
-    def _seg(
-        self, out, kind: int, p0, p1, c, feed: float, dwell_s: float, line: int, block: int,
-        r1=None, r0=None,
+    def seg(
+        self, out: Sink, kind: int, p0: Vec, p1: Vec, c: Vec, feed: float, dwell_s: float,
+        line: int, block: int, r1: Vec | None = None, r0: Vec | None = None,
     ) -> None:  # fmt: skip
         """One segment; the rotary axes go from ``r0`` (None: the state's) to ``r1`` (None:
         stay)."""
-        st = self.state
+        st = self.ctx.state
         if r0 is None:
             r0 = st.rotary_deg
         out.fbuf.extend((*p0, *p1, *c, feed, st.spindle_dir * st.spindle_speed_rpm, dwell_s,
                          *r0, *(r0 if r1 is None else r1)))  # fmt: skip
         out.ibuf.extend((kind, st.plane, st.tool, st.coolant, line, block))
 
-    def _dwell(self, raw: str, v: dict[str, str], line: int, block: int, out) -> None:
-        d = self.rules
+    def dwell(self, raw: str, v: dict[str, str], line: int, block: int, out: Sink) -> None:
+        d = self.ctx.rules
         if "P" in v:
             t = d.dwell_seconds(float(v["P"]))
             letter = "P"
         elif "X" in v and d.dwell_x:
             t, letter = float(v["X"]), "X"
         elif not d.dwell_x:
-            raise self._fail(raw, 0, f"G4 dwell needs P ({'ms' if d.dwell_p_ms else 's'})", line)
+            raise self.ctx.fail(raw, 0, f"G4 dwell needs P ({'ms' if d.dwell_p_ms else 's'})", line)
         else:
-            raise self._fail(raw, 0, "G4 dwell needs P (ms on Fanuc, s on GRBL) or X (s)", line)
+            raise self.ctx.fail(raw, 0, "G4 dwell needs P (ms on Fanuc, s on GRBL) or X (s)", line)
         if t < 0:
-            raise self._fail(raw, letter, "dwell time must be >= 0 s", line)
-        p = self.state.position_mm
-        self._seg(out, DWELL, p, p, _NOWHERE, NAN, t, line, block)
+            raise self.ctx.fail(raw, letter, "dwell time must be >= 0 s", line)
+        p = self.ctx.state.position_mm
+        self.seg(out, DWELL, p, p, _NOWHERE, NAN, t, line, block)
 
-    def _target(self, v: dict[str, str], scale: float, g53: bool) -> tuple[float, float, float]:
-        st = self.state
+    def target(self, v: dict[str, str], scale: float, g53: bool) -> Point:
+        st = self.ctx.state
         x, y, z = st.position_mm
         if g53:
             ox = oy = oz = 0.0
@@ -100,32 +95,34 @@ class Moves:
                 z += float(v["Z"]) * scale
         return x, y, z
 
-    def _need_feed(
-        self, raw: str, line: int, length_mm: float | None = None, lcnc_len=None
-    ) -> float:
+    def need_feed(
+        self, raw: str, line: int, length_mm: float | None = None,
+        lcnc_len: tuple[float, float] | None = None,
+    ) -> float:  # fmt: skip
         """The feed of a feed move, mm/min; under G93 from the move's ``length_mm`` (None: a
         canned cycle, which G93 does not allow). LinuxCNC (``lcnc_len``: its length of the move
         and mm per its unit): its rate is at least 0.1 units/min, so a short move may take longer
         than 1/F."""
-        if self.state.feed_mode != 93:
-            f = self.state.feed_mm_min
+        ctx = self.ctx
+        if ctx.state.feed_mode != 93:
+            f = ctx.state.feed_mm_min
             if f != f:
-                raise self._fail(raw, 0, "feed move with no feed rate set (program F first)", line)
+                raise ctx.fail(raw, 0, "feed move with no feed rate set (program F first)", line)
             return f
         if length_mm is None:
-            raise self._fail(raw, 0, "canned cycles cannot run under inverse-time feed G93", line)
-        if self._inverse_f != self._inverse_f:
-            raise self._fail(
+            raise ctx.fail(raw, 0, "canned cycles cannot run under inverse-time feed G93", line)
+        if ctx.inverse_f != ctx.inverse_f:
+            raise self.ctx.fail(
                 raw, 0, "under inverse-time feed G93 every feed move needs its own F (1/min)", line
             )
         if lcnc_len is not None:
             length, unit = lcnc_len
-            rate = max(0.1, length / unit * self._inverse_f)  # LinuxCNC's, units/min
+            rate = max(0.1, length / unit * self.ctx.inverse_f)  # LinuxCNC's, units/min
             if not (length > 0.0 and length_mm > 0.0):
                 return rate * unit  # it moves nowhere at that rate
             f = length_mm * rate * unit / length  # the travel in LinuxCNC's time
         elif not length_mm > 0.0:
-            raise self._fail(
+            raise self.ctx.fail(
                 raw,
                 0,
                 "inverse-time (G93) feed move that moves no axis: its time 1/F cannot be "
@@ -133,48 +130,55 @@ class Moves:
                 line,
             )
         else:
-            f = length_mm * self._inverse_f
-        if f > self._feed_max_mm_min:
-            self._note(
+            f = length_mm * self.ctx.inverse_f
+        if f > self.ctx.feed_max_mm_min:
+            self.ctx.note(
                 raw,
                 "F",
                 f"inverse-time feed gives {f:g} mm/min, above the machine's feed_max_mm_min "
-                f"{self._feed_max_mm_min:g}",
+                f"{self.ctx.feed_max_mm_min:g}",
                 line,
             )
         return f
 
-    def _lcnc_length(self, p0, p1, r0, r1) -> tuple[float, float]:
+    def _lcnc_length(self, p0: Vec, p1: Vec, r0: Vec, r1: Vec) -> tuple[float, float]:
         """LinuxCNC's length of a straight move (``find_straight_length``): along X Y Z if they
         move, else the rotary degrees; with the mm per its unit."""
-        unit = INCH_MM if self.state.inch else 1.0
+        unit = INCH_MM if self.ctx.state.inch else 1.0
         tiny = _TINY_UNITS * unit
         if abs(p1[0] - p0[0]) > tiny or abs(p1[1] - p0[1]) > tiny or abs(p1[2] - p0[2]) > tiny:
             return math.dist(p0, p1), unit
         return math.dist(r0, r1), 1.0
 
-    def _linuxcnc_rotary_feed(self, feed: float, lin_mm: float, r0, r1, p0, p1) -> float:
+    def _linuxcnc_rotary_feed(
+        self, feed: float, lin_mm: float, r0: Vec, r1: Vec, p0: Vec, p1: Vec
+    ) -> float:
         """LinuxCNC's G94 feed of a move that turns a rotary axis, as the Motion's feed along
         the combined travel: F is along X Y Z when they move (the rotary axes follow), else in
         degrees/min, whatever the length units."""
         rot = math.dist(r0, r1)
-        unit = INCH_MM if self.state.inch else 1.0
+        unit = INCH_MM if self.ctx.state.inch else 1.0
         tiny = _TINY_UNITS * unit
         if abs(p1[0] - p0[0]) > tiny or abs(p1[1] - p0[1]) > tiny or abs(p1[2] - p0[2]) > tiny:
             return feed * math.hypot(lin_mm, rot) / lin_mm
-        return self.state.feed_word  # the F number, deg/min (travel = the rotary degrees)
+        return self.ctx.state.feed_word  # the F number, deg/min (travel = the rotary degrees)
 
-    def _move(self, raw, v, scale, line, block, out, mode: int, g53: bool) -> None:
-        st = self.state
+    def move(
+        self, raw: str, v: dict[str, str], scale: float, line: int, block: int, out: Sink,
+        mode: int, g53: bool,
+    ) -> None:  # fmt: skip
+        ctx = self.ctx
+        st = ctx.state
+        rules = ctx.rules
         p0 = st.position_mm
-        p1 = self._target(v, scale, g53)
+        p1 = self.target(v, scale, g53)
         r0 = st.rotary_deg
-        r1 = r0 if self._rotary_to is None else self._rotary_to
+        r1 = r0 if ctx.rotary_to is None else ctx.rotary_to
         if g53:
             if mode not in (0, 1):
-                raise self._fail(raw, 0, "G53 needs G0 or G1 in force", line)
-            if self.rules.g53_needs_absolute and not st.absolute:
-                raise self._fail(raw, 0, "G53 cannot be used in incremental mode G91", line)
+                raise ctx.fail(raw, 0, "G53 needs G0 or G1 in force", line)
+            if rules.g53_needs_absolute and not st.absolute:
+                raise ctx.fail(raw, 0, "G53 cannot be used in incremental mode G91", line)
         if mode == 38:
             self._probe_checks(raw, line, p0, p1)
             mode = 1  # a feed move to the target: where it stops depends on the part
@@ -184,10 +188,10 @@ class Moves:
             else:
                 kind, feed = LINE, st.feed_mm_min
                 if feed != feed:
-                    along = self.rules.feed_along_xyz
+                    along = rules.feed_along_xyz
                     lcnc = self._lcnc_length(p0, p1, r0, r1) if along else None
-                    feed = self._need_feed(raw, line, math.dist((*p0, *r0), (*p1, *r1)), lcnc)
-                elif r1 is not r0 and self.rules.feed_along_xyz:
+                    feed = self.need_feed(raw, line, math.dist((*p0, *r0), (*p1, *r1)), lcnc)
+                elif r1 is not r0 and rules.feed_along_xyz:
                     feed = self._linuxcnc_rotary_feed(feed, math.dist(p0, p1), r0, r1, p0, p1)
             rpm = st.spindle_dir * st.spindle_speed_rpm
             out.fbuf.extend((*p0, *p1, NAN, NAN, NAN, feed, rpm, 0.0, *r0, *r1))
@@ -196,40 +200,43 @@ class Moves:
             cw = mode == 2
             c = self._arc_center(raw, v, scale, line, p0, p1, cw)
             kind = ARC_CW if cw else ARC_CCW
-            if self.rules.feed_along_xyz or self.rules.arc_turns_p or st.feed_mode == 93:
+            if rules.feed_along_xyz or rules.arc_turns_p or st.feed_mode == 93:
                 self._arc(raw, v, line, block, out, kind, p0, p1, c, r0, r1)
             else:  # the common arc
-                feed = self._need_feed(raw, line)
-                self._seg(out, kind, p0, p1, c, feed, 0.0, line, block, r1)
+                feed = self.need_feed(raw, line)
+                self.seg(out, kind, p0, p1, c, feed, 0.0, line, block, r1)
         st.position_mm = p1
         st.rotary_deg = r1
 
-    def _probe_checks(self, raw, line: int, p0, p1) -> None:
+    def _probe_checks(self, raw: str, line: int, p0: Vec, p1: Vec) -> None:
         """G38.2..G38.5: refused when asked (``probing="refuse"``), and LinuxCNC's and GRBL's
         errors: no feed, inverse time, cutter compensation on, a target (nearly) where it is."""
-        st = self.state
-        if self.probing == "refuse":
-            raise self._fail(raw, 0, "G38.x probe move: where it stops depends on the part, so "
-                             "the stock cannot be simulated through it (run the probing on "
-                             "its own)", line)  # fmt: skip
+        st = self.ctx.state
+        if self.ctx.probing == "refuse":
+            raise self.ctx.fail(raw, 0, "G38.x probe move: where it stops depends on the part, "
+                                "so the stock cannot be simulated through it (run the probing "
+                                "on its own)", line)  # fmt: skip
         if st.feed_mode == 93:
-            raise self._fail(raw, 0, "G38.x cannot probe under inverse-time feed G93", line)
+            raise self.ctx.fail(raw, 0, "G38.x cannot probe under inverse-time feed G93", line)
         if not st.feed_mm_min > 0:
-            raise self._fail(raw, 0, "G38.x probe move with no feed rate (program F first)",
-                             line)  # fmt: skip
+            raise self.ctx.fail(raw, 0, "G38.x probe move with no feed rate (program F first)",
+                                line)  # fmt: skip
         if st.cutter_comp != 40:
-            raise self._fail(raw, 0, "G38.x cannot probe with cutter compensation on", line)
-        too_close = self.rules.probe_min_mm  # LinuxCNC's 0.01 in / 0.254 mm
+            raise self.ctx.fail(raw, 0, "G38.x cannot probe with cutter compensation on", line)
+        too_close = self.ctx.rules.probe_min_mm  # LinuxCNC's 0.01 in / 0.254 mm
         if math.dist(p0, p1) <= too_close:
-            raise self._fail(raw, 0, "G38.x target too close to the start (LinuxCNC: within "
-                             "0.254 mm; GRBL: the same point)", line)  # fmt: skip
+            raise self.ctx.fail(raw, 0, "G38.x target too close to the start (LinuxCNC: within "
+                                "0.254 mm; GRBL: the same point)", line)  # fmt: skip
 
-    def _arc(self, raw, v, line: int, block: int, out, kind: int, p0, p1, c, r0, r1) -> None:
+    def _arc(
+        self, raw: str, v: dict[str, str], line: int, block: int, out: Sink, kind: int,
+        p0: Point, p1: Point, c: Point, r0: Point, r1: Point,
+    ) -> None:  # fmt: skip
         """An arc under G93 or LinuxCNC's rules: its length for the inverse-time feed, the feed
         of a move with rotary axes, and LinuxCNC's P turns (full circles first, then the arc)."""
-        st = self.state
+        st = self.ctx.state
         cw = kind == ARC_CW
-        d = self.rules
+        d = self.ctx.rules
         turns = self._turns(raw, v, line) if d.arc_turns_p and "P" in v else 1
         arc = arc_length_mm(p0, p1, c, st.plane, cw)
         ia, ib, ic = PLANE_AXES[st.plane]
@@ -242,26 +249,28 @@ class Moves:
         length = math.hypot(arc, math.dist(r0, r1))
         if st.feed_mode == 93:
             unit = INCH_MM if st.inch else 1.0
-            feed = self._need_feed(raw, line, length, (arc, unit) if d.feed_along_xyz else None)
+            feed = self.need_feed(raw, line, length, (arc, unit) if d.feed_along_xyz else None)
         else:
-            feed = self._need_feed(raw, line)
+            feed = self.need_feed(raw, line)
         if r1 != r0 and d.feed_along_xyz and st.feed_mode != 93 and arc > 0.0:
             feed *= length / arc  # LinuxCNC's F is along the arc, the rotary axes follow
         if turns == 1:
-            self._seg(out, kind, p0, p1, c, feed, 0.0, line, block, r1)
+            self.seg(out, kind, p0, p1, c, feed, 0.0, line, block, r1)
             return
         ends = [TWO_PI * k / total for k in range(1, turns)] + [1.0]
         f0, a = 0.0, p0
         for f1 in ends:
-            b = p1 if f1 == 1.0 else list(p0)
-            if f1 != 1.0:
-                b[ic] = p0[ic] + f1 * (p1[ic] - p0[ic])
-                b = (b[0], b[1], b[2])
+            if f1 == 1.0:
+                b = p1
+            else:
+                q = list(p0)
+                q[ic] = p0[ic] + f1 * (p1[ic] - p0[ic])
+                b = (q[0], q[1], q[2])
             ca = list(c)
             ca[ic] = a[ic]
             ra = tuple(x0 + f0 * (x1 - x0) for x0, x1 in zip(r0, r1))
             rb = tuple(x0 + f1 * (x1 - x0) for x0, x1 in zip(r0, r1))
-            self._seg(out, kind, a, b, tuple(ca), feed, 0.0, line, block, rb, ra)
+            self.seg(out, kind, a, b, tuple(ca), feed, 0.0, line, block, rb, ra)
             f0, a = f1, b
 
     def _turns(self, raw: str, v: dict[str, str], line: int) -> int:
@@ -269,44 +278,47 @@ class Moves:
         p = float(v["P"])
         n = round(p)
         if abs(n - p) > 0.001:
-            raise self._fail(raw, "P", f"G2/G3 P (turns) must be whole, got {v['P']}", line)
+            raise self.ctx.fail(raw, "P", f"G2/G3 P (turns) must be whole, got {v['P']}", line)
         if n < 1:
-            raise self._fail(raw, "P", f"G2/G3 P (turns) must be 1 or more, got {v['P']}", line)
+            raise self.ctx.fail(raw, "P", f"G2/G3 P (turns) must be 1 or more, got {v['P']}", line)
         return n
 
     # ------------------------------------------------------------------ G28 / G30 / G29
-    def _home(self, raw, v, scale, line, block, out, key: int, k: int) -> None:
+    def home(
+        self, raw: str, v: dict[str, str], scale: float, line: int, block: int, out: Sink,
+        key: int, k: int,
+    ) -> None:  # fmt: skip
         """G28 / G30 (word ``k`` of the block): the named axes rapid to the intermediate point,
         then to the reference point (machine coordinates); the others stay. G29: back from the
         reference point through the last G28/G30 intermediate point to the programmed point."""
-        st = self.state
+        st = self.ctx.state
         code = gname(key)
         if key == 290:
             self._from_reference(raw, v, scale, line, block, out, k)
             return
         if key == 300 and "P" in v and float(v["P"]) != 2.0:
-            raise self._fail(
+            raise self.ctx.fail(
                 raw, "P", "only the second reference point (G30 P2) is configured", line
             )
         named = [a for a in range(3) if "XYZ"[a] in v]
-        rot_mid = self._rotary_to  # LinuxCNC: A B C words name rotary axes to return too
+        rot_mid = self.ctx.rotary_to  # LinuxCNC: A B C words name rotary axes to return too
         if named or rot_mid is not None:
-            mid = self._target(v, scale, False)
-        elif self.rules.home_all_axes:  # no axis word = all axes straight to the point
+            mid = self.target(v, scale, False)
+        elif self.ctx.rules.home_all_axes:  # no axis word = all axes straight to the point
             named, mid = [0, 1, 2], st.position_mm
-            if self.rules.home_rotary:
+            if self.ctx.rules.home_rotary:
                 rot_mid = st.rotary_deg
         else:
-            raise self._fail(
+            raise self.ctx.fail(
                 raw, k, f"{code} needs the axes to return (X, Y, Z), e.g. G91 {code} Z0", line
             )
         ref = st.reference_mm if key == 280 else st.second_reference_mm
         if ref is None:
             ref = (0.0, 0.0, 0.0)
             st.reference_assumed = True
-            if not self._reference_warned:
-                self._reference_warned = True
-                self._note(
+            if not self.ctx.reference_warned:
+                self.ctx.reference_warned = True
+                self.ctx.note(
                     raw,
                     k,
                     f"no machine given: the {code} point is taken as machine zero = work zero "
@@ -323,33 +335,40 @@ class Moves:
         if rot_mid is not None:  # LinuxCNC: the rotary axes have reference points too
             rref = st.reference_rotary_deg if key == 280 else st.second_reference_rotary_deg
             named_rot = [i for i, c in enumerate("ABC") if c in v] or range(3)
-            rot_end = tuple(rref[i] if i in named_rot else rot_mid[i] for i in range(3))
-        self._two_rapids(mid, tuple(end), line, block, out, rot_mid, rot_end)
+            rot_end = cast(
+                Point, tuple(rref[i] if i in named_rot else rot_mid[i] for i in range(3))
+            )
+        self._two_rapids(mid, cast(Point, tuple(end)), line, block, out, rot_mid, rot_end)
 
-    def _two_rapids(self, mid, end, line, block, out, rot_mid=None, rot_end=None) -> None:
-        st = self.state
+    def _two_rapids(
+        self, mid: Point, end: Point, line: int, block: int, out: Sink,
+        rot_mid: Point | None = None, rot_end: Point | None = None,
+    ) -> None:  # fmt: skip
+        st = self.ctx.state
         p0 = st.position_mm
         r0 = st.rotary_deg
         r_mid = r0 if rot_mid is None else rot_mid
         r_end = r_mid if rot_end is None else rot_end
         for a, b, ra, rb in ((p0, mid, r0, r_mid), (mid, end, r_mid, r_end)):
             if a != b or ra != rb:
-                self._seg(out, RAPID, a, b, _NOWHERE, NAN, 0.0, line, block, rb, ra)
+                self.seg(out, RAPID, a, b, _NOWHERE, NAN, 0.0, line, block, rb, ra)
         st.position_mm = end
         st.rotary_deg = r_end
 
-    def _from_reference(self, raw, v, scale, line, block, out, k: int) -> None:
+    def _from_reference(
+        self, raw: str, v: dict[str, str], scale: float, line: int, block: int, out: Sink, k: int
+    ) -> None:
         """G29 (Fanuc): the named axes rapid to the last G28/G30 intermediate point, then to the
         programmed point (G91: relative to the intermediate point); the others stay."""
-        st = self.state
-        if 290 in self.rules.code_errors:
-            raise self._fail(raw, k, self.rules.code_errors[290], line)
+        st = self.ctx.state
+        if 290 in self.ctx.rules.code_errors:
+            raise self.ctx.fail(raw, k, self.ctx.rules.code_errors[290], line)
         named = [a for a in range(3) if "XYZ"[a] in v]
         if not named:
-            raise self._fail(raw, k, "G29 needs the axes to move (X, Y, Z)", line)
+            raise self.ctx.fail(raw, k, "G29 needs the axes to move (X, Y, Z)", line)
         for a in named:
             if st.intermediate_mm[a] != st.intermediate_mm[a]:
-                raise self._fail(
+                raise self.ctx.fail(
                     raw, "XYZ"[a], f"G29 {'XYZ'[a]}: no G28/G30 has set an intermediate point "
                     "for this axis yet", line,
                 )  # fmt: skip
@@ -357,19 +376,22 @@ class Moves:
         for a in named:
             mid[a] = st.intermediate_mm[a]
         if st.absolute:
-            end = self._target(v, scale, False)
+            end = self.target(v, scale, False)
         else:
-            end = tuple(
+            end = cast(Point, tuple(
                 mid[a] + float(v["XYZ"[a]]) * scale if a in named else mid[a] for a in range(3)
-            )
-        self._two_rapids(tuple(mid), tuple(end), line, block, out)
+            ))  # fmt: skip
+        self._two_rapids(cast(Point, tuple(mid)), cast(Point, tuple(end)), line, block, out)
 
     # ------------------------------------------------------------------ arcs
-    def _arc_center(self, raw, v, scale, line, p0, p1, cw: bool) -> tuple[float, float, float]:
-        st = self.state
+    def _arc_center(
+        self, raw: str, v: dict[str, str], scale: float, line: int, p0: Point, p1: Point,
+        cw: bool,
+    ) -> Point:  # fmt: skip
+        st = self.ctx.state
         ia, ib, ic = PLANE_AXES[st.plane]
-        tol = self.arc_tolerance_mm
-        lcnc = self.rules.arc_spiral
+        tol = self.ctx.arc_tolerance_mm
+        lcnc = self.ctx.rules.arc_spiral
         if lcnc:
             tol = LINUXCNC_RADIUS_TOL_MM
         ijk = "IJK"
@@ -377,7 +399,7 @@ class Moves:
         has_r = "R" in v
         has_ijk = la in v or lb in v
         if ln in v:
-            self._problem(
+            self.ctx.problem(
                 raw,
                 _lexer.find_word(raw, ln),
                 f"{ln} is not an in-plane centre word for G{st.plane} arcs",
@@ -401,7 +423,7 @@ class Moves:
                     ca = a0 + float(v.get(la, "0")) * scale
                     cb = b0 + float(v.get(lb, "0")) * scale
                 if lcnc:
-                    spiral = self._spiral_tol_mm
+                    spiral = self.ctx.spiral_tol_mm
                     if spiral is None:
                         spiral = LINUXCNC_CENTER_TOL_MM
                         if st.inch:
@@ -413,7 +435,7 @@ class Moves:
                 raise ValueError(f"arc needs its centre ({la}, {lb}) or a radius R")
         except ValueError as exc:
             which = "R" if has_r else (la if la in v else lb if lb in v else 0)
-            raise self._fail(raw, which, str(exc), line) from None
+            raise self.ctx.fail(raw, which, str(exc), line) from None
         c = [0.0, 0.0, 0.0]
         c[ia], c[ib], c[ic] = ca, cb, p0[ic]
         return c[0], c[1], c[2]

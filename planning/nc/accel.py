@@ -121,7 +121,8 @@ def _trapezoid_time_s(
     t = (top - v_in) / accel + (top - v_out) / accel
     with np.errstate(divide="ignore", invalid="ignore"):
         t = t + np.where(cruise > 0, cruise / v_max, 0.0)
-    return t
+    out: np.ndarray = t
+    return out
 
 
 def accel_segment_time_s(

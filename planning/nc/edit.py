@@ -32,10 +32,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planning.nc._codes import INCH_MM
+from planning.nc._lexer import Token
 from planning.nc.arcs import PLANE_AXES, arc_sweep_rad
 from planning.nc.errors import NCError
 from planning.nc.interpreter import Interpreter
-from planning.nc.motion import ARC_CCW, ARC_CW, LINE
+from planning.nc.motion import ARC_CCW, ARC_CW, LINE, Motion
 from planning.nc.program import NumberStyle, Program
 from planning.nc.run import interpret
 from planning.nc.state import ModalState
@@ -177,41 +178,14 @@ def _pieces(
     raw = prog.lines[b]
     toks = prog.words(b)
     letters = {t.letter for t in toks}
-    for t in toks:
-        code = (t.letter, float(t.number))
-        if code == ("G", 53.0) or code in {("M", 0.0), ("M", 1.0), ("M", 2.0), ("M", 30.0)}:
-            why = "G53 moves" if t.letter == "G" else "blocks that stop or end the program"
-            raise NCError(
-                f"{why} are not split",
-                file=prog.file,
-                line=b + 1,
-                column=t.column,
-                word=t.text.strip(),
-            )
+    _refuse_unsplit(prog, b, toks)
     scale = INCH_MM if st.inch else 1.0
     off = np.array(st.origin_mm)  # active work offset plus G92 / G52 (G10 set by program too)
     p0, p1 = motion.start[seg], motion.end[seg]
-    kind = int(motion.kind[seg])
     moving = [a for a in range(3) if p1[a] != p0[a] or "XYZ"[a] in letters]
-    if kind == LINE:
-        points = [p0 + t * (p1 - p0) for t, _ in pieces]
-        centre = None
-    else:
-        ia, ib, ic = PLANE_AXES[int(motion.plane[seg])]
-        c = motion.center[seg]
-        r = math.hypot(p0[ia] - c[ia], p0[ib] - c[ib])
-        th0 = math.atan2(p0[ib] - c[ib], p0[ia] - c[ia])
-        sgn = 1.0 if kind == ARC_CCW else -1.0
-        points = []
-        for t, _ in pieces:
-            q = np.array(p1, dtype=float) if t == 1.0 else np.empty(3)
-            if t != 1.0:
-                th = th0 + sgn * t * sweep
-                q[ia], q[ib] = c[ia] + r * math.cos(th), c[ib] + r * math.sin(th)
-                q[ic] = p0[ic] + t * (p1[ic] - p0[ic])
-            points.append(q)
-        centre = (ia, ib, c)
-        moving = sorted(set(moving) | {ia, ib})
+    points, centre = _piece_ends(motion, seg, sweep, pieces)
+    if centre is not None:
+        moving = sorted(set(moving) | {centre[0], centre[1]})
     # at least 0.1 um (mm) / 10 uin (inch) so rounded arc pieces stay well inside the radius
     # tolerance whatever the source's own precision
     style = prog.style
@@ -247,3 +221,43 @@ def _pieces(
     for letter, value in words_list[0].items():
         first.set_word(0, letter, value)
     return [first.lines[0], *words_list[1:]]
+
+
+def _refuse_unsplit(prog: Program, b: int, toks: Sequence[Token]) -> None:
+    """G53 moves and blocks that stop or end the program are not split."""
+    for t in toks:
+        code = (t.letter, float(t.number))
+        if code == ("G", 53.0) or code in {("M", 0.0), ("M", 1.0), ("M", 2.0), ("M", 30.0)}:
+            why = "G53 moves" if t.letter == "G" else "blocks that stop or end the program"
+            raise NCError(
+                f"{why} are not split",
+                file=prog.file,
+                line=b + 1,
+                column=t.column,
+                word=t.text.strip(),
+            )
+
+
+def _piece_ends(
+    motion: Motion, seg: int, sweep: float, pieces: Sequence[tuple[float, float]]
+) -> tuple[list[np.ndarray], tuple[int, int, np.ndarray] | None]:
+    """The end of each piece of segment ``seg`` (at fractions ``t`` of its line, or of the arc's
+    ``sweep`` radians), and for an arc its in-plane axes and centre."""
+    p0, p1 = motion.start[seg], motion.end[seg]
+    kind = int(motion.kind[seg])
+    if kind == LINE:
+        return [p0 + t * (p1 - p0) for t, _ in pieces], None
+    ia, ib, ic = PLANE_AXES[int(motion.plane[seg])]
+    c = motion.center[seg]
+    r = math.hypot(p0[ia] - c[ia], p0[ib] - c[ib])
+    th0 = math.atan2(p0[ib] - c[ib], p0[ia] - c[ia])
+    sgn = 1.0 if kind == ARC_CCW else -1.0
+    points = []
+    for t, _ in pieces:
+        q = np.array(p1, dtype=float) if t == 1.0 else np.empty(3)
+        if t != 1.0:
+            th = th0 + sgn * t * sweep
+            q[ia], q[ib] = c[ia] + r * math.cos(th), c[ib] + r * math.sin(th)
+            q[ic] = p0[ic] + t * (p1[ic] - p0[ic])
+        points.append(q)
+    return points, (ia, ib, c)

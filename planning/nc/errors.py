@@ -12,6 +12,7 @@ nothing is dropped silently.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from planning.errors import PlanningError
@@ -55,7 +56,9 @@ class NCError(PlanningError):
         self.reason = reason
         super().__init__(_where(file, line, column, word, reason))
 
-    def __reduce__(self):  # keep keyword-only fields through pickling (multiprocessing)
+    def __reduce__(  # keep keyword-only fields through pickling (multiprocessing)
+        self,
+    ) -> tuple[Callable[..., NCError], tuple[str, str, int, int, str]]:
         return (_rebuild, (self.reason, self.file, self.line, self.column, self.word))
 
 

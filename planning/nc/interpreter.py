@@ -96,17 +96,14 @@ from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 from planning.nc import _lexer, dialects
-from planning.nc._codes import (
-    FAST_LETTERS,
-    INCH_MM,
-    LETTERS_GM,
-    OFFSET_CODES,
-    OFFSET_INDEX,
-    gkey,
-    gname,
-)
+from planning.nc._blocks import Blocks
+from planning.nc._codes import FAST_LETTERS, INCH_MM, OFFSET_CODES
+from planning.nc._context import Codes, Context, Sink, start_state
+from planning.nc._cycles import Cycles
 from planning.nc._fast import FastRuns
 from planning.nc._modes import Modes
+from planning.nc._moves import Moves
+from planning.nc._settings import Settings
 from planning.nc._words import WordRules
 from planning.nc.errors import NCError, NCWarning
 from planning.nc.motion import Motion, MotionBuilder
@@ -117,10 +114,6 @@ if TYPE_CHECKING:
 
 DEFAULT_ARC_TOLERANCE_MM = 0.002  # MachineConfig's default
 NAN = math.nan
-# codes that set something from the block's words (no motion): G10, G28.1, G30.1, G43.1 (group
-# 8), G52, G92, G92.1, G92.2, G92.3
-SETTING_CODES = frozenset({100, 281, 301, 431, 520, 920, 921, 922, 923})
-HOME_CODES = frozenset({280, 290, 300})
 FAST_CHUNK = 65_536  # lines read at a time by run()
 CHUNK_BLOCKS = 8_192  # streamed chunk: faster than 65,536 (cache), ~55 MB peak for 1 M blocks
 
@@ -129,13 +122,13 @@ class _NullSink:
     """Builder stand-in that drops segments (modal state only)."""
 
     class _Drop:
-        def extend(self, _: object) -> None:
+        def extend(self, _: object, /) -> None:
             pass
 
     fbuf = ibuf = _Drop()
 
 
-class Interpreter(FastRuns, WordRules, Modes):
+class Interpreter:
     """Executes NC blocks one at a time, tracking all modal state.
 
     Parameters
@@ -181,6 +174,17 @@ class Interpreter(FastRuns, WordRules, Modes):
         What lenient mode skipped, and blocks ignored after the program end.
     blocks_seen : int
         Number of blocks executed so far (the default block index of the next one).
+
+    Notes
+    -----
+    Built by composition: a :class:`~planning.nc._context.Context` (options, modal state,
+    per-block scratch, error helpers) shared by its parts, which each take it explicitly: the
+    words (:class:`~planning.nc._words.WordRules`), the modal codes
+    (:class:`~planning.nc._modes.Modes`), the group-0 settings
+    (:class:`~planning.nc._settings.Settings`), the moves (:class:`~planning.nc._moves.Moves`),
+    the canned cycles (:class:`~planning.nc._cycles.Cycles`), the blocks other than a plain move
+    that dispatch to the last three (:class:`~planning.nc._blocks.Blocks`) and the fast path
+    (:class:`~planning.nc._fast.FastRuns`). The interpreter reads a block and dispatches.
     """
 
     def __init__(
@@ -201,65 +205,81 @@ class Interpreter(FastRuns, WordRules, Modes):
         probing: str = "allow",
         fast: bool = True,
     ) -> None:
-        self.strict = strict
         self.fast = bool(fast)
         if cutter_comp not in ("warn", "refuse"):
             raise ValueError(f"cutter_comp must be 'warn' or 'refuse', got {cutter_comp!r}")
         if probing not in ("allow", "refuse"):
             raise ValueError(f"probing must be 'allow' or 'refuse', got {probing!r}")
-        self.cutter_comp = cutter_comp
-        self.probing = probing
-        self._comp_warned = False
-        self.file = str(file)
-        self.dialect = dialect or (machine.dialect if machine is not None else dialects.DEFAULT)
-        if self.dialect not in dialects.REGISTRY:
+        name = dialect or (machine.dialect if machine is not None else dialects.DEFAULT)
+        if name not in dialects.REGISTRY:
             raise NCError(
-                f"dialect must be one of {', '.join(dialects.DIALECTS)}, got {self.dialect!r}",
+                f"dialect must be one of {', '.join(dialects.DIALECTS)}, got {name!r}",
                 file=file,
             )
-        d = self.rules = dialects.get(self.dialect)
-        self._g_group = d.g_groups()
-        self._known_m = d.m_codes
-        self._refuses = bool(d.refused_g or d.refused_m or d.refused_letters)
+        self.dialect = name
+        d = self.rules = dialects.get(name)
         self.block_delete = block_delete
         tol = arc_tolerance_mm
         if tol is None and machine is not None:
             # LinuxCNC has its own default: only a tolerance the machine file sets overrides it
             if not d.arc_spiral or "arc_radius_tolerance_mm" in machine.model_fields_set:
                 tol = machine.arc_radius_tolerance_mm
-        self._spiral_tol_mm = None if tol is None else float(tol)  # LinuxCNC: None = its own
-        self.arc_tolerance_mm = DEFAULT_ARC_TOLERANCE_MM if tol is None else float(tol)
-        self._peck_default = peck_clearance_mm is None
-        if peck_clearance_mm is None:
-            peck_clearance_mm = d.peck_clearance_mm
-        self.peck_clearance_mm = float(peck_clearance_mm)
-        if reference_mm is None and machine is not None:
-            reference_mm = machine.reference_point_mm
-        if second_reference_mm is None and machine is not None:
-            second_reference_mm = machine.second_reference_point_mm
-        self._reference_warned = False
-        self._inverse_f = NAN  # this block's F under G93 (1/min)
         inf = math.inf
-        self._feed_max_mm_min = machine.feed_max_mm_min if machine is not None else inf
-        self._spindle_max_rpm = machine.spindle_max_rpm if machine is not None else inf
-        st = self.state = state.copy() if state is not None else ModalState()
-        if work_offsets_mm:
-            table = list(st.work_offsets_mm)
-            for code, off in work_offsets_mm.items():
-                key = round(float(code) * 10.0)
-                if key not in OFFSET_INDEX:
-                    raise ValueError(f"work_offsets_mm: no work offset G{code}")
-                table[OFFSET_INDEX[key]] = (float(off[0]), float(off[1]), float(off[2]))
-            st.work_offsets_mm = tuple(table)
-        # None: machine zero = work zero, said once in a warning when a G28/G30 needs it
-        if reference_mm is not None and (state is None or st.reference_mm is None):
-            st.reference_mm = _point(reference_mm)
-        second = second_reference_mm if second_reference_mm is not None else reference_mm
-        if second is not None and (state is None or st.second_reference_mm is None):
-            st.second_reference_mm = _point(second)
-        self._set_origin()
-        self.warnings: list[NCWarning] = []
+        self._ctx = ctx = Context(
+            file=str(file), strict=strict, dialect=name, rules=d, g_group=d.g_groups(),
+            known_m=d.m_codes,
+            arc_tolerance_mm=DEFAULT_ARC_TOLERANCE_MM if tol is None else float(tol),
+            spiral_tol_mm=None if tol is None else float(tol),  # LinuxCNC: None = its own
+            peck_clearance_mm=float(
+                d.peck_clearance_mm if peck_clearance_mm is None else peck_clearance_mm
+            ),
+            peck_default=peck_clearance_mm is None,
+            feed_max_mm_min=machine.feed_max_mm_min if machine is not None else inf,
+            spindle_max_rpm=machine.spindle_max_rpm if machine is not None else inf,
+            cutter_comp=cutter_comp, probing=probing,
+            state=start_state(machine, state, work_offsets_mm, reference_mm,
+                              second_reference_mm),
+        )  # fmt: skip
+        self._refuses = bool(d.refused_g or d.refused_m or d.refused_letters)
+        self._words = WordRules(ctx)
+        self._modes = Modes(ctx, self._words)
+        self._moves = Moves(ctx)
+        self._blocks = Blocks(ctx, Settings(ctx), self._moves, Cycles(ctx, self._moves))
+        self._fast_runs = FastRuns(ctx)
         self.blocks_seen = 0
+
+    @property
+    def state(self) -> ModalState:
+        """The modal state after the blocks executed so far."""
+        return self._ctx.state
+
+    @state.setter
+    def state(self, value: ModalState) -> None:
+        self._ctx.state = value
+
+    @property
+    def warnings(self) -> list[NCWarning]:
+        """What lenient mode skipped, and blocks ignored after the program end."""
+        return self._ctx.warnings
+
+    @property
+    def strict(self) -> bool:
+        """Unknown codes/letters and unused words raise (True) or become warnings (False)."""
+        return self._ctx.strict
+
+    @property
+    def file(self) -> str:
+        """The name used in error messages."""
+        return self._ctx.file
+
+    @property
+    def _feed_max_mm_min(self) -> float:
+        """The machine's feed limit (tests/test_nc_fastpath.py lowers it on an interpreter)."""
+        return self._ctx.feed_max_mm_min
+
+    @_feed_max_mm_min.setter
+    def _feed_max_mm_min(self, value: float) -> None:
+        self._ctx.feed_max_mm_min = value
 
     @property
     def work_offsets_mm(self) -> dict[int | float, tuple[float, float, float]]:
@@ -311,7 +331,7 @@ class Interpreter(FastRuns, WordRules, Modes):
         self._run(lines, first_line, _NullSink())
 
     # ------------------------------------------------------------------ internals
-    def _run(self, lines: Iterable[str], first_line: int, out: MotionBuilder | _NullSink) -> None:
+    def _run(self, lines: Iterable[str], first_line: int, out: Sink) -> None:
         block = first_line - 1
         if self.fast and isinstance(out, MotionBuilder):
             it = iter(lines)
@@ -326,6 +346,17 @@ class Interpreter(FastRuns, WordRules, Modes):
             block += 1
         self.blocks_seen = block
 
+    def _execute_lines(self, lines: list[str], block: int, out: MotionBuilder) -> None:
+        """Execute ``lines`` (blocks ``block``, ``block + 1`` ...): runs of plain G0..G3 blocks
+        at once when ``fast`` is on (:class:`~planning.nc._fast.FastRuns`), the others one by
+        one."""
+        if self.fast:
+            self._fast_runs.execute_lines(lines, block, out, self._execute)
+            return
+        execute = self._execute
+        for k, raw in enumerate(lines, block):
+            execute(raw, k + 1, k, out)
+
     def _execute_safe(self, raw: str, line: int, block: int, out: MotionBuilder) -> None:
         saved = self.state.copy()
         try:
@@ -335,33 +366,10 @@ class Interpreter(FastRuns, WordRules, Modes):
             raise
         self.blocks_seen = block + 1
 
-    def _refused_words(self, raw: str, words, gcodes, mcodes, line: int) -> None:
-        """What the control refuses outright (GRBL 1.1's error:20): say so before anything is
-        sent."""
-        d = self.rules
-        for key, k in gcodes or ():
-            if key in d.refused_g:
-                self._problem(raw, k, f"{gname(key)} is not a {d.refusal_name} command", line)
-        for key, k in mcodes or ():
-            if key // 10 in d.refused_m:
-                self._problem(raw, k, f"M{key // 10} is not a {d.refusal_name} command", line)
-        # a line holding only an O program number (and N) is not sent: the GRBL sender strips
-        # it (planning.nc.grbl.grbl_send_text), as ``nc check --dialect grbl`` reads it
-        lone_o = d.strips_lone_o and [ltr for ltr, _ in words if ltr != "N"] == ["O"]
-        for k, (letter, _) in enumerate(words):
-            if letter in d.refused_letters and not lone_o:
-                self._problem(raw, k, f"{d.refusal_name} has no {letter} word", line)
-
-    def _set_origin(self) -> None:
-        """``state.origin_mm`` from the active work offset and the G92 offset."""
-        st = self.state
-        w = st.work_offsets_mm[st.work_offset_index]
-        g = st.g92_offset_mm
-        st.origin_mm = (w[0] + g[0], w[1] + g[1], w[2] + g[2])
-
-    def _execute(self, raw: str, line: int, block: int, out: MotionBuilder | _NullSink) -> None:
-        words, flag = _lexer.block_words(raw, self.file, line)
-        st = self.state
+    def _execute(self, raw: str, line: int, block: int, out: Sink) -> None:
+        ctx = self._ctx
+        words, flag = _lexer.block_words(raw, ctx.file, line)
+        st = ctx.state
         if flag:
             if flag == 2:
                 st.tape_marks += 1
@@ -371,10 +379,10 @@ class Interpreter(FastRuns, WordRules, Modes):
         if not words:
             return
         if st.ended or st.tape_marks >= 2:
-            self.warnings.append(
+            ctx.warnings.append(
                 NCWarning(
                     "block after the program end (M2/M30 or closing %) is ignored",
-                    self.file,
+                    ctx.file,
                     line,
                     1,
                     raw.strip()[:40],
@@ -382,146 +390,65 @@ class Interpreter(FastRuns, WordRules, Modes):
             )
             return
         st.stopped = False
-        gcodes: list[tuple[int, int]] | None = None
-        mcodes: list[tuple[int, int]] | None = None
-        v = dict(words)
-        if len(v) == len(words) and v.keys() <= LETTERS_GM:
-            # fast path (most blocks): no letter twice, at most one G and one M, all known
-            g = v.pop("G", None)
-            if g is not None:
-                key = gkey(g)
-                if key not in self._g_group:
-                    v = None  # let the slow path report it
-                else:
-                    gcodes = [(key, words.index(("G", g)))]
-            m = v.pop("M", None) if v is not None else None
-            if m is not None:
-                key = round(float(m) * 10.0)
-                if key % 10 or key // 10 not in self._known_m:
-                    v = None
-                else:
-                    mcodes = [(key, words.index(("M", m)))]
-        else:
-            v = None
-        if v is None:
-            gcodes, mcodes, v = self._sort_words(raw, words, line)
+        gcodes, mcodes, v = self._words.sort(raw, words, line)
         if self._refuses:
-            self._refused_words(raw, words, gcodes, mcodes, line)
+            self._words.refused(raw, words, gcodes, mcodes, line)
+        self._execute_words(raw, line, block, out, gcodes, mcodes, v)
 
+    def _execute_words(
+        self, raw: str, line: int, block: int, out: Sink, gcodes: Codes | None,
+        mcodes: Codes | None, v: dict[str, str],
+    ) -> None:  # fmt: skip
+        """A block's codes and words, in the order of execution."""
+        ctx = self._ctx
+        st = ctx.state
         # ---- G codes: modes first so this block's words use them
-        self._inverse_f = NAN
-        self._rotary_to = None  # A B C target of this block, deg (set by its A/B/C words)
+        ctx.inverse_f = NAN
+        ctx.rotary_to = None  # A B C target of this block, deg (set by its A/B/C words)
         if gcodes is None:
             explicit_motion = dwell = g53 = False
             home = None
             scale = fscale = INCH_MM if st.inch else 1.0
         else:
             inch_before = st.inch
-            explicit_motion, dwell, g53, home, path = self._gcodes(raw, gcodes, line)
+            explicit_motion, dwell, g53, home, path = self._modes.gcodes(raw, gcodes, line)
             scale = INCH_MM if st.inch else 1.0
             # LinuxCNC reads F before G20/G21 (its order of execution), the others after
             fscale = (
-                scale if inch_before == st.inch or not self.rules.feed_before_units
+                scale if inch_before == st.inch or not ctx.rules.feed_before_units
                 else INCH_MM / scale
             )  # fmt: skip
             if path is not None:
-                self._path_control(raw, v, scale, line, path)
+                self._modes.path_control(raw, v, scale, line, path)
         # ---- other words
         if not v.keys() <= FAST_LETTERS:
-            self._words(raw, v, scale, fscale, line, gcodes, mcodes)
+            self._words.words(raw, v, fscale, line, gcodes, mcodes)
         else:  # only X Y Z F N: the common block
             if "F" in v:
-                self._feed(raw, v, fscale, line)
+                self._words.feed(raw, v, fscale, line)
             if "N" in v:
-                st.sequence_number = self._whole(raw, v, "N", line)
-
+                st.sequence_number = self._words.whole(raw, v, "N", line)
         # ---- M codes before motion (tool change, spindle, coolant)
-        end = mcodes is not None and self._mcodes(raw, mcodes, v, line)
-
+        end = mcodes is not None and self._modes.mcodes(raw, mcodes, v, line)
         # ---- dwell (LinuxCNC: then the block's move, if it has one)
         if dwell:
-            self._dwell_block(raw, v, line, block, out, explicit_motion)
-
+            self._blocks.dwell(raw, v, line, block, out, explicit_motion)
         # ---- motion
-        rotary = self._rotary_to is not None
+        rotary = ctx.rotary_to is not None
         has_axes = ("X" in v or "Y" in v or "Z" in v or rotary) and (
-            not dwell or self.rules.dwell_then_move
+            not dwell or ctx.rules.dwell_then_move
         )
         mode = st.motion
         if home is not None:
-            self._group0(raw, v, scale, line, block, out, home, has_axes, explicit_motion)
+            self._blocks.group0(raw, v, scale, line, block, out, home, has_axes, explicit_motion)
         elif has_axes or (
             explicit_motion and mode >= 2 and mode <= 3 and ("I" in v or "J" in v or "K" in v)
         ):
             if mode >= 80:
-                self._cycle_block(raw, v, scale, line, block, out, rotary)
+                self._blocks.cycle(raw, v, scale, line, block, out, rotary)
             else:
-                self._move(raw, v, scale, line, block, out, mode, g53)
+                self._moves.move(raw, v, scale, line, block, out, mode, g53)
         elif g53:
-            raise self._fail(raw, 0, "G53 needs an axis word (X, Y or Z)", line)
+            raise ctx.fail(raw, 0, "G53 needs an axis word (X, Y or Z)", line)
         if end:
             st.ended = True
-
-    def _dwell_block(self, raw, v, line: int, block: int, out, explicit_motion: bool) -> None:
-        """G4: the dwell (Fanuc / GRBL: alone; LinuxCNC: before the block's move)."""
-        if self.rules.dwell_then_move:
-            if explicit_motion and self.state.motion in (2, 3):
-                raise self._fail(raw, "P", "G4 and G2/G3 cannot share a block (both use P)", line)
-        else:
-            if "A" in v or "B" in v or "C" in v:
-                raise self._fail(
-                    raw, next(L for L in "ABC" if L in v), "A/B/C words cannot move in a G4 "
-                    "block (program the rotary move in its own G0/G1 block)", line,
-                )  # fmt: skip
-            if "Y" in v or "Z" in v or ("X" in v and "P" in v):
-                raise self._fail(
-                    raw,
-                    next(L for L in "YZX" if L in v),
-                    "G4 dwell cannot share its block with a move",
-                    line,
-                )
-        self._dwell(raw, v, line, block, out)
-
-    def _group0(self, raw, v, scale, line, block, out, home, has_axes, explicit_motion) -> None:
-        """A block with G10, G28, G28.1, G29, G30, G30.1, G52 or a G92 code."""
-        key, k = home
-        mode = self.state.motion
-        if key in SETTING_CODES:
-            if has_axes and explicit_motion and mode != 80:
-                raise _lexer.word_error(
-                    raw, k, f"{gname(key)} and G{mode} both use the axis words and cannot "
-                    "share a block", self.file, line,
-                )  # fmt: skip
-            self._setting(raw, v, scale, line, key, k)
-            return
-        if self._rotary_to is not None and not (self.rules.home_rotary and key != 290):
-            raise self._fail(
-                raw, next(L for L in "ABC" if L in v), f"A/B/C words cannot move in a "
-                f"{gname(key)} block (program the rotary move in its own G0/G1 block)", line,
-            )  # fmt: skip
-        if explicit_motion and mode >= 81:
-            raise _lexer.word_error(
-                raw, k, f"{gname(key)} and G{mode} cannot share a block", self.file, line
-            )
-        self._home(raw, v, scale, line, block, out, key, k)
-
-    def _cycle_block(self, raw, v, scale, line: int, block: int, out, rotary: bool) -> None:
-        """A block with axis words under G80 (an error) or a canned cycle."""
-        mode = self.state.motion
-        if rotary:
-            raise self._fail(
-                raw, next(L for L in "ABC" if L in v), f"A/B/C words cannot move in a G{mode} "
-                "block (program the rotary move in its own G0/G1 block)", line,
-            )  # fmt: skip
-        if mode == 80:
-            raise self._fail(
-                raw,
-                next(L for L in "XYZABC" if L in v),
-                "axis word with no motion mode in force (G80 cancelled it; program G0/G1)",
-                line,
-            )
-        self._canned(raw, v, scale, line, block, out)
-
-
-def _point(p: Sequence[float]) -> tuple[float, float, float]:
-    return (float(p[0]), float(p[1]), float(p[2]))

@@ -42,8 +42,12 @@ from __future__ import annotations
 from array import array
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 RAPID = 0
 LINE = 1
@@ -101,7 +105,8 @@ class Motion:
     @property
     def is_arc(self) -> np.ndarray:
         """Boolean mask (n,) of arc segments."""
-        return (self.kind == ARC_CW) | (self.kind == ARC_CCW)
+        mask: np.ndarray = (self.kind == ARC_CW) | (self.kind == ARC_CCW)
+        return mask
 
     @property
     def is_feed(self) -> np.ndarray:
@@ -137,7 +142,7 @@ class Motion:
             )
         )
 
-    def to_dataframe(self):
+    def to_dataframe(self) -> pd.DataFrame:
         """A pandas DataFrame, one row per segment (I/O edge: CSV export)."""
         import pandas as pd
 
@@ -172,7 +177,8 @@ class Motion:
     @property
     def has_rotary_travel(self) -> np.ndarray:
         """Boolean mask (n,) of segments that move a rotary axis."""
-        return np.any(self.rotary_end_deg != self.rotary_start_deg, axis=1)
+        mask: np.ndarray = np.any(self.rotary_end_deg != self.rotary_start_deg, axis=1)
+        return mask
 
 
 class MotionBuilder:

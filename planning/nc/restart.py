@@ -31,6 +31,8 @@ preamble would approach a position the real machine does not have.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
+
 from planning.nc._codes import INCH_MM
 from planning.nc.errors import NCError
 from planning.nc.program import NumberStyle
@@ -42,7 +44,7 @@ def restart_preamble(
     *,
     safe_z_mm: float | None = None,
     style: NumberStyle | None = None,
-    work_offsets_mm: dict[int, tuple[float, float, float]] | None = None,
+    work_offsets_mm: Mapping[int | float, tuple[float, float, float]] | None = None,
     plunge_feed: bool = False,
 ) -> list[str]:
     """NC blocks (texts, no line ends) that bring a controller into ``state``.
@@ -52,26 +54,7 @@ def restart_preamble(
     (``work_offsets_mm`` subtracted, default the state's ``origin_mm``), with ``style`` (default
     4 decimals).
     """
-    if state.reference_assumed:
-        raise NCError(
-            "cannot restart after a G28/G30 interpreted without a machine config: the reference "
-            "point (and so the position) is unknown; give the machine (reference_mm)"
-        )
-    if state.motion >= 81:
-        raise NCError(
-            f"cannot restart inside a canned cycle (G{state.motion} in force): restart at the "
-            "block that starts the cycle"
-        )
-    if state.motion == 38:
-        raise NCError(
-            "cannot restart with a probe move mode (G38.x) in force: where the probe stopped is "
-            "not known; restart at a block after the probing"
-        )
-    if any(state.g92_offset_mm):
-        raise NCError(
-            "cannot restart while a G92/G52 offset is in force: restart at or before the block "
-            "that set it (or after a G92.1)"
-        )
+    _refuse_restart(state)
     fmt = (style or NumberStyle()).format
     scale = 1.0 / INCH_MM if state.inch else 1.0
     if work_offsets_mm is None:
@@ -80,23 +63,7 @@ def restart_preamble(
         off = work_offsets_mm.get(state.work_offset, (0.0, 0.0, 0.0))
     x, y, z = (c - o for c, o in zip(state.position_mm, off))
     safe = max(z, 0.0) if safe_z_mm is None else safe_z_mm - off[2]
-    modes = [
-        "G20" if state.inch else "G21",
-        f"G{state.plane}",
-        "G90.1" if state.arc_absolute else "G91.1",
-        "G94",
-        f"G{state.work_offset}",
-        "G40",
-        "G49",
-        "G98" if state.retract_initial else "G99",
-        "G80",
-    ]
-    if state.path_control != 64:
-        modes.append(f"G{state.path_control}")
-    elif state.path_tolerance_mm or state.naive_cam_tolerance_mm:
-        p, q = state.path_tolerance_mm * scale, state.naive_cam_tolerance_mm * scale
-        modes.append(f"G64 P{fmt(p)} Q{fmt(q)}")
-    out = [" ".join(modes)]
+    out = [_modes_block(state, fmt, scale)]
     for idx in sorted(state.work_offsets_set):
         w = state.work_offsets_mm[idx]
         xyz = " ".join(f"{a}{fmt(c * scale)}" for a, c in zip("XYZ", w))
@@ -136,3 +103,49 @@ def restart_preamble(
         last.append("G93")
     out.append(" ".join(last))
     return out
+
+
+def _refuse_restart(state: ModalState) -> None:
+    """States no preamble can bring a controller into."""
+    if state.reference_assumed:
+        raise NCError(
+            "cannot restart after a G28/G30 interpreted without a machine config: the reference "
+            "point (and so the position) is unknown; give the machine (reference_mm)"
+        )
+    if state.motion >= 81:
+        raise NCError(
+            f"cannot restart inside a canned cycle (G{state.motion} in force): restart at the "
+            "block that starts the cycle"
+        )
+    if state.motion == 38:
+        raise NCError(
+            "cannot restart with a probe move mode (G38.x) in force: where the probe stopped is "
+            "not known; restart at a block after the probing"
+        )
+    if any(state.g92_offset_mm):
+        raise NCError(
+            "cannot restart while a G92/G52 offset is in force: restart at or before the block "
+            "that set it (or after a G92.1)"
+        )
+
+
+def _modes_block(state: ModalState, fmt: Callable[[float], str], scale: float) -> str:
+    """The first block: the units, plane, distance and feed modes, work offset and path control
+    of ``state`` (compensations and canned cycles cancelled)."""
+    modes = [
+        "G20" if state.inch else "G21",
+        f"G{state.plane}",
+        "G90.1" if state.arc_absolute else "G91.1",
+        "G94",
+        f"G{state.work_offset}",
+        "G40",
+        "G49",
+        "G98" if state.retract_initial else "G99",
+        "G80",
+    ]
+    if state.path_control != 64:
+        modes.append(f"G{state.path_control}")
+    elif state.path_tolerance_mm or state.naive_cam_tolerance_mm:
+        p, q = state.path_tolerance_mm * scale, state.naive_cam_tolerance_mm * scale
+        modes.append(f"G64 P{fmt(p)} Q{fmt(q)}")
+    return " ".join(modes)

@@ -13,6 +13,7 @@ Editing an existing program keeps its layout: see :class:`~planning.nc.Program`.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 
 from planning.nc import dialects
 from planning.nc.arcs import PLANE_AXES
@@ -42,63 +43,93 @@ def motion_to_program(
     """
     rules = dialects.get(dialect)
     st = style or NumberStyle()
-    fmt = st.format
     out: list[str] = ["%"]
     if program_number is not None:
         out.append(f"O{program_number:04d}" + (f" ({_clean(comment)})" if comment else ""))
     elif comment:
         out.append(f"({_clean(comment)})")
     out.append("G21 G90 G91.1 G94 G17")
-    pos = [float(fmt(c)) for c in start_mm]
-    rot = [0.0, 0.0, 0.0]  # A B C as written so far (the interpreter starts at 0)
-    mode, plane, feed, tool, rpm, coolant = None, 17, math.nan, 0, 0.0, False
+    w = _Writer(out, st.format, start_mm)
+    for k in range(len(motion)):
+        w.settings(motion, k)
+        if int(motion.kind[k]) == DWELL:
+            out.append(_dwell(float(motion.dwell_s[k]), rules))
+        else:
+            w.move(motion, k)
+    if end:
+        out += ["M5", "M30"] if w.rpm else ["M30"]
+    out.append("%")
+    return Program.from_blocks(out, file=file, style=st)
 
-    def coords(p, r=None) -> list[str]:
+
+class _Writer:
+    """The blocks of a motion, segment by segment, with what has been written so far (modal
+    codes, and the coordinates as the interpreter will read them back: rounded)."""
+
+    def __init__(
+        self, out: list[str], fmt: Callable[[float], str], start_mm: Sequence[float]
+    ) -> None:
+        self.out = out
+        self.fmt = fmt
+        self.pos = [float(fmt(c)) for c in start_mm]
+        self.rot = [0.0, 0.0, 0.0]  # A B C as written so far (the interpreter starts at 0)
+        self.mode: int | None = None
+        self.plane, self.feed, self.tool, self.rpm, self.coolant = 17, math.nan, 0, 0.0, False
+
+    def coords(self, p: Sequence[float], r: Sequence[float] | None = None) -> list[str]:
+        """The axis words that move the written position to ``p`` (and the rotary axes to
+        ``r``)."""
+        fmt, pos, rot = self.fmt, self.pos, self.rot
         words = []
         for ax, letter in enumerate("XYZ"):
             txt = fmt(float(p[ax]))
             if float(txt) != pos[ax]:
                 words.append(letter + txt)
                 pos[ax] = float(txt)
-        for ax, letter in enumerate("ABC" if r is not None else ""):
+        if r is None:
+            return words
+        for ax, letter in enumerate("ABC"):
             txt = fmt(float(r[ax]))
             if float(txt) != rot[ax]:
                 words.append(letter + txt)
                 rot[ax] = float(txt)
         return words
 
-    for k in range(len(motion)):
-        kind = int(motion.kind[k])
-        if int(motion.tool[k]) != tool:
-            tool = int(motion.tool[k])
-            out.append(f"T{tool} M6")
+    def settings(self, motion: Motion, k: int) -> None:
+        """Tool, spindle, coolant and plane of segment ``k``, where they change."""
+        fmt, out = self.fmt, self.out
+        if int(motion.tool[k]) != self.tool:
+            self.tool = int(motion.tool[k])
+            out.append(f"T{self.tool} M6")
         srpm = float(motion.spindle_rpm[k])
-        if srpm != rpm:
+        if srpm != self.rpm:
             out.append("M5" if srpm == 0 else f"S{fmt(abs(srpm))} {'M3' if srpm > 0 else 'M4'}")
-            rpm = srpm
-        if bool(motion.coolant[k]) != coolant:
-            coolant = bool(motion.coolant[k])
-            out.append("M8" if coolant else "M9")
-        if int(motion.plane[k]) != plane:
-            plane = int(motion.plane[k])
-            out.append(f"G{plane}")
-        if kind == DWELL:
-            t = float(motion.dwell_s[k])
-            out.append(_dwell(t, rules))
-            continue
+            self.rpm = srpm
+        if bool(motion.coolant[k]) != self.coolant:
+            self.coolant = bool(motion.coolant[k])
+            out.append("M8" if self.coolant else "M9")
+        if int(motion.plane[k]) != self.plane:
+            self.plane = int(motion.plane[k])
+            out.append(f"G{self.plane}")
+
+    def move(self, motion: Motion, k: int) -> None:
+        """Segment ``k`` (not a dwell): a G0 to its start if it is not where the last ended,
+        then the move with its modal code, centre and feed where they change."""
+        fmt, out, pos, rot = self.fmt, self.out, self.pos, self.rot
+        kind = int(motion.kind[k])
         s, r0 = motion.start[k], motion.rotary_start_deg[k]
         if any(float(fmt(float(s[a]))) != pos[a] for a in range(3)) or any(
             float(fmt(float(r0[a]))) != rot[a] for a in range(3)
         ):
-            w = coords(s, r0)
-            out.append(" ".join(([] if mode == RAPID else ["G0"]) + w))
-            mode = RAPID
-        words = [] if kind == mode else [_G[kind]]
+            w = self.coords(s, r0)
+            out.append(" ".join(([] if self.mode == RAPID else ["G0"]) + w))
+            self.mode = RAPID
+        words = [] if kind == self.mode else [_G[kind]]
         start = list(pos)
-        moved = coords(motion.end[k], motion.rotary_end_deg[k])
+        moved = self.coords(motion.end[k], motion.rotary_end_deg[k])
         words += moved or ["X" + fmt(pos[0])]  # a zero-length move still needs an axis word
         if kind in (ARC_CW, ARC_CCW):
-            ia, ib, _ = PLANE_AXES[plane]
+            ia, ib, _ = PLANE_AXES[self.plane]
             c = motion.center[k]
             words += [
                 "IJK"[ia] + fmt(float(c[ia]) - start[ia]),
@@ -106,15 +137,11 @@ def motion_to_program(
             ]
         if kind != RAPID:
             f = float(motion.feed_mm_min[k])
-            if feed != feed or fmt(f) != fmt(feed):
+            if self.feed != self.feed or fmt(f) != fmt(self.feed):
                 words.append("F" + fmt(f))
-                feed = f
+                self.feed = f
         out.append(" ".join(words))
-        mode = kind
-    if end:
-        out += ["M5", "M30"] if rpm else ["M30"]
-    out.append("%")
-    return Program.from_blocks(out, file=file, style=st)
+        self.mode = kind
 
 
 def _clean(text: str) -> str:
