@@ -353,14 +353,14 @@ EDGE_REASON = "the runs do not separate edge forces from a size effect (see mode
 
 def _identified(fit: Any, stats: dict, model: ForceModel) -> dict:
     """Statistics rows marked ``identified`` with a ``status`` ('identified' or 'not identified:
-    reason'): the edge (ploughing) rows only when the data support the linear edge-force model
-    (fit.adequacy)."""
+    reason'): the edge rows only when the data support the linear edge-force model (adequacy);
+    rows that carry their own (the face mill's, from the design's split) keep it."""
     edge_ok = fit.adequacy is None or fit.adequacy.edge_identified
     out = {}
     for k, v in stats.items():
         ok = edge_ok or k not in model.edge_keys
-        out[k] = {**v, "identified": ok,
-                  "status": "identified" if ok else f"not identified: {EDGE_REASON}"}  # fmt: skip
+        why = "identified" if ok else f"not identified: {EDGE_REASON}"
+        out[k] = {**v, "identified": v.get("identified", ok), "status": v.get("status", why)}
     return out
 
 
@@ -400,10 +400,8 @@ def fit_files(
     one by one, calling ``progress``). Returns the JSON-able result: model, tool, success, message,
     coefficients (end mill: also ``Ktc`` ... ``Kae``, units in ``coefficient_units``),
     statistics (+ note), r_squared, residual_rms_n, dof, runs, rejected, per_run (with each
-    run's ``axes`` and ``zero``), axes, axes_check (end mill), warnings, and validation
-    (max_error_pct, rows) / plots when made.
-
-    End mill: runs whose conditions exceed the tool's limits (``max_chip_mm``) are named in
+    run's ``axes`` and ``zero``), axes, axes_check (end mill), split (face mill), warnings,
+    and validation (max_error_pct, rows) / plots when made. End mill: runs whose conditions exceed the tool's limits (``max_chip_mm``) are named in
     ``outside_limits`` and left out of the fit unless ``keep``; the result adds ``by_direction``
     (R^2 and RMS per direction), ``run_residuals`` (per run and direction, N and %),
     ``influence`` (leave-one-out) and each statistics row's ``status``. The mapping is checked
@@ -512,6 +510,7 @@ def fit_files(
         out["by_direction"] = by_direction(np.concatenate([a.waveform_n for a in avgs]),
                                            np.concatenate(fit.residuals_n))  # fmt: skip
         out["by_direction_over"] = "the runs' revolution-averaged waveforms (all bins)"
+        out["split"] = fit.split.as_dict()  # which coefficients the design splits, and why
         out["run_residuals"] = per_run_residuals(
             [a.name for a in avgs], np.stack([a.mean_n for a in avgs]),
             np.stack([r.mean(axis=0) for r in fit.residuals_n]),
