@@ -301,8 +301,8 @@ def fit_facemill(
     msg = f"fitted {len(averages)} runs ({len(y)} points), R^2 = {fit.r_squared:.5f}"
     if not adequacy.edge_identified:
         msg += f"; ploughing coefficients P_T, P_R, P_A not identified: {adequacy.reason}"
-    return FaceMillFit(True, msg + split.clause(), coef, fit, summary, tuple(phases), res_runs, names,
-                       adequacy=adequacy, split=split)  # fmt: skip
+    return FaceMillFit(True, msg + split.clause(), coef, fit, summary, tuple(phases), res_runs,
+                       names, adequacy=adequacy, split=split)  # fmt: skip
 
 
 def _identifiable(
