@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["SPLIT_INFLATION_LIMIT", "Split", "design_split"]
+__all__ = ["SPLIT_INFLATION_LIMIT", "Split", "design_split", "pair_inflation"]
 
 #: The largest inflation of a cutting coefficient by its edge term at which it counts as
 #: identified (see the module docstring: 0.4 % model shape error x 5 = 2 %).
@@ -85,7 +85,7 @@ class Split:
         out = ""
         if per_depth:
             out += (f"; {', '.join(per_depth)} identified as force per depth only (one feed: "
-                    "K f + P / cos(lead) per direction), not split from the edge terms")
+                    "K f + P / cos(lead) per direction), not split from the edge terms")  # fmt: skip
         if unsplit:
             out += f"; {', '.join(unsplit)} not identified: the design does not split them"
         worst = ", ".join(f"{d} {self.inflation[d]:.1f}" for d in PAIRS)
