@@ -20,8 +20,8 @@ Runout and scatter move each insert's chip or force but not their sum over a rev
 the linear model's revolution waveform holds: they lower R^2 (the residual is the insert-to-insert
 pattern the nominal tool cannot show) but leave the coefficients where the equal-insert campaign
 puts them. A scatter whose mean is not 1 scales every coefficient by its mean, as a material
-harder by that much would. (The end mill differs: there a few microns clip a thin down-milling chip at zero, and
-its mean force is no longer linear in the feed: 5.8 % on K_tc for 3 um.)
+harder by that much would. (The end mill differs: there a few microns clip a thin down-milling
+chip at zero, and its mean force is no longer linear in the feed: 5.8 % on K_tc for 3 um.)
 """
 
 from __future__ import annotations
@@ -81,8 +81,10 @@ def test_runout_and_insert_scatter_bias_measured(case, nominal):
     base, r2_base = nominal
     err = {k: 100 * (got[k] / getattr(TRUE, k) - 1) for k in NAMES}
     bias = {k: 100 * (got[k] / base[k] - 1) for k in NAMES}
-    print(f"{case}: error % {({k: round(v, 2) for k, v in err.items()})}, bias % "
-          f"{({k: round(v, 2) for k, v in bias.items()})}, R^2 {r2:.5f} ({r2_base:.5f})")  # fmt: skip
+    shown = {name: {k: round(v, 2) for k, v in d.items()} for name, d in (("error", err),
+                                                                           ("bias", bias))}
+    print(f"{case}: error % {shown['error']}, bias % {shown['bias']}, R^2 {r2:.5f} "
+          f"({r2_base:.5f})")  # fmt: skip
     assert max(abs(v) for v in bias.values()) < 0.3, bias
     assert max(abs(v) for v in err.values()) < 2.0, err
     assert r2 <= r2_base + 1e-6

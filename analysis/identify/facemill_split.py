@@ -84,8 +84,10 @@ class Split:
             return ""
         out = ""
         if per_depth:
-            out += (f"; {', '.join(per_depth)} identified as force per depth only (one feed: "
-                    "K f + P / cos(lead) per direction), not split from the edge terms")  # fmt: skip
+            out += (
+                f"; {', '.join(per_depth)} identified as force per depth only (one feed: "
+                "K f + P / cos(lead) per direction), not split from the edge terms"
+            )
         if unsplit:
             out += f"; {', '.join(unsplit)} not identified: the design does not split them"
         worst = ", ".join(f"{d} {self.inflation[d]:.1f}" for d in PAIRS)
