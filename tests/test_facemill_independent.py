@@ -276,6 +276,7 @@ def test_one_feed_campaign_force_per_depth_within_1_percent(one_feed, capsys):
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1800)  # the offset case: 225 s alone on a loaded 2-core host, over 300 beside
 @pytest.mark.parametrize("offset", [0.0, 20.0])
 def test_three_feeds_identify_all_six_within_2_percent(tmp_path, capsys, offset):
     """0.1, 0.236, 0.345 mm/tooth x 0.5, 1.5, 3 mm, measured in memory on the same data:
