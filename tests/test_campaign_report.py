@@ -44,6 +44,11 @@ def test_facemill_campaign_identifies_the_truth_and_writes_the_report(tmp_path: 
     # the report says so on their line; since the twin's dynamometer answers between samples and
     # each height of an insert enters the block on its own ray (issue 33), P_R reads +4.7 % here
     # where the sample-rate twin matched the fit exactly. Identified ones hold 2 %.
+    # The status is the design's (analysis.identify.facemill_split): one feed over 50 mm, the
+    # K's are the feed's force per mm of depth, not split from the P's.
+    status = {r["coefficient"]: r["status"] for r in s["coefficients"]}
+    assert status["K_T_n_mm2"].startswith("identified as force per depth only (one feed)")
+    assert status["P_R_n_mm"].startswith("not identified"), status
     phase_rel = 0.0034
     for r in s["coefficients"][:4]:
         truth_value = getattr(truth, r["coefficient"])

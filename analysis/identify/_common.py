@@ -207,7 +207,7 @@ def reduce_run(
             part = find_steady(x, run.rate_hz, c.spindle_rpm, tolerance, engaged_after_s=entry_s)
         except NoAirError:
             # Cut from start to end (the operator trimmed the air): the record's own zero.
-            part = find_steady(x, run.rate_hz, c.spindle_rpm, tolerance, offset_n=np.zeros(3))
+            part = find_steady(x, run.rate_hz, c.spindle_rpm, tolerance, True, np.zeros(3), entry_s)
     except AnalysisError as exc:
         raise type(exc)(f"run {run.name}: {exc}") from None  # keeps NoSteadyCutError
     seg = part.corrected(x[part.window], part.window.start, run.rate_hz)
@@ -588,7 +588,7 @@ def _reduce_run_file(
         try:
             part = steady_from_stats(stats, rate, c.spindle_rpm, tolerance, None, entry_s)
         except NoAirError:
-            part = steady_from_stats(stats, rate, c.spindle_rpm, tolerance, np.zeros(3))
+            part = steady_from_stats(stats, rate, c.spindle_rpm, tolerance, np.zeros(3), entry_s)
     except AnalysisError as exc:
         raise type(exc)(f"run {name}: {exc}") from None
     lo = part.window.start

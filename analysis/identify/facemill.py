@@ -56,6 +56,7 @@ from analysis.identify._common import (
     with_rejected,
 )
 from analysis.identify.adequacy import Adequacy, runs_adequacy
+from analysis.identify.facemill_split import Split, design_split
 from analysis.modal import DynamometerFilter
 from analysis.runs import IDENTIFY_TOLERANCE
 
@@ -99,7 +100,9 @@ class FaceMillFit:
     ``summary``: per coefficient name (K_T_n_mm2, K_R, P_T_n_mm, P_R_n_mm, K_A, P_A_n_mm) its
     value, std_error, ci_low, ci_high and the bootstrap's boot_ci_low, boot_ci_high (runs and
     revolutions resampled); ``adequacy`` whether the data support the ploughing coefficients
-    (:mod:`analysis.identify.adequacy`). ``phases_rad`` (runs,) angle of bin 0 of each run;
+    (:mod:`analysis.identify.adequacy`); ``split`` per coefficient whether the design splits its
+    cutting and edge terms, and its status (:mod:`analysis.identify.facemill_split`).
+    ``phases_rad`` (runs,) angle of bin 0 of each run;
     ``residuals_n`` per run (n_bins, 3) N; ``runs`` names used; ``rejected`` (name, reason).
     """
 
@@ -113,6 +116,7 @@ class FaceMillFit:
     runs: tuple[str, ...] = ()
     rejected: tuple[tuple[str, str], ...] = ()
     adequacy: Adequacy | None = None
+    split: Split | None = None
 
 
 #: The summary's coefficients from the fitted vector (PARAMETERS order: P_T, K_T, P_R, K_R K_T,
@@ -285,32 +289,33 @@ def fit_facemill(
         name: {**row, "boot_ci_low": float(bl), "boot_ci_high": float(bh)}
         for name, row, bl, bh in zip(SUMMARY, rows, blo, bhi)
     }
-    adequacy = runs_adequacy(averages)
+    adequacy, split = _identifiable(X, averages, tool, summary)
     try:
         coef = coefficients_from_vector(p)
     except Exception as exc:  # pydantic range check: report, do not crash
         why = validation_line(exc)
         return FaceMillFit(False, f"fitted coefficients out of range: {why}", fit=fit,
-                           summary=summary, runs=names)  # fmt: skip
+                           summary=summary, runs=names, split=split)  # fmt: skip
     n_per = [len(a.waveform_n) * 3 for a in averages]
     res_runs = tuple(r.reshape(-1, 3) for r in np.split(resid, np.cumsum(n_per)[:-1]))
     msg = f"fitted {len(averages)} runs ({len(y)} points), R^2 = {fit.r_squared:.5f}"
     if not adequacy.edge_identified:
-        msg += _not_identified(adequacy)
-    return FaceMillFit(True, msg, coef, fit, summary, tuple(phases), res_runs, names,
-                       adequacy=adequacy)  # fmt: skip
+        msg += f"; ploughing coefficients P_T, P_R, P_A not identified: {adequacy.reason}"
+    return FaceMillFit(True, msg + split.clause(), coef, fit, summary, tuple(phases), res_runs,
+                       names, adequacy=adequacy, split=split)  # fmt: skip
 
 
-def _not_identified(adequacy: Adequacy) -> str:
-    """The message's clause for ploughing coefficients the runs do not identify."""
-    msg = f"; ploughing coefficients P_T, P_R, P_A not identified: {adequacy.reason}"
-    if len(adequacy.feeds_mm) == 1:
-        # l and S both grow with depth at one feed; only the nose's cusp splits them
-        msg += (
-            " (K_T, K_R, K_A hold the feed's force per mm of depth; their split from "
-            "P_T, P_R, P_A rests on the nose's cusp alone: a few % on K_R, K_A)"
-        )
-    return msg
+def _identifiable(
+    X: np.ndarray, averages: Sequence[RunAverage], tool: FaceMill, summary: dict
+) -> tuple[Adequacy, Split]:
+    """The adequacy check (edge forces against a size effect) and the design's split of cutting
+    and edge terms; each summary row gets its ``identified`` and ``status``."""
+    adequacy = runs_adequacy(averages)
+    split = design_split(X, [a.conditions.fz_mm for a in averages], adequacy.edge_identified,
+                         float(tool.lead_angle_deg))  # fmt: skip
+    for name, row in summary.items():
+        row.update(identified=split.identified[name], status=split.status[name])
+    return adequacy, split
 
 
 def _row(fit: LinearFit, i: int) -> dict[str, float]:

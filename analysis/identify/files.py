@@ -188,8 +188,9 @@ def _reduce_file(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer |
         zero = (meta.rig or {}).get("import", {}).get("zero", "air or the amplifier's zero")
         return avg, {"axes": axes.text, "zero": zero}  # type: ignore[union-attr]
     ex = _load_export(path, given, dynamometer, rate_hz, expected_tool, by, opts)
-    avg = reduce_run(ex.run, teeth_of(expected_tool or ex.run.conditions.tool),
-                     tolerance=tolerance)  # fmt: skip
+    name = expected_tool or ex.run.conditions.tool  # its entry bound, as a run file's
+    avg = reduce_run(ex.run, teeth_of(name), tolerance=tolerance,
+                     entry_s=tool_entry_s(name, ex.run.conditions, opts.tools_path))  # fmt: skip
     return avg, {"axes": ex.axes, "zero": ex.zero}
 
 
@@ -353,14 +354,14 @@ EDGE_REASON = "the runs do not separate edge forces from a size effect (see mode
 
 def _identified(fit: Any, stats: dict, model: ForceModel) -> dict:
     """Statistics rows marked ``identified`` with a ``status`` ('identified' or 'not identified:
-    reason'): the edge (ploughing) rows only when the data support the linear edge-force model
-    (fit.adequacy)."""
+    reason'): the edge rows only when the data support the linear edge-force model (adequacy);
+    rows that carry their own (the face mill's, from the design's split) keep it."""
     edge_ok = fit.adequacy is None or fit.adequacy.edge_identified
     out = {}
     for k, v in stats.items():
         ok = edge_ok or k not in model.edge_keys
-        out[k] = {**v, "identified": ok,
-                  "status": "identified" if ok else f"not identified: {EDGE_REASON}"}  # fmt: skip
+        why = "identified" if ok else f"not identified: {EDGE_REASON}"
+        out[k] = {**v, "identified": v.get("identified", ok), "status": v.get("status", why)}
     return out
 
 
@@ -398,18 +399,16 @@ def fit_files(
     ``plot_dir`` gets the PNGs. ``options``: axes, conditions table, zero, user catalogues
     (:class:`ImportOptions`); ``mapper`` runs the per-file reductions (e.g. as dask tasks; default
     one by one, calling ``progress``). Returns the JSON-able result: model, tool, success, message,
-    coefficients (end mill: also ``Ktc`` ... ``Kae``, units in ``coefficient_units``),
-    statistics (+ note), r_squared, residual_rms_n, dof, runs, rejected, per_run (with each
-    run's ``axes`` and ``zero``), axes, axes_check (end mill), warnings, and validation
-    (max_error_pct, rows) / plots when made.
-
-    End mill: runs whose conditions exceed the tool's limits (``max_chip_mm``) are named in
-    ``outside_limits`` and left out of the fit unless ``keep``; the result adds ``by_direction``
-    (R^2 and RMS per direction), ``run_residuals`` (per run and direction, N and %),
-    ``influence`` (leave-one-out) and each statistics row's ``status``. The mapping is checked
-    against the 47 other signed permutations and refused (AnalysisError) when it gives a
-    negative cutting coefficient or fits clearly worse; ``--axes auto`` (``options.axes =
-    "auto"``) chooses it (``axes_choice``)."""
+    coefficients (end mill: also ``Ktc`` ... ``Kae``, units in ``coefficient_units``), statistics
+    (+ note), r_squared, residual_rms_n, dof, runs, rejected, per_run (with each run's ``axes``
+    and ``zero``), axes, axes_check (end mill), split (face mill), warnings, and validation
+    (max_error_pct, rows) / plots when made. End mill: runs whose conditions exceed the tool's
+    limits (``max_chip_mm``) are named in ``outside_limits`` and left out of the fit unless
+    ``keep``; the result adds ``by_direction`` (R^2 and RMS per direction), ``run_residuals`` (per
+    run and direction, N and %), ``influence`` (leave-one-out) and each statistics row's
+    ``status``. The mapping is checked against the 47 other signed permutations and refused
+    (AnalysisError) when it gives a negative cutting coefficient or fits clearly worse; ``--axes
+    auto`` (``options.axes = "auto"``) chooses it (``axes_choice``)."""
     if not 0.0 < tolerance < 1.0:
         raise ConfigError(
             f"--steady-tolerance {tolerance}: expected a fraction of the steady "
@@ -512,6 +511,7 @@ def fit_files(
         out["by_direction"] = by_direction(np.concatenate([a.waveform_n for a in avgs]),
                                            np.concatenate(fit.residuals_n))  # fmt: skip
         out["by_direction_over"] = "the runs' revolution-averaged waveforms (all bins)"
+        out["split"] = fit.split.as_dict()  # which coefficients the design splits, and why
         out["run_residuals"] = per_run_residuals(
             [a.name for a in avgs], np.stack([a.mean_n for a in avgs]),
             np.stack([r.mean(axis=0) for r in fit.residuals_n]),

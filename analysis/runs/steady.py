@@ -166,7 +166,8 @@ class SteadyPart:
     ``period_s`` the revolution period (refined from the data when asked); ``cutting_revs`` and
     ``steady_revs`` counts; ``air_revs`` how many revolutions the offset came from;
     ``entry_revs``/``exit_revs`` the cutting revolutions before/after the window (entering,
-    leaving, trimmed), ``outlier_revs`` revolutions inside it outside the window's band.
+    leaving, trimmed), ``outlier_revs`` revolutions inside it outside the window's band;
+    ``entry_note`` whether the geometry's entry bound set the window ('' without a bound).
     """
 
     window: slice
@@ -179,6 +180,7 @@ class SteadyPart:
     entry_revs: int = 0
     exit_revs: int = 0
     outlier_revs: int = 0
+    entry_note: str = ""
 
     @property
     def kept(self) -> str:
@@ -188,6 +190,8 @@ class SteadyPart:
             why += f"; {self.outlier_revs} kept outside the band (isolated)"
         if not self.air_revs:
             why += "; no air: offset from the record's zero"
+        if self.entry_note:
+            why += f"; {self.entry_note}"
         return f"kept {self.steady_revs} of {self.cutting_revs} cutting revolutions; {why}"
 
     def with_period(self, period_s: float, rate_hz: float) -> SteadyPart:
@@ -382,8 +386,20 @@ def steady_from_stats(
         slice(start, stop), np.asarray(off0, float), np.asarray(drift, float),
         60.0 / abs(spindle_rpm), int(cutting.sum()), hi - lo, n_air,
         int(cutting[:lo].sum()), int(cutting[hi:].sum()),
-        int(outliers),
+        int(outliers), _entry_note(cutting, engaged, engaged_after_s),
     )  # fmt: skip
+
+
+def _entry_note(cutting: np.ndarray, engaged: np.ndarray, entry_s: float) -> str:
+    """Whether the geometry's entry bound (:func:`engaged_revolutions`) set the window, and why
+    not: said in the run's steady line ('' without a bound, e.g. an end mill)."""
+    if not entry_s > 0:
+        return ""
+    if engaged is not cutting:
+        return f"window after the geometry's {entry_s:.3g} s entry from the first touch"
+    why = ("starts in the cut" if cutting[0] else
+           "is steady within a quarter of it from the first touch (no entry in it)")  # fmt: skip
+    return f"the geometry's {entry_s:.3g} s entry bound not applied: the record {why}"
 
 
 def engaged_revolutions(

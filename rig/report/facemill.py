@@ -82,6 +82,7 @@ def facemill_section(campaign: Campaign, runs: list[LoadedRun], out: Path) -> Se
     summary["coefficients"] = rows
     summary["r_squared"] = fit.fit.r_squared
     summary["adequacy"] = fit.adequacy.as_dict()
+    summary["split"] = fit.split.as_dict()
     if truth is not None:
         summary["max_error_pct_seed003"] = max(abs(r["error_pct"]) for r in rows[:4])
     md += ["", md_table(rows), "", CI_NOTE, BOOT_NOTE, "", fit.adequacy.line()]
@@ -133,11 +134,9 @@ def _coefficient_rows(fit: Any, truth: Any) -> list[dict[str, Any]]:
         row = {"coefficient": name, "identified": s["value"], "std_error": s["std_error"],
                "ci_low": s["ci_low"], "ci_high": s["ci_high"],
                "boot_ci_low": s["boot_ci_low"], "boot_ci_high": s["boot_ci_high"]}  # fmt: skip
-        # the status beside the number (issue 27): ploughing terms the runs do not support
-        edge_ok = fit.adequacy is None or fit.adequacy.edge_identified
-        row["status"] = ("identified" if edge_ok or not name.startswith("P_") else
-                         "not identified: the runs do not separate ploughing from a size effect "
-                         "(see model adequacy)")  # fmt: skip
+        # the status beside the number (issues 27, 33): from the design's split of cutting and
+        # edge terms and the adequacy check (analysis.identify.facemill_split)
+        row["status"] = s["status"]
         if truth is not None:
             tv = float(truth[name])
             row["truth"] = tv
