@@ -24,6 +24,7 @@ FORBIDDEN = {"analysis": {"planning", "rig"}, "planning": {"rig"}, "rig": set()}
 MAY_IMPORT: dict[str, set[str]] = {
     "analysis": {"analysis.errors"},  # the package face: the version only
     "analysis.errors": set(),
+    "analysis.output": set(),
     "analysis.validation": {"analysis.errors"},
     "analysis.config": {"analysis.errors", "analysis.validation"},
     "analysis.runs": {"analysis.errors", "analysis.config"},
@@ -76,6 +77,7 @@ MAY_IMPORT: dict[str, set[str]] = {
     },
     "rig": set(),
     "rig.errors": set(),
+    "rig.terminal": set(),
     "rig.daq": {"rig.errors"},
     "rig.dnc": {"rig.errors"},
     "rig.log": {"rig.errors", "rig.daq"},
@@ -86,6 +88,7 @@ MAY_IMPORT: dict[str, set[str]] = {
     "rig.console": {"rig.errors", "rig.daq", "rig.dnc", "rig.adaptive", "rig.campaign"},
     "rig.cli": {
         "rig",
+        "rig.terminal",
         "rig.errors",
         "rig.daq",
         "rig.dnc",

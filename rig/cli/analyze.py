@@ -31,16 +31,18 @@ from rig.cli.options import json_option, rate_option, rig_option
 
 def _forces(args: argparse.Namespace) -> int:
     from analysis.identify import ImportOptions, fit_files
-    from rig.cli.common import Progress, print_json, print_table, status
+    from analysis.identify.conditions_arg import conditions_arg, runs_or_catalog
+    from rig.cli.common import print_json, print_table, status
+    from rig.terminal import Progress
 
-    pairs, table = _conditions_arg(args.conditions)
+    pairs, table = conditions_arg(args.conditions)
     opts = ImportOptions(axes=args.axes, table=table, pattern=args.conditions_pattern,
                          zero_file=args.zero, zeroed=args.zeroed, tools_path=args.tools,
                          materials_path=args.materials)  # fmt: skip
     kw = dict(model=args.model, tool=args.tool, overrides=pairs, rig_path=args.rig,
               rate_hz=args.rate, tolerance=args.steady_tolerance, validate=args.validate,
               plot_dir=args.plot, options=opts, keep=args.keep)  # fmt: skip
-    if _catalog_args(args):
+    if runs_or_catalog(args.runs, args.catalog, where=args.where, scheduler=args.scheduler):
         from analysis.catalog import fit_catalog
 
         out = fit_catalog(args.catalog, args.where, args.scheduler, not args.json, **kw)
@@ -114,43 +116,6 @@ def _print_trust(out: dict) -> None:
                 print(f"leave-one-out: run {r['run']} moves " + ", ".join(
                     f"{k} by {r['shift'][k]:.4g} (without it {r['without'][k]:.4g})"
                     for k in r["moved"]) + ": more than its interval")  # fmt: skip
-
-
-def _catalog_args(args: argparse.Namespace) -> bool:
-    """Whether the runs come from a catalogue (--catalog) rather than files; refuses a mix."""
-    from analysis.errors import ConfigError
-
-    if args.catalog is None:
-        for opt in ("where", "scheduler"):
-            if getattr(args, opt) is not None:
-                raise ConfigError(f"analyze forces: --{opt} needs --catalog DIR")
-        if not args.runs:
-            raise ConfigError("analyze forces: give run files, or --catalog DIR [--where EXPR]")
-        return False
-    if args.runs:
-        raise ConfigError(f"analyze forces: run files ({args.runs[0]} ...) and --catalog "
-                          f"{args.catalog}: give one or the other")  # fmt: skip
-    return True
-
-
-def _conditions_arg(items: list[str] | None) -> tuple[dict, str | None]:
-    """``--conditions``: KEY=VALUE pairs (or one JSON object), or one conditions table (.csv,
-    .toml, or any existing file)."""
-    from pathlib import Path
-
-    from rig.cli.common import parse_conditions
-
-    if (
-        items
-        and len(items) == 1
-        and "=" not in items[0]
-        and (
-            Path(items[0]).suffix.lower() in (".csv", ".toml", ".tsv", ".txt")
-            or Path(items[0]).is_file()
-        )
-    ):
-        return {}, items[0]
-    return parse_conditions(items or []), None
 
 
 def _modal(args: argparse.Namespace) -> int:

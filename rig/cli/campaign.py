@@ -13,14 +13,8 @@ import argparse
 import contextlib
 from pathlib import Path
 
-from rig.cli.common import (
-    add_catalog_options,
-    error_line,
-    print_json,
-    print_table,
-    progress_note,
-    status,
-)
+from rig.cli.common import add_catalog_options, error_line, print_json, print_table, status
+from rig.terminal import progress_note
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -23,7 +23,8 @@ import argparse
 
 def _index(args: argparse.Namespace) -> int:
     from analysis.catalog import update_index
-    from rig.cli.common import Progress, print_json, status
+    from rig.cli.common import print_json, status
+    from rig.terminal import Progress
 
     with Progress("indexing run files", "file", quiet=args.json) as bar:
         out = update_index(args.dirs, args.index, progress=bar)

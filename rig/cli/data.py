@@ -93,11 +93,12 @@ def _plot(args: argparse.Namespace) -> int:
 
 def _import(args: argparse.Namespace) -> int:
     from analysis.identify import ImportOptions
-    from rig.cli.analyze import _conditions_arg
-    from rig.cli.common import Progress, print_json, print_table, status
+    from analysis.identify.conditions_arg import conditions_arg
+    from rig.cli.common import print_json, print_table, status
     from rig.log import import_exports
+    from rig.terminal import Progress
 
-    pairs, table = _conditions_arg(args.conditions)
+    pairs, table = conditions_arg(args.conditions)
     opts = ImportOptions(axes=args.axes, table=table, pattern=args.conditions_pattern,
                          zero_file=args.zero, zeroed=args.zeroed, tools_path=args.tools,
                          materials_path=args.materials)  # fmt: skip

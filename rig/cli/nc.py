@@ -19,8 +19,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from rig.cli.common import Progress, image_file, print_json, print_table, status
+from rig.cli.common import image_file, print_json, print_table, status
 from rig.cli.options import dialect_option, json_option
+from rig.terminal import Progress
 
 
 def _interpret(args: argparse.Namespace, *, warn: bool = True, keep_motion: bool = False):

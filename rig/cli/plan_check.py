@@ -82,7 +82,8 @@ def print_stock(stock: dict) -> None:
 
 def run(a: argparse.Namespace) -> int:
     from planning.limits import check_job
-    from rig.cli.common import Progress, print_json, print_table, status
+    from rig.cli.common import print_json, print_table, status
+    from rig.terminal import Progress
 
     with Progress("simulate", unit="piece") as bar:
         _, out = check_job(

@@ -73,7 +73,8 @@ def _feed(a: argparse.Namespace) -> int:
     from analysis.config import load_machine
     from planning.errors import PlanningError
     from planning.feed import end_mill, feed_program
-    from rig.cli.common import Progress, print_json, print_table, status
+    from rig.cli.common import print_json, print_table, status
+    from rig.terminal import Progress
 
     step, cap = None, None
     # no --rules with T1=A,T2=B: --material only finds each tool's rule in the rule base
@@ -134,7 +135,8 @@ def _feed(a: argparse.Namespace) -> int:
 
 def _simulate(a: argparse.Namespace) -> int:
     from planning.feed import simulate_job
-    from rig.cli.common import Progress, print_json, print_table, status
+    from rig.cli.common import print_json, print_table, status
+    from rig.terminal import Progress
 
     with Progress("simulate", unit="piece") as bar:
         results, out = simulate_job(

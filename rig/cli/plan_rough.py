@@ -63,7 +63,8 @@ LEVEL_COLUMNS = {"order": "order", "z_mm": "z_mm", "area_mm2": "area_mm2", "path
 def run(args: argparse.Namespace) -> int:
     from planning.limits import rough_limiter
     from planning.rough import run_rough
-    from rig.cli.common import Progress, print_json, print_table, status
+    from rig.cli.common import print_json, print_table, status
+    from rig.terminal import Progress
 
     with Progress("plan rough", "step") as bar:
 
