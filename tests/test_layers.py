@@ -78,6 +78,7 @@ MAY_IMPORT: dict[str, set[str]] = {
     "rig": set(),
     "rig.errors": set(),
     "rig.terminal": set(),
+    "rig.configref": {"rig.campaign"},
     "rig.daq": {"rig.errors"},
     "rig.dnc": {"rig.errors"},
     "rig.log": {"rig.errors", "rig.daq"},
@@ -89,6 +90,7 @@ MAY_IMPORT: dict[str, set[str]] = {
     "rig.cli": {
         "rig",
         "rig.terminal",
+        "rig.configref",
         "rig.errors",
         "rig.daq",
         "rig.dnc",
