@@ -27,7 +27,7 @@ MAY_IMPORT: dict[str, set[str]] = {
     "analysis.output": set(),
     "analysis.validation": {"analysis.errors"},
     "analysis.config": {"analysis.errors", "analysis.validation"},
-    "analysis.runs": {"analysis.errors", "analysis.config"},
+    "analysis.runs": {"analysis.errors", "analysis.config", "analysis.output"},
     "analysis.forces": {"analysis.errors", "analysis.config", "analysis.runs"},
     "analysis.modal": {
         "analysis.errors",
@@ -46,6 +46,7 @@ MAY_IMPORT: dict[str, set[str]] = {
     "analysis.identify": {
         "analysis",
         "analysis.errors",
+        "analysis.output",
         "analysis.config",
         "analysis.runs",
         "analysis.forces",

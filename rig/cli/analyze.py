@@ -32,7 +32,8 @@ from rig.cli.options import json_option, rate_option, rig_option
 def _forces(args: argparse.Namespace) -> int:
     from analysis.identify import ImportOptions, fit_files
     from analysis.identify.conditions_arg import conditions_arg, runs_or_catalog
-    from rig.cli.common import print_json, print_table, status
+    from analysis.identify.text import forces_lines
+    from rig.cli.common import print_json, print_lines, status
     from rig.terminal import Progress
 
     pairs, table = conditions_arg(args.conditions)
@@ -60,62 +61,8 @@ def _forces(args: argparse.Namespace) -> int:
     if args.json:
         print_json(out)
         return 0 if out["success"] else 1
-    print(f"{out['model']} fit of {len(out['runs'])} run(s), tool {out['tool']}: {out['message']}")
-    axes = out["axes"] if isinstance(out["axes"], str) else "; ".join(out["axes"])
-    print(f"axes: {axes} (x feed, y cross-feed, z tool axis)")
-    if "axes_choice" in out:
-        print(f"axes {out['axes_choice']['line']}")
-    for w in out["warnings"]:  # beside the figures, not only on stderr
-        if w.startswith("axes "):
-            print(f"warning: {w}")
-    if "chip_limit" in out:
-        print(f"tool limits: chip thickness {out['chip_limit']}; speeds {out['speed_limits']}")
-    for r in out.get("outside_limits", []):
-        how = "kept (--keep)" if r["kept"] else "left out (--keep fits it)"
-        print(f"beyond the tool's limits, {how}: {r['run']}: {r['reason']}")
-    if out["statistics"]:
-        # the status on the number's own line: a coefficient is never shown without it
-        rows = [{"coefficient": k, "value": row["value"], "status": row.get("status", ""),
-                 **{c: v for c, v in row.items() if c not in ("identified", "value", "status")}}
-                for k, row in out["statistics"].items()]  # fmt: skip
-        print_table(rows, cell_max=400)
-        print(out["statistics_note"])
-    _print_trust(out)
-    if out["adequacy"]:
-        print(out["adequacy"]["summary"])
-    for r in out["per_run"]:
-        print(f"{r['run']}: {r['steady']}")
-    if "validation" in out:
-        print()
-        keys = ("run", "fz_mm", "depth_mm", "measured_resultant_n", "predicted_resultant_n")
-        print_table([{**{k: r[k] for k in keys}, "error_pct": r["resultant_error_pct"]}
-                     for r in out["validation"]["rows"]])  # fmt: skip
+    print_lines(forces_lines(out))
     return 0 if out["success"] else 1
-
-
-def _print_trust(out: dict) -> None:
-    """How far an end-mill fit holds: per direction, per run, leave-one-out influence."""
-    from rig.cli.common import print_table
-
-    if out.get("by_direction"):
-        over = f" over {out['by_direction_over']}" if out.get("by_direction_over") else ""
-        print(f"fit per direction{over}: " + "; ".join(
-            f"{d}: R^2 {v['r_squared']:.4f}, RMS {v['rms_n']:.3g} N"
-            for d, v in out["by_direction"].items()) + f" (pooled R^2 {out['r_squared']:.4f})")
-    if out.get("run_residuals"):
-        print("mean-force residual per run (measured - fitted; % of the run's mean resultant):")
-        print_table([{"run": r["run"], **{f"{d}_n": v for d, v in zip("xyz", r["residual_n"])},
-                      **{f"{d}_pct": v for d, v in zip("xyz", r["residual_pct"])}}
-                     for r in out["run_residuals"]])  # fmt: skip
-    infl = out.get("influence")
-    if infl is not None:
-        if not infl["checked"]:
-            print(f"leave-one-out influence: unchecked: {infl['reason']}")
-        for r in infl["runs"]:
-            if r["moved"]:
-                print(f"leave-one-out: run {r['run']} moves " + ", ".join(
-                    f"{k} by {r['shift'][k]:.4g} (without it {r['without'][k]:.4g})"
-                    for k in r["moved"]) + ": more than its interval")  # fmt: skip
 
 
 def _modal(args: argparse.Namespace) -> int:

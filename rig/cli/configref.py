@@ -1,4 +1,4 @@
-"""``python -m rig.cli.configref [--check]``: writes docs/configuration.md (:mod:`rig.configref`)."""
+"""``python -m rig.cli.configref [--check]``: writes docs/configuration.md (rig.configref)."""
 
 import sys
 

@@ -24,48 +24,21 @@ def _is_run_file(path: str) -> bool:
 
 
 def _info(args: argparse.Namespace) -> int:
-    from rig.cli.common import print_json, print_table
+    from analysis.runs.text import export_info_lines, run_info_lines
+    from rig.cli.common import print_json, print_lines
 
     if not _is_run_file(args.file):
         from analysis.runs.table import table_summary
 
         s = table_summary(args.file, args.rate)
-        if args.json:
-            print_json(s)
-            return 0
-        keys = ("format", "rate_hz", "samples", "duration_s", "decimal", "separator")
-        rows = [{"quantity": k, "value": s[k]} for k in keys]
-        rows.insert(1, {"quantity": "columns", "value": " ".join(
-            f"{c} [{u}]" if u else c for c, u in zip(s["columns"], s["units"]))})  # fmt: skip
-        rows += [{"quantity": f"header: {k}", "value": v} for k, v in s["header"].items()]
-        print_table(rows)
-        return 0
+    else:
+        from analysis.runs import run_summary
 
-    from analysis.runs import run_summary
-
-    s = run_summary(args.file)
+        s = run_summary(args.file)
     if args.json:
         print_json(s)
-        return 0
-    if not s["complete"]:
-        print(
-            f"INCOMPLETE: the writer never closed {s['file']} (killed or still running); it holds "
-            f"{s['samples_stored']} samples per channel = {s['duration_s']:.3f} s up to its last "
-            "flush"
-        )
-    keys = ("status reason sample_format rate_hz samples_stored samples_acquired samples_lost "
-            "duration_s nc_blocks calibration_id software_version").split()  # fmt: skip
-    rows = [{"quantity": k, "value": s[k]} for k in keys]
-    rows.insert(1, {"quantity": "channels", "value": " ".join(s["channels"])})
-    rows.append(
-        {"quantity": "events", "value": ", ".join(f"{k} {v}" for k, v in s["events"].items())}
-    )
-    if s["conditions"]:
-        rows.append({"quantity": "conditions", "value": s["conditions"]})
-    print_table(rows)
-    if s["gaps"]:
-        print()
-        print_table(s["gaps"])
+    else:
+        print_lines((run_info_lines if _is_run_file(args.file) else export_info_lines)(s))
     return 0
 
 
