@@ -1,16 +1,6 @@
-"""`cutlab analyze` commands: force coefficients from runs, modes from a hammer test, stability
-lobes (:mod:`rig.cli.stability`).
-
-cutlab analyze forces RUN... [--model facemill|endmill] [--tool NAME] [--validate RUN...]
-                             [--conditions KEY=VALUE...|TABLE] [--conditions-pattern PATTERN]
-                             [--axes x=-Fy,y=Fx,z=-Fz|auto] [--zero FILE | --zeroed]
-                             [--tools FILE] [--materials FILE] [--steady-tolerance FRACTION]
-                             [--keep] [--plot DIR] [--json]
-cutlab analyze forces --catalog DIR [--where EXPR] [--scheduler ADDRESS] [options as above]
-cutlab analyze modal FILE [--hammer NAME] [--response force|disp|accel] [--record-s S]
-                          [--rpm RPM...] [--teeth N] [--plot PNG] [--stabilisation PNG]
-                          [--save MODES.toml] [--json]
-cutlab analyze stability CONFIG -o lobes.csv [--method sd|zoa] [--steps M] [--plot PNG] [--json]
+"""`cutlab analyze` commands: force coefficients from runs (``forces``), modes from a hammer test
+(``modal``), stability lobes (``stability``, :mod:`rig.cli.stability`); `--help` gives each one's
+options.
 
 RUN is an HDF5 run file (conditions from the file) or a DynoWare/plain CSV export (conditions
 from its header lines), then a conditions table's row and the file-name pattern;
@@ -147,7 +137,7 @@ def _register_forces(psub: argparse._SubParsersAction) -> None:
 def add_import_options(p: argparse.ArgumentParser) -> None:
     """Options for reading exports, shared with `cutlab data import`."""
     p.add_argument(
-        "--axes", default=None, metavar="x=COL,y=COL,z=COL",
+        "--axes", metavar="x=COL,y=COL,z=COL",
         help="file columns (or run-file channels) for cutlab's x (feed), y (cross-feed), z (tool "
         "axis), a '-' flips the sign: x=-Fy,y=Fx,z=-Fz; or 'auto': the signed permutation whose "
         "end-mill fit gives positive Ktc, Krc, Kac with the smallest residual (refused when the "
@@ -155,33 +145,16 @@ def add_import_options(p: argparse.ArgumentParser) -> None:
         "dynamometer, else columns named Fx, Fy, Fz; a mapping giving a negative cutting "
         "coefficient or fitting clearly worse than another is refused)",
     )  # fmt: skip
-    p.add_argument(
-        "--conditions-pattern",
-        default=None,
-        metavar="PATTERN",
-        help="conditions from file names: 'cut_{spindle_rpm}rpm_f{feed_mm_min}.txt'",
-    )
-    p.add_argument(
-        "--zero",
-        default=None,
-        metavar="FILE",
-        help="an export of the same channels at rest: its mean is the offset",
-    )
-    p.add_argument(
-        "--zeroed", action="store_true", help="the exports are already zeroed: subtract no offset"
-    )
-    p.add_argument(
-        "--tools",
-        default=None,
-        metavar="FILE",
-        help="your tool catalogue (TOML, [tools.NAME]), before configs/tools.toml",
-    )
-    p.add_argument(
-        "--materials",
-        default=None,
-        metavar="FILE",
-        help="your material catalogue (TOML), before configs/materials.toml",
-    )
+    for name, metavar, text in (
+        ("--conditions-pattern", "PATTERN",
+         "conditions from file names: 'cut_{spindle_rpm}rpm_f{feed_mm_min}.txt'"),
+        ("--zero", "FILE", "an export of the same channels at rest: its mean is the offset"),
+        ("--zeroed", None, "the exports are already zeroed: subtract no offset"),
+        ("--tools", "FILE", "your tool catalogue (TOML, [tools.NAME]), before configs/tools.toml"),
+        ("--materials", "FILE", "your material catalogue (TOML), before configs/materials.toml"),
+    ):  # fmt: skip
+        kw = {"action": "store_true"} if metavar is None else {"metavar": metavar}
+        p.add_argument(name, help=text, **kw)  # type: ignore[arg-type]
 
 
 def _register_modal(psub: argparse._SubParsersAction) -> None:
