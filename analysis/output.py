@@ -13,7 +13,7 @@ import numpy as np
 __all__ = ["TABLE_CELL_MAX", "finite_json", "json_default", "table_lines"]
 
 
-def json_default(o: Any) -> Any:
+def json_default(o: object) -> object:
     """``json.dump``'s ``default``: numpy values, pydantic models and paths."""
     if isinstance(o, np.generic):
         return o.item()
@@ -26,7 +26,7 @@ def json_default(o: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
-def finite_json(obj: Any) -> Any:
+def finite_json(obj: object) -> object:
     """``obj`` with every NaN or infinite float turned into None (strict JSON has neither).
 
     Where a mapping's value is replaced and it holds no ``<key>_reason`` yet, one is added
@@ -68,7 +68,7 @@ def _why(v: float) -> str:
 TABLE_CELL_MAX = 60
 
 
-def table_lines(rows: Sequence[Mapping[str, Any]], floatfmt: str = ".4g",
+def table_lines(rows: Sequence[Mapping[str, object]], floatfmt: str = ".4g",
                 cell_max: int = TABLE_CELL_MAX) -> list[str]:  # fmt: skip
     """A plain aligned text table of dict rows, as lines; a cell longer than ``cell_max``
     characters is folded onto continuation lines (at ``, `` or spaces where it can)."""
