@@ -1,14 +1,9 @@
 """`cutlab data` commands: look at run files and exports; import exports as run files.
 
-cutlab data info FILE [--rate HZ] [--json]     a run file: channels, rate, duration, samples,
-                                               events, gaps, status; an export: columns, units,
-                                               rate, samples, header
-cutlab data plot FILE -o forces.png            force traces of a run file or an export
-cutlab data import FILE... -o DIR [--conditions TABLE|KEY=VALUE...] [--axes x=-Fy,y=Fx,z=-Fz|auto]
-                           [--rate HZ] [--zero FILE | --zeroed] [--tool NAME] [--tools FILE]
-                           [--force] [--json]
-    DynoWare / CSV exports into ordinary run files (DIR/<name>.h5), conditions and all, so every
-    command that reads run files reads them.
+``info``: a run file's channels, rate, duration, samples, events, gaps and status, or an
+export's columns, units, rate, samples and header. ``import``: DynoWare / CSV exports into
+ordinary run files (DIR/<name>.h5), conditions and all, so every command that reads run files
+reads them.
 """
 
 from __future__ import annotations
