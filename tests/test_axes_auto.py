@@ -14,8 +14,7 @@ import pytest
 
 from analysis.config import get_tool
 from analysis.errors import AnalysisError
-from analysis.identify import ForceRun, RunConditions
-from analysis.identify._common import reduce_run
+from analysis.identify import ForceRun, RunConditions, reduce_run
 from analysis.identify.axes import AxisMap, check_axes, choose_axes, remap
 from rig.cli import main
 from tests._trust_exports import RATE_HZ, RPM, TRUTH, export, record

@@ -13,8 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from rig.cli import common
-from rig.cli.common import Heartbeat, print_table
+from analysis.output import TABLE_CELL_MAX
+from rig.cli.common import print_table
+from rig.terminal import Heartbeat, progress_note
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -30,7 +31,7 @@ def test_a_long_cell_is_folded_not_padded_into_every_row() -> None:
     conditions = {f"condition_{k}": k * 0.25 for k in range(60)}  # ~1,200 characters as text
     lines = _table([{"quantity": "status", "value": "success"},
                     {"quantity": "conditions", "value": conditions}])  # fmt: skip
-    assert max(len(ln) for ln in lines) <= len("conditions") + 2 + common.TABLE_CELL_MAX
+    assert max(len(ln) for ln in lines) <= len("conditions") + 2 + TABLE_CELL_MAX
     assert lines[1].split() == ["status", "success"]
     folded = "".join(ln[len("conditions") + 2 :].strip() + " " for ln in lines[2:])
     # every key=value is there, in order, across the continuation lines
@@ -75,7 +76,7 @@ def test_heartbeat_prints_on_a_non_terminal_stderr_and_stops() -> None:
         with hb:
             time.sleep(0.6)
             assert err.getvalue() == ""  # nothing before the work starts (input checks)
-            common.progress_note(lambda: "3 of 8 runs ended")
+            progress_note(lambda: "3 of 8 runs ended")
             deadline = time.monotonic() + 20
             while "working" not in err.getvalue() and time.monotonic() < deadline:
                 time.sleep(0.05)

@@ -6,7 +6,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from rig.cli import configref
+from rig import configref
 
 ROOT = Path(__file__).resolve().parent.parent
 

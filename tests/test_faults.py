@@ -435,7 +435,7 @@ def test_plan_feed_says_when_the_result_is_slower(inputs, tmp_path, capsys) -> N
 
 
 def test_progress_prints_plain_lines_when_stderr_is_no_terminal(capsys, monkeypatch) -> None:
-    from rig.cli.common import Progress
+    from rig.terminal import Progress
 
     monkeypatch.setattr(Progress, "interval_s", 0.0)
     with Progress("reducing runs", "run", total=23) as bar:

@@ -23,7 +23,8 @@ from hypothesis import strategies as st
 
 from analysis.errors import CutlabError
 from analysis.validation import validate
-from rig.cli import configref, main
+from rig import configref
+from rig.cli import main
 
 __all__ = ["inputs"]  # the session fixture
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from analysis.config import get_material, get_tool, load_rig
-from analysis.identify._common import RunConditions
+from analysis.identify import RunConditions
 from analysis.identify.endmill import synthetic_endmill_run
 from analysis.identify.facemill import synthetic_facemill_run
 from analysis.modal import DynamometerFilter

@@ -7,8 +7,7 @@ import pytest
 
 from analysis.config import EndMill, EndMillCoefficients, FaceMill, load_rig
 from analysis.errors import AnalysisError
-from analysis.identify import compare_runs
-from analysis.identify._common import RunConditions, reduce_run
+from analysis.identify import RunConditions, compare_runs, reduce_run
 from analysis.identify.endmill import fit_endmill, fit_endmill_runs, synthetic_endmill_run
 from analysis.modal import DynamometerFilter
 

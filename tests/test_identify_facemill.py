@@ -14,8 +14,7 @@ import pytest
 
 from analysis.config import EndMill, FaceMill, FaceMillCoefficients, load_rig
 from analysis.errors import AnalysisError
-from analysis.identify import compare_runs, plot_comparison
-from analysis.identify._common import ForceRun, RunConditions, reduce_run
+from analysis.identify import ForceRun, RunConditions, compare_runs, plot_comparison, reduce_run
 from analysis.identify.facemill import fit_facemill, fit_facemill_runs, synthetic_facemill_run
 from analysis.modal import DynamometerFilter
 

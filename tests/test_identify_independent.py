@@ -7,8 +7,7 @@ import numpy as np
 import pytest
 
 from analysis.config import EndMill
-from analysis.identify import ForceRun, RunConditions
-from analysis.identify._common import reduce_run
+from analysis.identify import ForceRun, RunConditions, reduce_run
 from analysis.identify.endmill import fit_endmill_runs
 from tests._force_sim import Cut, Law, Record, simulate
 

@@ -9,8 +9,7 @@ import pytest
 
 from analysis.config import Dynamometer, DynoChannel, FaceMill, FaceMillCoefficients
 from analysis.errors import AnalysisError
-from analysis.identify import import_run, read_force_table
-from analysis.identify._common import RunConditions
+from analysis.identify import RunConditions, import_run, read_force_table
 from analysis.identify.facemill import fit_facemill_runs, synthetic_facemill_run
 
 DATA = Path(__file__).parent / "data" / "analysis"

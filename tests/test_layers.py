@@ -24,9 +24,10 @@ FORBIDDEN = {"analysis": {"planning", "rig"}, "planning": {"rig"}, "rig": set()}
 MAY_IMPORT: dict[str, set[str]] = {
     "analysis": {"analysis.errors"},  # the package face: the version only
     "analysis.errors": set(),
+    "analysis.output": set(),
     "analysis.validation": {"analysis.errors"},
     "analysis.config": {"analysis.errors", "analysis.validation"},
-    "analysis.runs": {"analysis.errors", "analysis.config"},
+    "analysis.runs": {"analysis.errors", "analysis.config", "analysis.output"},
     "analysis.forces": {"analysis.errors", "analysis.config", "analysis.runs"},
     "analysis.modal": {
         "analysis.errors",
@@ -45,6 +46,7 @@ MAY_IMPORT: dict[str, set[str]] = {
     "analysis.identify": {
         "analysis",
         "analysis.errors",
+        "analysis.output",
         "analysis.config",
         "analysis.runs",
         "analysis.forces",
@@ -76,6 +78,8 @@ MAY_IMPORT: dict[str, set[str]] = {
     },
     "rig": set(),
     "rig.errors": set(),
+    "rig.terminal": set(),
+    "rig.configref": {"rig.campaign"},
     "rig.daq": {"rig.errors"},
     "rig.dnc": {"rig.errors"},
     "rig.log": {"rig.errors", "rig.daq"},
@@ -86,6 +90,8 @@ MAY_IMPORT: dict[str, set[str]] = {
     "rig.console": {"rig.errors", "rig.daq", "rig.dnc", "rig.adaptive", "rig.campaign"},
     "rig.cli": {
         "rig",
+        "rig.terminal",
+        "rig.configref",
         "rig.errors",
         "rig.daq",
         "rig.dnc",

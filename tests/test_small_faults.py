@@ -179,7 +179,7 @@ def test_numpy_values_read_plain_in_messages():
 )
 def test_non_finite_conditions_are_refused(given: list[str], said: str):
     from analysis.errors import ConfigError
-    from rig.cli.common import parse_conditions
+    from analysis.identify.conditions_arg import parse_conditions
 
     with pytest.raises(ConfigError) as e:
         parse_conditions(given)

@@ -1,16 +1,6 @@
-"""`cutlab analyze` commands: force coefficients from runs, modes from a hammer test, stability
-lobes (:mod:`rig.cli.stability`).
-
-cutlab analyze forces RUN... [--model facemill|endmill] [--tool NAME] [--validate RUN...]
-                             [--conditions KEY=VALUE...|TABLE] [--conditions-pattern PATTERN]
-                             [--axes x=-Fy,y=Fx,z=-Fz|auto] [--zero FILE | --zeroed]
-                             [--tools FILE] [--materials FILE] [--steady-tolerance FRACTION]
-                             [--keep] [--plot DIR] [--json]
-cutlab analyze forces --catalog DIR [--where EXPR] [--scheduler ADDRESS] [options as above]
-cutlab analyze modal FILE [--hammer NAME] [--response force|disp|accel] [--record-s S]
-                          [--rpm RPM...] [--teeth N] [--plot PNG] [--stabilisation PNG]
-                          [--save MODES.toml] [--json]
-cutlab analyze stability CONFIG -o lobes.csv [--method sd|zoa] [--steps M] [--plot PNG] [--json]
+"""`cutlab analyze` commands: force coefficients from runs (``forces``), modes from a hammer test
+(``modal``), stability lobes (``stability``, :mod:`rig.cli.stability`); `--help` gives each one's
+options.
 
 RUN is an HDF5 run file (conditions from the file) or a DynoWare/plain CSV export (conditions
 from its header lines), then a conditions table's row and the file-name pattern;
@@ -31,16 +21,19 @@ from rig.cli.options import json_option, rate_option, rig_option
 
 def _forces(args: argparse.Namespace) -> int:
     from analysis.identify import ImportOptions, fit_files
-    from rig.cli.common import Progress, print_json, print_table, status
+    from analysis.identify.conditions_arg import conditions_arg, runs_or_catalog
+    from analysis.identify.text import forces_lines
+    from rig.cli.common import print_json, print_lines, status
+    from rig.terminal import Progress
 
-    pairs, table = _conditions_arg(args.conditions)
+    pairs, table = conditions_arg(args.conditions)
     opts = ImportOptions(axes=args.axes, table=table, pattern=args.conditions_pattern,
                          zero_file=args.zero, zeroed=args.zeroed, tools_path=args.tools,
                          materials_path=args.materials)  # fmt: skip
     kw = dict(model=args.model, tool=args.tool, overrides=pairs, rig_path=args.rig,
               rate_hz=args.rate, tolerance=args.steady_tolerance, validate=args.validate,
               plot_dir=args.plot, options=opts, keep=args.keep)  # fmt: skip
-    if _catalog_args(args):
+    if runs_or_catalog(args.runs, args.catalog, where=args.where, scheduler=args.scheduler):
         from analysis.catalog import fit_catalog
 
         out = fit_catalog(args.catalog, args.where, args.scheduler, not args.json, **kw)
@@ -58,99 +51,8 @@ def _forces(args: argparse.Namespace) -> int:
     if args.json:
         print_json(out)
         return 0 if out["success"] else 1
-    print(f"{out['model']} fit of {len(out['runs'])} run(s), tool {out['tool']}: {out['message']}")
-    axes = out["axes"] if isinstance(out["axes"], str) else "; ".join(out["axes"])
-    print(f"axes: {axes} (x feed, y cross-feed, z tool axis)")
-    if "axes_choice" in out:
-        print(f"axes {out['axes_choice']['line']}")
-    for w in out["warnings"]:  # beside the figures, not only on stderr
-        if w.startswith("axes "):
-            print(f"warning: {w}")
-    if "chip_limit" in out:
-        print(f"tool limits: chip thickness {out['chip_limit']}; speeds {out['speed_limits']}")
-    for r in out.get("outside_limits", []):
-        how = "kept (--keep)" if r["kept"] else "left out (--keep fits it)"
-        print(f"beyond the tool's limits, {how}: {r['run']}: {r['reason']}")
-    if out["statistics"]:
-        # the status on the number's own line: a coefficient is never shown without it
-        rows = [{"coefficient": k, "value": row["value"], "status": row.get("status", ""),
-                 **{c: v for c, v in row.items() if c not in ("identified", "value", "status")}}
-                for k, row in out["statistics"].items()]  # fmt: skip
-        print_table(rows, cell_max=400)
-        print(out["statistics_note"])
-    _print_trust(out)
-    if out["adequacy"]:
-        print(out["adequacy"]["summary"])
-    for r in out["per_run"]:
-        print(f"{r['run']}: {r['steady']}")
-    if "validation" in out:
-        print()
-        keys = ("run", "fz_mm", "depth_mm", "measured_resultant_n", "predicted_resultant_n")
-        print_table([{**{k: r[k] for k in keys}, "error_pct": r["resultant_error_pct"]}
-                     for r in out["validation"]["rows"]])  # fmt: skip
+    print_lines(forces_lines(out))
     return 0 if out["success"] else 1
-
-
-def _print_trust(out: dict) -> None:
-    """How far an end-mill fit holds: per direction, per run, leave-one-out influence."""
-    from rig.cli.common import print_table
-
-    if out.get("by_direction"):
-        over = f" over {out['by_direction_over']}" if out.get("by_direction_over") else ""
-        print(f"fit per direction{over}: " + "; ".join(
-            f"{d}: R^2 {v['r_squared']:.4f}, RMS {v['rms_n']:.3g} N"
-            for d, v in out["by_direction"].items()) + f" (pooled R^2 {out['r_squared']:.4f})")
-    if out.get("run_residuals"):
-        print("mean-force residual per run (measured - fitted; % of the run's mean resultant):")
-        print_table([{"run": r["run"], **{f"{d}_n": v for d, v in zip("xyz", r["residual_n"])},
-                      **{f"{d}_pct": v for d, v in zip("xyz", r["residual_pct"])}}
-                     for r in out["run_residuals"]])  # fmt: skip
-    infl = out.get("influence")
-    if infl is not None:
-        if not infl["checked"]:
-            print(f"leave-one-out influence: unchecked: {infl['reason']}")
-        for r in infl["runs"]:
-            if r["moved"]:
-                print(f"leave-one-out: run {r['run']} moves " + ", ".join(
-                    f"{k} by {r['shift'][k]:.4g} (without it {r['without'][k]:.4g})"
-                    for k in r["moved"]) + ": more than its interval")  # fmt: skip
-
-
-def _catalog_args(args: argparse.Namespace) -> bool:
-    """Whether the runs come from a catalogue (--catalog) rather than files; refuses a mix."""
-    from analysis.errors import ConfigError
-
-    if args.catalog is None:
-        for opt in ("where", "scheduler"):
-            if getattr(args, opt) is not None:
-                raise ConfigError(f"analyze forces: --{opt} needs --catalog DIR")
-        if not args.runs:
-            raise ConfigError("analyze forces: give run files, or --catalog DIR [--where EXPR]")
-        return False
-    if args.runs:
-        raise ConfigError(f"analyze forces: run files ({args.runs[0]} ...) and --catalog "
-                          f"{args.catalog}: give one or the other")  # fmt: skip
-    return True
-
-
-def _conditions_arg(items: list[str] | None) -> tuple[dict, str | None]:
-    """``--conditions``: KEY=VALUE pairs (or one JSON object), or one conditions table (.csv,
-    .toml, or any existing file)."""
-    from pathlib import Path
-
-    from rig.cli.common import parse_conditions
-
-    if (
-        items
-        and len(items) == 1
-        and "=" not in items[0]
-        and (
-            Path(items[0]).suffix.lower() in (".csv", ".toml", ".tsv", ".txt")
-            or Path(items[0]).is_file()
-        )
-    ):
-        return {}, items[0]
-    return parse_conditions(items or []), None
 
 
 def _modal(args: argparse.Namespace) -> int:
@@ -235,7 +137,7 @@ def _register_forces(psub: argparse._SubParsersAction) -> None:
 def add_import_options(p: argparse.ArgumentParser) -> None:
     """Options for reading exports, shared with `cutlab data import`."""
     p.add_argument(
-        "--axes", default=None, metavar="x=COL,y=COL,z=COL",
+        "--axes", metavar="x=COL,y=COL,z=COL",
         help="file columns (or run-file channels) for cutlab's x (feed), y (cross-feed), z (tool "
         "axis), a '-' flips the sign: x=-Fy,y=Fx,z=-Fz; or 'auto': the signed permutation whose "
         "end-mill fit gives positive Ktc, Krc, Kac with the smallest residual (refused when the "
@@ -243,33 +145,16 @@ def add_import_options(p: argparse.ArgumentParser) -> None:
         "dynamometer, else columns named Fx, Fy, Fz; a mapping giving a negative cutting "
         "coefficient or fitting clearly worse than another is refused)",
     )  # fmt: skip
-    p.add_argument(
-        "--conditions-pattern",
-        default=None,
-        metavar="PATTERN",
-        help="conditions from file names: 'cut_{spindle_rpm}rpm_f{feed_mm_min}.txt'",
-    )
-    p.add_argument(
-        "--zero",
-        default=None,
-        metavar="FILE",
-        help="an export of the same channels at rest: its mean is the offset",
-    )
-    p.add_argument(
-        "--zeroed", action="store_true", help="the exports are already zeroed: subtract no offset"
-    )
-    p.add_argument(
-        "--tools",
-        default=None,
-        metavar="FILE",
-        help="your tool catalogue (TOML, [tools.NAME]), before configs/tools.toml",
-    )
-    p.add_argument(
-        "--materials",
-        default=None,
-        metavar="FILE",
-        help="your material catalogue (TOML), before configs/materials.toml",
-    )
+    for name, metavar, text in (
+        ("--conditions-pattern", "PATTERN",
+         "conditions from file names: 'cut_{spindle_rpm}rpm_f{feed_mm_min}.txt'"),
+        ("--zero", "FILE", "an export of the same channels at rest: its mean is the offset"),
+        ("--zeroed", None, "the exports are already zeroed: subtract no offset"),
+        ("--tools", "FILE", "your tool catalogue (TOML, [tools.NAME]), before configs/tools.toml"),
+        ("--materials", "FILE", "your material catalogue (TOML), before configs/materials.toml"),
+    ):  # fmt: skip
+        kw = {"action": "store_true"} if metavar is None else {"metavar": metavar}
+        p.add_argument(name, help=text, **kw)  # type: ignore[arg-type]
 
 
 def _register_modal(psub: argparse._SubParsersAction) -> None:

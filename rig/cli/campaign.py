@@ -13,14 +13,8 @@ import argparse
 import contextlib
 from pathlib import Path
 
-from rig.cli.common import (
-    add_catalog_options,
-    error_line,
-    print_json,
-    print_table,
-    progress_note,
-    status,
-)
+from rig.cli.common import add_catalog_options, error_line, print_json, print_table, status
+from rig.terminal import progress_note
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -34,16 +28,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--dry-run", action="store_true", help="check config, hardware and programs")
     r.add_argument("--out", help="folder of campaign folders (default: campaign.output_dir)")
     r.add_argument("--no-report", action="store_true", help="skip the analysis and report")
-    r.add_argument(
-        "--fresh",
-        action="store_true",
-        help="start over: earlier runs are moved to <folder>/before-<time>/",
-    )
-    r.add_argument(
-        "--force-resume",
-        action="store_true",
-        help="resume although inputs changed (recorded in campaign.json)",
-    )
+    r.add_argument("--fresh", action="store_true",
+                   help="start over: earlier runs are moved to <folder>/before-<time>/")
+    r.add_argument("--force-resume", action="store_true",
+                   help="resume although inputs changed (recorded in campaign.json)")
     r.add_argument("--json", action="store_true", help="machine-readable summary on stdout")
     r.add_argument("--quiet", action="store_true", help="no progress display")
     r.add_argument("--adaptive", choices=("feed", "spindle", "both"),
@@ -67,25 +55,20 @@ def register(sub: argparse._SubParsersAction) -> None:
         add_catalog_options(q)
 
 
-def _dry_run(campaign, as_json: bool, out_root: str | None) -> int:
+def _dry_run(campaign, as_json: bool, out_root: str | None) -> int:  # noqa: ANN001 - a Campaign
     from rig.campaign import dry_run
+    from rig.campaign.commands import dry_run_lines
+    from rig.cli.common import print_lines
 
     d = dry_run(campaign, out_root)
-    if as_json:
-        print_json(d.as_dict())
-        return 0 if d.ok else 2
-    print(f"campaign {d.campaign}: {d.tests} tests, {d.programs_checked} programs checked, "
-          f"rig = {d.rig}")  # fmt: skip
-    print(f"expected machine time: {d.expected_machine_s / 60:.1f} min")
-    for prefix, lines in (("ok", d.hardware), ("PROBLEM", d.problems), ("warning", d.warnings)):
-        for line in lines:
-            print(f"  {prefix}: {line}")
+    print_json(d.as_dict()) if as_json else print_lines(dry_run_lines(d))
     return 0 if d.ok else 2
 
 
 def _run(args: argparse.Namespace) -> int:
     from analysis.errors import CutlabError
     from rig.campaign import campaign_folder, load_campaign, run_campaign
+    from rig.campaign.commands import runs_done
 
     try:
         campaign = load_campaign(args.config)
@@ -98,11 +81,13 @@ def _run(args: argparse.Namespace) -> int:
                 error_line(line.strip())
         return 2
     if getattr(args, "adaptive", None):
-        campaign = _with_adaptive(campaign, args.adaptive)
+        from rig.campaign.commands import with_adaptive
+
+        campaign = with_adaptive(campaign, args.adaptive)
     if args.dry_run:
         progress_note("checking every program")
         return _dry_run(campaign, args.json, args.out)
-    progress_note(_runs_done(campaign_folder(campaign, args.out), len(campaign.tests)))
+    progress_note(runs_done(campaign_folder(campaign, args.out), len(campaign.tests)))
     live_ctx = contextlib.nullcontext(None)
     if args.live:
         from rig.cli.console import warn_bind
@@ -131,40 +116,6 @@ def _run(args: argparse.Namespace) -> int:
         status(f"cutlab: campaign stopped; run the same command again to resume ({result.folder})")
         return 130
     return 0 if result.ok else 1
-
-
-def _with_adaptive(campaign, mode: str):  # noqa: ANN001, ANN202 - a Campaign
-    """The campaign with ``[adaptive] mode`` set by ``--adaptive``; refused (one line) without
-    an ``[adaptive]`` table (its target and limits are the config's) or without GRBL."""
-    import dataclasses
-
-    from analysis.errors import ConfigError
-    from rig.adaptive.session import check_adaptive
-
-    a = campaign.spec.adaptive
-    if a is None:
-        raise ConfigError(
-            f"{campaign.path}: --adaptive {mode}: the campaign has no [adaptive] table; add one "
-            "with target_force_n (N) and max_force_n (N) (docs/configuration.md)"
-        )
-    spec = campaign.spec.model_copy(update={"adaptive": a.model_copy(update={"mode": mode})})
-    campaign = dataclasses.replace(campaign, spec=spec)
-    check_adaptive(campaign)
-    return campaign
-
-
-def _runs_done(folder: Path, total: int):  # noqa: ANN202 - a note for the heartbeat
-    """``3 of 8 runs ended, 2 cutting`` from the campaign's manifest (written atomically), for
-    the progress line on stderr."""
-
-    def note() -> str:
-        import json
-
-        runs = json.loads((folder / "campaign.json").read_text()).get("runs", {})
-        ended = sum(1 for r in runs.values() if r.get("status") not in (None, "running"))
-        return f"{ended} of {total} runs ended"
-
-    return note
 
 
 def _status(args: argparse.Namespace) -> int:

@@ -1,16 +1,9 @@
 """`cutlab catalog` commands: an index of the run files of an archive, and queries over it.
 
-cutlab catalog index DIR... [--index FILE] [--json]
-    index the run files (.h5) under each DIR (the index lives in DIR/.cutlab-catalog.sqlite, or
-    in FILE): new and changed files are read (metadata only) and hashed, unchanged ones skipped,
-    deleted ones dropped; runs still being written are indexed as running
-cutlab catalog query EXPR [DIR] [--index FILE|DIR] [--json|--csv] [--all-columns]
-    the runs matching EXPR, one row each (with its path, so two copies of a run differ):
-    comparisons of columns (campaign, run, group, status,
-    tool, material, spindle_rpm, feed_mm_min, fz_mm, depth_mm, width_mm, ...) joined by
-    and / or / not, e.g. "material == 'GM241' and 0.2 <= fz_mm <= 0.4"; "" for every run
-cutlab catalog show RUN [DIR] [--index FILE|DIR] [--json]
-    one run's row (RUN: its name, CAMPAIGN/RUN, or its path)
+``index`` reads new and changed run files (metadata only) and hashes them, skips unchanged ones,
+drops deleted ones; runs still being written are indexed as running. ``query`` EXPR compares
+columns (campaign, run, group, status, tool, material, spindle_rpm, feed_mm_min, fz_mm, depth_mm,
+width_mm, ...) joined by and / or / not; each row carries its path (two copies of a run differ).
 
 DIR (or --index) names the archive folder that holds the catalogue, or the index file; without
 either, query and show use the catalogue of the current folder or its nearest parent.
@@ -20,10 +13,13 @@ from __future__ import annotations
 
 import argparse
 
+from rig.cli.options import json_option
+
 
 def _index(args: argparse.Namespace) -> int:
     from analysis.catalog import update_index
-    from rig.cli.common import Progress, print_json, status
+    from rig.cli.common import print_json, status
+    from rig.terminal import Progress
 
     with Progress("indexing run files", "file", quiet=args.json) as bar:
         out = update_index(args.dirs, args.index, progress=bar)
@@ -84,6 +80,15 @@ def _where(args: argparse.Namespace) -> str | None:
     return args.dir if args.dir is not None else args.index
 
 
+def _where_options(p: argparse.ArgumentParser) -> None:
+    """DIR and ``--index``: the catalogue a query or show reads."""
+    p.add_argument("dir", nargs="?", metavar="DIR",
+                   help="the archive folder indexed (or its index file); default: --index, "
+                   "else the current folder's or a parent's catalogue")  # fmt: skip
+    p.add_argument("--index", metavar="FILE|DIR",
+                   help="the catalogue (default: the current folder's or a parent's)")  # fmt: skip
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
     p = sub.add_parser("catalog", help="index an archive of run files; query it")
@@ -91,18 +96,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     psub.required = True
     i = psub.add_parser("index", help="index (or update the index of) the run files under DIRs")
     i.add_argument("dirs", nargs="+", metavar="DIR", help="folders of run files (.h5)")
-    i.add_argument("--index", default=None, metavar="FILE",
+    i.add_argument("--index", metavar="FILE",
                    help="the index file (default DIR/.cutlab-catalog.sqlite, the first DIR)")
-    i.add_argument("--json", action="store_true", help="JSON on stdout")
+    json_option(i)
     i.set_defaults(func=_index)
     q = psub.add_parser("query", help="the runs matching an expression, one row each")
     q.add_argument("expr", metavar="EXPR",
                    help="e.g. \"material == 'GM241' and 0.2 <= fz_mm <= 0.4\" ('' for all)")
-    q.add_argument("dir", nargs="?", default=None, metavar="DIR",
-                   help="the archive folder indexed (or its index file); default: --index, "
-                   "else the current folder's or a parent's catalogue")  # fmt: skip
-    q.add_argument("--index", default=None, metavar="FILE|DIR",
-                   help="the catalogue (default: the current folder's or a parent's)")
+    _where_options(q)
     fmt = q.add_mutually_exclusive_group()
     fmt.add_argument("--json", action="store_true", help="JSON on stdout")
     fmt.add_argument("--csv", action="store_true", help="CSV on stdout (every column)")
@@ -110,10 +111,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     q.set_defaults(func=_query)
     s = psub.add_parser("show", help="one run's catalogue row")
     s.add_argument("run", metavar="RUN", help="run name, CAMPAIGN/RUN, or path")
-    s.add_argument("dir", nargs="?", default=None, metavar="DIR",
-                   help="the archive folder indexed (or its index file); default: --index, "
-                   "else the current folder's or a parent's catalogue")  # fmt: skip
-    s.add_argument("--index", default=None, metavar="FILE|DIR",
-                   help="the catalogue (default: the current folder's or a parent's)")
-    s.add_argument("--json", action="store_true", help="JSON on stdout")
+    _where_options(s)
+    json_option(s)
     s.set_defaults(func=_show)

@@ -22,19 +22,11 @@ DEFAULT_PORT = 8765
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's command to ``sub``."""
     p = sub.add_parser("console", help="the live lab console in a local web page")
-    p.add_argument(
-        "target",
-        nargs="?",
-        default=".",
-        help="campaign folder or run file (.h5); default: the current folder",
-    )
+    p.add_argument("target", nargs="?", default=".",
+                   help="campaign folder or run file (.h5); default: the current folder")
     add_server_options(p)
-    p.add_argument(
-        "--linger-s",
-        type=nonnegative("s"),
-        default=None,
-        help="exit this long after the campaign process is gone (default: never)",
-    )
+    p.add_argument("--linger-s", type=nonnegative("s"),
+                   help="exit this long after the campaign process is gone (default: never)")
     p.add_argument("--quiet", action="store_true",
                    help="only the address (with its token) on stderr")  # fmt: skip
     p.set_defaults(func=_console)
@@ -42,17 +34,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def add_server_options(p: argparse.ArgumentParser) -> None:
     """``--port`` and ``--bind`` (shared with ``campaign run --live``)."""
-    p.add_argument(
-        "--port",
-        type=count(1, 65535, "TCP port"),
-        default=DEFAULT_PORT,
-        help=f"TCP port of the page (default {DEFAULT_PORT})",
-    )
-    p.add_argument(
-        "--bind",
-        default="127.0.0.1",
-        help="address to listen on (default 127.0.0.1, this computer only)",
-    )
+    p.add_argument("--port", type=count(1, 65535, "TCP port"), default=DEFAULT_PORT,
+                   help=f"TCP port of the page (default {DEFAULT_PORT})")  # fmt: skip
+    p.add_argument("--bind", default="127.0.0.1",
+                   help="address to listen on (default 127.0.0.1, this computer only)")  # fmt: skip
 
 
 def warn_bind(bind: str) -> None:

@@ -9,18 +9,18 @@ from __future__ import annotations
 import argparse
 
 from rig.cli.common import (
-    Progress,
     count,
     nonnegative,
-    parse_conditions,
     positive,
     print_json,
     print_table,
     status,
 )
+from rig.terminal import Progress
 
 
 def _record(args: argparse.Namespace) -> int:
+    from analysis.identify.conditions_arg import parse_conditions
     from rig.log import plan_recording, record_rig
 
     conditions = parse_conditions(args.conditions)

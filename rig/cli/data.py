@@ -1,14 +1,9 @@
 """`cutlab data` commands: look at run files and exports; import exports as run files.
 
-cutlab data info FILE [--rate HZ] [--json]     a run file: channels, rate, duration, samples,
-                                               events, gaps, status; an export: columns, units,
-                                               rate, samples, header
-cutlab data plot FILE -o forces.png            force traces of a run file or an export
-cutlab data import FILE... -o DIR [--conditions TABLE|KEY=VALUE...] [--axes x=-Fy,y=Fx,z=-Fz|auto]
-                           [--rate HZ] [--zero FILE | --zeroed] [--tool NAME] [--tools FILE]
-                           [--force] [--json]
-    DynoWare / CSV exports into ordinary run files (DIR/<name>.h5), conditions and all, so every
-    command that reads run files reads them.
+``info``: a run file's channels, rate, duration, samples, events, gaps and status, or an
+export's columns, units, rate, samples and header. ``import``: DynoWare / CSV exports into
+ordinary run files (DIR/<name>.h5), conditions and all, so every command that reads run files
+reads them.
 """
 
 from __future__ import annotations
@@ -24,48 +19,21 @@ def _is_run_file(path: str) -> bool:
 
 
 def _info(args: argparse.Namespace) -> int:
-    from rig.cli.common import print_json, print_table
+    from analysis.runs.text import export_info_lines, run_info_lines
+    from rig.cli.common import print_json, print_lines
 
     if not _is_run_file(args.file):
         from analysis.runs.table import table_summary
 
         s = table_summary(args.file, args.rate)
-        if args.json:
-            print_json(s)
-            return 0
-        keys = ("format", "rate_hz", "samples", "duration_s", "decimal", "separator")
-        rows = [{"quantity": k, "value": s[k]} for k in keys]
-        rows.insert(1, {"quantity": "columns", "value": " ".join(
-            f"{c} [{u}]" if u else c for c, u in zip(s["columns"], s["units"]))})  # fmt: skip
-        rows += [{"quantity": f"header: {k}", "value": v} for k, v in s["header"].items()]
-        print_table(rows)
-        return 0
+    else:
+        from analysis.runs import run_summary
 
-    from analysis.runs import run_summary
-
-    s = run_summary(args.file)
+        s = run_summary(args.file)
     if args.json:
         print_json(s)
-        return 0
-    if not s["complete"]:
-        print(
-            f"INCOMPLETE: the writer never closed {s['file']} (killed or still running); it holds "
-            f"{s['samples_stored']} samples per channel = {s['duration_s']:.3f} s up to its last "
-            "flush"
-        )
-    keys = ("status reason sample_format rate_hz samples_stored samples_acquired samples_lost "
-            "duration_s nc_blocks calibration_id software_version").split()  # fmt: skip
-    rows = [{"quantity": k, "value": s[k]} for k in keys]
-    rows.insert(1, {"quantity": "channels", "value": " ".join(s["channels"])})
-    rows.append(
-        {"quantity": "events", "value": ", ".join(f"{k} {v}" for k, v in s["events"].items())}
-    )
-    if s["conditions"]:
-        rows.append({"quantity": "conditions", "value": s["conditions"]})
-    print_table(rows)
-    if s["gaps"]:
-        print()
-        print_table(s["gaps"])
+    else:
+        print_lines((run_info_lines if _is_run_file(args.file) else export_info_lines)(s))
     return 0
 
 
@@ -93,11 +61,12 @@ def _plot(args: argparse.Namespace) -> int:
 
 def _import(args: argparse.Namespace) -> int:
     from analysis.identify import ImportOptions
-    from rig.cli.analyze import _conditions_arg
-    from rig.cli.common import Progress, print_json, print_table, status
+    from analysis.identify.conditions_arg import conditions_arg
+    from rig.cli.common import print_json, print_table, status
     from rig.log import import_exports
+    from rig.terminal import Progress
 
-    pairs, table = _conditions_arg(args.conditions)
+    pairs, table = conditions_arg(args.conditions)
     opts = ImportOptions(axes=args.axes, table=table, pattern=args.conditions_pattern,
                          zero_file=args.zero, zeroed=args.zeroed, tools_path=args.tools,
                          materials_path=args.materials)  # fmt: skip

@@ -15,7 +15,6 @@ writes the report folder. It prints the identified coefficients beside the simul
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 CAMPAIGN = (
     "facemill-ploughing"  # rig.report.DEMO_CAMPAIGN (not imported: `cutlab --help` stays fast)
@@ -44,7 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from rig.cli.common import print_json, print_table, status
+    from rig.cli.common import print_json, print_lines, status
     from rig.report import run_demo
 
     out = args.out or ("out/demo-independent" if args.forces == "independent" else "out/demo")
@@ -53,19 +52,10 @@ def _demo(args: argparse.Namespace) -> int:
     if res.stopped:
         status(f"demo: stopped; run `cutlab demo --resume` to continue ({res.folder})")
         return 130
-    fm, nan = res.facemill, float("nan")
     if args.json:
         print_json(res.summary())
         return 0 if res.ok else 1
-    print(f"Seed 003 face-milling coefficients, identified from {fm.get('identify_runs', 0)} "
-          f"simulated runs (forces: {res.force_model}), beside the simulator's truth:")  # fmt: skip
-    print_table([{"coefficient": r["coefficient"], "identified": r["identified"],
-                  "truth": r.get("truth", nan), "error_%": r.get("error_pct", nan),
-                  "std_error": r["std_error"], "status": r.get("status", "")}
-                 for r in fm.get("coefficients", [])], cell_max=400)  # fmt: skip
-    err = fm.get("validation_max_abs_error_pct")
-    if err is not None:
-        print(f"validation ({fm.get('validate_runs', 0)} runs at other feeds per tooth): "
-              f"predicted mean force within {err:.2f} % of measured")  # fmt: skip
-    print(f"report: {Path(res.report.folder) / 'report.md'}  ({res.wall_s:.0f} s)")
+    from rig.report.demo_text import demo_lines
+
+    print_lines(demo_lines(res))
     return 0 if res.ok else 1

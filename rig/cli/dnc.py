@@ -10,34 +10,15 @@ from rig.cli.common import count, number, positive, print_json, status
 from rig.cli.options import json_option, rig_option, serial_options
 
 
-def _refuse_adaptive(args: argparse.Namespace) -> None:
-    """``--adaptive`` needs a real-time override on the serial line (GRBL 1.1's 0x90-0x9D
-    bytes); a Fanuc drip feed has none (its override is the panel's dial, or an external input:
-    the machine config's ``override``), so it is refused before anything is opened."""
-    if not args.adaptive:
-        return
-    from rig.adaptive.override import refusal
-    from rig.dnc import DncError, dnc_machine
-
-    protocol, m = dnc_machine(args.protocol, args.machine)
-    why = refusal(m, protocol)
-    if why is not None:
-        raise DncError(f"dnc send --adaptive {args.adaptive}: {why} (--protocol grbl)")
-    # GRBL: the loop (rig.adaptive.send) needs its target, hard limit and the spindle's speed
-    for opt, val in (("--target-force", args.target_force), ("--max-force", args.max_force),
-                     ("--spindle-rpm", args.spindle_rpm)):  # fmt: skip
-        if val is None:
-            raise DncError(f"dnc send --adaptive {args.adaptive}: {opt} is required (N, N, rpm)")
-    if not args.target_force < args.max_force:
-        raise DncError(f"dnc send --adaptive: --target-force {args.target_force:g} N: expected "
-                       f"below --max-force {args.max_force:g} N")  # fmt: skip
-
-
 def _send(args: argparse.Namespace) -> int:
     from rig.dnc import StreamFault, halt_on_signals, prepare_send
     from rig.dnc.keys import operator_control
 
-    _refuse_adaptive(args)
+    if args.adaptive:
+        from rig.adaptive.send_options import check_send_adaptive
+
+        check_send_adaptive(args.adaptive, args.protocol, args.machine, args.target_force,
+                            args.max_force, args.spindle_rpm)  # fmt: skip
     job = prepare_send(
         args.file, args.protocol, machine=args.machine, port=args.port, baud=args.baud,
         timeout_s=args.timeout, start_block=args.start_block, safe_z_mm=args.safe_z,
@@ -83,29 +64,16 @@ def _adaptive_loop(job, args: argparse.Namespace):  # noqa: ANN001, ANN202 - a S
                     say=lambda m: status(f"dnc send: {m}"))  # fmt: skip
 
 
-#: blocks of the program shown after the preamble by ``dnc send --dry-run``
-DRY_RUN_BLOCKS = 10
-
-
 def _dry_run(job, args: argparse.Namespace) -> int:  # noqa: ANN001 - a SendJob
-    """Print what a send would send first (the restart preamble and the first blocks, as the
-    protocol sends them); nothing is opened or sent."""
-    items = job.items_to_send()
-    pre = [it.text for it in items if it.block < 0]
-    blocks = [{"block": it.block, "line": it.line, "text": it.text}
-              for it in items if it.block >= 0][:DRY_RUN_BLOCKS]  # fmt: skip
+    """Print what a send would send first; nothing is opened or sent."""
+    from rig.cli.common import print_lines
+    from rig.dnc.preview import preview, preview_lines
+
+    p = preview(job)
     if args.json:
-        print_json({"dry_run": True, "program": job.program.name, "protocol": job.protocol,
-                    "start_block": job.start_block, "restart": list(job.restart_notes),
-                    "preamble": pre, "first_blocks": blocks, "sent": False})  # fmt: skip
+        print_json(p)
         return 0
-    if pre:
-        print(f"(restart preamble: {len(pre)} lines)")
-        for t in pre:
-            print(t)
-    print(f"(then the program from block {job.start_block}, first {len(blocks)} blocks)")
-    for b in blocks:
-        print(f"{b['text']}    (block {b['block']}, line {b['line']})")
+    print_lines(preview_lines(p))
     status(f"dry run: nothing was sent to {job.settings.port}")
     return 0
 

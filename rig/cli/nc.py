@@ -1,12 +1,8 @@
 """`cutlab nc` — check, list and plot NC programs (planning.nc).
 
-* ``cutlab nc check FILE [--json] [--machine NAME] [--lenient] [--dialect grbl|fanuc|linuxcnc]``:
-  errors (exit 2, one line), or blocks, motions, cutting_length_mm, rapid_length_mm, time_s, bbox
-  and warnings; with ``--dialect`` also what that controller would refuse (file:line:column, the
-  controller's answer; ``--json`` key ``dialect_problems``; exit 2 if it would refuse a line).
-* ``cutlab nc motions FILE [--csv] [-o OUT]``: one row per canonical segment (line, kind,
-  x0 y0 z0 x1 y1 z1, arc centre, feed, ...).
-* ``cutlab nc plot FILE -o path.png``: tool path, rapids dashed, feeds solid, 3-D and top views.
+``check`` prints the errors (exit 2, one line) or the program's lengths, time, bbox and warnings;
+with ``--dialect`` also what that controller would refuse (``--json``: ``dialect_problems``; exit
+2 if it would refuse a line). ``motions``: one row per canonical segment; ``plot``: the tool path.
 
 ``--dialect NAME`` on all three interprets the program as that controller does (LinuxCNC: G10
 L20, F in the units of a G20/G21 in the same block, its arc tolerance, its order of execution;
@@ -19,8 +15,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from rig.cli.common import Progress, image_file, print_json, print_table, status
+from rig.cli.common import image_file, print_json, print_table, status
 from rig.cli.options import dialect_option, json_option
+from rig.terminal import Progress
 
 
 def _interpret(args: argparse.Namespace, *, warn: bool = True, keep_motion: bool = False):

@@ -49,40 +49,19 @@ def add_limit_options(p: argparse.ArgumentParser) -> None:
 VERDICT_EXIT = {"within": 0, "violations": 3, "unchecked": 4}
 
 
-def print_violations(violations: list[dict], limit: int = 20) -> None:
-    from rig.cli.common import print_table
-
-    if not violations:
-        return
-    print(f"{len(violations)} violations (block, limit, value, allowed, margin %):")
-    print_table(violations[:limit])
-    if len(violations) > limit:
-        print(f"... and {len(violations) - limit} more (--json lists all)")
-
-
-def print_verdict(out: dict) -> None:
-    """The verdict line, then each limit that could not be checked and why."""
-    n = len(out["violations"])
-    line = {"within": "verdict: within: every block within every limit",
-            "violations": f"verdict: violations: {n} (block, limit) over a limit",
-            "unchecked": "verdict: unchecked: no block over a checked limit, but these limits "
-                         "were not checked:"}[out["verdict"]]  # fmt: skip
-    print(line)
-    for u in out["unchecked"]:
-        tool = f"{u['tool']} " if u.get("tool") else ""
-        print(f"  not checked: {tool}{u['limit']}: {u['reason']}")
-
-
 def print_stock(stock: dict) -> None:
+    from planning.limits.text import stock_note
     from rig.cli.common import status
 
-    if stock.get("source") == "derived":
-        status(f"stock: {stock['spec']} (derived: {stock['how']})")
+    if (note := stock_note(stock)) is not None:
+        status(note)
 
 
 def run(a: argparse.Namespace) -> int:
     from planning.limits import check_job
-    from rig.cli.common import Progress, print_json, print_table, status
+    from planning.limits.text import check_lines
+    from rig.cli.common import print_json, print_lines, status
+    from rig.terminal import Progress
 
     with Progress("simulate", unit="piece") as bar:
         _, out = check_job(
@@ -95,16 +74,7 @@ def run(a: argparse.Namespace) -> int:
         print_json(out)
         return code
     print_stock(out["stock"])
-    if len(out["tools"]) > 1:
-        cols = ("tool_number", "tool", "removed_mm3", "time_s", "cutting_blocks", "violations",
-                "verdict")  # fmt: skip
-        print_table([{k: r[k] for k in cols} for r in out["tools"]])
-    print_violations(out["violations"])
-    for k, w in out["worst"].items():
-        tool = f"{w['tool']} " if w.get("tool") else ""
-        print(f"worst {k}: {w['value']:.4g} of {w['allowed']:.4g} at {tool}block {w['block']} "
-              f"(margin {w['margin_pct']} %)")  # fmt: skip
-    print_verdict(out)
+    print_lines(check_lines(out))
     if out["png"]:
         status(f"wrote {out['png']}")
     return code

@@ -70,71 +70,43 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 
 def _feed(a: argparse.Namespace) -> int:
-    from analysis.config import load_machine
-    from planning.errors import PlanningError
-    from planning.feed import end_mill, feed_program
-    from rig.cli.common import Progress, print_json, print_table, status
+    from planning.feed import feed_program
+    from planning.feed.text import feed_lines, feed_notes
+    from planning.limits.feed_options import feed_limits
+    from planning.limits.text import verdict_lines, violation_lines
+    from rig.cli.common import print_json, print_lines, status
+    from rig.cli.plan_check import print_stock
+    from rig.terminal import Progress
 
-    step, cap = None, None
-    # no --rules with T1=A,T2=B: --material only finds each tool's rule in the rule base
-    lookup_only = a.rules is None and bool(a.tool) and "=" in a.tool
-    if a.material and a.tool and "=" in a.tool and not lookup_only:
-        raise PlanningError(
-            f"--material with --tool {a.tool}: the force and limit options work on a one-tool "
-            "program; check the output per tool with `cutlab plan check OUT --tool T1=A,T2=B`"
-        )
-    if a.material and not lookup_only:  # the limits need the force coefficients
-        from planning.limits import coefficients, feed_limiter, limits_for
-
-        tool = end_mill(a.tool)
-        limits = limits_for(tool, load_machine(a.machine), tool_name=a.tool, lobes=a.lobes,
-                            force_limit_n=a.force_limit)  # fmt: skip
-        cap, step = feed_limiter(tool, coefficients(a.material), limits, fix=a.limit,
-                                 spindle_rpm=a.spindle)  # fmt: skip
-    elif a.limit:
-        raise PlanningError("--limit needs --material (its [endmill] coefficients)")
+    lim = feed_limits(a.rules, a.tool, a.material, a.machine, a.lobes, a.force_limit, a.limit,
+                      a.spindle)  # fmt: skip
     with Progress("simulate", unit="piece") as bar:
         result, s = feed_program(
             a.program, a.rules, a.output, db=a.db, machine=a.machine, tool_name=a.tool,
             stock_spec=a.stock, spacing_mm=a.spacing, report_dir=a.report, progress=bar,
             warn=status, min_piece_mm=a.min_piece, split=not a.no_split,
             check_holder=not a.no_holder_check, force_limit_n=a.force_limit,
-            material=None if lookup_only else a.material, spindle_rpm=a.spindle,
-            dialect=a.dialect, limit_step=step, feed_cap=cap, rules_material=a.material,
+            material=None if lim.lookup_only else a.material, spindle_rpm=a.spindle,
+            dialect=a.dialect, limit_step=lim.step, feed_cap=lim.cap, rules_material=a.material,
         )  # fmt: skip
     if a.json:
         s.setdefault("violations", [])  # the command contract: always a list
         print_json(s)
         return 0  # a written program; its verdict is in the JSON (plan check exits by it)
-    from rig.cli.plan_check import print_stock, print_verdict, print_violations
-
     print_stock(s["stock"])
-    print_violations(s["violations"])
-    status(f"wrote {a.output} ({s['dialect']}) and report "
-           f"{Path(s['report']['csv']).parent}/{a.output.stem}-*")  # fmt: skip
-    for c in result.simulation.contacts:
-        status("warning: " + c.message(str(a.program)))
-    for n in s["notes"]:
-        status("note: " + n)
-    for r in s.get("rule_lookup", ()):  # each tool's rule from the rule base (no --rules)
-        found = f"rule {r['rule']} (group {r['group']})" if r["rule"] else "no rule"
-        status(f"T{r['tool_number']} {r['tool']}: {found}" + (f": {r['reason']}"
-               if r.get("reason") else ""))  # fmt: skip
-    rows = (("machining time (s)", "time_%s_s"), ("with acceleration (s)", "accel_time_%s_s"),
-            ("max load x feed", "load_rate_max_%s"))  # fmt: skip
-    print_table([{"": t, "before": s[k % "before"], "after": s[k % "after"]} for t, k in rows])
-    if len(s["tools"]) > 1:  # each tool's share (a tool without a rule keeps its feeds)
-        print_table([{k: ("(kept)" if v is None else v) for k, v in t.items()}
-                     for t in s["tools"]])  # fmt: skip
-    print(f"time saved {s['time_saved_pct']:.1f} %, {s['split_blocks']} blocks split, "
-          f"removed {s['removed_mm3']:.1f} mm^3")  # fmt: skip
-    print_verdict(s)
+    print_lines(violation_lines(s["violations"]))
+    for line in feed_notes(s, result.simulation.contacts, a.program, a.output):
+        status(line)
+    print_lines([*feed_lines(s), *verdict_lines(s)])
     return 0
 
 
 def _simulate(a: argparse.Namespace) -> int:
     from planning.feed import simulate_job
-    from rig.cli.common import Progress, print_json, print_table, status
+    from planning.feed.text import simulate_lines, simulate_notes
+    from rig.cli.common import print_json, print_lines, status
+    from rig.cli.plan_check import print_stock
+    from rig.terminal import Progress
 
     with Progress("simulate", unit="piece") as bar:
         results, out = simulate_job(
@@ -144,18 +116,10 @@ def _simulate(a: argparse.Namespace) -> int:
     if a.json:
         print_json(out)
         return 0
-    from rig.cli.plan_check import print_stock
-
     print_stock(out["stock"])
-    for r, res in zip(out["operations"], results):
-        for c in res.simulation.contacts:
-            status("warning: " + c.message(r["file"]))
-    cols = ("operation", "tool", "segments", "removed_mm3", "time_s")
-    print_table([{k: r[k] for k in cols} | {"holder_contacts": len(r["holder_contacts"])}
-                 for r in out["operations"]])  # fmt: skip
-    if any(len(r["tools"]) > 1 for r in out["operations"]):  # each tool's share
-        print_table([{"operation": r["operation"]} | t for r in out["operations"]
-                     for t in r["tools"]])  # fmt: skip
+    for line in simulate_notes(out, [r.simulation.contacts for r in results]):
+        status(line)
+    print_lines(simulate_lines(out))
     if a.png:
         status(f"wrote {a.png}")
     return 0

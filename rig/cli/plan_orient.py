@@ -47,7 +47,8 @@ def _show(v):
 
 def run(args: argparse.Namespace) -> int:
     from planning.orient import run_orient
-    from rig.cli.common import Progress, print_json, print_table, status
+    from rig.cli.common import print_json, print_table, status
+    from rig.terminal import Progress
 
     with Progress("orient", "pt") as bar:
 

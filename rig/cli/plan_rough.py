@@ -54,16 +54,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_catalog_options(p)
 
 
-# the per-level table (seed 000 Table 1): column -> key of a level row
-LEVEL_COLUMNS = {"order": "order", "z_mm": "z_mm", "area_mm2": "area_mm2", "path_mm": "path_mm",
-                 "h_mm": "height_mm", "MRR_mm3_min": "mrr_mm3_min",
-                 "A*h/l_mm2": "mrr_per_path_mm2"}  # fmt: skip
-
-
 def run(args: argparse.Namespace) -> int:
     from planning.limits import rough_limiter
     from planning.rough import run_rough
-    from rig.cli.common import Progress, print_json, print_table, status
+    from rig.cli.common import print_json, print_lines, status
+    from rig.terminal import Progress
 
     with Progress("plan rough", "step") as bar:
 
@@ -85,39 +80,10 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print_json(res)
         return code
-    print(f"{res['part']}: {args.method} levels (seed 000 Table 1 columns), cusp model "
-          f"{res['cusp_model']}, program for {res['dialect']}")  # fmt: skip
-    print_table([{k: r[v] for k, v in LEVEL_COLUMNS.items()} for r in res["levels"]], ".2f")
-    print("\ntotals by method (same cusp limit and depth limit)")
-    print_table([{"method": m, **{k: v for k, v in t.items() if k != "heights_mm"}}
-                 for m, t in res["totals"].items()], ".2f")  # fmt: skip
-    print()
-    for k, v in res["comparison"].items():
-        print(f"{k}: {v} %")
-    if c is not None:
-        print(f"Z-map check ({c['spacing_mm']} mm grid, tolerance {c['tolerance_mm']} mm): max "
-              f"left {c['max_left_mm']} mm (cusp limit {c['cusp_limit_mm']} + tolerance), "
-              f"vertical {c['max_left_vertical_mm']} mm, gouge {c['max_gouge_mm']} mm (at most the "
-              f"tolerance), rapids into material {c['rapid_removed_mm3']} mm3: "
-              f"{'OK' if c['ok'] else 'FAILED'}")  # fmt: skip
-    lim = res["limits"]
-    if lim is not None and lim.get("before"):
-        from rig.cli.plan_check import print_violations
+    from planning.limits.text import rough_limit_lines, verdict_lines
+    from planning.rough.text import rough_lines
 
-        b, af = lim["before"], lim["after"]
-        print(f"limits: {b['violations']} violations before, {af['violations']} after; levels "
-              f"{b['levels']} -> {af['levels']}, cutting path {b['cutting_path_mm']} -> "
-              f"{af['cutting_path_mm']} mm, time {b['time_s']} -> {af['time_s']} s "
-              f"(+{lim['time_lost_s']} s)")  # fmt: skip
-        for sp in lim["levels_split"]:
-            print(f"  split level z = {sp['z_mm']} mm ({sp['height_mm']} mm deep) in "
-                  f"{sp['parts']}")  # fmt: skip
-        if lim["feeds_lowered"]:
-            print(f"  lowered the feed of {len(lim['feeds_lowered'])} blocks")
-        print_violations(res["violations"])
-    from rig.cli.plan_check import print_verdict
-
-    print_verdict(res)
+    print_lines([*rough_lines(res, args.method), *rough_limit_lines(res), *verdict_lines(res)])
     for k, v in res["png"].items():
         print(f"{k}: {v}")
     return code

@@ -30,21 +30,10 @@ def _register_derive(rs: argparse._SubParsersAction) -> None:
     d.add_argument("runs", nargs="+", type=Path, help="HDF5 run files of the feed sweep")
     d.add_argument("-o", "--output", type=Path, required=True, help="rule file to write (TOML)")
     d.add_argument("--name", help="rule name (default: the output file's stem)")
-    d.add_argument(
-        "--base-feed",
-        type=positive("mm/min", 200_000),
-        help="mm/min; skip the detection and use this",
-    )
-    d.add_argument(
-        "--min-feed",
-        type=positive("mm/min", 200_000),
-        help="mm/min (default: 0.1 x base, seed 001)",
-    )
-    d.add_argument(
-        "--max-feed",
-        type=positive("mm/min", 200_000),
-        help="mm/min (default: 3.5 x base, seed 001)",
-    )
+    for name, text in (("--base-feed", "mm/min; skip the detection and use this"),
+                       ("--min-feed", "mm/min (default: 0.1 x base, seed 001)"),
+                       ("--max-feed", "mm/min (default: 3.5 x base, seed 001)")):  # fmt: skip
+        d.add_argument(name, type=positive("mm/min", 200_000), help=text)
     d.add_argument("--machine", help="machine config: min/max feeds are clamped to its limits")
     d.add_argument("--reference-load", type=positive("%"),
         help="%%, load of the base-feed cut (default: a slot at the runs' depth)")  # fmt: skip

@@ -48,34 +48,17 @@ def register_stability(psub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     import dataclasses
-    import math
 
-    import numpy as np
-
-    from analysis.errors import AnalysisError
     from analysis.stability import load_case, plot_lobes, stability_lobes
+    from analysis.stability.output import summary_line, write_lobes_csv
     from rig.cli.common import print_json, status
 
     case = load_case(args.config)
     if args.max_depth is not None:
         case = dataclasses.replace(case, depth_max_mm=args.max_depth)
     lobes = stability_lobes(case, args.method, args.steps)
-    finite = np.isfinite(lobes.depth_limit_mm)
-    steps = lobes.steps if lobes.steps is not None else np.zeros(finite.size, int)
-    rel = (lobes.convergence_rel if lobes.convergence_rel is not None
-           else np.full(finite.size, np.nan))  # fmt: skip
-    lines = ["spindle_rpm,depth_limit_mm,chatter_hz,kind,steps,convergence_pct"] + [
-        # repr: the shortest text that reads back as the same float (round-trip exact)
-        f"{float(n)!r},{float(a)!r},{float(f) if ok else math.nan!r},{k or 'stable'},"
-        f"{int(m) if m > 0 else ''},{float(r * 100)!r}"
-        for n, a, f, k, m, r, ok in zip(lobes.spindle_rpm, lobes.depth_limit_mm,
-                                        lobes.chatter_hz, lobes.kind, steps, rel, finite)
-    ]  # fmt: skip
-    try:
-        args.output.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    except OSError as exc:
-        raise AnalysisError(f"{args.output}: cannot write the lobes: {exc}") from None
-    status(f"analyze stability: wrote {args.output} ({finite.size} speeds)")
+    write_lobes_csv(lobes, args.output)
+    status(f"analyze stability: wrote {args.output} ({lobes.depth_limit_mm.size} speeds)")
     if args.plot:
         status(f"analyze stability: wrote {plot_lobes(lobes, args.plot, case.name, case)}")
     for w in lobes.warnings:
@@ -83,17 +66,5 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print_json({"config": str(args.config), "csv": str(args.output), **lobes.to_json()})
         return 0
-    rpm, mm = lobes.minimum()
-    conv = lobes.convergence()
-    if not conv["checked"]:
-        how = f", convergence unchecked ({conv['reason']})"
-    else:
-        how = (f", {lobes.steps_per_period}-{conv['max_steps']} steps per tooth period, "
-               f"converged within {conv['max_change_pct']:.2f} % (doubling check)")  # fmt: skip
-        if conv["unconverged_speeds"]:
-            how = (f", {conv['unconverged_speeds']} speeds NOT converged within 1 % at "
-                   f"{conv['max_steps']} steps")  # fmt: skip
-    low = f"lowest limit {mm:.4g} mm at {rpm:.0f} rpm" if finite.any() else "no limit found"
-    print(f"{case.name}: {lobes.method}{how}; {low}; {int(finite.sum())} of {finite.size} "
-          f"speeds limited below {lobes.depth_max_mm:.4g} mm")  # fmt: skip
+    print(summary_line(case.name, lobes))
     return 0

@@ -1,0 +1,56 @@
+"""What `cutlab campaign run` needs beyond its arguments: the dry run as text, ``--adaptive``
+applied to the campaign, and the heartbeat's note of the runs ended."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from collections.abc import Callable
+from pathlib import Path
+
+from analysis.errors import ConfigError
+from rig.campaign.config import Campaign
+from rig.campaign.dryrun import DryRun
+
+__all__ = ["dry_run_lines", "runs_done", "with_adaptive"]
+
+
+def dry_run_lines(d: DryRun) -> list[str]:
+    """The dry run's counts, the expected machine time, and each check (ok, PROBLEM, warning)."""
+    out = [
+        f"campaign {d.campaign}: {d.tests} tests, {d.programs_checked} programs checked, "
+        f"rig = {d.rig}",
+        f"expected machine time: {d.expected_machine_s / 60:.1f} min",
+    ]
+    for prefix, lines in (("ok", d.hardware), ("PROBLEM", d.problems), ("warning", d.warnings)):
+        out += [f"  {prefix}: {line}" for line in lines]
+    return out
+
+
+def with_adaptive(campaign: Campaign, mode: str) -> Campaign:
+    """The campaign with ``[adaptive] mode`` set by ``--adaptive``; refused (one line) without
+    an ``[adaptive]`` table (its target and limits are the config's) or without GRBL."""
+    from rig.adaptive.session import check_adaptive
+
+    a = campaign.spec.adaptive
+    if a is None:
+        raise ConfigError(
+            f"{campaign.path}: --adaptive {mode}: the campaign has no [adaptive] table; add one "
+            "with target_force_n (N) and max_force_n (N) (docs/configuration.md)"
+        )
+    spec = campaign.spec.model_copy(update={"adaptive": a.model_copy(update={"mode": mode})})
+    campaign = dataclasses.replace(campaign, spec=spec)
+    check_adaptive(campaign)
+    return campaign
+
+
+def runs_done(folder: Path, total: int) -> Callable[[], str]:
+    """``3 of 8 runs ended`` from the campaign's manifest (written atomically), for the progress
+    line on stderr."""
+
+    def note() -> str:
+        runs = json.loads((folder / "campaign.json").read_text()).get("runs", {})
+        ended = sum(1 for r in runs.values() if r.get("status") not in (None, "running"))
+        return f"{ended} of {total} runs ended"
+
+    return note
