@@ -164,6 +164,25 @@ def test_restart_preamble_restores_the_modal_state() -> None:
     assert any(t.startswith("G1 Z") and "F5" in t for t in pre)
 
 
+def test_restart_with_a_dynamic_tool_length_offset_goes_back_to_the_cut() -> None:
+    """G43.1 in force: the preamble sets the offset, then returns to where the block began (the
+    offset's own axis words once stood in for that position: X0 Y0 Z2 instead of X3 Y1 Z5)."""
+    text = "G21 G90 G17 G54\nG0 X1 Y1 Z5\nG43.1 Z2\nG0 X3\nG0 X4\nG1 Z-1 F100\n"
+    from analysis.config import load_machine
+
+    grbl = load_machine("lab-grbl")
+    prog = program_from_text(text, "tlo.nc", check_nc=False)
+    pre = restart_blocks(prog, 4, "grbl", grbl, plunge_feed_mm_min=100)  # at "G0 X4"
+    assert "G43.1 Z2" in pre and "X3 Y1" in pre, pre
+    resumed = "\n".join(pre + text.splitlines()[4:])
+    full, part = interpret(text, grbl), interpret(resumed, grbl)
+    np.testing.assert_allclose(part.end[-2:], full.end[-2:], atol=1e-9)
+    a = state_at_block(resumed, len(resumed.splitlines()), grbl)
+    b = state_at_block(text, len(text.splitlines()), grbl)
+    np.testing.assert_allclose(a.position_mm, b.position_mm, atol=1e-9)
+    assert a.tool_length_offset_mm == b.tool_length_offset_mm
+
+
 def test_restart_completes_canned_cycles_and_refuses_ended_programs() -> None:
     from rig.dnc import restart_plan
 

@@ -78,9 +78,9 @@ def restart_preamble(
     out.append("M8" if state.coolant else "M9")
     length = f" G43 H{state.tool_length_h}" if state.tool_length == 43 else ""
     if state.tool_length == 431:  # its own block: G43.1 takes the axis words
-        x, y, z = state.tool_length_offset_mm
-        xy = "".join(f"{c}{fmt(o * scale)} " for c, o in (("X", x), ("Y", y)) if o)
-        out.append(f"G43.1 {xy}Z{fmt(z * scale)}")
+        tx, ty, tz = state.tool_length_offset_mm  # (not x, y, z: the restart position)
+        xy = "".join(f"{c}{fmt(o * scale)} " for c, o in (("X", tx), ("Y", ty)) if o)
+        out.append(f"G43.1 {xy}Z{fmt(tz * scale)}")
     out.append(f"G90 G0{length} Z{fmt(safe * scale)}")
     if state.rotary_named:  # turn the rotary axes at the safe height, before X Y
         out.append(
