@@ -35,8 +35,9 @@ def test_check_flags_the_deep_hss_slot(tmp_path: Path, capsys) -> None:
     out = json.loads(so)
     assert out["verdict"] == "violations"
     slot = [v for v in out["violations"] if v["block"] == 4]
-    assert {v["limit"] for v in slot} == {"deflection"}
-    v = slot[0]
+    # the slot chatters too: 37.8 mm against the phi20-flat's few-mm lobes (its catalogue modes)
+    assert {v["limit"] for v in slot} == {"deflection", "stability"}
+    v = next(v for v in slot if v["limit"] == "deflection")
     # a full slot of 37.8 mm: about 4.0 kN sideways on a 9383 N/mm stick-out (3 E I / L^3,
     # HSS 210 GPa, d_e 16 mm, L 60 mm) -> about 0.43 mm against the 0.1 mm allowed
     assert v["allowed"] == 0.1 and 0.35 < v["value"] < 0.5 and v["margin_pct"] < -200

@@ -40,6 +40,7 @@ from pathlib import Path
 from typing import Any
 
 from analysis import __version__
+from analysis.config import ToolMode
 from analysis.errors import ConfigError
 from analysis.forces import FACEMILL
 from analysis.runs import file as rf
@@ -421,7 +422,7 @@ def _run_one(
 
 def tap_records(campaign: Campaign, folder: Path) -> dict[str, Path]:
     """The tool's tap-test records per direction in ``folder/tap/`` ([tap_test]; none without
-    one): the simulated rig taps the twin's tool modes (:func:`rig.sim.tap.tap_test_record`), a
+    one): the simulated rig taps the twin's tool modes (:func:`twin_tool_modes`), a
     real rig's records (``files``, beside the campaign file) are copied in. A record already
     there is kept (a resume does not tap again)."""
     import shutil
@@ -446,10 +447,19 @@ def tap_records(campaign: Campaign, folder: Path) -> dict[str, Path]:
         from rig.sim import tap_test_record
 
         sim = campaign.spec.sim
-        modes = sim.tool_modes if sim.tool_modes is not None else campaign.tool.modes
-        tap_test_record(tuple(modes), axis, dest, tap.response, tap.rate_hz, tap.hits,
-                        tap.noise, sim.seed + (axis == "y"))  # fmt: skip
+        tap_test_record(twin_tool_modes(campaign), axis, dest, tap.response, tap.rate_hz,
+                        tap.hits, tap.noise, sim.seed + (axis == "y"))  # fmt: skip
     return out
+
+
+def twin_tool_modes(campaign: Campaign) -> tuple[ToolMode, ...]:
+    """The simulated rig's true tool modes in ``campaign``: its ``[[sim.tool_modes]]``, else the
+    twin's own structure for the tool (:func:`rig.sim.structure.twin_modes`); never the
+    catalogue's modes, which are a measurement of them."""
+    from rig.sim.structure import twin_modes
+
+    sim = campaign.spec.sim
+    return tuple(sim.tool_modes) if sim.tool_modes is not None else twin_modes(campaign.tool)
 
 
 def _changed_message(campaign: Campaign, folder: Path, changes: list[str]) -> str:

@@ -105,7 +105,8 @@ class SimSection(Model):
     )
     sim_fault_run: int = Field(0, ge=0, description="index of the run the sim_ faults hit")
     tool_modes: tuple[ToolMode, ...] | None = Field(
-        None, description="the tool's modes for the regenerative twin (default: the tool's)"
+        None, description="the tool's modes for the regenerative twin (default: the twin's "
+        "own structure for the tool, rig/sim/structure.toml)",
     )
     tool_max_chip_mm: float | None = Field(
         None, gt=0, le=2, description="mm, the fitted edge's max_chip_mm (default: the tool's)"
@@ -122,7 +123,7 @@ class SimSection(Model):
         if old:
             raise ValueError(
                 f"{old[0]} is no longer a setting: the simulated rig chatters where the tool's "
-                "modes make the cut unstable ([[tools.NAME.modes]] or [[sim.tool_modes]]: axis, "
+                "modes make the cut unstable (rig/sim/structure.toml or [[sim.tool_modes]]: axis, "
                 "f_hz, zeta, k_N_m) and the feed limit is the tool's max_chip_mm"
             )
         return data

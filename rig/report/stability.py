@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import AnalysisError
+from rig.campaign.runner import twin_tool_modes
 from rig.report.base import LoadedRun, Section, md_table
 
 if TYPE_CHECKING:
@@ -175,8 +176,7 @@ def stability_sweep_section(
     method = campaign.spec.analysis.stability_method
     lobes = stability_lobes(_case(campaign, runs, measured, rpm), method)
     true_lobes = None
-    sim = campaign.spec.sim
-    true_modes = sim.tool_modes if sim.tool_modes is not None else campaign.tool.modes
+    true_modes = twin_tool_modes(campaign)  # the twin's truth, not the catalogue's measurement
     if campaign.spec.campaign.rig == "sim" and true_modes:
         truth = [(m.axis, m.f_hz, m.zeta, m.k_N_m) for m in true_modes]
         true_lobes = stability_lobes(_case(campaign, runs, truth, rpm), method)
