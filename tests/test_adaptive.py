@@ -364,3 +364,43 @@ def test_dnc_send_loop_zeroes_judges_and_sends(tmp_path) -> None:
         assert daq.wait(5.0)  # stopped by the loop's exit
     finally:
         ctl.stop()
+
+
+def test_twin_stock_split_by_an_override_cuts_no_false_dip() -> None:
+    """A GRBL override splits the running line where the tool is (the timeline ends the first
+    part there): the Z-map stock must not be cut to the tool's whole envelope at the split, or
+    the teeth meet stock already gone in front of them (a false dip after every override). The
+    revolution after a split at the same feed cuts what the unsplit line does."""
+    from analysis.config import EndMill, get_material, load_rig
+    from planning.stock import SteppedBlock
+    from rig.sim._machine_timeline import ExecutedSegment
+    from rig.sim.machine import SignalSettings, SimMachine, ZMapStock
+
+    ball = EndMill(kind="ball", diameter_mm=30, corner_radius_mm=15, flute_length_mm=30,
+                   flutes=2, helix_deg=0)  # fmt: skip
+    rpm, feed, depth = 2000.0, 1000.0, 0.4
+    quiet = SignalSettings(noise_n=0.0, drift_n_s=0.0, hum_n=0.0, modes=False)
+    rev_s = 60.0 / rpm
+    t_split = 30.0 / (feed / 60.0)  # 30 mm into the line
+
+    def rev_mean(split: bool) -> float:
+        stock = ZMapStock(SteppedBlock(-30, 30, (0.0, 100.0), (0.0,)).to_zmap(ball), ball)
+        m = SimMachine(ball, get_material("gm241"), load_rig().dynamometer, stock,
+                       10_000.0, quiet)  # fmt: skip
+        a, b = (-20.0, 0.0, -depth), (120.0, 0.0, -depth)
+        m.on_segment(ExecutedSegment(0.0, 140.0 / (feed / 60.0), a, b, rpm, 0, feed_mm_min=feed))
+        t = np.arange(0.0, t_split - 0.01, 0.01)
+        for t0 in t:  # the run's reads up to the split
+            m.cutting_force(t0 + np.arange(100) / 10_000.0)
+        if split:  # as SimGrbl._replan: the same line goes on from the tool's place
+            x = a[0] + (feed / 60.0) * t_split
+            m.on_segment(ExecutedSegment(t_split, 140.0 / (feed / 60.0), (x, 0.0, -depth), b,
+                                         rpm, 0, feed_mm_min=feed))  # fmt: skip
+        tt = t[-1] + 0.01 + np.arange(int(round(2 * rev_s * 10_000))) / 10_000.0
+        f = m.cutting_force(tt)
+        late = tt >= t_split + 1e-3
+        return float(np.linalg.norm(f[late][: int(rev_s * 10_000)], axis=1).mean())
+
+    whole, split = rev_mean(False), rev_mean(True)
+    assert whole > 50.0
+    assert split == pytest.approx(whole, rel=0.01)
