@@ -232,3 +232,19 @@ def test_chatter_moves_the_spindle_to_a_pocket_and_clears(tmp_path: Path) -> Non
 
     assert not judged(loop, 4675.0)
     assert judged(base, 5500.0)
+
+    # the physics (rig.report.adaptive_figures.chatter_decay): the force's part off the spindle
+    # harmonics per revolution after the move, below the detector's energy threshold (0.1) for
+    # 20 revolutions from the 2nd-4th revolution on 5 runs (the live watch 21 each); bound: the
+    # highest plus the spread. The baseline, judged the same from the same time, never clears.
+    from rig.report.adaptive import adaptive_entries
+    from rig.report.adaptive_figures import chatter_decay
+    from rig.report.base import load_runs
+
+    c = load_campaign(p)
+    runs, _ = load_runs(res.folder)
+    (e,), _ = adaptive_entries(c, runs)
+    assert e["chatter_cleared_revs"] is not None and 0 <= e["chatter_cleared_revs"] <= 6
+    assert 20 <= e["chatter_cleared_live_revs"] <= 30
+    t_bytes = float(re.search(r"at ([0-9.]+) s;", next(m for t, m in ev if t == t_move)).group(1))
+    assert chatter_decay(base, t_bytes, 5500.0)["cleared_revs"] is None
