@@ -108,13 +108,16 @@ def chatter_decay(
     each harmonic, back to time), its energy over each revolution's AC energy. ``cleared_revs``:
     the revolutions from the move to the first one from which the share stays below
     ``threshold`` (the detector's ``energy_ratio``) for ``HOLD_REVS`` revolutions (or to the
-    end of the steady cut); None when it never does. Also ``shares`` and the residual's RMS N per revolution."""
+    end of the steady cut); None when it never does. Also ``shares`` and the residual's RMS N
+    per revolution."""
+    out: dict[str, Any] = {"cleared_revs": None, "shares": [], "rms_n": [], "revolutions": 0}
+    if run.force_n is None:  # no calibration: no force to judge
+        return out
     x = np.asarray(run.force_n[:, :2], float)
     rate = float(run.rate_hz)
     spr = rate * 60.0 / abs(rpm)
     i0 = int(np.searchsorted(run.time_s, t_move_s))
     n_rev = int((len(x) - i0) // spr)
-    out: dict[str, Any] = {"cleared_revs": None, "shares": [], "rms_n": [], "revolutions": 0}
     if n_rev < 3 + EDGE_REVS:
         return out
     edges = i0 + np.round(np.arange(n_rev + 1) * spr).astype(np.int64)
@@ -140,6 +143,7 @@ def chatter_decay(
     below = shares < threshold
     hold = min(HOLD_REVS, int(end))
     cleared = next((k for k in range(int(end) - hold + 1) if below[k : k + hold].all()), None)
-    out.update(shares=shares.tolist(), revolutions=int(end),
-               rms_n=np.sqrt(e_res / np.diff(edges[: end + 1])).tolist(), cleared_revs=cleared)
+    rms_n = np.sqrt(e_res / np.diff(edges[: end + 1]))
+    out.update(shares=shares.tolist(), revolutions=int(end), rms_n=rms_n.tolist(),
+               cleared_revs=cleared)  # fmt: skip
     return out
