@@ -148,7 +148,8 @@ class ZMapStock:
 
 def _continues(a: ExecutedSegment, b: ExecutedSegment) -> bool:
     """``b`` goes on with the straight feed move ``a`` without a stop: the same block's line
-    from where and when ``a`` ended, in the same direction."""
+    from where and when ``a`` ended, in the same direction (a part of no length and no time
+    between them, several override bytes taken at once, is no stop)."""
     from planning.nc import LINE
 
     if a.kind != LINE or b.kind != LINE or a.block != b.block:
@@ -158,6 +159,8 @@ def _continues(a: ExecutedSegment, b: ExecutedSegment) -> bool:
     da = np.subtract(a.end_mm, a.start_mm)
     db = np.subtract(b.end_mm, b.start_mm)
     na, nb = float(np.linalg.norm(da)), float(np.linalg.norm(db))
+    if (na == 0 and a.t_end_s - a.t_start_s < 1e-12) or (nb == 0 and b.t_end_s == b.t_start_s):
+        return True
     return na > 0 and nb > 0 and float(np.dot(da, db)) / (na * nb) > 1 - 1e-9
 
 
