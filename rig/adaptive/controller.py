@@ -157,9 +157,8 @@ class AdaptiveController:
         self._chatter: ChatterWatch | None = None  # the live chatter watch at today's speed
         self._verdict: Any = None  # its latest verdict already seen
         self._settle = 0
-        self._applied_at_s = -math.inf  # when the last change reaches the motion (run clock)
-        self._new_speed_at_s = -math.inf  # ... the last spindle move
-        self._pct_was = 100  # the feed % before the last change
+        # when the last change (spindle move) reaches the motion, run-clock s; the feed % before
+        self._applied_at_s, self._new_speed_at_s, self._pct_was = -math.inf, -math.inf, 100
         self._last_block_t = math.nan
         self._armed = False
         self._stop = threading.Event()
@@ -299,8 +298,7 @@ class AdaptiveController:
             self._saturated_now = False
             # the override this revolution was cut at: the last change's once GRBL ran it
             pct_ran = self.feed_pct if t_s - self.rev_s >= self._applied_at_s else self._pct_was
-            if self._settle > 0 or t_s - self.rev_s < self._applied_at_s:
-                # not judged: the settle revolutions, and any begun before GRBL ran the change
+            if self._settle > 0 or t_s - self.rev_s < self._applied_at_s:  # or GRBL not at it
                 self._settle = max(0, self._settle - 1)
             elif s.mode in ("feed", "both"):
                 self._feed_step(t_s, force_n, wall0)
