@@ -70,12 +70,13 @@ def test_dnc_send_adaptive_on_the_twin(tmp_path: Path) -> None:
     assert sess.controller.feed_ovr == 100 and ctl.feed_pct == 100
     # the force the loop held is the dynamometer's (the two steps at 0.4 and 0.7 mm make 153 and
     # 235 N at 100 %): its cutting revolutions within +-10 % of the target, entry, step and exit
-    # included, measured 0.757, 0.798 and 0.808 of 103-104 on three runs (a busy host: the send
-    # paces in wall time; bound: the lowest minus the spread); the 0.7 mm step held near 39 %
+    # included, measured 0.667 and 0.680 of 103 on two runs with GRBL's 40-50 ms from byte to
+    # motion (0.757-0.808 when the simulated GRBL applied overrides at once; a busy host: the
+    # send paces in wall time; bound: the lowest minus the spread); the 0.7 mm step near 39 %
     cut = [r for r in ctl.trace if r.state == "cutting"]
     f = np.array([r.force_n for r in cut])
     share = float(np.mean(np.abs(f / TARGET_N - 1) <= 0.10))
-    assert share >= 0.70, (share, f.round(0).tolist())
+    assert share >= 0.65, (share, f.round(0).tolist())
     assert min(r.feed_pct for r in cut) <= 45
 
 
