@@ -160,21 +160,23 @@ def test_saturation_is_reported_and_timed() -> None:
         ctl.push_forces(t[0], _rev(f, rng))
     ctl.close()
     sat = [r.saturated for r in ctl.trace]
-    # 100 -> 150 (after the 1st revolution) -> 200 % (after the 3rd, the 2nd settling): from
-    # the 4th revolution on, every one of the edge step is cut at 200 % and saturated
-    assert not any(sat[:3]) and all(sat[3:40]) and not any(sat[40:])
+    # 100 -> 150 % after the 1st revolution; GRBL runs it 50 ms (1.7 revolutions) later
+    # (grbl_codes.APPLY_DELAY_S), so the 2nd and 3rd are not judged; 200 % after the 4th, run
+    # from within the 5th: from the 7th revolution on, every one of the edge step is cut at
+    # 200 % and saturated (the 5th and 6th began at 150 %)
+    assert not any(sat[:6]) and all(sat[6:40]) and not any(sat[40:])
     (span,) = ctl.saturated_spans
-    assert span[2] == 37
-    assert span[1] - span[0] == pytest.approx(37 * 60 / RPM, abs=1e-9)
+    assert span[2] == 34
+    assert span[1] - span[0] == pytest.approx(34 * 60 / RPM, abs=1e-9)
     m = ctl.summary()
-    assert m["saturated_revolutions"] == 37
-    assert m["saturated_s"] == pytest.approx(37 * 60 / RPM)
+    assert m["saturated_revolutions"] == 34
+    assert m["saturated_s"] == pytest.approx(34 * 60 / RPM)
     notes = [x for _, x, _ in ctl.writer.events]
     assert sum("saturated: feed at the 200 % limit" in x for x in notes) == 1
-    assert sum("saturation ended: 37 revolutions at the limit" in x for x in notes) == 1
+    assert sum("saturation ended: 34 revolutions at the limit" in x for x in notes) == 1
     # a target out of reach below: 10 % cannot bring 800 N to 500 N when the load is the edge's
     ctl2, g2, t2 = _controller(slew_down_pct=90)
-    _run(ctl2, g2, t2, lambda i: 800.0 / g2.feed, 20, rng)
+    _run(ctl2, g2, t2, lambda i: 800.0 / g2.feed, 25, rng)  # 100 -> 10 % in two changes
     assert g2.feed == 10 and ctl2.trace[-1].saturated
     ctl2.close()
     assert ctl2.summary()["saturated_revolutions"] >= 10
@@ -299,7 +301,9 @@ def test_chatter_moves_the_spindle_to_the_nearest_pocket() -> None:
     _chatter_run(ctl, g, t, 1, rng)  # ... the next, 0.1 s of samples later, confirms
     assert g.spindle == 85 and g.held == 0  # 1700 rpm, the nearest pocket's peak
     assert g.feed == 100  # spindle mode leaves the feed alone
-    _chatter_run(ctl, g, t, 25, rng)
+    # the new window starts once GRBL turns at the new speed (grbl_codes.APPLY_DELAY_S, 1.7
+    # revolutions), then 20 revolutions and a verdict
+    _chatter_run(ctl, g, t, 28, rng)
     assert ctl.chatter_cleared_s is not None and g.held == 0
 
 
@@ -364,3 +368,45 @@ def test_dnc_send_loop_zeroes_judges_and_sends(tmp_path) -> None:
         assert daq.wait(5.0)  # stopped by the loop's exit
     finally:
         ctl.stop()
+
+
+def test_twin_stock_split_by_an_override_cuts_no_false_dip() -> None:
+    """A GRBL override splits the running line where the tool is (the timeline ends the first
+    part there): the Z-map stock must not be cut to the tool's whole envelope at the split, or
+    the teeth meet stock already gone in front of them (a false dip after every override). The
+    revolution after a split at the same feed cuts what the unsplit line does."""
+    from analysis.config import EndMill, get_material, load_rig
+    from planning.stock import SteppedBlock
+    from rig.sim._machine_timeline import ExecutedSegment
+    from rig.sim.machine import SignalSettings, SimMachine, ZMapStock
+
+    ball = EndMill(kind="ball", diameter_mm=30, corner_radius_mm=15, flute_length_mm=30,
+                   flutes=2, helix_deg=0)  # fmt: skip
+    rpm, feed, depth = 2000.0, 1000.0, 0.4
+    quiet = SignalSettings(noise_n=0.0, drift_n_s=0.0, hum_n=0.0, modes=False)
+    rev_s = 60.0 / rpm
+    t_split = 30.0 / (feed / 60.0)  # 30 mm into the line
+
+    def rev_mean(split: bool) -> float:
+        stock = ZMapStock(SteppedBlock(-30, 30, (0.0, 100.0), (0.0,)).to_zmap(ball), ball)
+        m = SimMachine(ball, get_material("gm241"), load_rig().dynamometer, stock,
+                       10_000.0, quiet)  # fmt: skip
+        a, b = (-20.0, 0.0, -depth), (120.0, 0.0, -depth)
+        m.on_segment(ExecutedSegment(0.0, 140.0 / (feed / 60.0), a, b, rpm, 0, feed_mm_min=feed))
+        t = np.arange(0.0, t_split - 0.01, 0.01)
+        for t0 in t:  # the run's reads up to the split
+            m.cutting_force(t0 + np.arange(100) / 10_000.0)
+        if split:  # as SimGrbl._replan: the same line goes on from the tool's place, here
+            # three times at once (three override bytes taken together: two parts of no length)
+            x = a[0] + (feed / 60.0) * t_split
+            for _ in range(3):
+                m.on_segment(ExecutedSegment(t_split, 140.0 / (feed / 60.0), (x, 0.0, -depth), b,
+                                             rpm, 0, feed_mm_min=feed))  # fmt: skip
+        tt = t[-1] + 0.01 + np.arange(int(round(2 * rev_s * 10_000))) / 10_000.0
+        f = m.cutting_force(tt)
+        late = tt >= t_split + 1e-3
+        return float(np.linalg.norm(f[late][: int(rev_s * 10_000)], axis=1).mean())
+
+    whole, split = rev_mean(False), rev_mean(True)
+    assert whole > 50.0
+    assert split == pytest.approx(whole, rel=0.01)

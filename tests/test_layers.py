@@ -355,7 +355,7 @@ MODULES_OVER: dict[str, int] = {
     "rig/adaptive/controller.py": 560,
     "rig/sim/_controller.py": 536,
     "rig/sim/facemill_independent.py": 541,
-    "rig/sim/grbl.py": 767,  # +35 for the ok record (ok_times_s), not yet split
+    "rig/sim/grbl.py": 806,  # +35 ok record (ok_times_s), +39 the override delay; to split
     # branch sizes (issue 30 item 5) did not get to these yet
     "rig/log/writer.py": 714,
     "analysis/runs/file.py": 869,

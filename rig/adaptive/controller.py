@@ -45,7 +45,7 @@ import numpy as np
 
 from analysis.chatter import ChatterWatch
 from analysis.runs import file as rf
-from rig.adaptive.grbl_codes import MAX_PCT, MIN_PCT
+from rig.adaptive.grbl_codes import APPLY_DELAY_S, MAX_PCT, MIN_PCT
 from rig.adaptive.grbl_codes import feed_codes as _feed_codes
 from rig.adaptive.grbl_codes import spindle_codes as _spindle_codes
 from rig.adaptive.pockets import nearest_pocket_rpm
@@ -157,6 +157,8 @@ class AdaptiveController:
         self._chatter: ChatterWatch | None = None  # the live chatter watch at today's speed
         self._verdict: Any = None  # its latest verdict already seen
         self._settle = 0
+        # when the last change (spindle move) reaches the motion, run-clock s; the feed % before
+        self._applied_at_s, self._new_speed_at_s, self._pct_was = -math.inf, -math.inf, 100
         self._last_block_t = math.nan
         self._armed = False
         self._stop = threading.Event()
@@ -294,9 +296,10 @@ class AdaptiveController:
                 self._note(t_s, f"cut started: {force_n:.0f} N")
             self.state = "cutting"
             self._saturated_now = False
-            pct_ran = self.feed_pct  # the override this revolution was cut at
-            if self._settle > 0:
-                self._settle -= 1
+            # the override this revolution was cut at: the last change's once GRBL ran it
+            pct_ran = self.feed_pct if t_s - self.rev_s >= self._applied_at_s else self._pct_was
+            if self._settle > 0 or t_s - self.rev_s < self._applied_at_s:  # or GRBL not at it
+                self._settle = max(0, self._settle - 1)
             elif s.mode in ("feed", "both"):
                 self._feed_step(t_s, force_n, wall0)
             if s.mode in ("feed", "both"):
@@ -321,8 +324,10 @@ class AdaptiveController:
             return
         why = (f"force {force_n:.0f} N, target {s.target_force_n:.0f} N: feed "
                f"{self.feed_pct} -> {new} %")  # fmt: skip
+        self._pct_was = self.feed_pct
         self._send(t_s, "feed", new, why, wall0)
         self._settle = s.settle_revs
+        self._applied_at_s = t_s + APPLY_DELAY_S
 
     def _track_saturation(self, t_s: float, force_n: float, pct_ran: int) -> None:
         """The revolution ending at ``t_s`` was cut at ``pct_ran`` %: saturated when that is a
@@ -359,6 +364,8 @@ class AdaptiveController:
         """The block's forces into the live chatter watch (at the speed cut now); True when it
         acted on a confirmed chatter."""
         s = self.s
+        if t_s - (len(force_n) - 1) / self.rate_hz < self._new_speed_at_s:
+            return False  # the old speed's samples are another process: not in the new window
         if self._chatter is None:
             rpm_now, st = self.rpm * self.spindle_pct / 100.0, self.chatter_settings
             self._chatter = ChatterWatch(self.channels, self.rate_hz, rpm_now, s.air_force_n, st,
@@ -383,8 +390,9 @@ class AdaptiveController:
                 pct = int(round(100.0 * pocket / self.rpm))
                 self._send(t_s, "spindle", pct, f"{what}: spindle to the stable pocket "
                            f"{pocket:.0f} rpm ({pct} %)", wall0)  # fmt: skip
-                self._chatter = None  # judge the new speed afresh
+                self._chatter = None  # judge the new speed afresh, once GRBL turns at it
                 self._settle = s.settle_revs
+                self._applied_at_s = self._new_speed_at_s = t_s + APPLY_DELAY_S
                 return True
             if pocket is not None:
                 what += f": still at the pocket {pocket:.0f} rpm"

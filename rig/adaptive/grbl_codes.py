@@ -8,6 +8,12 @@ import functools
 
 #: GRBL 1.1 override limits (config.h: MIN/MAX_FEED_RATE_OVERRIDE, ..._SPINDLE_...), %
 MIN_PCT, MAX_PCT = 10, 200
+#: s from an override byte to the motion running at it: GRBL 1.1h applies a change to the step
+#: segments prepared after it (planner.c plan_cycle_reinitialize; the spindle's PWM with
+#: STEP_CONTROL_UPDATE_SPINDLE_PWM), behind the ring's segments already prepared (stepper.c:
+#: SEGMENT_BUFFER_SIZE 6, the running one and 4 more, DT_SEGMENT 10 ms each): up to 50 ms, then
+#: its acceleration ramp ($120-$122) and, for the spindle, the drive's own
+APPLY_DELAY_S = 0.05
 
 
 def _apply(pct: int, code: int, plus10: int, plus1: int, reset: int) -> int:

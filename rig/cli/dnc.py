@@ -59,7 +59,7 @@ def _adaptive_loop(job, args: argparse.Namespace):  # noqa: ANN001, ANN202 - a S
     from rig.adaptive.send import SendLoop
 
     settings = AdaptiveSettings(mode=args.adaptive, target_force_n=args.target_force,
-                                max_force_n=args.max_force)  # fmt: skip
+                                max_force_n=args.max_force, stall_revs=args.stall_revs)  # fmt: skip
     return SendLoop(job, settings, args.spindle_rpm, rig=args.rig,
                     say=lambda m: status(f"dnc send: {m}"))  # fmt: skip
 
@@ -170,6 +170,9 @@ def _add_send(dsub: argparse._SubParsersAction) -> None:
                    help="--adaptive: resultant force that holds the feed, N")  # fmt: skip
     s.add_argument("--spindle-rpm", type=positive("rpm", 1e6),
                    help="--adaptive: the program's spindle speed, rpm")  # fmt: skip
+    s.add_argument("--stall-revs", type=positive("revolutions", 1e4), default=3.0,
+                   help="--adaptive: revolutions without a DAQ block, beyond one block, before "
+                   "the loop counts the force signal lost and holds (default 3)")  # fmt: skip
     rig_option(s, "--adaptive: the DAQ's rig TOML (default configs/rig.toml)")
     s.add_argument("--record", help="write the block record to this CSV file")
     s.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")

@@ -8,7 +8,7 @@ import math
 from typing import TYPE_CHECKING, Any
 
 from rig.adaptive.session import target_of, under_loop
-from rig.report.adaptive_figures import adaptive_events, cycle_time_s, within_band
+from rig.report.adaptive_figures import adaptive_events, chatter_decay, cycle_time_s, within_band
 
 if TYPE_CHECKING:
     from rig.campaign.config import Campaign
@@ -19,24 +19,30 @@ def _same_cut(a: Any, b: Any) -> bool:
     return all(ca.get(k) == cb.get(k) for k in ("spindle_rpm", "depth_mm", "width_mm"))
 
 
-def _chatter_cleared_revs(lr: Any) -> int | None:
-    """Revolutions, at the speed the loop moved the spindle to, from the controller's chatter
-    finding to its ``chatter cleared`` note (None: never cleared)."""
+def _chatter_cleared(lr: Any, threshold: float) -> dict[str, Any]:
+    """Revolutions at the speed the loop moved the spindle to, from the move (its bytes' write
+    time) to where the chatter is gone: ``physics`` from the force (:func:`chatter_decay`: the
+    first revolution after which the part off the spindle harmonics stays below the detector's
+    energy threshold), ``live`` to the controller's ``chatter cleared`` note (its live watch
+    needs a whole window at the new speed to say so). None: no move, or never cleared."""
     import re
 
-    found = cleared = None
+    move = cleared = None
     pct = 100.0
     for t, _, msg in adaptive_events(lr.run):
-        if "chatter at" in msg and found is None:
-            found = t
-            m = re.search(r"pocket \d+ rpm \((\d+) %\)", msg)
-            pct = float(m.group(1)) if m else pct
+        m = re.search(r"pocket \d+ rpm \((\d+) %\); bytes [0-9A-Fx ]+ at ([0-9.]+) s", msg)
+        if m and move is None:
+            pct, move = float(m.group(1)), float(m.group(2))
         if "chatter cleared" in msg and cleared is None:
             cleared = t
-    if found is None or cleared is None:
-        return None
+    out: dict[str, Any] = {"physics": None, "live": None}
+    if move is None:
+        return out
     rpm = abs(float(lr.conditions["spindle_rpm"])) * pct / 100.0
-    return int(round((cleared - found) * rpm / 60.0))
+    out["physics"] = chatter_decay(lr.run, move, rpm, threshold)["cleared_revs"]
+    if cleared is not None:
+        out["live"] = int(round((cleared - move) * rpm / 60.0))
+    return out
 
 
 def adaptive_entries(campaign: Campaign, runs: list[Any]) -> tuple[list[dict[str, Any]], str]:
@@ -90,7 +96,10 @@ def adaptive_entries(campaign: Campaign, runs: list[Any]) -> tuple[list[dict[str
         if not holds:
             e["within_reason"] = "the spindle mode holds no force target"
         if a.mode != "feed":
-            e["chatter_cleared_revs"] = _chatter_cleared_revs(lr)
+            # the force's own (physics), and the live watch's confirmation apart
+            cl = _chatter_cleared(lr, campaign.spec.chatter.settings().energy_ratio)
+            e["chatter_cleared_revs"] = cl["physics"]
+            e["chatter_cleared_live_revs"] = cl["live"]
         out.append(e)
 
     def num(v: Any, f: str) -> str:

@@ -85,3 +85,65 @@ def cycle_time_s(run: rf.Run) -> float:
 def adaptive_events(run: rf.Run) -> list[tuple[float, str, str]]:
     """(time s, kind, message) of the controller's events (message starts ``adaptive:``)."""
     return [(t, k, m) for k, m, t in _events(run) if m.startswith("adaptive:")]
+
+
+#: The post-move stretch ends where the cut leaves the block: the first revolution whose mean
+#: resultant falls below this share of the steady level (the median of the first 20 after the move).
+EXIT_LEVEL = 0.9
+#: Revolutions kept off the stretch's end: the whole-stretch spectrum's edge puts the cut-off
+#: ends' mismatch into the part off the harmonics (0.02 -> 0.08 over the last 3 on the twin).
+EDGE_REVS = 2
+#: Gone: below the threshold for this many revolutions in a row (the live watch's window), or to
+#: the stretch's end. The exit spreads the harmonics before the level falls (0.03 -> 0.26 over
+#: the last 4 revolutions on the twin), so "to the end of the cut" would count the exit.
+HOLD_REVS = 20
+
+
+def chatter_decay(
+    run: rf.Run, t_move_s: float, rpm: float, threshold: float = 0.1
+) -> dict[str, Any]:  # fmt: skip
+    """The chatter component per revolution after a spindle move at run-clock ``t_move_s`` to
+    ``rpm``: the force's part off the spindle harmonics (the detector's energy indicator: the
+    post-move steady stretch's spectrum with a band of max(0.05 f_sp, 3 bins) kept out around
+    each harmonic, back to time), its energy over each revolution's AC energy. ``cleared_revs``:
+    the revolutions from the move to the first one from which the share stays below
+    ``threshold`` (the detector's ``energy_ratio``) for ``HOLD_REVS`` revolutions (or to the
+    end of the steady cut); None when it never does. Also ``shares`` and the residual's RMS N
+    per revolution."""
+    out: dict[str, Any] = {"cleared_revs": None, "shares": [], "rms_n": [], "revolutions": 0}
+    if run.force_n is None:  # no calibration: no force to judge
+        return out
+    x = np.asarray(run.force_n[:, :2], float)
+    rate = float(run.rate_hz)
+    spr = rate * 60.0 / abs(rpm)
+    i0 = int(np.searchsorted(run.time_s, t_move_s))
+    n_rev = int((len(x) - i0) // spr)
+    if n_rev < 3 + EDGE_REVS:
+        return out
+    edges = i0 + np.round(np.arange(n_rev + 1) * spr).astype(np.int64)
+    res = np.hypot(x[:, 0], x[:, 1])
+    means = np.add.reduceat(res[edges[0] : edges[-1]], edges[:-1] - edges[0]) / np.diff(edges)
+    low = means < EXIT_LEVEL * float(np.median(means[:20]))
+    end = (int(np.argmax(low)) if low.any() else n_rev) - EDGE_REVS
+    if end < 3:
+        return out
+    seg = x[edges[0] : edges[end]] - x[edges[0] : edges[end]].mean(axis=0)
+    n = len(seg)
+    spec = np.fft.rfft(seg, axis=0)
+    f = np.fft.rfftfreq(n, 1.0 / rate)
+    f_sp = abs(rpm) / 60.0
+    half = max(0.05 * f_sp, 3.0 * rate / n)
+    on = (np.abs(f - np.round(f / f_sp) * f_sp) <= half) | (f > 0.3 * rate)
+    spec[on] = 0.0
+    resid = np.fft.irfft(spec, n, axis=0)
+    starts = edges[:end] - edges[0]
+    e_res = np.add.reduceat((resid**2).sum(axis=1), starts)
+    e_all = np.add.reduceat((seg**2).sum(axis=1), starts)
+    shares = e_res / np.where(e_all > 0, e_all, np.inf)
+    below = shares < threshold
+    hold = min(HOLD_REVS, int(end))
+    cleared = next((k for k in range(int(end) - hold + 1) if below[k : k + hold].all()), None)
+    rms_n = np.sqrt(e_res / np.diff(edges[: end + 1]))
+    out.update(shares=shares.tolist(), revolutions=int(end), rms_n=rms_n.tolist(),
+               cleared_revs=cleared)  # fmt: skip
+    return out

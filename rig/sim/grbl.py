@@ -18,11 +18,15 @@ Behaviour (GRBL 1.1h's source is the reference: ``grbl/serial.c``, ``protocol.c`
   feed hold, ``~`` cycle start, 0x18 soft reset, and the overrides (protocol_exec_rt_system):
   feed 0x90 100 %, 0x91/0x92 +-10 %, 0x93/0x94 +-1 % (10-200 %), rapid 0x95/0x96/0x97 100/50/25
   %, spindle 0x99 100 %, 0x9A/0x9B +-10 %, 0x9C/0x9D +-1 % (10-200 %). A change is reported in
-  the next status (``Ov:``) and applies from the byte's arrival: the segment running is split
-  there and goes on at the new speed, and every block planned runs at it (planner.c
-  plan_update_velocity_profile_parameters), a feed never above the rapid rate; the spindle
-  turns at the programmed speed x its override (``FS:`` reports it); a byte at a limit changes
-  nothing and is not reported; a reset restores 100 %. Each change is an ``override`` event.
+  the next status (``Ov:``) at once and moves the machine through the stepper's segment ring
+  (planner.c plan_update_velocity_profile_parameters and plan_cycle_reinitialize, stepper.c's
+  st_update_plan_block_parameters; the spindle's STEP_CONTROL_UPDATE_SPINDLE_PWM): while moving,
+  the 4 segments of DT_SEGMENT (10 ms) already prepared behind the running one run first, so it
+  applies at the 5th segment boundary of the sim clock after the byte (40-50 ms; idle or held,
+  at once). Then the segment running is split there and goes on at the new speed, and every
+  block planned runs at it, a feed never above the rapid rate; the spindle turns at the
+  programmed speed x its override (``FS:`` reports it); a byte at a limit changes nothing and
+  is not reported; a reset restores 100 %. Each change is an ``override`` event (at the byte).
 - A line is read out of the receive buffer only when the previous one is done, filtered as
   protocol.c does (spaces, comments, ``/`` dropped, upper case; more than 79 characters left:
   ``error:11``) and checked by :class:`planning.nc.grbl.GrblParser`, gcode.c's checks, so each
@@ -66,9 +70,10 @@ from 0 among the g-code lines received (``$`` lines not counted).
 Notes
 -----
 How it differs from GRBL: no acceleration planning (segments run at their programmed feed; a hold
-decelerates in a fixed time; an override changes the speed at once, where GRBL ramps to it at
-$120-$122, e.g. 300 mm/min in 10 ms at 500 mm/s^2); an override is applied when its byte arrives
-(GRBL's main loop takes it within a pass; a ``?`` in the same pass is reported first); the spindle
+decelerates in a fixed time; an override changes the speed at its segment boundary, where GRBL
+ramps to it at $120-$122, e.g. 300 mm/min in 10 ms at 500 mm/s^2); an override's byte is taken
+when it arrives (GRBL's main loop takes it within a pass; a ``?`` in the same pass is reported
+first); the segments are 10 ms each (GRBL's are shorter near a block's end); the spindle
 speed is not clamped to $30/$31; an arc runs as one segment while counting its ``mc_arc`` blocks
 in the planner; motion starts as soon as a block is planned (GRBL's auto cycle start waits for a
 full planner or an empty receive buffer); the line rate is emulated on the SimClock (a pty has
@@ -107,6 +112,13 @@ _SETTINGS = {0: 10, 1: 25, 2: 0, 3: 0, 4: 0, 5: 0, 6: 0, 10: 1, 11: 0.010, 12: 0
 _CRITICAL_ALARMS = (1, 2)  # hard and soft limit: protocol.c blocks until a reset
 # config.h: MIN/MAX_FEED_RATE_OVERRIDE, MIN/MAX_SPINDLE_SPEED_OVERRIDE, %
 FEED_OVR_MIN, FEED_OVR_MAX, SPINDLE_OVR_MIN, SPINDLE_OVR_MAX = 10, 200, 10, 200
+# stepper.c: a step segment is DT_SEGMENT = 1 / ACCELERATION_TICKS_PER_SECOND (100) of motion;
+# the segment ring (SEGMENT_BUFFER_SIZE 6) holds 5, the one running and 4 prepared ahead. An
+# override recomputes the plan (plan_cycle_reinitialize) and the spindle PWM (STEP_CONTROL_
+# UPDATE_SPINDLE_PWM) for the segments prepared from then on: what is already in the ring runs
+# at the old values first.
+DT_SEGMENT_S = 0.01
+SEGMENTS_AHEAD = 4
 
 
 @dataclass
@@ -186,7 +198,11 @@ class SimGrbl(SimControllerBase):
         self._wco_counter = 0
         self._ovr_counter = 0
         # main.c sets them to their defaults on every (re)start: a reset ends any override
-        self.feed_ovr = self.rapid_ovr = self.spindle_ovr = 100
+        self.feed_ovr = self.rapid_ovr = self.spindle_ovr = 100  # sys.*: reported at once
+        #: the overrides the motion runs at (the step segments prepared after a change), and
+        #: the changes still behind the segments already in the ring: (time s, feed, rapid, spindle)
+        self._run_ovr = (100, 100, 100)
+        self._ovr_due: deque[tuple[float, int, int, int]] = deque()
 
     def start(self) -> str:
         path = super().start()
@@ -592,17 +608,29 @@ class SimGrbl(SimControllerBase):
         now = max(t, self._advanced_t)  # never before what the executor has already run
         self._advance(now)
         self._ovr_counter = 0  # report the change at once
-        if (f, r) != (self.feed_ovr, self.rapid_ovr):
-            self.feed_ovr, self.rapid_ovr = f, r
-            self._replan(now)
-        if s != self.spindle_ovr:
-            self.spindle_ovr = s
-            rpm = self._spindle_prog * self._rpm_scale()
-            if rpm != self._spindle:
-                self._spindle = rpm
-                for fn in self._spindle_listeners:
-                    fn(now, rpm)
+        self.feed_ovr, self.rapid_ovr, self.spindle_ovr = f, r, s
         self._event("override", f"feed {f} %, rapid {r} %, spindle {s} %", now)
+        # moving, the segments already prepared run first: the change starts with the first
+        # segment prepared after it, SEGMENTS_AHEAD segment times after the running one ends
+        # (40-50 ms); idle or held, nothing is prepared and it applies at once
+        due = now
+        if self._moving() and not self.held and self._hold_stop_at is None:
+            due = (math.floor(now / DT_SEGMENT_S + 1e-9) + 1 + SEGMENTS_AHEAD) * DT_SEGMENT_S
+        self._ovr_due.append((max(due, self._ovr_due[-1][0] if self._ovr_due else due), f, r, s))
+        self._advance(now)
+
+    def _apply_override(self, now: float, f: int, r: int, s: int) -> None:
+        """The stepper reaches the segments prepared at the new values: the running segment is
+        split at ``now`` and goes on at them, the spindle turns at its new speed."""
+        f0, r0, _ = self._run_ovr
+        self._run_ovr = (f, r, s)
+        if (f, r) != (f0, r0):
+            self._replan(now)
+        rpm = self._spindle_prog * self._rpm_scale()
+        if rpm != self._spindle:
+            self._spindle = rpm
+            for fn in self._spindle_listeners:
+                fn(now, rpm)
 
     def _replan(self, now: float) -> None:
         """The running segment goes on from where it is at its new speed (a hold being carried
@@ -619,20 +647,21 @@ class SimGrbl(SimControllerBase):
 
     def _time_scale(self, b: _Planned, i: int) -> float:
         kind = int(b.motion.kind[i])
+        feed_ovr, rapid_ovr, _ = self._run_ovr
         if kind == DWELL:
             return 1.0
         if kind == RAPID:
-            return 100.0 / self.rapid_ovr
-        if self.feed_ovr == 100:
+            return 100.0 / rapid_ovr
+        if feed_ovr == 100:
             return 1.0
         v = self._programmed_mm_min(b, i)
         if v <= 0:
             return 1.0
         # the overridden feed stays below the rapid rate (block->rapid_rate)
-        return v / min(v * self.feed_ovr / 100.0, max(self.rapid_mm_min, v))
+        return v / min(v * feed_ovr / 100.0, max(self.rapid_mm_min, v))
 
     def _rpm_scale(self) -> float:
-        return self.spindle_ovr / 100.0
+        return self._run_ovr[2] / 100.0
 
     def _start_block(self, b: _Planned, t0: float) -> None:
         super()._start_block(b, t0)
@@ -640,8 +669,18 @@ class SimGrbl(SimControllerBase):
             self._spindle_prog = b.spindle_rpm
 
     def _advance(self, now: float) -> None:
+        while self._ovr_due and self._ovr_due[0][0] <= now:
+            t_due, f, r, s = self._ovr_due.popleft()
+            t_due = max(t_due, self._advanced_t)
+            super()._advance(t_due)
+            self._advanced_t = max(self._advanced_t, t_due)
+            self._apply_override(t_due, f, r, s)
         super()._advance(now)
         self._advanced_t = max(self._advanced_t, now)
+
+    def _next_wake(self, now: float) -> float:
+        t = super()._next_wake(now)
+        return max(min(t, self._ovr_due[0][0]), now) if self._ovr_due else t
 
     def _feed_hold_at(self, t: float) -> None:
         now = self.clock.now()

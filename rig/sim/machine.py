@@ -107,6 +107,7 @@ class ZMapStock:
         self.zmap = zmap
         self.cutter = Cutter.from_tool(tool)
         self._applied = 0
+        self._from_mm: tuple[float, float, float] | None = None  # a split line's first start
         self.removed_mm3: list[float] = []
 
     def top_z(self, x_mm: np.ndarray, y_mm: np.ndarray) -> np.ndarray:
@@ -117,8 +118,18 @@ class ZMapStock:
         segs = timeline.segments
         while self._applied < len(segs) and segs[self._applied].t_end_s <= t_s:
             g = segs[self._applied]
-            self.removed_mm3.append(self.zmap.cut(self.cutter, g.start_mm, g.end_mm))  # type: ignore[attr-defined]
+            nxt = segs[self._applied + 1] if self._applied + 1 < len(segs) else None
+            start = self._from_mm or g.start_mm
             self._applied += 1
+            if nxt is not None and _continues(g, nxt):
+                # a line split where it runs (a GRBL override): cutting the first part's whole
+                # envelope would take the stock in front of the tool (a false dip of about 20 %
+                # for a revolution); the line is cut once, whole, when its last part ends
+                self._from_mm = start
+                self.removed_mm3.append(0.0)
+                continue
+            self._from_mm = None
+            self.removed_mm3.append(self.zmap.cut(self.cutter, start, g.end_mm))  # type: ignore[attr-defined]
 
     def pending_ends_s(self, t_s: float, timeline: MotionTimeline) -> list[float]:
         """End times of the segments not yet cut that end by ``t_s``, s."""
@@ -133,6 +144,24 @@ class ZMapStock:
     @property
     def z_max_mm(self) -> float:
         return float(np.nanmax(self.zmap.heights_mm))  # type: ignore[attr-defined]
+
+
+def _continues(a: ExecutedSegment, b: ExecutedSegment) -> bool:
+    """``b`` goes on with the straight feed move ``a`` without a stop: the same block's line
+    from where and when ``a`` ended, in the same direction (a part of no length and no time
+    between them, several override bytes taken at once, is no stop)."""
+    from planning.nc import LINE
+
+    if a.kind != LINE or b.kind != LINE or a.block != b.block:
+        return False
+    if abs(b.t_start_s - a.t_end_s) > 1e-9 or not np.allclose(a.end_mm, b.start_mm, atol=1e-9):
+        return False
+    da = np.subtract(a.end_mm, a.start_mm)
+    db = np.subtract(b.end_mm, b.start_mm)
+    na, nb = float(np.linalg.norm(da)), float(np.linalg.norm(db))
+    if (na == 0 and a.t_end_s - a.t_start_s < 1e-12) or (nb == 0 and b.t_end_s == b.t_start_s):
+        return True
+    return na > 0 and nb > 0 and float(np.dot(da, db)) / (na * nb) > 1 - 1e-9
 
 
 def _rotate_xy(f: np.ndarray, beta: np.ndarray) -> np.ndarray:
