@@ -94,19 +94,23 @@ def test_feed_limit_leaves_no_violation(tmp_path: Path, capsys) -> None:
 
 
 @pytest.mark.slow
-def test_rough_seed000_deep_level_is_split_within_every_limit(tmp_path: Path, capsys) -> None:
+def test_rough_seed000_deep_level_is_split_and_chatter_it_cannot_cure_is_named(
+    tmp_path: Path, capsys
+) -> None:
     """The 37.8 mm level of seed 000 (HSS phi 20) breaks the deflection limit; --limit splits
-    it and the program is then within every limit, at a cost in path and time."""
+    it. With phi20-flat's modes the stable depth (0.28-0.57 mm) needs sub-levels under the
+    part's dh_mm = 0.5: those levels are named, not split into passes that still chatter."""
     args = ["plan", "rough", "seed000-bump", "--machine", "ace-h63", "--no-png", "--json",
             "-o", str(tmp_path / "b.nc"), "--limit"]  # fmt: skip
     rc, so, _ = cli(args, capsys)
     res = json.loads(so)
-    assert rc == 0 and res["violations"] == []
     lim = res["limits"]
     assert lim["before"]["violations"] > 0
     assert any(s["height_mm"] == pytest.approx(37.795) for s in lim["levels_split"])
+    assert {v["limit"] for v in res["violations"]} == {"stability"}  # deflection cured
+    assert lim["not_split"] and all(n["sub_level_mm"] < n["dh_mm"] for n in lim["not_split"])
+    assert res["verdict"] == "violations"
     assert lim["path_added_mm"] > 0 and lim["time_lost_s"] > 0
-    assert res["check"]["ok"]
 
 
 MODES = "".join(

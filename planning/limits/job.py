@@ -183,10 +183,11 @@ def _rough(
     before = totals(plan, motion, res)
     splits: list[JsonValue] = []
     lowered: list[JsonValue] = []
+    uncured: dict[float, JsonValue] = {}  # level z -> why splitting cannot cure its chatter
     if fix and res.violations:
         dh = part.config.rough.dh_mm
         for _ in range(ROUNDS):
-            need = _split_needs(res, _level_of_block(plan, part, motion), plan)
+            need = _split_needs(res, _level_of_block(plan, part, motion), plan, dh, uncured)
             for lv_i in sorted(need, reverse=True):  # from the end: indices stay valid
                 lv = plan.levels[lv_i]
                 parts = min(need[lv_i], max(1, int(lv.height_mm / dh)))  # sub-levels >= dh
@@ -206,32 +207,49 @@ def _rough(
     after = totals(plan, motion, res)
     report: JsonObject
     report = {**res.summary(), "before": dict(before), "after": dict(after), "levels_split": splits,
-              "feeds_lowered": lowered,
+              "feeds_lowered": lowered, "not_split": list(uncured.values()),
               "time_lost_s": round(after["time_s"] - before["time_s"], 2),
               "path_added_mm": round(after["cutting_path_mm"] - before["cutting_path_mm"], 2)}
     return plan, program, report
 
 
-def _split_needs(res: CheckResult, level_of: dict[int, int], plan: RoughPlan) -> dict[int, int]:
-    """Level index -> sub-levels it needs: a stability violation always splits; a force-type
-    one splits when that costs less time than the lower feed (k levels ~ k x the path, against
-    feed / cap x the time)."""
+def _split_needs(
+    res: CheckResult, level_of: dict[int, int], plan: RoughPlan, dh_mm: float,
+    uncured: dict[float, JsonValue],
+) -> dict[int, int]:  # fmt: skip
+    """Level index -> sub-levels it needs: a stability violation splits when sub-levels of at
+    least the part's ``dh_mm`` get under the limit (else the level is named in ``uncured``: more
+    passes that still chatter only multiply the path, and a lower feed does not cure chatter); a
+    force-type one splits when that costs less time than the lower feed (k levels ~ k x the
+    path, against feed / cap x the time)."""
     caps = res.block_caps()
     feeds = res.blocks.set_index("block")["feed_mm_min"]
     need: dict[int, int] = {}
     slow: dict[int, float] = {}
+    stab: dict[int, tuple[int, float]] = {}  # level -> (sub-levels, least stable depth mm)
     for v in res.violations:
         lv = level_of.get(v["block"])
         if lv is None or v["limit"] == "chip":  # a chip limit is the feed's alone
             continue
         k = math.ceil(v["value"] / v["allowed"] * SPLIT_SLACK)
         if v["limit"] == "stability":
-            need[lv] = max(need.get(lv, 1), k)
+            k0, a0 = stab.get(lv, (1, math.inf))
+            stab[lv] = (max(k0, k), min(a0, float(v["allowed"])))
             continue
         cap = caps.get(v["block"], math.inf)
         slow[lv] = max(slow.get(lv, 1.0), float(feeds[v["block"]]) / max(cap, 1e-9))
         if k < slow[lv]:
             need[lv] = max(need.get(lv, 1), k)
+    for lv, (k, allowed) in stab.items():
+        level = plan.levels[lv] if lv < len(plan.levels) else None
+        if level is None or level.height_mm / k >= dh_mm:
+            need[lv] = max(need.get(lv, 1), k)
+            continue
+        uncured[round(level.z_mm, 3)] = {
+            "z_mm": round(level.z_mm, 3), "height_mm": round(level.height_mm, 3),
+            "allowed_mm": round(allowed, 3), "sub_level_mm": round(level.height_mm / k, 3),
+            "dh_mm": dh_mm,
+        }  # fmt: skip
     return {lv: k for lv, k in need.items() if k >= 2 and lv < len(plan.levels)}
 
 

@@ -97,6 +97,15 @@ def rough_limit_lines(res_json: Mapping[str, object]) -> list[str]:
         lines.append(
             f"  split level z = {sp['z_mm']} mm ({sp['height_mm']} mm deep) in {sp['parts']}"
         )
+    if ns := lim.get("not_split"):
+        z = [n["z_mm"] for n in ns]
+        a = [n["allowed_mm"] for n in ns]
+        lines.append(
+            f"  not split for stability: {len(ns)} levels (z {min(z)}-{max(z)} mm): stable depth "
+            f"{min(a)}-{max(a)} mm needs sub-levels under the part's dh_mm {ns[0]['dh_mm']}, and "
+            "more passes that chatter do not cure it: another spindle speed, a stiffer tool or a "
+            "smaller dh_mm"
+        )
     if lim["feeds_lowered"]:
         lines.append(f"  lowered the feed of {len(lim['feeds_lowered'])} blocks")
     return lines + violation_lines(res["violations"])
