@@ -86,7 +86,9 @@ def test_a_lost_ok_is_held_and_stated_mid_stream(mask) -> None:
     oldest unanswered line, wholly arrived, out of GRBL's buffer (Bf) or already run (the
     machine Idle at its end, without Bf), report after report, gives it away mid-stream; feed
     hold, then a clean reset, and the fault says what ran."""
-    prog = short_moves(1100)
+    # 2000 lines (5 s of line): the loss is noticed 1.3-2.3 s after it, and with 1100 lines
+    # (2.75 s) the program had now and then been run out first (1 run in 4-6 on a quiet host)
+    prog = short_moves(2000)
     ctl = SimGrbl(clock=SimClock(1.0), status_report_mask=mask, sim_drop_ok_at_line=100)
     events: list = []
     ctl.add_listener(on_event=events.append)
