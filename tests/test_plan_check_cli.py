@@ -94,6 +94,7 @@ def test_feed_limit_leaves_no_violation(tmp_path: Path, capsys) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1200)  # the limit step re-checks 74 levels: 3-5 min of CPU
 def test_rough_seed000_deep_level_is_split_and_chatter_it_cannot_cure_is_named(
     tmp_path: Path, capsys
 ) -> None:
