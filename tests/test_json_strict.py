@@ -28,7 +28,15 @@ def _strict(text: str) -> object:
     return json.loads(text, parse_constant=refuse)
 
 
-@pytest.mark.parametrize("cmd", JSON_COMMANDS, ids=" ".join)
+# the whole-part commands take a minute or more each: in CI's command, not in a plain `pytest`
+_LONG = {("plan", "rough"), ("demo",), ("plan", "orient")}
+
+
+@pytest.mark.parametrize(
+    "cmd",
+    [pytest.param(c, marks=pytest.mark.long) if tuple(c) in _LONG else c for c in JSON_COMMANDS],
+    ids=" ".join,
+)
 def test_json_output_is_strict(cmd, inputs, capsys) -> None:
     if cmd in PORT_COMMANDS:
         code = with_port(cmd, inputs, ["--json"], main)

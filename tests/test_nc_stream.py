@@ -60,7 +60,9 @@ def test_chunks_concatenate_to_the_whole_motion(program, chunk) -> None:
 
 
 @pytest.mark.parametrize("machine", [None, "ace-h63", "lab-grbl", "mill-5axis"])
-@pytest.mark.parametrize("chunk", [1, 13, 500, 65536])
+# one block a chunk: a minute or two each on the generated program (in CI's command, not in a
+# plain `pytest`; 13 keeps small chunks in the quick tier)
+@pytest.mark.parametrize("chunk", [pytest.param(1, marks=pytest.mark.long), 13, 500, 65536])
 def test_stream_stats_equal_motion_stats(program, machine, chunk) -> None:
     cfg = load_machine(machine) if machine else None
     for path in program:
