@@ -8,7 +8,7 @@ in order on the rig, each through :func:`rig.campaign.run.execute_run`, and keep
     <output_dir>/<campaign name>/
         campaign.json           manifest: config hash, software version, every run's status
         campaign.toml           the campaign file as run
-        runs/NNN-<test name>.h5 one run file per test (layout: analysis.runs.file)
+        runs/NNN-<test name>.h5 one run file per test (layout: analysis.runs.layout)
         programs/NNN-<test name>.nc
         tap/tap_x.csv, tap_y.csv  the tool's impulse-hammer records ([tap_test]), before the cuts
         report/                 written by rig.report.base after the campaign

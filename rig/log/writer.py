@@ -27,7 +27,7 @@ sidecar (``.NAME.reason``) and the next read repairs the file with it. Either wa
 :attr:`RunWriter.failure` says why, for the run to end with that reason, and :meth:`stats` after
 the close counts the samples the file holds.
 
-The layout is documented in :mod:`analysis.runs.file` and written here only through its constants.
+The layout is documented in :mod:`analysis.runs.layout` and written here only through its constants.
 
 Other threads (the DNC streamer, the campaign runner) write through thread-safe methods that
 queue small records for the writer thread: :meth:`append_blocks`, :meth:`ack_blocks`,
