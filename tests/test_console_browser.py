@@ -188,6 +188,7 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
 
             page.wait("the executing block to change", blocks_seen, 60)
             readouts, zoom, drawn = _watch_the_machine(page)
+            _fits_its_window(page)  # live: the DRO's values, estimated, on the left column
             page.wait("run 2/2", lambda: page.text("run-progress") == "2/2", 60)
             page.wait("the cut of run 2", lambda: int(page.text("executing-block")) >= 3)
             assert page.text("machine-state") == "Run"
@@ -898,6 +899,7 @@ def _fits_its_window(page: Page) -> None:
     the controls) wrap inside the column instead of running under the right one. (A 780 px
     window once scrolled by 25 px: the DRO's row, 778 px on a 427 px column.)"""
     win = page.call("Browser.getWindowForTarget")["windowId"]
+    before = page.call("Browser.getWindowBounds", windowId=win)["bounds"]
     for width in (780, 1280, 1920):
         page.call("Browser.setWindowBounds", windowId=win, bounds={"width": width, "height": 900})
         t_end = time.monotonic() + 10  # the plot takes the new width on the resize event
@@ -910,6 +912,8 @@ def _fits_its_window(page: Page) -> None:
         assert fits, (f"a {width} px window: the document {doc_sw} px wide in {doc_cw} "
                       f"(innerWidth {inner}); the left column {left_sw} in {left_cw}; past the "
                       f"edge: {past}")  # fmt: skip
+    size = {k: before[k] for k in ("width", "height")}  # as it was, for what follows
+    page.call("Browser.setWindowBounds", windowId=win, bounds=size)
 
 
 def _xy_px(view: dict[str, Any], img: Any, p: list[Any]) -> tuple[float, float]:
