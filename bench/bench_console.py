@@ -58,6 +58,7 @@ import numpy as np
 
 from analysis.runs import file as rf
 from rig.campaign import load_campaign
+from rig.campaign.config import Campaign
 from rig.console.live import LIVE_FILE, LiveCampaign, _Tee, start_server, stop_server
 from rig.console.server import STATIC
 from rig.daq import DaqInfo
@@ -121,7 +122,7 @@ class Trial:
 @dataclass
 class Setup:
     folder: Path
-    campaign: object
+    campaign: Campaign
     info: DaqInfo
     blocks: list[np.ndarray]
     port: int
@@ -309,10 +310,12 @@ class _Page:
         self.proc.wait(timeout=10)
 
 
-def _page_trials(st: Setup, seconds: float, rounds: int) -> tuple[list[float], dict]:
+def _page_trials(
+    st: Setup, seconds: float, rounds: int
+) -> tuple[list[list[float]], dict[str, list[Trial]]]:
     """The page open in Chromium while the lab DAQ runs: (latencies ms, the trials with the
     page and without), paired rounds alternated."""
-    lat: list[float] = []
+    lat: list[list[float]] = []
     out: dict[str, list[Trial]] = {"without": [], "page": []}
     n_total = int(seconds * st.info.rate_hz)
     with tempfile.TemporaryDirectory() as prof:
@@ -455,7 +458,9 @@ def _print_flat(args: argparse.Namespace, res: dict[str, list[Trial]]) -> None:
               f"them, 95 % [{1 - hi:.3f}, {1 - lo:.3f}]: {_verdict(1 - hi, 1 - lo)}")  # fmt: skip
 
 
-def _print_page(args: argparse.Namespace, lat: list, res: dict[str, list[Trial]]) -> None:
+def _print_page(
+    args: argparse.Namespace, lat: list[list[float]], res: dict[str, list[Trial]]
+) -> None:
     if not lat:
         print("the page in Chromium: no latencies recorded")
         return
