@@ -393,9 +393,10 @@ def main() -> None:
                 _print_lab(args, _rounds(st, conditions, n_total, args.rounds, True))
             if args.only in (None, "flat"):
                 _print_flat(args, _rounds(st, conditions, args.samples, args.rounds, False))
-            if st.frames_per_s:
-                print(f"frames received by a client: {statistics.median(st.frames_per_s):.1f} "
-                      "per s (median over the console's trials)")  # fmt: skip
+            got = [f for f in st.frames_per_s if f == f]  # nan: the client not yet connected
+            if got:
+                print(f"frames received by a client: {statistics.median(got):.1f} per s (median "
+                      f"over {len(got)} of the console's trials)")  # fmt: skip
             chromium = shutil.which("chromium") or shutil.which("chromium-browser")
             if args.only in (None, "page") and args.page_s > 0 and chromium:
                 _print_page(args, *_page_trials(st, args.page_s, args.page_rounds))
