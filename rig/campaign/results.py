@@ -1,15 +1,132 @@
 """What a campaign run returns: every run's record and the campaign's result (in memory, frozen),
-and their JSON (:meth:`CampaignResult.summary`, `cutlab campaign run --json`)."""
+and the campaign package's JSON-shaped results with their keys and value types spelled out: what
+`cutlab campaign run|status|dry-run --json` print and what the manifest (``campaign.json``)
+records per run."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import NotRequired, TypedDict
 
 from analysis.runs import file as rf
+from analysis.validation import JsonObject
 
-__all__ = ["CampaignResult", "RunRecord"]
+__all__ = [
+    "CampaignResult",
+    "CampaignStatus",
+    "CampaignSummary",
+    "DryRunSummary",
+    "InputRecord",
+    "ManifestEntry",
+    "RunConditionsJson",
+    "RunRecord",
+    "RunRecordJson",
+    "StatusRow",
+]
+
+
+class RunConditionsJson(TypedDict):
+    """One test of the matrix (:meth:`RunConditions.as_dict`): feeds in both units."""
+
+    index: int
+    name: str
+    group: str
+    fz_mm: float
+    feed_mm_min: float
+    depth_mm: float
+    width_mm: float
+    spindle_rpm: float
+    feed_mode: str
+    rule: str | None
+
+
+class RunRecordJson(TypedDict):
+    """A run of a campaign run (:class:`~rig.campaign.runner.RunRecord`'s fields)."""
+
+    index: int
+    name: str
+    group: str
+    file: str
+    status: str
+    reason: str
+    skipped: bool
+    peak_force_n: float
+    wall_s: float
+
+
+class CampaignSummary(TypedDict):
+    """`cutlab campaign run --json`: counts by status, wall time (s), every run, and the
+    report's summary (its sections by title; None when no report was written)."""
+
+    campaign: str
+    folder: str
+    ok: bool
+    stopped: bool
+    counts: dict[str, int]
+    wall_s: float
+    runs: list[RunRecordJson]
+    report: Mapping[str, object] | None
+
+
+class StatusRow(TypedDict):
+    """A planned run's status in the campaign's folder (``missing``: no file)."""
+
+    run: int
+    name: str
+    status: str
+    reason: str
+
+
+class CampaignStatus(TypedDict):
+    """`cutlab campaign status --json`."""
+
+    campaign: str
+    folder: str
+    runs: list[StatusRow]
+
+
+class DryRunSummary(TypedDict):
+    """`cutlab campaign dry-run --json` (:class:`~rig.campaign.dryrun.DryRun`'s fields, the
+    expected machine time rounded to 0.1 s, and ``ok``)."""
+
+    campaign: str
+    rig: str
+    tests: int
+    programs_checked: int
+    expected_machine_s: float
+    hardware: list[str]
+    problems: list[str]
+    warnings: list[str]
+    ok: bool
+
+
+class InputRecord(TypedDict):
+    """An input the runs depend on, in the manifest: its hash and where it was read; the
+    config's also with its experiment fields (to name the ones that changed)."""
+
+    sha256: str
+    source: str
+    fields: NotRequired[JsonObject]
+
+
+class ManifestEntry(TypedDict, total=False):
+    """A run's entry in the manifest: written at its start (index ... program_sha256) and at
+    its end (status, reason, ended_utc, peak_force_n, wall_s)."""
+
+    index: int
+    group: str
+    file: str
+    status: str
+    reason: str
+    started_utc: str
+    ended_utc: str
+    earlier_attempt: str | None
+    conditions: RunConditionsJson
+    program_sha256: str
+    peak_force_n: float
+    wall_s: float
 
 
 @dataclass(frozen=True)
@@ -23,6 +140,10 @@ class RunRecord:
     skipped: bool = False
     peak_force_n: float = float("nan")
     wall_s: float = 0.0
+
+    def as_json(self) -> RunRecordJson:
+        """Every field, in order."""
+        return RunRecordJson(**asdict(self))
 
 
 @dataclass(frozen=True)
@@ -38,7 +159,7 @@ class CampaignResult:
     def ok(self) -> bool:
         return not self.stopped and all(r.status == rf.STATUS_SUCCESS for r in self.runs)
 
-    def summary(self, report: dict[str, Any] | None = None) -> dict[str, Any]:
+    def summary(self, report: Mapping[str, object] | None = None) -> CampaignSummary:
         """Name, folder, ok, stopped, status counts, wall time (s), every run, and ``report``
         (the report's summary, None when none was written)."""
         return {
@@ -48,6 +169,6 @@ class CampaignResult:
             "stopped": self.stopped,
             "counts": self.counts,
             "wall_s": round(self.wall_s, 2),
-            "runs": [r.__dict__ for r in self.runs],
+            "runs": [r.as_json() for r in self.runs],
             "report": report,
         }

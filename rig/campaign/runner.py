@@ -57,7 +57,7 @@ from rig.campaign.manifest import (
     utc_now,
 )
 from rig.campaign.plan import PlannedRun, _dialect, plan_campaign
-from rig.campaign.results import CampaignResult, RunRecord
+from rig.campaign.results import CampaignResult, CampaignStatus, RunRecord, StatusRow
 from rig.campaign.run import RigSession, RunConfig, StopRequest, Suspenders, execute_run
 from rig.daq import Calibration
 from rig.errors import RigError
@@ -83,11 +83,11 @@ def campaign_folder(campaign: Campaign, out_root: str | Path | None = None) -> P
     return root / campaign.name
 
 
-def campaign_status(campaign: Campaign, out_root: str | Path | None = None) -> dict[str, Any]:
+def campaign_status(campaign: Campaign, out_root: str | Path | None = None) -> CampaignStatus:
     """Where the campaign's folder is and each planned run's status and reason there (a run
     without a file is ``missing``)."""
     folder = campaign_folder(campaign, out_root)
-    rows = []
+    rows: list[StatusRow] = []
     for p in plan_campaign(campaign):
         st, reason = run_status(folder / "runs" / f"{p.file_stem}.h5")
         rows.append({"run": p.test.index, "name": p.test.name, "status": st, "reason": reason})
@@ -95,7 +95,7 @@ def campaign_status(campaign: Campaign, out_root: str | Path | None = None) -> d
     return {"campaign": campaign.name, "folder": str(folder), "runs": rows}
 
 
-def _note_interrupted(folder: Path, campaign: Campaign, rows: list[dict[str, Any]]) -> None:
+def _note_interrupted(folder: Path, campaign: Campaign, rows: list[StatusRow]) -> None:
     """A manifest still saying ``running`` for a run whose runner is gone says ``interrupted``."""
     if not (folder / "campaign.json").exists() or lock_holder(folder) is not None:
         return
