@@ -59,6 +59,7 @@ from rig.console.process import (  # noqa: F401 - re-exported: rig.cli.console, 
     stop_server,
 )
 from rig.console.program_path import ProgramPath, _jsonable
+from rig.console.results import RunKwargs
 from rig.console.ring import RingWriter
 from rig.console.session import LiveSink, _LiveSession, _Tee, machine_report  # noqa: F401
 from rig.daq import Calibration, DaqEvent, DaqInfo
@@ -125,7 +126,7 @@ class LiveCampaign:
         self._thread.start()
 
     # -- the runner's entry points -------------------------------------------------------------
-    def run_kwargs(self) -> dict[str, Any]:
+    def run_kwargs(self) -> RunKwargs:
         """What :func:`run_campaign` takes to run with the console."""
         return {"session_factory": self.session_factory(), "stop": self.stop}
 

@@ -8,6 +8,8 @@ from typing import Any
 
 import numpy as np
 
+from rig.console.results import PositionEstimate
+
 
 class ProgramPath:
     """The program interpreted with ``planning.nc`` (as the controller will run it): per block
@@ -28,7 +30,7 @@ class ProgramPath:
             self.by_block.setdefault(int(b), []).append(i)
         self.dur_s = dur
 
-    def estimate(self, block: int, since_s: float) -> dict[str, Any] | None:
+    def estimate(self, block: int, since_s: float) -> PositionEstimate | None:
         """Position, feed, spindle ``since_s`` after ``block`` started (None: no motion known
         for it, e.g. a block that only sets modes: the caller keeps the last estimate)."""
         idx = self.by_block.get(block)
