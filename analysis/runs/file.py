@@ -96,7 +96,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import AnalysisError
-from analysis.runs.identity import writer_identity
+from analysis.runs.identity import writer_identity as writer_identity  # re-exported: rig.log
 
 FORMAT_NAME = "cutlab-run"
 FORMAT_VERSION = 2  # 2: /nc/blocks has exec_s (format 1 files read with exec_s NaN)
