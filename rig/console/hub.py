@@ -143,7 +143,7 @@ class Hub:
                         "reason": e.get("reason", "")})  # fmt: skip
         return out
 
-    def runs_signature(self) -> tuple[Any, ...]:
+    def runs_signature(self) -> tuple[int, int]:
         files = self.run_files()
         m = self.folder / "campaign.json" if self.folder is not None else None
         with contextlib.suppress(OSError):

@@ -22,6 +22,7 @@ __all__ = [
     "PositionEstimate",
     "RunKwargs",
     "RunToolpath",
+    "Segment",
     "WriterCounts",
 ]
 
