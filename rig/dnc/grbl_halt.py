@@ -10,15 +10,12 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import Any
 
 from planning.nc.grbl import grbl_alarm_text
 from rig.dnc._stream import Fault
 from rig.dnc.grbl_receive import is_answer
 from rig.dnc.grbl_status import GrblStatus
-
-if TYPE_CHECKING:
-    from rig.dnc.grbl import GrblStreamer
 
 FEED_HOLD, CYCLE_START, STATUS, SOFT_RESET = b"!", b"~", b"?", b"\x18"
 HANDSHAKE = b"$G\n"  # what a stream sends first (see GrblControl.handshake)
@@ -27,7 +24,7 @@ HANDSHAKE = b"$G\n"  # what a stream sends first (see GrblControl.handshake)
 class GrblControl:
     """Handshake, waits and halts of ``s``'s streams (no state of its own)."""
 
-    def __init__(self, s: GrblStreamer) -> None:  # its streamer (which imports this module)
+    def __init__(self, s: Any) -> None:  # its GrblStreamer (rig.dnc.grbl imports this module)
         self.s = s
 
     def handshake(self) -> None:

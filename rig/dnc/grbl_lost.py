@@ -17,21 +17,18 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 
 from rig.dnc._stream import Fault, Item
 from rig.dnc.grbl_status import GrblStatus
 
-if TYPE_CHECKING:
-    from rig.dnc.grbl import GrblStreamer
-
 
 class LostAnswers:
     """The lost-answer watch of one stream of ``s`` (made fresh for each stream)."""
 
-    def __init__(self, s: GrblStreamer) -> None:  # its streamer (which imports this module)
+    def __init__(self, s: Any) -> None:  # its GrblStreamer (rig.dnc.grbl imports this module)
         self.s = s
         self.suspect = ""  # why the answers no longer match the lines (sending paused)
         self.pause_since: float | None = None

@@ -11,14 +11,11 @@ from __future__ import annotations
 import queue
 import time
 from collections import deque
-from typing import TYPE_CHECKING
+from typing import Any
 
 from rig.dnc._stream import Fault
 from rig.dnc.errors import DncError
 from rig.dnc.grbl_status import GrblStatus, parse_status
-
-if TYPE_CHECKING:
-    from rig.dnc.grbl import GrblStreamer
 
 SILENT_HINT = (
     " (wrong port or baud rate? or GRBL is halted after a hard/soft limit alarm: it then answers "
@@ -33,7 +30,7 @@ def is_answer(line: str) -> bool:
 class GrblReceiver:
     """The receiving side of one stream of ``s`` (made fresh for each stream)."""
 
-    def __init__(self, s: GrblStreamer) -> None:  # its streamer (which imports this module)
+    def __init__(self, s: Any) -> None:  # its GrblStreamer (rig.dnc.grbl imports this module)
         self.s = s
         self.lines: queue.Queue[tuple[float, str]] = queue.Queue()
         self.partial = bytearray()
