@@ -221,6 +221,10 @@ RIG_ANY: dict[str, str] = {
     "rig.adaptive.session:AdaptiveSession.start": "the program and rig.log's RunWriter, as "
     "RigSession.start takes them (above rig.adaptive)",
     "rig.dnc.sinks:LoggerSink.__init__": "rig.log's RunWriter (above rig.dnc)",
+    "rig.dnc.grbl_halt:GrblControl.__init__": "its GrblStreamer, which imports this module (an "
+    "import even for typing is a cycle to test_layers): a Protocol of its fields, next",
+    "rig.dnc.grbl_lost:LostAnswers.__init__": "its GrblStreamer (as GrblControl)",
+    "rig.dnc.grbl_receive:GrblReceiver.__init__": "its GrblStreamer (as GrblControl)",
     "rig.dnc.grbl_check:prepare_lines": "GRBL's parse of each line: planning.nc.grbl's, typed "
     "by the concurrent planning.nc branch",
     # JSON from outside the process (the browser, the ring's meta/status/commands), free-form;
