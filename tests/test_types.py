@@ -243,9 +243,7 @@ RIG_ANY: dict[str, str] = {
     "rig.report.adaptive:adaptive_entries": "the adaptive report's entries (the adaptive "
     "branch adds fields now) and LoadedRun rows",
     "rig.report.base:LoadedRun.conditions": "the run's recorded conditions (DICT_RETURNS)",
-    "rig.report.base:load_runs": "manifest entries plus name (JSON read back)",
     "rig.report.demo:DemoResult.facemill": "the face-mill section's summary (DICT_RETURNS)",
-    "rig.report.stability:onset_rows": "the stability section's table rows",
 }
 
 

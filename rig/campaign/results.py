@@ -20,6 +20,7 @@ __all__ = [
     "DryRunSummary",
     "InputRecord",
     "ManifestEntry",
+    "ManifestRow",
     "RunConditionsJson",
     "RunRecord",
     "RunRecordJson",
@@ -127,6 +128,12 @@ class ManifestEntry(TypedDict, total=False):
     program_sha256: str
     peak_force_n: float
     wall_s: float
+
+
+class ManifestRow(ManifestEntry, total=False):
+    """A run's manifest entry with its name, as the report reads the manifest back."""
+
+    name: str
 
 
 @dataclass(frozen=True)

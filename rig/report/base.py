@@ -18,6 +18,7 @@ import numpy as np
 
 from analysis.errors import AnalysisError
 from analysis.runs import file as rf
+from rig.campaign.results import ManifestRow
 from rig.errors import RigError
 from rig.report.results import SteadyMeans
 
@@ -91,7 +92,7 @@ def md_table(rows: Sequence[Mapping[str, object]], floatfmt: str = ".4g") -> str
     return "\n".join(out) + "\n"
 
 
-def load_runs(folder: Path) -> tuple[list[LoadedRun], list[dict[str, Any]]]:
+def load_runs(folder: Path) -> tuple[list[LoadedRun], list[ManifestRow]]:
     """Successful runs (loaded) and every manifest entry, in test order."""
     mpath = folder / "campaign.json"
     if not mpath.exists():

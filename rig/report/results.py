@@ -8,7 +8,14 @@ from typing import NotRequired, TypedDict
 
 import numpy as np
 
-__all__ = ["BandFigures", "ChatterDecay", "DemoSummary", "RevolutionStats", "SteadyMeans"]
+__all__ = [
+    "BandFigures",
+    "ChatterDecay",
+    "DemoSummary",
+    "OnsetRow",
+    "RevolutionStats",
+    "SteadyMeans",
+]
 
 
 class SteadyMeans(TypedDict):
@@ -62,6 +69,24 @@ class ChatterDecay(TypedDict):
     shares: list[float]
     rms_n: list[float]
     revolutions: int
+
+
+class OnsetRow(TypedDict, total=False):
+    """The stability sweep's row per speed: the predicted limit (mm; None with a reason), the
+    cuts' depths (mm) and verdicts, the observed onset (mm; None with a reason), its bracket,
+    the error against the prediction (%), whether within tolerance, stable cuts above it."""
+
+    spindle_rpm: float
+    predicted_limit_mm: float | None
+    predicted_limit_mm_reason: str
+    depths_mm: list[float]
+    chatter: list[bool]
+    observed_onset_mm: float | None
+    observed_onset_mm_reason: str
+    bracket_mm: list[float | None] | None
+    stable_above_onset_mm: list[float]
+    error_pct: float | None
+    within_tolerance: bool
 
 
 class DemoSummary(TypedDict):
