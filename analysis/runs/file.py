@@ -96,6 +96,7 @@ import numpy as np
 import pandas as pd
 
 from analysis.errors import AnalysisError
+from analysis.runs.identity import writer_identity as writer_identity  # re-exported: rig.log
 
 FORMAT_NAME = "cutlab-run"
 FORMAT_VERSION = 2  # 2: /nc/blocks has exec_s (format 1 files read with exec_s NaN)
@@ -322,12 +323,6 @@ class Run:
         k = np.searchsorted(rows["exec_s"].to_numpy(), t, side="right") - 1
         blocks = np.append(rows["block"].to_numpy(dtype=np.int64), -1)
         return blocks[np.where(k >= 0, k, len(rows))]
-
-
-def writer_identity() -> dict[str, object]:
-    """The writing process (pid, host), stored in a new run's status so that a reader can tell a
-    live writer from a dead one."""
-    return {"pid": os.getpid(), "host": socket.gethostname()}
 
 
 def writer_alive(status: Mapping[str, object]) -> bool:
