@@ -32,6 +32,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from analysis.runs.identity import writer_identity
 from analysis.runs.layout import (
     CLOSED_STATUSES,
     EV_FAULT,
@@ -59,12 +60,6 @@ __all__ = [
     "repair_run",
     "dead_writer_status",
 ]
-
-
-def writer_identity() -> dict[str, object]:
-    """The writing process (pid, host), stored in a new run's status so that a reader can tell a
-    live writer from a dead one."""
-    return {"pid": os.getpid(), "host": socket.gethostname()}
 
 
 def writer_alive(status: Mapping[str, object]) -> bool:

@@ -367,12 +367,12 @@ class RunWriter:
         e = np.broadcast_to(np.asarray(exec_s, dtype=np.float64), r.shape)
         self._control.append(("exec", (r.copy(), e.copy(), complete)))
 
-    def set_conditions(self, conditions: Mapping[str, Any] | Any) -> None:
+    def set_conditions(self, conditions: object) -> None:
         """Cutting conditions (tool, material, spindle_rpm, feed_mm_min, fz_mm, depth_mm, ...):
         a mapping, a dataclass or a pydantic model; stored as JSON, the latest call wins."""
         self._control.append(("text", (rf.META_CONDITIONS, json.dumps(jsonable(conditions)))))
 
-    def set_rig(self, rig: Mapping[str, Any]) -> None:
+    def set_rig(self, rig: Mapping[str, object]) -> None:
         """Rig description (device, dynamometer, amplifier, calibration id, machine ...)."""
         self._control.append(("text", (rf.META_RIG, json.dumps(jsonable(rig)))))
 
