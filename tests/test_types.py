@@ -175,6 +175,8 @@ RESULT_SKIP = (
 DICT_RETURNS: dict[str, str] = {
     "analysis.catalog.compute:fit_catalog": "analysis.identify.fit_files' result plus `catalog`: "
     "typed with fit_files (analysis.identify, the concurrent typing branch)",
+    "analysis.runs.layout:meta_json": "a JSON object as a run file stores it (conditions, "
+    "status, acquisition: free-form, read by key)",
     "analysis.config:load_tools": "tool name -> EndMill | FaceMill (the catalogue's names)",
     "analysis.config:load_materials": "material name -> Material (the catalogue's names)",
     "planning.feed.job:resolve_rules": "one FeedRule, or tool (T1, T2, ...) -> FeedRule",
