@@ -1,6 +1,6 @@
 """The feed post-processor's report files: per-block CSV, load and feed along the path,
 load histogram and final stock (PNG, matplotlib Agg). It reads a finished
-:class:`~planning.feed.post.FeedPostResult`; the result knows nothing of its report.
+:class:`~planning.feed.result.FeedPostResult`; the result knows nothing of its report.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from typing import TypedDict
 
 import numpy as np
 
-from planning.feed.post import FeedPostResult
+from planning.feed.result import FeedPostResult
 from planning.stock import save_stock_png
 
 
