@@ -186,7 +186,7 @@ DICT_RETURNS: dict[str, str] = {
     "that are on (iterated with quantities)",
     "planning.limits.check:CheckResult.block_caps": "block number -> its highest feed, mm/min",
     "planning.rough.planner:RoughPlanner.plan_all": "method name -> RoughPlan",
-    "planning.stock.machining:parse_tool_spec": "one tool, or tool (T1, T2, ...) -> its spec",
+    "planning.stock.plans:parse_tool_spec": "one tool, or tool (T1, T2, ...) -> its spec",
     "rig.campaign.manifest:experiment_fields": "the campaign file's field paths "
     "(matrix[0].depth_mm, ...) -> their JSON values: the keys are the user's file",
     "rig.campaign.manifest:campaign_inputs": "input name (config, tool, material, machine, rig) "

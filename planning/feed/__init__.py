@@ -15,7 +15,7 @@ from planning.feed.job import (
 from planning.feed.post import post_process
 from planning.feed.report import write_report
 from planning.feed.result import FeedPostOptions, FeedPostResult
-from planning.stock.machining import end_mill
+from planning.stock.plans import end_mill
 
 __all__ = [
     "FeedPostOptions",

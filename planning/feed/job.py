@@ -34,7 +34,7 @@ from planning.feed.result import FeedCap, FeedPostOptions, FeedPostResult, Secti
 from planning.nc import Motion, Program, interpret
 from planning.nc.output import DIALECTS, default_dialect, for_dialect
 from planning.stock import ZMap, load_stock, save_stock_png
-from planning.stock.machining import (
+from planning.stock.plans import (
     Operation,
     OperationPlan,
     OperationResult,

@@ -52,7 +52,7 @@ from planning.stock.machining import (
     plunge_mask,
     simulate_motion,
 )
-from planning.stock.machining import _join as _join  # one simulation of consecutive slices
+from planning.stock.plans import join_simulations
 
 
 def _feed_limits(rule: FeedRule, machine: MachineConfig | None) -> tuple[float, float]:
@@ -168,7 +168,7 @@ def _simulate_sections(
             progress=progress,
         )  # fmt: skip
         parts.append((sc.lo, part))
-    return _join(motion, parts)
+    return join_simulations(motion, parts)
 
 
 @dataclass(frozen=True)
