@@ -28,7 +28,7 @@ from pydantic import AfterValidator, Field, model_validator
 from analysis.errors import ConfigError
 from analysis.validation import Model, load_model
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
+REPO_ROOT = Path(__file__).resolve().parents[2]
 
 
 def config_dir() -> Path:
