@@ -346,7 +346,6 @@ FUNCTION_MAX_LINES = 80
 # and go, never grow; a new module or function over the limit is not allowed in.
 MODULES_OVER: dict[str, int] = {
     "analysis/modal/hammer.py": 504,  # +4 typing (strict mypy), to split
-    "analysis/config/__init__.py": 687,  # +8: the former mode names once for both mode classes
     "analysis/identify/_common.py": 628,
     "analysis/identify/files.py": 604,
     "planning/rough/planner.py": 534,
