@@ -345,7 +345,6 @@ FUNCTION_MAX_LINES = 80
 # Today's offenders (issue 30 item 5), each with its size as a ceiling: an entry may shrink
 # and go, never grow; a new module or function over the limit is not allowed in.
 MODULES_OVER: dict[str, int] = {
-    "analysis/modal/hammer.py": 504,  # +4 typing (strict mypy), to split
     "analysis/identify/_common.py": 628,
     "analysis/identify/files.py": 604,
     "planning/rough/planner.py": 534,

@@ -7,8 +7,9 @@ from a file: :mod:`~analysis.modal.files`), the modes file a stability calculati
 
 from analysis.modal.files import hammer_file_record, modal_file
 from analysis.modal.filter import DynamometerFilter
-from analysis.modal.hammer import ImpactRecord, modal_analysis, plot_frf, tooth_passing_warnings
+from analysis.modal.hammer import ImpactRecord, modal_analysis, tooth_passing_warnings
 from analysis.modal.modes import ModalMode, ModeSet, load_modes, renamed_mode_fields, save_modes
+from analysis.modal.plot import plot_frf
 
 __all__ = [
     "DynamometerFilter",

@@ -25,9 +25,9 @@ from analysis.modal.hammer import (
     RESPONSES,
     ImpactRecord,
     modal_analysis,
-    plot_frf,
     tooth_passing_warnings,
 )
+from analysis.modal.plot import plot_frf
 from analysis.runs import FORCE_UNIT_TO_N, load_run, read_force_table
 from analysis.validation import JsonObject, JsonValue
 
