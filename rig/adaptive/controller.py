@@ -124,8 +124,12 @@ class AdaptiveController:
         depth_mm: float = 0.0,
         chatter_settings: Any = None,
         on_hold: Callable[[str], None] | None = None,
+        feed_forward: Any = None,
     ) -> None:
         self.s = settings
+        #: the anticipation (rig.adaptive.feedforward.FeedForward) when the program's stock is
+        #: known, else None: the measured force alone
+        self.ff = feed_forward if settings.mode in ("feed", "both") else None
         self.rpm = abs(float(spindle_rpm))
         if not self.rpm > 0:
             raise ValueError(f"spindle_rpm = {spindle_rpm}: the loop needs a turning spindle")
@@ -265,6 +269,8 @@ class AdaptiveController:
                 self._acc, self._acc_n = [rest], len(rest)
                 t_rev = t_end_s - len(rest) / self.rate_hz
                 self._revolution(t_rev, float(rev.mean()), wall0)
+            if self.state == "cutting" and self.ff is not None and self.ff.active:
+                self._ff_step(t_end_s, wall0)
             # after the revolutions' feed steps: their bytes go out before the chatter window's
             # spectrum is computed (a chatter finding after them still holds or moves the spindle)
             if self.state == "cutting":
@@ -287,6 +293,7 @@ class AdaptiveController:
             if self.state == "cutting":
                 self._note(t_s, f"cut ended: {force_n:.0f} N below air {s.air_force_n:.0f} N")
             self.state = "air"
+            self._ff_note(self.ff.on_revolution(t_s, force_n, False) if self.ff else None, t_s)
             self._end_saturation(t_s)
             self._chatter = None  # a new cut is judged afresh
             if self.feed_pct != 100 or self.spindle_pct != 100:
@@ -297,8 +304,14 @@ class AdaptiveController:
             self.state = "cutting"
             self._saturated_now = False
             # the override this revolution was cut at: the last change's once GRBL ran it
-            pct_ran = self.feed_pct if t_s - self.rev_s >= self._applied_at_s else self._pct_was
-            if self._settle > 0 or t_s - self.rev_s < self._applied_at_s:  # or GRBL not at it
+            pct_ran: int | None = (self.feed_pct if t_s - self.rev_s >= self._applied_at_s
+                                   else self._pct_was)  # fmt: skip
+            if self.ff is not None:  # the changes' times known: at a limit all the revolution
+                pct_ran = self.ff.ran_over(t_s - self.rev_s, t_s)  # None: it changed
+                self._ff_note(self.ff.on_revolution(t_s, force_n, True), t_s)
+            if self.ff is not None and self.ff.active:
+                pass  # the feed-forward sets the feed at each DAQ read (_ff_step)
+            elif self._settle > 0 or t_s - self.rev_s < self._applied_at_s:  # or GRBL not at it
                 self._settle = max(0, self._settle - 1)
             elif s.mode in ("feed", "both"):
                 self._feed_step(t_s, force_n, wall0)
@@ -329,13 +342,36 @@ class AdaptiveController:
         self._settle = s.settle_revs
         self._applied_at_s = t_s + APPLY_DELAY_S
 
-    def _track_saturation(self, t_s: float, force_n: float, pct_ran: int) -> None:
-        """The revolution ending at ``t_s`` was cut at ``pct_ran`` %: saturated when that is a
-        limit and the force is outside the dead band on the side the limit blocks."""
+    def _ff_step(self, t_s: float, wall0: float) -> None:
+        """The override the stock ahead asks for, within the limits and the slew per revolution
+        (from what GRBL runs a revolution before this byte would run)."""
+        s, ff = self.s, self.ff
+        assert ff is not None  # called only with the feed-forward active
+        base = ff.pct_at(t_s + APPLY_DELAY_S - self.rev_s)
+        lo = max(s.min_pct, base - s.slew_down_pct)
+        hi = min(s.max_pct, base + s.slew_up_pct)
+        want = ff.want(t_s, self.feed_pct, lo, hi, s.dead_band_pct / 2.0, self.block_s)
+        if want is None:
+            return
+        new, why = want
+        self._pct_was = self.feed_pct
+        self._send(t_s, "feed", new, why, wall0)
+        self._applied_at_s = t_s + APPLY_DELAY_S
+
+    def _ff_note(self, text: str | None, t_s: float) -> None:
+        if text:
+            self._note(t_s, text)
+
+    def _track_saturation(self, t_s: float, force_n: float, pct_ran: int | None) -> None:
+        """The revolution ending at ``t_s`` was cut at ``pct_ran`` % (None: the override changed
+        within it): saturated when that is a limit and the force is outside the dead band on
+        the side the limit blocks."""
         s = self.s
         err_pct = (force_n / s.target_force_n - 1.0) * 100.0
         side = None
-        if pct_ran >= s.max_pct and err_pct < -s.dead_band_pct:
+        if pct_ran is None:
+            pass
+        elif pct_ran >= s.max_pct and err_pct < -s.dead_band_pct:
             side = "max"
         elif pct_ran <= s.min_pct and err_pct > s.dead_band_pct:
             side = "min"
@@ -417,6 +453,8 @@ class AdaptiveController:
             return
         if kind == "feed":
             self.feed_pct = pct
+            if self.ff is not None:  # GRBL runs it after the segments already prepared
+                self.ff.commanded((self.bytes_sent[-1][0] if codes else t_s) + APPLY_DELAY_S, pct)
         else:
             self.spindle_pct = pct
         lat = time.perf_counter() - wall0
@@ -546,6 +584,8 @@ class AdaptiveController:
             "latency_p50_ms": float(np.percentile(lat, 50) * 1e3) if lat.size else None,
             "latency_p95_ms": float(np.percentile(lat, 95) * 1e3) if lat.size else None,
             "cpu_s": self.cpu_s,
+            "feed_forward": self.ff is not None,
+            "feed_forward_anchored": self.ff is not None and self.ff.anchor_t_s is not None,
             "chatter_at_s": self.chatter_at_s,
             "chatter_cleared_s": self.chatter_cleared_s,
             "saturated_revolutions": sum(1 for r in cut if r.saturated),

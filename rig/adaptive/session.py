@@ -82,6 +82,7 @@ class AdaptiveSession:
     def __init__(
         self, session: Any, ctl: AdaptiveController, cal: Any, zero_samples: int,
         drop_after_s: float | None = None, drop_relative: bool = False,
+        anticipation: str = "feedback only",
     ) -> None:  # fmt: skip
         self._s = session
         self.ctl = ctl
@@ -89,6 +90,7 @@ class AdaptiveSession:
         self.zero_samples = max(2, int(zero_samples))
         self.drop_after_s = drop_after_s
         self._drop_relative = drop_relative  # drop_after_s counts from the program's start
+        self.anticipation = anticipation  # which mode runs, for the run file's start note
         self.daq = _Daq(session.daq, self)
         # the live console (rig.console.live) finds the controller on the session it wraps
         session.adaptive_controller = ctl
@@ -109,7 +111,7 @@ class AdaptiveSession:
         s = self.ctl.s
         msg = (f"adaptive: {s.mode}, target {s.target_force_n:g} N, max {s.max_force_n:g} N, "
                f"dead band {s.dead_band_pct:g} %, slew +{s.slew_up_pct}/-{s.slew_down_pct} % per "
-               f"rev, air {s.air_force_n:g} N")  # fmt: skip
+               f"rev, air {s.air_force_n:g} N; {self.anticipation}")  # fmt: skip
         writer.event(rf.EV_NOTE, msg, time_s=t0)
         self.ctl.arm()
 
@@ -279,14 +281,35 @@ def adaptive_session(campaign: Any, test: Any, session: Any, cal: Any) -> Any:
     check_adaptive(campaign)
     a = campaign.spec.adaptive
     rate = campaign.spec.daq.rate_hz or campaign.rig.daq.rate_hz
+    ff, anticipation = None, "feedback only: no feed mode"
+    if a.mode in ("feed", "both"):
+        ff, anticipation = _feed_forward(campaign, test)
     ctl = AdaptiveController(
         settings_of(campaign, test), spindle_rpm=test.spindle_rpm,
         channels=tuple(cal.channel_names), clock=session.clock, depth_mm=test.depth_mm,
         chatter_settings=campaign.spec.chatter.settings(),
         lobes=lobes_for(campaign, test, a.min_pct, a.max_pct) if a.mode != "feed" else None,
+        feed_forward=ff,
     )  # fmt: skip
     zero = int(round(campaign.spec.daq.rest_s * rate))
     drop = None
     if a.sim_signal_loss_at_s is not None and campaign.spec.campaign.rig == "sim":
         drop = a.sim_signal_loss_at_s  # made absolute at the program's start
-    return AdaptiveSession(session, ctl, cal, zero, drop_after_s=drop, drop_relative=True)
+    return AdaptiveSession(session, ctl, cal, zero, drop_after_s=drop, drop_relative=True,
+                           anticipation=anticipation)  # fmt: skip
+
+
+def _feed_forward(campaign: Any, test: Any) -> tuple[Any, str]:
+    """(the loop's anticipation for ``test``, the start note's words for it): the predicted load
+    of the pass (:func:`rig.adaptive.predict.campaign_profile`) or why the loop runs on the
+    measured force alone."""
+    from rig.adaptive.feedforward import FeedForward
+    from rig.adaptive.grbl_codes import APPLY_DELAY_S
+    from rig.adaptive.predict import campaign_profile
+
+    s = settings_of(campaign, test)
+    profile, why = campaign_profile(campaign, test)
+    if profile is None:
+        return None, f"feedback only: {why}"
+    ff = FeedForward(profile, s.target_force_n, s.air_force_n, APPLY_DELAY_S)
+    return ff, f"feed-forward: {why}"
