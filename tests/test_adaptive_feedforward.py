@@ -17,6 +17,7 @@ import pytest
 from rig.adaptive.feedforward import FeedForward
 from rig.adaptive.predict import PCT_GRID, LoadProfile, campaign_profile
 from rig.campaign import load_campaign
+from rig.campaign.programs import generate_program
 
 ROOT = Path(__file__).resolve().parent.parent
 R_MM = 15.0  # the phi 30 ball
@@ -35,15 +36,16 @@ def short_campaign(tmp_path_factory: pytest.TempPathFactory):  # noqa: ANN201
     p.write_text(text)
     c = load_campaign(p)
     test = next(t for t in c.tests if t.group == "adaptive")
-    profile, why = campaign_profile(c, test)
+    cut = generate_program(c.spec.program, test, c.tool, c.machine.dialect, test.name)
+    profile, why = campaign_profile(c, test, cut)
     assert profile is not None, why
-    return c, test, profile
+    return c, test, profile, cut
 
 
 def test_profile_steady_steps_and_first_contact(short_campaign) -> None:
     from analysis.forces.evenness import SteadyCut, feed_plane_force_n
 
-    c, _, prof = short_campaign
+    c, _, prof, _ = short_campaign
     # the cutter's whole leading half on one step (its contact radius 7.3 mm at 0.4 + 0.3):
     # the steady slot of that depth
     for x, depth in ((7.0, 0.4), (24.0, 0.7)):
@@ -61,10 +63,12 @@ def test_profile_steady_steps_and_first_contact(short_campaign) -> None:
 
 
 def test_no_prediction_without_a_stock_model(short_campaign) -> None:
-    c, test, _ = short_campaign
+    c, test, _, cut = short_campaign
     post = dataclasses.replace(test, feed_mode="post-processed")
-    profile, why = campaign_profile(c, post)
+    profile, why = campaign_profile(c, post, cut)
     assert profile is None and "post-processed" in why
+    profile, why = campaign_profile(c, test, None)  # dnc send: no program geometry
+    assert profile is None and "not known" in why
 
 
 def _linear_profile() -> LoadProfile:
@@ -88,7 +92,7 @@ def test_position_follows_the_overrides_grbl_runs() -> None:
 def test_anchor_fits_the_entry(short_campaign) -> None:
     """Revolutions made from the prediction itself 4 % stronger (the twin's force differs from
     the catalogue's coefficients): the fitted place within a fifth of a revolution's feed."""
-    _, _, prof = short_campaign
+    _, _, prof, _ = short_campaign
     ff = FeedForward(prof, 150.0, 30.0, 0.05)
     rev_s, v = 0.03, 1000.0 / 60.0
     seen, x_end = None, -7.0  # revolutions in the air, then the entry
@@ -108,7 +112,7 @@ def test_override_set_ahead_of_the_step(short_campaign) -> None:
     """Approaching the 0.7 mm step at the 0.4 mm step's override: the lower override is asked
     for while the cutter is still short of where the force rises, by GRBL's delay and half a
     read, and its predicted force is the target."""
-    _, _, prof = short_campaign
+    _, _, prof, _ = short_campaign
     ff = FeedForward(prof, 150.0, 30.0, 0.05)
     ff.anchor_t_s, ff.anchor_x_mm = 0.0, 8.0
     p0, _ = prof.pct_for(8.0, 150.0, 10, 200)

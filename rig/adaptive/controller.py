@@ -293,7 +293,8 @@ class AdaptiveController:
             if self.state == "cutting":
                 self._note(t_s, f"cut ended: {force_n:.0f} N below air {s.air_force_n:.0f} N")
             self.state = "air"
-            self._ff_note(self.ff.on_revolution(t_s, force_n, False) if self.ff else None, t_s)
+            if self.ff is not None and (note := self.ff.on_revolution(t_s, force_n, False)):
+                self._note(t_s, note)
             self._end_saturation(t_s)
             self._chatter = None  # a new cut is judged afresh
             if self.feed_pct != 100 or self.spindle_pct != 100:
@@ -308,7 +309,8 @@ class AdaptiveController:
                                    else self._pct_was)  # fmt: skip
             if self.ff is not None:  # the changes' times known: at a limit all the revolution
                 pct_ran = self.ff.ran_over(t_s - self.rev_s, t_s)  # None: it changed
-                self._ff_note(self.ff.on_revolution(t_s, force_n, True), t_s)
+                if note := self.ff.on_revolution(t_s, force_n, True):
+                    self._note(t_s, note)
             if self.ff is not None and self.ff.active:
                 pass  # the feed-forward sets the feed at each DAQ read (_ff_step)
             elif self._settle > 0 or t_s - self.rev_s < self._applied_at_s:  # or GRBL not at it
@@ -343,24 +345,11 @@ class AdaptiveController:
         self._applied_at_s = t_s + APPLY_DELAY_S
 
     def _ff_step(self, t_s: float, wall0: float) -> None:
-        """The override the stock ahead asks for, within the limits and the slew per revolution
-        (from what GRBL runs a revolution before this byte would run)."""
-        s, ff = self.s, self.ff
-        assert ff is not None  # called only with the feed-forward active
-        base = ff.pct_at(t_s + APPLY_DELAY_S - self.rev_s)
-        lo = max(s.min_pct, base - s.slew_down_pct)
-        hi = min(s.max_pct, base + s.slew_up_pct)
-        want = ff.want(t_s, self.feed_pct, lo, hi, s.dead_band_pct / 2.0, self.block_s)
-        if want is None:
-            return
-        new, why = want
-        self._pct_was = self.feed_pct
-        self._send(t_s, "feed", new, why, wall0)
-        self._applied_at_s = t_s + APPLY_DELAY_S
-
-    def _ff_note(self, text: str | None, t_s: float) -> None:
-        if text:
-            self._note(t_s, text)
+        want = self.ff.next_override(t_s, self.feed_pct, self.s, self.block_s) if self.ff else None
+        if want is not None:  # the override the stock ahead asks for
+            self._pct_was = self.feed_pct
+            self._send(t_s, "feed", want[0], want[1], wall0)
+            self._applied_at_s = t_s + APPLY_DELAY_S
 
     def _track_saturation(self, t_s: float, force_n: float, pct_ran: int | None) -> None:
         """The revolution ending at ``t_s`` was cut at ``pct_ran`` % (None: the override changed
@@ -585,7 +574,6 @@ class AdaptiveController:
             "latency_p95_ms": float(np.percentile(lat, 95) * 1e3) if lat.size else None,
             "cpu_s": self.cpu_s,
             "feed_forward": self.ff is not None,
-            "feed_forward_anchored": self.ff is not None and self.ff.anchor_t_s is not None,
             "chatter_at_s": self.chatter_at_s,
             "chatter_cleared_s": self.chatter_cleared_s,
             "saturated_revolutions": sum(1 for r in cut if r.saturated),

@@ -18,6 +18,7 @@ slew limits per revolution; where no override reaches the target, the limit near
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -152,6 +153,15 @@ class FeedForward:
                 f"{len(self._revs)} revolutions, rms {rms:.1f} N)")  # fmt: skip
 
     # -- the override ----------------------------------------------------------------------------
+    def next_override(self, t_s: float, pct_now: int, s: Any, block_s: float
+                      ) -> tuple[int, str] | None:  # fmt: skip
+        """:meth:`want` within the settings ``s``' limits and slew per revolution (from what
+        GRBL runs a revolution before a byte sent now would run)."""
+        base = self.pct_at(t_s + self.delay_s - self.rev_s)
+        lo = max(s.min_pct, base - s.slew_down_pct)
+        hi = min(s.max_pct, base + s.slew_up_pct)
+        return self.want(t_s, pct_now, lo, hi, s.dead_band_pct / 2.0, block_s)
+
     def want(self, t_s: float, pct_now: int, lo: int, hi: int, band_pct: float,
              block_s: float) -> tuple[int, str] | None:  # fmt: skip
         """(the override to send now, why) or None: the one whose predicted force where the

@@ -191,14 +191,16 @@ def load_profile(cut: Any, tool: Any, coef: Any, rpm: float, source: str = "") -
                        float(cut.x_start_mm), float(cut.x_end_mm), source)  # fmt: skip
 
 
-def campaign_profile(campaign: Any, test: Any) -> tuple[LoadProfile | None, str]:
-    """(the table of ``test``'s cutting pass, what it comes from) or (None, why there is none:
-    the loop then runs on the measured force alone)."""
+def campaign_profile(campaign: Any, test: Any, cut: Any) -> tuple[LoadProfile | None, str]:
+    """(the table of ``test``'s cutting pass ``cut``, the campaign's generated program
+    (rig.campaign.programs.CutProgram, None: not known), what it comes from) or (None, why
+    there is none: the loop then runs on the measured force alone)."""
     from analysis.forces import ENDMILL
-    from rig.campaign.programs import generate_program
 
     tool = getattr(campaign, "tool", None)
     coef = getattr(getattr(campaign, "material", None), "endmill", None)
+    if cut is None:
+        return None, "no stock model: the run's program geometry is not known"
     if tool is None or not ENDMILL.describes(tool) or coef is None:
         return None, "no stock model: the prediction needs an end mill and its coefficients"
     if getattr(test, "feed_mode", "constant") == "post-processed":
@@ -206,11 +208,10 @@ def campaign_profile(campaign: Any, test: Any) -> tuple[LoadProfile | None, str]
     prog = campaign.spec.program
     if prog.kind not in ("step-depth", "slot"):
         return None, f"no stock model for a {prog.kind!r} program"
-    cut = generate_program(prog, test, tool, campaign.machine.dialect, test.name)
     half = tool.diameter_mm / 2.0
     if not (cut.block.y_min_mm <= cut.y_path_mm - half and cut.y_path_mm + half
             <= cut.block.y_max_mm):  # fmt: skip
         return None, "no stock model for a cut narrower than the cutter (slots only)"
-    what = (f"the {prog.kind} block's stock ahead ({len(cut.block.step_top_mm)} steps) and the "
-            f"material's end-mill coefficients")  # fmt: skip
+    # (the run file's start note carries it: its events hold 200 characters)
+    what = f"the {prog.kind} block's stock ({len(cut.block.step_top_mm)} steps)"
     return load_profile(cut, tool, coef, test.spindle_rpm, what), what

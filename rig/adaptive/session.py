@@ -273,17 +273,18 @@ def lobes_for(campaign: Any, test: Any, min_pct: int, max_pct: int) -> Any:
     return stability_lobes(cut.case(rpm, f"{campaign.name}-adaptive"), "sd")
 
 
-def adaptive_session(campaign: Any, test: Any, session: Any, cal: Any) -> Any:
+def adaptive_session(campaign: Any, test: Any, session: Any, cal: Any, cut: Any = None) -> Any:
     """The campaign runner's hook: ``session`` with the controller in its loop when ``test``'s
-    group is under ``[adaptive]``, else ``session`` itself."""
+    group is under ``[adaptive]``, else ``session`` itself; ``cut`` the test's generated program
+    (its block and path: the feed-forward's stock; None: feedback only)."""
     if not under_loop(campaign, test):
         return session
     check_adaptive(campaign)
     a = campaign.spec.adaptive
     rate = campaign.spec.daq.rate_hz or campaign.rig.daq.rate_hz
-    ff, anticipation = None, "feedback only: no feed mode"
+    ff, anticipation = None, "feedback only: the spindle mode holds no force target"
     if a.mode in ("feed", "both"):
-        ff, anticipation = _feed_forward(campaign, test)
+        ff, anticipation = _feed_forward(campaign, test, cut)
     ctl = AdaptiveController(
         settings_of(campaign, test), spindle_rpm=test.spindle_rpm,
         channels=tuple(cal.channel_names), clock=session.clock, depth_mm=test.depth_mm,
@@ -299,7 +300,7 @@ def adaptive_session(campaign: Any, test: Any, session: Any, cal: Any) -> Any:
                            anticipation=anticipation)  # fmt: skip
 
 
-def _feed_forward(campaign: Any, test: Any) -> tuple[Any, str]:
+def _feed_forward(campaign: Any, test: Any, cut: Any) -> tuple[Any, str]:
     """(the loop's anticipation for ``test``, the start note's words for it): the predicted load
     of the pass (:func:`rig.adaptive.predict.campaign_profile`) or why the loop runs on the
     measured force alone."""
@@ -308,7 +309,7 @@ def _feed_forward(campaign: Any, test: Any) -> tuple[Any, str]:
     from rig.adaptive.predict import campaign_profile
 
     s = settings_of(campaign, test)
-    profile, why = campaign_profile(campaign, test)
+    profile, why = campaign_profile(campaign, test, cut)
     if profile is None:
         return None, f"feedback only: {why}"
     ff = FeedForward(profile, s.target_force_n, s.air_force_n, APPLY_DELAY_S)
