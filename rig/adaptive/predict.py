@@ -19,9 +19,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from analysis.config import EndMill, EndMillCoefficients
+    from rig.adaptive.campaign_view import AdaptiveCampaign, AdaptiveTest, PassGeometry
 
 #: override grid of the table, % (GRBL 1.1's 10-200 in steps of 2)
 PCT_GRID = np.arange(10, 201, 2)
@@ -82,7 +86,7 @@ class LoadProfile:
         return pct, ok
 
 
-def _rho(tool: Any, z_mm: np.ndarray) -> np.ndarray:
+def _rho(tool: EndMill, z_mm: np.ndarray) -> np.ndarray:
     """Radius of the cutter at height ``z_mm`` above its tip (ball, bull or flat end mill)."""
     r, rc = tool.diameter_mm / 2.0, min(float(tool.corner_radius_mm or 0.0), tool.diameter_mm / 2)
     z = np.asarray(z_mm, float)
@@ -93,7 +97,9 @@ def _rho(tool: Any, z_mm: np.ndarray) -> np.ndarray:
     return out
 
 
-def _arc_tables(tool: Any, coef: Any, depths: np.ndarray, fz0: float) -> tuple[np.ndarray, ...]:
+def _arc_tables(
+    tool: EndMill, coef: EndMillCoefficients, depths: np.ndarray, fz0: float
+) -> tuple[np.ndarray, ...]:
     """A, B (depths, angles, N_PHI, 3): the force over a revolution of the arc (0, angle) at
     each depth, F = fz A + B (0 at depth 0 and at angle 0)."""
     from analysis.forces import EndMillCut, model_for
@@ -152,7 +158,9 @@ def _arcs_deg(x: float, rho: float, spans: list[tuple[float, float]]) -> list[tu
     return out
 
 
-def load_profile(cut: Any, tool: Any, coef: Any, rpm: float, source: str = "") -> LoadProfile:
+def load_profile(
+    cut: PassGeometry, tool: EndMill, coef: EndMillCoefficients, rpm: float, source: str = ""
+) -> LoadProfile:
     """The table of a campaign's cutting pass ``cut`` (:class:`rig.campaign.programs.
     CutProgram`: its stepped block, cutting Z, path Y and X range, feed)."""
     block = cut.block
@@ -191,7 +199,9 @@ def load_profile(cut: Any, tool: Any, coef: Any, rpm: float, source: str = "") -
                        float(cut.x_start_mm), float(cut.x_end_mm), source)  # fmt: skip
 
 
-def campaign_profile(campaign: Any, test: Any, cut: Any) -> tuple[LoadProfile | None, str]:
+def campaign_profile(
+    campaign: AdaptiveCampaign, test: AdaptiveTest, cut: PassGeometry | None
+) -> tuple[LoadProfile | None, str]:
     """(the table of ``test``'s cutting pass ``cut``, the campaign's generated program
     (rig.campaign.programs.CutProgram, None: not known), what it comes from) or (None, why
     there is none: the loop then runs on the measured force alone)."""
