@@ -18,14 +18,22 @@ slew limits per revolution; where no override reaches the target, the limit near
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 
 from rig.adaptive.predict import X_STEP_MM, LoadProfile
+from rig.adaptive.saturation import Limits
 
-if TYPE_CHECKING:
-    from rig.adaptive.controller import AdaptiveSettings
+
+class Slew(Limits, Protocol):
+    """What the feed-forward reads of the loop's settings (rig.adaptive.AdaptiveSettings)."""
+
+    @property
+    def slew_up_pct(self) -> int: ...
+    @property
+    def slew_down_pct(self) -> int: ...
+
 
 #: measured / predicted force: how fast the gain follows steady revolutions, and its bounds
 GAIN_RATE = 0.5
@@ -156,7 +164,7 @@ class FeedForward:
                 f"{len(self._revs)} revolutions, rms {rms:.1f} N)")  # fmt: skip
 
     # -- the override ----------------------------------------------------------------------------
-    def next_override(self, t_s: float, pct_now: int, s: AdaptiveSettings, block_s: float
+    def next_override(self, t_s: float, pct_now: int, s: Slew, block_s: float
                       ) -> tuple[int, str] | None:  # fmt: skip
         """:meth:`want` within the settings ``s``' limits and slew per revolution (from what
         GRBL runs a revolution before a byte sent now would run)."""
