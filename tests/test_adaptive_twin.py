@@ -147,7 +147,7 @@ def test_step_depth_adaptive_feed_holds_the_target(tmp_path: Path) -> None:
     assert e["saturated_s"] == pytest.approx(wa["saturated_revolutions"] * REV_S)
     assert e["target_force_n"] == 150.0 and e["target_from"] == "[adaptive] target_force_n"
     assert e["feed_forward"] is True
-    notes = [m for _, m, _ in adaptive_events(ad.run)]
+    notes = [m for _, _, m in adaptive_events(ad.run)]
     assert any("; feed-forward: the step-depth block's stock (5 steps)" in m for m in notes)
     assert sum("feed-forward: anchored at x = " in m for m in notes) == 1
     assert "within (reachable)" in md and "saturated s" in md
