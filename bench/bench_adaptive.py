@@ -11,7 +11,7 @@ machine's time, and reports:
 - override bytes per second of cutting (cutting: the revolutions the controller judged as cut);
 - CPU (the acquisition thread's, inside the controller) per second of cutting;
 - the time the controller reported saturated (at an override limit, the target out of reach:
-  the block's 0.1 mm step at 200 %).
+  the block's 0.1 mm step at 200 %), and whether the loop ran with its feed-forward.
 
 With ``--chatter``: the spindle loop of configs/campaigns/adaptive-chatter.toml (a 0.9 mm slot
 chattering at 5500 rpm on the twin) instead: from the start of the cut (the slot chatters from
@@ -89,6 +89,7 @@ def main() -> int:
         "override_bytes_per_s": len(ctl.bytes_sent) / cut_s if cut_s else None,
         "cpu_s_per_cutting_s": ctl.cpu_s / (cut_s / args.speed) if cut_s else None,
         "saturated_s": ctl.summary()["saturated_s"],
+        "feed_forward": ctl.summary()["feed_forward"],  # the load ahead predicted, or not
     }
     print(json.dumps(out, indent=2))
     return 0

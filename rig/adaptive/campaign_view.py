@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Protocol
 if TYPE_CHECKING:  # annotations only: importing rig.adaptive loads neither
     from analysis.chatter import ChatterSettings
     from analysis.config import EndMill, FaceMill, MachineConfig, Material, RigConfig, ToolMode
+    from planning.stock import SteppedBlock
     from rig.daq import Daq
 
 __all__ = [
@@ -21,6 +22,7 @@ __all__ = [
     "LobeCampaign",
     "LobeTest",
     "LoopSession",
+    "PassGeometry",
 ]
 
 
@@ -92,6 +94,29 @@ class _FeedRule(Protocol):
     def base_feed_mm_min(self) -> float: ...
 
 
+class _Program(Protocol):
+    @property
+    def kind(self) -> str: ...  # step-depth, slot, feed-sweep...
+
+
+class PassGeometry(Protocol):
+    """A test's generated program as the feed-forward reads it (rig.campaign's ``CutProgram``):
+    the block it cuts, the cutting Z, the pass's X range and Y, its feed."""
+
+    @property
+    def block(self) -> SteppedBlock: ...
+    @property
+    def z_cut_mm(self) -> float: ...
+    @property
+    def x_start_mm(self) -> float: ...
+    @property
+    def x_end_mm(self) -> float: ...
+    @property
+    def y_path_mm(self) -> float: ...
+    @property
+    def cut_feed_mm_min(self) -> float: ...
+
+
 class _Group(Protocol):
     @property
     def group(self) -> str: ...
@@ -112,6 +137,8 @@ class AdaptiveSpec(Protocol):
     def chatter(self) -> _Chatter: ...
     @property
     def feed_rule(self) -> _FeedRule | None: ...
+    @property
+    def program(self) -> _Program: ...
     @property
     def adaptive(self) -> AdaptiveTable | None: ...
     @property

@@ -50,9 +50,11 @@ from rig.adaptive.grbl_codes import feed_codes as _feed_codes
 from rig.adaptive.grbl_codes import spindle_codes as _spindle_codes
 from rig.adaptive.pockets import nearest_pocket_rpm
 from rig.adaptive.results import AdaptiveStatus, AdaptiveSummary, NoteWriter
+from rig.adaptive.saturation import Saturation
 
 if TYPE_CHECKING:
     from analysis.stability import Lobes
+    from rig.adaptive.feedforward import FeedForward
     from rig.daq import DaqEvent, DaqInfo
     from rig.dnc import GrblStreamer
 
@@ -130,8 +132,12 @@ class AdaptiveController:
         depth_mm: float = 0.0,
         chatter_settings: ChatterSettings | None = None,
         on_hold: Callable[[str], None] | None = None,
+        feed_forward: FeedForward | None = None,
     ) -> None:
         self.s = settings
+        #: the anticipation (rig.adaptive.feedforward.FeedForward) when the program's stock is
+        #: known, else None: the measured force alone
+        self.ff = feed_forward if settings.mode in ("feed", "both") else None
         self.rpm = abs(float(spindle_rpm))
         if not self.rpm > 0:
             raise ValueError(f"spindle_rpm = {spindle_rpm}: the loop needs a turning spindle")
@@ -175,12 +181,9 @@ class AdaptiveController:
         self.stamp_arrival = False
         self.chatter_at_s: float | None = None
         self.chatter_cleared_s: float | None = None
-        #: saturation: the revolution judged was cut at an override limit and missed the target
-        #: on the side the limit blocks; (start, end) run-clock s of each stretch
-        self._sat_side: str | None = None  # "max" or "min" while saturated
-        self._sat_t0 = 0.0
-        self._sat_revs = 0
-        self.saturated_spans: list[tuple[float, float, int]] = []  # (start s, end s, revs)
+        #: saturation: revolutions at an override limit, the target out of reach there
+        self.sat = Saturation(self._note)
+        self.saturated_spans = self.sat.spans  # (start s, end s, revs) of each stretch
         self._saturated_now = False
 
     # -- wiring ----------------------------------------------------------------------------------
@@ -203,7 +206,7 @@ class AdaptiveController:
         with self._lock:
             self._armed = False
             if self.trace:
-                self._end_saturation(self.trace[-1].t_s)
+                self.sat.end(self.trace[-1].t_s)
         self._stop.set()
         if self._watch is not None and self._watch is not threading.current_thread():
             self._watch.join(timeout=2.0)
@@ -271,6 +274,8 @@ class AdaptiveController:
                 self._acc, self._acc_n = [rest], len(rest)
                 t_rev = t_end_s - len(rest) / self.rate_hz
                 self._revolution(t_rev, float(rev.mean()), wall0)
+            if self.state == "cutting" and self.ff is not None and self.ff.active:
+                self._ff_step(t_end_s, wall0)
             # after the revolutions' feed steps: their bytes go out before the chatter window's
             # spectrum is computed (a chatter finding after them still holds or moves the spindle)
             if self.state == "cutting":
@@ -293,7 +298,9 @@ class AdaptiveController:
             if self.state == "cutting":
                 self._note(t_s, f"cut ended: {force_n:.0f} N below air {s.air_force_n:.0f} N")
             self.state = "air"
-            self._end_saturation(t_s)
+            if self.ff is not None and (note := self.ff.on_revolution(t_s, force_n, False)):
+                self._note(t_s, note)
+            self.sat.end(t_s)
             self._chatter = None  # a new cut is judged afresh
             if self.feed_pct != 100 or self.spindle_pct != 100:
                 self._reset(t_s, "air: overrides back to 100 %", wall0)
@@ -303,13 +310,20 @@ class AdaptiveController:
             self.state = "cutting"
             self._saturated_now = False
             # the override this revolution was cut at: the last change's once GRBL ran it
-            pct_ran = self.feed_pct if t_s - self.rev_s >= self._applied_at_s else self._pct_was
-            if self._settle > 0 or t_s - self.rev_s < self._applied_at_s:  # or GRBL not at it
+            pct_ran: int | None = (self.feed_pct if t_s - self.rev_s >= self._applied_at_s
+                                   else self._pct_was)  # fmt: skip
+            if self.ff is not None:  # the changes' times known: at a limit all the revolution
+                pct_ran = self.ff.ran_over(t_s - self.rev_s, t_s)  # None: it changed
+                if note := self.ff.on_revolution(t_s, force_n, True):
+                    self._note(t_s, note)
+            if self.ff is not None and self.ff.active:
+                pass  # the feed-forward sets the feed at each DAQ read (_ff_step)
+            elif self._settle > 0 or t_s - self.rev_s < self._applied_at_s:  # or GRBL not at it
                 self._settle = max(0, self._settle - 1)
             elif s.mode in ("feed", "both"):
                 self._feed_step(t_s, force_n, wall0)
             if s.mode in ("feed", "both"):
-                self._track_saturation(t_s, force_n, pct_ran)
+                self._saturated_now = self.sat.track(t_s, force_n, pct_ran, s, self.rev_s)
         st = getattr(self.streamer, "last_status", None)
         self.trace.append(RevRecord(
             t_s, force_n, self.state, self.feed_pct, self.spindle_pct,
@@ -335,36 +349,12 @@ class AdaptiveController:
         self._settle = s.settle_revs
         self._applied_at_s = t_s + APPLY_DELAY_S
 
-    def _track_saturation(self, t_s: float, force_n: float, pct_ran: int) -> None:
-        """The revolution ending at ``t_s`` was cut at ``pct_ran`` %: saturated when that is a
-        limit and the force is outside the dead band on the side the limit blocks."""
-        s = self.s
-        err_pct = (force_n / s.target_force_n - 1.0) * 100.0
-        side = None
-        if pct_ran >= s.max_pct and err_pct < -s.dead_band_pct:
-            side = "max"
-        elif pct_ran <= s.min_pct and err_pct > s.dead_band_pct:
-            side = "min"
-        if side != self._sat_side:
-            self._end_saturation(t_s - self.rev_s)
-        if side is None:
-            return
-        self._saturated_now = True
-        if self._sat_side is None:
-            self._sat_side, self._sat_t0, self._sat_revs = side, t_s - self.rev_s, 0
-            lim = s.max_pct if side == "max" else s.min_pct
-            self._note(t_s, f"saturated: feed at the {lim} % limit, force {force_n:.0f} N, target "
-                       f"{s.target_force_n:.0f} N: out of reach here")  # fmt: skip
-        self._sat_revs += 1
-
-    def _end_saturation(self, t_end_s: float) -> None:
-        if self._sat_side is None:
-            return
-        t0, n = self._sat_t0, self._sat_revs
-        self.saturated_spans.append((t0, t_end_s, n))
-        self._sat_side = None
-        self._note(t_end_s, f"saturation ended: {n} revolutions at the limit, {t0:.4f}.."
-                   f"{t_end_s:.4f} s")  # fmt: skip
+    def _ff_step(self, t_s: float, wall0: float) -> None:
+        want = self.ff.next_override(t_s, self.feed_pct, self.s, self.block_s) if self.ff else None
+        if want is not None:  # the override the stock ahead asks for
+            self._pct_was = self.feed_pct
+            self._send(t_s, "feed", want[0], want[1], wall0)
+            self._applied_at_s = t_s + APPLY_DELAY_S
 
     def _chatter_check(self, force_n: np.ndarray, t_s: float, wall0: float) -> bool:
         """The block's forces into the live chatter watch (at the speed cut now); True when it
@@ -423,6 +413,8 @@ class AdaptiveController:
             return
         if kind == "feed":
             self.feed_pct = pct
+            if self.ff is not None:  # GRBL runs it after the segments already prepared
+                self.ff.commanded((self.bytes_sent[-1][0] if codes else t_s) + APPLY_DELAY_S, pct)
         else:
             self.spindle_pct = pct
         lat = time.perf_counter() - wall0
@@ -475,7 +467,7 @@ class AdaptiveController:
                 pass
         self.state = "hold"
         self.hold_reason = why
-        self._end_saturation(t_s)
+        self.sat.end(t_s)
         lat = time.perf_counter() - wall0
         self.latencies_s.append(lat)
         self.decisions.append(Decision(t_s, "hold", why, lat))
@@ -552,6 +544,7 @@ class AdaptiveController:
             "latency_p50_ms": float(np.percentile(lat, 50) * 1e3) if lat.size else None,
             "latency_p95_ms": float(np.percentile(lat, 95) * 1e3) if lat.size else None,
             "cpu_s": self.cpu_s,
+            "feed_forward": self.ff is not None,
             "chatter_at_s": self.chatter_at_s,
             "chatter_cleared_s": self.chatter_cleared_s,
             "saturated_revolutions": sum(1 for r in cut if r.saturated),

@@ -44,6 +44,7 @@ class AdaptiveSummary(TypedDict):
     chatter_cleared_s: float | None
     saturated_revolutions: int
     saturated_s: float
+    feed_forward: bool  # the load ahead predicted from the program's stock (else feedback only)
 
 
 class NoteWriter(Protocol):

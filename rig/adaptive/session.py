@@ -19,8 +19,14 @@ from rig.daq import SAMPLE_FORMAT_RAW
 
 if TYPE_CHECKING:
     from analysis.stability import Lobes
-    from rig.adaptive.campaign_view import AdaptiveCampaign, AdaptiveTest, LoopSession
+    from rig.adaptive.campaign_view import (
+        AdaptiveCampaign,
+        AdaptiveTest,
+        LoopSession,
+        PassGeometry,
+    )
     from rig.adaptive.controller import AdaptiveSettings
+    from rig.adaptive.feedforward import FeedForward
     from rig.daq import Calibration
 
 #: the rig session adaptive_session wraps (returned as it is when the test is not under the loop)
@@ -91,6 +97,7 @@ class AdaptiveSession:
     def __init__(
         self, session: Any, ctl: AdaptiveController, cal: Any, zero_samples: int,
         drop_after_s: float | None = None, drop_relative: bool = False,
+        anticipation: str = "feedback only",
     ) -> None:  # fmt: skip
         self._s = session
         self.ctl = ctl
@@ -98,6 +105,7 @@ class AdaptiveSession:
         self.zero_samples = max(2, int(zero_samples))
         self.drop_after_s = drop_after_s
         self._drop_relative = drop_relative  # drop_after_s counts from the program's start
+        self.anticipation = anticipation  # which mode runs, for the run file's start note
         self.daq = _Daq(session.daq, self)
         # the live console (rig.console.live) finds the controller on the session it wraps
         session.adaptive_controller = ctl
@@ -118,7 +126,7 @@ class AdaptiveSession:
         s = self.ctl.s
         msg = (f"adaptive: {s.mode}, target {s.target_force_n:g} N, max {s.max_force_n:g} N, "
                f"dead band {s.dead_band_pct:g} %, slew +{s.slew_up_pct}/-{s.slew_down_pct} % per "
-               f"rev, air {s.air_force_n:g} N")  # fmt: skip
+               f"rev, air {s.air_force_n:g} N; {self.anticipation}")  # fmt: skip
         writer.event(rf.EV_NOTE, msg, time_s=t0)
         self.ctl.arm()
 
@@ -283,23 +291,48 @@ def lobes_for(
 
 
 def adaptive_session(
-    campaign: AdaptiveCampaign, test: AdaptiveTest, session: S, cal: Calibration
-) -> S | AdaptiveSession:
+    campaign: AdaptiveCampaign, test: AdaptiveTest, session: S, cal: Calibration,
+    cut: PassGeometry | None = None,
+) -> S | AdaptiveSession:  # fmt: skip
     """The campaign runner's hook: ``session`` with the controller in its loop when ``test``'s
-    group is under ``[adaptive]``, else ``session`` itself."""
+    group is under ``[adaptive]``, else ``session`` itself; ``cut`` the test's generated program
+    (its block and path: the feed-forward's stock; None: feedback only)."""
     if not under_loop(campaign, test):
         return session
     check_adaptive(campaign)
     a = campaign.spec.adaptive
     rate = campaign.spec.daq.rate_hz or campaign.rig.daq.rate_hz
+    ff, anticipation = None, "feedback only: the spindle mode holds no force target"
+    if a.mode in ("feed", "both"):
+        ff, anticipation = _feed_forward(campaign, test, cut)
     ctl = AdaptiveController(
         settings_of(campaign, test), spindle_rpm=test.spindle_rpm,
         channels=tuple(cal.channel_names), clock=session.clock, depth_mm=test.depth_mm,
         chatter_settings=campaign.spec.chatter.settings(),
         lobes=lobes_for(campaign, test, a.min_pct, a.max_pct) if a.mode != "feed" else None,
+        feed_forward=ff,
     )  # fmt: skip
     zero = int(round(campaign.spec.daq.rest_s * rate))
     drop = None
     if a.sim_signal_loss_at_s is not None and campaign.spec.campaign.rig == "sim":
         drop = a.sim_signal_loss_at_s  # made absolute at the program's start
-    return AdaptiveSession(session, ctl, cal, zero, drop_after_s=drop, drop_relative=True)
+    return AdaptiveSession(session, ctl, cal, zero, drop_after_s=drop, drop_relative=True,
+                           anticipation=anticipation)  # fmt: skip
+
+
+def _feed_forward(
+    campaign: AdaptiveCampaign, test: AdaptiveTest, cut: PassGeometry | None
+) -> tuple[FeedForward | None, str]:
+    """(the loop's anticipation for ``test``, the start note's words for it): the predicted load
+    of the pass (:func:`rig.adaptive.predict.campaign_profile`) or why the loop runs on the
+    measured force alone."""
+    from rig.adaptive.feedforward import FeedForward
+    from rig.adaptive.grbl_codes import APPLY_DELAY_S
+    from rig.adaptive.predict import campaign_profile
+
+    s = settings_of(campaign, test)
+    profile, why = campaign_profile(campaign, test, cut)
+    if profile is None:
+        return None, f"feedback only: {why}"
+    ff = FeedForward(profile, s.target_force_n, s.air_force_n, APPLY_DELAY_S)
+    return ff, f"feed-forward: {why}"

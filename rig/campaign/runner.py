@@ -337,7 +337,7 @@ def _run_one(
     if campaign.spec.adaptive is not None:  # GRBL overrides from the live force
         from rig.adaptive.session import adaptive_session
 
-        session = adaptive_session(campaign, t, session, cal_sheet)
+        session = adaptive_session(campaign, t, session, cal_sheet, plan.cut)
     from rig.dnc import program_from_text
 
     program = program_from_text(plan.program_text, f"{plan.file_stem}.nc", check_nc=False)

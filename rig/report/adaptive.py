@@ -45,6 +45,17 @@ def _chatter_cleared(lr: Any, threshold: float) -> dict[str, Any]:
     return out
 
 
+def _feed_forward(lr: Any) -> bool | None:
+    """Whether the loop anticipated the load (its start note says ``feed-forward: ...`` or
+    ``feedback only: ...``); None when the run file does not say (an older run)."""
+    for _, _, msg in adaptive_events(lr.run):
+        if "; feed-forward: " in msg:
+            return True
+        if "; feedback only" in msg:
+            return False
+    return None
+
+
 def adaptive_entries(campaign: Campaign, runs: list[Any]) -> tuple[list[dict[str, Any]], str]:
     """(the JSON list, its Markdown) for the finished runs ``runs`` (LoadedRun)."""
     a = campaign.spec.adaptive
@@ -73,6 +84,8 @@ def adaptive_entries(campaign: Campaign, runs: list[Any]) -> tuple[list[dict[str
         e: dict[str, Any] = {
             "run": lr.name,
             "mode": a.mode,
+            # the loop set the feed ahead from the pass's predicted load (else feedback only)
+            "feed_forward": _feed_forward(lr),
             "target_force_n": target,
             "target_from": target_from,
             "within_10pct": w["within"],
@@ -110,11 +123,12 @@ def adaptive_entries(campaign: Campaign, runs: list[Any]) -> tuple[list[dict[str
           "reachable revolutions only (those the controller did not report saturated: cut at "
           "an override limit with the target out of reach; their time is `saturated s`); cycle "
           "time from the program's start to its last block's end.\n",
-          "| run | mode | target N | within | within (reachable) | saturated s | baseline within "
-          "| cycle s | baseline cycle s | plan feed cycle s |",
-          "|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
+          "| run | mode | feed-forward | target N | within | within (reachable) | saturated s | "
+          "baseline within | cycle s | baseline cycle s | plan feed cycle s |",
+          "|---|---|---|---|---|---|---|---|---|---|---|"]  # fmt: skip
     for e in out:
-        md.append(f"| {e['run']} | {e['mode']} | {num(e['target_force_n'], '.4g')} | "
+        ff = {True: "yes", False: "no", None: "n/a"}[e["feed_forward"]]
+        md.append(f"| {e['run']} | {e['mode']} | {ff} | {num(e['target_force_n'], '.4g')} | "
                   f"{num(e['within_10pct'], '.3f')} | {num(e['within_10pct_reachable'], '.3f')} | "
                   f"{num(e['saturated_s'], '.2f')} | {num(e['baseline_within_10pct'], '.3f')} | "
                   f"{num(e['cycle_time_s'], '.2f')} | {num(e['baseline_cycle_time_s'], '.2f')} | "
