@@ -63,7 +63,7 @@ def _runs(fz, modes, seed, cut_s=3.0, depths=DEPTHS):
 
 @pytest.fixture(scope="module")
 def runs_0236(modes):
-    return _runs(0.236, modes, seed=5)
+    return _runs(0.236, modes, seed=5, cut_s=1.5)
 
 
 @pytest.fixture(scope="module")

@@ -124,12 +124,24 @@ def _resolve(name: str) -> str:
 
 
 @cache
+def _nodes(path: Path) -> tuple[ast.AST, ...]:
+    """Every node of ``path``'s syntax tree, parsed once per run (the checks below each walk every
+    module of the house: parsing dominated this file's time)."""
+    return tuple(ast.walk(_tree(path)))
+
+
+@cache
+def _tree(path: Path) -> ast.Module:
+    return ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+
+
+@cache
 def _imports(module: str) -> frozenset[str]:
     """Modules of this house that ``module`` imports (``from P import x`` counts as P.x when x
     is a module, else as P; a face's ``_LAZY`` table counts as importing its modules)."""
     path = _modules()[module]
     out: set[str] = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
+    for node in _nodes(path):
         names: list[str] = []
         if isinstance(node, ast.Import):
             names = [a.name for a in node.names]
@@ -152,15 +164,15 @@ def _unit(module: str) -> str:
     return ".".join(module.split(".")[:2])
 
 
-def _raw_imports(path: Path) -> set[str]:
-    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+@cache
+def _raw_imports(path: Path) -> frozenset[str]:
     out: set[str] = set()
-    for node in ast.walk(tree):
+    for node in _nodes(path):
         if isinstance(node, ast.Import):
             out.update(a.name.split(".")[0] for a in node.names)
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
             out.add(node.module.split(".")[0])
-    return out
+    return frozenset(out)
 
 
 @pytest.mark.parametrize("package", sorted(FORBIDDEN))
@@ -309,7 +321,7 @@ def _model_class_tests(path: Path) -> int:
 
     return sum(
         1
-        for node in ast.walk(ast.parse(path.read_text(), str(path)))
+        for node in _nodes(path)
         if isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
         and node.func.id == "isinstance" and len(node.args) == 2
         and names(node.args[1]) & MODEL_CLASSES
@@ -387,7 +399,7 @@ def _function_sizes(path: Path) -> dict[str, int]:
             else:
                 visit(child, prefix)
 
-    visit(ast.parse(path.read_text(encoding="utf-8"), filename=str(path)), "")
+    visit(_tree(path), "")
     return out
 
 
@@ -443,7 +455,7 @@ def dialect_comparisons(path: Path, names: frozenset[str]) -> list[int]:
     string literal."""
     ops = (ast.Eq, ast.NotEq, ast.In, ast.NotIn)
     out = []
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"), filename=str(path))):
+    for node in _nodes(path):
         if isinstance(node, ast.Compare) and any(isinstance(o, ops) for o in node.ops):
             if any(_name_literals(x, names) for x in (node.left, *node.comparators)):
                 out.append(node.lineno)

@@ -200,14 +200,15 @@ _READER = textwrap.dedent("""
     sys.path.insert(0, {root!r})
     from analysis.rules import RuleBase
     rb = RuleBase({path!r})
-    last = 0
-    for _ in range(60):
+    print("ready", flush=True)
+    last, reads = 0, 0
+    while last < 43 and reads < 5000:  # until the writer's last rule is seen (bounded)
         n = len(rb.list())
         assert n >= last, (n, last)
         for g in rb.list():
             g.rule  # every stored rule parses
-        last = n
-    print(last)
+        last, reads = n, reads + 1
+    print(last, reads)
 """)
 
 
@@ -221,10 +222,15 @@ def test_concurrent_readers_during_writes(db) -> None:
         )
         for _ in range(3)
     ]
+    # Every reader has the base open before the first write, so its reads overlap the writes
+    # (rather than fixed 60 rounds, most of which came after them); each reads until it has
+    # seen the 43rd rule.
+    for r in readers:
+        assert r.stdout.readline().strip() == "ready", r.stderr.read()
     for i in range(40):
         db.add(_key(operation=f"op{i}"), _rule(f"r{i}"))
     for r in readers:
         out, err = r.communicate(timeout=120)
         assert r.returncode == 0, err
-        assert 3 <= int(out) <= 43
+        assert int(out.split()[0]) == 43, out
     assert len(db.list()) == 43
