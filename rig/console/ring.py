@@ -51,11 +51,6 @@ _DTYPES = {2: np.dtype(np.int16), 4: np.dtype(np.float32), 8: np.dtype(np.float6
 _STORED = {2: np.dtype(np.int16), 8: np.dtype(np.float32)}
 
 
-#: json.dumps(obj, separators=(",", ":"), allow_nan=False, default=str), the encoder made once
-#: (dumps builds one a call: a good part of the status thread's 25 ticks a second)
-_ENCODE = json.JSONEncoder(separators=(",", ":"), allow_nan=False, default=str).encode
-
-
 class RingError(RigError):
     """A live ring that cannot be created or read."""
 
@@ -91,8 +86,15 @@ class _Mapped:
     def _region(self, name: str) -> memoryview:
         return memoryview(self._mm)[_OFFSET[name] : _OFFSET[name] + _SIZE[name]]
 
+    @staticmethod
+    def dumps(obj: Any) -> bytes:
+        """The JSON the regions hold (compact; NaN refused; anything else as its str)."""
+        return json.dumps(obj, separators=(",", ":"), allow_nan=False, default=str).encode()
+
     def _put_json(self, name: str, obj: Any) -> None:
-        data = _ENCODE(obj).encode()
+        self._put_bytes(name, self.dumps(obj))
+
+    def _put_bytes(self, name: str, data: bytes) -> None:
         if len(data) > _SIZE[name]:
             raise RingError(f"live ring: {name} is {len(data)} bytes, room for {_SIZE[name]}")
         if data == self._last.get(name):
@@ -177,6 +179,11 @@ class RingWriter(_Mapped):
 
     def put_status(self, status: dict[str, Any]) -> None:
         self._put_json("status", status)
+
+    def put_status_json(self, data: bytes) -> None:
+        """The status already encoded by :meth:`dumps` (the live side splices in the events'
+        JSON, encoded once per new event rather than 25 times a second)."""
+        self._put_bytes("status", data)
 
     def write(self, first_sample: int, data: np.ndarray) -> None:
         """Append a DAQ block ``data`` (c, n) starting at device sample ``first_sample``."""
