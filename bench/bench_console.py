@@ -127,6 +127,20 @@ class Setup:
     blocks: list[np.ndarray]
     port: int
     frames_per_s: list[float] = field(default_factory=list)
+    probe_s: float = 0.0  # the two clock reads around each tap call (counted in its copies)
+
+
+def _probe_s() -> float:
+    """CPU s of the probe around each tap call (two ``time.thread_time`` reads, a system call
+    each), timed empty: part of what the in-trial accounting counts as the tap's."""
+    runs = []
+    for _ in range(5):
+        tap_s, n = 0.0, 20_000
+        for _ in range(n):
+            c0 = time.thread_time()
+            tap_s += time.thread_time() - c0
+        runs.append(tap_s / n)
+    return statistics.median(runs)
 
 
 def _thread_cpu_s(tid: int | None) -> float:
@@ -385,14 +399,14 @@ def main() -> None:
     with tempfile.TemporaryDirectory(dir=args.dir) as tmp:
         folder = Path(tmp)
         (folder / "runs").mkdir()  # a campaign folder to the server
-        st = Setup(folder, campaign, info, blocks, _free_port())
+        st = Setup(folder, campaign, info, blocks, _free_port(), probe_s=_probe_s())
         server = start_server(folder, st.port, "127.0.0.1", TOKEN)
         try:
             if args.only in (None, "lab"):
                 n_total = int(args.paced_s * args.rate)
                 _print_lab(args, _rounds(st, conditions, n_total, args.rounds, True))
             if args.only in (None, "flat"):
-                _print_flat(args, _rounds(st, conditions, args.samples, args.rounds, False))
+                _print_flat(args, st, _rounds(st, conditions, args.samples, args.rounds, False))
             got = [f for f in st.frames_per_s if f == f]  # nan: the client not yet connected
             if got:
                 print(f"frames received by a client: {statistics.median(got):.1f} per s (median "
@@ -432,7 +446,7 @@ def _print_lab(args: argparse.Namespace, res: dict[str, list[Trial]]) -> None:
               f"the status thread {thread:.2f} %")  # fmt: skip
 
 
-def _print_flat(args: argparse.Namespace, res: dict[str, list[Trial]]) -> None:
+def _print_flat(args: argparse.Namespace, st: Setup, res: dict[str, list[Trial]]) -> None:
     n = len(res["without"])
     print(f"flat out ({args.samples:,} samples per channel a trial, {n} rounds), samples/s "
           "per channel:")  # fmt: skip
@@ -457,6 +471,10 @@ def _print_flat(args: argparse.Namespace, res: dict[str, list[Trial]]) -> None:
               f"95 % [{lo * 100:.2f}, {hi * 100:.2f}] (copies {tap * 100:.2f} %, thread "
               f"{thread * 100:.2f} %): the logger's speed {1 - share:.3f} of what it is without "
               f"them, 95 % [{1 - hi:.3f}, {1 - lo:.3f}]: {_verdict(1 - hi, 1 - lo)}")  # fmt: skip
+        blocks = -(-args.samples // st.blocks[0].shape[1]) * len(res[k])
+        probe = blocks * st.probe_s / sum(t.cpu_s for t in res[k])
+        print(f"    of which the probe (two clock reads around each tap call, "
+              f"{st.probe_s * 1e6:.2f} us timed empty): {probe * 100:.2f} %")  # fmt: skip
 
 
 def _print_page(

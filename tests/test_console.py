@@ -11,6 +11,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -363,3 +364,34 @@ def test_a_console_left_to_browse_gives_its_port_to_the_next_live_campaign(tmp_p
         if proc.poll() is None:
             proc.kill()
         proc.wait(timeout=10)
+
+
+def test_the_status_carries_every_event_as_json_encodes_it(tmp_path: Path) -> None:
+    """The events are encoded once per new event and spliced into the status (not 25 times a
+    second): the page gets the same object (and the same bytes) as encoding them in place, up to
+    MAX_EVENTS, with messages that hold the splice's own marker."""
+    from rig.campaign import load_campaign
+    from rig.console.live import MAX_EVENTS, LiveCampaign
+
+    live = LiveCampaign(load_campaign("facemill-ploughing"), tmp_path)  # its thread publishes
+    reader = RingReader(live.ring.path)
+    try:
+        for i in range(MAX_EVENTS + 30):
+            live.note("gap", f'{i} samples missing "events":null \u00e9', 0.5 * i)
+            if i % 23 and i != MAX_EVENTS + 29:
+                continue
+            expected = json.loads(json.dumps(list(live.events)))
+            t_end = time.monotonic() + 10
+            while True:  # the next tick (25 a second) publishes them
+                seq, status = reader.get_json("status")
+                raw = bytes(reader._region("status")[: reader.h[19]])
+                if reader.seq("status") == seq and status and status["events"] == expected:
+                    break
+                assert time.monotonic() < t_end, "the events never reached the status"
+                time.sleep(0.01)
+            assert len(expected) == min(i + 1, MAX_EVENTS)
+            assert raw == json.dumps(status, separators=(",", ":")).encode()
+    finally:
+        reader.close()
+        live.close()
+        live.ring.path.unlink(missing_ok=True)

@@ -99,6 +99,8 @@ class LiveCampaign:
         self.ring = RingWriter(ring_path)
         self.stop = StopRequest()
         self.events: deque[dict[str, Any]] = deque(maxlen=MAX_EVENTS)
+        self._events_n = 0  # events noted so far: the key of the events' JSON below
+        self._events_json = (0, b"[]")
         self.phase = "starting"
         self.message = ""
         self._lock = threading.Lock()
@@ -184,6 +186,7 @@ class LiveCampaign:
             time_s = self._session.clock()
         self.events.append({"run": self._run_k + 1, "kind": kind, "message": message[:300],
                             "t_s": _jsonable(time_s), "wall": time.time()})  # fmt: skip
+        self._events_n += 1
 
     # -- run info ------------------------------------------------------------------------------
     def _run_meta(self, info: DaqInfo, t0_s: float) -> dict[str, Any]:
@@ -312,7 +315,7 @@ class LiveCampaign:
             "run_name": self.run_names[self._run_k] if 0 <= self._run_k < self.n_runs else "",
             "elapsed_s": round(now - self._wall0, 1),
             "remaining_s": self._remaining_s(now),
-            "events": list(self.events),
+            "events": None,  # spliced in below, encoded once per new event
             "command": self._last_cmd,
             "tap_errors": self.tap_errors,
         }
@@ -324,7 +327,15 @@ class LiveCampaign:
             ended = self.phase in ("finished", "stopped", "failed")
             # between runs abort still ends the campaign
             status["controls"] = {"hold": False, "resume": False, "abort": not ended}
-        self.ring.put_status(status)
+        # The events (up to MAX_EVENTS, ~30 kB of JSON) were most of a tick's encoding; the
+        # same bytes as encoding them in place: the first '"events":null' is the key's (no
+        # earlier value is a string that could hold it unescaped).
+        n, events = self._events_json
+        if n != self._events_n:
+            n = self._events_n  # read first: an event noted meanwhile is encoded next tick
+            self._events_json = n, events = n, self.ring.dumps(list(self.events))
+        data = self.ring.dumps(status).replace(b'"events":null', b'"events":' + events, 1)
+        self.ring.put_status_json(data)
 
     def _remaining_s(self, now: float) -> float:
         k = self._run_k
