@@ -14,43 +14,20 @@ from rig.cli.common import image_file, nonnegative
 from rig.cli.options import json_option, rate_option, rig_option
 
 
-def _is_run_file(path: str) -> bool:
-    return path.lower().endswith((".h5", ".hdf5"))
-
-
 def _info(args: argparse.Namespace) -> int:
-    from analysis.runs.text import export_info_lines, run_info_lines
+    from analysis.runs import file_info_lines, file_summary
     from rig.cli.common import print_json, print_lines
 
-    if not _is_run_file(args.file):
-        from analysis.runs.table import table_summary
-
-        s = table_summary(args.file, args.rate)
-    else:
-        from analysis.runs import run_summary
-
-        s = run_summary(args.file)
-    if args.json:
-        print_json(s)
-    else:
-        print_lines((run_info_lines if _is_run_file(args.file) else export_info_lines)(s))
+    s = file_summary(args.file, args.rate)
+    print_json(s) if args.json else print_lines(file_info_lines(args.file, s))
     return 0
 
 
 def _plot(args: argparse.Namespace) -> int:
+    from analysis.runs import plot_file
     from rig.cli.common import print_json, status
 
-    if _is_run_file(args.file):
-        from analysis.runs import load_run, plot_run
-
-        run = load_run(args.file, args.start_s, args.stop_s)
-        png, samples = plot_run(run, args.output), len(run.time_s)
-    else:
-        from analysis.runs.plot import plot_table
-        from analysis.runs.table import read_force_table
-
-        table = read_force_table(args.file)
-        png, samples = plot_table(table, args.output, args.rate), len(table.data)
+    png, samples = plot_file(args.file, args.output, args.rate, args.start_s, args.stop_s)
     status(f"data plot: wrote {png}")
     if args.json:
         print_json({"file": args.file, "plot": str(png), "samples": samples})
