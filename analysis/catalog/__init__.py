@@ -7,19 +7,24 @@ to comparisons, and force identification over a query with the per-run reduction
 from analysis.catalog.compute import CONNECT_TIMEOUT_S, CachedMapper, compute, fit_catalog
 from analysis.catalog.index import INDEX_NAME, index_file, load_index, update_index
 from analysis.catalog.query import MAIN_COLUMNS, check_query, query_runs, records, show_run
+from analysis.catalog.text import catalog_named, index_line, query_rows, show_lines
 
 __all__ = [
     "CONNECT_TIMEOUT_S",
     "INDEX_NAME",
     "MAIN_COLUMNS",
     "CachedMapper",
+    "catalog_named",
     "check_query",
     "compute",
     "fit_catalog",
     "index_file",
+    "index_line",
     "load_index",
+    "query_rows",
     "query_runs",
     "records",
+    "show_lines",
     "show_run",
     "update_index",
 ]
