@@ -44,5 +44,5 @@ def query_rows(df: pd.DataFrame, all_columns: bool = False) -> list[dict[Any, An
 def show_lines(row: dict[str, Any]) -> list[str]:
     """A run's catalogue row, one ``key value`` line per column, then its conditions."""
     conditions = row.pop("conditions") or {}
-    return [f"{k:<28} {v}"
-            for k, v in [*row.items(), *((f"conditions.{k}", v) for k, v in conditions.items())]]  # fmt: skip
+    items = [*row.items(), *((f"conditions.{k}", v) for k, v in conditions.items())]
+    return [f"{k:<28} {v}" for k, v in items]

@@ -42,9 +42,10 @@ def send_under_control(
     """Stream ``job`` with the operator's keys and signals live; ``loop`` (its value has a
     ``summary``, read once it has closed) runs beside the stream. On a fault ``on_fault`` gets
     what was sent and done (no loop summary), then the :class:`StreamFault` propagates."""
-    with operator_control(job.streamer, job.protocol) as ctl, (
-        loop if loop is not None else contextlib.nullcontext(None)
-    ) as running:
+    with (
+        operator_control(job.streamer, job.protocol) as ctl,
+        loop if loop is not None else contextlib.nullcontext(None) as running,
+    ):
         try:
             with halt_on_signals(job.streamer, on_signal=ctl.note):  # Ctrl-C: hold, clean halt
                 res = job.send()
