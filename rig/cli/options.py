@@ -60,3 +60,19 @@ def serial_options(
 def rule_db_option(p: argparse.ArgumentParser, help: str | None = None) -> None:
     """``--db FILE``: the rule base (default from configs/lab.toml)."""
     p.add_argument("--db", type=Path, help=help)
+
+
+def stock_options(p: argparse.ArgumentParser) -> None:
+    """``--stock`` and ``--spacing``: the stock a program is cut from on the Z-map (plan check,
+    feed and simulate)."""
+    p.add_argument("--stock", help="box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP | mesh (.stl) | stock TOML "
+        "(default: derived from the program's feed moves, printed)")  # fmt: skip
+    p.add_argument(
+        "--spacing", type=positive("mm", 100), help="Z-map grid spacing, mm (default 0.25)"
+    )
+
+
+def limit_options(p: argparse.ArgumentParser) -> None:
+    """``--lobes`` (plan check, feed and rough)."""
+    p.add_argument("--lobes", type=Path, help="stability lobes CSV (spindle_rpm,depth_limit_mm; "
+                   "`cutlab analyze stability -o`), default: the tool's modes if any")  # fmt: skip
