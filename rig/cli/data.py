@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 
 from rig.cli.common import image_file, nonnegative
-from rig.cli.options import json_option, rate_option, rig_option
+from rig.cli.options import import_group, import_options, json_option, rate_option, rig_option
 
 
 def _info(args: argparse.Namespace) -> int:
@@ -37,16 +37,11 @@ def _plot(args: argparse.Namespace) -> int:
 
 
 def _import(args: argparse.Namespace) -> int:
-    from analysis.identify import ImportOptions
-    from analysis.identify.conditions_arg import conditions_arg
     from rig.cli.common import print_json, print_table, status
     from rig.log import import_exports
     from rig.terminal import Progress
 
-    pairs, table = conditions_arg(args.conditions)
-    opts = ImportOptions(axes=args.axes, table=table, pattern=args.conditions_pattern,
-                         zero_file=args.zero, zeroed=args.zeroed, tools_path=args.tools,
-                         materials_path=args.materials)  # fmt: skip
+    pairs, opts = import_options(args)
     if opts.auto:  # the mapping from an end-mill fit of all the exports, before any is written
         from dataclasses import replace
 
@@ -71,8 +66,6 @@ def _import(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
-    from rig.cli.analyze import add_import_options
-
     p = sub.add_parser("data", help="inspect and plot run files and exports; import exports")
     psub = p.add_subparsers(dest="data_command", metavar="DATA_COMMAND")
     psub.required = True
@@ -102,7 +95,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     m.add_argument("--tool", default=None, help="tool name (configs/tools.toml or --tools)")
     rate_option(m)
     rig_option(m)
-    add_import_options(m)
+    import_group(m)
     m.add_argument("--force", action="store_true", help="replace existing run files")
     json_option(m)
     m.set_defaults(func=_import)
