@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 def _physics(tool_name: str, material: str, rate_hz: float, seconds: float) -> dict:
     from analysis.config import get_material, get_tool, load_rig
     from planning.stock import SteppedBlock
-    from rig.sim._machine_timeline import ExecutedSegment
+    from rig.sim import ExecutedSegment
     from rig.sim.machine import BlockStock, SignalSettings, SimMachine, ZMapStock
 
     tool = get_tool(tool_name)

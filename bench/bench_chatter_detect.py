@@ -40,7 +40,7 @@ import numpy as np
 
 from analysis.config import EndMill, EndMillCoefficients, Material, ToolMode, load_rig
 from planning.stock import SteppedBlock
-from rig.sim._machine_timeline import ExecutedSegment
+from rig.sim import ExecutedSegment
 from rig.sim.machine import BlockStock, SignalSettings, SimMachine
 
 RATE_HZ = 10_000.0

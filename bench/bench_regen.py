@@ -19,7 +19,7 @@ import numpy as np
 
 from analysis.config import ToolMode, get_material, get_tool, load_rig
 from planning.stock import SteppedBlock
-from rig.sim._machine_timeline import ExecutedSegment
+from rig.sim import ExecutedSegment
 from rig.sim.machine import SignalSettings, SimMachine, ZMapStock
 
 

@@ -377,7 +377,7 @@ def test_twin_stock_split_by_an_override_cuts_no_false_dip() -> None:
     revolution after a split at the same feed cuts what the unsplit line does."""
     from analysis.config import EndMill, get_material, load_rig
     from planning.stock import SteppedBlock
-    from rig.sim._machine_timeline import ExecutedSegment
+    from rig.sim import ExecutedSegment
     from rig.sim.machine import SignalSettings, SimMachine, ZMapStock
 
     ball = EndMill(kind="ball", diameter_mm=30, corner_radius_mm=15, flute_length_mm=30,

@@ -37,8 +37,7 @@ from rig.dnc import (
     restart_blocks,
 )
 from rig.dnc.port import check_settings
-from rig.sim import SimClock, SimFanuc, SimGrbl
-from rig.sim._controller import SimControllerError
+from rig.sim import SimClock, SimControllerError, SimFanuc, SimGrbl
 
 # -- bad input ------------------------------------------------------------------------------------
 

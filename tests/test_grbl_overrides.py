@@ -21,8 +21,7 @@ from _dnc_helpers import GRBL_LINE_B_S, grbl_bytes, grbl_cfg
 
 from rig.dnc import DncError, GrblStreamer, MemorySink, program_from_text
 from rig.dnc.grbl import override_bytes
-from rig.sim import SimClock, SimGrbl
-from rig.sim._machine_timeline import MotionTimeline
+from rig.sim import MotionTimeline, SimClock, SimGrbl
 
 FEED_UP10, FEED_DN10, FEED_UP1, FEED_DN1, FEED_RESET = 0x91, 0x92, 0x93, 0x94, 0x90
 SP_UP10, SP_DN10, SP_RESET = 0x9A, 0x9B, 0x99

@@ -7,8 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planning.orient._energy import Charges, Site, energy
-from planning.orient._search import _Context, descend, solve_point
+from planning.orient import Charges, SearchContext, Site, descend, energy, solve_point
 from planning.orient.check import CheckMesh, check
 from planning.orient.tool import ToolSystem, cutter_position, local_frame, szende_K, tool_axis
 from planning.surface.nurbs import NurbsSurface, clamped_uniform_knots
@@ -42,7 +41,8 @@ def scene():
     b, f, n = local_frame(np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0]))
     site = Site(np.zeros(3), n, b, f)
     mesh = CheckMesh.build(surfaces, 0.3)
-    ctx = _Context(TOOL, charges, mesh, np.radians([[0, 15], [-90, 90]]), 0.0025, 1.0, 0.5, 0.0)
+    bounds = np.radians([[0, 15], [-90, 90]])
+    ctx = SearchContext(TOOL, charges, mesh, bounds, 0.0025, 1.0, 0.5, 0.0)
     return ctx, site, surfaces
 
 
@@ -112,7 +112,7 @@ def test_planner_answer_is_unit_axis_inside_limits_and_free(scene, alpha_lim, be
     with a reason -- never an orientation outside the limits or colliding."""
     ctx, site, _ = scene
     box = np.radians([alpha_lim, beta_lim])
-    c = _Context(ctx.tool, ctx.charges, ctx.mesh, box, ctx.tol_mm, ctx.clearance_mm, 5.0, 0.0)
+    c = SearchContext(ctx.tool, ctx.charges, ctx.mesh, box, ctx.tol_mm, ctx.clearance_mm, 5.0, 0.0)
     th, why, U, gate = solve_point(c, site, kappa, box.mean(axis=1))
     if th is None:
         assert why.startswith("no collision-free orientation within alpha") or "check" in why

@@ -46,7 +46,7 @@ def executed_segments(motion: Motion, rapid_mm_min: float, arc_step_mm: float = 
     acceleration), arcs as chords of at most ``arc_step_mm``: the twin's Z-map removes straight
     segments."""
     from rig.dnc.nc import segment_durations_s
-    from rig.sim._machine_timeline import ExecutedSegment
+    from rig.sim import ExecutedSegment
 
     dur = segment_durations_s(motion, rapid_mm_min)
     out, t0 = [], 0.0

@@ -17,7 +17,7 @@ from analysis.config import EndMill, EndMillCoefficients, Material, ToolMode, lo
 from analysis.forces.endmill import element_forces
 from analysis.stability import load_case, stability_lobes
 from planning.stock import SteppedBlock
-from rig.sim._machine_timeline import ExecutedSegment
+from rig.sim import ExecutedSegment
 from rig.sim.machine import BlockStock, SignalSettings, SimMachine
 
 F_N, ZETA, MASS = 922.0, 0.011, 0.03993

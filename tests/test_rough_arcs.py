@@ -16,8 +16,7 @@ from analysis.config import REPO_ROOT
 from analysis.errors import ConfigError
 from planning.errors import PlanningError
 from planning.nc import ARC_CCW, ARC_CW, LINE, interpret, linearize
-from planning.rough import Part, RoughPlanner, check_program, load_part
-from planning.rough._arcs import fit_arcs, sample_path
+from planning.rough import Part, RoughPlanner, check_program, fit_arcs, load_part, sample_path
 from planning.rough.gcode import MoveSettings, plan_motion, plan_program, plan_totals
 
 PART = REPO_ROOT / "configs" / "parts" / "seed000-bump.toml"

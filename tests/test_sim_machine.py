@@ -10,11 +10,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from analysis.config import Dynamometer, DynoChannel, EndMill, FaceMill, Mode
+from planning.nc import ARC_CCW
 from planning.stock import SteppedBlock
 from rig.daq import Calibration
-from rig.sim._machine_engagement import endmill_engagement, facemill_engagement
-from rig.sim._machine_signal import DynoChain
-from rig.sim._machine_timeline import ARC_CCW, ExecutedSegment, MotionTimeline
+from rig.sim import (
+    DynoChain,
+    ExecutedSegment,
+    MotionTimeline,
+    endmill_engagement,
+    facemill_engagement,
+)
 from rig.sim.machine import BlockStock
 
 FACEMILL = FaceMill(

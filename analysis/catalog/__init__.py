@@ -21,6 +21,7 @@ from analysis.catalog.query import (
     records,
     show_run,
 )
+from analysis.catalog.text import catalog_named, index_line, query_rows, show_lines
 
 __all__ = [
     "CONNECT_TIMEOUT_S",
@@ -30,13 +31,17 @@ __all__ = [
     "IndexRow",
     "IndexUpdate",
     "RunRow",
+    "catalog_named",
     "check_query",
     "compute",
     "fit_catalog",
     "index_file",
+    "index_line",
     "load_index",
+    "query_rows",
     "query_runs",
     "records",
+    "show_lines",
     "show_run",
     "update_index",
 ]

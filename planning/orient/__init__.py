@@ -3,6 +3,9 @@ the check between points, the machine's inverse kinematics to NC, and the whole 
 job.
 """
 
+from planning.orient._energy import Charges, Site, energy
+from planning.orient._search import _Context as SearchContext
+from planning.orient._search import descend, solve_point
 from planning.orient.check import verify
 from planning.orient.config import load_orient
 from planning.orient.job import run_orient
@@ -11,7 +14,12 @@ from planning.orient.planner import energy_map, plan_orientation, require_feasib
 from planning.orient.tool import ToolSystem
 
 __all__ = [
+    "Charges",
+    "SearchContext",
+    "Site",
     "ToolSystem",
+    "descend",
+    "energy",
     "energy_map",
     "inverse",
     "load_orient",
@@ -19,6 +27,7 @@ __all__ = [
     "plan_orientation",
     "require_feasible",
     "run_orient",
+    "solve_point",
     "verify",
     "write_cl_csv",
 ]

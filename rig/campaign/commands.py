@@ -1,5 +1,6 @@
-"""What `cutlab campaign run` needs beyond its arguments: the dry run as text, ``--adaptive``
-applied to the campaign, and the heartbeat's note of the runs ended."""
+"""What `cutlab campaign run` and `status` need beyond their arguments: the dry run as text,
+``--adaptive`` applied to the campaign, the heartbeat's note of the runs ended, the runs' table
+and the note on a campaign folder that does not exist."""
 
 from __future__ import annotations
 
@@ -7,12 +8,16 @@ import dataclasses
 import json
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from analysis.errors import ConfigError
 from rig.campaign.config import Campaign
 from rig.campaign.dryrun import DryRun
 
-__all__ = ["dry_run_lines", "runs_done", "with_adaptive"]
+if TYPE_CHECKING:
+    from rig.campaign.runner import CampaignResult
+
+__all__ = ["dry_run_lines", "missing_folder_note", "run_rows", "runs_done", "with_adaptive"]
 
 
 def dry_run_lines(d: DryRun) -> list[str]:
@@ -54,3 +59,18 @@ def runs_done(folder: Path, total: int) -> Callable[[], str]:
         return f"{ended} of {total} runs ended"
 
     return note
+
+
+def run_rows(result: CampaignResult) -> list[dict[str, object]]:
+    """``campaign run``'s table: each run's index, name, status, peak force (N) and the start
+    of its reason."""
+    return [{"run": r.index, "name": r.name, "status": r.status, "peak_N": r.peak_force_n,
+             "reason": r.reason[:60]} for r in result.runs]  # fmt: skip
+
+
+def missing_folder_note(folder: Path) -> str | None:
+    """``campaign status`` of a folder that does not exist: where its runs may be instead."""
+    if folder.exists():
+        return None
+    return (f"note: {folder} does not exist: the campaign has not run from here, or its runs "
+            "are elsewhere (--out FOLDER; `cutlab demo` writes to out/demo)")  # fmt: skip

@@ -16,20 +16,17 @@ from __future__ import annotations
 import argparse
 
 from rig.cli.common import count, image_file, number, positive
-from rig.cli.options import json_option, rate_option, rig_option
+from rig.cli.options import import_group, import_options, json_option, rate_option, rig_option
 
 
 def _forces(args: argparse.Namespace) -> int:
-    from analysis.identify import ImportOptions, fit_files
-    from analysis.identify.conditions_arg import conditions_arg, runs_or_catalog
+    from analysis.identify import fit_files
+    from analysis.identify.conditions_arg import runs_or_catalog
     from analysis.identify.text import forces_lines
     from rig.cli.common import print_json, print_lines, status
     from rig.terminal import Progress
 
-    pairs, table = conditions_arg(args.conditions)
-    opts = ImportOptions(axes=args.axes, table=table, pattern=args.conditions_pattern,
-                         zero_file=args.zero, zeroed=args.zeroed, tools_path=args.tools,
-                         materials_path=args.materials)  # fmt: skip
+    pairs, opts = import_options(args)
     kw = dict(model=args.model, tool=args.tool, overrides=pairs, rig_path=args.rig,
               rate_hz=args.rate, tolerance=args.steady_tolerance, validate=args.validate,
               plot_dir=args.plot, options=opts, keep=args.keep)  # fmt: skip
@@ -117,7 +114,7 @@ def _register_forces(psub: argparse._SubParsersAction) -> None:
         "file,spindle_rpm,feed_mm_min|fz_mm,ap_mm,ae_mm[,teeth,tool,mode])",
     )  # fmt: skip
     rate_option(f)
-    add_import_options(f)
+    import_group(f)
     f.add_argument(
         "--steady-tolerance", type=number("fraction", 0, 1, lo_open=True),
         default=IDENTIFY_TOLERANCE, metavar="FRACTION",
@@ -132,29 +129,6 @@ def _register_forces(psub: argparse._SubParsersAction) -> None:
                    "are named and left out")  # fmt: skip
     json_option(f)
     f.set_defaults(func=_forces)
-
-
-def add_import_options(p: argparse.ArgumentParser) -> None:
-    """Options for reading exports, shared with `cutlab data import`."""
-    p.add_argument(
-        "--axes", metavar="x=COL,y=COL,z=COL",
-        help="file columns (or run-file channels) for cutlab's x (feed), y (cross-feed), z (tool "
-        "axis), a '-' flips the sign: x=-Fy,y=Fx,z=-Fz; or 'auto': the signed permutation whose "
-        "end-mill fit gives positive Ktc, Krc, Kac with the smallest residual (refused when the "
-        "runs cannot tell; slots alone cannot tell x from y) (default: the rig config's "
-        "dynamometer, else columns named Fx, Fy, Fz; a mapping giving a negative cutting "
-        "coefficient or fitting clearly worse than another is refused)",
-    )  # fmt: skip
-    for name, metavar, text in (
-        ("--conditions-pattern", "PATTERN",
-         "conditions from file names: 'cut_{spindle_rpm}rpm_f{feed_mm_min}.txt'"),
-        ("--zero", "FILE", "an export of the same channels at rest: its mean is the offset"),
-        ("--zeroed", None, "the exports are already zeroed: subtract no offset"),
-        ("--tools", "FILE", "your tool catalogue (TOML, [tools.NAME]), before configs/tools.toml"),
-        ("--materials", "FILE", "your material catalogue (TOML), before configs/materials.toml"),
-    ):  # fmt: skip
-        kw = {"action": "store_true"} if metavar is None else {"metavar": metavar}
-        p.add_argument(name, help=text, **kw)  # type: ignore[arg-type]
 
 
 def _register_modal(psub: argparse._SubParsersAction) -> None:

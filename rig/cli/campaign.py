@@ -68,7 +68,7 @@ def _dry_run(campaign, as_json: bool, out_root: str | None) -> int:  # noqa: ANN
 def _run(args: argparse.Namespace) -> int:
     from analysis.errors import CutlabError
     from rig.campaign import campaign_folder, load_campaign, run_campaign
-    from rig.campaign.commands import runs_done
+    from rig.campaign.commands import run_rows, runs_done
 
     try:
         campaign = load_campaign(args.config)
@@ -108,8 +108,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.json:
         print_json(result.summary(report.summary if report is not None else None))
     else:
-        print_table([{"run": r.index, "name": r.name, "status": r.status, "peak_N":
-                      r.peak_force_n, "reason": r.reason[:60]} for r in result.runs])  # fmt: skip
+        print_table(run_rows(result))
         if report is not None:
             print(f"report: {report.folder}")
     if result.stopped:
@@ -120,6 +119,7 @@ def _run(args: argparse.Namespace) -> int:
 
 def _status(args: argparse.Namespace) -> int:
     from rig.campaign import campaign_status, load_campaign
+    from rig.campaign.commands import missing_folder_note
 
     st = campaign_status(load_campaign(args.config), args.out)
     folder = Path(st["folder"])
@@ -128,9 +128,8 @@ def _status(args: argparse.Namespace) -> int:
         return 0
     print(f"campaign folder: {folder.resolve()}")
     print_table(st["runs"])
-    if not folder.exists():
-        status(f"note: {folder} does not exist: the campaign has not run from here, or its runs "
-               "are elsewhere (--out FOLDER; `cutlab demo` writes to out/demo)")  # fmt: skip
+    if (note := missing_folder_note(folder)) is not None:
+        status(note)
     return 0
 
 

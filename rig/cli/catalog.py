@@ -17,7 +17,7 @@ from rig.cli.options import json_option
 
 
 def _index(args: argparse.Namespace) -> int:
-    from analysis.catalog import update_index
+    from analysis.catalog import index_line, update_index
     from rig.cli.common import print_json, status
     from rig.terminal import Progress
 
@@ -27,57 +27,33 @@ def _index(args: argparse.Namespace) -> int:
         print_json(out)
         return 0
     status(f"catalog index: {out['index']}")
-    print(f"{out['files']} run file(s): {out['added']} added, {out['updated']} updated, "
-          f"{out['unchanged']} unchanged, {out['removed']} removed; {out['runs_in_index']} in "
-          f"the index ({', '.join(f'{k} {v}' for k, v in sorted(out['statuses'].items()))}); "
-          f"{out['seconds']:.2f} s")  # fmt: skip
+    print(index_line(out))
     return 0
 
 
 def _query(args: argparse.Namespace) -> int:
     import sys
 
-    from analysis.catalog import MAIN_COLUMNS, query_runs, records
+    from analysis.catalog import catalog_named, query_rows, query_runs, records
     from rig.cli.common import print_json, print_table
 
-    df = query_runs(args.expr, _where(args))
+    df = query_runs(args.expr, catalog_named(args.dir, args.index))
     if args.json:
         print_json(records(df))
     elif args.csv:
         df.to_csv(sys.stdout, index=False)
     else:
-        # the path tells two copies of an archive (same campaign and run names) apart
-        cols = list(df.columns) if args.all_columns else [*MAIN_COLUMNS, "path"]
-        print_table(df[cols].to_dict("records"))
+        print_table(query_rows(df, args.all_columns))
     return 0
 
 
 def _show(args: argparse.Namespace) -> int:
-    from analysis.catalog import show_run
-    from rig.cli.common import print_json
+    from analysis.catalog import catalog_named, show_lines, show_run
+    from rig.cli.common import print_json, print_lines
 
-    row = show_run(args.run, _where(args))
-    if args.json:
-        print_json(row)
-        return 0
-    conditions = row.pop("conditions") or {}
-    for k, v in [*row.items(), *((f"conditions.{k}", v) for k, v in conditions.items())]:
-        print(f"{k:<28} {v}")
+    row = show_run(args.run, catalog_named(args.dir, args.index))
+    print_json(row) if args.json else print_lines(show_lines(row))
     return 0
-
-
-def _where(args: argparse.Namespace) -> str | None:
-    """The catalogue named by DIR or --index (both: they must agree), else None (the current
-    folder's or a parent's)."""
-    from pathlib import Path
-
-    from analysis.errors import AnalysisError
-
-    if args.dir is not None and args.index is not None:
-        if Path(args.dir).resolve() != Path(args.index).resolve():
-            raise AnalysisError(f"catalog: DIR {args.dir!r} and --index {args.index!r} name two "
-                                "catalogues; give one")  # fmt: skip
-    return args.dir if args.dir is not None else args.index
 
 
 def _where_options(p: argparse.ArgumentParser) -> None:

@@ -11,46 +11,23 @@ from __future__ import annotations
 import argparse
 
 from rig.cli.common import image_file, nonnegative
-from rig.cli.options import json_option, rate_option, rig_option
-
-
-def _is_run_file(path: str) -> bool:
-    return path.lower().endswith((".h5", ".hdf5"))
+from rig.cli.options import import_group, import_options, json_option, rate_option, rig_option
 
 
 def _info(args: argparse.Namespace) -> int:
-    from analysis.runs.text import export_info_lines, run_info_lines
+    from analysis.runs import file_info_lines, file_summary
     from rig.cli.common import print_json, print_lines
 
-    if not _is_run_file(args.file):
-        from analysis.runs.table import table_summary
-
-        s = table_summary(args.file, args.rate)
-    else:
-        from analysis.runs import run_summary
-
-        s = run_summary(args.file)
-    if args.json:
-        print_json(s)
-    else:
-        print_lines((run_info_lines if _is_run_file(args.file) else export_info_lines)(s))
+    s = file_summary(args.file, args.rate)
+    print_json(s) if args.json else print_lines(file_info_lines(args.file, s))
     return 0
 
 
 def _plot(args: argparse.Namespace) -> int:
+    from analysis.runs import plot_file
     from rig.cli.common import print_json, status
 
-    if _is_run_file(args.file):
-        from analysis.runs import load_run, plot_run
-
-        run = load_run(args.file, args.start_s, args.stop_s)
-        png, samples = plot_run(run, args.output), len(run.time_s)
-    else:
-        from analysis.runs.plot import plot_table
-        from analysis.runs.table import read_force_table
-
-        table = read_force_table(args.file)
-        png, samples = plot_table(table, args.output, args.rate), len(table.data)
+    png, samples = plot_file(args.file, args.output, args.rate, args.start_s, args.stop_s)
     status(f"data plot: wrote {png}")
     if args.json:
         print_json({"file": args.file, "plot": str(png), "samples": samples})
@@ -60,16 +37,11 @@ def _plot(args: argparse.Namespace) -> int:
 
 
 def _import(args: argparse.Namespace) -> int:
-    from analysis.identify import ImportOptions
-    from analysis.identify.conditions_arg import conditions_arg
     from rig.cli.common import print_json, print_table, status
     from rig.log import import_exports
     from rig.terminal import Progress
 
-    pairs, table = conditions_arg(args.conditions)
-    opts = ImportOptions(axes=args.axes, table=table, pattern=args.conditions_pattern,
-                         zero_file=args.zero, zeroed=args.zeroed, tools_path=args.tools,
-                         materials_path=args.materials)  # fmt: skip
+    pairs, opts = import_options(args)
     if opts.auto:  # the mapping from an end-mill fit of all the exports, before any is written
         from dataclasses import replace
 
@@ -94,8 +66,6 @@ def _import(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
-    from rig.cli.analyze import add_import_options
-
     p = sub.add_parser("data", help="inspect and plot run files and exports; import exports")
     psub = p.add_subparsers(dest="data_command", metavar="DATA_COMMAND")
     psub.required = True
@@ -125,7 +95,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     m.add_argument("--tool", default=None, help="tool name (configs/tools.toml or --tools)")
     rate_option(m)
     rig_option(m)
-    add_import_options(m)
+    import_group(m)
     m.add_argument("--force", action="store_true", help="replace existing run files")
     json_option(m)
     m.set_defaults(func=_import)

@@ -4,15 +4,14 @@ controller."""
 from __future__ import annotations
 
 import argparse
-import contextlib
 
 from rig.cli.common import count, number, positive, print_json, status
 from rig.cli.options import json_option, rig_option, serial_options
 
 
 def _send(args: argparse.Namespace) -> int:
-    from rig.dnc import StreamFault, halt_on_signals, prepare_send
-    from rig.dnc.keys import operator_control
+    from rig.dnc import prepare_send
+    from rig.dnc.session import send_under_control
 
     if args.adaptive:
         from rig.adaptive.send_options import check_send_adaptive
@@ -27,29 +26,17 @@ def _send(args: argparse.Namespace) -> int:
         grbl_mode=args.mode, grbl_unlock=args.unlock, grbl_strip=not args.no_strip,
         fanuc_wait_dc1=not args.no_wait_dc1, guard=not args.dry_run,
     )  # fmt: skip
-    p = job.program
     if job.start_block:
         status(f"restart at block {job.start_block}: " + "; ".join(job.restart_notes))
     if args.dry_run:
         return _dry_run(job, args)
     # the DAQ started and zeroed before anything is sent: no force, no send
-    loop = _adaptive_loop(job, args).start() if args.adaptive else contextlib.nullcontext(None)
-    status(f"sending {p.name} ({len(p)} blocks) to {job.settings.port} [{job.protocol}]")
-    with operator_control(job.streamer, job.protocol) as ctl, loop as adaptive:
-        try:
-            with halt_on_signals(job.streamer, on_signal=ctl.note):  # Ctrl-C: hold, clean halt
-                res = job.send()
-        except StreamFault as exc:
-            ctl.close()
-            if args.json:
-                print_json({**exc.result.as_dict(), "operator_actions": ctl.actions})
-            raise
-        ctl.close()
-    extra = {"adaptive": adaptive.summary} if adaptive is not None else {}
-    if args.json:
-        print_json({**res.as_dict(), "operator_actions": ctl.actions, **extra})
-    else:
-        status(res.summary_line())
+    loop = _adaptive_loop(job, args).start() if args.adaptive else None
+    status(f"sending {job.program.name} ({len(job.program)} blocks) to {job.settings.port} "
+           f"[{job.protocol}]")  # fmt: skip
+    show = (lambda o: print_json(o.as_dict())) if args.json else None
+    out = send_under_control(job, loop, on_fault=show)
+    print_json(out.as_dict()) if args.json else status(out.result.summary_line())
     return 0
 
 

@@ -34,6 +34,7 @@ def _interpret(args: argparse.Namespace, *, warn: bool = True, keep_motion: bool
 
 def _check(args: argparse.Namespace) -> int:
     from planning.nc import NCError
+    from planning.nc.check_text import refused_summary, summary_rows
 
     problems = None
     if args.dialect:
@@ -52,9 +53,7 @@ def _check(args: argparse.Namespace) -> int:
         # the controller refuses a line, so its reading of the program stops there: the
         # refusals are the answer (in --json as well), and the summary is not made
         if args.json:
-            print_json({"file": args.file, "dialect": args.dialect,
-                        "dialect_problems": [p.as_dict() for p in problems or ()],
-                        "summary": None, "summary_reason": str(exc)})  # fmt: skip
+            print_json(refused_summary(args.file, args.dialect, problems or (), str(exc)))
         else:
             status(f"{args.file}: {args.dialect} would refuse {refused} line(s)")
         return 2
@@ -69,14 +68,7 @@ def _check(args: argparse.Namespace) -> int:
         status(f"{args.file}: {args.dialect} would refuse {refused} line(s)")
     for p in out["warnings"][len(run.warnings) :]:  # the machine's travel limits
         status("warning: " + p)
-    skip = ("bbox", "warnings", "rotary_range_deg", "dialect_problems")
-    rows = [{"quantity": k, "value": v} for k, v in out.items() if k not in skip and v is not None]
-    for c, (lo, hi) in out.get("rotary_range_deg", {}).items():
-        rows.append({"quantity": f"{c}_range_deg", "value": f"{lo:.4g} {hi:.4g}"})
-    for end in ("min", "max"):
-        xyz = " ".join(f"{c:.4g}" for c in out["bbox"][f"{end}_mm"])
-        rows.append({"quantity": f"bbox_{end}_mm", "value": xyz})
-    print_table(rows)
+    print_table(summary_rows(out))
     return 2 if refused else 0
 
 

@@ -5,9 +5,13 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from planning.nc import DIALECTS
 from rig.cli.common import count, positive
+
+if TYPE_CHECKING:
+    from analysis.identify import ImportOptions
 
 #: the order the post-processing commands (plan rough/feed/orient) list the controllers in
 PORT_HELP = "port name or pyserial URL (default: the machine config's)"
@@ -60,3 +64,56 @@ def serial_options(
 def rule_db_option(p: argparse.ArgumentParser, help: str | None = None) -> None:
     """``--db FILE``: the rule base (default from configs/lab.toml)."""
     p.add_argument("--db", type=Path, help=help)
+
+
+def stock_options(p: argparse.ArgumentParser) -> None:
+    """``--stock`` and ``--spacing``: the stock a program is cut from on the Z-map (plan check,
+    feed and simulate)."""
+    p.add_argument("--stock", help="box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP | mesh (.stl) | stock TOML "
+        "(default: derived from the program's feed moves, printed)")  # fmt: skip
+    p.add_argument(
+        "--spacing", type=positive("mm", 100), help="Z-map grid spacing, mm (default 0.25)"
+    )
+
+
+def limit_options(p: argparse.ArgumentParser) -> None:
+    """``--lobes`` (plan check, feed and rough)."""
+    p.add_argument("--lobes", type=Path, help="stability lobes CSV (spindle_rpm,depth_limit_mm; "
+                   "`cutlab analyze stability -o`), default: the tool's modes if any")  # fmt: skip
+
+
+def import_group(p: argparse.ArgumentParser) -> None:
+    """How exports are read (`analyze forces`, `data import`): ``--axes``,
+    ``--conditions-pattern``, ``--zero``, ``--zeroed``, ``--tools``, ``--materials``."""
+    p.add_argument(
+        "--axes", metavar="x=COL,y=COL,z=COL",
+        help="file columns (or run-file channels) for cutlab's x (feed), y (cross-feed), z (tool "
+        "axis), a '-' flips the sign: x=-Fy,y=Fx,z=-Fz; or 'auto': the signed permutation whose "
+        "end-mill fit gives positive Ktc, Krc, Kac with the smallest residual (refused when the "
+        "runs cannot tell; slots alone cannot tell x from y) (default: the rig config's "
+        "dynamometer, else columns named Fx, Fy, Fz; a mapping giving a negative cutting "
+        "coefficient or fitting clearly worse than another is refused)",
+    )  # fmt: skip
+    for name, metavar, text in (
+        ("--conditions-pattern", "PATTERN",
+         "conditions from file names: 'cut_{spindle_rpm}rpm_f{feed_mm_min}.txt'"),
+        ("--zero", "FILE", "an export of the same channels at rest: its mean is the offset"),
+        ("--zeroed", None, "the exports are already zeroed: subtract no offset"),
+        ("--tools", "FILE", "your tool catalogue (TOML, [tools.NAME]), before configs/tools.toml"),
+        ("--materials", "FILE", "your material catalogue (TOML), before configs/materials.toml"),
+    ):  # fmt: skip
+        kw = {"action": "store_true"} if metavar is None else {"metavar": metavar}
+        p.add_argument(name, help=text, **kw)  # type: ignore[arg-type]
+
+
+def import_options(args: argparse.Namespace) -> tuple[dict[str, Any], ImportOptions]:
+    """``--conditions`` (pairs, or a table) and :func:`import_group`'s options as
+    (pairs, :class:`analysis.identify.ImportOptions`)."""
+    from analysis.identify import ImportOptions
+    from analysis.identify.conditions_arg import conditions_arg
+
+    pairs, table = conditions_arg(args.conditions)
+    opts = ImportOptions(axes=args.axes, table=table, pattern=args.conditions_pattern,
+                         zero_file=args.zero, zeroed=args.zeroed, tools_path=args.tools,
+                         materials_path=args.materials)  # fmt: skip
+    return pairs, opts

@@ -9,6 +9,7 @@ import argparse
 from pathlib import Path
 
 from rig.cli.common import add_catalog_options, positive
+from rig.cli.options import limit_options, stock_options
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -25,24 +26,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "program that changes tools (each section checked with its own)")  # fmt: skip
     p.add_argument("--material", help="material (configs/materials.toml): force coefficients")
     p.add_argument("--machine", default="ace-h63", help="machine config name or path")
-    p.add_argument("--stock", help="box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP | mesh (.stl) | stock TOML "
-        "(default: derived from the program's feed moves, printed)")  # fmt: skip
-    p.add_argument(
-        "--spacing", type=positive("mm", 100), help="Z-map grid spacing, mm (default 0.25)"
-    )
-    add_limit_options(p)
+    stock_options(p)
+    limit_options(p)
     p.add_argument("--spindle", type=positive("rpm", 100_000),
                    help="rpm where the program has no S")  # fmt: skip
     p.add_argument("--plot", type=Path, help="PNG of each quantity per block against its limit")
     p.add_argument("--json", action="store_true", help="machine-readable output on stdout")
     p.set_defaults(func=run)
     add_catalog_options(p)
-
-
-def add_limit_options(p: argparse.ArgumentParser) -> None:
-    """``--lobes`` (shared by plan check, feed and rough)."""
-    p.add_argument("--lobes", type=Path, help="stability lobes CSV (spindle_rpm,depth_limit_mm; "
-                   "`cutlab analyze stability -o`), default: the tool's modes if any")  # fmt: skip
 
 
 #: exit status of each verdict (0 within, 3 violations, 4 unchecked; 2 is bad input)

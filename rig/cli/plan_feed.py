@@ -7,7 +7,7 @@ import argparse
 from pathlib import Path
 
 from rig.cli.common import add_catalog_options, image_file, positive
-from rig.cli.options import dialect_option, rule_db_option
+from rig.cli.options import dialect_option, limit_options, rule_db_option, stock_options
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -43,9 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     f.add_argument("--limit", action="store_true", help="cap every feed by the machine's and "
                    "tool's limits (planning.limits; needs --material)")  # fmt: skip
-    from rig.cli.plan_check import add_limit_options
-
-    add_limit_options(f)
+    limit_options(f)
     f.set_defaults(func=_feed)
     add_catalog_options(f)
 
@@ -61,11 +59,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--machine", default="ace-h63", help="machine config name or path")
     p.add_argument("--tool", help="end mill of the tool catalogue, or T1=NAME,T2=NAME for a "
                    "program that changes tools (needed for a program; plans name theirs)")
-    p.add_argument("--stock", help="box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP | mesh (.stl) | stock TOML "
-        "(default: derived from the program's feed moves, printed)")  # fmt: skip
-    p.add_argument(
-        "--spacing", type=positive("mm", 100), help="Z-map grid spacing, mm (default 0.25)"
-    )
+    stock_options(p)
     p.add_argument("--no-holder-check", action="store_true", help="skip holder/stock checks")
     p.add_argument("--json", action="store_true", help="machine-readable output on stdout")
 

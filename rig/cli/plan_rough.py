@@ -22,7 +22,7 @@ import argparse
 from pathlib import Path
 
 from rig.cli.common import add_catalog_options, positive
-from rig.cli.options import dialect_option
+from rig.cli.options import dialect_option, limit_options
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -52,9 +52,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--limit", action="store_true", help="split levels or lower feeds until "
                    "every block is within the machine's and tool's limits")  # fmt: skip
     p.add_argument("--material", help="workpiece material (default: the part's cutting.material)")
-    from rig.cli.plan_check import add_limit_options
-
-    add_limit_options(p)
+    limit_options(p)
     p.set_defaults(func=run)
     add_catalog_options(p)
 

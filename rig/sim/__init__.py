@@ -3,6 +3,10 @@
 the session that ties them together for a campaign; the tool's tap test (:mod:`rig.sim.tap`).
 """
 
+from rig.sim._controller import SimControllerError
+from rig.sim._machine_engagement import endmill_engagement, facemill_engagement
+from rig.sim._machine_signal import DynoChain
+from rig.sim._machine_timeline import ExecutedSegment, MotionTimeline
 from rig.sim.campaign_view import SimCampaign, SimPlan
 from rig.sim.clock import SimClock
 from rig.sim.controllers import (
@@ -22,7 +26,11 @@ from rig.sim.tap import tap_test_record
 __all__ = [
     "ControllerSummary",
     "SimCampaign",
+    "DynoChain",
+    "ExecutedSegment",
+    "MotionTimeline",
     "SimClock",
+    "SimControllerError",
     "SimDaq",
     "SimFanuc",
     "SimGrbl",
@@ -30,6 +38,8 @@ __all__ = [
     "SimPlan",
     "controller_class",
     "controller_summary",
+    "endmill_engagement",
+    "facemill_engagement",
     "run_controller",
     "sim_controller",
     "sim_session",
