@@ -373,10 +373,8 @@ FUNCTIONS_OVER: dict[str, int] = {
     "analysis/identify/validate.py::plot_comparison": 82,
     "analysis/modal/files.py::modal_file": 82,
     "analysis/modal/hammer.py::modal_analysis": 88,
-    "planning/limits/job.py::check_job": 95,  # +2 typing
     "planning/orient/job.py::run_orient": 158,
     "planning/orient/kinematics.py::inverse": 100,
-    "planning/rough/job.py::run_rough": 98,
     "planning/rough/planner.py::RoughPlanner.plan_optimal": 86,
     "planning/stock/machining.py::check_motion": 92,
     "planning/stock/machining.py::simulate_motion": 88,

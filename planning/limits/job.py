@@ -310,9 +310,8 @@ def check_job(
     "violations", else "unchecked" if any limit of any section could not be checked, else
     "within"."""
     from planning.feed.job import job_stock, refuse_no_removal
-    from planning.limits.check import PIECE_MM, verdict
+    from planning.limits.check import verdict
     from planning.nc import segment_time_s
-    from planning.stock import simulate_motion
     from planning.stock.plans import Operation, parse_tool_spec
 
     file = str(program_path)
@@ -336,13 +335,7 @@ def check_job(
         row: dict[str, Any] = {"tool_number": t, "tool": name, "segments": hi - lo,
                                "time_s": round(float(time_s[lo:hi].sum()), 3)}  # fmt: skip
         if _is_drilling(sub):
-            sim = simulate_motion(stock, tool, sub, piece_mm=PIECE_MM, check_holder=False)
-            unchecked: list[JsonValue]
-            unchecked = [{"limit": "all", "reason": f"T{t} {name} only drills or plunges (Z-only "
-                          "feed moves): the end-mill force model does not cover them"}]  # fmt: skip
-            row |= {"removed_mm3": round(sim.removed_total_mm3, 3), "cutting_blocks": 0,
-                    "violations": 0, "unchecked": unchecked, "verdict": "unchecked"}  # fmt: skip
-            sections.append(row)
+            sections.append(row | _drilled(stock, tool, sub, t, name))
             continue
         limits = limits_for(tool, m, tool_name=name, lobes=tables[t],
                             force_limit_n=force_limit_n)  # fmt: skip
@@ -359,18 +352,7 @@ def check_job(
         sections.append(row)
     removed = sum(r["removed_mm3"] for r in sections)
     refuse_no_removal(removed, stock_info, file)
-    violations: list[JsonValue] = []
-    unchecked = []
-    for row, checked in _paired(sections, results):
-        tag = f"T{row['tool_number']}" if len(tools) > 1 else None
-        if checked is not None:
-            violations += [v | ({"tool": tag} if tag else {}) for v in checked.violations]
-        unchecked += [u | ({"tool": tag} if tag else {}) for u in row["unchecked"]]
-    worst: dict[str, Any] = {}
-    for row in sections:
-        for k, w in row.get("worst", {}).items():
-            if k not in worst or w["margin_pct"] < worst[k]["margin_pct"]:
-                worst[k] = w | ({"tool": f"T{row['tool_number']}"} if len(tools) > 1 else {})
+    violations, unchecked, worst = _merged(sections, results, len(tools) > 1)
     out: JsonObject = {"program": file, "tool": tool_name, "material": material, "machine": m.name,
            "verdict": verdict(violations, unchecked), "violations": violations,
            "unchecked": unchecked, "limits": first_limits,
@@ -384,6 +366,39 @@ def check_job(
         out["png"] = str(plot_check(results, plot, f"{Path(program_path).name}: limits per block"))
     return results, out
 
+
+
+def _drilled(stock: ZMap, tool: EndMill, sub: Motion, t: int, name: str) -> dict[str, Any]:
+    """A drilling section's row: machined on the stock, its limits listed as unchecked."""
+    from planning.limits.check import PIECE_MM
+    from planning.stock import simulate_motion
+
+    sim = simulate_motion(stock, tool, sub, piece_mm=PIECE_MM, check_holder=False)
+    unchecked: list[JsonValue]
+    unchecked = [{"limit": "all", "reason": f"T{t} {name} only drills or plunges (Z-only "
+                  "feed moves): the end-mill force model does not cover them"}]  # fmt: skip
+    return {"removed_mm3": round(sim.removed_total_mm3, 3), "cutting_blocks": 0,
+            "violations": 0, "unchecked": unchecked, "verdict": "unchecked"}  # fmt: skip
+
+
+def _merged(
+    sections: list[dict[str, Any]], results: list[CheckResult], tagged: bool
+) -> tuple[list[JsonValue], list[JsonValue], dict[str, Any]]:
+    """The program's violations, limits not checked and worst margin per limit over its
+    sections (each tagged with its tool, T1, T2, ..., when ``tagged``)."""
+    violations: list[JsonValue] = []
+    unchecked: list[JsonValue] = []
+    for row, checked in _paired(sections, results):
+        tag = f"T{row['tool_number']}" if tagged else None
+        if checked is not None:
+            violations += [v | ({"tool": tag} if tag else {}) for v in checked.violations]
+        unchecked += [u | ({"tool": tag} if tag else {}) for u in row["unchecked"]]
+    worst: dict[str, Any] = {}
+    for row in sections:
+        for k, w in row.get("worst", {}).items():
+            if k not in worst or w["margin_pct"] < worst[k]["margin_pct"]:
+                worst[k] = w | ({"tool": f"T{row['tool_number']}"} if tagged else {})
+    return violations, unchecked, worst
 
 def _paired(
     sections: list[dict[str, Any]], results: list[CheckResult]

@@ -14,7 +14,7 @@ from analysis.validation import JsonObject, JsonValue
 from planning.errors import PlanningError
 from planning.nc import Program
 from planning.nc.output import DIALECTS, default_dialect, for_dialect
-from planning.rough.check import check_program
+from planning.rough.check import CheckResult, check_program
 from planning.rough.gcode import MoveSettings, PlanTotals, plan_motion, plan_program, plan_totals
 from planning.rough.part import Part, load_part
 from planning.rough.planner import METHODS, RoughPlan, RoughPlanner
@@ -90,22 +90,10 @@ def run_rough(
     stage. ``limits`` (planning.limits.rough_limiter) checks the chosen program against the
     machine's and tool's limits, and may split levels or lower feeds: its report is the result's
     ``limits``, its violations the result's ``violations``."""
-    if not check_spacing_mm > 0:
-        raise PlanningError(f"--check-spacing = {check_spacing_mm}: must be > 0 (mm)")
-    if method not in METHODS:
-        raise PlanningError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
-    if dialect is not None and dialect not in DIALECTS:
-        raise PlanningError(f"dialect = {dialect!r}: expected one of {', '.join(DIALECTS)}")
-    if machine is not None and not isinstance(machine, MachineConfig):
-        machine = load_machine(machine)
-    dialect = dialect or default_dialect(machine)
+    machine, dialect = _checked_inputs(method, check_spacing_mm, dialect, machine)
     say = status or (lambda msg: None)
     output = Path(output)
-    part = load_part(config)
-    if cusp_model is not None:
-        cfg = part.config
-        rough = cfg.rough.model_copy(update={"cusp_model": cusp_model})
-        part = Part(cfg.model_copy(update={"rough": rough}), part.path)
+    part = _part_with(config, cusp_model)
     t0 = time.perf_counter()
     planner = RoughPlanner(part, progress=progress)
     plans = planner.plan_all()
@@ -127,27 +115,8 @@ def run_rough(
     program.write(output)
     say(f"wrote {output} ({len(program.lines)} lines, {dialect})")
 
-    result = None
-    if check:
-        st = part.config.stock
-        result = check_program(  # the Fanuc text: tool numbers even where GRBL has no M6
-            fanuc.text(),
-            planner.offset_surface,
-            (st.x_min_mm, st.x_max_mm, st.y_min_mm, st.y_max_mm, st.z_min_mm, st.z_max_mm),
-            {1: part.tool.radius_mm, 2: part.lee_tool.radius_mm},
-            part.config.rough.cusp_mm,
-            MoveSettings.of(part).safe_z_mm,
-            spacing_mm=check_spacing_mm,
-        )
-    pngs: dict[str, str] = {}
-    if png:
-        from planning.rough.plot import plot_levels, plot_paths, plot_roughed
-
-        stem = output.with_suffix("")
-        pngs["levels"] = str(plot_levels(planner, plans, f"{stem}.levels.png"))
-        pngs["paths"] = str(plot_paths(planner, chosen, f"{stem}.paths.png"))
-        if result is not None:
-            pngs["roughed"] = str(plot_roughed(result, method, f"{stem}.roughed.png"))
+    result = _zmap_check(planner, part, fanuc, check_spacing_mm) if check else None
+    pngs = _pictures(planner, plans, chosen, result, method, output) if png else {}
     return {
         "part": part.config.name,
         "method": method,
@@ -166,3 +135,68 @@ def run_rough(
         "violations": [] if limit_report is None else limit_report["violations"],
         "limits": limit_report,
     }
+
+
+def _checked_inputs(
+    method: str,
+    check_spacing_mm: float,
+    dialect: str | None,
+    machine: str | Path | MachineConfig | None,
+) -> tuple[MachineConfig | None, str]:
+    """The machine (loaded) and the dialect (the machine's by default), the options refused
+    with one line each."""
+    if not check_spacing_mm > 0:
+        raise PlanningError(f"--check-spacing = {check_spacing_mm}: must be > 0 (mm)")
+    if method not in METHODS:
+        raise PlanningError(f"method = {method!r}: expected one of {', '.join(METHODS)}")
+    if dialect is not None and dialect not in DIALECTS:
+        raise PlanningError(f"dialect = {dialect!r}: expected one of {', '.join(DIALECTS)}")
+    if machine is not None and not isinstance(machine, MachineConfig):
+        machine = load_machine(machine)
+    return machine, dialect or default_dialect(machine)
+
+
+def _part_with(config: str | Path, cusp_model: str | None) -> Part:
+    """The part file, its cusp model replaced when one is given."""
+    part = load_part(config)
+    if cusp_model is None:
+        return part
+    cfg = part.config
+    rough = cfg.rough.model_copy(update={"cusp_model": cusp_model})
+    return Part(cfg.model_copy(update={"rough": rough}), part.path)
+
+
+def _zmap_check(
+    planner: RoughPlanner, part: Part, fanuc: Program, check_spacing_mm: float
+) -> CheckResult:
+    """The chosen program cut on a Z-map: material left above the offset surface, gouges."""
+    st = part.config.stock
+    return check_program(  # the Fanuc text: tool numbers even where GRBL has no M6
+        fanuc.text(),
+        planner.offset_surface,
+        (st.x_min_mm, st.x_max_mm, st.y_min_mm, st.y_max_mm, st.z_min_mm, st.z_max_mm),
+        {1: part.tool.radius_mm, 2: part.lee_tool.radius_mm},
+        part.config.rough.cusp_mm,
+        MoveSettings.of(part).safe_z_mm,
+        spacing_mm=check_spacing_mm,
+    )
+
+
+def _pictures(
+    planner: RoughPlanner,
+    plans: dict[str, RoughPlan],
+    chosen: RoughPlan,
+    result: CheckResult | None,
+    method: str,
+    output: Path,
+) -> dict[str, str]:
+    """The levels of all methods, the chosen method's passes and the roughed Z-map, next to
+    ``output``."""
+    from planning.rough.plot import plot_levels, plot_paths, plot_roughed
+
+    stem = output.with_suffix("")
+    pngs = {"levels": str(plot_levels(planner, plans, f"{stem}.levels.png")),
+            "paths": str(plot_paths(planner, chosen, f"{stem}.paths.png"))}  # fmt: skip
+    if result is not None:
+        pngs["roughed"] = str(plot_roughed(result, method, f"{stem}.roughed.png"))
+    return pngs
