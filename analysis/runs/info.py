@@ -5,6 +5,11 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from analysis.runs.summary import RunSummary
+    from analysis.runs.table import ExportSummary
 
 __all__ = ["file_info_lines", "file_summary", "is_run_file", "plot_file"]
 
@@ -14,7 +19,9 @@ def is_run_file(path: str | Path) -> bool:
     return str(path).lower().endswith((".h5", ".hdf5"))
 
 
-def file_summary(path: str | Path, rate_hz: float | None = None) -> dict[str, object]:
+def file_summary(
+    path: str | Path, rate_hz: float | None = None
+) -> RunSummary | ExportSummary:
     """A run file's channels, rate, samples, events and status, or an export's columns, units,
     rate (``rate_hz`` for one that does not say it) and header."""
     if not is_run_file(path):
