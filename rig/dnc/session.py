@@ -6,18 +6,33 @@ and an optional loop beside the stream (the adaptive feed / spindle control,
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from contextlib import AbstractContextManager
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 from rig.dnc.connect import SendJob
 from rig.dnc.errors import StreamFault
 from rig.dnc.guard import halt_on_signals
 from rig.dnc.keys import operator_control
-from rig.dnc.result import StreamResult
+from rig.dnc.result import StreamResult, StreamSummary
 
-__all__ = ["SendOutcome", "send_under_control"]
+__all__ = ["SendJson", "SendOutcome", "send_under_control"]
+
+
+class RunningLoop(Protocol):
+    """What a loop beside the stream gives once it has closed: its summary (JSON-ready)."""
+
+    @property
+    def summary(self) -> Mapping[str, object]: ...
+
+
+class SendJson(StreamSummary, total=False):
+    """`cutlab dnc send --json`: the stream's result, then the operator's actions and, with
+    ``--adaptive``, the loop's summary."""
+
+    operator_actions: list[dict[str, object]]
+    adaptive: Mapping[str, object]
 
 
 @dataclass
@@ -26,17 +41,20 @@ class SendOutcome:
 
     result: StreamResult
     operator_actions: list[dict[str, Any]]
-    adaptive: dict[str, Any] | None = None
+    adaptive: Mapping[str, object] | None = None
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> SendJson:
         """``dnc send --json``: the result, then ``operator_actions`` (and ``adaptive``)."""
-        extra = {} if self.adaptive is None else {"adaptive": self.adaptive}
-        return {**self.result.as_dict(), "operator_actions": self.operator_actions, **extra}
+        # mypy looks for the optional "adaptive" in the ** item; it is set below when there is one
+        out: SendJson = {**self.result.as_dict(), "operator_actions": self.operator_actions}  # type: ignore[typeddict-item]
+        if self.adaptive is not None:
+            out["adaptive"] = self.adaptive
+        return out
 
 
 def send_under_control(
     job: SendJob,
-    loop: AbstractContextManager[Any] | None = None,
+    loop: AbstractContextManager[RunningLoop] | None = None,
     on_fault: Callable[[SendOutcome], None] | None = None,
 ) -> SendOutcome:
     """Stream ``job`` with the operator's keys and signals live; ``loop`` (its value has a
