@@ -193,7 +193,8 @@ class FaceMillModel(_Base):
         return out
 
     def coefficient_vector(self, coef: Coefficients) -> Array:
-        return _fm.coefficient_vector(_narrow(FaceMillCoefficients, coef, self.name, "coefficients"))
+        fm_coef = _narrow(FaceMillCoefficients, coef, self.name, "coefficients")
+        return _fm.coefficient_vector(fm_coef)
 
 
 def _is_mode(mode: object) -> TypeGuard[Literal["up", "down", "slot"]]:
