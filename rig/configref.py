@@ -19,7 +19,7 @@ def files() -> list[tuple[str, str, type]]:
     from analysis.rules.rule import _RuleFile
     from planning.orient.config import OrientConfig
     from planning.rough.part import PartConfig
-    from planning.stock.machining import _PlanModel
+    from planning.stock.plans import _PlanModel
     from rig.campaign.config import CampaignFile
 
     return [

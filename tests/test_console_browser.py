@@ -188,6 +188,7 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
 
             page.wait("the executing block to change", blocks_seen, 60)
             readouts, zoom, drawn = _watch_the_machine(page)
+            _fits_its_window(page)  # live: the DRO's values, estimated, on the left column
             page.wait("run 2/2", lambda: page.text("run-progress") == "2/2", 60)
             page.wait("the cut of run 2", lambda: int(page.text("executing-block")) >= 3)
             assert page.text("machine-state") == "Run"
@@ -836,6 +837,7 @@ def test_browse_shows_a_finished_run_s_toolpath_from_its_file(tmp_path: Path) ->
             end = _tool_on_screen(page)  # the 3-D view: the path drawn, the tool where it ended
             assert end == path["trail"][-1][1:4]
             _browsed_xy_drawn(page, path["trail"])
+            _fits_its_window(page)
             page.js("document.getElementById('browse-live').click()")
             assert page.js("window.cutlab.view3d().shown") == "live"
             assert page.js("window.cutlab.browsePath()") is None
@@ -875,6 +877,43 @@ def _browsed_xy_drawn(page: Page, trail: list[list[Any]]) -> None:
             continue
         return
     raise AssertionError(why)
+
+
+# The widest element's overflow, for the failure message: (document's scrollWidth, its client
+# width, the left column's scrollWidth, its client width, the elements past the window's edge).
+_OVERFLOW_JS = """(() => {
+  const de = document.documentElement, left = document.querySelector('section.left');
+  const past = [...document.querySelectorAll('body *')].filter(el => {
+    const r = el.getBoundingClientRect();
+    return r.width > 0 && r.right > de.clientWidth + 0.5;
+  }).map(el => el.tagName + (el.id ? '#' + el.id : '') + ' right '
+                + Math.round(el.getBoundingClientRect().right));
+  return [de.scrollWidth, de.clientWidth, window.innerWidth, left.scrollWidth, left.clientWidth,
+          past.slice(0, 8)];
+})()"""
+
+
+def _fits_its_window(page: Page) -> None:
+    """From a 780 px window up the page has no horizontal scrollbar (the document no wider than
+    the window's viewport, its vertical scrollbar aside), and the left column's rows (the DRO,
+    the controls) wrap inside the column instead of running under the right one. (A 780 px
+    window once scrolled by 25 px: the DRO's row, 778 px on a 427 px column.)"""
+    win = page.call("Browser.getWindowForTarget")["windowId"]
+    before = page.call("Browser.getWindowBounds", windowId=win)["bounds"]
+    for width in (780, 1280, 1920):
+        page.call("Browser.setWindowBounds", windowId=win, bounds={"width": width, "height": 900})
+        t_end = time.monotonic() + 10  # the plot takes the new width on the resize event
+        while True:
+            doc_sw, doc_cw, inner, left_sw, left_cw, past = page.js(_OVERFLOW_JS)
+            fits = inner == width and doc_sw <= doc_cw <= inner and left_sw <= left_cw
+            if fits or time.monotonic() > t_end:
+                break
+            time.sleep(0.1)
+        assert fits, (f"a {width} px window: the document {doc_sw} px wide in {doc_cw} "
+                      f"(innerWidth {inner}); the left column {left_sw} in {left_cw}; past the "
+                      f"edge: {past}")  # fmt: skip
+    size = {k: before[k] for k in ("width", "height")}  # as it was, for what follows
+    page.call("Browser.setWindowBounds", windowId=win, bounds=size)
 
 
 def _xy_px(view: dict[str, Any], img: Any, p: list[Any]) -> tuple[float, float]:

@@ -350,22 +350,19 @@ MODULES_OVER: dict[str, int] = {
     "analysis/identify/_common.py": 628,
     "analysis/identify/files.py": 604,
     "planning/rough/planner.py": 534,
-    "planning/stock/machining.py": 653,
     "planning/stock/zmap.py": 511,
-    "rig/adaptive/controller.py": 560,
+    "rig/adaptive/controller.py": 566,  # +6 typed contracts (issue 30 item 4: no Any, no dict)
     "rig/sim/_controller.py": 536,
     "rig/sim/facemill_independent.py": 541,
     "rig/sim/grbl.py": 806,  # +35 ok record (ok_times_s), +39 the override delay; to split
     # branch sizes (issue 30 item 5) did not get to these yet
     "rig/log/writer.py": 714,
-    "analysis/runs/file.py": 869,
 }
 FUNCTIONS_OVER: dict[str, int] = {
     "analysis/identify/files.py::fit_files": 150,
     "analysis/identify/validate.py::plot_comparison": 82,
     "analysis/modal/files.py::modal_file": 82,
     "analysis/modal/hammer.py::modal_analysis": 88,
-    "planning/feed/post.py::post_process": 190,
     "planning/limits/job.py::check_job": 95,  # +2 typing
     "planning/orient/job.py::run_orient": 158,
     "planning/orient/kinematics.py::inverse": 100,

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from planning.errors import PlanningError
-from planning.stock.machining import load_plan
+from planning.stock import load_plan
 
 ROOT = Path(__file__).parents[1]
 

@@ -77,6 +77,7 @@ NEEDS: list[tuple[str, str]] = [
 #: (pattern, exit status the README documents for it)
 EXIT: list[tuple[str, int]] = [
     (r"^cutlab plan check .*--tool T1=phi10-flat,T2=phi5-drill", 4),
+    (r"^cutlab plan rough (configs/parts/)?seed000-bump", 3),  # written, 341 violations
 ]
 #: (pattern, why): commands that fail as typed today, for a reason named here (strict: a fix
 #: that makes one pass fails the case until its line is removed)

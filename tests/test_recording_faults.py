@@ -297,7 +297,7 @@ sys.path.insert(0, {root!r})
 from analysis.runs import file as rf
 def hold(src, dst):  # the repair stops between its .bak link and its rename: killed here
     time.sleep(60)
-rf.os.replace = hold
+os.replace = hold  # the repair calls os.replace
 rf.load_run(sys.argv[1])
 """
 
@@ -365,7 +365,7 @@ def test_a_repair_stopped_by_an_exception_leaves_nothing(
         raise KeyboardInterrupt
 
     with monkeypatch.context() as m:
-        m.setattr(rf.os, "replace", interrupted)
+        m.setattr(os, "replace", interrupted)
         with pytest.raises(KeyboardInterrupt):
             rf.load_run(p)
     assert sorted(q.name for q in tmp_path.iterdir()) == ["k.h5"]  # original, untouched

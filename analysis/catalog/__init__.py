@@ -5,14 +5,31 @@ to comparisons, and force identification over a query with the per-run reduction
 """
 
 from analysis.catalog.compute import CONNECT_TIMEOUT_S, CachedMapper, compute, fit_catalog
-from analysis.catalog.index import INDEX_NAME, index_file, load_index, update_index
-from analysis.catalog.query import MAIN_COLUMNS, check_query, query_runs, records, show_run
+from analysis.catalog.index import (
+    INDEX_NAME,
+    IndexRow,
+    IndexUpdate,
+    index_file,
+    load_index,
+    update_index,
+)
+from analysis.catalog.query import (
+    MAIN_COLUMNS,
+    RunRow,
+    check_query,
+    query_runs,
+    records,
+    show_run,
+)
 
 __all__ = [
     "CONNECT_TIMEOUT_S",
     "INDEX_NAME",
     "MAIN_COLUMNS",
     "CachedMapper",
+    "IndexRow",
+    "IndexUpdate",
+    "RunRow",
     "check_query",
     "compute",
     "fit_catalog",

@@ -30,7 +30,7 @@ import sqlite3
 import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict, cast
 
 import pandas as pd
 
@@ -56,6 +56,65 @@ COLUMNS: dict[str, str] = {
     "software_version": "TEXT", "size_bytes": "INTEGER", "mtime_ns": "INTEGER",
     "sha256": "TEXT", "indexed_utc": "TEXT", "conditions": "TEXT",
 }  # fmt: skip
+
+
+class RowBase(TypedDict):
+    """An index row's columns but the JSON ones (:data:`COLUMNS`; None: not recorded)."""
+
+    path: str
+    campaign: str | None
+    run: str
+    group: str | None
+    status: str | None
+    reason: str | None
+    current: int
+    tool: str | None
+    material: str | None
+    machine: str | None
+    spindle_rpm: float | None
+    feed_mm_min: float | None
+    fz_mm: float | None
+    depth_mm: float | None
+    width_mm: float | None
+    mode: str | None
+    rig: str | None
+    calibration_id: str | None
+    rate_hz: float | None
+    samples_stored: int | None
+    samples_acquired: int | None
+    samples_lost: int | None
+    duration_s: float | None
+    n_events: int | None
+    program: str | None
+    software_version: str | None
+    size_bytes: int
+    mtime_ns: int
+    sha256: str | None
+    indexed_utc: str
+
+
+class IndexRow(RowBase):
+    """A row as stored: ``events`` (kind -> count) and ``conditions`` as JSON text."""
+
+    events: str | None
+    conditions: str | None
+
+
+class IndexUpdate(TypedDict):
+    """What :func:`update_index` did (`cutlab catalog index --json`)."""
+
+    index: str
+    files: int
+    added: int
+    updated: int
+    removed: int
+    unchanged: int
+    runs_in_index: int
+    statuses: dict[str, int]
+    seconds: float
+    files_per_s: float
+
+
 #: Read again on every update: the file may change without its size or mtime telling (a writer
 #: that died leaves a ``running`` file that now reads ``interrupted``).
 _RECHECK = ("running",)
@@ -147,7 +206,7 @@ def _is_current(path: Path, root: Path) -> bool:
     return ".attempt-" not in path.name and not any(p.startswith("before-") for p in parts)
 
 
-def read_row(path: Path, root: Path, manifests: dict[Path, JsonObject]) -> dict[str, object]:
+def read_row(path: Path, root: Path, manifests: dict[Path, JsonObject]) -> IndexRow:
     """The index row of a run file (metadata only; no force data is read)."""
     from analysis.runs import load_run
 
@@ -159,7 +218,7 @@ def read_row(path: Path, root: Path, manifests: dict[Path, JsonObject]) -> dict[
         run = load_run(path, samples=False, repair=False)
     except AnalysisError as exc:  # indexed as such, so that a query finds what cannot be read
         row.update(status="unreadable", reason=str(exc)[:400], sha256=sha256_file(path))
-        return row
+        return cast(IndexRow, row)  # built column by column from COLUMNS
     c = run.conditions
     folder = path.parent.parent if path.parent.name == "runs" else path.parent
     man = _manifest(folder, manifests)
@@ -193,7 +252,7 @@ def read_row(path: Path, root: Path, manifests: dict[Path, JsonObject]) -> dict[
         # A file still written changes under the hash: it gets one when it is closed.
         sha256=None if run.status in _RECHECK else sha256_file(path),
     )  # fmt: skip
-    return row
+    return cast(IndexRow, row)  # built column by column from COLUMNS
 
 
 def _utc_now() -> str:
@@ -223,7 +282,7 @@ def update_index(
     dirs: Sequence[str | Path],
     index: str | Path | None = None,
     progress: Callable[[int, int], None] | None = None,
-) -> dict[str, object]:
+) -> IndexUpdate:
     """Index the run files under ``dirs`` into ``index`` (default ``dirs[0]/`` :data:`INDEX_NAME`):
     new and changed files are read, unchanged ones skipped, rows of files gone from ``dirs``
     removed. Returns the counts (files, added, updated, removed, unchanged, unreadable, running),
@@ -275,8 +334,10 @@ def update_index(
         states = dict(con.execute("SELECT status, COUNT(*) FROM runs GROUP BY status").fetchall())
         total = con.execute("SELECT COUNT(*) FROM runs").fetchone()[0]
     seconds = time.perf_counter() - t0
-    return {"index": str(ipath), "files": len(files), **counts, "runs_in_index": total,
-            "statuses": states, "seconds": seconds,
+    return {"index": str(ipath), "files": len(files), "added": counts["added"],
+            "updated": counts["updated"], "removed": counts["removed"],
+            "unchanged": counts["unchanged"], "runs_in_index": total, "statuses": states,
+            "seconds": seconds,
             "files_per_s": len(files) / seconds if seconds > 0 else math.inf}  # fmt: skip
 
 

@@ -12,12 +12,13 @@ import ast
 import json
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import pandas as pd
 
-from analysis.catalog.index import COLUMNS, SqlValue, index_file, load_index
+from analysis.catalog.index import COLUMNS, RowBase, SqlValue, index_file, load_index
 from analysis.errors import AnalysisError
+from analysis.validation import JsonObject
 
 #: Columns shown by default (the query's result has them all).
 MAIN_COLUMNS = ("campaign", "run", "group", "status", "tool", "material", "spindle_rpm",
@@ -170,7 +171,14 @@ def records(df: pd.DataFrame) -> list[dict[str, object]]:
     return out
 
 
-def show_run(name: str, index: str | Path | None = None) -> dict[str, object]:
+class RunRow(RowBase):
+    """An index row as shown (`cutlab catalog show`): ``events`` and ``conditions`` as objects."""
+
+    events: dict[str, int] | None
+    conditions: JsonObject | None
+
+
+def show_run(name: str, index: str | Path | None = None) -> RunRow:
     """The index row of one run: ``name`` is a run (file stem), ``CAMPAIGN/RUN`` or a path."""
     df = load_index(index)
     campaign, _, run = name.rpartition("/")
@@ -183,4 +191,4 @@ def show_run(name: str, index: str | Path | None = None) -> dict[str, object]:
             f"run {name!r}: " + (f"{len(hit)} runs match ({what}); give CAMPAIGN/RUN or the path"
                                  if len(hit) else "not in the catalogue")  # fmt: skip
         )
-    return records(hit)[0]
+    return cast(RunRow, records(hit)[0])  # a row of the index's frame: COLUMNS

@@ -24,8 +24,8 @@ _LAZY = {
                            "RunFileError", "load_run"),
     "analysis.runs.follow": ("RunFollower", "follow"),
     "analysis.runs.plot": ("plot_run",),
-    "analysis.runs.summary": ("run_summary",),
-    "analysis.runs.table": ("FORCE_UNIT_TO_N", "ForceTable", "read_force_table"),
+    "analysis.runs.summary": ("RunSummary", "run_summary"),
+    "analysis.runs.table": ("FORCE_UNIT_TO_N", "ExportSummary", "ForceTable", "read_force_table"),
 }  # fmt: skip
 _WHERE = {name: module for module, names in _LAZY.items() for name in names}
 
@@ -39,6 +39,7 @@ def __getattr__(name: str) -> Any:
 
 
 __all__ = [
+    "ExportSummary",
     "FORCE_UNIT_TO_N",
     "ForceTable",
     "IDENTIFY_TOLERANCE",
@@ -47,6 +48,7 @@ __all__ = [
     "Run",
     "RunFileError",
     "RunFollower",
+    "RunSummary",
     "SAMPLE_FORMAT_RAW",
     "SAMPLE_FORMAT_VOLTS",
     "file",

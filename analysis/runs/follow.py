@@ -1,5 +1,5 @@
 """Reading a run file while it is being written (HDF5 SWMR read mode): :class:`RunFollower`
-and :func:`follow`. The layout is :mod:`analysis.runs.file`'s."""
+and :func:`follow`. The layout is :mod:`analysis.runs.layout`'s."""
 
 from __future__ import annotations
 

@@ -3,14 +3,49 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 from analysis.runs.file import LOSS_KINDS, load_run
 
-__all__ = ["run_summary"]
+__all__ = ["DataGap", "RunSummary", "run_summary"]
 
 
-def run_summary(path: str | Path) -> dict[str, object]:
+class DataGap(TypedDict):
+    """A data gap of a run: its event kind, first sample, samples lost, time (s), message."""
+
+    kind: str
+    sample: int
+    lost: int
+    time_s: float
+    message: str
+
+
+class RunSummary(TypedDict):
+    """`cutlab data info --json` on a run file (:func:`run_summary`)."""
+
+    file: str
+    status: str
+    reason: str
+    complete: bool
+    channels: list[str]
+    physical_channels: list[str]
+    sample_format: str
+    rate_hz: float
+    samples_stored: int
+    samples_acquired: int
+    samples_lost: int
+    duration_s: float
+    t0_s: float
+    events: dict[str, int]
+    gaps: list[DataGap]
+    nc_blocks: int
+    program: dict[str, object]  # as recorded (name, sha256, lines)
+    conditions: dict[str, object]  # as recorded: free-form keys
+    calibration_id: str | None
+    software_version: str
+
+
+def run_summary(path: str | Path) -> RunSummary:
     """Status, channels, rate, sample counts, duration, event counts, data gaps (with their time
     in s), NC blocks, program, conditions, calibration and software version of a run file; the
     samples are not read."""

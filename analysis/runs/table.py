@@ -21,14 +21,14 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from collections.abc import Sequence
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 import pandas as pd
 
 from analysis.errors import AnalysisError
 
-__all__ = ["FORCE_UNIT_TO_N", "ForceTable", "read_force_table", "table_summary"]
+__all__ = ["FORCE_UNIT_TO_N", "ExportSummary", "ForceTable", "read_force_table", "table_summary"]
 
 _TIME_NAMES = ("time", "zeit", "t", "time_s", "temps", "tiempo", "tempo")
 #: Force units (lower case) to N.
@@ -250,7 +250,23 @@ def _time_column(names: Sequence[str]) -> int | None:
     return None
 
 
-def table_summary(path: str | Path, rate_hz: float | None = None) -> dict[str, object]:
+class ExportSummary(TypedDict):
+    """`cutlab data info --json` on an export (:func:`table_summary`); None: rate unknown."""
+
+    file: str
+    format: str
+    columns: list[str]
+    units: list[str]
+    rate_hz: float | None
+    rate_reason: str | None
+    samples: int
+    duration_s: float | None
+    decimal: str
+    separator: str
+    header: dict[str, str]
+
+
+def table_summary(path: str | Path, rate_hz: float | None = None) -> ExportSummary:
     """What an export holds (`cutlab data info` on a DynoWare / CSV file): columns and units,
     rate, samples, duration, the header lines, decimal mark and separator."""
     t = read_force_table(path)

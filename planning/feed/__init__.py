@@ -12,9 +12,10 @@ from planning.feed.job import (
     resolve_rule,
     simulate_job,
 )
-from planning.feed.post import FeedPostOptions, FeedPostResult, post_process
+from planning.feed.post import post_process
 from planning.feed.report import write_report
-from planning.stock.machining import end_mill
+from planning.feed.result import FeedPostOptions, FeedPostResult
+from planning.stock.plans import end_mill
 
 __all__ = [
     "FeedPostOptions",

@@ -28,12 +28,13 @@ from analysis.config import EndMill, MachineConfig, get_material, load_machine
 from analysis.rules import FeedRule, RuleBase, load_rule
 from analysis.validation import JsonObject, JsonValue
 from planning.errors import PlanningError
-from planning.feed.post import FeedCap, FeedPostOptions, FeedPostResult, Section, post_process
+from planning.feed.post import post_process
 from planning.feed.report import write_report
+from planning.feed.result import FeedCap, FeedPostOptions, FeedPostResult, Section
 from planning.nc import Motion, Program, interpret
 from planning.nc.output import DIALECTS, default_dialect, for_dialect
 from planning.stock import ZMap, load_stock, save_stock_png
-from planning.stock.machining import (
+from planning.stock.plans import (
     Operation,
     OperationPlan,
     OperationResult,

@@ -26,15 +26,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from analysis.config import EndMill, EndMillCoefficients, MachineConfig
+from analysis.config import EndMill, MachineConfig
 from analysis.rules import FeedRule, cutting_load_percent
-from analysis.validation import JsonObject
 from planning.errors import PlanningError
 from planning.feed._write import (
     feed_runs,
@@ -44,174 +42,17 @@ from planning.feed._write import (
     write_program,
 )
 from planning.feed.force import ForceModel
+from planning.feed.result import BlockTable, FeedPostOptions, FeedPostResult, Section
 from planning.nc import DWELL, Motion, Program, interpret, segment_length_mm, segment_time_s
 from planning.nc.accel import accel_segment_time_s
 from planning.stock import Cutter, ZMap
 from planning.stock.machining import (
-    DEFAULT_CHORD_TOL_MM,
     Simulation,
     check_motion,
     plunge_mask,
     simulate_motion,
 )
-from planning.stock.machining import _join as _join  # one simulation of consecutive slices
-
-if TYPE_CHECKING:
-    import pandas as pd
-
-#: a per-piece feed cap: (simulation, rpm per piece) -> highest feed per piece, mm/min
-FeedCap = Callable[[Simulation, NDArray[np.float64]], NDArray[np.float64]]
-
-
-@dataclass(frozen=True)
-class FeedPostOptions:
-    """Settings of the post-processor.
-
-    min_piece_mm : shortest block a split may create, mm
-    split : split blocks where the load changes (else one feed per block)
-    chord_tol_mm : chordal tolerance of arc linearisation in the simulation, mm
-    check_holder : check holder and spindle nose against the stock
-    force_limit_n : optional largest predicted peak force, N (needs ``coefficients``)
-    coefficients : end-mill force coefficients (analysis.config.EndMillCoefficients)
-    spindle_rpm : spindle speed for the force prediction when the program has none, rpm
-    feed_step_mm_min : written feeds are floored to a multiple of this, mm/min
-    feed_cap : optional f(simulation, rpm per piece) -> highest feed per piece, mm/min (the
-        physical limits of planning.limits; the rule then works below the cap)
-    """
-
-    min_piece_mm: float = 5.0
-    split: bool = True
-    chord_tol_mm: float = DEFAULT_CHORD_TOL_MM
-    check_holder: bool = True
-    force_limit_n: float | None = None
-    coefficients: EndMillCoefficients | None = None
-    spindle_rpm: float | None = None
-    feed_step_mm_min: float = 1.0
-    feed_cap: FeedCap | None = None
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.min_piece_mm) and self.min_piece_mm > 0):
-            raise PlanningError(f"min_piece_mm = {self.min_piece_mm}: must be > 0 (mm)")
-        if not self.feed_step_mm_min > 0:
-            raise PlanningError(f"feed_step_mm_min = {self.feed_step_mm_min}: must be > 0")
-        if self.force_limit_n is not None:
-            if not self.force_limit_n > 0:
-                raise PlanningError(f"force_limit_n = {self.force_limit_n}: must be > 0 (N)")
-            if self.coefficients is None:
-                raise PlanningError(
-                    "force_limit_n needs end-mill force coefficients (material [endmill] table)"
-                )
-
-
-@dataclass(frozen=True)
-class Section:
-    """One tool's run of a program that changes tools: segments ``lo:hi`` of its motion, cut by
-    ``tool``; ``rule`` None leaves the section's feeds as programmed (a drill, a probe, a tool
-    with no rule)."""
-
-    lo: int
-    hi: int
-    tool: EndMill
-    rule: FeedRule | None
-    tool_number: int = 0
-    tool_name: str = ""
-
-
-@dataclass(frozen=True)
-class BlockTable:
-    """One row per block that has feed moves (arrays of equal length)."""
-
-    block: NDArray[np.int64]
-    line: NDArray[np.int64]
-    length_mm: NDArray[np.float64]
-    removed_mm3: NDArray[np.float64]
-    load_pct: NDArray[np.float64]  # seed 001: over the whole block
-    load_max_pct: NDArray[np.float64]  # most loaded piece
-    feed_before_mm_min: NDArray[np.float64]
-    feed_after_mm_min: NDArray[np.float64]  # slowest of the block's new feeds
-    pieces: NDArray[np.int64]  # blocks it became (1 = not split)
-    time_before_s: NDArray[np.float64]
-    time_after_s: NDArray[np.float64]
-    force_max_n: NDArray[np.float64] | None = None  # predicted peak force at the new feed, N
-
-    def to_dataframe(self) -> pd.DataFrame:
-        import pandas as pd
-
-        cols = {k: getattr(self, k) for k in self.__dataclass_fields__}
-        if cols["force_max_n"] is None:
-            del cols["force_max_n"]
-        return pd.DataFrame(cols)
-
-
-@dataclass(frozen=True)
-class FeedPostResult:
-    """What the post-processor did; ``program`` is the adjusted program (not yet written)."""
-
-    program: Program
-    motion_before: Motion
-    motion_after: Motion
-    simulation: Simulation
-    piece_load_pct: NDArray[np.float64]
-    piece_feed_mm_min: NDArray[np.float64]
-    piece_force_n: NDArray[np.float64]  # predicted peak force, N (NaN without coefficients)
-    blocks: BlockTable
-    time_before_s: float
-    time_after_s: float
-    split_blocks: int
-    rule: FeedRule
-    stock: ZMap
-    notes: tuple[str, ...] = field(default=())
-    # With the machine's acceleration (planning.nc.accel); None when the machine gives none.
-    accel_time_before_s: float | None = None
-    accel_time_after_s: float | None = None
-    sections: tuple[Section, ...] = ()  # each tool's run (one for a one-tool program)
-
-    @property
-    def time_saved_pct(self) -> float:
-        return 100.0 * (1.0 - self.time_after_s / self.time_before_s) if self.time_before_s else 0.0
-
-    def load_rate_max(self) -> tuple[float, float]:
-        """Highest cutting load per unit time (load % x feed, %.mm/min) before and after."""
-        seg_feed = self.motion_before.feed_mm_min[self.simulation.piece_segment]
-        before = np.nan_to_num(self.piece_load_pct * seg_feed)
-        after = np.nan_to_num(self.piece_load_pct * self.piece_feed_mm_min)
-        return float(before.max(initial=0.0)), float(after.max(initial=0.0))
-
-    def summary(self) -> JsonObject:
-        before, after = self.load_rate_max()
-        bins = np.bincount(
-            self.rule.bin_of(self.blocks.load_pct[self.blocks.removed_mm3 > 0]),
-            minlength=self.rule.n_bins,
-        )
-        cutting = self.motion_before.is_feed[self.simulation.piece_segment]
-        path = np.bincount(
-            self.rule.bin_of(self.piece_load_pct[cutting]),
-            weights=self.simulation.piece_length_mm[cutting],
-            minlength=self.rule.n_bins,
-        )
-        return {
-            "blocks": int(len(self.program)),
-            "feed_blocks": int(len(self.blocks.block)),
-            "split_blocks": self.split_blocks,
-            "time_before_s": self.time_before_s,
-            "time_after_s": self.time_after_s,
-            "time_saved_pct": self.time_saved_pct,
-            "accel_time_before_s": self.accel_time_before_s,
-            "accel_time_after_s": self.accel_time_after_s,
-            "removed_mm3": self.simulation.removed_total_mm3,
-            "load_rate_max_before": before,
-            "load_rate_max_after": after,
-            "load_histogram": bins.tolist(),  # cutting blocks per rule bin (block loads)
-            "load_histogram_path_mm": path.tolist(),  # feed path per rule bin (piece loads)
-            "holder_contacts": [
-                {"block": c.block, "line": c.line, "part": c.part, "overlap_mm": c.overlap_mm}
-                for c in self.simulation.contacts
-            ],
-            "rapid_cut_blocks": [
-                int(self.motion_before.block[i]) for i in self.simulation.rapid_cut_segments
-            ],
-            "notes": list(self.notes),
-        }
+from planning.stock.plans import join_simulations
 
 
 def _feed_limits(rule: FeedRule, machine: MachineConfig | None) -> tuple[float, float]:
@@ -257,6 +98,64 @@ def post_process(
             f"{file}: the force and limit options (--material, --force-limit, --limit) work on "
             "a one-tool program: run them per tool, or check the output with `cutlab plan check`"
         )
+    sim = _simulate_sections(motion, machine, stock, sections, opts, file, progress)
+    notes: list[str] = []
+    pf = _piece_feeds(motion, sim, tool, machine, sections, opts, file, notes)
+    block_feed, split = _block_feeds(program, motion, sim, pf.feed, machine, sections, opts)
+
+    new_program, new_index = write_program(program, machine, block_feed, split)
+    motion_after = interpret(
+        new_program, machine, file=file, cutter_comp="refuse", probing="refuse"
+    )
+    verify_geometry(motion, motion_after, new_index, set(split), file)
+    t_before = segment_time_s(motion, machine)  # feeds > 0: check_motion passed
+    t_after = segment_time_s(motion_after, machine)
+    accel_before = accel_after = None
+    if machine is not None and machine.accel_mm_s2 is not None:
+        acc = (machine.accel_mm_s2, machine.junction_deviation_mm)
+        accel_before = float(accel_segment_time_s(motion, *acc, t_before).sum())
+        accel_after = float(accel_segment_time_s(motion_after, *acc, t_after).sum())
+    if sim.contacts:
+        notes.append(f"{len(sim.contacts)} holder/spindle contacts with the stock (see report)")
+    if len(sim.rapid_cut_segments):
+        notes.append(f"{len(sim.rapid_cut_segments)} rapid moves cut material (crash on a machine)")
+    piece_force = _piece_forces(pf, opts, notes)
+    blocks = _block_table(motion, motion_after, sim, pf.load, pf.feed, new_index, t_before,
+                          t_after, sections)  # fmt: skip
+    blocks = replace(
+        blocks, force_max_n=_block_max(motion.block[sim.piece_segment], piece_force, blocks.block)
+    )
+    return FeedPostResult(
+        program=new_program,
+        motion_before=motion,
+        motion_after=motion_after,
+        simulation=sim,
+        piece_load_pct=pf.load,
+        piece_feed_mm_min=pf.feed,
+        piece_force_n=piece_force,
+        blocks=blocks,
+        time_before_s=float(t_before.sum()),
+        time_after_s=float(t_after.sum()),
+        split_blocks=len(split),
+        rule=rule,
+        stock=stock,
+        notes=tuple(notes),
+        accel_time_before_s=accel_before,
+        accel_time_after_s=accel_after,
+        sections=tuple(sections),
+    )
+
+
+def _simulate_sections(
+    motion: Motion,
+    machine: MachineConfig | None,
+    stock: ZMap,
+    sections: list[Section],
+    opts: FeedPostOptions,
+    file: str,
+    progress: Callable[[int, int], None] | None,
+) -> Simulation:
+    """Check the motion, then cut each section's run with its own tool on the one stock."""
     widest = max((sc.tool for sc in sections), key=lambda t: t.diameter_mm)
     check_motion(motion, machine, stock, Cutter.from_tool(widest), file, opts.chord_tol_mm)
     piece_mm = opts.min_piece_mm / 2 if opts.split else math.inf
@@ -269,15 +168,38 @@ def post_process(
             progress=progress,
         )  # fmt: skip
         parts.append((sc.lo, part))
-    sim = _join(motion, parts)
+    return join_simulations(motion, parts)
+
+
+@dataclass(frozen=True)
+class _PieceFeeds:
+    """Per piece of the simulation: load, feed (NaN off feed moves), the feed's range, and the
+    force model (None without coefficients)."""
+
+    load: NDArray[np.float64]  # % of the rule's reference load
+    feed: NDArray[np.float64]  # mm/min
+    lo: NDArray[np.float64]  # mm/min, the lowest feed allowed
+    force: ForceModel | None
+
+
+def _piece_feeds(
+    motion: Motion,
+    sim: Simulation,
+    tool: EndMill,
+    machine: MachineConfig | None,
+    sections: list[Section],
+    opts: FeedPostOptions,
+    file: str,
+    notes: list[str],
+) -> _PieceFeeds:
+    """Each piece's load with its section's tool and feed from its section's rule (or as
+    programmed), capped by the limits and the force limit, floored to the feed step."""
     seg = sim.piece_segment
     plen = sim.piece_length_mm
     plunge = plunge_mask(sim.piece_start_mm, sim.piece_end_mm)
-    notes: list[str] = []
-    # per piece: load with its section's tool, feed from its section's rule (or as programmed)
     load = np.zeros(len(seg))
     feed = motion.feed_mm_min[seg].astype(float)
-    lo_p, hi_p = np.array(feed), np.array(feed)  # a section without a rule: clamped to itself
+    lo, hi = np.array(feed), np.array(feed)  # a section without a rule: clamped to itself
     fixed = np.zeros(len(seg), bool)
     for sc in sections:
         k = (seg >= sc.lo) & (seg < sc.hi)
@@ -287,9 +209,8 @@ def post_process(
             fixed[k] = True
             continue
         f_lo, f_hi = _feed_limits(sc.rule, machine)
-        lo_p[k], hi_p[k] = f_lo, f_hi
+        lo[k], hi[k] = f_lo, f_hi
         feed[k] = np.clip(sc.rule.feed_for(load[k]), f_lo, f_hi)
-    lo, hi = lo_p, hi_p
     force = None
     rpm = np.abs(motion.spindle_rpm[seg])
     if opts.spindle_rpm:
@@ -313,9 +234,25 @@ def post_process(
             feed = np.clip(np.minimum(feed, force.feed_cap(opts.force_limit_n)), lo, hi)
     step = opts.feed_step_mm_min
     feed = np.where(fixed, feed, np.maximum(np.floor(feed / step + 1e-9) * step, lo))
-    is_feed_piece = motion.is_feed[seg]
-    feed = np.where(is_feed_piece, feed, np.nan)
+    feed = np.where(motion.is_feed[seg], feed, np.nan)
+    return _PieceFeeds(load, feed, lo, force)
 
+
+def _block_feeds(
+    program: Program,
+    motion: Motion,
+    sim: Simulation,
+    feed: NDArray[np.float64],
+    machine: MachineConfig | None,
+    sections: list[Section],
+    opts: FeedPostOptions,
+) -> tuple[dict[int, float], dict[int, tuple[int, list[tuple[float, float]]]]]:
+    """The feed of each block (the slowest of its feed segments) and the blocks split where
+    their pieces' feeds differ: ``(block -> feed, block -> (segment, [(path fraction, feed)]))``.
+    ``feed`` (per piece) is set in place to what the written program runs."""
+    seg = sim.piece_segment
+    plen = sim.piece_length_mm
+    is_feed_piece = motion.is_feed[seg]
     # Per segment: feed of its most loaded piece (the slowest), pieces kept for splitting.
     n = len(motion)
     seg_feed = np.full(n, np.inf)
@@ -369,55 +306,22 @@ def post_process(
     if unsplit.any():
         bf = np.array([block_feed[b] for b in piece_block[unsplit].tolist()])
         feed[unsplit] = bf
+    return block_feed, split
 
-    new_program, new_index = write_program(program, machine, block_feed, split)
-    motion_after = interpret(
-        new_program, machine, file=file, cutter_comp="refuse", probing="refuse"
-    )
-    verify_geometry(motion, motion_after, new_index, set(split), file)
-    t_before = segment_time_s(motion, machine)  # feeds > 0: check_motion passed
-    t_after = segment_time_s(motion_after, machine)
-    accel_before = accel_after = None
-    if machine is not None and machine.accel_mm_s2 is not None:
-        acc = (machine.accel_mm_s2, machine.junction_deviation_mm)
-        accel_before = float(accel_segment_time_s(motion, *acc, t_before).sum())
-        accel_after = float(accel_segment_time_s(motion_after, *acc, t_after).sum())
-    if sim.contacts:
-        notes.append(f"{len(sim.contacts)} holder/spindle contacts with the stock (see report)")
-    if len(sim.rapid_cut_segments):
-        notes.append(f"{len(sim.rapid_cut_segments)} rapid moves cut material (crash on a machine)")
-    piece_force = np.full(len(feed), np.nan)
-    if force is not None:
-        piece_force = force.force_n(np.where(np.isnan(feed), lo, feed))
+
+def _piece_forces(pf: _PieceFeeds, opts: FeedPostOptions, notes: list[str]) -> NDArray[np.float64]:
+    """Each piece's predicted force at its written feed (NaN without the force model)."""
+    piece_force = np.full(len(pf.feed), np.nan)
+    if pf.force is not None:
+        piece_force = pf.force.force_n(np.where(np.isnan(pf.feed), pf.lo, pf.feed))
         if opts.force_limit_n is not None:
             over = np.nan_to_num(piece_force) > opts.force_limit_n * (1 + 1e-6)
             if over.any():
                 notes.append(
                     f"{int(over.sum())} pieces exceed force_limit_n = {opts.force_limit_n} N "
-                    f"even at the lowest allowed feed {np.min(lo, initial=np.inf):g} mm/min"
+                    f"even at the lowest allowed feed {np.min(pf.lo, initial=np.inf):g} mm/min"
                 )
-    blocks = _block_table(motion, motion_after, sim, load, feed, new_index, t_before, t_after,
-                          sections)  # fmt: skip
-    blocks = replace(blocks, force_max_n=_block_max(motion.block[seg], piece_force, blocks.block))
-    return FeedPostResult(
-        program=new_program,
-        motion_before=motion,
-        motion_after=motion_after,
-        simulation=sim,
-        piece_load_pct=load,
-        piece_feed_mm_min=feed,
-        piece_force_n=piece_force,
-        blocks=blocks,
-        time_before_s=float(t_before.sum()),
-        time_after_s=float(t_after.sum()),
-        split_blocks=len(split),
-        rule=rule,
-        stock=stock,
-        notes=tuple(notes),
-        accel_time_before_s=accel_before,
-        accel_time_after_s=accel_after,
-        sections=tuple(sections),
-    )
+    return piece_force
 
 
 def _block_max(

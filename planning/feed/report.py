@@ -1,21 +1,31 @@
 """The feed post-processor's report files: per-block CSV, load and feed along the path,
 load histogram and final stock (PNG, matplotlib Agg). It reads a finished
-:class:`~planning.feed.post.FeedPostResult`; the result knows nothing of its report.
+:class:`~planning.feed.result.FeedPostResult`; the result knows nothing of its report.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TypedDict
 
 import numpy as np
 
-from planning.feed.post import FeedPostResult
+from planning.feed.result import FeedPostResult
 from planning.stock import save_stock_png
+
+
+class FeedReportPaths(TypedDict):
+    """The report files :func:`write_report` wrote."""
+
+    csv: Path
+    load_feed_png: Path
+    histogram_png: Path
+    stock_png: Path
 
 
 def write_report(
     result: FeedPostResult, folder: str | Path, stem: str = "feedpost"
-) -> dict[str, Path]:
+) -> FeedReportPaths:
     """Write ``stem``-blocks.csv, -load-feed.png, -histogram.png, -stock.png; return the paths."""
     import matplotlib
 
@@ -24,7 +34,7 @@ def write_report(
 
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
-    paths = {}
+    paths: dict[str, Path] = {}
     csv = out / f"{stem}-blocks.csv"
     result.blocks.to_dataframe().to_csv(csv, index=False, float_format="%.6g")
     paths["csv"] = csv
@@ -78,4 +88,5 @@ def write_report(
     plt.close(fig)
 
     paths["stock_png"] = save_stock_png(result.stock, out / f"{stem}-stock.png", "final stock")
-    return paths
+    return {"csv": paths["csv"], "load_feed_png": paths["load_feed_png"],
+            "histogram_png": paths["histogram_png"], "stock_png": paths["stock_png"]}  # fmt: skip

@@ -29,7 +29,7 @@ from planning.limits.check import FEED_LIMITS, CheckResult, Pieces, check_motion
 from planning.limits.model import Limits, limits_for
 from planning.nc import Motion, Program, interpret, motion_stats
 from planning.stock import Simulation, ZMap
-from planning.stock.machining import bind_tools
+from planning.stock.plans import bind_tools
 
 if TYPE_CHECKING:
     from planning.rough import Part, RoughPlan, RoughPlanner
@@ -265,7 +265,7 @@ def _lobes_for(
     lobes: str | Path | None, tools: dict[int, tuple[str, EndMill]], file: str
 ) -> dict[int, str | None]:
     """``--lobes FILE`` (a one-tool program) or ``T1=FILE,T2=FILE``: the table of each tool."""
-    from planning.stock.machining import parse_tool_spec
+    from planning.stock.plans import parse_tool_spec
 
     if lobes is None:
         return {t: None for t in tools}
@@ -313,7 +313,7 @@ def check_job(
     from planning.limits.check import PIECE_MM, verdict
     from planning.nc import segment_time_s
     from planning.stock import simulate_motion
-    from planning.stock.machining import Operation, parse_tool_spec
+    from planning.stock.plans import Operation, parse_tool_spec
 
     file = str(program_path)
     m = load_machine(machine)

@@ -23,6 +23,14 @@ from planning.rough.planner import METHODS, RoughPlan, RoughPlanner
 LimitStep = Callable[[RoughPlanner, RoughPlan, Program], tuple[RoughPlan, Program, JsonObject]]
 
 
+class Comparison(TypedDict):
+    """The cutting-path comparisons between methods, % (None: the reference path is 0)."""
+
+    bisection_shorter_than_equal_pct: float | None
+    bisection_shorter_than_lee_pct: float | None
+    optimal_shorter_than_bisection_pct: float | None
+
+
 class RoughResult(TypedDict):
     """What :func:`run_rough` returns (JSON-ready): the chosen plan's levels, every method's
     totals, the Z-map check, the written files and the limits' report."""
@@ -37,7 +45,7 @@ class RoughResult(TypedDict):
     top_mm: float
     levels: list[JsonObject]
     totals: dict[str, PlanTotals]
-    comparison: dict[str, float | None]
+    comparison: Comparison
     check: JsonObject | None
     program: str
     png: dict[str, str]
@@ -50,7 +58,7 @@ def shorter_pct(a: float, b: float) -> float | None:
     return round(100.0 * (1.0 - a / b), 2) if b else None
 
 
-def comparison_pct(totals: Mapping[str, PlanTotals]) -> dict[str, float | None]:
+def comparison_pct(totals: Mapping[str, PlanTotals]) -> Comparison:
     """The cutting-path comparisons between methods, in % (seed 000's headline numbers)."""
     path = {m: t["cutting_path_mm"] for m, t in totals.items()}
     return {

@@ -6,15 +6,13 @@ from planning.stock._numba import MAX_ARCS
 from planning.stock.block import SteppedBlock
 from planning.stock.machining import (
     ARC_STEP_RAD,
-    Operation,
-    OperationPlan,
     Simulation,
     check_motion,
     default_stock,
-    load_plan,
     load_stock,
     simulate_motion,
 )
+from planning.stock.plans import Operation, OperationPlan, load_plan
 from planning.stock.plot import save_stock_png
 from planning.stock.zmap import Cutter, ZMap
 

@@ -1,5 +1,5 @@
-"""Starting stocks from specs and files (private to :mod:`planning.stock.machining`, which
-re-exports them).
+"""Starting stocks from specs and files (:mod:`planning.stock.machining` re-exports them; the
+plan file's ``[stock]`` table is read by :mod:`planning.stock.plans`).
 
 Spec: ``box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP`` (mm), a mesh file (``.stl``, ``.obj``, ``.ply``,
 ``.off``), or a TOML file with a ``[stock]`` table (see :mod:`planning.stock.machining`).

@@ -39,16 +39,22 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from analysis.chatter import ChatterWatch
+from analysis.chatter import ChatterSettings, ChatterWatch
 from analysis.runs import file as rf
 from rig.adaptive.grbl_codes import APPLY_DELAY_S, MAX_PCT, MIN_PCT
 from rig.adaptive.grbl_codes import feed_codes as _feed_codes
 from rig.adaptive.grbl_codes import spindle_codes as _spindle_codes
 from rig.adaptive.pockets import nearest_pocket_rpm
+from rig.adaptive.results import AdaptiveStatus, AdaptiveSummary, NoteWriter
+
+if TYPE_CHECKING:
+    from analysis.stability import Lobes
+    from rig.daq import DaqEvent, DaqInfo
+    from rig.dnc import GrblStreamer
 
 MODES = ("feed", "spindle", "both")
 
@@ -119,10 +125,10 @@ class AdaptiveController:
         channels: Sequence[str],
         force_of: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
         clock: Callable[[], float] = time.monotonic,
-        writer: Any = None,
-        lobes: Any = None,
+        writer: NoteWriter | None = None,
+        lobes: Lobes | None = None,
         depth_mm: float = 0.0,
-        chatter_settings: Any = None,
+        chatter_settings: ChatterSettings | None = None,
         on_hold: Callable[[str], None] | None = None,
     ) -> None:
         self.s = settings
@@ -178,7 +184,7 @@ class AdaptiveController:
         self._saturated_now = False
 
     # -- wiring ----------------------------------------------------------------------------------
-    def attach(self, streamer: Any) -> None:
+    def attach(self, streamer: GrblStreamer) -> None:
         """The GRBL streamer the overrides go through (once it has opened the port)."""
         self.streamer = streamer
 
@@ -215,12 +221,12 @@ class AdaptiveController:
         )
 
     # -- DaqSink ---------------------------------------------------------------------------------
-    def on_start(self, info: Any, t0_s: float) -> None:
+    def on_start(self, info: DaqInfo, t0_s: float) -> None:
         self.rate_hz = float(info.rate_hz)
         self.block_s = info.block_samples / self.rate_hz
         self.t0_s = t0_s
 
-    def on_event(self, event: Any) -> None:
+    def on_event(self, event: DaqEvent) -> None:
         if event.kind == rf.EV_STOP:
             with self._lock:
                 self._armed = False
@@ -515,7 +521,7 @@ class AdaptiveController:
         if self.writer is not None:
             self.writer.event(rf.EV_NOTE, f"adaptive: {text}"[:200], time_s=t_s)
 
-    def live_status(self) -> dict[str, Any]:
+    def live_status(self) -> AdaptiveStatus:
         """What the live console shows beside the force: target, last revolution's force, the
         overrides commanded and reported, the state (and why it held)."""
         last = self.trace[-1] if self.trace else None
@@ -531,7 +537,7 @@ class AdaptiveController:
             "hold": self.hold_reason,
         }
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> AdaptiveSummary:
         """Figures for the run's record and the bench."""
         lat = np.asarray(self.latencies_s, float)
         cut = [r for r in self.trace if r.state == "cutting"]

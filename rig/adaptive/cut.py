@@ -9,9 +9,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
+
+if TYPE_CHECKING:
+    from analysis.stability import StabilityCase
+    from rig.adaptive.campaign_view import LobeCampaign, LobeTest
 
 NO_LOBES = "no lobes"
 
@@ -27,7 +32,7 @@ class LobeCut:
     teeth: int
     radial_immersion: float
 
-    def case(self, rpm: Any, name: str = "") -> Any:
+    def case(self, rpm: npt.ArrayLike, name: str = "") -> StabilityCase:
         """The :class:`analysis.stability.StabilityCase` at the speeds ``rpm``."""
         from analysis.stability import endmill_case
 
@@ -35,7 +40,7 @@ class LobeCut:
                             self.radial_immersion, np.atleast_1d(rpm), name)  # fmt: skip
 
 
-def lobe_cut(campaign: Any, test: Any) -> LobeCut | str:
+def lobe_cut(campaign: LobeCampaign, test: LobeTest) -> LobeCut | str:
     """``test``'s cut in ``campaign`` for the lobes, or why there are none (one line)."""
     from analysis.forces import ENDMILL
 

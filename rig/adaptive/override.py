@@ -7,15 +7,18 @@ yet, so that path is declared but refused too, naming why, rather than a loop th
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 from rig.dnc.protocols import protocol_of
+
+if TYPE_CHECKING:
+    from analysis.config import MachineConfig
 
 #: the override paths the loop can drive
 DRIVEN = ("grbl-realtime",)
 
 
-def override_path(machine: Any, protocol: str) -> str:
+def override_path(machine: MachineConfig, protocol: str) -> str:
     """The path for ``machine`` streamed as ``protocol``: a GRBL stream is GRBL's real-time
     bytes (the twin's ``[sim] protocol = "grbl"`` included); otherwise the machine config's
     ``override`` (by dialect when unset)."""
@@ -25,7 +28,7 @@ def override_path(machine: Any, protocol: str) -> str:
     return path if path is not None else "none"
 
 
-def refusal(machine: Any, protocol: str) -> str | None:
+def refusal(machine: MachineConfig, protocol: str) -> str | None:
     """None when the loop can drive the override; else the one line saying why not."""
     path = override_path(machine, protocol)
     if path in DRIVEN:

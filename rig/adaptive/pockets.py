@@ -3,15 +3,18 @@ lobes allow, within the spindle override's range."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from rig.adaptive.grbl_codes import MAX_PCT, MIN_PCT
 
+if TYPE_CHECKING:
+    from analysis.stability import Lobes
+
 
 def nearest_pocket_rpm(
-    lobes: Any, rpm: float, depth_mm: float, min_pct: int = MIN_PCT, max_pct: int = MAX_PCT
+    lobes: Lobes, rpm: float, depth_mm: float, min_pct: int = MIN_PCT, max_pct: int = MAX_PCT
 ) -> float | None:
     """The peak of the stable pocket nearest ``rpm`` within ``min_pct..max_pct`` % of it: a
     pocket is a run of speeds whose stability limit (``lobes.depth_limit_mm``) is above

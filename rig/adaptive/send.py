@@ -8,11 +8,17 @@ block to the controller, the overrides through the send's streamer. No run file 
 from __future__ import annotations
 
 import time
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 from rig.adaptive.controller import AdaptiveController, AdaptiveSettings
+from rig.adaptive.results import AdaptiveSummary
 from rig.adaptive.session import _Tee
 from rig.dnc import DncError, protocol_of
+
+if TYPE_CHECKING:
+    from rig.daq import Daq
+    from rig.dnc import SendJob
 
 #: wall s the DAQ may take to deliver the zeroing rest before the send is refused
 ZERO_WAIT_S = 10.0
@@ -42,8 +48,9 @@ class SendLoop:
     ``rig`` (a path, default configs/rig.toml)."""
 
     def __init__(
-        self, job: Any, settings: AdaptiveSettings, spindle_rpm: float, *, rig: str | None = None,
-        daq: Any = None, rest_s: float = 0.2, say: Any = None,
+        self, job: SendJob, settings: AdaptiveSettings, spindle_rpm: float, *,
+        rig: str | None = None, daq: Daq | None = None, rest_s: float = 0.2,
+        say: Callable[[str], None] | None = None,
     ) -> None:  # fmt: skip
         from analysis.config import load_rig
         from rig.daq.calibration import Calibration
@@ -93,5 +100,5 @@ class SendLoop:
             close()
 
     @property
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> AdaptiveSummary:
         return self.ctl.summary()

@@ -9,13 +9,22 @@ the program (feed hold first, then reset), so a held cut never waits for the wat
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
 from analysis.runs import file as rf
 from rig.adaptive.controller import AdaptiveController
 from rig.daq import SAMPLE_FORMAT_RAW
+
+if TYPE_CHECKING:
+    from analysis.stability import Lobes
+    from rig.adaptive.campaign_view import AdaptiveCampaign, AdaptiveTest, LoopSession
+    from rig.adaptive.controller import AdaptiveSettings
+    from rig.daq import Calibration
+
+#: the rig session adaptive_session wraps (returned as it is when the test is not under the loop)
+S = TypeVar("S", bound="LoopSession")
 
 
 class _Tee:
@@ -148,13 +157,13 @@ class AdaptiveSession:
         return getattr(self._s, name)
 
 
-def protocol_of(campaign: Any) -> str:
+def protocol_of(campaign: AdaptiveCampaign) -> str:
     """The controller's protocol a campaign streams to (the twin's ``[sim] protocol`` first)."""
     sim = campaign.spec.sim.protocol if campaign.spec.campaign.rig == "sim" else None
     return sim or campaign.machine.dialect
 
 
-def max_force_of(campaign: Any) -> float | None:
+def max_force_of(campaign: AdaptiveCampaign) -> float | None:
     """The hard limit: the lowest of the tool's ``max_force_n`` (its catalogue's), ``[adaptive]
     max_force_n`` and ``[suspenders] force_limit_n`` that are given (the config may only lower
     the tool's cap); None when none is."""
@@ -164,7 +173,7 @@ def max_force_of(campaign: Any) -> float | None:
     return min(given) if given else None
 
 
-def target_of(campaign: Any, test: Any) -> tuple[float | None, str]:
+def target_of(campaign: AdaptiveCampaign, test: AdaptiveTest) -> tuple[float | None, str]:
     """(target N, where it comes from) for ``test``: ``[adaptive] target_force_n``, else the
     reference load of the campaign's feed rule (seed 001: the slot of ``[feed_rule]
     reference_depth_mm`` at ``base_feed_mm_min``, the cut known safe at the base feed) as the
@@ -194,7 +203,7 @@ def target_of(campaign: Any, test: Any) -> tuple[float | None, str]:
                          f"at {rule.base_feed_mm_min:g} mm/min, {rpm:g} rpm")  # fmt: skip
 
 
-def check_adaptive(campaign: Any) -> None:
+def check_adaptive(campaign: AdaptiveCampaign) -> None:
     """Refuse a loop the controller cannot close: ConfigError naming the file and the field."""
     from analysis.errors import ConfigError
 
@@ -227,12 +236,12 @@ def check_adaptive(campaign: Any) -> None:
                          f"{', '.join(sorted(known))})")  # fmt: skip
 
 
-def under_loop(campaign: Any, test: Any) -> bool:
+def under_loop(campaign: AdaptiveCampaign, test: AdaptiveTest) -> bool:
     a = campaign.spec.adaptive
     return a is not None and (not a.groups or test.group in a.groups)
 
 
-def settings_of(campaign: Any, test: Any) -> Any:
+def settings_of(campaign: AdaptiveCampaign, test: AdaptiveTest) -> AdaptiveSettings:
     from rig.adaptive.controller import AdaptiveSettings
 
     a = campaign.spec.adaptive
@@ -255,7 +264,9 @@ LOBE_SPEEDS = 81
 LOBE_SPAN_PCT = (50, 150)
 
 
-def lobes_for(campaign: Any, test: Any, min_pct: int, max_pct: int) -> Any:
+def lobes_for(
+    campaign: AdaptiveCampaign, test: AdaptiveTest, min_pct: int, max_pct: int
+) -> Lobes | None:
     """The stability lobes of ``test``'s cut across the spindle override range
     (:func:`rig.adaptive.cut.lobe_cut`: the twin's ``[sim] tool_modes`` first, else the tool's
     own; the material's end-mill coefficients); None without them (no pocket to go to)."""
@@ -271,7 +282,9 @@ def lobes_for(campaign: Any, test: Any, min_pct: int, max_pct: int) -> Any:
     return stability_lobes(cut.case(rpm, f"{campaign.name}-adaptive"), "sd")
 
 
-def adaptive_session(campaign: Any, test: Any, session: Any, cal: Any) -> Any:
+def adaptive_session(
+    campaign: AdaptiveCampaign, test: AdaptiveTest, session: S, cal: Calibration
+) -> S | AdaptiveSession:
     """The campaign runner's hook: ``session`` with the controller in its loop when ``test``'s
     group is under ``[adaptive]``, else ``session`` itself."""
     if not under_loop(campaign, test):

@@ -45,6 +45,7 @@ from analysis.config import (
 from analysis.errors import ConfigError
 from analysis.forces import ENDMILL, FACEMILL
 from analysis.validation import read_toml, validate
+from rig.campaign.results import RunConditionsJson
 from rig.campaign.schema import (  # noqa: F401 - the tables, importable from here as before
     AdaptiveSection,
     AnalysisSection,
@@ -77,8 +78,12 @@ class RunConditions:
     rule: str | None
     source_line: int | None
 
-    def as_dict(self) -> dict[str, Any]:
-        return {k: v for k, v in self.__dict__.items() if k != "source_line"}
+    def as_dict(self) -> RunConditionsJson:
+        """Every field but ``source_line``, in order."""
+        return {"index": self.index, "name": self.name, "group": self.group, "fz_mm": self.fz_mm,
+                "feed_mm_min": self.feed_mm_min, "depth_mm": self.depth_mm,
+                "width_mm": self.width_mm, "spindle_rpm": self.spindle_rpm,
+                "feed_mode": self.feed_mode, "rule": self.rule}  # fmt: skip
 
 
 @dataclass(frozen=True)

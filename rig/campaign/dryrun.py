@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from analysis.errors import ConfigError
 from rig.campaign.config import Campaign
 from rig.campaign.plan import plan_campaign
+from rig.campaign.results import DryRunSummary
 from rig.campaign.runner import campaign_folder
 
 
@@ -27,10 +27,13 @@ class DryRun:
     def ok(self) -> bool:
         return not self.problems
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> DryRunSummary:
         """Every field, the expected machine time rounded to 0.1 s, and ``ok``."""
-        return asdict(self) | {"expected_machine_s": round(self.expected_machine_s, 1),
-                               "ok": self.ok}  # fmt: skip
+        return {"campaign": self.campaign, "rig": self.rig, "tests": self.tests,
+                "programs_checked": self.programs_checked,
+                "expected_machine_s": round(self.expected_machine_s, 1),
+                "hardware": list(self.hardware), "problems": list(self.problems),
+                "warnings": list(self.warnings), "ok": self.ok}  # fmt: skip
 
 
 def dry_run(campaign: Campaign, out_root: str | Path | None = None) -> DryRun:

@@ -17,12 +17,14 @@ import json
 import os
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, Unpack
 
 from analysis import __version__
 from analysis.config import config_dir
 from analysis.runs import file as rf
+from analysis.validation import JsonValue
 from rig.campaign.config import Campaign
+from rig.campaign.results import InputRecord, ManifestEntry
 from rig.errors import RigError
 
 
@@ -46,9 +48,9 @@ _NOT_THE_EXPERIMENT = {
 }
 
 
-def experiment_fields(campaign: Campaign) -> dict[str, Any]:
+def experiment_fields(campaign: Campaign) -> dict[str, JsonValue]:
     """The campaign file's fields that decide the runs, flattened (``matrix[0].depth_mm``)."""
-    out: dict[str, Any] = {}
+    out: dict[str, JsonValue] = {}
 
     def walk(prefix: str, v: Any) -> None:
         if isinstance(v, dict):
@@ -68,7 +70,7 @@ def experiment_fields(campaign: Campaign) -> dict[str, Any]:
     return out
 
 
-def campaign_inputs(campaign: Campaign) -> dict[str, dict[str, Any]]:
+def campaign_inputs(campaign: Campaign) -> dict[str, InputRecord]:
     """Every input the campaign's runs depend on: {input: {sha256, source}} (the config's also
     with its ``fields``, to name the ones that changed)."""
     c = campaign.spec.campaign
@@ -142,10 +144,11 @@ class Manifest:
         self.data["software_version"] = __version__
         self.save()
 
-    def entry(self, name: str) -> dict[str, Any] | None:
-        return self.data["runs"].get(name)
+    def entry(self, name: str) -> ManifestEntry | None:
+        entry: ManifestEntry | None = self.data["runs"].get(name)
+        return entry
 
-    def set(self, name: str, **kw: Any) -> None:
+    def set(self, name: str, **kw: Unpack[ManifestEntry]) -> None:
         self.data["runs"].setdefault(name, {}).update(kw)
         self.save()
 
@@ -156,7 +159,7 @@ class Manifest:
         save_json_atomic(self.path, self.data, "campaign manifest")
 
 
-def save_json_atomic(path: Path, data: Any, what: str) -> None:
+def save_json_atomic(path: Path, data: object, what: str) -> None:
     """``data`` as JSON at ``path``, all or nothing (see :meth:`Manifest.save`)."""
     text = json.dumps(data, indent=2, default=str).encode()
     tmp = path.with_name(f"{path.name}.tmp")
@@ -255,7 +258,7 @@ def run_status(path: Path) -> tuple[str, str]:
     return run.status, run.reason
 
 
-def finished(folder: Path, entry: dict[str, Any] | None, stem: str, sha256: str = "") -> bool:
+def finished(folder: Path, entry: ManifestEntry | None, stem: str, sha256: str = "") -> bool:
     """Whether a test's run is done: its file closed with ``success`` and the manifest says so,
     or the manifest still says ``running`` (the runner was stopped after the file was closed)
     and the file recorded this very program (``sha256``): a finished cut is not cut again."""
@@ -263,7 +266,8 @@ def finished(folder: Path, entry: dict[str, Any] | None, stem: str, sha256: str 
     status = None if entry is None else entry.get("status")
     if status == rf.STATUS_SUCCESS:
         return run_status(path)[0] == rf.STATUS_SUCCESS
-    if status != rf.STATUS_RUNNING or not sha256 or entry.get("program_sha256") != sha256:
+    if (entry is None or status != rf.STATUS_RUNNING or not sha256
+            or entry.get("program_sha256") != sha256):  # fmt: skip
         return False
     try:
         run = rf.load_run(path, samples=False)

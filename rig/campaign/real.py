@@ -26,6 +26,7 @@ from rig.errors import RigError
 
 if TYPE_CHECKING:
     from rig.campaign.config import Campaign
+    from rig.campaign.plan import PlannedRun
 
 #: Seconds added to a Fanuc program's estimated remaining time before the run is taken as done.
 FANUC_END_MARGIN_S = 3.0
@@ -92,7 +93,7 @@ def check_hardware(campaign: Campaign) -> tuple[list[str], list[str]]:
 class RealSession:
     """One run on the lab's rig (see the module docstring)."""
 
-    def __init__(self, campaign: Campaign, plan: Any, run_index: int) -> None:
+    def __init__(self, campaign: Campaign, plan: PlannedRun, run_index: int) -> None:
         from rig.daq.ni import NiDaq
 
         self.campaign = campaign
@@ -180,6 +181,6 @@ class RealSession:
         self.daq.close()
 
 
-def real_session(campaign: Campaign, plan: Any, run_index: int) -> RealSession:
+def real_session(campaign: Campaign, plan: PlannedRun, run_index: int) -> RealSession:
     """The campaign runner's session factory for ``rig = "real"``."""
     return RealSession(campaign, plan, run_index)

@@ -8,7 +8,7 @@ in order on the rig, each through :func:`rig.campaign.run.execute_run`, and keep
     <output_dir>/<campaign name>/
         campaign.json           manifest: config hash, software version, every run's status
         campaign.toml           the campaign file as run
-        runs/NNN-<test name>.h5 one run file per test (layout: analysis.runs.file)
+        runs/NNN-<test name>.h5 one run file per test (layout: analysis.runs.layout)
         programs/NNN-<test name>.nc
         tap/tap_x.csv, tap_y.csv  the tool's impulse-hammer records ([tap_test]), before the cuts
         report/                 written by rig.report.base after the campaign
@@ -35,7 +35,7 @@ import signal
 import sys
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +57,7 @@ from rig.campaign.manifest import (
     utc_now,
 )
 from rig.campaign.plan import PlannedRun, _dialect, plan_campaign
+from rig.campaign.results import CampaignResult, CampaignStatus, RunRecord, StatusRow
 from rig.campaign.run import RigSession, RunConfig, StopRequest, Suspenders, execute_run
 from rig.daq import Calibration
 from rig.errors import RigError
@@ -75,47 +76,6 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
-class RunRecord:
-    index: int
-    name: str
-    group: str
-    file: str
-    status: str
-    reason: str
-    skipped: bool = False
-    peak_force_n: float = float("nan")
-    wall_s: float = 0.0
-
-
-@dataclass(frozen=True)
-class CampaignResult:
-    name: str
-    folder: Path
-    runs: tuple[RunRecord, ...]
-    stopped: bool = False
-    wall_s: float = 0.0
-    counts: dict[str, int] = field(default_factory=dict)
-
-    @property
-    def ok(self) -> bool:
-        return not self.stopped and all(r.status == rf.STATUS_SUCCESS for r in self.runs)
-
-    def summary(self, report: dict[str, Any] | None = None) -> dict[str, Any]:
-        """Name, folder, ok, stopped, status counts, wall time (s), every run, and ``report``
-        (the report's summary, None when none was written)."""
-        return {
-            "campaign": self.name,
-            "folder": str(self.folder),
-            "ok": self.ok,
-            "stopped": self.stopped,
-            "counts": self.counts,
-            "wall_s": round(self.wall_s, 2),
-            "runs": [r.__dict__ for r in self.runs],
-            "report": report,
-        }
-
-
 def campaign_folder(campaign: Campaign, out_root: str | Path | None = None) -> Path:
     root = Path(out_root) if out_root is not None else Path(campaign.spec.campaign.output_dir)
     if not root.is_absolute() and out_root is None:
@@ -123,11 +83,11 @@ def campaign_folder(campaign: Campaign, out_root: str | Path | None = None) -> P
     return root / campaign.name
 
 
-def campaign_status(campaign: Campaign, out_root: str | Path | None = None) -> dict[str, Any]:
+def campaign_status(campaign: Campaign, out_root: str | Path | None = None) -> CampaignStatus:
     """Where the campaign's folder is and each planned run's status and reason there (a run
     without a file is ``missing``)."""
     folder = campaign_folder(campaign, out_root)
-    rows = []
+    rows: list[StatusRow] = []
     for p in plan_campaign(campaign):
         st, reason = run_status(folder / "runs" / f"{p.file_stem}.h5")
         rows.append({"run": p.test.index, "name": p.test.name, "status": st, "reason": reason})
@@ -135,7 +95,7 @@ def campaign_status(campaign: Campaign, out_root: str | Path | None = None) -> d
     return {"campaign": campaign.name, "folder": str(folder), "runs": rows}
 
 
-def _note_interrupted(folder: Path, campaign: Campaign, rows: list[dict[str, Any]]) -> None:
+def _note_interrupted(folder: Path, campaign: Campaign, rows: list[StatusRow]) -> None:
     """A manifest still saying ``running`` for a run whose runner is gone says ``interrupted``."""
     if not (folder / "campaign.json").exists() or lock_holder(folder) is not None:
         return

@@ -47,6 +47,10 @@ def add_limit_options(p: argparse.ArgumentParser) -> None:
 
 #: exit status of each verdict (0 within, 3 violations, 4 unchecked; 2 is bad input)
 VERDICT_EXIT = {"within": 0, "violations": 3, "unchecked": 4}
+#: exit status of the commands that write a program (plan feed, plan rough) by its verdict: 3 when
+#: a block breaks a limit (the program is written, and must not pass for a good one in a script);
+#: a limit not checked is printed and in the JSON, the program being what the command makes
+WRITTEN_EXIT = {"within": 0, "violations": 3, "unchecked": 0}
 
 
 def print_stock(stock: dict) -> None:

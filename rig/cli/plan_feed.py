@@ -14,8 +14,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     """Add ``feed`` and ``simulate`` to the ``plan`` group."""
     f = sub.add_parser(
         "feed", help="adjust feeds by predicted cutting load (seed 001)",
-        description="Exit status: 0 when the program is written, whatever its verdict (printed, "
-        "and 'verdict' in --json: 'within', 'violations' or 'unchecked' without --material); "
+        description="Exit status: 0 when the program is written and its verdict (printed, and "
+        "'verdict' in --json) is 'within' or 'unchecked' (without --material: the limits not "
+        "checked are listed); 3 when it is written but a block breaks a limit ('violations'); "
         "2 bad input, or a program that removes nothing from its stock.",
     )  # fmt: skip
     f.add_argument("program", type=Path, help="NC program (G21 or G20)")
@@ -75,7 +76,7 @@ def _feed(a: argparse.Namespace) -> int:
     from planning.limits.feed_options import feed_limits
     from planning.limits.text import verdict_lines, violation_lines
     from rig.cli.common import print_json, print_lines, status
-    from rig.cli.plan_check import print_stock
+    from rig.cli.plan_check import WRITTEN_EXIT, print_stock
     from rig.terminal import Progress
 
     lim = feed_limits(a.rules, a.tool, a.material, a.machine, a.lobes, a.force_limit, a.limit,
@@ -92,13 +93,13 @@ def _feed(a: argparse.Namespace) -> int:
     if a.json:
         s.setdefault("violations", [])  # the command contract: always a list
         print_json(s)
-        return 0  # a written program; its verdict is in the JSON (plan check exits by it)
+        return WRITTEN_EXIT[s["verdict"]]
     print_stock(s["stock"])
     print_lines(violation_lines(s["violations"]))
     for line in feed_notes(s, result.simulation.contacts, a.program, a.output):
         status(line)
     print_lines([*feed_lines(s), *verdict_lines(s)])
-    return 0
+    return WRITTEN_EXIT[s["verdict"]]
 
 
 def _simulate(a: argparse.Namespace) -> int:

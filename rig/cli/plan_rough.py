@@ -9,6 +9,11 @@ methods side by side, then cuts the program on a Z-map and reports the material 
 offset surface and any gouge. Pictures (unless --no-png), next to OUT.nc: OUT.levels.png
 (levels of all methods in a side view), OUT.paths.png (passes of the chosen method),
 OUT.roughed.png (the roughed Z-map and the material left).
+
+Exit status: 0 when the program is written, the Z-map check passes and the limits' verdict is
+'within' or 'unchecked' (the limits not checked are listed); 3 when it is written but the Z-map
+check finds a gouge or material left, or a block breaks a limit ('violations'; --limit splits
+levels and lowers feeds to cure them); 2 bad input.
 """
 
 from __future__ import annotations
@@ -72,10 +77,12 @@ def run(args: argparse.Namespace) -> int:
                         dialect=args.dialect, machine=args.machine,
                         limits=rough_limiter(fix=args.limit, machine=args.machine,
                                              material=args.material, lobes=args.lobes))  # fmt: skip
+    from rig.cli.plan_check import WRITTEN_EXIT
+
     c = res["check"]
-    code = 0 if c is None or c["ok"] else 1
-    lim = res["limits"] or {}  # the limits' verdict of the written program (exit as before)
+    lim = res["limits"] or {}  # the limits' verdict of the written program
     res["verdict"] = lim.get("verdict", "unchecked")
+    code = 3 if c is not None and not c["ok"] else WRITTEN_EXIT[res["verdict"]]
     res["unchecked"] = lim.get("unchecked", [{"limit": "all", "reason": "limits not run"}])
     if args.json:
         print_json(res)

@@ -19,19 +19,21 @@ from __future__ import annotations
 
 import math
 import threading
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from rig.console.results import CutCase, LobesAt, Margin, Peak
+
 if TYPE_CHECKING:
-    from rig.campaign.config import Campaign
+    from rig.campaign.config import Campaign, RunConditions
 
 #: the lobes are recomputed when the spindle speed moves by more than this (a 1 % move shifts a
 #: lobe's flank by about as much; the computation costs 0.3-0.9 s of CPU)
 RPM_STEP_REL = 0.01
 
 
-def stability_case(campaign: Campaign, test: Any) -> dict[str, Any]:
+def stability_case(campaign: Campaign, test: RunConditions) -> CutCase:
     """The run's cut for the lobes as JSON (:func:`rig.adaptive.cut.lobe_cut`), or
     ``{"reason": ...}`` when there are none."""
     from rig.adaptive.cut import lobe_cut
@@ -51,7 +53,7 @@ def stability_case(campaign: Campaign, test: Any) -> dict[str, Any]:
     }
 
 
-def lobes_at(case: dict[str, Any], rpm: float) -> dict[str, Any]:
+def lobes_at(case: CutCase, rpm: float) -> LobesAt:
     """The limiting depth (mm; None: stable at every depth searched), chatter frequency (Hz)
     and kind of instability of ``case`` at ``rpm``."""
     from analysis.stability import endmill_case, stability_lobes
@@ -71,11 +73,11 @@ class StabilityAt:
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._key: tuple[Any, ...] | None = None  # (run, rpm) computed or being computed
-        self._result: dict[str, Any] | None = None
+        self._key: tuple[object, float] | None = None  # (run, rpm) computed or being computed
+        self._result: LobesAt | None = None
         self._busy = False
 
-    def get(self, run: Any, case: dict[str, Any], rpm: float) -> dict[str, Any] | None:
+    def get(self, run: object, case: CutCase, rpm: float) -> LobesAt | None:
         with self._lock:
             key = self._key
             same_run = key is not None and key[0] == run
@@ -88,7 +90,7 @@ class StabilityAt:
                                  name="console-lobes").start()  # fmt: skip
             return self._result if same_run or near else None
 
-    def _compute(self, run: Any, case: dict[str, Any], rpm: float) -> None:
+    def _compute(self, run: object, case: CutCase, rpm: float) -> None:
         try:
             out = lobes_at(case, rpm)
         except Exception as exc:  # noqa: BLE001 - one line on the page, never a dead server
@@ -99,7 +101,7 @@ class StabilityAt:
             self._busy = False
 
 
-def margin(lobes: dict[str, Any] | None, case: dict[str, Any]) -> dict[str, Any]:
+def margin(lobes: LobesAt | None, case: CutCase) -> Margin:
     """What the page shows beside the spectrum: predicted chatter frequency, the run's depth
     against the limiting depth at this speed (``depth_pct``: depth / limit; over 100 %: the lobes
     predict chatter), or why not."""
@@ -116,7 +118,7 @@ def margin(lobes: dict[str, Any] | None, case: dict[str, Any]) -> dict[str, Any]
     return out | {"depth_pct": round(100.0 * depth / limit, 1), "stable": depth < limit}
 
 
-def detected_peak(force_n: np.ndarray, rate_hz: float, rpm: float) -> dict[str, Any]:
+def detected_peak(force_n: np.ndarray, rate_hz: float, rpm: float) -> Peak:
     """The spectrum's strongest frequency off the spindle harmonics in ``force_n`` (n, c) N, its
     share of the energy and the detector's verdict on this window (too few cutting
     revolutions: not judged, with the reason)."""

@@ -17,6 +17,8 @@ import math
 from collections import deque
 from typing import Any
 
+from rig.console.results import LoggerStatus, WriterCounts
+
 TOLERANCE_PCT = 5.0
 LAG_S = 0.5
 JUDGE_AFTER_S = 2.0
@@ -35,7 +37,7 @@ class LoggerHealth:
         self.received += int(n)
         self.arrived_s = float(now_s)
 
-    def status(self, writer_stats: Any, now_s: float) -> dict[str, Any]:
+    def status(self, writer_stats: WriterCounts | None, now_s: float) -> LoggerStatus:
         """JSON for the page (``writer_stats``: :class:`rig.log.WriterStats` or None before the
         program starts)."""
         if self.received and (not self._history or self._history[-1][1] != self.received):

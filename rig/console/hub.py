@@ -17,6 +17,7 @@ from analysis.errors import ConfigError
 from analysis.runs import file as rf
 from rig.console.chatter import StabilityAt
 from rig.console.common import LIVE_FILE, pid_alive
+from rig.console.results import LiveState
 from rig.console.ring import RingError, RingReader
 from rig.console.trail import Trail
 
@@ -104,7 +105,7 @@ class Hub:
                 if json.loads(pointer.read_text()).get("ring") == str(r.path):  # not a new one's
                     pointer.unlink()
 
-    def live_state(self) -> dict[str, Any]:
+    def live_state(self) -> LiveState:
         r = self.ring
         if r is None:
             return {"live": False, "alive": False, "ended": ""}
@@ -142,7 +143,7 @@ class Hub:
                         "reason": e.get("reason", "")})  # fmt: skip
         return out
 
-    def runs_signature(self) -> tuple[Any, ...]:
+    def runs_signature(self) -> tuple[int, int]:
         files = self.run_files()
         m = self.folder / "campaign.json" if self.folder is not None else None
         with contextlib.suppress(OSError):

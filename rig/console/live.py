@@ -59,12 +59,15 @@ from rig.console.process import (  # noqa: F401 - re-exported: rig.cli.console, 
     stop_server,
 )
 from rig.console.program_path import ProgramPath, _jsonable
+from rig.console.results import RunKwargs
 from rig.console.ring import RingWriter
 from rig.console.session import LiveSink, _LiveSession, _Tee, machine_report  # noqa: F401
 from rig.daq import Calibration, DaqEvent, DaqInfo
 
 if TYPE_CHECKING:
     from rig.campaign.config import Campaign
+    from rig.campaign.runner import SessionFactory
+    from rig.dnc import Program
 
 MAX_EVENTS = 200
 BANDS_S = 60.0  # the executed blocks sent to the page: those of the longest window it shows
@@ -125,13 +128,11 @@ class LiveCampaign:
         self._thread.start()
 
     # -- the runner's entry points -------------------------------------------------------------
-    def run_kwargs(self) -> dict[str, Any]:
+    def run_kwargs(self) -> RunKwargs:
         """What :func:`run_campaign` takes to run with the console."""
         return {"session_factory": self.session_factory(), "stop": self.stop}
 
-    def session_factory(
-        self, inner: Callable[[Any, Any, int], Any] | None = None
-    ) -> Callable[[Any, Any, int], Any]:
+    def session_factory(self, inner: SessionFactory | None = None) -> SessionFactory:
         make = inner or default_session_factory(self.campaign)
 
         def factory(campaign: Campaign, plan: Any, k: int) -> _LiveSession:
@@ -148,7 +149,7 @@ class LiveCampaign:
         return factory
 
     # -- the tap (acquisition thread: quick, and never raises) ---------------------------------
-    def guard(self, fn: Callable[..., None], *args: Any) -> None:
+    def guard(self, fn: Callable[..., None], *args: object) -> None:
         try:
             fn(*args)
         except Exception:  # noqa: BLE001 - the live view must never endanger the recording
@@ -219,7 +220,7 @@ class LiveCampaign:
         n = getattr(tool, "inserts", None) or getattr(tool, "flutes", None)
         return int(n) if isinstance(n, int | float) and n > 0 else None
 
-    def on_program(self, program: Any) -> None:
+    def on_program(self, program: Program) -> None:
         """The program starts: its lines for the program view; the zero from the rest just
         recorded (the runner zeroes on the same rest before it starts the program)."""
         meta = dict(self._meta)

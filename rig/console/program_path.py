@@ -4,9 +4,14 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from rig.console.results import PositionEstimate, Segment
+
+if TYPE_CHECKING:
+    from analysis.config import MachineConfig
 
 
 class ProgramPath:
@@ -15,7 +20,7 @@ class ProgramPath:
     that feed (s). A drip feed reports no position: the DRO is estimated from the executing
     block's start time and these (no acceleration, no override: marked estimated)."""
 
-    def __init__(self, text: str, machine: Any, name: str = "<program>") -> None:
+    def __init__(self, text: str, machine: MachineConfig | None, name: str = "<program>") -> None:
         from planning.nc import interpret
         from rig.dnc.nc import nc_text, segment_durations_s
 
@@ -28,7 +33,7 @@ class ProgramPath:
             self.by_block.setdefault(int(b), []).append(i)
         self.dur_s = dur
 
-    def estimate(self, block: int, since_s: float) -> dict[str, Any] | None:
+    def estimate(self, block: int, since_s: float) -> PositionEstimate | None:
         """Position, feed, spindle ``since_s`` after ``block`` started (None: no motion known
         for it, e.g. a block that only sets modes: the caller keeps the last estimate)."""
         idx = self.by_block.get(block)
@@ -47,7 +52,7 @@ class ProgramPath:
             t -= d
         return None
 
-    def toolpath(self, max_points: int = 20_000) -> list[list[Any]]:
+    def toolpath(self, max_points: int = 20_000) -> list[Segment]:
         """[block, kind, x0, y0, x1, y1, z0, z1] per segment (mm; arcs as chords), for the
         page's XY and 3-D views (Z last: the XY view reads the first six); at most
         ``max_points`` segments (a longer program is thinned evenly)."""

@@ -20,13 +20,14 @@ import numpy as np
 
 from analysis.runs import file as rf
 from rig.console.program_path import ProgramPath
+from rig.console.results import RunToolpath
 
 STEP_S = 0.1  # a point at least this often along a segment (the live path samples at 0.08 s)
 MAX_POINTS = 20_000  # then every other point is dropped, as the live path does
 MAX_SEGMENTS = 5000  # the planned path, as the live view gets it
 
 
-def run_toolpath(path: Path) -> dict[str, Any]:
+def run_toolpath(path: Path) -> RunToolpath:
     """``{"toolpath": planned segments, "trail": executed points, "source": how}`` of the run
     file at ``path`` (``toolpath`` as :meth:`ProgramPath.toolpath`); a program that cannot be
     interpreted gives empty paths and the reason in ``source``."""

@@ -11,6 +11,7 @@ import numpy as np
 
 from analysis.runs import file as rf
 from rig.console.program_path import _round
+from rig.console.results import MachineReport
 from rig.daq import DaqEvent, DaqInfo
 
 
@@ -101,7 +102,7 @@ class _LiveSession:
         return getattr(self.inner, name)
 
 
-def machine_report(session: Any) -> dict[str, Any]:
+def machine_report(session: object) -> MachineReport:
     """The machine as its controller reports it: GRBL's last status report; the simulated
     control's panel; nothing from a drip feed (state "" and source says so)."""
     streamer = getattr(session, "streamer", None)

@@ -21,6 +21,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field, replace
+from typing import TypedDict
 
 import numpy as np
 
@@ -206,7 +207,7 @@ class Calibration:
     def with_drift(self, drift_v_s: np.ndarray) -> Calibration:
         return replace(self, drift_v_s=drift_v_s)
 
-    def as_attrs(self) -> dict[str, object]:
+    def as_attrs(self) -> CalibrationAttrs:
         """The sheet values as HDF5 attributes (see analysis.runs.file, /calibration)."""
         return {
             "calibration_id": self.calibration_id,
@@ -218,6 +219,20 @@ class Calibration:
             "sign": self.sign,
             "crosstalk": self.crosstalk,
         }
+
+
+class CalibrationAttrs(TypedDict):
+    """A calibration sheet as the run file's ``/calibration`` attributes (per channel: pC/N,
+    N/V, sign; the cross-talk matrix)."""
+
+    calibration_id: str
+    dynamometer: str
+    channel_names: list[str]
+    sensitivity_pc_n: np.ndarray
+    amp_sensitivity_pc_n: np.ndarray
+    range_n_v: np.ndarray
+    sign: np.ndarray
+    crosstalk: np.ndarray
 
 
 @dataclass(frozen=True)

@@ -23,6 +23,7 @@ from rig.dnc.result import StreamResult
 
 if TYPE_CHECKING:
     from analysis.config import MachineConfig, SerialConfig
+    from rig.dnc._stream import Item
 
 #: each protocol's streamer, by the protocol it speaks
 STREAMERS: dict[str, type[FanucStreamer] | type[GrblStreamer]] = {
@@ -86,7 +87,7 @@ class SendJob:
     replaced: dict[int, str] | None = None
     restart_notes: tuple[str, ...] = ()  # where the restart's clearance and plunge feed came from
 
-    def items_to_send(self) -> list[Any]:
+    def items_to_send(self) -> list[Item]:
         """What :meth:`send` would send, as ``rig.dnc._stream.Item`` s (``block`` -1: the
         preamble): the preamble, then the program from ``start_block``, as the protocol sends
         them (GRBL: stripped unless ``--no-strip``, and checked against GRBL's parser). Nothing

@@ -18,6 +18,7 @@ from __future__ import annotations
 import queue
 import time
 from dataclasses import dataclass, field
+from typing import TypedDict
 
 from analysis.config import SerialConfig
 from planning.nc.grbl import grbl_alarm_text
@@ -27,6 +28,16 @@ from rig.dnc.link import LinkLost, SerialLink
 from rig.dnc.port import check_settings, open_port
 
 COMMANDS = ("status", "unlock", "reset")
+
+
+class GrblReplyJson(TypedDict):
+    """A GRBL console command's reply as JSON: :class:`GrblReply`'s fields, in order."""
+
+    command: str
+    state_before: str
+    state_after: str
+    lines: list[str]
+    summary: str
 
 
 @dataclass(frozen=True)
@@ -40,8 +51,10 @@ class GrblReply:
     lines: list[str] = field(default_factory=list)
     summary: str = ""
 
-    def as_dict(self) -> dict[str, object]:
-        return dict(self.__dict__)
+    def as_dict(self) -> GrblReplyJson:
+        return {"command": self.command, "state_before": self.state_before,
+                "state_after": self.state_after, "lines": self.lines,
+                "summary": self.summary}  # fmt: skip
 
 
 class _Console:

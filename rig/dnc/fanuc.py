@@ -43,7 +43,7 @@ from __future__ import annotations
 import threading
 from typing import Any
 
-from analysis.config import SerialConfig
+from analysis.config import MachineConfig, SerialConfig
 from rig.dnc import eia
 from rig.dnc._stream import Fault, Item, StreamerBase
 from rig.dnc.execution import TimedTracker, line_paths
@@ -68,7 +68,7 @@ class FanucStreamer(StreamerBase):
         *,
         wait_for_dc1: bool = True,
         record_batch: int = 32,
-        machine: Any = None,
+        machine: MachineConfig | None = None,
         **stream_kw: Any,
     ) -> None:
         super().__init__(cfg, **stream_kw)

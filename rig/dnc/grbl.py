@@ -65,7 +65,7 @@ import threading
 import time
 from typing import Any
 
-from analysis.config import SerialConfig
+from analysis.config import MachineConfig, SerialConfig
 from planning.nc.grbl import GRBL_ERRORS, GRBL_PLANNER_BLOCKS
 from rig.dnc._stream import Fault, Item, StreamerBase
 from rig.dnc.errors import DncError
@@ -142,7 +142,7 @@ class GrblStreamer(StreamerBase):
         halt_timeout_s: float = 10.0,
         reset_after_halt: bool = True,
         guard: bool = False,
-        machine: Any = None,
+        machine: MachineConfig | None = None,
         **stream_kw: Any,
     ) -> None:
         if mode not in MODES:

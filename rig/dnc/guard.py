@@ -20,7 +20,10 @@ import subprocess
 import sys
 import threading
 from collections.abc import Callable, Iterator
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from rig.dnc._stream import StreamerBase
 
 _CHILD = r"""
 import os, signal, sys
@@ -82,7 +85,7 @@ class HoldGuard:
 
 @contextlib.contextmanager
 def halt_on_signals(
-    streamer: Any,
+    streamer: StreamerBase,
     signals: tuple[int, ...] | None = None,
     on_signal: Callable[[str], None] | None = None,
 ) -> Iterator[None]:

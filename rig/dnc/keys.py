@@ -31,10 +31,14 @@ import signal
 import threading
 import time
 from collections.abc import Callable, Iterator
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rig.dnc.errors import DncError
 from rig.dnc.protocols import protocol_of
+
+if TYPE_CHECKING:
+    from rig.dnc.fanuc import FanucStreamer
+    from rig.dnc.grbl import GrblStreamer
 
 #: key -> action
 KEYS = {"!": "hold", " ": "hold", "~": "resume", "r": "resume", "R": "resume", "q": "abort",
@@ -56,7 +60,7 @@ class OperatorControl:
 
     def __init__(
         self,
-        streamer: Any,
+        streamer: FanucStreamer | GrblStreamer,
         protocol: str,
         *,
         say: Callable[[str], None] | None = None,
@@ -226,7 +230,7 @@ class _Keyboard:
 
 @contextlib.contextmanager
 def operator_control(
-    streamer: Any,
+    streamer: FanucStreamer | GrblStreamer,
     protocol: str,
     *,
     stdin_fd: int | None = 0,

@@ -2,8 +2,33 @@
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
-from typing import Any
+from dataclasses import dataclass
+from typing import TypedDict
+
+
+class StreamSummary(TypedDict):
+    """`cutlab dnc send --json`: :class:`StreamResult`'s fields, in order (see there)."""
+
+    protocol: str
+    ok: bool
+    start_block: int
+    blocks_total: int
+    blocks_sent: int
+    bytes_sent: int
+    last_sent_block: int
+    last_acknowledged_block: int
+    seconds: float
+    bytes_per_s: float
+    line_bytes_per_s: float
+    xoff_count: int
+    starved_fraction: float | None
+    fault: str
+    reason: str
+    executing_block: int
+    last_executed_block: int
+    transform: str
+    bytes_stripped: int
+    controller_state: str
 
 
 @dataclass(frozen=True)
@@ -58,8 +83,18 @@ class StreamResult:
     bytes_stripped: int = 0
     controller_state: str = ""
 
-    def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
+    def as_dict(self) -> StreamSummary:
+        """Every field, in order."""
+        return {"protocol": self.protocol, "ok": self.ok, "start_block": self.start_block,
+                "blocks_total": self.blocks_total, "blocks_sent": self.blocks_sent,
+                "bytes_sent": self.bytes_sent, "last_sent_block": self.last_sent_block,
+                "last_acknowledged_block": self.last_acknowledged_block, "seconds": self.seconds,
+                "bytes_per_s": self.bytes_per_s, "line_bytes_per_s": self.line_bytes_per_s,
+                "xoff_count": self.xoff_count, "starved_fraction": self.starved_fraction,
+                "fault": self.fault, "reason": self.reason, "executing_block": self.executing_block,
+                "last_executed_block": self.last_executed_block, "transform": self.transform,
+                "bytes_stripped": self.bytes_stripped,
+                "controller_state": self.controller_state}  # fmt: skip
 
     def summary_line(self) -> str:
         """One line: blocks and bytes sent, time (s), rate (B/s) beside the line's, the last

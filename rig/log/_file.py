@@ -1,7 +1,7 @@
 """Creating a run file for :class:`rig.log.writer.RunWriter`: every object before SWMR is
 switched on.
 
-The layout itself is documented in :mod:`analysis.runs.file`; this module only builds it.
+The layout itself is documented in :mod:`analysis.runs.layout`; this module only builds it.
 """
 
 from __future__ import annotations

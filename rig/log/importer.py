@@ -16,7 +16,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 
@@ -26,13 +26,26 @@ from analysis.runs import file as rf
 from rig.daq import Calibration, DaqInfo
 from rig.log.writer import RunWriter, RunWriterError
 
-__all__ = ["import_exports", "write_export_run"]
+__all__ = ["ImportedRun", "import_exports", "write_export_run"]
 
 _CHANNELS = ("Fx", "Fy", "Fz")
 _BLOCK = 8192
 
 
-def write_export_run(ex: Export, path: str | Path, overwrite: bool = False) -> dict[str, Any]:
+class ImportedRun(TypedDict):
+    """A run file written from an export (`cutlab data import --json`): its file, the export,
+    samples, rate (Hz), the axes mapping and the offset used, and the conditions recorded."""
+
+    file: str
+    source: str
+    samples: int
+    rate_hz: float
+    axes: str
+    zero: str
+    conditions: dict[str, object]  # as the export stated them: free-form keys
+
+
+def write_export_run(ex: Export, path: str | Path, overwrite: bool = False) -> ImportedRun:
     """Write one imported export as a run file; returns what was written (JSON-able)."""
     run = ex.run
     info = DaqInfo(
@@ -77,7 +90,7 @@ def write_export_run(ex: Export, path: str | Path, overwrite: bool = False) -> d
 def import_exports(
     paths: Sequence[str | Path],
     out_dir: str | Path,
-    overrides: Mapping[str, Any] | None = None,
+    overrides: Mapping[str, object] | None = None,
     options: ImportOptions | None = None,
     *,
     rig_path: str | Path | None = None,
@@ -85,7 +98,7 @@ def import_exports(
     tool: str | None = None,
     overwrite: bool = False,
     progress: Callable[[int, int], None] | None = None,
-) -> list[dict[str, Any]]:
+) -> list[ImportedRun]:
     """Import every export into ``out_dir/<name>.h5``, one at a time (memory: one export); bad
     input stops at that file (the ones before it are written). An existing output is refused
     unless ``overwrite``, before anything is written."""
@@ -97,7 +110,7 @@ def import_exports(
         for t in targets:
             if t.exists():
                 raise RunWriterError(f"{t}: file exists (--force replaces it)")
-    written = []
+    written: list[ImportedRun] = []
     exports = load_exports(paths, overrides, rig_path, rate_hz, tool, options)
     for k, (ex, t) in enumerate(zip(exports, targets)):
         written.append(write_export_run(ex, t, overwrite=overwrite))

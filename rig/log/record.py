@@ -12,7 +12,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 import numpy as np
 
@@ -22,7 +22,7 @@ from rig.errors import RigError
 from rig.log.writer import MIN_FREE_MB, RunWriter, WriterStats, free_space_problem
 
 if TYPE_CHECKING:
-    from analysis.config import RigConfig
+    from analysis.config import Dynamometer, RigConfig
 
 
 def milling_force_source(
@@ -52,7 +52,7 @@ def milling_force_source(
     return source
 
 
-def aliasing_warning(rate_hz: float, dynamometer: Any) -> str | None:
+def aliasing_warning(rate_hz: float, dynamometer: Dynamometer) -> str | None:
     """A one-line warning when ``rate_hz`` (Hz per channel) is below twice the highest mode of
     ``dynamometer`` (an ``analysis.config.Dynamometer``, modes with the workpiece mounted, seed 003
     Table 2), else None. Below that the mode aliases into the force band and cannot be filtered."""
@@ -91,7 +91,7 @@ def plan_recording(
     *,
     rate_hz: float | None = None,
     overwrite: bool = False,
-    conditions: Mapping[str, Any] | None = None,
+    conditions: Mapping[str, object] | None = None,
     min_free_mb: float = MIN_FREE_MB,
 ) -> RecordPlan:
     """Check a recording before any device is opened: the rig config (None: configs/rig.toml),
@@ -122,6 +122,22 @@ def plan_recording(
                       float(min_free_mb))  # fmt: skip
 
 
+class RecordSummary(TypedDict):
+    """`cutlab daq record --json`: file, status, channels, rate (Hz), samples acquired /
+    written / dropped / missing and the duration acquired (s)."""
+
+    file: str
+    status: str
+    reason: str
+    channels: list[str]
+    rate_hz: float
+    samples_acquired: int
+    samples_written: int
+    samples_dropped: int
+    samples_missing: int
+    duration_s: float
+
+
 @dataclass(frozen=True)
 class RecordResult:
     path: Path
@@ -131,7 +147,7 @@ class RecordResult:
     writer: WriterStats
     info: DaqInfo | None = None  # the DAQ's
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> RecordSummary:
         """File, status, channels, rate (Hz), samples acquired/written/dropped/missing and the
         duration (s) acquired, as ``cutlab daq record`` prints them."""
         rate_hz = self.info.rate_hz if self.info is not None else float("nan")
@@ -159,8 +175,8 @@ def record(
     flush_interval_s: float = 1.0,
     queue_blocks: int = 64,
     overwrite: bool = False,
-    conditions: Mapping[str, Any] | None = None,
-    rig: Mapping[str, Any] | None = None,
+    conditions: Mapping[str, object] | None = None,
+    rig: Mapping[str, object] | None = None,
     progress: Callable[[float], None] | None = None,
     notes: Sequence[str] = (),
     min_free_mb: float = MIN_FREE_MB,

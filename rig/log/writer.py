@@ -27,7 +27,7 @@ sidecar (``.NAME.reason``) and the next read repairs the file with it. Either wa
 :attr:`RunWriter.failure` says why, for the run to end with that reason, and :meth:`stats` after
 the close counts the samples the file holds.
 
-The layout is documented in :mod:`analysis.runs.file` and written here only through its constants.
+The layout is documented in :mod:`analysis.runs.layout` and written here only through its constants.
 
 Other threads (the DNC streamer, the campaign runner) write through thread-safe methods that
 queue small records for the writer thread: :meth:`append_blocks`, :meth:`ack_blocks`,
@@ -367,12 +367,12 @@ class RunWriter:
         e = np.broadcast_to(np.asarray(exec_s, dtype=np.float64), r.shape)
         self._control.append(("exec", (r.copy(), e.copy(), complete)))
 
-    def set_conditions(self, conditions: Mapping[str, Any] | Any) -> None:
+    def set_conditions(self, conditions: object) -> None:
         """Cutting conditions (tool, material, spindle_rpm, feed_mm_min, fz_mm, depth_mm, ...):
         a mapping, a dataclass or a pydantic model; stored as JSON, the latest call wins."""
         self._control.append(("text", (rf.META_CONDITIONS, json.dumps(jsonable(conditions)))))
 
-    def set_rig(self, rig: Mapping[str, Any]) -> None:
+    def set_rig(self, rig: Mapping[str, object]) -> None:
         """Rig description (device, dynamometer, amplifier, calibration id, machine ...)."""
         self._control.append(("text", (rf.META_RIG, json.dumps(jsonable(rig)))))
 

@@ -11,14 +11,18 @@ spans), never the one as the other."""
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from analysis.runs import file as rf
+from rig.report.results import BandFigures, ChatterDecay
+
+if TYPE_CHECKING:
+    from rig.report.base import LoadedRun
 
 
-def within_band(lr: Any, target_n: float, band: float = 0.10) -> dict[str, Any]:
+def within_band(lr: LoadedRun, target_n: float, band: float = 0.10) -> BandFigures:
     """{within (fraction of the cutting revolutions within +-band of target), revolutions,
     cut_time_s, means (N per cutting revolution), and over the reachable revolutions (those
     not inside a saturation span of the controller): within_reachable, reachable_revolutions,
@@ -101,7 +105,7 @@ HOLD_REVS = 20
 
 def chatter_decay(
     run: rf.Run, t_move_s: float, rpm: float, threshold: float = 0.1
-) -> dict[str, Any]:  # fmt: skip
+) -> ChatterDecay:  # fmt: skip
     """The chatter component per revolution after a spindle move at run-clock ``t_move_s`` to
     ``rpm``: the force's part off the spindle harmonics (the detector's energy indicator: the
     post-move steady stretch's spectrum with a band of max(0.05 f_sp, 3 bins) kept out around

@@ -29,8 +29,10 @@ import numpy as np
 import pandas as pd
 
 from rig.report.base import LoadedRun, Section, md_table
+from rig.report.results import RevolutionStats
 
 if TYPE_CHECKING:
+    from analysis.config import MachineConfig
     from rig.campaign.config import Campaign
 
 #: A revolution cuts when its mean resultant exceeds this fraction of the run's 95th percentile
@@ -38,7 +40,7 @@ if TYPE_CHECKING:
 CUT_FRACTION = 0.15
 
 
-def cutting_revolutions(lr: LoadedRun) -> dict[str, Any]:
+def cutting_revolutions(lr: LoadedRun) -> RevolutionStats:
     """Per-revolution feed-plane force of the cutting part of a run and its statistics."""
     from analysis.runs import per_revolution
 
@@ -70,7 +72,7 @@ def cutting_revolutions(lr: LoadedRun) -> dict[str, Any]:
     }
 
 
-def program_feed_time_s(text: str, machine: Any) -> float:
+def program_feed_time_s(text: str, machine: MachineConfig | None) -> float:
     from planning.nc import interpret, motion_stats
 
     m = interpret(text, machine)

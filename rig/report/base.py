@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -17,7 +18,9 @@ import numpy as np
 
 from analysis.errors import AnalysisError
 from analysis.runs import file as rf
+from rig.campaign.results import ManifestRow
 from rig.errors import RigError
+from rig.report.results import SteadyMeans
 
 
 @dataclass(frozen=True)
@@ -35,14 +38,15 @@ class LoadedRun:
         return self.run.conditions
 
     @cached_property
-    def steady_means(self) -> dict[str, float]:
+    def steady_means(self) -> SteadyMeans:
         """Mean forces over the steady cutting part (offset removed), N; NaN if there is none
         (computed once: the runs table, the fit plot and the validation all use it)."""
         from analysis.runs import find_steady
 
         run = self.run
         rpm = float(self.conditions.get("spindle_rpm", 0.0))
-        out = {"Fx_mean_N": math.nan, "Fy_mean_N": math.nan, "Fz_mean_N": math.nan, "revs": 0}
+        out: SteadyMeans = {"Fx_mean_N": math.nan, "Fy_mean_N": math.nan, "Fz_mean_N": math.nan,
+                            "revs": 0}  # fmt: skip
         if run.force_n is None or not rpm:
             return out
         try:
@@ -51,9 +55,8 @@ class LoadedRun:
             return out
         seg = part.corrected(run.force_n[part.window], part.window.start, run.rate_hz)
         m = seg.mean(axis=0)
-        out.update(Fx_mean_N=float(m[0]), Fy_mean_N=float(m[1]), Fz_mean_N=float(m[2]),
-                   revs=int(part.steady_revs))  # fmt: skip
-        return out
+        return {"Fx_mean_N": float(m[0]), "Fy_mean_N": float(m[1]), "Fz_mean_N": float(m[2]),
+                "revs": int(part.steady_revs)}
 
 
 @dataclass(frozen=True)
@@ -73,13 +76,13 @@ class Report:
     markdown: str
 
 
-def md_table(rows: list[dict[str, Any]], floatfmt: str = ".4g") -> str:
+def md_table(rows: Sequence[Mapping[str, object]], floatfmt: str = ".4g") -> str:
     """A Markdown table of dict rows."""
     if not rows:
         return "(no rows)\n"
     cols = list(rows[0])
 
-    def f(v: Any) -> str:
+    def f(v: object) -> str:
         if isinstance(v, float | np.floating):
             return "" if math.isnan(v) else format(float(v), floatfmt)
         return str(v)
@@ -89,7 +92,7 @@ def md_table(rows: list[dict[str, Any]], floatfmt: str = ".4g") -> str:
     return "\n".join(out) + "\n"
 
 
-def load_runs(folder: Path) -> tuple[list[LoadedRun], list[dict[str, Any]]]:
+def load_runs(folder: Path) -> tuple[list[LoadedRun], list[ManifestRow]]:
     """Successful runs (loaded) and every manifest entry, in test order."""
     mpath = folder / "campaign.json"
     if not mpath.exists():

@@ -17,6 +17,7 @@ from typing import Any
 from rig.campaign import CampaignResult, campaign_folder, load_campaign, run_campaign
 from rig.errors import RigError
 from rig.report.base import Report
+from rig.report.results import DemoSummary
 from rig.report.write import write_report
 
 #: the campaign the demo runs by default (configs/campaigns/)
@@ -52,7 +53,7 @@ class DemoResult:
         """Every run succeeded and the coefficients were identified."""
         return self.campaign.ok and bool(self.facemill.get("success"))
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> DemoSummary:
         """``cutlab demo --json``: runs, status counts, the identification, the report folder."""
         fm = self.facemill
         return {

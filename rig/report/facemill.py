@@ -17,6 +17,7 @@ from analysis.identify import CI_NOTE
 from rig.report.base import LoadedRun, Section, md_table
 
 if TYPE_CHECKING:
+    from analysis.identify.facemill import ForceRun
     from rig.campaign.config import Campaign
 
 #: Said under the table: what the bootstrap intervals are.
@@ -29,7 +30,7 @@ BOOT_NOTE = (
 COEFFS = ("K_T_n_mm2", "K_R", "P_T_n_mm", "P_R_n_mm", "K_A", "P_A_n_mm")
 
 
-def force_run(lr: LoadedRun) -> Any:
+def force_run(lr: LoadedRun) -> ForceRun:
     """The run as an identification record (forces in X, Y, Z; conditions from the run)."""
     from analysis.identify.facemill import ForceRun, RunConditions, axis_order
 

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from rig.report.base import LoadedRun
 
 
 def _plt():  # noqa: ANN202 - the pyplot module
@@ -18,7 +21,7 @@ def _plt():  # noqa: ANN202 - the pyplot module
     return plt
 
 
-def plot_traces(runs: Sequence[Any], path: Path, title: str, max_runs: int = 12) -> Path:
+def plot_traces(runs: Sequence[LoadedRun], path: Path, title: str, max_runs: int = 12) -> Path:
     """Force channels against time of up to ``max_runs`` runs, one panel each (min/max band);
     the title says how many of how many when it leaves runs out."""
     plt = _plt()

@@ -30,6 +30,7 @@ import pandas as pd
 from analysis.errors import AnalysisError
 from rig.campaign.runner import twin_tool_modes
 from rig.report.base import LoadedRun, Section, md_table
+from rig.report.results import OnsetRow
 
 if TYPE_CHECKING:
     from rig.campaign.config import Campaign
@@ -86,16 +87,16 @@ def _limit_at(lobes: Any, rpm: float) -> float:
 
 def onset_rows(
     verdicts: list[tuple[float, float, bool]], predicted: dict[float, float], tol_pct: float
-) -> list[dict[str, Any]]:
+) -> list[OnsetRow]:
     """Per speed, from (spindle rpm, depth mm, chatter) of each cut and the predicted limit per
     speed: the observed onset (shallowest chattering depth, or None with a reason), its bracket
     (deepest stable depth below it, onset), the error against the prediction in %, and whether
     it is within ``tol_pct``; stable cuts deeper than the onset are listed."""
-    rows = []
+    rows: list[OnsetRow] = []
     for rpm in sorted({v[0] for v in verdicts}):
         cuts = sorted((d, c) for n, d, c in verdicts if n == rpm)
         pred = predicted[rpm]
-        row: dict[str, Any] = {"spindle_rpm": rpm}
+        row: OnsetRow = {"spindle_rpm": rpm}
         if math.isfinite(pred):
             row["predicted_limit_mm"] = pred
         else:

@@ -3,8 +3,10 @@
 the session that ties them together for a campaign; the tool's tap test (:mod:`rig.sim.tap`).
 """
 
+from rig.sim.campaign_view import SimCampaign, SimPlan
 from rig.sim.clock import SimClock
 from rig.sim.controllers import (
+    ControllerSummary,
     controller_class,
     controller_summary,
     run_controller,
@@ -18,11 +20,14 @@ from rig.sim.session import sim_session
 from rig.sim.tap import tap_test_record
 
 __all__ = [
+    "ControllerSummary",
+    "SimCampaign",
     "SimClock",
     "SimDaq",
     "SimFanuc",
     "SimGrbl",
     "SimMachine",
+    "SimPlan",
     "controller_class",
     "controller_summary",
     "run_controller",

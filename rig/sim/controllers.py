@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NotRequired, TypedDict
 
 from rig.dnc import DncError
 from rig.dnc.protocols import protocol_of
@@ -17,6 +17,31 @@ from rig.sim.grbl import SimGrbl
 
 if TYPE_CHECKING:
     from analysis.config import MachineConfig
+
+#: A fault knob's value: a number (a ``*_s`` knob's first one in s) or two (k, code)
+KnobValue = int | float | tuple[int | float, ...]
+
+
+class ControllerSummary(TypedDict):
+    """What a simulated controller received and did (`cutlab dnc sim-controller`): the common
+    figures, then a Fanuc's flow control or a GRBL's planner, errors and state."""
+
+    path: str
+    bytes_received: int
+    sha256: str
+    blocks_executed: int
+    last_completed_block: int
+    starved_fraction: float
+    overruns: int
+    framing_errors: int
+    alarm: str
+    xoff_count: NotRequired[int]
+    max_chars_after_xoff: NotRequired[int]
+    planner_full_waits: NotRequired[int]
+    errors: NotRequired[int]
+    oks: NotRequired[int]
+    state: NotRequired[str]
+
 
 #: each simulated controller, by the protocol it speaks
 _CLASSES: dict[str, type[SimFanuc] | type[SimGrbl]] = {c.protocol: c for c in (SimFanuc, SimGrbl)}
@@ -28,10 +53,10 @@ def controller_class(protocol: str) -> type[SimFanuc] | type[SimGrbl]:
     return _CLASSES[protocol_of(protocol).name]
 
 
-def parse_knobs(items: Sequence[str]) -> dict[str, Any]:
+def parse_knobs(items: Sequence[str]) -> dict[str, KnobValue]:
     """``["alarm_at_block=50,2", "stop_answering_at_s=3"]`` -> ``{"sim_alarm_at_block": (50, 2),
     "sim_stop_answering_at_s": 3.0}``: ints, the first number of a ``*_s`` knob a float (s)."""
-    out: dict[str, Any] = {}
+    out: dict[str, KnobValue] = {}
     for it in items:
         key, sep, val = it.partition("=")
         key = key.strip().removeprefix("sim_")
@@ -71,7 +96,7 @@ def sim_controller(
     """The simulated ``protocol`` controller of ``machine`` at ``speed`` simulated s per wall s
     and ``baud`` (None: the machine's serial.baudrate), with the fault ``knobs`` (KNOB=VALUE
     text, see :func:`parse_knobs`); a Fanuc takes the machine's character framing."""
-    kw = parse_knobs(knobs)
+    kw: dict[str, Any] = dict(parse_knobs(knobs))  # the controller's keywords, of many types
     valid = valid_knobs(protocol)
     bad = [k.removeprefix("sim_") for k in kw if k.removeprefix("sim_") not in valid]
     if bad:
@@ -92,9 +117,9 @@ def sim_controller(
         raise DncError(f"--sim: the {protocol} controller refused the knobs ({exc})") from None
 
 
-def controller_summary(ctl: SimFanuc | SimGrbl) -> dict[str, Any]:
+def controller_summary(ctl: SimFanuc | SimGrbl) -> ControllerSummary:
     """What the controller received and did: bytes, SHA-256, blocks, alarms, flow control."""
-    out = {
+    out: ControllerSummary = {
         "path": ctl.path,
         "bytes_received": len(ctl.received),
         "sha256": ctl.received_sha256(),
@@ -106,20 +131,21 @@ def controller_summary(ctl: SimFanuc | SimGrbl) -> dict[str, Any]:
         "alarm": ctl.alarm,
     }
     if isinstance(ctl, SimFanuc):
-        return out | {"xoff_count": ctl.xoff_count, "max_chars_after_xoff": ctl.max_after_xoff}
-    return out | {
-        "planner_full_waits": ctl.planner_waits,
-        "errors": len(ctl.errors),
-        "oks": ctl.oks,
-        "state": ctl.state_name(),
-    }
+        out["xoff_count"] = ctl.xoff_count
+        out["max_chars_after_xoff"] = ctl.max_after_xoff
+        return out
+    out["planner_full_waits"] = ctl.planner_waits
+    out["errors"] = len(ctl.errors)
+    out["oks"] = ctl.oks
+    out["state"] = ctl.state_name()
+    return out
 
 
 def run_controller(
     ctl: SimFanuc | SimGrbl,
     duration_s: float | None = None,
     on_started: Callable[[str], None] | None = None,
-) -> dict[str, Any]:
+) -> ControllerSummary:
     """Run ``ctl`` on its pseudo-terminal for ``duration_s`` wall s (None: until SIGTERM or
     Ctrl-C), calling ``on_started(path)`` once the path exists; returns
     :func:`controller_summary`. Call it from the main thread (it handles SIGTERM)."""

@@ -22,18 +22,23 @@ from __future__ import annotations
 
 import math
 import threading
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from analysis.forces.models import ENDMILL
 from rig.dnc import DncError, Program, StreamFault, protocol_of
 from rig.dnc.sinks import LoggerSink
 from rig.errors import RigError
+from rig.sim.campaign_view import SimCampaign, SimPlan
 from rig.sim.clock import SimClock
 from rig.sim.daq import SimDaq
 from rig.sim.machine import BlockStock, SignalSettings, SimMachine, ZMapStock
 
+if TYPE_CHECKING:
+    from rig.sim.fanuc import SimFanuc
+    from rig.sim.grbl import SimGrbl
 
-def _make_stock(campaign: Any, plan: Any) -> BlockStock | ZMapStock:
+
+def _make_stock(campaign: SimCampaign, plan: SimPlan) -> BlockStock | ZMapStock:
     tool = campaign.tool
     if not ENDMILL.describes(tool):
         return BlockStock(plan.cut.block)
@@ -43,7 +48,7 @@ def _make_stock(campaign: Any, plan: Any) -> BlockStock | ZMapStock:
 class SimSession:
     """One run on the simulated rig (see the module docstring)."""
 
-    def __init__(self, campaign: Any, plan: Any, run_index: int) -> None:
+    def __init__(self, campaign: SimCampaign, plan: SimPlan, run_index: int) -> None:
         sim = campaign.spec.sim
         rig = campaign.rig
         self.protocol = sim.protocol or campaign.machine.dialect
@@ -111,7 +116,7 @@ class SimSession:
         self.controller.advance_to(t0_s + max(n - 1, 0) / rate_hz)
         return self.machine.source(t0_s, n, rate_hz)
 
-    def _make_controller(self, campaign: Any, faults: bool) -> Any:
+    def _make_controller(self, campaign: SimCampaign, faults: bool) -> SimFanuc | SimGrbl:
         sim = campaign.spec.sim
         kw: dict[str, Any] = {}
         if faults and sim.sim_controller_stall_after_block is not None:
@@ -272,6 +277,6 @@ class SimSession:
         self.controller.stop()
 
 
-def sim_session(campaign: Any, plan: Any, run_index: int) -> SimSession:
+def sim_session(campaign: SimCampaign, plan: SimPlan, run_index: int) -> SimSession:
     """The campaign runner's session factory for ``rig = "sim"``."""
     return SimSession(campaign, plan, run_index)
