@@ -173,8 +173,6 @@ RESULT_SKIP = (
 # "module:qualname" -> why a dict return is the contract: a homogeneous map keyed by data (names,
 # block numbers), its values typed; a map whose keys are a fixed schema is a TypedDict instead.
 DICT_RETURNS: dict[str, str] = {
-    "analysis.catalog.compute:fit_catalog": "analysis.identify.fit_files' result plus `catalog`: "
-    "typed with fit_files (analysis.identify, the concurrent typing branch)",
     "analysis.runs.layout:meta_json": "a JSON object as a run file stores it (conditions, "
     "status, acquisition: free-form, read by key)",
     "analysis.config:load_tools": "tool name -> EndMill | FaceMill (the catalogue's names)",

@@ -49,7 +49,7 @@ from analysis import __version__
 from analysis.catalog.index import index_file
 from analysis.catalog.query import query_runs
 from analysis.errors import AnalysisError
-from analysis.identify import fit_files
+from analysis.identify import ForcesResult, fit_files
 
 if TYPE_CHECKING:
     from collections.abc import Mapping
@@ -296,7 +296,7 @@ def fit_catalog(
     scheduler: str | None = None,
     progress: bool = False,
     **fit_kw: Unpack[FitOptions],
-) -> dict[str, object]:
+) -> ForcesResult:
     """:func:`analysis.identify.fit_files` over the runs of the catalogue ``index`` (its file or
     folder) that match ``where`` (all without), the reductions on dask (``scheduler``) and
     cached, the result cached too (module docstring); ``fit_kw`` as fit_files takes them. The

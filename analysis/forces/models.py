@@ -21,9 +21,10 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any, Literal, Protocol, TypeGuard, runtime_checkable
+from typing import Literal, Protocol, TypeGuard, TypeVar, runtime_checkable
 
 import numpy as np
+import numpy.typing as npt
 from numpy.typing import ArrayLike
 from pydantic import BaseModel as Model
 
@@ -38,7 +39,44 @@ from analysis.errors import AnalysisError
 from analysis.forces import endmill as _em
 from analysis.forces import facemill as _fm
 
-__all__ = ["ENDMILL", "FACEMILL", "ForceModel", "MODELS", "model_for", "model_named"]
+__all__ = [
+    "ENDMILL",
+    "FACEMILL",
+    "Coefficients",
+    "Cut",
+    "CutConditions",
+    "ForceModel",
+    "MODELS",
+    "ModelTool",
+    "model_for",
+    "model_named",
+]
+
+#: A tool some model describes, the engagement and the coefficients of one (the protocol's
+#: arguments; each model narrows them to its own class and refuses another).
+ModelTool = FaceMill | EndMill
+Cut = _fm.FaceMillCut | _em.EndMillCut
+Coefficients = FaceMillCoefficients | EndMillCoefficients
+Array = npt.NDArray[np.float64]
+
+_T = TypeVar("_T")
+
+
+class CutConditions(Protocol):
+    """What :meth:`ForceModel.cut` reads of a run's conditions (mm, deg)."""
+
+    @property
+    def fz_mm(self) -> float: ...
+    @property
+    def depth_mm(self) -> float: ...
+    @property
+    def width_mm(self) -> float: ...
+    @property
+    def center_offset_mm(self) -> float: ...
+    @property
+    def mode(self) -> str: ...
+    @property
+    def feed_angle_deg(self) -> float: ...
 
 #: Distinct feeds per tooth a run set needs before its edge (ploughing) terms can be identified.
 EDGE_FEEDS = 3
@@ -64,19 +102,28 @@ class ForceModel(Protocol):
     @property
     def edge_keys(self) -> tuple[str, ...]: ...  # coefficients of the edge (ploughing) terms
 
-    def teeth(self, tool: Any) -> int: ...
-    def cut(self, tool: Any, conditions: Any) -> Any: ...
+    def teeth(self, tool: ModelTool) -> int: ...
+    def cut(self, tool: ModelTool, conditions: CutConditions) -> Cut: ...
     def design(
-        self, phi_rad: ArrayLike, tool: Any, cut: Any, n_discs: int = 24
-    ) -> np.ndarray: ...
+        self, phi_rad: ArrayLike, tool: ModelTool, cut: Cut, n_discs: int = 24
+    ) -> Array: ...
     def forces(
-        self, phi_rad: ArrayLike, tool: Any, coef: Any, cut: Any, n_discs: int = 24
-    ) -> np.ndarray: ...
-    def mean_design(self, tool: Any, cut: Any) -> np.ndarray: ...
-    def coefficient_vector(self, coef: Any) -> np.ndarray: ...
-    def coefficients(self, material: Material) -> Any: ...
+        self, phi_rad: ArrayLike, tool: ModelTool, coef: Coefficients, cut: Cut, n_discs: int = 24
+    ) -> Array: ...
+    def mean_design(self, tool: ModelTool, cut: Cut) -> Array: ...
+    def coefficient_vector(self, coef: Coefficients) -> Array: ...
+    def coefficients(self, material: Material) -> Coefficients | None: ...
     def identifiable(self, fz_mm: Iterable[float]) -> tuple[str, ...]: ...
-    def describes(self, tool: Any) -> bool: ...
+    def describes(self, tool: object) -> bool: ...
+
+
+def _narrow(kind: type[_T], value: object, model: str, what: str) -> _T:
+    """``value`` as the class this model works with, or one clear error."""
+    if not isinstance(value, kind):
+        raise AnalysisError(
+            f"{what} of type {type(value).__name__}: the {model} model expects a {kind.__name__}"
+        )
+    return value
 
 
 @dataclass(frozen=True)
@@ -88,10 +135,6 @@ class _Base:
     parameters: tuple[str, ...]
     edge_keys: tuple[str, ...]
     cutting_keys: tuple[str, ...]
-
-    def coefficients(self, material: Material) -> Any:
-        """The material's coefficients of this model, or None when it has none."""
-        return getattr(material, self.name)
 
     def identifiable(self, fz_mm: Iterable[float]) -> tuple[str, ...]:
         """The coefficients runs at these feeds per tooth (of one cutting geometry) can identify:
@@ -107,14 +150,19 @@ class _Base:
 class FaceMillModel(_Base):
     """Seed 003's face mill with ploughing (:mod:`analysis.forces.facemill`)."""
 
-    def describes(self, tool: Any) -> TypeGuard[FaceMill]:
+    def describes(self, tool: object) -> TypeGuard[FaceMill]:
         """Whether this model describes ``tool`` (a tool of its class)."""
         return isinstance(tool, FaceMill)
 
-    def teeth(self, tool: FaceMill) -> int:
-        return tool.inserts
+    def coefficients(self, material: Material) -> FaceMillCoefficients | None:
+        """The material's coefficients of this model, or None when it has none."""
+        return material.facemill
 
-    def cut(self, tool: FaceMill, conditions: Any) -> _fm.FaceMillCut:
+    def teeth(self, tool: ModelTool) -> int:
+        return _narrow(FaceMill, tool, self.name, "tool").inserts
+
+    # The face mill's engagement does not depend on the tool (None allowed).
+    def cut(self, tool: ModelTool | None, conditions: CutConditions) -> _fm.FaceMillCut:
         c = conditions
         if not math.isfinite(c.width_mm) or c.width_mm <= 0:
             raise AnalysisError(
@@ -123,23 +171,34 @@ class FaceMillModel(_Base):
         return _fm.FaceMillCut(fz_mm=c.fz_mm, depth_mm=c.depth_mm, width_mm=c.width_mm,
                                center_offset_mm=c.center_offset_mm)  # fmt: skip
 
+    def _args(self, tool: ModelTool, cut: Cut) -> tuple[FaceMill, _fm.FaceMillCut]:
+        return (_narrow(FaceMill, tool, self.name, "tool"),
+                _narrow(_fm.FaceMillCut, cut, self.name, "cut"))  # fmt: skip
+
     # n_discs: axial slices of models that slice the edge; the face mill's edge is tabulated.
-    def design(self, phi_rad: ArrayLike, tool: FaceMill, cut: _fm.FaceMillCut,
-               n_discs: int = 24) -> np.ndarray:  # fmt: skip
-        return _fm.facemill_design(phi_rad, tool, cut)
+    def design(self, phi_rad: ArrayLike, tool: ModelTool, cut: Cut,
+               n_discs: int = 24) -> Array:  # fmt: skip
+        return _fm.facemill_design(phi_rad, *self._args(tool, cut))
 
-    def forces(self, phi_rad: ArrayLike, tool: FaceMill, coef: FaceMillCoefficients,
-               cut: _fm.FaceMillCut, n_discs: int = 24) -> np.ndarray:  # fmt: skip
-        return _fm.facemill_forces(phi_rad, tool, coef, cut)
+    def forces(self, phi_rad: ArrayLike, tool: ModelTool, coef: Coefficients,
+               cut: Cut, n_discs: int = 24) -> Array:  # fmt: skip
+        fm_tool, fm_cut = self._args(tool, cut)
+        fm_coef = _narrow(FaceMillCoefficients, coef, self.name, "coefficients")
+        return _fm.facemill_forces(phi_rad, fm_tool, fm_coef, fm_cut)
 
-    def mean_design(self, tool: FaceMill, cut: _fm.FaceMillCut) -> np.ndarray:
+    def mean_design(self, tool: ModelTool, cut: Cut) -> Array:
         n = _FACEMILL_MEAN_ANGLES
         theta = 2 * np.pi * (np.arange(n) + 0.5) / n
-        out: np.ndarray = _fm.facemill_design(theta, tool, cut).mean(axis=0)
+        out: Array = _fm.facemill_design(theta, *self._args(tool, cut)).mean(axis=0)
         return out
 
-    def coefficient_vector(self, coef: FaceMillCoefficients) -> np.ndarray:
-        return _fm.coefficient_vector(coef)
+    def coefficient_vector(self, coef: Coefficients) -> Array:
+        fm_coef = _narrow(FaceMillCoefficients, coef, self.name, "coefficients")
+        return _fm.coefficient_vector(fm_coef)
+
+
+def _is_mode(mode: object) -> TypeGuard[Literal["up", "down", "slot"]]:
+    return mode in ("up", "down", "slot")
 
 
 @dataclass(frozen=True)
@@ -147,18 +206,25 @@ class EndMillModel(_Base):
     """The linear edge-force model of flat, ball and bull end mills
     (:mod:`analysis.forces.endmill`)."""
 
-    def describes(self, tool: Any) -> TypeGuard[EndMill]:
+    def describes(self, tool: object) -> TypeGuard[EndMill]:
         """Whether this model describes ``tool`` (a tool of its class)."""
         return isinstance(tool, EndMill)
 
-    def teeth(self, tool: EndMill) -> int:
-        return tool.flutes
+    def coefficients(self, material: Material) -> EndMillCoefficients | None:
+        """The material's coefficients of this model, or None when it has none."""
+        return material.endmill
 
-    def cut(self, tool: EndMill, conditions: Any) -> _em.EndMillCut:
+    def teeth(self, tool: ModelTool) -> int:
+        return _narrow(EndMill, tool, self.name, "tool").flutes
+
+    def _args(self, tool: ModelTool, cut: Cut) -> tuple[EndMill, _em.EndMillCut]:
+        return (_narrow(EndMill, tool, self.name, "tool"),
+                _narrow(_em.EndMillCut, cut, self.name, "cut"))  # fmt: skip
+
+    def cut(self, tool: ModelTool, conditions: CutConditions) -> _em.EndMillCut:
         c = conditions
-        mode: Literal["up", "down", "slot"] | None = (
-            c.mode if c.mode in ("up", "down", "slot") else None
-        )
+        tool = _narrow(EndMill, tool, self.name, "tool")
+        mode = c.mode if _is_mode(c.mode) else None
         if mode is None:
             raise AnalysisError(f"mode = {c.mode!r}: expected 'up', 'down' or 'slot'")
         ae = tool.diameter_mm if (mode == "slot" or not math.isfinite(c.width_mm)) else c.width_mm
@@ -170,19 +236,21 @@ class EndMillModel(_Base):
         return _em.EndMillCut.from_width(tool, c.fz_mm, c.depth_mm, ae, mode,
                                          feed_angle_deg=c.feed_angle_deg)  # fmt: skip
 
-    def design(self, phi_rad: ArrayLike, tool: EndMill, cut: _em.EndMillCut,
-               n_discs: int = 24) -> np.ndarray:  # fmt: skip
-        return _em.endmill_design(phi_rad, tool, cut, n_discs)
+    def design(self, phi_rad: ArrayLike, tool: ModelTool, cut: Cut,
+               n_discs: int = 24) -> Array:  # fmt: skip
+        return _em.endmill_design(phi_rad, *self._args(tool, cut), n_discs)
 
-    def forces(self, phi_rad: ArrayLike, tool: EndMill, coef: EndMillCoefficients,
-               cut: _em.EndMillCut, n_discs: int = 24) -> np.ndarray:  # fmt: skip
-        return _em.endmill_forces(phi_rad, tool, coef, cut, n_discs)
+    def forces(self, phi_rad: ArrayLike, tool: ModelTool, coef: Coefficients,
+               cut: Cut, n_discs: int = 24) -> Array:  # fmt: skip
+        em_tool, em_cut = self._args(tool, cut)
+        em_coef = _narrow(EndMillCoefficients, coef, self.name, "coefficients")
+        return _em.endmill_forces(phi_rad, em_tool, em_coef, em_cut, n_discs)
 
-    def mean_design(self, tool: EndMill, cut: _em.EndMillCut) -> np.ndarray:
-        return _em.mean_force_design(tool, cut)
+    def mean_design(self, tool: ModelTool, cut: Cut) -> Array:
+        return _em.mean_force_design(*self._args(tool, cut))
 
-    def coefficient_vector(self, coef: EndMillCoefficients) -> np.ndarray:
-        return _em.coefficient_vector(coef)
+    def coefficient_vector(self, coef: Coefficients) -> Array:
+        return _em.coefficient_vector(_narrow(EndMillCoefficients, coef, self.name, "coefficients"))
 
 
 FACEMILL = FaceMillModel(
@@ -201,7 +269,7 @@ ENDMILL = EndMillModel(
 MODELS: dict[str, ForceModel] = {m.name: m for m in (FACEMILL, ENDMILL)}
 
 
-def model_for(tool: Any) -> ForceModel:
+def model_for(tool: object) -> ForceModel:
     """The force model of a catalogue tool (the only test of a tool's class in cutlab)."""
     for model in MODELS.values():
         if model.describes(tool):

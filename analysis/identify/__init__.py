@@ -31,6 +31,7 @@ from analysis.identify.importers import (
     merge_conditions,
     read_force_table,
 )
+from analysis.identify.results import ForcesResult
 from analysis.identify.validate import compare_runs, plot_comparison, plot_waveforms, predicted_mean
 
 __all__ = [
@@ -39,6 +40,7 @@ __all__ = [
     "ConditionsTable",
     "Export",
     "ForceRun",
+    "ForcesResult",
     "ImportOptions",
     "RunConditions",
     "check_axes",

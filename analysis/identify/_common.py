@@ -8,15 +8,18 @@ Private to ``analysis.identify.facemill`` / ``analysis.identify.endmill`` /
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from scipy import linalg
 
+from analysis.config import Dynamometer
 from analysis.errors import AnalysisError
+from analysis.identify._types import Progress
+from analysis.modal import DynamometerFilter
 from analysis.runs.steady import (
     IDENTIFY_TOLERANCE,
     NoAirError,
@@ -253,15 +256,6 @@ def reduce_runs(
     return avgs, rejected
 
 
-def with_rejected(fit: Any, rejected: Sequence[tuple[str, str]]) -> Any:
-    """A fit result (frozen dataclass with ``message`` and ``rejected``) naming rejected runs."""
-    if not rejected:
-        return fit
-    why = "; ".join(f"{n}: {m}" for n, m in rejected)
-    msg = f"{fit.message} (rejected {len(rejected)} run(s): {why})"
-    return replace(fit, message=msg, rejected=tuple(rejected))
-
-
 def synthetic_run(
     name: str,
     conditions: RunConditions,
@@ -271,7 +265,7 @@ def synthetic_run(
     *,
     air_s: float = 0.5,
     noise_frac: float = 0.02,
-    dynamometer: Any = None,
+    dynamometer: DynamometerFilter | None = None,
     rng: np.random.Generator | None = None,
     offset_n: Sequence[float] = (0.0, 0.0, 0.0),
     drift_n_s: Sequence[float] = (0.0, 0.0, 0.0),
@@ -302,8 +296,6 @@ def synthetic_run(
         f[i:j] = forces(theta[i:j])
     if dynamometer is not None:
         if k > 1:
-            from analysis.modal import DynamometerFilter
-
             dynamometer = DynamometerFilter(dynamometer.modes, dynamometer.rate_hz * k,
                                             dynamometer.crosstalk)  # fmt: skip
         f = dynamometer.apply(f)[::k]
@@ -426,15 +418,15 @@ def bootstrap_intervals(
                 for b in blocks]  # fmt: skip
     out = []
     for _ in range(n_boot):
-        A = 0.0
-        v = 0.0
+        A: np.ndarray | float = 0.0
+        v: np.ndarray | float = 0.0
         for i in rng.integers(0, n, n):
             b = blocks[i]
             r = b.revolution_means_n
             delta = r[rng.integers(0, len(r), len(r))].mean(axis=0) - rev_mean[i] if len(r) else 0
             A = A + b.xtx
             v = v + b.xty + b.shift @ np.broadcast_to(delta, b.shift.shape[1:])
-        if np.linalg.matrix_rank(A) < A.shape[0]:
+        if np.linalg.matrix_rank(A) < np.shape(A)[0]:
             continue
         p = np.linalg.solve(A, v)
         out.append(derived(p) if derived else p)
@@ -489,7 +481,9 @@ def ratio_with_error(fit: LinearFit, num: int, den: int) -> tuple[float, float, 
     return float(r), se, float(r - tq * se), float(r + tq * se)
 
 
-def axis_order(channel_names: Sequence[str], dynamometer=None) -> list[int]:
+def axis_order(
+    channel_names: Sequence[str], dynamometer: Dynamometer | None = None
+) -> list[int]:
     """Column of X, Y, Z among a run's channels (names from the rig config, else Fx, Fy, Fz)."""
     names = [n.lower() for n in channel_names]
     order = [-1, -1, -1]
@@ -515,8 +509,8 @@ PROBE_SAMPLES = 1 << 20
 
 
 def iter_run_chunks(
-    path, chunk_samples: int = CHUNK_SAMPLES, start: int = 0, stop: int | None = None
-):
+    path: str | Path, chunk_samples: int = CHUNK_SAMPLES, start: int = 0, stop: int | None = None
+) -> Iterator[tuple[np.ndarray, np.ndarray]]:
     """Yield (device sample indices (m,), force (m, 3) N in X, Y, Z) of a run file in chunks.
 
     Reads through :func:`analysis.runs.file.iter_forces` (the numbers of ``load_run`` time
@@ -538,9 +532,9 @@ def iter_run_chunks(
 
 
 def reduce_run_file(
-    path, teeth: int, conditions: RunConditions | None = None, n_bins: int | None = None,
-    chunk_samples: int = CHUNK_SAMPLES, progress=None, tolerance: float = IDENTIFY_TOLERANCE,
-    entry_s: float = 0.0) -> RunAverage:  # fmt: skip
+    path: str | Path, teeth: int, conditions: RunConditions | None = None,
+    n_bins: int | None = None, chunk_samples: int = CHUNK_SAMPLES, progress: Progress | None = None,
+    tolerance: float = IDENTIFY_TOLERANCE, entry_s: float = 0.0) -> RunAverage:  # fmt: skip
     """:func:`reduce_run` streamed from an HDF5 run file in two passes over chunks.
 
     Pass 1 gathers per-revolution statistics (steady part, offset, drift); the revolution period
@@ -562,8 +556,8 @@ def reduce_run_file(
 
 
 def _reduce_run_file(
-    path, teeth: int, conditions: RunConditions | None, n_bins: int | None, chunk_samples: int,
-    progress, tolerance: float, entry_s: float = 0.0,
+    path: str | Path, teeth: int, conditions: RunConditions | None, n_bins: int | None,
+    chunk_samples: int, progress: Progress | None, tolerance: float, entry_s: float = 0.0,
 ) -> RunAverage:  # fmt: skip
     from analysis.runs import load_run
 

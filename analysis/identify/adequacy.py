@@ -20,15 +20,32 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
 from scipy import optimize
 
-__all__ = ["AIC_MARGIN", "Adequacy", "compare_models", "runs_adequacy"]
+__all__ = ["AIC_MARGIN", "Adequacy", "AdequacyDict", "compare_models", "runs_adequacy"]
+
+if TYPE_CHECKING:
+    from analysis.identify._common import RunAverage
 
 #: |delta AIC| above which one model is supported (Burnham & Anderson: > 6 strong).
 AIC_MARGIN = 6.0
+
+
+class AdequacyDict(TypedDict):
+    """:meth:`Adequacy.as_dict`: its fields by name, in their order."""
+
+    verdict: str
+    edge_identified: bool
+    reason: str
+    suggestion: str
+    delta_aic: float
+    exponent: float
+    curvature_t: float
+    feeds_mm: tuple[float, ...]
 
 
 @dataclass(frozen=True)
@@ -47,8 +64,12 @@ class Adequacy:
     curvature_t: float = math.nan
     feeds_mm: tuple[float, ...] = ()
 
-    def as_dict(self) -> dict:
-        return asdict(self)
+    def as_dict(self) -> AdequacyDict:
+        return AdequacyDict(
+            verdict=self.verdict, edge_identified=self.edge_identified, reason=self.reason,
+            suggestion=self.suggestion, delta_aic=self.delta_aic, exponent=self.exponent,
+            curvature_t=self.curvature_t, feeds_mm=self.feeds_mm,
+        )  # fmt: skip
 
     def line(self) -> str:
         """The text-output line: the verdict, and what to do when the edge is not identified."""
@@ -124,33 +145,33 @@ def compare_models(
     delta = n * math.log((rss_lin + tiny) / (rss_pow + tiny))
     exponent = float(np.mean(exps)) if exps else math.nan
     curvature = float(max(curv)) if curv else math.nan
-    common = dict(delta_aic=delta, exponent=exponent, curvature_t=curvature,
-                  feeds_mm=tuple(float(f) for f in feeds))  # fmt: skip
+    feeds_mm = tuple(float(f) for f in feeds)
     span = f"{len(feeds)} feeds {feeds.min():g}..{feeds.max():g} mm/tooth"
     if delta > AIC_MARGIN:
         return Adequacy(
             "size_effect", False,
             f"over {span} the mean forces follow a size effect (force ~ h^{exponent:.2f}, "
             f"AIC {delta:.1f} better than the linear model): the edge terms would only absorb it",
-            "fit a size-effect (Kienzle) model, or " + _suggest(feeds), **common,
+            "fit a size-effect (Kienzle) model, or " + _suggest(feeds), delta, exponent,
+            curvature, feeds_mm,
         )  # fmt: skip
     if delta < -AIC_MARGIN:
         return Adequacy(
             "edge", True,
             f"over {span} the linear model fits better than a size effect by AIC {-delta:.1f}",
-            **common,
+            "", delta, exponent, curvature, feeds_mm,
         )  # fmt: skip
     return Adequacy(
         "undecided", False,
         f"over {span} the linear and size-effect models fit alike (delta AIC {delta:.1f})",
-        _suggest(feeds), **common,
+        _suggest(feeds), delta, exponent, curvature, feeds_mm,
     )  # fmt: skip
 
 
-def runs_adequacy(averages: Sequence) -> Adequacy:
+def runs_adequacy(averages: Sequence[RunAverage]) -> Adequacy:
     """:func:`compare_models` on reduced runs (RunAverage): the runs of the cutting geometry
     (mode, radial width, spindle speed) with the most feeds; chip width = the axial depth."""
-    groups: dict[tuple, list] = {}
+    groups: dict[tuple[str, float | None, float, float], list[RunAverage]] = {}
     for a in averages:
         c = a.conditions
         key = (c.mode, round(c.width_mm, 6) if math.isfinite(c.width_mm) else None,

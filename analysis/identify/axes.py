@@ -19,7 +19,7 @@ import itertools
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 
@@ -29,7 +29,8 @@ from analysis.forces.endmill import PARAMETERS, mean_force_design
 from analysis.identify._common import RunAverage, linear_fit
 from analysis.identify.endmill import _cut
 
-__all__ = ["AxisMap", "check_axes", "choose_axes", "column_key", "parse_axes"]
+__all__ = ["AxesCandidate", "AxesCheck", "AxesChoice", "AxisMap", "check_axes", "choose_axes",
+           "column_key", "parse_axes"]  # fmt: skip
 
 #: Another mapping is "clearly better" when its residual RMS is below this fraction of the given's.
 BETTER_RESIDUAL_RATIO = 0.5
@@ -97,13 +98,13 @@ class AxisMap:
                 if column_key(ch.name) in keys:
                     found["xyz".index(ch.axis)] = (ch.name, float(ch.sign))
             if len(found) == 3:
-                return cls(tuple(found[i][0] for i in range(3)),
-                           tuple(found[i][1] for i in range(3)))  # fmt: skip
+                return cls((found[0][0], found[1][0], found[2][0]),
+                           (found[0][1], found[1][1], found[2][1]))  # fmt: skip
         by_axis: dict[str, str] = {}
         for n, k in zip(names, keys):
-            m = _DEFAULT.match(k)
-            if m and m.group("axis") not in by_axis:
-                by_axis[m.group("axis")] = n
+            hit = _DEFAULT.match(k)
+            if hit and hit.group("axis") not in by_axis:
+                by_axis[hit.group("axis")] = n
         if len(by_axis) == 3:
             return cls((by_axis["x"], by_axis["y"], by_axis["z"]))
         return None
@@ -169,13 +170,44 @@ SIGNED_PERMUTATIONS = tuple(
 CUTTING = ("Ktc", "Krc", "Kac")
 
 
+class AxesCandidate(TypedDict):
+    """The end-mill fit under one mapping (N)."""
+
+    axes: str
+    r_squared: float
+    residual_rms_n: float
+    coefficients: dict[str, float]
+    plausible: bool
+
+
+class AxesCheck(TypedDict):
+    """:func:`check_axes`: the mapping, every candidate, warnings, the refusal (or None)."""
+
+    axes: str
+    candidates: list[AxesCandidate]
+    warnings: list[str]
+    refusal: str | None
+    checked: bool
+
+
+class AxesChoice(TypedDict):
+    """:func:`choose_axes`: the chosen mapping, its fit, the runner-up's, every candidate and
+    the line that says it."""
+
+    axes: str
+    chosen: AxesCandidate
+    runner_up: AxesCandidate | None
+    candidates: list[AxesCandidate]
+    line: str
+
+
 def _candidates(averages: Sequence[RunAverage], tool: EndMill,
-                axes: AxisMap) -> list[dict[str, Any]] | None:  # fmt: skip
+                axes: AxisMap) -> list[AxesCandidate] | None:  # fmt: skip
     """The end-mill fit under each of the 48 signed permutations of ``axes`` (the given one
     first); None when the runs cannot be fitted at all (too few, rank-deficient)."""
     X = np.concatenate([mean_force_design(tool, _cut(tool, a.conditions)) for a in averages])
     y = np.stack([a.mean_n for a in averages])
-    out = []
+    out: list[AxesCandidate] = []
     for perm, signs in SIGNED_PERMUTATIONS:
         m = np.zeros((3, 3))
         for ax, (p, f) in enumerate(zip(perm, signs)):
@@ -195,17 +227,17 @@ def _candidates(averages: Sequence[RunAverage], tool: EndMill,
     return out
 
 
-def _describe(c: dict[str, Any]) -> str:
+def _describe(c: AxesCandidate) -> str:
     return (f"{c['axes']}: {_fmt(c['coefficients'])}, R^2 {c['r_squared']:.5f}, "
             f"residual {c['residual_rms_n']:.3g} N")  # fmt: skip
 
 
-def _ranked(cands: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def _ranked(cands: list[AxesCandidate]) -> list[AxesCandidate]:
     """The plausible mappings (all cutting coefficients positive), best fit first."""
     return sorted((c for c in cands if c["plausible"]), key=lambda c: c["residual_rms_n"])
 
 
-def _tells(best: dict[str, Any], runner: dict[str, Any] | None) -> bool:
+def _tells(best: AxesCandidate, runner: AxesCandidate | None) -> bool:
     """Whether the runs tell the best mapping from the runner-up: its residual at least
     1 / BETTER_RESIDUAL_RATIO times the best's (slots alone cannot: x = F1, y = F2 and
     x = -F2, y = F1 fit them alike, K_tc and K_rc traded)."""
@@ -215,14 +247,14 @@ def _tells(best: dict[str, Any], runner: dict[str, Any] | None) -> bool:
 
 def check_axes(
     averages: Sequence[RunAverage], tool: EndMill, axes: AxisMap, refuse: bool = True
-) -> dict[str, Any]:
+) -> AxesCheck:
     """Fit the end-mill model under ``axes`` and the 47 other signed permutations. Returns
     ``{"axes", "candidates": [{axes, r_squared, residual_rms_n, coefficients, plausible}],
     "warnings": [...], "refusal": str | None, "checked": bool}``: a refusal (one line) when the
     mapping gives a negative cutting coefficient (Ktc, Krc or Kac) or fits clearly worse than
     another (residual more than 1 / BETTER_RESIDUAL_RATIO times the best plausible one's);
     unchecked (no candidates) when the runs cannot be fitted at all."""
-    out: dict[str, Any] = {"axes": axes.text, "candidates": [], "warnings": [],
+    out: AxesCheck = {"axes": axes.text, "candidates": [], "warnings": [],
                            "refusal": None, "checked": False}  # fmt: skip
     cands = _candidates(averages, tool, axes) if averages else None
     if not cands:
@@ -269,7 +301,7 @@ def check_axes(
 
 def choose_axes(
     averages: Sequence[RunAverage], tool: EndMill, base: AxisMap
-) -> tuple[AxisMap, dict[str, Any]]:
+) -> tuple[AxisMap, AxesChoice]:
     """``--axes auto``: the signed permutation of ``base`` whose fit gives positive cutting
     coefficients with the smallest residual, when the runs tell it from the runner-up (its
     residual at least 1 / BETTER_RESIDUAL_RATIO times larger). Returns (mapping, {"axes",

@@ -23,7 +23,7 @@ import tomllib
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 
@@ -32,6 +32,8 @@ from analysis.identify._common import RunConditions
 
 __all__ = [
     "CONDITION_KEYS",
+    "ConditionValue",
+    "Conditions",
     "ConditionsTable",
     "load_conditions_table",
     "merge_conditions",
@@ -53,7 +55,13 @@ _LOOKS_LIKE = re.compile(r"_(mm|rpm|deg|mm_min|mm_rev)$")
 _FOREIGN = re.compile(r"_(in|inch|ipm|ipt|ipr|m|cm|um|sfm|in_min|m_min|ft_min|in_rev|rad)$")
 
 
-def _value(v: Any) -> Any:
+#: A condition's value once normalized: a number (mm, rpm, deg, count) or a name.
+ConditionValue = float | str
+#: Conditions by cutlab's keys (:data:`CONDITION_KEYS`).
+Conditions = dict[str, ConditionValue]
+
+
+def _value(v: object) -> object:
     """Numbers in text (decimal comma too) become numbers; numpy's (a run file's attributes, a
     table read by pandas) become Python's, so that every message shows ``nan``, not
     ``np.float64(nan)``."""
@@ -72,13 +80,13 @@ def _value(v: Any) -> Any:
 
 
 def normalize(
-    d: Mapping[str, Any], where: str, unknown: Literal["error", "suffix", "skip"] = "error"
-) -> dict[str, Any]:
+    d: Mapping[str, object], where: str, unknown: Literal["error", "suffix", "skip"] = "error"
+) -> Conditions:
     """Condition keys of ``d`` with aliases resolved and numbers parsed. Unknown keys are an
     error; with ``unknown="suffix"`` (an export's header block, which holds much else) only keys
     that look like a condition (``*_mm``, ``*_rpm``...) are; ``"skip"`` (a run file's own record,
     which also names the campaign, block, paths...) leaves them out."""
-    out: dict[str, Any] = {}
+    out: Conditions = {}
     for raw_key, v in d.items():
         key = str(raw_key).strip().lower()
         canon = _ALIASES.get(key, key)
@@ -100,6 +108,8 @@ def normalize(
         val = _value(v)
         if canon in _NUMERIC and not isinstance(val, int | float):
             raise AnalysisError(f"{where}: {raw_key} = {v!r}: not a number")
+        if not isinstance(val, int | float | str):
+            raise AnalysisError(f"{where}: {raw_key} = {v!r}: expected a number or a name")
         if canon in out and out[canon] != val:
             raise AnalysisError(
                 f"{where}: {raw_key} = {v!r} contradicts {canon} = {out[canon]!r}"
@@ -108,7 +118,9 @@ def normalize(
     return out
 
 
-def merge_conditions(recorded: Mapping[str, Any], given: Mapping[str, Any]) -> dict[str, Any]:
+def merge_conditions(
+    recorded: Mapping[str, ConditionValue], given: Mapping[str, ConditionValue]
+) -> Conditions:
     """A run's recorded conditions overridden key by key by ``given``; a given feed replaces the
     recorded one in whichever form each gives it (``fz_mm`` or ``feed_mm_min``)."""
     out = dict(recorded)
@@ -125,9 +137,9 @@ class ConditionsTable:
     """Rows of a conditions table: file key (lower case) -> (where, conditions)."""
 
     path: Path
-    rows: dict[str, tuple[str, dict[str, Any]]]
+    rows: dict[str, tuple[str, Conditions]]
 
-    def row(self, file: str | Path) -> tuple[str, dict[str, Any]]:
+    def row(self, file: str | Path) -> tuple[str, Conditions]:
         """(where, conditions) of the row for ``file`` (by name, or name without extension)."""
         p = Path(str(file))
         for key in (p.name.lower(), p.stem.lower()):
@@ -139,7 +151,7 @@ class ConditionsTable:
         )
 
 
-def _table_rows(p: Path) -> list[tuple[str, dict[str, Any]]]:
+def _table_rows(p: Path) -> list[tuple[str, dict[str, object]]]:
     try:
         text = p.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
@@ -163,7 +175,8 @@ def _table_rows(p: Path) -> list[tuple[str, dict[str, Any]]]:
     first = next((ln for ln in lines if ln.strip() and not ln.lstrip().startswith("#")), "")
     sep = max((";", "\t", ","), key=first.count)
     reader = csv.reader(io.StringIO(text), delimiter=sep)
-    rows, names, out = list(reader), None, []
+    rows, names = list(reader), None
+    out: list[tuple[str, dict[str, object]]] = []
     for n, cells in enumerate(rows, start=1):
         cells = [c.strip() for c in cells]
         if not any(cells) or cells[0].startswith("#"):
@@ -186,7 +199,7 @@ def _table_rows(p: Path) -> list[tuple[str, dict[str, Any]]]:
 def load_conditions_table(path: str | Path) -> ConditionsTable:
     """Read a conditions table (CSV with ``,`` ``;`` or tab, or TOML ``[[runs]]``)."""
     p = Path(path)
-    rows: dict[str, tuple[str, dict[str, Any]]] = {}
+    rows: dict[str, tuple[str, Conditions]] = {}
     for where, raw in _table_rows(p):
         f = str(raw.pop("file", "") or "").strip()
         if not f:
@@ -199,7 +212,7 @@ def load_conditions_table(path: str | Path) -> ConditionsTable:
     return ConditionsTable(p, rows)
 
 
-def pattern_conditions(pattern: str, file: str | Path) -> dict[str, Any]:
+def pattern_conditions(pattern: str, file: str | Path) -> Conditions:
     """Conditions from a file name: ``cut_{spindle_rpm}rpm_f{feed_mm_min}.txt`` style (fields in
     braces are condition keys; the rest must match literally)."""
     name = Path(str(file)).name
@@ -219,7 +232,7 @@ def pattern_conditions(pattern: str, file: str | Path) -> dict[str, Any]:
 
 
 def resolve_conditions(
-    layers: Sequence[tuple[str, Mapping[str, Any]]],
+    layers: Sequence[tuple[str, Mapping[str, object]]],
     teeth_of: Callable[[str], int] | None = None,
     expected_tool: str | None = None,
 ) -> RunConditions:
@@ -227,7 +240,7 @@ def resolve_conditions(
     other form of the feed) into RunConditions. ``teeth_of(tool name)`` gives the tool's teeth:
     a ``teeth`` (or ``flutes``) that differs is an error naming where it came from; a
     ``feed_mm_min`` without teeth takes the tool's."""
-    merged: dict[str, Any] = {}
+    merged: Conditions = {}
     origin: dict[str, str] = {}
     for where, raw in layers:
         if not raw:
@@ -254,7 +267,7 @@ def resolve_conditions(
     if {"fz_mm", "feed_mm_min", "spindle_rpm"} <= set(merged) and (
         {"teeth", "flutes"} & set(merged)
     ):
-        teeth = float(merged.get("teeth", merged.get("flutes")))
+        teeth = float(merged["teeth"] if "teeth" in merged else merged["flutes"])
         fz = float(merged["feed_mm_min"]) / (abs(float(merged["spindle_rpm"])) * teeth)
         if not math.isclose(fz, float(merged["fz_mm"]), rel_tol=0.01):
             raise AnalysisError(

@@ -7,7 +7,6 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Any
 
 from analysis.errors import ConfigError
 
@@ -17,7 +16,7 @@ __all__ = ["conditions_arg", "parse_conditions", "runs_or_catalog"]
 _NOT_FINITE = "not a finite number (a condition is a number or a name)"
 
 
-def parse_conditions(items: list[str]) -> dict[str, Any]:
+def parse_conditions(items: list[str]) -> dict[str, object]:
     """``--conditions``: one JSON object, or KEY=VALUE pairs as `cutlab analyze forces` takes
     them (numbers become numbers: ``spindle_rpm=600 tool=phi10-flat``)."""
     if not items:
@@ -33,7 +32,7 @@ def parse_conditions(items: list[str]) -> dict[str, Any]:
             if isinstance(val, float) and not math.isfinite(val):
                 raise ConfigError(f"--conditions: {key} = {val}: {_NOT_FINITE}")
         return obj
-    out: dict[str, Any] = {}
+    out: dict[str, object] = {}
     for item in items:
         key, sep, val = item.partition("=")
         key = key.strip()
@@ -44,9 +43,9 @@ def parse_conditions(items: list[str]) -> dict[str, Any]:
             )
         if key in out:
             raise ConfigError(f"--conditions: {key} given twice")
-        out[key] = _number_or_text(val.strip())
-        if isinstance(out[key], float) and not math.isfinite(out[key]):  # never stored as text
-            raise ConfigError(f"--conditions {item!r}: {key} = {out[key]}: {_NOT_FINITE}")
+        value = out[key] = _number_or_text(val.strip())
+        if isinstance(value, float) and not math.isfinite(value):  # never stored as text
+            raise ConfigError(f"--conditions {item!r}: {key} = {value}: {_NOT_FINITE}")
     return out
 
 
@@ -61,7 +60,7 @@ def _number_or_text(text: str) -> int | float | str:
     return text
 
 
-def conditions_arg(items: list[str] | None) -> tuple[dict[str, Any], str | None]:
+def conditions_arg(items: list[str] | None) -> tuple[dict[str, object], str | None]:
     """``--conditions``: KEY=VALUE pairs (or one JSON object), or one conditions table (.csv,
     .toml, or any existing file): (pairs, table path)."""
     if (

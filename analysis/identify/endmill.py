@@ -17,11 +17,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Unpack
 
 import numpy as np
 
-from analysis.config import EndMill, EndMillCoefficients
+from analysis.config import EndMill, EndMillCoefficients, FaceMill
 from analysis.errors import AnalysisError
 from analysis.forces.endmill import (
     PARAMETERS,
@@ -44,8 +44,8 @@ from analysis.identify._common import (
     synthetic_run,
     too_few_runs,
     validation_line,
-    with_rejected,
 )
+from analysis.identify._types import SyntheticOptions, with_rejected
 from analysis.identify.adequacy import Adequacy, runs_adequacy
 from analysis.runs import IDENTIFY_TOLERANCE
 
@@ -75,7 +75,7 @@ class EndMillFit:
 
 
 def fit_endmill(
-    averages: Sequence[RunAverage], tool: EndMill, confidence: float = 0.95
+    averages: Sequence[RunAverage], tool: EndMill | FaceMill, confidence: float = 0.95
 ) -> EndMillFit:
     """Average-force fit over reduced runs (see module docstring)."""
     if not ENDMILL.describes(tool):
@@ -136,7 +136,7 @@ def synthetic_endmill_run(
     rate_hz: float = 20_000.0,
     cut_s: float = 2.0,
     n_discs: int = 16,
-    **record: Any,
+    **record: Unpack[SyntheticOptions],
 ) -> ForceRun:
     """A record made from the end-mill model (air, steady cut, air) with modes, offset, noise;
     ``record`` as :func:`analysis.identify._common.synthetic_run`."""

@@ -23,11 +23,12 @@ import os
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
-from typing import Any
+from pathlib import Path
+from typing import Unpack
 
 import numpy as np
 
-from analysis.config import Dynamometer, FaceMill, FaceMillCoefficients
+from analysis.config import Dynamometer, EndMill, FaceMill, FaceMillCoefficients
 from analysis.errors import AnalysisError
 from analysis.forces.facemill import (
     PARAMETERS,
@@ -53,8 +54,8 @@ from analysis.identify._common import (
     synthetic_run,
     too_few_runs,
     validation_line,
-    with_rejected,
 )
+from analysis.identify._types import StatsRow, SyntheticOptions, with_rejected
 from analysis.identify.adequacy import Adequacy, runs_adequacy
 from analysis.identify.facemill_split import Split, design_split
 from analysis.modal import DynamometerFilter
@@ -110,7 +111,7 @@ class FaceMillFit:
     message: str
     coefficients: FaceMillCoefficients | None = None
     fit: LinearFit | None = None
-    summary: dict | None = None
+    summary: dict[str, StatsRow] | None = None
     phases_rad: tuple[float, ...] = ()
     residuals_n: tuple[np.ndarray, ...] = ()
     runs: tuple[str, ...] = ()
@@ -132,7 +133,9 @@ def _cut(c: RunConditions) -> FaceMillCut:
     return FACEMILL.cut(None, c)
 
 
-def _filter_for(dynamometer, rate_hz: float) -> DynamometerFilter | None:
+def _filter_for(
+    dynamometer: Dynamometer | DynamometerFilter | None, rate_hz: float
+) -> DynamometerFilter | None:
     if dynamometer is None:
         return None
     if isinstance(dynamometer, DynamometerFilter):
@@ -181,7 +184,8 @@ def _regressors(
     """Mode-filtered regressors at the bins' samples (n_bins, 3, 6), bin 0 starting at
     ``phase``."""
     fine, rows = _fine_regressors(avg, tool, filt, phase)
-    return fine[rows % len(fine)].mean(axis=1)
+    out: np.ndarray = fine[rows % len(fine)].mean(axis=1)
+    return out
 
 
 def _phase(avg: RunAverage, tool: FaceMill, filt: DynamometerFilter | None) -> float:
@@ -226,7 +230,7 @@ def _phase(avg: RunAverage, tool: FaceMill, filt: DynamometerFilter | None) -> f
 
 def fit_facemill(
     averages: Sequence[RunAverage],
-    tool: FaceMill,
+    tool: FaceMill | EndMill,
     dynamometer: Dynamometer | DynamometerFilter | None = None,
     confidence: float = 0.95,
 ) -> FaceMillFit:
@@ -285,7 +289,7 @@ def fit_facemill(
     blo, bhi = bootstrap_intervals(blocks, _summary_values, confidence)
     rows = (_row(fit, 1), _ratio_row(fit, 3, 1), _row(fit, 0), _row(fit, 2),
             _ratio_row(fit, 5, 1), _row(fit, 4))  # fmt: skip
-    summary = {
+    summary: dict[str, StatsRow] = {
         name: {**row, "boot_ci_low": float(bl), "boot_ci_high": float(bh)}
         for name, row, bl, bh in zip(SUMMARY, rows, blo, bhi)
     }
@@ -306,7 +310,7 @@ def fit_facemill(
 
 
 def _identifiable(
-    X: np.ndarray, averages: Sequence[RunAverage], tool: FaceMill, summary: dict
+    X: np.ndarray, averages: Sequence[RunAverage], tool: FaceMill, summary: dict[str, StatsRow]
 ) -> tuple[Adequacy, Split]:
     """The adequacy check (edge forces against a size effect) and the design's split of cutting
     and edge terms; each summary row gets its ``identified`` and ``status``."""
@@ -332,7 +336,7 @@ def _ratio_row(fit: LinearFit, num: int, den: int) -> dict[str, float]:
     return {"value": v, "std_error": se, "ci_low": lo, "ci_high": hi}
 
 
-def entry_s(tool: Any, c: RunConditions) -> float:
+def entry_s(tool: object, c: RunConditions) -> float:
     """Seconds from a face mill's first touch of a block it is fed into along X' to its arc
     being wholly over the block (the geometry's bound on the entry; 0 for a tool without a lead
     angle, i.e. not a face mill, or conditions that do not place the block). The first touch is
@@ -341,10 +345,11 @@ def entry_s(tool: Any, c: RunConditions) -> float:
     across the feed, are past the block's front. At 1 mm/s (0.1 mm/tooth, one insert, 600 rpm)
     a 125 mm cutter 20 mm off a 50 mm block's centre takes 19.3-19.9 s (0.5-3 mm deep), centred
     5.4-6.0 s: revolutions in that time can lie within 2 % of the steady level, not steady."""
-    lead = getattr(tool, "lead_angle_deg", None)
-    teeth = getattr(tool, "inserts", None)
-    v_mm_s = c.fz_mm * (teeth or 0) * abs(c.spindle_rpm) / 60.0
-    if lead is None or not v_mm_s > 0 or not np.isfinite(c.width_mm) or c.width_mm <= 0:
+    if not FACEMILL.describes(tool):  # only a face mill has a lead angle
+        return 0.0
+    lead = tool.lead_angle_deg
+    v_mm_s = c.fz_mm * tool.inserts * abs(c.spindle_rpm) / 60.0
+    if not v_mm_s > 0 or not np.isfinite(c.width_mm) or c.width_mm <= 0:
         return 0.0
     radius = float(tool.diameter_mm) / 2
     reach = radius + max(c.depth_mm, 0.0) * float(np.tan(np.radians(lead)))
@@ -355,7 +360,7 @@ def entry_s(tool: Any, c: RunConditions) -> float:
     return float(max(front - np.sqrt(radius**2 - far**2), 0.0) / v_mm_s)
 
 
-def tool_entry_s(name: str, c: RunConditions, tools_path: Any = None) -> float:
+def tool_entry_s(name: str, c: RunConditions, tools_path: str | Path | None = None) -> float:
     """:func:`entry_s` of a catalogued tool (the user's ``tools_path`` first); 0 without one."""
     from analysis.config import get_tool, user_catalogs
 
@@ -394,7 +399,8 @@ def predicted_waveform(
     from analysis.forces.facemill import coefficient_vector
 
     X = _regressors(avg, tool, _filter_for(dynamometer, avg.rate_hz), phase_rad)
-    return X @ coefficient_vector(coef)
+    out: np.ndarray = X @ coefficient_vector(coef)
+    return out
 
 
 def synthetic_facemill_run(
@@ -404,7 +410,7 @@ def synthetic_facemill_run(
     conditions: RunConditions,
     rate_hz: float = 20_000.0,
     cut_s: float = 3.0,
-    **record: Any,
+    **record: Unpack[SyntheticOptions],
 ) -> ForceRun:
     """A force record made from the model: air, ``cut_s`` of steady cutting, air.
 

@@ -28,11 +28,11 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 
-__all__ = ["SPLIT_INFLATION_LIMIT", "Split", "design_split", "pair_inflation"]
+__all__ = ["SPLIT_INFLATION_LIMIT", "Split", "SplitDict", "design_split", "pair_inflation"]
 
 #: The largest inflation of a cutting coefficient by its edge term at which it counts as
 #: identified (see the module docstring: 0.4 % model shape error x 5 = 2 %).
@@ -56,6 +56,16 @@ SIZE_EFFECT = "not identified: the runs do not separate edge forces from a size 
     "(see model adequacy)"  # fmt: skip
 
 
+class SplitDict(TypedDict):
+    """:meth:`Split.as_dict` (the JSON result's ``split``)."""
+
+    correlation: dict[str, float]
+    inflation: dict[str, float]
+    inflation_limit: float
+    feeds_mm: list[float]
+    status: dict[str, str]
+
+
 @dataclass(frozen=True)
 class Split:
     """Per direction T, R, A: ``correlation`` (partial, cutting with edge column) and
@@ -70,7 +80,7 @@ class Split:
     limit: float = SPLIT_INFLATION_LIMIT
     identified: dict[str, bool] = field(default_factory=dict)
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> SplitDict:
         return {"correlation": self.correlation, "inflation": self.inflation,
                 "inflation_limit": self.limit, "feeds_mm": list(self.feeds_mm),
                 "status": self.status}  # fmt: skip

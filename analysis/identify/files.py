@@ -16,7 +16,6 @@ import math
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -30,7 +29,14 @@ from analysis.config import (
     user_catalogs,
 )
 from analysis.errors import AnalysisError, ConfigError
-from analysis.forces.models import ENDMILL, FACEMILL, ForceModel, model_for, model_named
+from analysis.forces.models import (
+    ENDMILL,
+    FACEMILL,
+    ForceModel,
+    ModelTool,
+    model_for,
+    model_named,
+)
 from analysis.identify._common import (
     CI_NOTE,
     RunAverage,
@@ -38,35 +44,38 @@ from analysis.identify._common import (
     reduce_run,
     reduce_run_file,
 )
+from analysis.identify._types import StatsRow
 from analysis.identify.axes import AxisMap, check_axes, choose_axes, parse_axes, remap
 from analysis.identify.conditions import (
+    Conditions,
     ConditionsTable,
     load_conditions_table,
     normalize,
     pattern_conditions,
     resolve_conditions,
 )
-from analysis.identify.endmill import fit_endmill
-from analysis.identify.facemill import fit_facemill, tool_entry_s
+from analysis.identify.endmill import EndMillFit, fit_endmill
+from analysis.identify.facemill import FaceMillFit, fit_facemill, tool_entry_s
 from analysis.identify.importers import NO_AIR_ZEROED, Export, load_export
+from analysis.identify.results import (
+    EDGE_REASON,
+    SHORT_NAMES,
+    ForcesResult,
+    add_trust,
+    add_validation,
+)
 from analysis.identify.trust import (
     by_direction,
-    influence,
     outside_limits,
     per_run_residuals,
-    statuses,
 )
-from analysis.identify.validate import compare_runs, plot_comparison, plot_waveforms
 from analysis.runs import IDENTIFY_TOLERANCE, NoSteadyCutError, load_run
 
 __all__ = ["FileReducer", "ImportOptions", "Mapper", "find_tool", "fit_files", "load_exports",
            "reduce_files", "tool_teeth"]  # fmt: skip
 
 Progress = Callable[[int, int], None]
-#: End-mill coefficients by their short names (the JSON result's ``Ktc`` ... ``Kae``) and unit.
-SHORT_NAMES = {"Ktc": ("Ktc_n_mm2", "N/mm^2"), "Krc": ("Krc_n_mm2", "N/mm^2"),
-               "Kac": ("Kac_n_mm2", "N/mm^2"), "Kte": ("Kte_n_mm", "N/mm"),
-               "Kre": ("Kre_n_mm", "N/mm"), "Kae": ("Kae_n_mm", "N/mm")}  # fmt: skip
+
 
 
 def find_tool(name: str, tools_path: str | Path | None = None) -> EndMill | FaceMill:
@@ -114,9 +123,9 @@ class ImportOptions:
         return ImportOptions(axes, table, self.pattern, self.zero_file, self.zeroed,
                              self.tools_path, self.materials_path)  # fmt: skip
 
-    def layers(self, path: Any) -> list[tuple[str, Mapping[str, Any]]]:
+    def layers(self, path: str | Path) -> list[tuple[str, Mapping[str, object]]]:
         """The conditions from the table row and the file-name pattern of ``path``."""
-        out = []
+        out: list[tuple[str, Mapping[str, object]]] = []
         if isinstance(self.table, ConditionsTable):
             out.append(self.table.row(path))
         if self.pattern:
@@ -125,7 +134,7 @@ class ImportOptions:
         return out
 
 
-def _check_tool(path: Any, recorded: str, expected: str | None, by: str) -> None:
+def _check_tool(path: str | Path, recorded: str, expected: str | None, by: str) -> None:
     """Refuse a run cut with another tool than the fit's (a silent switch of model and teeth)."""
     if expected and recorded and recorded != expected:
         hint = "leave out --tool, or" if by == "--tool" else "validate runs of that tool, or"
@@ -135,7 +144,7 @@ def _check_tool(path: Any, recorded: str, expected: str | None, by: str) -> None
         )
 
 
-def _check_material(path: Any, name: str, materials_path: str | Path | None) -> None:
+def _check_material(path: str | Path, name: str, materials_path: str | Path | None) -> None:
     if materials_path is None or not name:
         return
     try:
@@ -150,7 +159,7 @@ def _check_material(path: Any, name: str, materials_path: str | Path | None) -> 
             ) from None
 
 
-def _reduce_file(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer | None,
+def _reduce_file(path: str | Path, given: Mapping[str, object], dynamometer: Dynamometer | None,
                  rate_hz: float | None, expected_tool: str | None, by: str,
                  tolerance: float, opts: ImportOptions) -> tuple[RunAverage, dict[str, str]]:
     """The run's revolution average and its notes (``axes``, ``zero``)."""  # fmt: skip
@@ -182,11 +191,13 @@ def _reduce_file(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer |
                 "(a resumed campaign cut the run again)"
             ) from None
         names = [meta.channel_names[i] for i in axis_order(meta.channel_names)]
-        axes = opts.axes or AxisMap(tuple(names))  # type: ignore[arg-type]
+        # (loaded(): a string mapping other than "auto" is parsed; "auto" reads as None here)
+        axes = (opts.axes if isinstance(opts.axes, AxisMap)
+                else AxisMap((names[0], names[1], names[2])))  # fmt: skip
         if opts.axes is not None:
-            avg = remap(avg, axes.matrix(names, str(path)))  # type: ignore[union-attr]
+            avg = remap(avg, axes.matrix(names, str(path)))
         zero = (meta.rig or {}).get("import", {}).get("zero", "air or the amplifier's zero")
-        return avg, {"axes": axes.text, "zero": zero}  # type: ignore[union-attr]
+        return avg, {"axes": axes.text, "zero": zero}
     ex = _load_export(path, given, dynamometer, rate_hz, expected_tool, by, opts)
     name = expected_tool or ex.run.conditions.tool  # its entry bound, as a run file's
     avg = reduce_run(ex.run, teeth_of(name), tolerance=tolerance,
@@ -194,7 +205,7 @@ def _reduce_file(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer |
     return avg, {"axes": ex.axes, "zero": ex.zero}
 
 
-def _load_export(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer | None,
+def _load_export(path: str | Path, given: Mapping[str, object], dynamometer: Dynamometer | None,
                  rate_hz: float | None, expected_tool: str | None, by: str,
                  opts: ImportOptions) -> Export:  # fmt: skip
     def teeth_of(name: str) -> int:
@@ -209,7 +220,9 @@ def _load_export(path: Any, given: Mapping[str, Any], dynamometer: Dynamometer |
     return replace(ex, stated=_catalogued(ex, expected_tool, opts.tools_path))
 
 
-def _catalogued(ex: Export, expected_tool: str | None, tools_path) -> dict[str, Any]:
+def _catalogued(
+    ex: Export, expected_tool: str | None, tools_path: str | Path | None
+) -> Conditions:
     """What an imported run's catalogue row keeps beside the fitted form: the stated feed (or
     the one fz, speed and teeth give), the teeth, and the mode: a cut as wide as the end mill
     is a slot (up and down milling are the same there), not the default "down"."""
@@ -231,7 +244,7 @@ def _catalogued(ex: Export, expected_tool: str | None, tools_path) -> dict[str, 
 
 def load_exports(
     paths: Sequence[str | Path],
-    overrides: Mapping[str, Any] | None = None,
+    overrides: Mapping[str, object] | None = None,
     rig_path: str | Path | None = None,
     rate_hz: float | None = None,
     tool: str | None = None,
@@ -255,7 +268,7 @@ class FileReducer:
     or (None, {}, reason) for a run without steady cutting (other bad input raises). Its repr
     holds everything besides the file that decides the result (a cache key's part)."""
 
-    given: Mapping[str, Any]
+    given: Mapping[str, object]
     dynamometer: Dynamometer | None
     rate_hz: float | None
     expected_tool: str | None
@@ -263,7 +276,7 @@ class FileReducer:
     tolerance: float
     opts: ImportOptions
 
-    def __call__(self, path: Any) -> tuple[RunAverage | None, dict[str, str], str | None]:
+    def __call__(self, path: str | Path) -> tuple[RunAverage | None, dict[str, str], str | None]:
         try:
             avg, note = _reduce_file(path, self.given, self.dynamometer, self.rate_hz,
                                      self.expected_tool, self.by, self.tolerance,
@@ -274,18 +287,24 @@ class FileReducer:
 
 
 #: Runs a :class:`FileReducer` over paths, results in the paths' order (default: one by one).
-Mapper = Callable[[FileReducer, Sequence[Any]], Iterable[tuple[Any, dict[str, str], Any]]]
+Reduced = tuple[RunAverage | None, dict[str, str], str | None]
+Mapper = Callable[[FileReducer, Sequence[str | Path]], Iterable[Reduced]]
 
 
-def _one_by_one(reducer: FileReducer, paths: Sequence[Any], progress: Progress | None):
+def _one_by_one(
+    reducer: FileReducer, paths: Sequence[str | Path], progress: Progress | None
+) -> Iterator[Reduced]:
     for k, p in enumerate(paths):
         yield reducer(p)
         if progress:
             progress(k + 1, len(paths))
 
 
-def _reduce_all(paths, overrides, dynamometer, rate_hz, expected_tool, by, tolerance, progress,
-                opts: ImportOptions, mapper: Mapper | None = None):  # fmt: skip
+def _reduce_all(
+    paths: Sequence[str | Path], overrides: Mapping[str, object] | None,
+    dynamometer: Dynamometer | None, rate_hz: float | None, expected_tool: str | None, by: str,
+    tolerance: float, progress: Progress | None, opts: ImportOptions, mapper: Mapper | None = None,
+) -> tuple[list[RunAverage], list[tuple[str, str]], set[str], dict[str, dict[str, str]]]:
     given = normalize(overrides or {}, "--conditions")
     opts = opts.loaded()
     if opts.auto:  # read with the files' own (or the rig's) mapping; the fit chooses after
@@ -298,7 +317,7 @@ def _reduce_all(paths, overrides, dynamometer, rate_hz, expected_tool, by, toler
     tool_names: set[str] = set()
     for p, (avg, note, reason) in zip(paths, results):
         if avg is None:
-            rejected.append((Path(p).stem, reason))
+            rejected.append((Path(p).stem, reason or ""))
             continue
         avgs.append(avg)
         notes[avg.name] = note
@@ -308,7 +327,7 @@ def _reduce_all(paths, overrides, dynamometer, rate_hz, expected_tool, by, toler
 
 def reduce_files(
     paths: Sequence[str | Path],
-    overrides: Mapping[str, Any] | None = None,
+    overrides: Mapping[str, object] | None = None,
     dynamometer: Dynamometer | None = None,
     rate_hz: float | None = None,
     expected_tool: str | None = None,
@@ -330,8 +349,10 @@ def reduce_files(
     return avgs, rejected, tools
 
 
-def _fit(avgs: list[RunAverage], tool_name: str, model: str | None, dynamometer: Dynamometer,
-         tools_path: str | Path | None = None):  # fmt: skip
+def _fit(
+    avgs: list[RunAverage], tool_name: str, model: str | None, dynamometer: Dynamometer,
+    tools_path: str | Path | None = None,
+) -> tuple[str, ModelTool, FaceMillFit | EndMillFit, dict[str, StatsRow]]:  # fmt: skip
     """(model, tool, fit, statistics) with the model from the tool's kind unless given."""
     tool = find_tool(tool_name, tools_path)
     force_model = model_named(model) if model else model_for(tool)
@@ -343,21 +364,20 @@ def _fit(avgs: list[RunAverage], tool_name: str, model: str | None, dynamometer:
             f"--model endmill with tool {tool_name!r} of kind {tool.kind!r}: the end-mill "
             "model describes flat, ball and bull end mills"
         )
-    fit = fit_endmill(avgs, tool)
-    stats = fit.fit.as_dict() if fit.fit else {}
-    return force_model.name, tool, fit, _identified(fit, stats, force_model)
+    em_fit = fit_endmill(avgs, tool)
+    stats = em_fit.fit.as_dict() if em_fit.fit else {}
+    return force_model.name, tool, em_fit, _identified(em_fit, stats, force_model)
 
 
-#: The status line's reason for edge (ploughing) terms the adequacy check does not support.
-EDGE_REASON = "the runs do not separate edge forces from a size effect (see model adequacy)"
-
-
-def _identified(fit: Any, stats: dict, model: ForceModel) -> dict:
+def _identified(
+    fit: FaceMillFit | EndMillFit, stats: Mapping[str, Mapping[str, float | bool | str]],
+    model: ForceModel,
+) -> dict[str, StatsRow]:  # fmt: skip
     """Statistics rows marked ``identified`` with a ``status`` ('identified' or 'not identified:
     reason'): the edge rows only when the data support the linear edge-force model (adequacy);
     rows that carry their own (the face mill's, from the design's split) keep it."""
     edge_ok = fit.adequacy is None or fit.adequacy.edge_identified
-    out = {}
+    out: dict[str, StatsRow] = {}
     for k, v in stats.items():
         ok = edge_ok or k not in model.edge_keys
         why = "identified" if ok else f"not identified: {EDGE_REASON}"
@@ -365,7 +385,7 @@ def _identified(fit: Any, stats: dict, model: ForceModel) -> dict:
     return out
 
 
-def _per_run(a: RunAverage) -> dict[str, Any]:
+def _per_run(a: RunAverage) -> dict[str, object]:
     return {
         "run": a.name,
         "fz_mm": a.conditions.fz_mm,
@@ -382,7 +402,7 @@ def fit_files(
     paths: Sequence[str | Path],
     model: str | None = None,
     tool: str | None = None,
-    overrides: Mapping[str, Any] | None = None,
+    overrides: Mapping[str, object] | None = None,
     rig_path: str | Path | None = None,
     rate_hz: float | None = None,
     tolerance: float = IDENTIFY_TOLERANCE,
@@ -392,7 +412,7 @@ def fit_files(
     options: ImportOptions | None = None,
     mapper: Mapper | None = None,
     keep: bool = False,
-) -> dict[str, Any]:
+) -> ForcesResult:
     """Fit the force model (``model`` 'facemill' / 'endmill', default from the tool's kind) to
     run files; the tool is ``tool`` or the one the runs record. With a successful fit,
     ``validate`` runs (or the fitted ones when only ``plot_dir`` is given) are predicted and
@@ -428,19 +448,19 @@ def fit_files(
     tool_name = tool or names.pop()
     tool_obj = find_tool(tool_name, opts.tools_path)
     force_model = model_named(model) if model else model_for(tool_obj)
-    endmill = force_model is ENDMILL and ENDMILL.describes(tool_obj)
-    limits = outside_limits(avgs, tool_obj) if endmill else []
+    em_tool = tool_obj if force_model is ENDMILL and ENDMILL.describes(tool_obj) else None
+    limits = outside_limits(avgs, em_tool) if em_tool is not None else []
     if limits and not keep:
         out_names = {n for n, _ in limits}
         avgs = [a for a in avgs if a.name not in out_names]
     choice = None
-    if endmill and opts.auto:
+    if em_tool is not None and opts.auto:
         base = sorted({n["axes"] for n in notes.values()})
         if len(base) != 1:
             raise AnalysisError(f"--axes auto: the runs are read with different mappings "
                                 f"({'; '.join(base)}): give --axes")  # fmt: skip
         read = parse_axes(base[0])
-        chosen, choice = choose_axes(avgs, tool_obj, read)
+        chosen, choice = choose_axes(avgs, em_tool, read)
         # chosen = M_c @ columns, read = M_r @ columns (M_r diagonal +-1): chosen = M_c M_r^T read
         cols = list(read.sources)
         m = chosen.matrix(cols, "--axes auto") @ read.matrix(cols, "--axes auto").T
@@ -456,7 +476,7 @@ def fit_files(
     lin = fit.fit
     coefficients = fit.coefficients.model_dump() if fit.coefficients else None
     mappings = sorted({n["axes"] for n in notes.values()})
-    out: dict[str, Any] = {
+    out: ForcesResult = {
         "model": model,
         "tool": tool_name,
         "success": fit.success,
@@ -473,11 +493,11 @@ def fit_files(
         "axes": mappings[0] if len(mappings) == 1 else mappings,
         "warnings": [f"{n}: {note['zero']}" for n, note in notes.items()
                      if note["zero"] == NO_AIR_ZEROED],  # fmt: skip
+        "adequacy": (
+            {**fit.adequacy.as_dict(), "summary": fit.adequacy.line()}
+            if fit.adequacy is not None else None
+        ),
     }
-    adequacy = getattr(fit, "adequacy", None)
-    out["adequacy"] = (
-        {**adequacy.as_dict(), "summary": adequacy.line()} if adequacy is not None else None
-    )
     if model == "endmill" and coefficients:
         coefficients.update({k: coefficients[v] for k, (v, _) in SHORT_NAMES.items()})
         out["coefficient_units"] = {k: u for k, (_, u) in SHORT_NAMES.items()}
@@ -485,7 +505,7 @@ def fit_files(
         out["axes_choice"] = {"axes": choice["axes"], "line": choice["line"],
                               "runner_up": choice["runner_up"]}  # fmt: skip
         out["axes_check"] = choice["candidates"]
-    elif model == "endmill" and len(mappings) == 1:
+    elif model == "endmill" and len(mappings) == 1 and ENDMILL.describes(tool_cfg):
         check = check_axes(avgs, tool_cfg, parse_axes(mappings[0]))
         if check["refusal"]:
             raise AnalysisError(check["refusal"])
@@ -494,19 +514,20 @@ def fit_files(
                                    "under any mapping (too few runs or feeds)")  # fmt: skip
         out["axes_check"] = check["candidates"]
         out["warnings"] += check["warnings"]
-    if endmill:
+    if em_tool is not None:
         out["outside_limits"] = [{"run": n, "reason": r, "kept": keep} for n, r in limits]
         out["speed_limits"] = "unchecked: the tool catalogue gives no speed range"
-        mc = tool_obj.max_chip_mm
+        mc = em_tool.max_chip_mm
         out["chip_limit"] = (f"checked against max_chip_mm {mc:g} mm" if mc is not None else
                              "unchecked: the tool gives no max_chip_mm")  # fmt: skip
         if limits and not keep:
             out["message"] += (f" (left out {len(limits)} run(s) beyond the tool's limits: "
                                + "; ".join(f"{n}: {r}" for n, r in limits)
                                + "; --keep fits them)")  # fmt: skip
-        if fit.fit is not None:
-            _trust(out, avgs, tool_cfg, fit)
-    elif model == "facemill" and fit.success and len(fit.residuals_n) == len(avgs):
+        if isinstance(fit, EndMillFit) and fit.fit is not None:
+            add_trust(out, avgs, em_tool, fit.fit, fit.adequacy)
+    elif (model == "facemill" and isinstance(fit, FaceMillFit) and fit.success  # (with a split)
+          and fit.split is not None and len(fit.residuals_n) == len(avgs)):  # fmt: skip
         # the face-mill fit is to the revolution-averaged waveforms: per direction over their bins
         out["by_direction"] = by_direction(np.concatenate([a.waveform_n for a in avgs]),
                                            np.concatenate(fit.residuals_n))  # fmt: skip
@@ -518,20 +539,20 @@ def fit_files(
         )  # fmt: skip
         out["influence"] = {"checked": False, "runs": [], "depends": {},
                             "reason": "leave-one-out is not run for the face-mill fit"}  # fmt: skip
-    if fit.success and (validate or plot_dir):
+    if fit.success and fit.coefficients is not None and (validate or plot_dir):
         targets = avgs
         if validate:
             by = "the fitted runs' tool"
             targets, rej2, _, _ = _reduce_all(validate, overrides, dyno, rate_hz, tool_name, by,
                                               tolerance, progress, opts, mapper)  # fmt: skip
             out["rejected"] += [{"run": n, "reason": m} for n, m in rej2]
-        out.update(_validate(targets, model, tool_cfg, fit.coefficients, dyno, plot_dir))
+        add_validation(out, targets, tool_cfg, fit.coefficients, dyno, plot_dir)
     return out
 
 
 def auto_axes(
     paths: Sequence[str | Path],
-    overrides: Mapping[str, Any] | None = None,
+    overrides: Mapping[str, object] | None = None,
     rig_path: str | Path | None = None,
     rate_hz: float | None = None,
     tool: str | None = None,
@@ -563,42 +584,3 @@ def auto_axes(
     read = parse_axes(base[0])
     chosen, info = choose_axes([a for a in avgs if a.name not in limits], tool_obj, read)
     return chosen.text, info["line"]
-
-
-def _trust(out: dict[str, Any], avgs: list[RunAverage], tool: EndMill, fit: Any) -> None:
-    """Per-direction fit, per-run residuals, leave-one-out influence and each coefficient's
-    status into the result ``out`` (:mod:`analysis.identify.trust`)."""
-    Xr = [ENDMILL.mean_design(tool, ENDMILL.cut(tool, a.conditions)) for a in avgs]
-    y = np.stack([a.mean_n for a in avgs])
-    resid = y - np.stack([x @ fit.fit.values for x in Xr])
-    short = list(SHORT_NAMES)
-    out["by_direction"] = by_direction(y, resid)
-    out["run_residuals"] = per_run_residuals([a.name for a in avgs], y, resid)
-    infl = influence(Xr, list(y), short, fit.fit, [a.name for a in avgs])
-    out["influence"] = infl
-    edge_ok = fit.adequacy is None or fit.adequacy.edge_identified
-    status = statuses(short, ("Kte", "Kre", "Kae"), None if edge_ok else EDGE_REASON, infl)
-    if not infl["checked"]:
-        out["warnings"].append(f"leave-one-out influence unchecked: {infl['reason']}")
-    for k, (long, _) in SHORT_NAMES.items():
-        if long in out["statistics"]:
-            row = out["statistics"][long]
-            row["status"] = status[k]
-            row["identified"] = status[k] == "identified"
-    out["coefficient_status"] = status
-
-
-def _validate(targets: list[RunAverage], model: str, tool: Any, coefficients: Any,
-              dynamometer: Dynamometer, plot_dir: str | Path | None) -> dict[str, Any]:  # fmt: skip
-    """``validation`` (predicted against measured mean forces) and, with ``plot_dir``, ``plots``."""
-    cmp = compare_runs(targets, tool, coefficients, dynamometer)
-    out: dict[str, Any] = {
-        "validation": {"max_error_pct": cmp.max_error_pct, "rows": list(cmp.rows)}
-    }
-    if plot_dir:
-        pngs = plot_comparison(cmp, plot_dir, tool=tool, coef=coefficients,
-                               conditions=[a.conditions for a in targets])  # fmt: skip
-        if model == "facemill":
-            pngs += plot_waveforms(targets, tool, coefficients, plot_dir, dynamometer)
-        out["plots"] = [str(p) for p in pngs]
-    return out

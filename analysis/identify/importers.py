@@ -28,7 +28,7 @@ import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TypedDict, Unpack
 
 import numpy as np
 
@@ -36,7 +36,12 @@ from analysis.config import Dynamometer
 from analysis.errors import AnalysisError
 from analysis.identify._common import ForceRun, RunConditions
 from analysis.identify.axes import AxisMap, column_key, parse_axes
-from analysis.identify.conditions import merge_conditions, normalize, resolve_conditions
+from analysis.identify.conditions import (
+    Conditions,
+    merge_conditions,
+    normalize,
+    resolve_conditions,
+)
 from analysis.runs import (
     FORCE_UNIT_TO_N,
     ForceTable,
@@ -49,7 +54,7 @@ from analysis.runs.steady import NoAirError
 __all__ = ["Export", "ForceTable", "import_run", "load_export", "merge_conditions",
            "read_force_table"]  # fmt: skip
 
-Layers = Sequence[tuple[str, Mapping[str, Any]]]
+Layers = Sequence[tuple[str, Mapping[str, object]]]
 
 #: The zero of a record with no air and no other zero given.
 NO_AIR_ZEROED = "no air in the record: taken as zeroed (charge amplifier reset before the cut)"
@@ -67,7 +72,7 @@ class Export:
     source: Path
     #: the conditions as the header, table, pattern and given pairs stated them (merged, cutlab's
     #: keys): what a catalogue keeps beside the fitted form (feed_mm_min, teeth, mode)
-    stated: dict[str, Any] = field(default_factory=dict)
+    stated: Conditions = field(default_factory=dict)
 
 
 def _axes_for(t: ForceTable, axes: AxisMap | str | None, dyno: Dynamometer | None) -> AxisMap:
@@ -145,7 +150,7 @@ def _zero_source(force: np.ndarray, rate_hz: float, rpm: float) -> str:
 
 def load_export(
     path: str | Path,
-    conditions: RunConditions | Mapping[str, Any] | None = None,
+    conditions: RunConditions | Mapping[str, object] | None = None,
     dynamometer: Dynamometer | None = None,
     rate_hz: float | None = None,
     *,
@@ -173,7 +178,7 @@ def load_export(
         )
     m = _axes_for(t, axes, dynamometer)
     force = _forces(t, m)
-    stated: dict[str, Any] = {}
+    stated: Conditions = {}
     if isinstance(conditions, RunConditions):
         cond = conditions
     else:
@@ -201,12 +206,23 @@ def load_export(
     return Export(run, m.text, zero, dict(t.header), t.path, stated)
 
 
+class ExportOptions(TypedDict, total=False):
+    """The keyword options of :func:`load_export` that :func:`import_run` passes on."""
+
+    axes: AxisMap | str | None
+    layers: Layers
+    zero_file: str | Path | None
+    zeroed: bool
+    teeth_of: Callable[[str], int] | None
+    expected_tool: str | None
+
+
 def import_run(
     path: str | Path,
-    conditions: RunConditions | Mapping[str, Any] | None = None,
+    conditions: RunConditions | Mapping[str, object] | None = None,
     dynamometer: Dynamometer | None = None,
     rate_hz: float | None = None,
-    **options: Any,
+    **options: Unpack[ExportOptions],
 ) -> ForceRun:
     """The force run of :func:`load_export` (N, cutlab x, y, z)."""
     return load_export(path, conditions, dynamometer, rate_hz, **options).run

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 
@@ -25,7 +25,36 @@ from analysis.config import EndMill
 from analysis.errors import AnalysisError
 from analysis.identify._common import LinearFit, RunAverage, linear_fit
 
-__all__ = ["by_direction", "influence", "outside_limits", "per_run_residuals", "statuses"]
+__all__ = ["Influence", "InfluenceRun", "RunResidual", "by_direction", "influence",
+           "outside_limits", "per_run_residuals", "statuses"]  # fmt: skip
+
+
+class RunResidual(TypedDict):
+    """One run's mean-force residual per direction (N, % of its measured mean resultant)."""
+
+    run: str
+    residual_n: list[float]
+    residual_pct: list[float]
+
+
+class InfluenceRun(TypedDict):
+    """The fit without one run: each parameter's shift, value, score; the ones it moved."""
+
+    run: str
+    shift: dict[str, float]
+    without: dict[str, float]
+    score: dict[str, float]
+    moved: list[str]
+
+
+class Influence(TypedDict):
+    """:func:`influence`: whether checked (else ``reason``), per run, the runs each parameter
+    depends on."""
+
+    checked: bool
+    reason: str
+    runs: list[InfluenceRun]
+    depends: dict[str, list[str]]
 
 DIRECTIONS = ("x", "y", "z")
 #: A shift below this fraction of the coefficient (the fit without the run) is not named, however
@@ -46,10 +75,10 @@ def by_direction(y: np.ndarray, resid: np.ndarray) -> dict[str, dict[str, float]
 
 def per_run_residuals(
     names: Sequence[str], y: np.ndarray, resid: np.ndarray
-) -> list[dict[str, Any]]:
+) -> list[RunResidual]:
     """Each run's mean-force residual (measured - fitted) per direction in N and in % of the
     run's measured mean resultant (a direction's own mean can be near zero)."""
-    out = []
+    out: list[RunResidual] = []
     for n, yy, r in zip(names, y, resid):
         scale = max(float(np.linalg.norm(yy)), 1e-9)
         out.append({"run": n, "residual_n": [float(v) for v in r],
@@ -94,12 +123,12 @@ def outside_limits(
 def influence(
     Xr: Sequence[np.ndarray], yr: Sequence[np.ndarray], names: Sequence[str], fit: LinearFit,
     runs: Sequence[str],
-) -> dict[str, Any]:  # fmt: skip
+) -> Influence:  # fmt: skip
     """Leave-one-out: refit without each run (design ``Xr[i]`` (3, p), means ``yr[i]`` (3,));
     ``runs`` the runs' names, ``names`` the parameters'. Returns ``{"checked": bool, "reason",
     "runs": [{run, shift {name: value}, moved [names]}], "depends": {name: [runs]}}``; unchecked
     when a run cannot be left out (the others do not determine the fit with a residual)."""
-    rows: list[dict[str, Any]] = []
+    rows: list[InfluenceRun] = []
     depends: dict[str, list[str]] = {n: [] for n in names}
     for i, run in enumerate(runs):
         keep = [k for k in range(len(runs)) if k != i]
@@ -139,7 +168,7 @@ def _t(q: float, dof: int) -> float:
 
 
 def statuses(names: Sequence[str], edge: Sequence[str], edge_reason: str | None,
-             infl: dict[str, Any]) -> dict[str, str]:  # fmt: skip
+             infl: Influence) -> dict[str, str]:  # fmt: skip
     """Each coefficient's status: 'identified', or 'not identified: <reason>' (the edge terms
     when the adequacy check does not support them; any coefficient that one run moves by more
     than its interval)."""

@@ -16,17 +16,31 @@ averaged waveforms measured vs predicted.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
+import numpy.typing as npt
 
-from analysis.config import EndMill, EndMillCoefficients, FaceMill, FaceMillCoefficients
+from analysis.config import (
+    Dynamometer,
+    EndMill,
+    EndMillCoefficients,
+    FaceMill,
+    FaceMillCoefficients,
+)
 from analysis.errors import AnalysisError
 from analysis.forces.models import FACEMILL, model_for
 from analysis.identify._common import RunAverage, RunConditions
 
-__all__ = ["Comparison", "compare_runs", "plot_comparison", "plot_waveforms", "predicted_mean"]
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from analysis.modal import DynamometerFilter
+
+__all__ = ["Comparison", "ComparisonRow", "compare_runs", "plot_comparison", "plot_waveforms",
+           "predicted_mean"]  # fmt: skip
 
 
 def predicted_mean(
@@ -42,6 +56,22 @@ def predicted_mean(
     return model.mean_design(tool, model.cut(tool, c)) @ model.coefficient_vector(coef)
 
 
+class ComparisonRow(TypedDict):
+    """One run of a :class:`Comparison` (N, %)."""
+
+    run: str
+    fz_mm: float
+    depth_mm: float
+    measured_mean_n: npt.NDArray[np.float64]
+    predicted_mean_n: npt.NDArray[np.float64]
+    measured_resultant_n: float
+    predicted_resultant_n: float
+    error_pct: npt.NDArray[np.float64]
+    resultant_error_pct: float
+    measured_peak_n: float
+    predicted_peak_n: float
+
+
 @dataclass(frozen=True)
 class Comparison:
     """Predicted vs measured per run. ``rows``: one dict per run with name, fz_mm, depth_mm,
@@ -49,15 +79,15 @@ class Comparison:
     measured mean resultant, ``resultant_error_pct``, peak resultant measured/predicted (N).
     ``max_error_pct``: largest per-axis error over the runs."""
 
-    rows: tuple[dict, ...]
+    rows: tuple[ComparisonRow, ...]
     max_error_pct: float
 
-    def to_frame(self):
+    def to_frame(self) -> pd.DataFrame:
         import pandas as pd
 
         flat = []
         for r in self.rows:
-            d = {k: v for k, v in r.items() if not isinstance(v, np.ndarray)}
+            d: dict[str, object] = {k: v for k, v in r.items() if not isinstance(v, np.ndarray)}
             for i, ax in enumerate("xyz"):
                 d[f"measured_{ax}_n"] = float(r["measured_mean_n"][i])
                 d[f"predicted_{ax}_n"] = float(r["predicted_mean_n"][i])
@@ -70,10 +100,10 @@ def compare_runs(
     averages: Sequence[RunAverage],
     tool: FaceMill | EndMill,
     coef: FaceMillCoefficients | EndMillCoefficients,
-    dynamometer=None,
+    dynamometer: Dynamometer | DynamometerFilter | None = None,
 ) -> Comparison:
     """Predict each run and compare with its measurement (see module docstring)."""
-    rows = []
+    rows: list[ComparisonRow] = []
     for a in averages:
         pred = predicted_mean(a.conditions, tool, coef)
         meas = a.mean_n
@@ -81,7 +111,7 @@ def compare_runs(
         err = (pred - meas) / scale * 100
         peak_meas = float(np.linalg.norm(a.waveform_n, axis=1).max())
         peak_pred = float("nan")
-        if FACEMILL.describes(tool):
+        if FACEMILL.describes(tool) and isinstance(coef, FaceMillCoefficients):
             from analysis.identify.facemill import predicted_waveform
 
             # The peak of the resultant does not depend on the run's unknown phase.
@@ -113,6 +143,15 @@ _SWEEP_KEYS = (("fz_mm", "feed per tooth, mm"), ("depth_mm", "axial depth of cut
                ("width_mm", "width of cut, mm"))  # fmt: skip
 
 
+def _swept(base: RunConditions, key: str, value: float) -> RunConditions:
+    """``base`` with the swept condition ``key`` (one of _SWEEP_KEYS) at ``value``."""
+    if key == "fz_mm":
+        return replace(base, fz_mm=value)
+    if key == "depth_mm":
+        return replace(base, depth_mm=value)
+    return replace(base, width_mm=value)
+
+
 def plot_comparison(
     cmp: Comparison, out_dir: str | Path, stem: str = "validation",
     tool: FaceMill | EndMill | None = None,
@@ -124,8 +163,6 @@ def plot_comparison(
     ``tool``, ``coef`` and the runs' ``conditions``, the model's line through them; below, each
     run's residual (measured - predicted) per direction. The title quotes the table's figure
     (the largest resultant error, % of the measured resultant). Returns the files written."""
-    import dataclasses
-
     import matplotlib
 
     matplotlib.use("Agg")
@@ -148,7 +185,7 @@ def plot_comparison(
     def x_of(i: int) -> float:
         return vals[i][key]
 
-    def group_of(i: int) -> tuple:
+    def group_of(i: int) -> tuple[float, ...]:
         return tuple(round(vals[i][k], 6) for k in others)
 
     groups = sorted({group_of(i) for i in range(len(rows))})
@@ -163,8 +200,8 @@ def plot_comparison(
         if tool is not None and coef is not None and cond is not None and len(idx):
             grid = np.linspace(0, xs.max() * 1.1, 40)[1:]
             base = cond[idx[0]]
-            line = np.array([predicted_mean(dataclasses.replace(base, **{key: float(x)}), tool,
-                                            coef) for x in grid])  # fmt: skip
+            line = np.array([predicted_mean(_swept(base, key, float(x)), tool, coef)
+                             for x in grid])  # fmt: skip
         for a in range(3):
             ax = axes[0, a]
             ax.plot(xs, [rows[i]["measured_mean_n"][a] for i in idx], "o", color=col,
@@ -199,7 +236,8 @@ def plot_comparison(
 
 def plot_waveforms(
     averages: Sequence[RunAverage], tool: FaceMill, coef: FaceMillCoefficients,
-    out_dir: str | Path, dynamometer=None, stem: str = "waveforms", max_runs: int = 6,
+    out_dir: str | Path, dynamometer: Dynamometer | DynamometerFilter | None = None,
+    stem: str = "waveforms", max_runs: int = 6,
 ) -> list[Path]:  # fmt: skip
     """PNG: each run's revolution-averaged X, Y, Z force, measured vs predicted (face mills; the
     prediction goes through the dynamometer's modes and is aligned to the run's phase)."""

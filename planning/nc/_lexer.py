@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
+from typing import TypedDict
 
 from planning.nc.errors import NCError
 
@@ -69,7 +70,7 @@ def tokenize(raw: str) -> list[Token]:
     """All tokens of one line, in order; ``"".join(t.text for t in tokens) == raw``."""
     out = []
     for m in _TOKEN_RE.finditer(raw):
-        kind = m.lastgroup
+        kind = m.lastgroup or ""  # every alternative of the pattern is a named group
         if kind == "word":
             out.append(Token("word", m.group(), m.start() + 1, m.group(4).upper(), m.group(5)))
         else:
@@ -146,12 +147,18 @@ def word_tokens(raw: str) -> list[Token]:
     return [t for t in tokenize(raw) if t.kind == "word"]
 
 
+class _Where(TypedDict):
+    file: str
+    line: int
+    column: int
+
+
 def line_error(raw: str, file: str, line: int) -> NCError:
     """The NCError describing why ``raw`` is not a valid block (first problem found)."""
     seen = ""  # "" nothing yet, "code" words or "/", "%" the tape mark
     prev = None
     for t in tokenize(raw):
-        where = {"file": file, "line": line, "column": t.column}
+        where = _Where(file=file, line=line, column=t.column)
         if t.kind == "bad":
             ch = t.text[0]
             if ch == "(":
@@ -166,7 +173,7 @@ def line_error(raw: str, file: str, line: int) -> NCError:
                 return NCError(
                     f"number has more than {MAX_INT_DIGITS} digits before the decimal point",
                     word=prev.text.strip() + ch,
-                    **{**where, "column": prev.column},
+                    **_Where(file=file, line=line, column=prev.column),
                 )
             if ch in "0123456789.+-":
                 return NCError("number without an address letter", word=ch, **where)

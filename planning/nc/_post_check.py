@@ -6,8 +6,10 @@ in its dialect, must move like the source segment by segment (end points within
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
+import numpy.typing as npt
 
 from planning.nc import dialects
 from planning.nc.errors import NCError
@@ -16,20 +18,27 @@ from planning.nc.motion import Motion
 from planning.nc.program import Program
 from planning.nc.run import interpret
 
+if TYPE_CHECKING:
+    from analysis.config import MachineConfig
+    from planning.nc.errors import NCWarning
+
 MOTION_TOL_MM = 1e-6  # the written program moves like the source within this
 
 
-def _reader(dialect: str, machine, program: Program, **kw) -> Motion:
-    return interpret(program, machine, strict=True, dialect=dialect, file=program.file, **kw)
+def _reader(
+    dialect: str, machine: MachineConfig | None, program: Program, cutter_comp: str = "warn"
+) -> Motion:
+    return interpret(program, machine, strict=True, dialect=dialect, file=program.file,
+                     cutter_comp=cutter_comp)  # fmt: skip
 
 
 def _verify(
-    source_prog: Program, out: Program, dialect: str, source: str, machine, *, keeps_tools: bool
+    source_prog: Program, out: Program, dialect: str, source: str, machine: MachineConfig | None,
+    *, keeps_tools: bool,
 ) -> None:
     """The written program must move like the source (internal check)."""
     d = dialects.get(dialect)
-    comp = {} if d.cutter_comp else {"cutter_comp": "refuse"}
-    before = _reader(source, machine, source_prog, **comp)
+    before = _reader(source, machine, source_prog, "warn" if d.cutter_comp else "refuse")
     if d.post.full_words or not keeps_tools:
         after = _reader(dialect, machine, out)
     else:  # M6 kept for a tool changer: GRBL 1.1 itself would refuse it
@@ -59,7 +68,7 @@ def _is_m6(word: str) -> bool:
         return False
 
 
-def _warnings(program: Program, machine, dialect: str):
+def _warnings(program: Program, machine: MachineConfig | None, dialect: str) -> list[NCWarning]:
     it = Interpreter(machine, strict=True, file=program.file, dialect=dialect)
     it.skip(program.lines)
     return it.warnings
@@ -85,10 +94,10 @@ def _first_difference(a: Motion, b: Motion) -> int | None:
     return None if len(a) == len(b) else n
 
 
-def _close(x, y, tol: float):
+def _close(x: npt.ArrayLike, y: npt.ArrayLike, tol: float) -> npt.NDArray[np.bool_]:
     return np.isclose(x, y, rtol=0.0, atol=tol, equal_nan=True)
 
 
-def _finite_max(x) -> float:
+def _finite_max(x: npt.NDArray[np.float64]) -> float:
     f = x[np.isfinite(x)]
     return float(np.abs(f).max()) if len(f) else 0.0

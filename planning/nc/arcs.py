@@ -13,6 +13,7 @@ everything taking a :class:`~planning.nc.Motion` is vectorised over segments.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -171,7 +172,10 @@ def arc_radius_mm(motion: Motion) -> np.ndarray:
     return np.where(motion.is_arc, r, np.nan)
 
 
-def _angles(a0, b0, a1, b1, ca, cb, kind) -> tuple[np.ndarray, np.ndarray]:
+def _angles(
+    a0: np.ndarray, b0: np.ndarray, a1: np.ndarray, b1: np.ndarray, ca: np.ndarray,
+    cb: np.ndarray, kind: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """Start angle and unsigned sweep in (0, 2*pi] of arcs given by in-plane coordinates."""
     with np.errstate(invalid="ignore"):
         t0 = np.arctan2(b0 - cb, a0 - ca)
@@ -214,7 +218,9 @@ class ArcGeometry:
         r = np.hypot(a0 - ca, b0 - cb)
         return ArcGeometry(rows, a0, b0, ca, cb, n0, n1, idx[rows], r, t0, sweep, kind == ARC_CCW)
 
-    def quadrant_points(self, k: np.ndarray | None = None, quadrants=range(4)):
+    def quadrant_points(
+        self, k: np.ndarray | None = None, quadrants: Iterable[int] = range(4)
+    ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
         """For the arcs ``k`` (indices into ``rows``; all if None) the points at 0, 90, 180 and
         270 degrees (``quadrants`` 0..3) in their plane that lie inside their sweep: ``(j, p)``
         per quadrant, ``j`` indices into ``rows`` and ``p`` (len(j), 3) the points (the normal
@@ -254,7 +260,8 @@ def arc_sweep_rad(motion: Motion) -> np.ndarray:
     """Unsigned swept angle (n,) of each arc in (0, 2*pi], radians; 0 for non-arcs."""
     a0, b0, a1, b1, ca, cb, *_ = _plane_coords(motion)
     _, sweep = _angles(a0, b0, a1, b1, ca, cb, motion.kind)
-    return np.where(motion.is_arc, sweep, 0.0)
+    out: np.ndarray = np.where(motion.is_arc, sweep, 0.0)
+    return out
 
 
 def segment_length_mm(motion: Motion, arcs: ArcGeometry | None = None) -> np.ndarray:
@@ -262,7 +269,8 @@ def segment_length_mm(motion: Motion, arcs: ArcGeometry | None = None) -> np.nda
     ``ArcGeometry.of(motion)`` when the caller has it."""
     d = motion.end - motion.start
     x, y, z = d[:, 0], d[:, 1], d[:, 2]
-    length = np.sqrt((x * x + y * y) + z * z)  # np.linalg.norm's sum, ~5x faster on (n, 3)
+    # np.linalg.norm's sum, ~5x faster on (n, 3)
+    length: np.ndarray = np.sqrt((x * x + y * y) + z * z)
     length[motion.kind == DWELL] = 0.0
     arcs = ArcGeometry.of(motion) if arcs is None else arcs
     if arcs is not None:
@@ -273,7 +281,8 @@ def segment_length_mm(motion: Motion, arcs: ArcGeometry | None = None) -> np.nda
 def segment_travel(motion: Motion) -> np.ndarray:
     """Combined travel (n,) of each segment: hypot(path length mm, rotary travel deg)."""
     rot = np.linalg.norm(motion.rotary_end_deg - motion.rotary_start_deg, axis=1)
-    return np.hypot(segment_length_mm(motion), rot)
+    out: np.ndarray = np.hypot(segment_length_mm(motion), rot)
+    return out
 
 
 def segment_boxes(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
@@ -286,6 +295,7 @@ def segment_boxes(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     hi = np.maximum(motion.start, motion.end)
     arcs = ArcGeometry.of(motion)
     for j, p in arcs.quadrant_points() if arcs is not None else ():
+        assert arcs is not None  # (no points without arcs)
         rows = arcs.rows[j]
         lo[rows] = np.minimum(lo[rows], p)
         hi[rows] = np.maximum(hi[rows], p)

@@ -12,7 +12,7 @@ import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, NotRequired, TextIO, TypedDict
 
 from planning.nc.interpreter import Interpreter
 from planning.nc.motion import Motion
@@ -20,6 +20,8 @@ from planning.nc.run import file_line_lists, file_lines, file_mentions_rotary
 from planning.nc.stats import MotionStats, StreamStats, axis_limit_problems
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from analysis.config import MachineConfig
     from planning.nc.dialect import DialectProblem
 
@@ -56,6 +58,25 @@ def _reporting(
 _AXES = "XYZABC"
 
 
+class ProgramSummary(TypedDict):
+    """:meth:`CheckedProgram.summary`: `cutlab nc check`'s result (mm, s, mm/min, deg)."""
+
+    file: str
+    blocks: int
+    motions: int
+    cutting_length_mm: float
+    rapid_length_mm: float
+    time_s: float
+    time_with_accel_s: float | None
+    feed_time_s: float
+    rapid_time_s: float
+    dwell_s: float
+    rapid_mm_min: float
+    bbox: dict[str, list[float]]
+    warnings: list[str]
+    rotary_range_deg: NotRequired[dict[str, list[float]]]
+
+
 @dataclass(frozen=True)
 class CheckedProgram:
     """An interpreted program file: its interpreter (warnings, blocks seen), its statistics and
@@ -74,13 +95,13 @@ class CheckedProgram:
         """The interpreter's warnings (lenient mode, G28 without a machine, ...)."""
         return [str(w) for w in self.interpreter.warnings]
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> ProgramSummary:
         """``cutlab nc check``'s result: blocks, motions, lengths (mm), times (s), bbox (mm),
         the rotary ranges (deg) of a program that turns an axis, and every warning (the
         interpreter's, then the machine's travel limits)."""
         st = self.stats
         limits = [f"{self.file}: {p}" for p in self.limits]
-        out: dict[str, Any] = {
+        out: ProgramSummary = {
             "file": self.file,
             "blocks": self.interpreter.blocks_seen,
             "motions": st.segments,
@@ -101,11 +122,14 @@ class CheckedProgram:
             }
         return out
 
-    def motion_table(self) -> Any:
+    def motion_table(self) -> pd.DataFrame:
         """One row per segment (a pandas DataFrame; needs the kept motion); a 3-axis program has
         no a0..c1 columns."""
-        df = self.motion.to_dataframe()
-        if not (self.motion.rotary_start_deg.any() or self.motion.rotary_end_deg.any()):
+        motion = self.motion
+        if motion is None:
+            raise ValueError(f"{self.file}: no motion kept (check_program(keep_motion=True))")
+        df = motion.to_dataframe()
+        if not (motion.rotary_start_deg.any() or motion.rotary_end_deg.any()):
             df = df.drop(columns=_ROTARY_COLUMNS)
         return df
 
@@ -126,7 +150,8 @@ def check_program(
     or a table). NC errors raise :class:`~planning.nc.errors.NCError`."""
     cfg = _machine(machine)
     it = Interpreter(cfg, strict=strict, file=path, dialect=_dialect(cfg, dialect))
-    acc, first_limit, rotary, kept = StreamStats(cfg), {}, False, []
+    acc, rotary, kept = StreamStats(cfg), False, []
+    first_limit: dict[str, str] = {}
     for part in it.iter_chunks(progress_lines(path, progress)):
         acc.add(part)
         rotary |= bool(part.has_rotary_travel.any())
@@ -141,7 +166,7 @@ def check_program(
 
 def write_motions_csv(
     path: str,
-    out: str | Path | IO[str],
+    out: str | Path | TextIO,
     machine: str | None = None,
     *,
     strict: bool = True,

@@ -17,16 +17,16 @@ program with any ``error`` problem before the first byte is sent.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 from planning.nc import _lexer, dialects
+from planning.nc._grbl_steps import GrblResult
 from planning.nc.grbl import (
     GRBL_ERRORS,
     GRBL_LINE_CHARS,
     GRBL_RX_BUFFER_SIZE,
     GrblParser,
-    GrblResult,
     grbl_filter,
     grbl_send_text,
     grbl_words,
@@ -259,7 +259,10 @@ def _check_iso(
     return out
 
 
-def _check_word(t: _lexer.Token, gs, rules: dialects.LineRules, d: dialects.Dialect, add) -> None:
+def _check_word(
+    t: _lexer.Token, gs: list[_lexer.Token], rules: dialects.LineRules, d: dialects.Dialect,
+    add: Callable[[int, str, dialects.Answer], None],
+) -> None:  # fmt: skip
     """One word's answers (G and M codes of other controls, O and N numbers, G4 words)."""
     w = f"{t.letter}{_num_name(t.number)}"
     text = t.text.strip()
@@ -268,7 +271,7 @@ def _check_word(t: _lexer.Token, gs, rules: dialects.LineRules, d: dialects.Dial
             add(t.column, w, rules.refused_g[w])
     elif t.letter == "M":
         m = _int_or_none(t.number)
-        if m in rules.refused_m:
+        if m is not None and m in rules.refused_m:
             add(t.column, w, rules.refused_m[m])
     elif t.letter == "O":
         v = _int_or_none(t.number)
@@ -287,10 +290,10 @@ def _check_word(t: _lexer.Token, gs, rules: dialects.LineRules, d: dialects.Dial
     elif t.letter == "X" and rules.dwell_x is not None and _is_g4(gs):
         add(t.column, text, rules.dwell_x)
     if t.letter == "P" and rules.dwell_p_warn_s is not None and _is_g4(gs):
-        v = float(t.number)
-        if v >= rules.dwell_p_warn_s:
+        secs = float(t.number)
+        if secs >= rules.dwell_p_warn_s:
             add(t.column, text, dialects.Answer(
-                "dwells", f"{v:g} s (P is seconds on {d.title}: milliseconds from a Fanuc "
+                "dwells", f"{secs:g} s (P is seconds on {d.title}: milliseconds from a Fanuc "
                 "program?)", "warning"))  # fmt: skip
 
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Unpack
 
 import numpy as np
 
@@ -37,8 +37,8 @@ from planning.nc.arcs import PLANE_AXES, arc_sweep_rad
 from planning.nc.errors import NCError
 from planning.nc.interpreter import Interpreter
 from planning.nc.motion import ARC_CCW, ARC_CW, LINE, Motion
-from planning.nc.program import NumberStyle, Program
-from planning.nc.run import interpret
+from planning.nc.program import NumberStyle, Program, Value
+from planning.nc.run import InterpreterOptions, interpret
 from planning.nc.state import ModalState
 
 if TYPE_CHECKING:
@@ -86,7 +86,7 @@ def split_moves(
     *,
     strict: bool = True,
     restore_feed: bool = True,
-    **options,
+    **options: Unpack[InterpreterOptions],
 ) -> Program:
     """A new program with the feed plan applied (see the module docstring).
 
@@ -128,7 +128,7 @@ def split_moves(
         _style=program.style,
     )
     it = Interpreter(machine, strict=strict, file=program.file, **options)
-    edits: dict[int, list[str | dict]] = {}
+    edits: dict[int, list[str | dict[str, Value]]] = {}
     pos = 0
     sweeps = arc_sweep_rad(motion)
     for b in sorted(by_block):
@@ -155,7 +155,9 @@ def split_moves(
     return out
 
 
-def _next_uses_modal_feed(program: Program, motion, seg: int, edited: Mapping[int, int]) -> bool:
+def _next_uses_modal_feed(
+    program: Program, motion: Motion, seg: int, edited: Mapping[int, int]
+) -> bool:
     """Whether the next feed move after ``seg`` runs at the modal feed left by ``seg``'s block."""
     later = np.nonzero(motion.is_feed[seg + 1 :])[0]
     if later.size == 0:
@@ -169,11 +171,11 @@ def _pieces(
     b: int,
     st: ModalState,
     it: Interpreter,
-    motion,
+    motion: Motion,
     seg: int,
     sweep: float,
     pieces: Sequence[tuple[float, float]],
-) -> list[str | dict]:
+) -> list[str | dict[str, Value]]:
     """Block texts / word mappings replacing block ``b`` (state ``st`` in force before it)."""
     raw = prog.lines[b]
     toks = prog.words(b)
@@ -190,12 +192,12 @@ def _pieces(
     # tolerance whatever the source's own precision
     style = prog.style
     fmt = NumberStyle(max(style.decimals, 5 if st.inch else 4), style.trailing_dot).format
-    words_list: list[dict] = []
+    words_list: list[dict[str, Value]] = []
     prev = np.array(p0, dtype=float)
     # what the controller will see as the start of each piece: the rounded previous end
     original = {t.letter: t.number for t in prog.words(b)}
     for (t, feed), q in zip(pieces, points):
-        words: dict[str, float | str] = {}
+        words: dict[str, Value] = {}
         written = prev.copy()
         for a in moving:
             v = (q[a] - off[a]) / scale if st.absolute else (q[a] - prev[a]) / scale

@@ -46,6 +46,7 @@ line before them, M0/M1/M2/M30 on the line after.
 from __future__ import annotations
 
 import textwrap
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from planning.nc import _lexer, dialects
@@ -58,6 +59,7 @@ from planning.nc.errors import NCError
 from planning.nc.interpreter import Interpreter
 from planning.nc.motion import ARC_CCW, ARC_CW, DWELL, LINE, RAPID, Motion
 from planning.nc.program import Program, format_number
+from planning.nc.state import ModalState
 
 if TYPE_CHECKING:
     from analysis.config import MachineConfig
@@ -168,7 +170,8 @@ class _Rewriter:
     after each block, and the segments of the blocks that are expanded)."""
 
     def __init__(
-        self, program: Program, dialect: str, source: str, machine, tool_changer: bool
+        self, program: Program, dialect: str, source: str, machine: MachineConfig | None,
+        tool_changer: bool,
     ) -> None:
         self.program = program
         self.dialect = dialect
@@ -211,7 +214,7 @@ class _Rewriter:
             out = [piece for line in out for piece in self._fit(line, self.limit)]
         return out
 
-    def _needs_segments(self, gs: set[int], st0) -> bool:
+    def _needs_segments(self, gs: set[int], st0: ModalState) -> bool:
         if 290 in gs and not self.post.g29:
             return True
         if not self.post.absolute_arc_centres and (st0.arc_absolute or 901 in gs):
@@ -224,7 +227,8 @@ class _Rewriter:
             line=i + 1, word=raw.strip()[:40],
         )  # fmt: skip
 
-    def _block(self, i, raw, toks, gs, st0, st1, seg: Motion | None) -> list[str]:
+    def _block(self, i: int, raw: str, toks: list[_lexer.Token], gs: set[int], st0: ModalState,
+               st1: ModalState, seg: Motion | None) -> list[str]:  # fmt: skip
         rules = self.post
         if st0.ended or st0.tape_marks >= 2:  # after the end: the controller ignores it too
             return [raw] if rules.keeps_tape else []
@@ -288,7 +292,9 @@ class _Rewriter:
             elif t.letter == "X" or src_ms != dst_ms:
                 b.set(k, "P" + _dwell_p(s, dst_ms))
 
-    def _limited_words(self, i, raw, b: _Block, gs, st0, st1, seg, pre, post) -> None:
+    def _limited_words(self, i: int, raw: str, b: _Block, gs: set[int], st0: ModalState,
+                       st1: ModalState, seg: Motion | None, pre: list[str],
+                       post: list[str]) -> None:  # fmt: skip
         """GRBL 1.1's words: no G43/H/D/G64, M6 -> an M0 pause (unless a tool changer), no
         A/B/C."""
         b.drop(lambda t: t.letter == "G" and gkey(t.number) == 430)
@@ -312,7 +318,7 @@ class _Rewriter:
             if t.letter in "ABC":
                 raise self._fail(i, raw, f"GRBL 1.1 has 3 axes: no {t.letter} word")
 
-    def _arc_centres(self, b: _Block, gs, st1, seg: Motion | None) -> None:
+    def _arc_centres(self, b: _Block, gs: set[int], st1: ModalState, seg: Motion | None) -> None:
         """GRBL and Fanuc have no G90.1 (absolute arc centres): GRBL gets G91.1 instead, Fanuc
         neither (its centres are always relative); the centres of arcs under G90.1 are written
         relative to the arc's start."""
@@ -335,7 +341,8 @@ class _Rewriter:
             b.put(letter, letter + _num(value, st1.inch, self.dot))
 
     # ------------------------------------------------------------------ expansion
-    def _expand(self, i, raw, b: _Block, st0, st1, seg: Motion | None) -> list[str]:
+    def _expand(self, i: int, raw: str, b: _Block, st0: ModalState, st1: ModalState,
+                seg: Motion | None) -> list[str]:  # fmt: skip
         """The block's own moves (canned-cycle holes, G29) as G0 / G1 / G4 lines after a line
         with what else the block says; stops and ends after them."""
         n_word = b.take(lambda t: t.letter == "N")
@@ -354,7 +361,8 @@ class _Rewriter:
             lines.append(" ".join(t.text for t in stops))
         return lines
 
-    def _moves(self, i, raw, seg: Motion | None, st0, st1) -> list[str]:
+    def _moves(self, i: int, raw: str, seg: Motion | None, st0: ModalState,
+               st1: ModalState) -> list[str]:  # fmt: skip
         if seg is None or not len(seg):
             return []
         inch = st1.inch
@@ -465,12 +473,12 @@ class _Block:
             _lexer.Token("word", text, 0, text[0], text[1:]),
         ]
 
-    def take(self, pred) -> list[_lexer.Token]:
+    def take(self, pred: Callable[[_lexer.Token], bool]) -> list[_lexer.Token]:
         taken = [t for _, t in self.words() if pred(t)]
         self.drop(pred)
         return taken
 
-    def drop(self, pred) -> None:
+    def drop(self, pred: Callable[[_lexer.Token], bool]) -> None:
         toks = self.toks
         k = 0
         while k < len(toks):

@@ -32,6 +32,8 @@ from planning.nc.errors import NCError
 
 INTEGER_LETTERS = frozenset("GMNOTDHLSP")  # written without a decimal point when integral
 Value = float | int | str
+#: A word mapping's value: a list or tuple repeats the letter (``{"G": [17, 90]}``)
+BlockValue = Value | list[Value] | tuple[Value, ...]
 
 
 @dataclass(frozen=True)
@@ -124,7 +126,7 @@ class Program:
     @classmethod
     def from_blocks(
         cls,
-        blocks: Iterable[str | Mapping[str, Value]],
+        blocks: Iterable[str | Mapping[str, BlockValue]],
         file: str = "<program>",
         style: NumberStyle | None = None,
     ) -> Program:
@@ -229,7 +231,7 @@ class Program:
                 self.replace_word(block, t.letter + t.number, None)
                 return
 
-    def format_block(self, words: Mapping[str, Value], like: int | None = None) -> str:
+    def format_block(self, words: Mapping[str, BlockValue], like: int | None = None) -> str:
         """Text of a new block from ``{letter: value}`` (in order; list values repeat a letter,
         e.g. ``{"G": [17, 90]}``), styled like block ``like``: its separator, indentation,
         block delete mark and N word (kept as written unless ``words`` has an N)."""

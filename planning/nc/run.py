@@ -7,37 +7,56 @@ from __future__ import annotations
 import itertools
 import os
 import re
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import IO, TYPE_CHECKING, TypedDict, Unpack
 
 from planning.nc import _lexer
 from planning.nc.errors import NCError
 from planning.nc.interpreter import CHUNK_BLOCKS, Interpreter
 from planning.nc.motion import Motion
+from planning.nc.program import Program
 from planning.nc.state import ModalState
 
 if TYPE_CHECKING:
     from analysis.config import MachineConfig
-    from planning.nc.program import Program
 
 
-def _lines_of(source: str | os.PathLike | Program | Iterable[str]) -> Iterable[str]:
+class InterpreterOptions(TypedDict, total=False):
+    """The :class:`~planning.nc.interpreter.Interpreter` options :func:`interpret` and the others
+    pass on (machine, strict and file aside)."""
+
+    dialect: str | None
+    block_delete: bool
+    arc_tolerance_mm: float | None
+    work_offsets_mm: Mapping[int | float, Sequence[float]] | None
+    peck_clearance_mm: float | None
+    reference_mm: Sequence[float] | None
+    second_reference_mm: Sequence[float] | None
+    state: ModalState | None
+    cutter_comp: str
+    probing: str
+    fast: bool
+
+
+def _lines_of(source: str | os.PathLike[str] | Program | Iterable[str]) -> Iterable[str]:
     if isinstance(source, os.PathLike):
         return file_lines(source)
     if isinstance(source, str):
         return _lexer.split_lines(source)
-    lines = getattr(source, "lines", None)
+    if isinstance(source, Program):
+        return source.lines
+    lines: Iterable[str] | None = getattr(source, "lines", None)  # a program-like object's
     return lines if lines is not None else source
 
 
 def interpret(
-    source: str | os.PathLike | Program | Iterable[str],
+    source: str | os.PathLike[str] | Program | Iterable[str],
     machine: MachineConfig | None = None,
     *,
     strict: bool = True,
     file: str | None = None,
-    **options,
+    **options: Unpack[InterpreterOptions],
 ) -> Motion:
     """Interpret a whole program to Motion: program text (a ``str`` is text, not a file name), a
     ``pathlib.Path`` (streamed), a :class:`~planning.nc.Program`, or an iterable of lines.
@@ -52,14 +71,14 @@ def interpret(
 
 
 def iter_motion_chunks(
-    source: str | os.PathLike | Program | Iterable[str],
+    source: str | os.PathLike[str] | Program | Iterable[str],
     machine: MachineConfig | None = None,
     *,
     strict: bool = True,
     file: str | None = None,
     chunk_blocks: int = CHUNK_BLOCKS,
     interpreter: Interpreter | None = None,
-    **options,
+    **options: Unpack[InterpreterOptions],
 ) -> Iterator[Motion]:
     """Interpret a program as :func:`interpret` does, streaming: a generator of Motion chunks
     (one per ``chunk_blocks`` blocks, empty ones left out) whose concatenation is
@@ -89,7 +108,9 @@ MAX_LINE_CHARS = 65_536
 READ_BYTES = 1 << 20
 
 
-def file_lines(path: str | Path, *, max_line_chars: int = MAX_LINE_CHARS) -> Iterator[str]:
+def file_lines(
+    path: str | os.PathLike[str], *, max_line_chars: int = MAX_LINE_CHARS
+) -> Iterator[str]:
     """Lines of a program file, read lazily in bounded binary chunks (LF, CR LF or CR line ends;
     a UTF-8 BOM is dropped). LF-ended lines keep their ``"\n"``; memory stays bounded by
     :data:`READ_BYTES` plus one line.
@@ -102,7 +123,9 @@ def file_lines(path: str | Path, *, max_line_chars: int = MAX_LINE_CHARS) -> Ite
     return itertools.chain.from_iterable(file_line_lists(path, max_line_chars))
 
 
-def file_line_lists(path: str | Path, max_line_chars: int = MAX_LINE_CHARS) -> Iterator[list[str]]:
+def file_line_lists(
+    path: str | os.PathLike[str], max_line_chars: int = MAX_LINE_CHARS
+) -> Iterator[list[str]]:
     """:func:`file_lines` a list of lines (one read) at a time; an error comes after the lines
     before it, as with :func:`file_lines`."""
     name = str(path)
@@ -126,7 +149,7 @@ def _too_long(name: str, line: int, limit: int) -> NCError:
 _OTHER_BREAKS = ("\x0b", "\x0c", "\x1c", "\x1d", "\x1e")
 
 
-def _chunked_lines(fh, name: str, limit: int) -> Iterator[list[str]]:
+def _chunked_lines(fh: IO[bytes], name: str, limit: int) -> Iterator[list[str]]:
     carry = b""
     n = 0  # lines yielded so far
     first = True
@@ -191,7 +214,8 @@ def _chunked_lines(fh, name: str, limit: int) -> Iterator[list[str]]:
 
 
 def interpret_file(
-    path: str | Path, machine: MachineConfig | None = None, *, strict: bool = True, **options
+    path: str | Path, machine: MachineConfig | None = None, *, strict: bool = True,
+    **options: Unpack[InterpreterOptions],
 ) -> Motion:
     """Interpret a program file, streaming it line by line (memory: the segment arrays only)."""
     return interpret(Path(path), machine, strict=strict, file=str(path), **options)
@@ -204,7 +228,7 @@ def state_at_block(
     *,
     strict: bool = True,
     file: str | None = None,
-    **options,
+    **options: Unpack[InterpreterOptions],
 ) -> ModalState:
     """The modal state in force just before block ``block`` (0-based) executes.
 

@@ -55,7 +55,7 @@ class MotionStats:
     rotary_min_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
     rotary_max_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, object]:
         return asdict(self)
 
 
@@ -171,8 +171,9 @@ class StreamStats:
         self._tfeed, self._trap, self._tdwell = ExactSum(), ExactSum(), ExactSum()
         nan = np.full(3, np.nan)
         self._lo, self._hi, self._clo, self._chi = nan, nan, nan, nan
-        self._rlo = self._rhi = None
-        self._accel = None
+        self._rlo: np.ndarray | None = None
+        self._rhi: np.ndarray | None = None
+        self._accel: _AccelWindow | None = None
         if machine is not None and machine.accel_mm_s2 is not None:
             self._accel = _AccelWindow(machine, self.rapid)
 
@@ -215,15 +216,15 @@ class StreamStats:
             clo, chi = lo, hi
         elif feed.any():
             clo, chi = _box(motion.start[feed], motion.end[feed])
-        if arcs is not None:
+        if arcs is not None and clo is not None and chi is not None:  # (arcs are feed moves)
             wide_lo, wide_hi = arcs.extend_box(clo, chi)
             clo, chi = wide_lo, wide_hi
             lo, hi = np.minimum(lo, wide_lo), np.maximum(hi, wide_hi)
         self._lo, self._hi = np.fmin(self._lo, lo), np.fmax(self._hi, hi)
-        if clo is not None:
+        if clo is not None and chi is not None:
             self._clo, self._chi = np.fmin(self._clo, clo), np.fmax(self._chi, chi)
         both_lo, both_hi = _box(motion.rotary_start_deg, motion.rotary_end_deg)
-        if self._rlo is None:
+        if self._rlo is None or self._rhi is None:
             self._rlo, self._rhi = both_lo, both_hi
         else:
             self._rlo, self._rhi = np.minimum(self._rlo, both_lo), np.maximum(self._rhi, both_hi)
@@ -232,11 +233,11 @@ class StreamStats:
 
     def result(self) -> MotionStats:
         feed_time, rapid_time, dwell = self._tfeed.value(), self._trap.value(), self._tdwell.value()
-        rot = {}
-        if self._rlo is not None:
+        rot: dict[str, tuple[float, float, float]] = {}
+        if self._rlo is not None and self._rhi is not None:
             rot = {
-                "rotary_min_deg": tuple(map(float, self._rlo)),
-                "rotary_max_deg": tuple(map(float, self._rhi)),
+                "rotary_min_deg": _vec3(self._rlo),
+                "rotary_max_deg": _vec3(self._rhi),
             }
         return MotionStats(
             segments=self.segments,
@@ -246,14 +247,19 @@ class StreamStats:
             feed_time_s=feed_time,
             rapid_time_s=rapid_time,
             dwell_s=dwell,
-            bbox_min_mm=tuple(map(float, self._lo)),
-            bbox_max_mm=tuple(map(float, self._hi)),
-            cutting_bbox_min_mm=tuple(map(float, self._clo)),
-            cutting_bbox_max_mm=tuple(map(float, self._chi)),
+            bbox_min_mm=_vec3(self._lo),
+            bbox_max_mm=_vec3(self._hi),
+            cutting_bbox_min_mm=_vec3(self._clo),
+            cutting_bbox_max_mm=_vec3(self._chi),
             rapid_mm_min=float(self.rapid),
             accel_time_s=None if self._accel is None else self._accel.finish(),
             **rot,
         )
+
+
+def _vec3(v: np.ndarray) -> tuple[float, float, float]:
+    """A (3,) array as a tuple of Python floats."""
+    return (float(v[0]), float(v[1]), float(v[2]))
 
 
 class _AccelWindow:
@@ -263,6 +269,8 @@ class _AccelWindow:
     the planner stops, cannot limit any of the chunk's junction speeds."""
 
     def __init__(self, machine: MachineConfig, rapid: float) -> None:
+        if machine.accel_mm_s2 is None:  # (StreamStats makes one only for a machine with it)
+            raise ValueError("the acceleration estimate needs the machine's accel_mm_s2")
         self.a = float(machine.accel_mm_s2)
         self.dev = float(machine.junction_deviation_mm)
         self.total = ExactSum()
@@ -324,7 +332,7 @@ def _rotary_range(motion: Motion) -> dict[str, tuple[float, float, float]]:
         return {}
     both = np.concatenate([motion.rotary_start_deg, motion.rotary_end_deg])
     lo, hi = both.min(axis=0), both.max(axis=0)
-    return {"rotary_min_deg": tuple(map(float, lo)), "rotary_max_deg": tuple(map(float, hi))}
+    return {"rotary_min_deg": _vec3(lo), "rotary_max_deg": _vec3(hi)}
 
 
 def axis_limit_problems(motion: Motion, machine: MachineConfig | None) -> list[str]:

@@ -17,13 +17,14 @@ The steps, cheapest first (each counted in ``_Context.evals`` energy evaluations
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize
 
 from planning.orient._energy import Charges, Site, energy, place
-from planning.orient.check import CheckMesh, check
+from planning.orient.check import CheckMesh, Clearance, check
 from planning.orient.tool import ToolSystem, szende_K, szende_K_grad
 
 K_CAP_PER_MM = 1e3  # stands in for the flat end mill's infinite K at alpha = 0, beta != 0
@@ -41,13 +42,13 @@ class _Context:
     margin: float
     evals: int = 0
 
-    def U(self, site: Site, th, grad: bool = False):
+    def U(self, site: Site, th: np.ndarray, grad: bool = False) -> tuple[float, np.ndarray]:
         self.evals += 1
         return energy(
             self.tool, self.charges, site, th[0], th[1], self.tol_mm, self.clearance_mm, grad
         )
 
-    def gate(self, site: Site, th):
+    def gate(self, site: Site, th: np.ndarray) -> Clearance:
         u, tip = place(self.tool, site, th[0], th[1])
         return check(self.mesh, self.tool, tip, u, self.tol_mm)
 
@@ -55,15 +56,17 @@ class _Context:
 # ----------------------------------------------------------------------------------------------
 
 
-def _gap(ctx: _Context, kappa: float, th) -> float:
+def _gap(ctx: _Context, kappa: float, th: np.ndarray) -> float:
     K = float(szende_K(th[0], th[1], ctx.tool.R_mm, ctx.tool.r_mm))
     return min(K, K_CAP_PER_MM) - kappa
 
 
-def _objective(ctx, kappa, prev):
+def _objective(
+    ctx: _Context, kappa: float, prev: np.ndarray
+) -> Callable[[np.ndarray], float]:
     R = ctx.tool.R_mm
 
-    def J(th):
+    def J(th: np.ndarray) -> float:
         d = th - prev
         return R * _gap(ctx, kappa, th) + ctx.weight * float(d @ d)
 
@@ -86,13 +89,15 @@ def curvature_optimum(ctx: _Context, kappa: float, prev: np.ndarray) -> np.ndarr
     if not free.any():
         # Nothing meets K - kappa >= margin (a concave radius tighter than the cutter can
         # follow): return the largest gap; the caller reports it if the check then fails.
-        return grid[int(np.argmax(gap))]
-    x0 = grid[int(np.argmin(np.where(free, Jg, np.inf)))]
+        top: np.ndarray = grid[int(np.argmax(gap))]
+        return top
+    x0: np.ndarray = grid[int(np.argmin(np.where(free, Jg, np.inf)))]
     J = _objective(ctx, kappa, prev)
     r_mm = ctx.tool.r_mm
 
-    def dJ(th):
-        return R * szende_K_grad(th[0], th[1], R, r_mm) + 2 * w * (th - prev)
+    def dJ(th: np.ndarray) -> np.ndarray:
+        out: np.ndarray = R * szende_K_grad(th[0], th[1], R, r_mm) + 2 * w * (th - prev)
+        return out
 
     cons = [
         {
@@ -101,7 +106,9 @@ def curvature_optimum(ctx: _Context, kappa: float, prev: np.ndarray) -> np.ndarr
             "jac": lambda th: szende_K_grad(th[0], th[1], R, r_mm),
         }
     ]
-    res = minimize(
+    # scipy-stubs' overloads want a 1-d float64 array type for the objective's argument, which
+    # numpy's np.ndarray annotations here do not spell: the call is checked by the tests
+    res = minimize(  # type: ignore[call-overload]
         J,
         x0,
         jac=dJ,
@@ -110,20 +117,23 @@ def curvature_optimum(ctx: _Context, kappa: float, prev: np.ndarray) -> np.ndarr
         constraints=cons,
         options={"maxiter": 50, "ftol": 1e-12},
     )
-    x = np.clip(res.x, ctx.bounds[:, 0], ctx.bounds[:, 1])
+    x: np.ndarray = np.clip(res.x, ctx.bounds[:, 0], ctx.bounds[:, 1])
     if np.all(np.isfinite(x)) and _gap(ctx, kappa, x) >= ctx.margin and J(x) <= J(x0):
         return x
     return x0
 
 
 def _grid(ctx: _Context, na: int, nb: int) -> np.ndarray:
-    a = np.linspace(*ctx.bounds[0], na)
-    b = np.linspace(*ctx.bounds[1], nb)
+    a = np.linspace(float(ctx.bounds[0, 0]), float(ctx.bounds[0, 1]), na)
+    b = np.linspace(float(ctx.bounds[1, 0]), float(ctx.bounds[1, 1]), nb)
     A, B = np.meshgrid(a, b, indexing="ij")
     return np.stack([A.ravel(), B.ravel()], 1)
 
 
-def descend(ctx: _Context, site: Site, th: np.ndarray, iters: int = 12, path=None):
+def descend(
+    ctx: _Context, site: Site, th: np.ndarray, iters: int = 12,
+    path: list[np.ndarray] | None = None,
+) -> tuple[np.ndarray, float]:  # fmt: skip
     """Seed 002's collision escape: move down grad U in (alpha, beta) until U = 0.
 
     U of eq 7 is a sum of 1/d over the charges inside the tool, so it changes in steps as charges
@@ -137,7 +147,7 @@ def descend(ctx: _Context, site: Site, th: np.ndarray, iters: int = 12, path=Non
         gn = np.linalg.norm(g)
         if U == 0.0 or gn == 0:
             break
-        best = None
+        best: tuple[np.ndarray, float] | None = None
         for s in steps:
             cand = np.clip(th - s * g / gn, lo, hi)
             Uc, _ = ctx.U(site, cand)
@@ -154,7 +164,9 @@ def descend(ctx: _Context, site: Site, th: np.ndarray, iters: int = 12, path=Non
     return th, U
 
 
-def solve_point(ctx: _Context, site: Site, kappa: float, prev: np.ndarray):
+def solve_point(
+    ctx: _Context, site: Site, kappa: float, prev: np.ndarray
+) -> tuple[np.ndarray | None, str, float, Clearance | None]:
     """(theta (2,) rad or None, reason, U, Clearance) for one CC point."""
     th_c = curvature_optimum(ctx, kappa, prev)
     if _free(ctx, site, kappa, th_c):
@@ -163,7 +175,7 @@ def solve_point(ctx: _Context, site: Site, kappa: float, prev: np.ndarray):
             return th_c, "", 0.0, gate
     # A collision-free start: the neighbour's answer, else the grid best-first, else descent.
     p = np.clip(prev, ctx.bounds[:, 0], ctx.bounds[:, 1])
-    th_f = p if _free(ctx, site, kappa, p) else None
+    th_f: np.ndarray | None = p if _free(ctx, site, kappa, p) else None
     if th_f is None:
         # The neighbour's answer sits on the edge of its free set; step back from the optimum.
         away = p - th_c
@@ -197,7 +209,8 @@ def solve_point(ctx: _Context, site: Site, kappa: float, prev: np.ndarray):
     return None, _why_infeasible(ctx, site), np.nan, None
 
 
-def _towards(ctx: _Context, site: Site, kappa: float, th_f, th_c, steps: int = 6):
+def _towards(ctx: _Context, site: Site, kappa: float, th_f: np.ndarray, th_c: np.ndarray,
+             steps: int = 6) -> np.ndarray:  # fmt: skip
     """Furthest point from the collision-free th_f towards th_c still free (bisection on U = 0)."""
     good, bad = 0.0, 1.0
     for _ in range(steps):
@@ -206,13 +219,15 @@ def _towards(ctx: _Context, site: Site, kappa: float, th_f, th_c, steps: int = 6
             good = t
         else:
             bad = t
-    return th_f + good * (th_c - th_f)
+    out: np.ndarray = th_f + good * (th_c - th_f)
+    return out
 
 
 _COMPASS = np.array([[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [1, -1], [-1, 1], [-1, -1]])
 
 
-def _polish(ctx: _Context, site: Site, kappa: float, prev, th, budget: int = 16):
+def _polish(ctx: _Context, site: Site, kappa: float, prev: np.ndarray, th: np.ndarray,
+            budget: int = 16) -> np.ndarray:  # fmt: skip
     """Compass search on the objective inside U = 0: from th, try steps of 4, 2, 1, 0.5 deg
     along +-alpha, +-beta and the diagonals, best predicted first, taking the first that lowers
     the objective and stays free.
@@ -226,8 +241,8 @@ def _polish(ctx: _Context, site: Site, kappa: float, prev, th, budget: int = 16)
     step = np.radians(4.0)
     used = 0
     while step >= np.radians(0.5) and used < budget:
-        cands = [np.clip(th + d, lo, hi) for d in step * _COMPASS]
-        cands = sorted((J(c), i, c) for i, c in enumerate(cands) if J(c) < best - 1e-12)
+        points = [np.clip(th + d, lo, hi) for d in step * _COMPASS]
+        cands = sorted((J(c), i, c) for i, c in enumerate(points) if J(c) < best - 1e-12)
         moved = False
         for jc, _, c in cands:
             if used >= budget:
@@ -241,11 +256,14 @@ def _polish(ctx: _Context, site: Site, kappa: float, prev, th, budget: int = 16)
     return th
 
 
-def _free(ctx: _Context, site: Site, kappa: float, th) -> bool:
+def _free(ctx: _Context, site: Site, kappa: float, th: np.ndarray) -> bool:
     return _gap(ctx, kappa, th) >= ctx.margin and ctx.U(site, th)[0] == 0.0
 
 
-def _best_first(ctx, site, kappa, prev, budget, below=np.inf, gate=True):
+def _best_first(
+    ctx: _Context, site: Site, kappa: float, prev: np.ndarray, budget: int | None,
+    below: float = np.inf, gate: bool = True,
+) -> np.ndarray | None:  # fmt: skip
     """The grid orientation of least objective with U = 0 (and passing the check if ``gate``).
 
     The 16 x 37 grid of the limits is sorted by the closed-form objective (cheap) and U is
@@ -259,7 +277,8 @@ def _best_first(ctx, site, kappa, prev, budget, below=np.inf, gate=True):
     order = np.argsort(np.where(ok, J, np.inf))[: int(ok.sum())]
     for k in order if budget is None else order[:budget]:
         if ctx.U(site, grid[k])[0] == 0.0 and (not gate or ctx.gate(site, grid[k]).ok):
-            return grid[k]
+            hit: np.ndarray = grid[k]
+            return hit
     return None
 
 

@@ -37,7 +37,7 @@ from analysis.config import MachineConfig
 from planning.errors import PlanningError
 from planning.orient._energy import Site
 from planning.orient._search import _Context, _free, solve_point
-from planning.orient.kinematics import AxisMoves, forward, hold_c, inverse
+from planning.orient.kinematics import AxisMoves, five_axis_kind, forward, hold_c, inverse
 from planning.orient.overcut import OvercutCheck
 from planning.orient.planner import CCPoints, axis_jumps_deg, cc_at
 from planning.orient.smooth import angles_of
@@ -49,6 +49,7 @@ from planning.surface import NurbsSurface
 # 0.0004 mm above the nearest sample).
 GOUGE_SHARE = 0.9
 N_ROUND = 120  # polygon sides round the axis: a 6 mm radius is drawn 0.002 mm too large at most
+_Cache = dict[int, tuple[np.ndarray, np.ndarray]]  # point -> orientations (k, 2) rad, free
 
 
 def _rotation_to(axis: np.ndarray) -> np.ndarray:
@@ -96,7 +97,8 @@ class Scene:
     tolerance_mm: float
     overcut: OvercutCheck
     gouge_limit_mm: float
-    _cache: dict = field(default_factory=dict, repr=False)  # move's axes -> (overcut, where)
+    # move's axes (bytes) -> (overcut mm, where)
+    _cache: dict[bytes, tuple[float, str]] = field(default_factory=dict, repr=False)
 
     @classmethod
     def build(
@@ -126,8 +128,8 @@ class Scene:
         bvh.endModel()
         part = fcl.CollisionObject(bvh, fcl.Transform())
         fix = []
-        for name, lo, hi in fixtures:
-            lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+        for name, lo_mm, hi_mm in fixtures:
+            lo, hi = np.asarray(lo_mm, float), np.asarray(hi_mm, float)
             box = fcl.Box(*(hi - lo))
             fix.append((name, fcl.CollisionObject(box, fcl.Transform(0.5 * (lo + hi)))))
         # The cutter shrunk by the tolerance: ring radius R - r, corner radius r - tol (or a
@@ -241,10 +243,11 @@ class Refined:
     unresolved: str
 
 
-def posted(ctx: _Context, cc: CCPoints, theta, machine, cone_deg, start_c_deg=0.0):
+def posted(ctx: _Context, cc: CCPoints, theta: np.ndarray, machine: MachineConfig, cone_deg: float,
+           start_c_deg: float = 0.0) -> tuple[np.ndarray, np.ndarray, AxisMoves]:  # fmt: skip
     """Axes held near the singularity, tips for them, machine moves."""
     u = tool_axis(theta[:, 0], theta[:, 1], cc.binormal, cc.feed, cc.normal)
-    u = hold_c(machine.five_axis.kind, u, cc.line, cone_deg)
+    u = hold_c(five_axis_kind(machine), u, cc.line, cone_deg)
     tip, _ = cutter_position(cc.point, cc.normal, u, ctx.tool.R_mm, ctx.tool.r_mm)
     moves = inverse(machine, tip, u, ctx.tool.gauge_length_mm, start_c_deg=start_c_deg,
                     line=cc.line)  # fmt: skip
@@ -309,17 +312,19 @@ def refine(
         inserted += added
         if not added:
             break
-    k = int(np.flatnonzero(bad)[0])
+    f = int(np.flatnonzero(bad)[0])
     unresolved = (
-        f"move {k} -> {k + 1} (line {cc.line[k]}): deviation {chk.deviation_mm[k]:.4f} mm, "
-        f"axis turn {jump[k]:.2f} deg, C step {dc[k]:.2f} deg, {chk.hits[k] or 'no collision'}, "
-        f"overcut {chk.overcut_mm[k]:.4f} mm {chk.overcut_at[k]}".rstrip()
+        f"move {f} -> {f + 1} (line {cc.line[f]}): deviation {chk.deviation_mm[f]:.4f} mm, "
+        f"axis turn {jump[f]:.2f} deg, C step {dc[f]:.2f} deg, {chk.hits[f] or 'no collision'}, "
+        f"overcut {chk.overcut_mm[f]:.4f} mm {chk.overcut_at[f]}".rstrip()
         + f" after {rounds} rounds"
     )
     return Refined(cc, theta, u, tip, moves, chk, inserted, rounds, unresolved)
 
 
-def _insert(ctx, surface, along, cc: CCPoints, theta, moves_idx, pieces, max_turn_deg=5.0):
+def _insert(ctx: _Context, surface: NurbsSurface, along: str, cc: CCPoints, theta: np.ndarray,
+            moves_idx: np.ndarray, pieces: np.ndarray,
+            max_turn_deg: float = 5.0) -> tuple[CCPoints, np.ndarray, int]:  # fmt: skip
     """CC points splitting the moves ``moves_idx`` into ``pieces`` equal steps in parameter, on
     the surface with its normal there (:func:`cc_at`); the orientation is the blend of the
     neighbours' axes in the new frame, clipped to the limits. Where a blended orientation
@@ -351,7 +356,7 @@ def _insert(ctx, surface, along, cc: CCPoints, theta, moves_idx, pieces, max_tur
     is_new = np.arange(len(order)) >= len(theta)
     ok = np.ones(len(order), bool)
     ok[rank[is_new]] = False
-    cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    cache: _Cache = {}
     for k in np.asarray(moves_idx):
         s, e = int(rank[k]), int(rank[k + 1])
         if all(_placed_ok(ctx, cc2, th2[j], j) for j in range(s + 1, e)):
@@ -364,7 +369,7 @@ def _insert(ctx, surface, along, cc: CCPoints, theta, moves_idx, pieces, max_tur
             ok[a : b + 1] = True
     # What the joint re-orientation could not place: each point alone, as the planner would.
     for j in np.flatnonzero(~ok):
-        site = _site(cc2, j)
+        site = _site(cc2, int(j))
         th, _, _, _ = solve_point(ctx, site, float(cc2.kappa_per_mm[j]), th2[j])
         if th is not None:
             th2[j], ok[j] = th, True
@@ -380,12 +385,13 @@ def _site(cc: CCPoints, j: int) -> Site:
     return Site(cc.point[j], cc.normal[j], cc.binormal[j], cc.feed[j])
 
 
-def _placed_ok(ctx: _Context, cc: CCPoints, th, j: int) -> bool:
+def _placed_ok(ctx: _Context, cc: CCPoints, th: np.ndarray, j: int) -> bool:
     site = _site(cc, j)
     return _free(ctx, site, float(cc.kappa_per_mm[j]), th) and ctx.gate(site, th).ok
 
 
-def _nodes(ctx: _Context, cc: CCPoints, j: int, theta, s: int, e: int, cache):
+def _nodes(ctx: _Context, cc: CCPoints, j: int, theta: np.ndarray, s: int, e: int,
+           cache: _Cache) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """Candidate orientations (k, 2) rad at point j and which are free of the energy's collision
     and of local overcut (cached per point): the current one, the planner's answer from there,
     the axes of the move's ends s and e held in j's frame (for a short move the best path is
@@ -402,16 +408,17 @@ def _nodes(ctx: _Context, cc: CCPoints, j: int, theta, s: int, e: int, cache):
         ends = tool_axis(theta[[s, e], 0], theta[[s, e], 1], cc.binormal[[s, e]],
                          cc.feed[[s, e]], cc.normal[[s, e]])  # fmt: skip
         held = np.clip(angles_of(ends, cc.binormal[j], cc.feed[j], cc.normal[j]), *ctx.bounds.T)
-        th = [theta[j][None], held, np.stack([A.ravel(), B.ravel()], 1)]
+        cands = [theta[j][None], held, np.stack([A.ravel(), B.ravel()], 1)]
         got, _, _, _ = solve_point(ctx, site, kap, theta[j])
         if got is not None:
-            th.insert(1, got[None])
-        th = np.vstack(th)
+            cands.insert(1, got[None])
+        th = np.vstack(cands)
         cache[j] = (th, np.array([_free(ctx, site, kap, t) for t in th]))
     return cache[j]
 
 
-def _reorient(ctx, cc: CCPoints, theta, s: int, e: int, max_turn_deg: float, cache):
+def _reorient(ctx: _Context, cc: CCPoints, theta: np.ndarray, s: int, e: int,
+              max_turn_deg: float, cache: _Cache) -> tuple[int, int, np.ndarray] | None:
     """Orientations for points s..e of one line, chosen together: a shortest path (dynamic
     programming) through each point's collision-free grid orientations, the cost the sum of
     squared axis turns between neighbours (plus a little for leaving the current orientation),
@@ -436,7 +443,9 @@ def _reorient(ctx, cc: CCPoints, theta, s: int, e: int, max_turn_deg: float, cac
         grow *= 2
 
 
-def _shortest(ctx, cc, theta, a, b, move, hold_a, hold_b, max_turn_deg, cache):
+def _shortest(ctx: _Context, cc: CCPoints, theta: np.ndarray, a: int, b: int, move: tuple[int, int],
+              hold_a: bool, hold_b: bool, max_turn_deg: float,
+              cache: _Cache) -> np.ndarray | None:  # fmt: skip
     nodes, free = [], []
     for j in range(a, b + 1):
         if (j == a and hold_a) or (j == b and hold_b):

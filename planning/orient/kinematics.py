@@ -30,9 +30,11 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.config import MachineConfig
+from analysis.config import FiveAxis, MachineConfig, RotaryAxis
 from planning.errors import PlanningError
 from planning.nc import NumberStyle, Program
+from planning.nc.program import BlockValue
+from planning.orient.planner import OrientResult
 
 KINDS = ("table-table-AC", "head-table-AC", "head-head-BC")
 Z_HAT = np.array([0.0, 0.0, 1.0])
@@ -60,28 +62,28 @@ class AxisMoves:
         return np.stack([self.x, self.y, self.z, self.a_deg, self.c_deg], 1)
 
 
-def _rx(a):
+def _rx(a: float | np.ndarray) -> np.ndarray:
     """Rotation(s) about +X by ``a`` rad: (3, 3), or (m, 3, 3) for an array of angles."""
     c, s = np.cos(a), np.sin(a)
     o, z = np.ones_like(c), np.zeros_like(c)
     return np.moveaxis(np.array([[o, z, z], [z, c, -s], [z, s, c]]), (0, 1), (-2, -1))
 
 
-def _ry(a):
+def _ry(a: float | np.ndarray) -> np.ndarray:
     """Rotation(s) about +Y by ``a`` rad: (3, 3), or (m, 3, 3) for an array of angles."""
     c, s = np.cos(a), np.sin(a)
     o, z = np.ones_like(c), np.zeros_like(c)
     return np.moveaxis(np.array([[c, z, s], [z, o, z], [-s, z, c]]), (0, 1), (-2, -1))
 
 
-def _rz(a):
+def _rz(a: float | np.ndarray) -> np.ndarray:
     """Rotation(s) about +Z by ``a`` rad: (3, 3), or (m, 3, 3) for an array of angles."""
     c, s = np.cos(a), np.sin(a)
     o, z = np.ones_like(c), np.zeros_like(c)
     return np.moveaxis(np.array([[c, -s, z], [s, c, z], [z, z, o]]), (0, 1), (-2, -1))
 
 
-def spindle_axis(kind: str, tilt_deg, c_deg) -> np.ndarray:
+def spindle_axis(kind: str, tilt_deg: float | np.ndarray, c_deg: float | np.ndarray) -> np.ndarray:
     """Unit tool axis in the workpiece frame, shape (..., 3), for tilt (A or B) and C in deg."""
     t, c = np.broadcast_arrays(np.radians(tilt_deg), np.radians(c_deg))
     if kind == "table-table-AC":  # Rz(-C) Rx(-A) z
@@ -93,7 +95,8 @@ def spindle_axis(kind: str, tilt_deg, c_deg) -> np.ndarray:
     return u
 
 
-def forward(kind: str, machine: MachineConfig, moves: AxisMoves, gauge_length_mm: float):
+def forward(kind: str, machine: MachineConfig, moves: AxisMoves,
+            gauge_length_mm: float) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """Tool tip (m, 3) and unit axis (m, 3) in the workpiece frame from machine positions."""
     fa = _five(machine)
     pivot = np.asarray(fa.pivot_mm, float)
@@ -113,7 +116,7 @@ def forward(kind: str, machine: MachineConfig, moves: AxisMoves, gauge_length_mm
     return tips, np.einsum("mij,mj->mi", Rt, t)
 
 
-def _five(machine: MachineConfig):
+def _five(machine: MachineConfig) -> FiveAxis:
     if machine.five_axis is None:
         raise PlanningError(
             f"machine {machine.name!r} has no [five_axis] section: cannot post 5-axis motion"
@@ -127,7 +130,11 @@ def _five(machine: MachineConfig):
     return fa
 
 
-def tilt_limits(machine: MachineConfig):
+def five_axis_kind(machine: MachineConfig) -> str:
+    return _five(machine).kind  # one of KINDS; PlanningError without a [five_axis]
+
+
+def tilt_limits(machine: MachineConfig) -> RotaryAxis:
     """The tilt axis' RotaryAxis (A, or B on a BC machine)."""
     fa = _five(machine)
     return fa.b if fa.kind.endswith("BC") else fa.a
@@ -235,7 +242,8 @@ def inverse(
     return moves
 
 
-def _branches(t0, c0, rho, a_lo, a_hi, start_c_deg) -> np.ndarray:
+def _branches(t0: np.ndarray, c0: np.ndarray, rho: np.ndarray, a_lo: float, a_hi: float,
+              start_c_deg: float) -> np.ndarray:  # fmt: skip
     """The solution branch per point (0: (tilt, C), 1: (-tilt, C + 180)) that moves the rotary
     axes least over the whole program (Viterbi over the two branches; |d tilt| + |d C| with C
     the shorter way round; a branch outside the tilt limits is barred), so that a branch forced
@@ -245,8 +253,8 @@ def _branches(t0, c0, rho, a_lo, a_hi, start_c_deg) -> np.ndarray:
         return np.zeros(0, int)
     A = np.stack([t0, -t0], 1)
     C = np.stack([c0, c0 + 180.0], 1)
-    for i in np.flatnonzero(rho < 1e-12):  # C free: carry the previous C through (no cost)
-        C[i] = C[i - 1] if i else np.nan
+    for k in np.flatnonzero(rho < 1e-12):  # C free: carry the previous C through (no cost)
+        C[k] = C[k - 1] if k else np.nan
     barred = (A < a_lo - 1e-9) | (A > a_hi + 1e-9)
     cost = np.where(barred[0], np.inf, np.abs(A[0]) + _dc(C[0], start_c_deg))
     back = np.zeros((m, 2), int)
@@ -262,10 +270,10 @@ def _branches(t0, c0, rho, a_lo, a_hi, start_c_deg) -> np.ndarray:
     return out
 
 
-def _dc(c1, c0):
+def _dc(c1: float | np.ndarray, c0: float | np.ndarray) -> np.ndarray:
     """|c1 - c0| the shorter way round, deg; 0 where either is NaN (C free)."""
-    d = np.abs((np.asarray(c1) - c0 + 180.0) % 360.0 - 180.0)
-    return np.nan_to_num(d, nan=0.0)
+    d: np.ndarray = np.abs((np.asarray(c1, float) - np.asarray(c0, float) + 180.0) % 360.0 - 180.0)
+    return np.asarray(np.nan_to_num(d, nan=0.0))
 
 
 def hold_c(kind: str, axis: np.ndarray, line: np.ndarray, cone_deg: float) -> np.ndarray:
@@ -309,7 +317,7 @@ def hold_c(kind: str, axis: np.ndarray, line: np.ndarray, cone_deg: float) -> np
     return axis
 
 
-def _c_plane_components(kind: str, axis: np.ndarray):
+def _c_plane_components(kind: str, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(sin C, cos C) up to a positive factor for the primary (tilt >= 0) solution."""
     if kind == "table-table-AC":
         return axis[:, 0], axis[:, 1]
@@ -354,7 +362,7 @@ def inverse_time_feeds(
 
 def axis_speeds(
     machine: MachineConfig, moves: AxisMoves, inverse_f: np.ndarray, line: np.ndarray
-) -> dict:
+) -> dict[str, float]:
     """Largest speeds of the posted G93 blocks (inverse_f per block as from
     :func:`inverse_time_feeds`, new lines' first points skipped): combined feed mm/min, tilt and
     C deg/min, with the block indices, and the machine's limits."""
@@ -405,7 +413,7 @@ def check_forward(
     return float(e_tip.max(initial=0.0)), float(e_ax.max(initial=0.0))
 
 
-def write_cl_csv(path: str | Path, result) -> None:
+def write_cl_csv(path: str | Path, result: OrientResult) -> None:
     """CL data CSV: one row per feasible CC point: tip, centre, axis, angles (mm, deg)."""
     import pandas as pd
 
@@ -452,7 +460,7 @@ def nc_program(
     P = moves.as_array()
     safe = float(np.max(P[:, 2]) + 20.0) if safe_z_mm is None else safe_z_mm
     title = " ".join(title.replace("(", "[").replace(")", "]").split()).upper()[:40]
-    blocks: list[str | dict] = [
+    blocks: list[str | dict[str, BlockValue]] = [
         "%",
         f"O1000 ({title})",
         {"G": [90, 94, 21, 17]},
@@ -480,7 +488,7 @@ def nc_program(
             ]
             g93 = False
         elif chord is not None:
-            g = ["01", 93] if not g93 else "01"
+            g: BlockValue = ["01", 93] if not g93 else "01"
             blocks.append({"G": g, "X": x, "Y": y, "Z": z, tl: a, "C": c,
                            "F": feed_mm_min / chord[i]})  # fmt: skip
             g93 = True
@@ -489,4 +497,4 @@ def nc_program(
     if g93:
         blocks.append({"G": 94})
     blocks += [{"G": "00", "Z": safe}, {"M": "05"}, {"M": 30}, "%"]
-    return Program.from_blocks(blocks, style=NumberStyle(decimals=4)).text()
+    return str(Program.from_blocks(blocks, style=NumberStyle(decimals=4)).text())

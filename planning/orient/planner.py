@@ -190,6 +190,7 @@ def solve_all(
                 f"at {np.round(cc.point[i], 3).tolist()} mm): {why}"
             )
         else:
+            assert gate is not None  # (solve_point gives the check with every answer)
             th_out[i], U_out[i], clr[i] = th, U, gate.min_mm
             prev = th
         if progress:

@@ -39,6 +39,7 @@ from scipy.spatial import cKDTree
 
 from analysis.config import MachineConfig
 from planning.orient.kinematics import AxisMoves, forward
+from planning.orient.tool import ToolSystem
 from planning.surface import NurbsSurface
 
 GOLDEN = (np.sqrt(5.0) - 1.0) / 2.0
@@ -103,43 +104,48 @@ class NormalDexels:
             T, A = tips[s : s + chunk], axes[s : s + chunk]
             centres = (T[:, None, :] + z_st[None, :, None] * A[:, None, :]).reshape(-1, 3)
             hits = tree.query_ball_point(centres, r_st, return_sorted=False)
-            pose, idx = [], []
+            poses: list[np.ndarray] = []
+            idxs: list[np.ndarray] = []
             for k in range(len(T)):
                 near = set().union(*hits[k * n_st : (k + 1) * n_st])
                 if near:
-                    idx.append(np.fromiter(near, np.intp))
-                    pose.append(np.full(len(idx[-1]), k))
-            if not idx:
+                    idxs.append(np.fromiter(near, np.intp))
+                    poses.append(np.full(len(idxs[-1]), k))
+            if not idxs:
                 continue
-            idx, pose = np.concatenate(idx), np.concatenate(pose)
+            idx, pose = np.concatenate(idxs), np.concatenate(poses)
             t_in = _entry(q[idx], nrm[idx], self.bottom_mm, top[idx], T[pose], A[pose], R_mm,
                           r_mm)  # fmt: skip
             np.minimum.at(top, idx, t_in)
 
 
-def _entry(q, n, lo, hi, tip, axis, R, r, iters: int = 36):
+def _entry(
+    q: np.ndarray, n: np.ndarray, lo: float, hi: np.ndarray, tip: np.ndarray, axis: np.ndarray,
+    R: float, r: float, iters: int = 36,
+) -> np.ndarray:  # fmt: skip
     """Where each dexel q + t n, t in [lo, hi], first enters the cutter (hi where it does not):
     the cutter's signed distance along the dexel is convex in t (module docstring)."""
     d0 = q - tip
     coef = np.stack([(d0 * axis).sum(1), (n * axis).sum(1), (d0 * d0).sum(1), (d0 * n).sum(1)])
     core = R - r
 
-    def f(t, sel):
+    def f(t: np.ndarray, sel: np.ndarray) -> np.ndarray:
         z0, nz, dd, dn = coef[:, sel]
         z = z0 + t * nz
         rho = np.sqrt(np.maximum(dd + 2 * t * dn + t * t - z * z, 0.0))
-        return np.hypot(np.maximum(rho - core, 0.0), np.maximum(r - z, 0.0)) - r
+        out: np.ndarray = np.hypot(np.maximum(rho - core, 0.0), np.maximum(r - z, 0.0)) - r
+        return out
 
     every = np.arange(len(q))
-    lo = np.full(len(q), float(lo))
+    lo_t = np.full(len(q), float(lo))
     hi = np.asarray(hi, float)
-    f_lo, f_hi = f(lo, every), f(hi, every)
-    out = np.where(f_lo <= 0, lo, hi)
+    f_lo, f_hi = f(lo_t, every), f(hi, every)
+    out = np.where(f_lo <= 0, lo_t, hi)
     first_in = hi.copy()  # a point inside the cutter for the dexels that enter it
     # Both ends outside: the closest point (golden section) decides whether the dexel passes
     # through the cutter; f is 1-Lipschitz, which rules most pairs out without a search.
-    mid = np.flatnonzero((f_lo > 0) & (f_hi > 0) & (f_lo + f_hi <= hi - lo))
-    a, b = lo[mid], hi[mid]
+    mid = np.flatnonzero((f_lo > 0) & (f_hi > 0) & (f_lo + f_hi <= hi - lo_t))
+    a, b = lo_t[mid], hi[mid]
     for _ in range(iters):
         c1, c2 = b - GOLDEN * (b - a), a + GOLDEN * (b - a)
         left = f(c1, mid) <= f(c2, mid)
@@ -149,7 +155,7 @@ def _entry(q, n, lo, hi, tip, axis, R, r, iters: int = 36):
     first_in[mid[through]] = t_min[through]
     # Bisection between lo (outside) and the point inside.
     cross = np.union1d(np.flatnonzero((f_lo > 0) & (f_hi <= 0)), mid[through])
-    a, b = lo[cross], first_in[cross]
+    a, b = lo_t[cross], first_in[cross]
     for _ in range(iters):
         c = 0.5 * (a + b)
         inside = f(c, cross) <= 0
@@ -233,27 +239,27 @@ def save_maps(dexels: NormalDexels, tol_mm: float, path: str | Path, title: str)
     n = 2 if gouged else 1
     fig, axs = plt.subplots(1, n, figsize=(5.2 * n + 1.2, 5.2 * aspect + 1.2), dpi=110,
                             squeeze=False)  # fmt: skip
-    axs = list(axs[0])
+    panels = list(axs[0])
     if gouged:
         vmax = max(float(gouge.max()), 2 * tol_mm)
-        m0 = axs[0].pcolormesh(sv, su, gouge * 1e3, cmap="Reds", vmin=0, vmax=vmax * 1e3,
+        m0 = panels[0].pcolormesh(sv, su, gouge * 1e3, cmap="Reds", vmin=0, vmax=vmax * 1e3,
                                shading="auto")  # fmt: skip
-        cb = fig.colorbar(m0, ax=axs[0], label="gouge below design surface (um)")
+        cb = fig.colorbar(m0, ax=panels[0], label="gouge below design surface (um)")
         cb.ax.axhline(tol_mm * 1e3, color="k", lw=1.5)
         over = int(np.sum(gouge > tol_mm))
-        axs[0].set_title(f"gouge: max {gouge.max() * 1e3:.1f} um, {over} dexels beyond the "
+        panels[0].set_title(f"gouge: max {gouge.max() * 1e3:.1f} um, {over} dexels beyond the "
                          f"tolerance {tol_mm * 1e3:g} um", fontsize=9)  # fmt: skip
-    m1 = axs[-1].pcolormesh(sv, su, left, cmap="viridis", shading="auto")
-    fig.colorbar(m1, ax=axs[-1], label="leftover above design surface (mm)")
+    m1 = panels[-1].pcolormesh(sv, su, left, cmap="viridis", shading="auto")
+    fig.colorbar(m1, ax=panels[-1], label="leftover above design surface (mm)")
     no_gouge = ""
     if not gouged:
         iu, iv = np.nonzero(gouge > 0)
         if iu.size:
-            axs[-1].plot(sv[iv], su[iu], "r.", ms=2, label=f"gouge within tolerance ({iu.size})")
-            axs[-1].legend(fontsize=7, loc="upper right")
+            panels[-1].plot(sv[iv], su[iu], "r.", ms=2, label=f"gouge within tolerance ({iu.size})")
+            panels[-1].legend(fontsize=7, loc="upper right")
         no_gouge = (f"\ngouge: max {gouge.max() * 1e3:.1f} um at {iu.size} dexels, all within "
                     f"the tolerance {tol_mm * 1e3:g} um")  # fmt: skip
-    axs[-1].set_title(f"leftover: max {left.max():.3f} mm{no_gouge}", fontsize=9)
+    panels[-1].set_title(f"leftover: max {left.max():.3f} mm{no_gouge}", fontsize=9)
     for ax in axs:
         ax.set_xlabel("along v (mm of arc)")
         ax.set_ylabel("along u (mm of arc)")
@@ -274,7 +280,7 @@ def simulate(
     machine: MachineConfig,
     moves: AxisMoves,
     line: np.ndarray,
-    tool,
+    tool: ToolSystem,
     spacing_mm: float,
     step_mm: float,
     allowance_mm: float = 1.0,
