@@ -16,15 +16,17 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict
 from pathlib import Path
-from typing import TypedDict
+from typing import TYPE_CHECKING, TypedDict
 
 import numpy as np
 
-from analysis.identify import Export, ImportOptions, load_exports
 from analysis.runs import SAMPLE_FORMAT_VOLTS
 from analysis.runs import file as rf
 from rig.daq import Calibration, DaqInfo
 from rig.log.writer import RunWriter, RunWriterError
+
+if TYPE_CHECKING:  # the readers need scipy (~1 s), loaded by an import, not by `cutlab daq record`
+    from analysis.identify import Export, ImportOptions
 
 __all__ = ["ImportedRun", "import_exports", "write_export_run"]
 
@@ -111,6 +113,8 @@ def import_exports(
             if t.exists():
                 raise RunWriterError(f"{t}: file exists (--force replaces it)")
     written: list[ImportedRun] = []
+    from analysis.identify import load_exports
+
     exports = load_exports(paths, overrides, rig_path, rate_hz, tool, options)
     for k, (ex, t) in enumerate(zip(exports, targets)):
         written.append(write_export_run(ex, t, overwrite=overwrite))
