@@ -28,7 +28,8 @@ from analysis.config import get_tool, load_machine
 from analysis.rules import derive_rule, slot_load_percent
 from planning.feed import FeedPostOptions, post_process
 from planning.nc import Program, interpret
-from planning.stock import ZMap, _numba, simulate_motion
+from planning.stock import ZMap, simulate_motion
+from planning.stock import compiled as _numba
 
 
 def dome_mm(x: np.ndarray, y: np.ndarray) -> np.ndarray:

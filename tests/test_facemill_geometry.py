@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from analysis.config import FaceMill
 from analysis.errors import AnalysisError
-from analysis.forces._facemill_geometry import chip_section, edge_table
+from analysis.forces import chip_section, edge_table
 from analysis.forces.facemill import (
     DYNO_FROM_TOOL,
     chip_thickness,

@@ -11,7 +11,7 @@ import pytest
 from analysis.config import FaceMill, FaceMillCoefficients, get_tool, load_rig
 from analysis.errors import AnalysisError
 from analysis.forces import FaceMillCut, facemill_forces
-from analysis.identify._common import RunConditions, reduce_run, reduce_run_file, synthetic_run
+from analysis.identify import RunConditions, reduce_run, reduce_run_file, synthetic_run
 from analysis.identify.facemill import fit_facemill, fit_facemill_runs, synthetic_facemill_run
 from analysis.modal import DynamometerFilter
 from analysis.runs import SAMPLE_FORMAT_VOLTS

@@ -216,6 +216,30 @@ def test_no_import_of_another_subpackages_private_module() -> None:
     assert not bad, "private modules used across subpackages:\n" + "\n".join(bad)
 
 
+
+def _is_module(dotted: str) -> bool:
+    path = ROOT.joinpath(*dotted.split("."))
+    return path.with_suffix(".py").is_file() or (path / "__init__.py").is_file()
+
+
+def test_tests_and_benches_use_public_faces() -> None:
+    """Issue 30: a test or bench imports what a package exports, not its private modules (their
+    names may change with any refactor); the tests' own helpers (tests/_*.py) are theirs."""
+    bad = []
+    for path in sorted([*(ROOT / "tests").glob("*.py"), *(ROOT / "bench").glob("*.py")]):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            names = []
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                subs = [f"{node.module}.{a.name}" for a in node.names]  # modules imported by name
+                names = [node.module] + [n for n in subs if _is_module(n)]
+            elif isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            for name in names:
+                parts = name.split(".")
+                if parts[0] in PACKAGES and any(p.startswith("_") for p in parts[1:]):
+                    bad.append(f"{path.relative_to(ROOT)}:{node.lineno}: {name}")
+    assert not bad, "private modules imported by tests or benches:\n" + "\n".join(bad)
+
 def _cycles(graph: dict[str, list[str]]) -> list[list[str]]:
     """Strongly connected components of more than one module (Tarjan, iterative)."""
     index: dict[str, int] = {}

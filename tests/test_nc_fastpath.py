@@ -8,7 +8,7 @@ from _fastpath import check_fast_is_slow, same_motion
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from planning.nc._fast import FAST_MIN_RUN, _present
+from planning.nc import FAST_MIN_RUN, present_mask
 from planning.nc.errors import NCError
 from planning.nc.interpreter import Interpreter
 from planning.nc.motion import Motion
@@ -174,4 +174,4 @@ def test_stream_of_a_file_same(tmp_path):
 
 def test_present_mask_of_mixed_columns():
     for col in [("", "1"), ("1", ""), ("5", "", ""), ("", "-2.5", "", "33", ""), ("7",), ("",)]:
-        assert _present(col, len(col)).tolist() == [c != "" for c in col]
+        assert present_mask(col, len(col)).tolist() == [c != "" for c in col]

@@ -6,8 +6,7 @@ from __future__ import annotations
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from planning.nc import NCError
-from planning.nc._lexer import block_words, line_error, tokenize
+from planning.nc import NCError, block_words, line_error, tokenize
 
 ALPHABET = "GXYZFgxyzMN0123456789.-+ \t()/;%#Ä\r"
 

@@ -22,8 +22,8 @@ from planning.nc import (
     arc_sweep_rad,
     interpret,
     motion_to_program,
+    tokenize,
 )
-from planning.nc._lexer import tokenize
 from planning.nc.edit import set_feed, split_moves
 
 SAMPLE = str(Path(__file__).resolve().parents[1] / "data" / "programs" / "demo-part.nc")

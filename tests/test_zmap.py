@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from planning.errors import PlanningError
-from planning.stock import _kernels as K
-from planning.stock import _numba
+from planning.stock import compiled as _numba
+from planning.stock import kernels as K
 from planning.stock.zmap import Cutter, ZMap, split_pieces
 
 

@@ -85,7 +85,7 @@ def test_a_step_in_height_splits_the_arc_with_each_depth() -> None:
 
 
 def test_the_compiled_and_the_numpy_kernels_read_the_same_arcs() -> None:
-    from planning.stock import _numba
+    from planning.stock import compiled as _numba
 
     if not _numba.AVAILABLE:
         pytest.skip("numba is not installed: only the numpy kernel runs")

@@ -4,6 +4,7 @@ that tests a tool's class), and the most even force any feeds can give a program
 (evenness).
 """
 
+from analysis.forces._facemill_geometry import chip_section, edge_table
 from analysis.forces.endmill import EndMillCut, endmill_forces, peak_force
 from analysis.forces.evenness import ForceTable, SteadyCut
 from analysis.forces.facemill import FaceMillCut, facemill_forces
@@ -11,13 +12,15 @@ from analysis.forces.models import ENDMILL, FACEMILL, MODELS, ForceModel, model_
 
 __all__ = [
     "ENDMILL",
-    "FACEMILL",
-    "MODELS",
     "EndMillCut",
+    "FACEMILL",
     "FaceMillCut",
     "ForceModel",
     "ForceTable",
+    "MODELS",
     "SteadyCut",
+    "chip_section",
+    "edge_table",
     "endmill_forces",
     "facemill_forces",
     "model_for",

@@ -8,7 +8,7 @@ from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # the names as the type checker sees them; at run time each loads on first use
-    from analysis.identify._common import CI_NOTE
+    from analysis.identify._common import CI_NOTE, synthetic_run
     from analysis.identify.axes import AxisMap, check_axes, parse_axes
     from analysis.identify.conditions import ConditionsTable, load_conditions_table
     from analysis.identify.endmill import fit_endmill
@@ -46,7 +46,7 @@ if TYPE_CHECKING:  # the names as the type checker sees them; at run time each l
 # Loaded on first use (PEP 562): the fits need scipy (signal, stats, optimize: ~1.5 s), which
 # `cutlab daq record` and every command that only parses a conditions argument should not pay.
 _LAZY = {
-    "analysis.identify._common": ("CI_NOTE",),
+    "analysis.identify._common": ("CI_NOTE", "synthetic_run"),
     "analysis.identify.axes": (
         "AxisMap",
         "check_axes",
@@ -128,5 +128,6 @@ __all__ = [
     "reduce_files",
     "reduce_run",
     "reduce_run_file",
+    "synthetic_run",
     "tool_teeth",
 ]

@@ -46,6 +46,8 @@ from typing import Any
 # the program editor, the dialects, the writers or the plots.
 _LAZY = {
     "planning.nc._codes": ("INCH_MM",),
+    "planning.nc._fast": ("FAST_MIN_RUN", "present_mask"),
+    "planning.nc._lexer": ("block_words", "line_error", "tokenize"),
     "planning.nc.arcs": ("Linearized", "arc_radius_mm", "arc_sweep_rad", "bounding_box",
                          "linearize", "segment_length_mm", "segment_travel"),
     "planning.nc.check": ("CheckedProgram", "check_program", "write_motions_csv"),
@@ -77,14 +79,15 @@ def __getattr__(name: str) -> Any:
 
 
 __all__ = [
-    "DIALECTS",
     "ARC_CCW",
     "ARC_CW",
     "CannedCycle",
     "CheckedProgram",
+    "DIALECTS",
     "DWELL",
     "Dialect",
     "DialectProblem",
+    "FAST_MIN_RUN",
     "FULL_CIRCLE_TOL_MM",
     "INCH_MM",
     "Interpreter",
@@ -104,6 +107,7 @@ __all__ = [
     "StreamStats",
     "arc_radius_mm",
     "arc_sweep_rad",
+    "block_words",
     "bounding_box",
     "check_dialect",
     "check_program",
@@ -112,14 +116,17 @@ __all__ = [
     "interpret",
     "interpret_file",
     "iter_motion_chunks",
+    "line_error",
     "linearize",
     "motion_stats",
     "motion_to_program",
+    "present_mask",
     "restart_preamble",
     "segment_length_mm",
     "segment_time_s",
     "segment_travel",
     "state_at_block",
+    "tokenize",
     "write_motion_csv",
     "write_motions_csv",
 ]

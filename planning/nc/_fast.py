@@ -83,7 +83,7 @@ def _worth_it(lines: list[str], probe: int = 256) -> bool:
     return 2 * covered >= min(len(lines), probe)
 
 
-def _present(col: tuple[str, ...], n: int) -> Mask:
+def present_mask(col: tuple[str, ...], n: int) -> Mask:
     """Mask of the non-empty texts of ``col`` (often all or none: counted in C first; else from
     the lengths between separators of the joined column: the texts are ASCII numbers)."""
     empty = col.count("")
@@ -132,7 +132,7 @@ class FastRuns:
             return
         cols: Cols = tuple(zip(*rows))
         del rows
-        has = [np.zeros(0, bool), *(_present(c, n) for c in cols[1:])]  # N: read where needed
+        has = [np.zeros(0, bool), *(present_mask(c, n) for c in cols[1:])]  # N: read where needed
         moves = has[2] | has[3] | has[4]
         # runs of plain moves: [starts[i], ends[i])
         edges = np.flatnonzero(np.diff(moves.view(np.int8), prepend=0, append=0))

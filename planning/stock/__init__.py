@@ -2,6 +2,8 @@
 simulated machining of programs and operation plans, and the stock's picture.
 """
 
+from planning.stock import _kernels as kernels  # the swept envelopes, exact and sampled
+from planning.stock import _numba as compiled  # the compiled kernels: AVAILABLE, warm_up
 from planning.stock._numba import MAX_ARCS
 from planning.stock.block import SteppedBlock
 from planning.stock.machining import (
@@ -26,7 +28,9 @@ __all__ = [
     "SteppedBlock",
     "ZMap",
     "check_motion",
+    "compiled",
     "default_stock",
+    "kernels",
     "load_plan",
     "load_stock",
     "save_stock_png",
