@@ -260,7 +260,7 @@ def save_maps(dexels: NormalDexels, tol_mm: float, path: str | Path, title: str)
         no_gouge = (f"\ngouge: max {gouge.max() * 1e3:.1f} um at {iu.size} dexels, all within "
                     f"the tolerance {tol_mm * 1e3:g} um")  # fmt: skip
     panels[-1].set_title(f"leftover: max {left.max():.3f} mm{no_gouge}", fontsize=9)
-    for ax in axs:
+    for ax in panels:
         ax.set_xlabel("along v (mm of arc)")
         ax.set_ylabel("along u (mm of arc)")
         ax.set_aspect("equal")
