@@ -363,6 +363,17 @@ def _mode(x: np.ndarray, freq_hz: float, zeta: float, rate_hz: float) -> np.ndar
     return signal.lfilter(np.ravel(b), a, x)
 
 
+def _earlier_passes(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per insert at angles ``a`` (rad), its 2 Z earlier passes: the angle gap back to each
+    (rad, (Z, 2Z), nearest first) and which insert made it."""
+    z = len(a)
+    back = (a[None, :] - a[:, None]) % (2 * np.pi)  # [k, j]: insert j was here that much earlier
+    back[back == 0] = 2 * np.pi
+    both = np.concatenate([back, back + 2 * np.pi], axis=1)
+    order = np.argsort(both, axis=1)[:, : 2 * z]
+    return np.take_along_axis(both, order, 1), order % z
+
+
 def simulate(tool: Any, coef: Any, run: Run, rec: Record = Record()) -> tuple[np.ndarray, ...]:
     """(time_s (n,), force_n (n, 3) X' Y' Z', steady (n,) bool: the cutter fully in the block at
     full depth) of a whole run: air, the cutter feeding into the block's edge at full depth, the
@@ -403,13 +414,7 @@ def simulate(tool: Any, coef: Any, run: Run, rec: Record = Record()) -> tuple[np
     x_c, z_c = centre(tc)
     theta = rec.phase_rad + omega * t
     f = np.zeros((n, 3))
-    # 2 Z earlier passes per insert, the angle gap back to each
-    back = (a[None, :] - a[:, None]) % (2 * np.pi)  # [k, j]: insert j was here that much earlier
-    back[back == 0] = 2 * np.pi
-    both = np.concatenate([back, back + 2 * np.pi], axis=1)
-    order = np.argsort(both, axis=1)[:, : 2 * z]
-    gaps = np.take_along_axis(both, order, 1)
-    who = order % z
+    gaps, who = _earlier_passes(a)
     for j in range(z):
         psi = (theta + a[j]) % (2 * np.pi)
         # only where the insert can be in the block: ahead half, below the top
