@@ -24,6 +24,8 @@ from analysis.errors import AnalysisError
 from analysis.modal.hammer import (
     RESPONSES,
     ImpactRecord,
+    ModalResult,
+    ModeEstimate,
     modal_analysis,
     tooth_passing_warnings,
 )
@@ -183,6 +185,46 @@ def hammer_file_record(
                         tuple(kinds))  # fmt: skip
 
 
+def _mode_row(m: ModeEstimate, n_hits: int) -> JsonObject:
+    """One mode's JSON row: coherence only from 2 hits on; a force response's share of the
+    static gain, else the modal stiffness, mass and damping."""
+    row: JsonObject = {
+        "axis": m.channel,
+        "frequency_hz": m.frequency_hz,
+        "damping_ratio": m.damping_ratio,
+        "damping_windowed": m.damping_windowed,
+        "half_power_frequency_hz": m.half_power_frequency_hz,
+        "half_power_damping": m.half_power_damping,
+        "coherence": m.coherence if n_hits > 1 else None,
+        "response": m.response,
+        "stable_poles": m.stable_poles,
+        "frequency_hz_uncertainty": m.frequency_uncertainty_hz,
+        "damping_ratio_uncertainty": m.damping_uncertainty,
+    }
+    if n_hits == 1:
+        row["coherence_reason"] = "one hit: coherence needs at least 2"
+    if m.response == "force":
+        row["static_gain_share"] = m.residue / (2 * np.pi * m.frequency_hz) ** 2
+    else:
+        row.update(stiffness_n_m=m.stiffness_n_m, mass_kg=m.mass_kg,
+                   damping_n_s_m=m.damping_n_s_m)  # fmt: skip
+    return row
+
+
+def _stabilisation_plot(path: str | Path, res: ModalResult, png: str | Path) -> Path:
+    """The stabilisation diagram of the analysed channels, their chosen modes marked."""
+    from analysis.modal.stabilisation import plot_stabilisation
+
+    if not res.stabilisation:
+        raise AnalysisError(
+            f"{path}: no channel was analysed ({'; '.join(r for _, r in res.skipped)}): "
+            "no stabilisation diagram"
+        )
+    frfs = {n: res.frf[res.channels.index(n)] for n in res.stabilisation}
+    chosen = {n: [m.frequency_hz for m in res.modes if m.channel == n] for n in frfs}
+    return plot_stabilisation(res.stabilisation, frfs, res.freq_hz, chosen, png)
+
+
 def modal_file(
     path: str | Path,
     hammer: str = "hammer",
@@ -206,7 +248,6 @@ def modal_file(
     ``stabilisation_png`` the stabilisation diagram, with ``save`` the modes file
     (:func:`~analysis.modal.modes.save_modes`) written."""
     from analysis.modal.modes import save_modes
-    from analysis.modal.stabilisation import plot_stabilisation
 
     if not 1 <= teeth <= 1000:
         raise AnalysisError(f"--teeth {teeth}: expected 1 to 1000 teeth")
@@ -216,29 +257,7 @@ def modal_file(
     warn: list[JsonValue] = list(res.warnings)
     if spindle_rpm:
         warn += tooth_passing_warnings(res.modes, spindle_rpm, teeth)
-    modes: list[JsonValue] = []
-    for m in res.modes:
-        row: JsonObject = {
-            "axis": m.channel,
-            "frequency_hz": m.frequency_hz,
-            "damping_ratio": m.damping_ratio,
-            "damping_windowed": m.damping_windowed,
-            "half_power_frequency_hz": m.half_power_frequency_hz,
-            "half_power_damping": m.half_power_damping,
-            "coherence": m.coherence if len(res.hits_used) > 1 else None,
-            "response": m.response,
-            "stable_poles": m.stable_poles,
-            "frequency_hz_uncertainty": m.frequency_uncertainty_hz,
-            "damping_ratio_uncertainty": m.damping_uncertainty,
-        }
-        if len(res.hits_used) == 1:
-            row["coherence_reason"] = "one hit: coherence needs at least 2"
-        if m.response == "force":
-            row["static_gain_share"] = m.residue / (2 * np.pi * m.frequency_hz) ** 2
-        else:
-            row.update(stiffness_n_m=m.stiffness_n_m, mass_kg=m.mass_kg,
-                       damping_n_s_m=m.damping_n_s_m)  # fmt: skip
-        modes.append(row)
+    modes: list[JsonValue] = [_mode_row(m, len(res.hits_used)) for m in res.modes]
     out: JsonObject = {
         "file": str(Path(path)),
         "hits_used": list(res.hits_used),
@@ -251,15 +270,7 @@ def modal_file(
     if plot_png:
         out["plot"] = str(plot_frf(res, plot_png))
     if stabilisation_png:
-        if not res.stabilisation:
-            raise AnalysisError(
-                f"{path}: no channel was analysed ({'; '.join(r for _, r in res.skipped)}): "
-                "no stabilisation diagram"
-            )
-        frfs = {n: res.frf[res.channels.index(n)] for n in res.stabilisation}
-        chosen = {n: [m.frequency_hz for m in res.modes if m.channel == n] for n in frfs}
-        out["stabilisation_plot"] = str(plot_stabilisation(res.stabilisation, frfs, res.freq_hz,
-                                                           chosen, stabilisation_png))  # fmt: skip
+        out["stabilisation_plot"] = str(_stabilisation_plot(path, res, stabilisation_png))
     if save:
         saved, notes = save_modes(save, res.modes, source=Path(path).name)
         out["saved"] = str(saved)

@@ -354,6 +354,29 @@ def _cluster_spread(st: Stabilisation, f_hz: float, df_hz: float) -> tuple[float
             float(np.std(zs, ddof=1)))  # fmt: skip
 
 
+def _force_window(exc: NDArray[np.float64], rate: float) -> None:
+    """Force window, in place: each hit's hammer channel is zero from 0.5 ms after its pulse
+    falls below 2 % of the peak (its noise is not excitation)."""
+    for row in exc:
+        k = int(np.argmax(np.abs(row)))
+        below = np.flatnonzero(np.abs(row[k:]) < 0.02 * np.abs(row[k]))
+        if len(below):
+            row[k + int(below[0]) + int(0.0005 * rate) :] = 0.0
+
+
+def _one_hit_note(modes: list[ModeEstimate]) -> str:
+    """The warning of a one-hit record: no coherence, the spread over model orders only."""
+    spread = "; ".join(
+        f"{m.channel} {m.frequency_hz:.0f} +- {m.frequency_uncertainty_hz:.1f} Hz, damping "
+        f"{m.damping_ratio:.4f} +- {m.damping_uncertainty:.4f}" for m in modes
+    )  # fmt: skip
+    return (
+        "one hit: no coherence (it needs at least 2 hits) and the noise is not averaged; "
+        f"the uncertainty is the spread over model orders only ({spread or 'no mode'}): "
+        "tap 3-5 times for a coherence check"
+    )
+
+
 def modal_analysis(
     record: ImpactRecord,
     record_s: float = 0.08,
@@ -389,12 +412,7 @@ def modal_analysis(
         )
     exc = np.stack([h[starts[i] : starts[i] + n] for i in used])
     resp = np.stack([y[starts[i] : starts[i] + n].T for i in used])
-    # Force window: the hammer channel is zero after its pulse (its noise is not excitation).
-    for row in exc:
-        k = int(np.argmax(np.abs(row)))
-        below = np.flatnonzero(np.abs(row[k:]) < 0.02 * np.abs(row[k]))
-        if len(below):
-            row[k + int(below[0]) + int(0.0005 * rate) :] = 0.0
+    _force_window(exc, rate)
     win = f"exponential:{window_end}"
     frf = np.zeros((y.shape[1], n // 2 + 1), complex)
     frf_raw, coh = np.zeros_like(frf), np.zeros(frf.shape)
@@ -431,15 +449,7 @@ def modal_analysis(
                                   f"{lo:.0f}..{hi:.0f} Hz"))  # fmt: skip
         modes.extend(found)
     if len(used) == 1:  # an H1 of one hit has coherence 1 by construction: nothing checked
-        spread = "; ".join(
-            f"{m.channel} {m.frequency_hz:.0f} +- {m.frequency_uncertainty_hz:.1f} Hz, damping "
-            f"{m.damping_ratio:.4f} +- {m.damping_uncertainty:.4f}" for m in modes
-        )  # fmt: skip
-        notes.insert(0, (
-            "one hit: no coherence (it needs at least 2 hits) and the noise is not averaged; "
-            f"the uncertainty is the spread over model orders only ({spread or 'no mode'}): "
-            "tap 3-5 times for a coherence check"
-        ))  # fmt: skip
+        notes.insert(0, _one_hit_note(modes))
     return ModalResult(tuple(modes), tuple(used), tuple(doubles), freq, frf, coh,
                        tuple(skipped), tuple(notes), stabs, names)  # fmt: skip
 
