@@ -392,7 +392,6 @@ MODULES_OVER: dict[str, int] = {
 }
 FUNCTIONS_OVER: dict[str, int] = {
     "analysis/identify/files.py::fit_files": 150,
-    "analysis/identify/validate.py::plot_comparison": 82,
     "planning/orient/job.py::run_orient": 158,
     "planning/orient/kinematics.py::inverse": 100,
     "planning/rough/planner.py::RoughPlanner.plan_optimal": 86,
