@@ -12,7 +12,8 @@ from hypothesis import strategies as st
 from planning.errors import PlanningError
 from planning.stock import compiled as _numba
 from planning.stock import kernels as K
-from planning.stock.zmap import Cutter, ZMap, split_pieces
+from planning.stock.pieces import split_pieces
+from planning.stock.zmap import Cutter, ZMap
 
 
 def segment_area(r: float, d: float) -> float:

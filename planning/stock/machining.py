@@ -39,11 +39,12 @@ from planning.nc import DWELL, LINE, RAPID, Motion
 from planning.nc.arcs import PLANE_AXES, arc_radius_mm, linearize
 from planning.stock import _kernels as _k
 from planning.stock._numba import MAX_ARCS, N_ARC
+from planning.stock.pieces import split_pieces
 from planning.stock.starts import (
     default_stock,
     load_stock,
 )
-from planning.stock.zmap import Cutter, ZMap, split_pieces
+from planning.stock.zmap import Cutter, ZMap
 
 #: the engaged arcs (``Simulation.piece_arcs``): at most this many per piece, on this grid
 ARC_STEP_RAD = math.pi / N_ARC
