@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+import select
 import textwrap
 from pathlib import Path
 
@@ -225,7 +226,9 @@ def test_concurrent_readers_during_writes(db) -> None:
     # Every reader has the base open before the first write, so its reads overlap the writes
     # (rather than fixed 60 rounds, most of which came after them); each reads until it has
     # seen the 43rd rule.
-    for r in readers:
+    for r in readers:  # each within 60 s: a reader that never opens the base fails, not hangs
+        ready, _, _ = select.select([r.stdout], [], [], 60.0)
+        assert ready, "a reader did not open the rule base within 60 s"
         assert r.stdout.readline().strip() == "ready", r.stderr.read()
     for i in range(40):
         db.add(_key(operation=f"op{i}"), _rule(f"r{i}"))
