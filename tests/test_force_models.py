@@ -7,7 +7,15 @@ import pytest
 
 from analysis.config import EndMillCoefficients, FaceMillCoefficients, get_tool, load_tools
 from analysis.errors import AnalysisError
-from analysis.forces import ENDMILL, FACEMILL, MODELS, EndMillCut, ForceModel, model_for, model_named
+from analysis.forces import (
+    ENDMILL,
+    FACEMILL,
+    MODELS,
+    EndMillCut,
+    ForceModel,
+    model_for,
+    model_named,
+)
 from analysis.identify import RunConditions
 
 

@@ -12,8 +12,8 @@ import math
 import pytest
 from _cli_inputs import PORT_COMMANDS, commands, has_json, inputs, recipe, with_port
 
-from rig.cli import main
 from analysis.output import finite_json
+from rig.cli import main
 from rig.cli.common import print_json
 
 __all__ = ["inputs"]  # the session fixture

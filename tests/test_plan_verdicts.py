@@ -238,8 +238,8 @@ def test_the_twins_chattering_cut_is_not_passed(tmp_path: Path, capsys) -> None:
     # the shipped phi10-flat carries the modes tapped on the twin: checked without --lobes
     assert rc == 3 and out["limits"]["stability"].startswith("tool modes")
     v = next(v for v in out["violations"] if v["limit"] == "stability")
-    assert v["value"] == pytest.approx(0.82) and v["allowed"] == pytest.approx(0.8 * limit,
-                                                                                rel=0.01)  # fmt: skip
+    assert v["value"] == pytest.approx(0.82)
+    assert v["allowed"] == pytest.approx(0.8 * limit, rel=0.01)
     # the same cutter without modes (a user's tool): unchecked (exit 4), never "within"
     tools = tmp_path / "tools.toml"
     tools.write_text("[tools.bare10]\n" + BODY)

@@ -223,7 +223,8 @@ def read_row(path: Path, root: Path, manifests: dict[Path, JsonObject]) -> Index
     folder = path.parent.parent if path.parent.name == "runs" else path.parent
     man = _manifest(folder, manifests)
     runs = man.get("runs")
-    entry = next((e for e in (runs.values() if isinstance(runs, dict) else ()) if isinstance(e, dict)
+    listed = runs.values() if isinstance(runs, dict) else ()
+    entry = next((e for e in listed if isinstance(e, dict)
                   and Path(str(e.get("file", ""))).stem == path.stem), {})  # fmt: skip
     feed = _number(c, "feed_mm_min")
     fz = _number(c, "fz_mm")

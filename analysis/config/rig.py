@@ -1,4 +1,4 @@
-"""The rig (``configs/rig.toml``): the dynamometer, its amplifier channels and modes, and the DAQ."""
+"""The rig (``configs/rig.toml``): the dynamometer, its amplifier channels and modes, the DAQ."""
 
 from __future__ import annotations
 

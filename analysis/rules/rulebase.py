@@ -344,9 +344,11 @@ class RuleBase:
         own = [g for g in cands if g.rule.tool == tool]
         if own:
             return Match(own[0], True, 0.0, {})
-        same = [g for g in cands
-                if abs(g.key.tool_diameter_mm - tool_diameter_mm) <= 1e-6 * tool_diameter_mm
-                and abs(g.key.flute_length_mm - flute_length_mm) <= 1e-6 * flute_length_mm]  # fmt: skip
+        same = [
+            g for g in cands
+            if abs(g.key.tool_diameter_mm - tool_diameter_mm) <= 1e-6 * tool_diameter_mm
+            and abs(g.key.flute_length_mm - flute_length_mm) <= 1e-6 * flute_length_mm
+        ]  # fmt: skip
         if not same:
             return None
         return Match(same[0], False, 0.0, {"tool": (tool, same[0].rule.tool or "unnamed")})

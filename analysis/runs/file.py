@@ -1,9 +1,9 @@
 """The HDF5 run file's loader, and the one namespace of the whole run file.
 
-``rig.log.writer.RunWriter`` writes run files using the layout's constants; everything else reads them
-through :func:`load_run` (whole run, or a time window) or :mod:`analysis.runs.follow` (a run still
-being written). Nothing outside these modules and ``rig.log.writer`` should name an HDF5 path of a
-run file.
+``rig.log.writer.RunWriter`` writes run files using the layout's constants; everything else reads
+them through :func:`load_run` (whole run, or a time window) or :mod:`analysis.runs.follow` (a run
+still being written). Nothing outside these modules and ``rig.log.writer`` should name an HDF5 path
+of a run file.
 
 The layout (its paths, dtypes, event kinds and statuses) is documented in
 :mod:`analysis.runs.layout`, the repair of a file whose writer died in :mod:`analysis.runs.repair`;
@@ -25,7 +25,49 @@ import numpy as np
 import pandas as pd
 
 from analysis.runs.layout import *  # noqa: F403 (the rf. namespace: see the docstring)
+from analysis.runs.layout import (  # the names this module uses
+    ATTR_FORMAT,
+    ATTR_FORMAT_VERSION,
+    ATTR_SOFTWARE_VERSION,
+    BLOCK_DTYPE,
+    BLOCKS,
+    CAL_DRIFT_V_S,
+    CAL_VOLTS_TO_N,
+    CAL_ZERO_TIME_S,
+    CAL_ZERO_V,
+    CALIBRATION,
+    CLOSED_STATUSES,
+    EVENT_DTYPE,
+    EVENTS,
+    FLUSHED,
+    FORCES,
+    FORMAT_NAME,
+    FORMAT_VERSION,
+    LOSS_KINDS,
+    META_ACQUISITION,
+    META_CONDITIONS,
+    META_PROGRAM,
+    META_PROGRAM_INFO,
+    META_RIG,
+    META_STATUS,
+    RAW,
+    SAMPLE_FORMAT_RAW,
+    SCALING_COEFF,
+    STATUS_RUNNING,
+    VOLTS,
+    RunFileError,
+    meta_json,
+    meta_text,
+    names_attr,
+    read_table,
+    samples_dataset,
+)
 from analysis.runs.repair import *  # noqa: F403
+from analysis.runs.repair import (  # the names this module uses
+    dead_writer_status,
+    repair_run,
+    writer_alive,
+)
 
 
 def raw_to_volts(raw: np.ndarray, coeff: np.ndarray) -> np.ndarray:

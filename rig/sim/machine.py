@@ -21,12 +21,12 @@ How the twin differs from a real machine and dynamometer:
   read (0.1 s) sees the stock as it was at the start of that read.
 - An end mill with tool modes (the twin's own structure, :mod:`rig.sim.structure`, or the
   campaign's ``[[sim.tool_modes]]``; never the catalogue's ``[[tools.NAME.modes]]``, which are
-  measured on the twin by a tap test) cuts regeneratively (:mod:`rig.sim._regen`: tool deflection, the chip left by the earlier
-  teeth, chatter where the stability lobes say); without modes, and for face mills, forces are
-  quasi-static and only the dynamometer's modes add dynamics. An end mill's ``max_chip_mm``
-  limits the feed: above it the chip jams in the chip breaker and the force rises sharply
-  (:func:`rig.sim._regen.overload_factor`). Runout, tool wear and built-up edge are not
-  modelled.
+  measured on the twin by a tap test) cuts regeneratively (:mod:`rig.sim._regen`: tool
+  deflection, the chip left by the earlier teeth, chatter where the stability lobes say);
+  without modes, and for face mills, forces are quasi-static and only the dynamometer's modes
+  add dynamics. An end mill's ``max_chip_mm`` limits the feed: above it the chip jams in the
+  chip breaker and the force rises sharply (:func:`rig.sim._regen.overload_factor`). Runout,
+  tool wear and built-up edge are not modelled.
 - Noise is white and Gaussian, drift linear, hum one sinusoid; the amplifier never saturates here
   (the simulated DAQ's ``sim_`` knobs do that).
 """
