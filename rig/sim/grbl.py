@@ -82,57 +82,27 @@ none; a wrong baud rate is garbage); no homing switches, probing or soft limits 
 
 from __future__ import annotations
 
-import math
 from collections import deque
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from analysis.config import MachineConfig
-from planning.nc import DWELL, RAPID, NCError
+from planning.nc import DWELL
 from planning.nc.grbl import (
     GRBL_MSG_ALARM_LOCK,
-    GRBL_MSG_PGM_END,
     GRBL_MSG_RESET_TO_CONTINUE,
-    GRBL_MSG_UNLOCKED,
     GRBL_PLANNER_BLOCKS,
     GRBL_RX_BUFFER_SIZE,
     GrblParser,
-    GrblResult,
-    grbl_filter,
 )
 from rig.sim._controller import SimControllerBase, _Planned
-
-BANNER = b"\r\nGrbl 1.1h ['$' for help]\r\n"
-_SETTINGS = {0: 10, 1: 25, 2: 0, 3: 0, 4: 0, 5: 0, 6: 0, 10: 1, 11: 0.010, 12: 0.002, 13: 0,
-             20: 0, 21: 0, 22: 0, 23: 0, 24: 25.0, 25: 500.0, 26: 250, 27: 1.0, 30: 1000, 31: 0,
-             32: 0, 100: 250.0, 101: 250.0, 102: 250.0, 110: 500.0, 111: 500.0, 112: 500.0,
-             120: 10.0, 121: 10.0, 122: 10.0, 130: 200.0, 131: 200.0, 132: 200.0}  # fmt: skip
-_CRITICAL_ALARMS = (1, 2)  # hard and soft limit: protocol.c blocks until a reset
-# config.h: MIN/MAX_FEED_RATE_OVERRIDE, MIN/MAX_SPINDLE_SPEED_OVERRIDE, %
-FEED_OVR_MIN, FEED_OVR_MAX, SPINDLE_OVR_MIN, SPINDLE_OVR_MAX = 10, 200, 10, 200
-# stepper.c: a step segment is DT_SEGMENT = 1 / ACCELERATION_TICKS_PER_SECOND (100) of motion;
-# the segment ring (SEGMENT_BUFFER_SIZE 6) holds 5, the one running and 4 prepared ahead. An
-# override recomputes the plan (plan_cycle_reinitialize) and the spindle PWM (STEP_CONTROL_
-# UPDATE_SPINDLE_PWM) for the segments prepared from then on: what is already in the ring runs
-# at the old values first.
-DT_SEGMENT_S = 0.01
-SEGMENTS_AHEAD = 4
+from rig.sim._grbl_lines import GrblLinesMixin, _Pending
+from rig.sim._grbl_overrides import GrblOverridesMixin
+from rig.sim._grbl_report import _CRITICAL_ALARMS, _SETTINGS, BANNER, GrblReportMixin
 
 
-@dataclass
-class _Pending:
-    """The line GRBL is busy with (out of the receive buffer, its answer not sent yet)."""
-
-    k: int  # order among the g-code lines received
-    res: GrblResult
-    planned: _Planned | None
-    stage: str  # "sync" (waits for the planner to empty) or "room" (waits for its answer)
-    t: float
-
-
-class SimGrbl(SimControllerBase):
+class SimGrbl(GrblLinesMixin, GrblOverridesMixin, GrblReportMixin, SimControllerBase):
     """GRBL 1.1h-like controller (see the module docstring).
 
     ``base_kw``: clock, speed and the ``sim_`` fault knobs of :class:`SimControllerBase` (a
@@ -254,238 +224,6 @@ class SimGrbl(SimControllerBase):
         if self._pending is not None:
             self._process_lines(now)
 
-    # -- planner ------------------------------------------------------------------------------
-    def _remaining_blocks(self, b: _Planned, now: float) -> int:
-        if b.blocks <= 0 or not len(b.motion):
-            return 0
-        total = float(np.sum(b.durations_s))
-        if total <= 0:
-            return b.blocks
-        i = self._seg_i
-        rest = float(np.sum(b.durations_s[i + 1 :]))
-        # in programmed time (an override scales the running segment, not the block's total)
-        if not self.held and self._seg_t1 > now:
-            run = self._seg_t1 - self._seg_t0
-            frac = self._seg_frac0 + (1 - self._seg_frac0) * (now - self._seg_t0) / run
-            rest += float(b.durations_s[i]) * (1 - frac)
-        elif self.held:
-            rest += float(b.durations_s[i]) * (1 - (self._hold_frac or 0.0))
-        return min(b.blocks, math.ceil(b.blocks * rest / total - 1e-9))
-
-    def _planner_used(self) -> int:
-        used = sum(p.blocks for p in self._plan)
-        if self._cur is not None:
-            used += self._remaining_blocks(self._cur, self.clock.now())
-        return used
-
-    def _planner_empty(self) -> bool:
-        return self._cur is None and not self._plan
-
-    def _process_lines(self, t: float) -> None:
-        """GRBL's main loop: finish the line it is busy with, then read the next ones."""
-        while not self.silent and not self.critical:
-            if self._pending is not None:
-                t_ok = self._finish_pending(t)
-                if t_ok is None:
-                    return
-                t = t_ok  # the lines behind it are read from then on
-                continue
-            if not self._rx_lines:
-                return
-            raw, t_arr = self._rx_lines.popleft()
-            self.fill -= len(raw) + 1
-            self._line(raw.decode("ascii", "replace"), max(t, t_arr))
-
-    def _finish_pending(self, t: float) -> float | None:
-        """Answer the pending line if it can be answered by ``t``; the answer's time, or None."""
-        p = self._pending
-        assert p is not None
-        if p.stage == "sync":
-            if not self._planner_empty():
-                return None
-            p.stage = "room"
-            if p.planned is not None:
-                self._plan_line(p.planned)
-        b = p.planned
-        t_room = None
-        if p.res.dwell_s > 0 or p.res.program_flow == "pause":
-            if b is not None and not b.done:
-                return None
-            if p.res.program_flow == "pause" and self.held:
-                return None
-        elif b is not None and b.blocks > 0:
-            t_room = self._room_time()
-            if self._planner_used() > self.planner_blocks:
-                return None
-        self._pending = None
-        if p.res.program_flow == "end":
-            self._send(GRBL_MSG_PGM_END.encode() + b"\r\n")
-        t_ok = max(p.t, t_room) if t_room is not None else max(t, p.t)
-        self._ok(p.k, t_ok)
-        return t_ok
-
-    def _room_time(self) -> float | None:
-        """When the running line (an arc's mc_arc blocks) will have freed the planner room the
-        pending line waits for, if within its running segment: the answer's time is then this,
-        not the moment this thread ran (late on a loaded host, by seconds at speed 10)."""
-        p, b = self._pending, self._cur
-        if p is None or p.stage != "room" or p.planned is None or p.planned.blocks <= 0:
-            return None
-        if b is None or b.blocks <= 0 or self.held or self._hold_stop_at is not None:
-            return None
-        keep = self.planner_blocks - sum(q.blocks for q in self._plan)  # cur's share, blocks
-        total = float(np.sum(b.durations_s))
-        i = self._seg_i
-        dur, run = float(b.durations_s[i]), self._seg_t1 - self._seg_t0
-        after = float(np.sum(b.durations_s[i + 1 :]))
-        if keep < 0 or total <= 0 or dur <= 0 or run <= 0 or self._seg_frac0 >= 1.0:
-            return None
-        # _remaining_blocks <= keep once the programmed time left is <= keep * total / blocks
-        rest_max = keep * total / b.blocks
-        if not after <= rest_max <= after + dur:
-            return None
-        frac = 1.0 - (rest_max - after) / dur
-        return self._seg_t0 + max(0.0, frac - self._seg_frac0) / (1.0 - self._seg_frac0) * run
-
-    def _plan_line(self, planned: _Planned) -> None:
-        self._plan.append(planned)
-        if planned.ends_program:  # M2/M30: the modal state for the next program
-            pos = self.interp.state.position_mm
-            self._new_interpreter()
-            self.interp.state.position_mm = pos
-        if planned.blocks and self._planner_used() > self.planner_blocks:
-            self.planner_waits += 1
-
-    # -- answering ------------------------------------------------------------------------------
-    def _reply(self, msg: bytes) -> None:
-        self._send(msg + b"\r\n")
-
-    def _ok(self, k: int | None = None, t: float | None = None) -> None:
-        if k is not None:
-            self.ok_times_s.append((k, self.clock.now() if t is None else t))
-        if k is not None and k == self.sim_drop_ok_at_line:
-            self.sim_drop_ok_at_line = None
-            self._event("ok_dropped", f"line {k}: its ok is lost")
-            return
-        if k is not None and k == self.sim_garble_ok_at_line:
-            self.sim_garble_ok_at_line = None
-            self._event("ok_garbled", f"line {k}: its ok arrives as 'oo'")
-            self._reply(b"oo")
-            return
-        if k is not None and k == self.sim_noise_at_line:
-            self.sim_noise_at_line = None
-            self._event("noise", f"line {k}: a line of noise before its ok")
-            self._reply(b"\xfe~#q")
-        self.oks += 1
-        self._reply(b"ok")
-
-    def _error(self, code: int, text: str) -> None:
-        self.errors.append((code, text))
-        self._event("error", f"error:{code} {text}")
-        self._reply(f"error:{code}".encode())
-
-    def _line(self, text: str, t: float) -> None:
-        f = grbl_filter(text)
-        if f.overflow:
-            self._error(11, text)
-            return
-        if not f.text:  # empty or comment line: 'ok' (for syncing, protocol.c)
-            self._ok()
-            return
-        if f.text.startswith("$"):
-            self._dollar(f.text, text)
-            return
-        k = self.lines_received
-        if not self._block_received():
-            return
-        self.lines_received += 1
-        if self.alarm:
-            self._error(9, text)
-            return
-        if self.sim_error_at_block is not None and k == self.sim_error_at_block[0]:
-            code_n = self.sim_error_at_block[1]
-            self.sim_error_at_block = None
-            self._error(code_n, text)
-            return
-        res = self.grbl.parse(f.text)
-        if not res.ok:
-            self._error(res.code, text)
-            return
-        try:
-            planned = self._interpret(f.text, t)
-        except NCError as exc:  # accepted by GRBL, beyond what planning.nc runs
-            self._event("unsimulated", f"{text}: {exc.reason}")
-            planned = None
-        if planned is not None:
-            planned.text = text
-            planned.blocks = res.planner_blocks
-            planned.pause = res.program_flow == "pause"
-        self._pending = _Pending(k, res, planned, "sync" if res.sync else "room", t)
-        if not res.sync and planned is not None:
-            self._plan_line(planned)
-
-    def _dollar(self, cmd: str, text: str) -> None:
-        state = self.state_name()
-        if cmd in ("$$", "$I") and state.startswith(("Run", "Hold")):
-            self._error(8, text)  # "not idle" for these while running or held
-            return
-        if cmd[1:2] in ("#", "H", "I", "N") and state not in ("Idle", "Alarm"):
-            self._error(8, text)
-            return
-        if cmd == "$$":
-            out = "".join(
-                f"${k}={v:.3f}\r\n" if isinstance(v, float) else f"${k}={v:g}\r\n"
-                for k, v in sorted(self.settings.items())
-            )
-            self._send(out.encode())
-        elif cmd == "$X":
-            if self.alarm:
-                self.alarm = ""
-                self._send(GRBL_MSG_UNLOCKED.encode() + b"\r\n")
-        elif cmd == "$H":
-            if not self.settings[22]:
-                self._error(5, text)  # homing not enabled ($22=0)
-                return
-            self._pos = (0.0, 0.0, 0.0)
-            self.interp.state.position_mm = self._pos
-            self.grbl.state.position = [0.0, 0.0, 0.0]
-            self.alarm = ""
-        elif cmd == "$I":
-            opt = f"V{'N' if self.line_numbers else ''},{self.planner_blocks},{self.rx_capacity}"
-            self._send(f"[VER:1.1h.20190825:cutlab-sim]\r\n[OPT:{opt}]\r\n".encode())
-        elif cmd == "$G":
-            self._send(self._gcode_modes().encode() + b"\r\n")
-        elif cmd in ("$#", "$C", "$N"):
-            pass
-        elif cmd[1:].partition("=")[0].isdigit() and "=" in cmd:
-            k, _, v = cmd[1:].partition("=")
-            try:
-                value = float(v)
-            except ValueError:
-                self._error(2, text)
-                return
-            if int(k) not in self.settings:
-                self._error(3, text)
-                return
-            self.settings[int(k)] = value
-            if int(k) == 12:
-                self.grbl.arc_tolerance_mm = value
-        else:
-            self._error(3, text)
-            return
-        self._ok()
-
-    def _gcode_modes(self) -> str:
-        """report_gcode_modes: ``[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]``."""
-        g = self.grbl.state
-        motion = f"{g.motion}" if g.motion < 100 else f"38.{g.motion - 136}"
-        sp = {1: 3, -1: 4, 0: 5}[g.spindle]
-        return (
-            f"[GC:G{motion} G{54 + g.coord_select} G{17 + g.plane} G{21 - g.inches} "
-            f"G{90 + g.incremental} G{94 - g.inverse_time} M{sp} M{8 if g.coolant else 9} "
-            f"T{g.tool} F{g.feed / (25.4 if g.inches else 1):.0f} S{g.spindle_speed:.0f}]"
-        )
-
     # -- executor hooks ------------------------------------------------------------------------
     def _before_block(self, b: _Planned, t0: float) -> bool:
         if self.sim_reset_at_block is not None and b.seq == self.sim_reset_at_block:
@@ -583,105 +321,6 @@ class SimGrbl(SimControllerBase):
         feed = float(b.motion.feed_mm_min[i])
         return feed if feed == feed and int(b.motion.kind[i]) in (2, 3) else float(d / dur * 60)
 
-    # -- overrides (protocol_exec_rt_system, plan_compute_profile_nominal_speed) ---------------
-    def _override(self, code: int, t: float) -> None:
-        """One override byte arrived at ``t``: the new value within GRBL's limits; a change is
-        reported in the next status (``Ov:``) and applied to the segment running (split there)
-        and to every one after it (the planner recomputes the blocks it holds)."""
-        f, r, s = self.feed_ovr, self.rapid_ovr, self.spindle_ovr
-        if code == 0x90:
-            f = 100
-        elif 0x91 <= code <= 0x94:
-            f += {0x91: 10, 0x92: -10, 0x93: 1, 0x94: -1}[code]
-        elif code <= 0x97:
-            r = {0x95: 100, 0x96: 50, 0x97: 25}[code]
-        elif code == 0x99:
-            s = 100
-        elif 0x9A <= code <= 0x9D:
-            s += {0x9A: 10, 0x9B: -10, 0x9C: 1, 0x9D: -1}[code]
-        else:  # 0x98 is unused in 1.1h
-            return
-        f = min(max(f, FEED_OVR_MIN), FEED_OVR_MAX)
-        s = min(max(s, SPINDLE_OVR_MIN), SPINDLE_OVR_MAX)
-        if (f, r, s) == (self.feed_ovr, self.rapid_ovr, self.spindle_ovr):
-            return  # at a limit: nothing changes, nothing is reported
-        now = max(t, self._advanced_t)  # never before what the executor has already run
-        self._advance(now)
-        self._ovr_counter = 0  # report the change at once
-        self.feed_ovr, self.rapid_ovr, self.spindle_ovr = f, r, s
-        self._event("override", f"feed {f} %, rapid {r} %, spindle {s} %", now)
-        # moving, the segments already prepared run first: the change starts with the first
-        # segment prepared after it, SEGMENTS_AHEAD segment times after the running one ends
-        # (40-50 ms); idle or held, nothing is prepared and it applies at once
-        due = now
-        if self._moving() and not self.held and self._hold_stop_at is None:
-            due = (math.floor(now / DT_SEGMENT_S + 1e-9) + 1 + SEGMENTS_AHEAD) * DT_SEGMENT_S
-        self._ovr_due.append((max(due, self._ovr_due[-1][0] if self._ovr_due else due), f, r, s))
-        self._advance(now)
-
-    def _apply_override(self, now: float, f: int, r: int, s: int) -> None:
-        """The stepper reaches the segments prepared at the new values: the running segment is
-        split at ``now`` and goes on at them, the spindle turns at its new speed."""
-        f0, r0, _ = self._run_ovr
-        self._run_ovr = (f, r, s)
-        if (f, r) != (f0, r0):
-            self._replan(now)
-        rpm = self._spindle_prog * self._rpm_scale()
-        if rpm != self._spindle:
-            self._spindle = rpm
-            for fn in self._spindle_listeners:
-                fn(now, rpm)
-
-    def _replan(self, now: float) -> None:
-        """The running segment goes on from where it is at its new speed (a hold being carried
-        out, or held, takes the new speed when it resumes)."""
-        b = self._cur
-        if b is None or not len(b.motion) or self.held or self._hold_stop_at is not None:
-            return
-        if int(b.motion.kind[self._seg_i]) == DWELL or self._seg_t1 <= now:
-            return
-        run = self._seg_t1 - self._seg_t0
-        frac = self._seg_frac0 + (1 - self._seg_frac0) * (now - self._seg_t0) / run
-        self.busy_s -= self._seg_t1 - now
-        self._start_segment(now, frac)
-
-    def _time_scale(self, b: _Planned, i: int) -> float:
-        kind = int(b.motion.kind[i])
-        feed_ovr, rapid_ovr, _ = self._run_ovr
-        if kind == DWELL:
-            return 1.0
-        if kind == RAPID:
-            return 100.0 / rapid_ovr
-        if feed_ovr == 100:
-            return 1.0
-        v = self._programmed_mm_min(b, i)
-        if v <= 0:
-            return 1.0
-        # the overridden feed stays below the rapid rate (block->rapid_rate)
-        return v / min(v * feed_ovr / 100.0, max(self.rapid_mm_min, v))
-
-    def _rpm_scale(self) -> float:
-        return self._run_ovr[2] / 100.0
-
-    def _start_block(self, b: _Planned, t0: float) -> None:
-        super()._start_block(b, t0)
-        if self._cur is b:
-            self._spindle_prog = b.spindle_rpm
-
-    def _advance(self, now: float) -> None:
-        while self._ovr_due and self._ovr_due[0][0] <= now:
-            t_due, f, r, s = self._ovr_due.popleft()
-            t_due = max(t_due, self._advanced_t)
-            super()._advance(t_due)
-            self._advanced_t = max(self._advanced_t, t_due)
-            self._apply_override(t_due, f, r, s)
-        super()._advance(now)
-        self._advanced_t = max(self._advanced_t, now)
-
-    def _next_wake(self, now: float) -> float:
-        t = super()._next_wake(now)
-        return max(min(t, self._ovr_due[0][0]), now) if self._ovr_due else t
-
     def _feed_hold_at(self, t: float) -> None:
         now = self.clock.now()
         self._advance(now)
@@ -721,55 +360,6 @@ class SimGrbl(SimControllerBase):
         dur = self._seg_t1 - self._seg_t0
         frac_run = min(1.0, (now - self._seg_t0) / dur) if dur > 0 else 1.0
         return self._point(self._seg_i, self._seg_frac0 + (1 - self._seg_frac0) * frac_run)
-
-    def _wco(self) -> tuple[float, float, float]:
-        g = self.grbl.state
-        c = g.coord_systems[g.coord_select]
-        return (c[0] + g.coord_offset[0], c[1] + g.coord_offset[1],
-                c[2] + g.coord_offset[2] + g.tool_length_offset)  # fmt: skip
-
-    def _status(self) -> None:
-        """report_realtime_status, fields in report.c's order."""
-        now = self.clock.now()
-        self._advance(now)
-        state = self.state_name()
-        mask = int(self.settings.get(10, 1))
-        x, y, z = self.position_mm()
-        wco = self._wco()
-        if mask & 1:
-            pos = f"|MPos:{x:.3f},{y:.3f},{z:.3f}"
-        else:
-            pos = f"|WPos:{x - wco[0]:.3f},{y - wco[1]:.3f},{z - wco[2]:.3f}"
-        out = f"<{state}{pos}"
-        if mask & 2:
-            free = max(0, self.planner_blocks - self._planner_used())
-            out += f"|Bf:{free},{self.rx_capacity - self.fill}"
-        b = self._cur
-        if self.line_numbers and b is not None and b.n_number > 0:
-            out += f"|Ln:{b.n_number}"
-        feed = 0.0
-        if b is not None and len(b.motion) and not self.held and self._hold_stop_at is None:
-            feed = self._speed_mm_min(b)
-        out += f"|FS:{feed:.0f},{abs(self._spindle):.0f}"
-        busy = state.startswith(("Run", "Hold"))
-        if self._wco_counter > 0:
-            self._wco_counter -= 1
-        else:
-            self._wco_counter = (30 if busy else 10) - 1
-            if self._ovr_counter == 0:
-                self._ovr_counter = 1
-            out += f"|WCO:{wco[0]:.3f},{wco[1]:.3f},{wco[2]:.3f}"
-        if self._ovr_counter > 0:
-            self._ovr_counter -= 1
-        else:
-            self._ovr_counter = (20 if busy else 10) - 1
-            out += f"|Ov:{self.feed_ovr},{self.rapid_ovr},{self.spindle_ovr}"
-            acc = ("S" if self._spindle > 0 else "C" if self._spindle < 0 else "") + (
-                "F" if self.interp.state.coolant else ""
-            )
-            if acc:
-                out += f"|A:{acc}"
-        self._send(f"{out}>\r\n".encode())
 
     def _soft_reset(self, moving: bool | None = None, advance: bool = True) -> None:
         """0x18: mc_reset, then main()'s re-initialisation."""
