@@ -38,79 +38,26 @@ import math
 import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from analysis.chatter import ChatterSettings, ChatterWatch
 from analysis.runs import file as rf
-from rig.adaptive.grbl_codes import APPLY_DELAY_S, MAX_PCT, MIN_PCT
+from rig.adaptive.grbl_codes import APPLY_DELAY_S
 from rig.adaptive.grbl_codes import feed_codes as _feed_codes
 from rig.adaptive.grbl_codes import spindle_codes as _spindle_codes
 from rig.adaptive.pockets import nearest_pocket_rpm
+from rig.adaptive.record import Decision, RevRecord
 from rig.adaptive.results import AdaptiveStatus, AdaptiveSummary, NoteWriter
 from rig.adaptive.saturation import Saturation
+from rig.adaptive.settings import MODES, AdaptiveSettings  # noqa: F401 - imported from here too
 
 if TYPE_CHECKING:
     from analysis.stability import Lobes
     from rig.adaptive.feedforward import FeedForward
     from rig.daq import DaqEvent, DaqInfo
     from rig.dnc import GrblStreamer
-
-MODES = ("feed", "spindle", "both")
-
-
-@dataclass(frozen=True)
-class AdaptiveSettings:
-    """What the loop holds and where it stops (see the module docstring)."""
-
-    mode: str = "feed"
-    target_force_n: float = 500.0
-    max_force_n: float = 2000.0
-    dead_band_pct: float = 5.0
-    slew_up_pct: int = 10
-    slew_down_pct: int = 50
-    settle_revs: int = 1
-    air_force_n: float = 30.0
-    stall_revs: float = 3.0
-    chatter_revs: int = 20
-    min_pct: int = MIN_PCT
-    max_pct: int = MAX_PCT
-
-    def __post_init__(self) -> None:
-        if self.mode not in MODES:
-            raise ValueError(f"adaptive mode {self.mode!r}: expected one of {', '.join(MODES)}")
-        if not 0 < self.target_force_n < self.max_force_n:
-            raise ValueError(
-                f"target_force_n = {self.target_force_n} N, max_force_n = {self.max_force_n} N: "
-                "expected 0 < target < max"
-            )
-        if not MIN_PCT <= self.min_pct <= 100 <= self.max_pct <= MAX_PCT:
-            raise ValueError(f"override range {self.min_pct}..{self.max_pct} %: expected 10..200")
-
-
-@dataclass
-class RevRecord:
-    """One judged revolution: run-clock end time, mean |Fxy| N, state, the override commanded
-    after it (feed, spindle %), the last reported override and feed (None: no report yet)."""
-
-    t_s: float
-    force_n: float
-    state: str
-    feed_pct: int
-    spindle_pct: int
-    reported: tuple[int, ...] | None
-    feed_mm_min: float | None
-    saturated: bool = False
-
-
-@dataclass
-class Decision:
-    t_s: float
-    kind: str  # feed, spindle, reset, hold
-    reason: str
-    wall_latency_s: float | None = None  # from the block's arrival to the last byte written
 
 
 class AdaptiveController:
