@@ -48,7 +48,7 @@ from rig.adaptive.grbl_codes import APPLY_DELAY_S
 from rig.adaptive.grbl_codes import feed_codes as _feed_codes
 from rig.adaptive.grbl_codes import spindle_codes as _spindle_codes
 from rig.adaptive.pockets import nearest_pocket_rpm
-from rig.adaptive.record import Decision, RevRecord
+from rig.adaptive.record import Decision, RevRecord, loop_status, loop_summary, reported_text
 from rig.adaptive.results import AdaptiveStatus, AdaptiveSummary, NoteWriter
 from rig.adaptive.saturation import Saturation
 from rig.adaptive.settings import MODES, AdaptiveSettings  # noqa: F401 - imported from here too
@@ -447,14 +447,7 @@ class AdaptiveController:
 
     # -- record ----------------------------------------------------------------------------------
     def _reported(self) -> str:
-        st = self.streamer
-        ov = getattr(st, "overrides", None) if st is not None else None
-        last = getattr(st, "last_status", None)
-        fs = getattr(last, "feed_mm_min", None)
-        rpm = getattr(last, "spindle_rpm", None)
-        return (f"reported Ov {'/'.join(map(str, ov)) if ov else '-'} FS "
-                f"{'-' if fs is None else f'{fs:g}'},{'-' if rpm is None else f'{rpm:g}'}; "
-                f"state {self.state}")  # fmt: skip
+        return reported_text(self.streamer, self.state)
 
     def _note(self, t_s: float, text: str) -> None:
         if self.writer is not None:
@@ -463,41 +456,17 @@ class AdaptiveController:
     def live_status(self) -> AdaptiveStatus:
         """What the live console shows beside the force: target, last revolution's force, the
         overrides commanded and reported, the state (and why it held)."""
-        last = self.trace[-1] if self.trace else None
-        return {
-            "mode": self.s.mode,
-            "target_force_n": self.s.target_force_n,
-            "max_force_n": self.s.max_force_n,
-            "force_n": None if last is None else round(last.force_n, 1),
-            "feed_pct": self.feed_pct,
-            "spindle_pct": self.spindle_pct,
-            "reported_pct": None if last is None or last.reported is None else list(last.reported),
-            "state": self.state,
-            "hold": self.hold_reason,
-        }
+        return loop_status(self.s, self.trace, self.feed_pct, self.spindle_pct, self.state,
+                           self.hold_reason)  # fmt: skip
 
     def summary(self) -> AdaptiveSummary:
         """Figures for the run's record and the bench."""
-        lat = np.asarray(self.latencies_s, float)
-        cut = [r for r in self.trace if r.state == "cutting"]
-        return {
-            "mode": self.s.mode,
-            "target_force_n": self.s.target_force_n,
-            "revolutions": len(self.trace),
-            "cutting_revolutions": len(cut),
-            "decisions": len(self.decisions),
-            "override_bytes": len(self.bytes_sent),
-            "hold": self.hold_reason,
-            "latency_p50_ms": float(np.percentile(lat, 50) * 1e3) if lat.size else None,
-            "latency_p95_ms": float(np.percentile(lat, 95) * 1e3) if lat.size else None,
-            "cpu_s": self.cpu_s,
-            "feed_forward": self.ff is not None,
-            "chatter_at_s": self.chatter_at_s,
-            "chatter_cleared_s": self.chatter_cleared_s,
-            "saturated_revolutions": sum(1 for r in cut if r.saturated),
-            "saturated_s": sum(60.0 / (self.rpm * r.spindle_pct / 100.0) for r in cut
-                               if r.saturated),  # fmt: skip
-        }
+        return loop_summary(
+            self.s, self.trace, self.rpm, decisions=len(self.decisions),
+            override_bytes=len(self.bytes_sent), hold=self.hold_reason,
+            latencies_s=self.latencies_s, cpu_s=self.cpu_s, feed_forward=self.ff is not None,
+            chatter_at_s=self.chatter_at_s, chatter_cleared_s=self.chatter_cleared_s,
+        )  # fmt: skip
 
 
 def _stream_ended(streamer: Any) -> bool:

@@ -11,9 +11,10 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from rig.adaptive.controller import AdaptiveController, AdaptiveSettings
+from rig.adaptive.controller import AdaptiveController
 from rig.adaptive.results import AdaptiveSummary
 from rig.adaptive.session import _Tee
+from rig.adaptive.settings import AdaptiveSettings
 from rig.dnc import DncError, protocol_of
 
 if TYPE_CHECKING:

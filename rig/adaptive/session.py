@@ -25,8 +25,8 @@ if TYPE_CHECKING:
         LoopSession,
         PassGeometry,
     )
-    from rig.adaptive.controller import AdaptiveSettings
     from rig.adaptive.feedforward import FeedForward
+    from rig.adaptive.settings import AdaptiveSettings
     from rig.daq import Calibration
 
 #: the rig session adaptive_session wraps (returned as it is when the test is not under the loop)
@@ -250,7 +250,7 @@ def under_loop(campaign: AdaptiveCampaign, test: AdaptiveTest) -> bool:
 
 
 def settings_of(campaign: AdaptiveCampaign, test: AdaptiveTest) -> AdaptiveSettings:
-    from rig.adaptive.controller import AdaptiveSettings
+    from rig.adaptive.settings import AdaptiveSettings
 
     a = campaign.spec.adaptive
     target, why = target_of(campaign, test)

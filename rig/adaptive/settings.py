@@ -12,7 +12,7 @@ MODES = ("feed", "spindle", "both")
 
 @dataclass(frozen=True)
 class AdaptiveSettings:
-    """What the loop holds and where it stops (see the module docstring)."""
+    """What the loop holds and where it stops (see :mod:`rig.adaptive.controller`)."""
 
     mode: str = "feed"
     target_force_n: float = 500.0
