@@ -1,5 +1,6 @@
-"""GRBL's main loop over the receive buffer (protocol.c, planner.c): each line read when the one
-before is done, checked, planned (``ok`` means *planned*) and answered. Mixed into
+"""GRBL's main loop over the receive buffer (protocol.c, planner.c, system.c): each line read
+when the one before is done, checked, planned (``ok`` means *planned*) and answered; the ``$``
+lines (``$$``, ``$G``, ``$I``, ``$X``, ``$H``, ``$n=value``). Mixed into
 :class:`rig.sim.grbl.SimGrbl`, which owns the state it uses (see its module docstring).
 """
 
@@ -11,8 +12,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from planning.nc import NCError
-from planning.nc.grbl import GRBL_MSG_PGM_END, GrblResult, grbl_filter
+from planning.nc.grbl import GRBL_MSG_PGM_END, GRBL_MSG_UNLOCKED, GrblResult, grbl_filter
 from rig.sim._controller import _Planned
+from rig.sim._grbl_report import gcode_modes
 
 
 @dataclass
@@ -27,7 +29,7 @@ class _Pending:
 
 
 class GrblLinesMixin:
-    """The line protocol of SimGrbl: planner room, line processing, answers."""
+    """The line protocol of SimGrbl: planner room, line processing, answers, ``$`` lines."""
 
     # -- planner ------------------------------------------------------------------------------
     def _remaining_blocks(self, b: _Planned, now: float) -> int:
@@ -198,3 +200,54 @@ class GrblLinesMixin:
         self._pending = _Pending(k, res, planned, "sync" if res.sync else "room", t)
         if not res.sync and planned is not None:
             self._plan_line(planned)
+
+    def _dollar(self, cmd: str, text: str) -> None:
+        state = self.state_name()
+        if cmd in ("$$", "$I") and state.startswith(("Run", "Hold")):
+            self._error(8, text)  # "not idle" for these while running or held
+            return
+        if cmd[1:2] in ("#", "H", "I", "N") and state not in ("Idle", "Alarm"):
+            self._error(8, text)
+            return
+        if cmd == "$$":
+            out = "".join(
+                f"${k}={v:.3f}\r\n" if isinstance(v, float) else f"${k}={v:g}\r\n"
+                for k, v in sorted(self.settings.items())
+            )
+            self._send(out.encode())
+        elif cmd == "$X":
+            if self.alarm:
+                self.alarm = ""
+                self._send(GRBL_MSG_UNLOCKED.encode() + b"\r\n")
+        elif cmd == "$H":
+            if not self.settings[22]:
+                self._error(5, text)  # homing not enabled ($22=0)
+                return
+            self._pos = (0.0, 0.0, 0.0)
+            self.interp.state.position_mm = self._pos
+            self.grbl.state.position = [0.0, 0.0, 0.0]
+            self.alarm = ""
+        elif cmd == "$I":
+            opt = f"V{'N' if self.line_numbers else ''},{self.planner_blocks},{self.rx_capacity}"
+            self._send(f"[VER:1.1h.20190825:cutlab-sim]\r\n[OPT:{opt}]\r\n".encode())
+        elif cmd == "$G":
+            self._send(gcode_modes(self.grbl.state).encode() + b"\r\n")
+        elif cmd in ("$#", "$C", "$N"):
+            pass
+        elif cmd[1:].partition("=")[0].isdigit() and "=" in cmd:
+            k, _, v = cmd[1:].partition("=")
+            try:
+                value = float(v)
+            except ValueError:
+                self._error(2, text)
+                return
+            if int(k) not in self.settings:
+                self._error(3, text)
+                return
+            self.settings[int(k)] = value
+            if int(k) == 12:
+                self.grbl.arc_tolerance_mm = value
+        else:
+            self._error(3, text)
+            return
+        self._ok()

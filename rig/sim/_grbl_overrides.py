@@ -49,7 +49,7 @@ class GrblOverridesMixin:
             return  # at a limit: nothing changes, nothing is reported
         now = max(t, self._advanced_t)  # never before what the executor has already run
         self._advance(now)
-        self._ovr_counter = 0  # report the change at once
+        self._report.override_changed()  # reported at once
         self.feed_ovr, self.rapid_ovr, self.spindle_ovr = f, r, s
         self._event("override", f"feed {f} %, rapid {r} %, spindle {s} %", now)
         # moving, the segments already prepared run first: the change starts with the first

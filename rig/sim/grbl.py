@@ -99,10 +99,17 @@ from planning.nc.grbl import (
 from rig.sim._controller import SimControllerBase, _Planned
 from rig.sim._grbl_lines import GrblLinesMixin, _Pending
 from rig.sim._grbl_overrides import GrblOverridesMixin
-from rig.sim._grbl_report import _CRITICAL_ALARMS, _SETTINGS, BANNER, GrblReportMixin
+from rig.sim._grbl_report import (
+    _CRITICAL_ALARMS,
+    _SETTINGS,
+    BANNER,
+    StatusFields,
+    StatusReport,
+    wco_mm,
+)
 
 
-class SimGrbl(GrblLinesMixin, GrblOverridesMixin, GrblReportMixin, SimControllerBase):
+class SimGrbl(GrblLinesMixin, GrblOverridesMixin, SimControllerBase):
     """GRBL 1.1h-like controller (see the module docstring).
 
     ``base_kw``: clock, speed and the ``sim_`` fault knobs of :class:`SimControllerBase` (a
@@ -165,8 +172,7 @@ class SimGrbl(GrblLinesMixin, GrblOverridesMixin, GrblReportMixin, SimController
         #: the event that let it (arrival, room, sync), not when this thread got round to it
         self.ok_times_s: list[tuple[int, float]] = []
         self._pending: _Pending | None = None
-        self._wco_counter = 0
-        self._ovr_counter = 0
+        self._report = StatusReport()  # its WCO and Ov refresh counters
         # main.c sets them to their defaults on every (re)start: a reset ends any override
         self.feed_ovr = self.rapid_ovr = self.spindle_ovr = 100  # sys.*: reported at once
         #: the overrides the motion runs at (the step segments prepared after a change), and
@@ -360,6 +366,28 @@ class SimGrbl(GrblLinesMixin, GrblOverridesMixin, GrblReportMixin, SimController
         dur = self._seg_t1 - self._seg_t0
         frac_run = min(1.0, (now - self._seg_t0) / dur) if dur > 0 else 1.0
         return self._point(self._seg_i, self._seg_frac0 + (1 - self._seg_frac0) * frac_run)
+
+    def _status(self) -> None:
+        """report_realtime_status (:class:`rig.sim._grbl_report.StatusReport`)."""
+        now = self.clock.now()
+        self._advance(now)
+        state = self.state_name()
+        mask = int(self.settings.get(10, 1))
+        pos = self.position_mm()
+        wco = wco_mm(self.grbl.state)
+        free = None  # planner blocks, receive-buffer bytes: with $10 & 2 only
+        if mask & 2:
+            blocks = max(0, self.planner_blocks - self._planner_used())
+            free = (blocks, self.rx_capacity - self.fill)
+        b = self._cur
+        ln = b.n_number if self.line_numbers and b is not None and b.n_number > 0 else None
+        feed = 0.0
+        if b is not None and len(b.motion) and not self.held and self._hold_stop_at is None:
+            feed = self._speed_mm_min(b)
+        ovr = (self.feed_ovr, self.rapid_ovr, self.spindle_ovr)
+        coolant = bool(self.interp.state.coolant)
+        fields = StatusFields(state, pos, wco, free, ln, feed, self._spindle, ovr, coolant)
+        self._send(self._report.line(fields, mask).encode())
 
     def _soft_reset(self, moving: bool | None = None, advance: bool = True) -> None:
         """0x18: mc_reset, then main()'s re-initialisation."""
