@@ -21,6 +21,33 @@ DT_SEGMENT_S = 0.01
 SEGMENTS_AHEAD = 4
 
 
+def overrides_after(code: int, pct: tuple[int, int, int]) -> tuple[int, int, int] | None:
+    """The overrides (feed, rapid, spindle), %, after the real-time byte ``code`` (0x90-0x9D),
+    within GRBL's limits; None for 0x98 (unused in 1.1h)."""
+    f, r, s = pct
+    if code == 0x90:
+        f = 100
+    elif 0x91 <= code <= 0x94:
+        f += {0x91: 10, 0x92: -10, 0x93: 1, 0x94: -1}[code]
+    elif code <= 0x97:
+        r = {0x95: 100, 0x96: 50, 0x97: 25}[code]
+    elif code == 0x99:
+        s = 100
+    elif 0x9A <= code <= 0x9D:
+        s += {0x9A: 10, 0x9B: -10, 0x9C: 1, 0x9D: -1}[code]
+    else:
+        return None
+    f = min(max(f, FEED_OVR_MIN), FEED_OVR_MAX)
+    s = min(max(s, SPINDLE_OVR_MIN), SPINDLE_OVR_MAX)
+    return f, r, s
+
+
+def first_new_segment_s(now_s: float) -> float:
+    """When the first segment prepared after an override at ``now_s`` starts, moving: after the
+    running segment and the SEGMENTS_AHEAD already prepared (40-50 ms later)."""
+    return (math.floor(now_s / DT_SEGMENT_S + 1e-9) + 1 + SEGMENTS_AHEAD) * DT_SEGMENT_S
+
+
 class GrblOverridesMixin:
     """Feed, rapid and spindle overrides of SimGrbl: taken at the byte, run at the segment
     boundary after the segments already prepared."""
@@ -30,23 +57,11 @@ class GrblOverridesMixin:
         """One override byte arrived at ``t``: the new value within GRBL's limits; a change is
         reported in the next status (``Ov:``) and applied to the segment running (split there)
         and to every one after it (the planner recomputes the blocks it holds)."""
-        f, r, s = self.feed_ovr, self.rapid_ovr, self.spindle_ovr
-        if code == 0x90:
-            f = 100
-        elif 0x91 <= code <= 0x94:
-            f += {0x91: 10, 0x92: -10, 0x93: 1, 0x94: -1}[code]
-        elif code <= 0x97:
-            r = {0x95: 100, 0x96: 50, 0x97: 25}[code]
-        elif code == 0x99:
-            s = 100
-        elif 0x9A <= code <= 0x9D:
-            s += {0x9A: 10, 0x9B: -10, 0x9C: 1, 0x9D: -1}[code]
-        else:  # 0x98 is unused in 1.1h
-            return
-        f = min(max(f, FEED_OVR_MIN), FEED_OVR_MAX)
-        s = min(max(s, SPINDLE_OVR_MIN), SPINDLE_OVR_MAX)
-        if (f, r, s) == (self.feed_ovr, self.rapid_ovr, self.spindle_ovr):
-            return  # at a limit: nothing changes, nothing is reported
+        was = (self.feed_ovr, self.rapid_ovr, self.spindle_ovr)
+        pct = overrides_after(code, was)
+        if pct is None or pct == was:
+            return  # 0x98, or at a limit: nothing changes, nothing is reported
+        f, r, s = pct
         now = max(t, self._advanced_t)  # never before what the executor has already run
         self._advance(now)
         self._report.override_changed()  # reported at once
@@ -57,7 +72,7 @@ class GrblOverridesMixin:
         # (40-50 ms); idle or held, nothing is prepared and it applies at once
         due = now
         if self._moving() and not self.held and self._hold_stop_at is None:
-            due = (math.floor(now / DT_SEGMENT_S + 1e-9) + 1 + SEGMENTS_AHEAD) * DT_SEGMENT_S
+            due = first_new_segment_s(now)
         self._ovr_due.append((max(due, self._ovr_due[-1][0] if self._ovr_due else due), f, r, s))
         self._advance(now)
 
