@@ -487,7 +487,7 @@ def test_the_cache_key_is_the_same_in_every_process(tmp_path):
     code = (
         "from analysis.catalog.compute import reduction_key\n"
         "from analysis.config import load_rig\n"
-        "from analysis.identify.files import FileReducer, ImportOptions\n"
+        "from analysis.identify.reading import FileReducer, ImportOptions\n"
         f"o = ImportOptions(axes='x=-Fy,y=Fx,z=Fz', table={str(table)!r}).loaded()\n"
         "r = FileReducer({'depth_mm': 2.0, 'mode': 'slot'}, load_rig().dynamometer, None,\n"
         "                'seed003-facemill', '--tool', 0.02, o)\n"

@@ -57,7 +57,7 @@ if TYPE_CHECKING:
     from distributed import Client
     from typing_extensions import Unpack
 
-    from analysis.identify.files import ImportOptions
+    from analysis.identify.reading import ImportOptions
 
 
 class FitOptions(TypedDict, total=False):
@@ -78,7 +78,7 @@ LOCAL_SCHEDULERS = ("threads", "processes", "sync", "synchronous", "single-threa
 #: Modules whose code decides a file's reduction: an edit to them invalidates the cache.
 _REDUCTION_CODE = (
     "analysis.identify._common",
-    "analysis.identify.files",
+    "analysis.identify.reading",
     "analysis.identify.facemill",
     "analysis.identify.conditions",
     "analysis.identify.axes",
@@ -242,7 +242,7 @@ def compute(tasks: Sequence[object], scheduler: str | None = None, progress: boo
 
 
 class CachedMapper:
-    """A :data:`analysis.identify.files.Mapper` that answers from the cache where it can and runs
+    """A :data:`analysis.identify.reading.Mapper` that answers from the cache where it can and runs
     the other reductions as dask tasks; counts ``cached`` and ``reduced`` files."""
 
     def __init__(self, cache: Path, hashes: dict[str, str | None], scheduler: str | None = None,

@@ -20,10 +20,10 @@ if TYPE_CHECKING:  # the names as the type checker sees them; at run time each l
         reduce_run,
         reduce_run_file,
     )
-    from analysis.identify.files import (
+    from analysis.identify.files import fit_files
+    from analysis.identify.reading import (
         ImportOptions,
         find_tool,
-        fit_files,
         load_exports,
         reduce_files,
         tool_teeth,
@@ -65,10 +65,10 @@ _LAZY = {
         "reduce_run",
         "reduce_run_file",
     ),
-    "analysis.identify.files": (
+    "analysis.identify.files": ("fit_files",),
+    "analysis.identify.reading": (
         "ImportOptions",
         "find_tool",
-        "fit_files",
         "load_exports",
         "reduce_files",
         "tool_teeth",
