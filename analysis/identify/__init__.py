@@ -21,19 +21,19 @@ if TYPE_CHECKING:  # the names as the type checker sees them; at run time each l
         reduce_run_file,
     )
     from analysis.identify.files import fit_files
-    from analysis.identify.reading import (
-        ImportOptions,
-        find_tool,
-        load_exports,
-        reduce_files,
-        tool_teeth,
-    )
     from analysis.identify.importers import (
         Export,
         import_run,
         load_export,
         merge_conditions,
         read_force_table,
+    )
+    from analysis.identify.reading import (
+        ImportOptions,
+        find_tool,
+        load_exports,
+        reduce_files,
+        tool_teeth,
     )
     from analysis.identify.results import ForcesResult
     from analysis.identify.validate import (

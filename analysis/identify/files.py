@@ -9,16 +9,13 @@ checked against the other plausible mappings (:func:`analysis.identify.axes.chec
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from analysis.config import (
-    Dynamometer,
-    load_rig,
-)
+from analysis.config import Dynamometer, EndMill, FaceMill, load_rig
 from analysis.errors import AnalysisError, ConfigError
 from analysis.forces.models import (
     ENDMILL,
@@ -28,12 +25,9 @@ from analysis.forces.models import (
     model_for,
     model_named,
 )
-from analysis.identify._common import (
-    CI_NOTE,
-    RunAverage,
-)
+from analysis.identify._common import CI_NOTE, RunAverage
 from analysis.identify._types import StatsRow
-from analysis.identify.axes import check_axes, choose_axes, parse_axes, remap
+from analysis.identify.axes import AxesChoice, check_axes, choose_axes, parse_axes, remap
 from analysis.identify.endmill import EndMillFit, fit_endmill
 from analysis.identify.facemill import FaceMillFit, fit_facemill
 from analysis.identify.importers import NO_AIR_ZEROED
@@ -59,6 +53,9 @@ from analysis.identify.trust import (
 from analysis.runs import IDENTIFY_TOLERANCE
 
 __all__ = ["auto_axes", "fit_files"]
+
+#: a run's reading notes (axes, zero, ...), as reduce_all gives them
+Note = dict[str, str]
 
 
 def _fit(
@@ -141,24 +138,13 @@ def fit_files(
     ``status``. The mapping is checked against the 47 other signed permutations and refused
     (AnalysisError) when it gives a negative cutting coefficient or fits clearly worse; ``--axes
     auto`` (``options.axes = "auto"``) chooses it (``axes_choice``)."""
-    if not 0.0 < tolerance < 1.0:
-        raise ConfigError(
-            f"--steady-tolerance {tolerance}: expected a fraction of the steady "
-            "force level, 0 < value < 1 (e.g. 0.02)"
-        )
+    _check_tolerance(tolerance)
     opts = (options or ImportOptions()).loaded()
-    rig = load_rig(rig_path or None)
-    dyno = rig.dynamometer
+    dyno = load_rig(rig_path or None).dynamometer
     avgs, rejected, tool_names, notes = reduce_all(
         paths, overrides, dyno, rate_hz, tool, "--tool", tolerance, progress, opts, mapper
     )
-    names = {t for t in tool_names if t}
-    if not tool and len(names) != 1:
-        raise AnalysisError(
-            f"runs name tools {sorted(names) or 'none'}: give --tool NAME (one tool per fit)"
-        )
-    tool_name = tool or names.pop()
-    tool_obj = find_tool(tool_name, opts.tools_path)
+    tool_name, tool_obj = _the_tool(tool, tool_names, opts)
     force_model = model_named(model) if model else model_for(tool_obj)
     em_tool = tool_obj if force_model is ENDMILL and ENDMILL.describes(tool_obj) else None
     limits = outside_limits(avgs, em_tool) if em_tool is not None else []
@@ -166,22 +152,72 @@ def fit_files(
         out_names = {n for n, _ in limits}
         avgs = [a for a in avgs if a.name not in out_names]
     choice = None
-    if em_tool is not None and opts.auto:
-        base = sorted({n["axes"] for n in notes.values()})
-        if len(base) != 1:
-            raise AnalysisError(f"--axes auto: the runs are read with different mappings "
-                                f"({'; '.join(base)}): give --axes")  # fmt: skip
-        read = parse_axes(base[0])
-        chosen, choice = choose_axes(avgs, em_tool, read)
-        # chosen = M_c @ columns, read = M_r @ columns (M_r diagonal +-1): chosen = M_c M_r^T read
-        cols = list(read.sources)
-        m = chosen.matrix(cols, "--axes auto") @ read.matrix(cols, "--axes auto").T
-        avgs = [remap(a, m) for a in avgs]
-        notes = {k: {**n, "axes": chosen.text} for k, n in notes.items()}
-    elif opts.auto:
-        raise AnalysisError("--axes auto chooses the mapping from the end-mill fit; for "
-                            f"{model or tool_obj.kind} runs give --axes")  # fmt: skip
+    if opts.auto:
+        if em_tool is None:
+            raise AnalysisError("--axes auto chooses the mapping from the end-mill fit; for "
+                                f"{model or tool_obj.kind} runs give --axes")  # fmt: skip
+        avgs, notes, choice = _auto_axes(avgs, notes, em_tool)
     model, tool_cfg, fit, stats = _fit(avgs, tool_name, model, dyno, opts.tools_path)
+    out = _result(model, tool_name, fit, stats, avgs, rejected, notes)
+    _add_axes_check(out, choice, avgs, tool_cfg)
+    if em_tool is not None:
+        _add_endmill_trust(out, fit, avgs, em_tool, limits, keep)
+    elif model == "facemill" and isinstance(fit, FaceMillFit):
+        _add_facemill_trust(out, fit, avgs)
+    if fit.success and fit.coefficients is not None and (validate or plot_dir):
+        targets = avgs
+        if validate:
+            by = "the fitted runs' tool"
+            targets, rej2, _, _ = reduce_all(validate, overrides, dyno, rate_hz, tool_name, by,
+                                             tolerance, progress, opts, mapper)  # fmt: skip
+            out["rejected"] += [{"run": n, "reason": m} for n, m in rej2]
+        add_validation(out, targets, tool_cfg, fit.coefficients, dyno, plot_dir)
+    return out
+
+
+def _check_tolerance(tolerance: float) -> None:
+    if not 0.0 < tolerance < 1.0:
+        raise ConfigError(
+            f"--steady-tolerance {tolerance}: expected a fraction of the steady "
+            "force level, 0 < value < 1 (e.g. 0.02)"
+        )
+
+
+def _the_tool(
+    tool: str | None, tool_names: Iterable[str], opts: ImportOptions
+) -> tuple[str, EndMill | FaceMill]:
+    """The fit's tool: the given one, else the one every run records (one tool per fit)."""
+    names = {t for t in tool_names if t}
+    if not tool and len(names) != 1:
+        raise AnalysisError(
+            f"runs name tools {sorted(names) or 'none'}: give --tool NAME (one tool per fit)"
+        )
+    tool_name = tool or names.pop()
+    return tool_name, find_tool(tool_name, opts.tools_path)
+
+
+def _auto_axes(
+    avgs: list[RunAverage], notes: dict[str, Note], em_tool: EndMill
+) -> tuple[list[RunAverage], dict[str, Note], AxesChoice]:
+    """``--axes auto``: the runs remapped to the mapping the end-mill fit chooses."""
+    base = sorted({n["axes"] for n in notes.values()})
+    if len(base) != 1:
+        raise AnalysisError(f"--axes auto: the runs are read with different mappings "
+                            f"({'; '.join(base)}): give --axes")  # fmt: skip
+    read = parse_axes(base[0])
+    chosen, choice = choose_axes(avgs, em_tool, read)
+    # chosen = M_c @ columns, read = M_r @ columns (M_r diagonal +-1): chosen = M_c M_r^T read
+    cols = list(read.sources)
+    m = chosen.matrix(cols, "--axes auto") @ read.matrix(cols, "--axes auto").T
+    notes = {k: {**n, "axes": chosen.text} for k, n in notes.items()}
+    return [remap(a, m) for a in avgs], notes, choice
+
+
+def _result(
+    model: str, tool_name: str, fit: FaceMillFit | EndMillFit, stats: dict[str, StatsRow],
+    avgs: list[RunAverage], rejected: list[tuple[str, str]], notes: dict[str, Note],
+) -> ForcesResult:  # fmt: skip
+    """What every fit reports: the coefficients, their statistics and the runs."""
     message = fit.message
     if rejected:
         message += " (rejected: " + "; ".join(f"{n}: {m}" for n, m in rejected) + ")"
@@ -213,53 +249,63 @@ def fit_files(
     if model == "endmill" and coefficients:
         coefficients.update({k: coefficients[v] for k, (v, _) in SHORT_NAMES.items()})
         out["coefficient_units"] = {k: u for k, (_, u) in SHORT_NAMES.items()}
+    return out
+
+
+def _add_axes_check(
+    out: ForcesResult, choice: AxesChoice | None, avgs: list[RunAverage], tool: ModelTool
+) -> None:
+    """The mapping --axes auto chose, or the given one checked against the other 47 (end mill);
+    refused when another fits clearly better or it gives a negative cutting coefficient."""
+    mappings = out["axes"]
     if choice is not None:
         out["axes_choice"] = {"axes": choice["axes"], "line": choice["line"],
                               "runner_up": choice["runner_up"]}  # fmt: skip
         out["axes_check"] = choice["candidates"]
-    elif model == "endmill" and len(mappings) == 1 and ENDMILL.describes(tool_cfg):
-        check = check_axes(avgs, tool_cfg, parse_axes(mappings[0]))
+    elif out["model"] == "endmill" and isinstance(mappings, str) and ENDMILL.describes(tool):
+        check = check_axes(avgs, tool, parse_axes(mappings))
         if check["refusal"]:
             raise AnalysisError(check["refusal"])
         if not check["checked"]:
-            out["warnings"].append(f"axes {mappings[0]} unchecked: the runs cannot be fitted "
+            out["warnings"].append(f"axes {mappings} unchecked: the runs cannot be fitted "
                                    "under any mapping (too few runs or feeds)")  # fmt: skip
         out["axes_check"] = check["candidates"]
         out["warnings"] += check["warnings"]
-    if em_tool is not None:
-        out["outside_limits"] = [{"run": n, "reason": r, "kept": keep} for n, r in limits]
-        out["speed_limits"] = "unchecked: the tool catalogue gives no speed range"
-        mc = em_tool.max_chip_mm
-        out["chip_limit"] = (f"checked against max_chip_mm {mc:g} mm" if mc is not None else
-                             "unchecked: the tool gives no max_chip_mm")  # fmt: skip
-        if limits and not keep:
-            out["message"] += (f" (left out {len(limits)} run(s) beyond the tool's limits: "
-                               + "; ".join(f"{n}: {r}" for n, r in limits)
-                               + "; --keep fits them)")  # fmt: skip
-        if isinstance(fit, EndMillFit) and fit.fit is not None:
-            add_trust(out, avgs, em_tool, fit.fit, fit.adequacy)
-    elif (model == "facemill" and isinstance(fit, FaceMillFit) and fit.success  # (with a split)
-          and fit.split is not None and len(fit.residuals_n) == len(avgs)):  # fmt: skip
-        # the face-mill fit is to the revolution-averaged waveforms: per direction over their bins
-        out["by_direction"] = by_direction(np.concatenate([a.waveform_n for a in avgs]),
-                                           np.concatenate(fit.residuals_n))  # fmt: skip
-        out["by_direction_over"] = "the runs' revolution-averaged waveforms (all bins)"
-        out["split"] = fit.split.as_dict()  # which coefficients the design splits, and why
-        out["run_residuals"] = per_run_residuals(
-            [a.name for a in avgs], np.stack([a.mean_n for a in avgs]),
-            np.stack([r.mean(axis=0) for r in fit.residuals_n]),
-        )  # fmt: skip
-        out["influence"] = {"checked": False, "runs": [], "depends": {},
-                            "reason": "leave-one-out is not run for the face-mill fit"}  # fmt: skip
-    if fit.success and fit.coefficients is not None and (validate or plot_dir):
-        targets = avgs
-        if validate:
-            by = "the fitted runs' tool"
-            targets, rej2, _, _ = reduce_all(validate, overrides, dyno, rate_hz, tool_name, by,
-                                              tolerance, progress, opts, mapper)  # fmt: skip
-            out["rejected"] += [{"run": n, "reason": m} for n, m in rej2]
-        add_validation(out, targets, tool_cfg, fit.coefficients, dyno, plot_dir)
-    return out
+
+
+def _add_endmill_trust(
+    out: ForcesResult, fit: FaceMillFit | EndMillFit, avgs: list[RunAverage], em_tool: EndMill,
+    limits: list[tuple[str, str]], keep: bool,
+) -> None:  # fmt: skip
+    """The tool's limits (runs beyond them, left out unless ``keep``) and the trust figures."""
+    out["outside_limits"] = [{"run": n, "reason": r, "kept": keep} for n, r in limits]
+    out["speed_limits"] = "unchecked: the tool catalogue gives no speed range"
+    mc = em_tool.max_chip_mm
+    out["chip_limit"] = (f"checked against max_chip_mm {mc:g} mm" if mc is not None else
+                         "unchecked: the tool gives no max_chip_mm")  # fmt: skip
+    if limits and not keep:
+        out["message"] += (f" (left out {len(limits)} run(s) beyond the tool's limits: "
+                           + "; ".join(f"{n}: {r}" for n, r in limits)
+                           + "; --keep fits them)")  # fmt: skip
+    if isinstance(fit, EndMillFit) and fit.fit is not None:
+        add_trust(out, avgs, em_tool, fit.fit, fit.adequacy)
+
+
+def _add_facemill_trust(out: ForcesResult, fit: FaceMillFit, avgs: list[RunAverage]) -> None:
+    """Per direction and per run residuals of a face-mill fit with a split design."""
+    if not (fit.success and fit.split is not None and len(fit.residuals_n) == len(avgs)):
+        return
+    # the face-mill fit is to the revolution-averaged waveforms: per direction over their bins
+    out["by_direction"] = by_direction(np.concatenate([a.waveform_n for a in avgs]),
+                                       np.concatenate(fit.residuals_n))  # fmt: skip
+    out["by_direction_over"] = "the runs' revolution-averaged waveforms (all bins)"
+    out["split"] = fit.split.as_dict()  # which coefficients the design splits, and why
+    out["run_residuals"] = per_run_residuals(
+        [a.name for a in avgs], np.stack([a.mean_n for a in avgs]),
+        np.stack([r.mean(axis=0) for r in fit.residuals_n]),
+    )  # fmt: skip
+    out["influence"] = {"checked": False, "runs": [], "depends": {},
+                        "reason": "leave-one-out is not run for the face-mill fit"}  # fmt: skip
 
 
 def auto_axes(
