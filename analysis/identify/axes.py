@@ -26,7 +26,8 @@ import numpy as np
 from analysis.config import Dynamometer, EndMill
 from analysis.errors import AnalysisError
 from analysis.forces.endmill import PARAMETERS, mean_force_design
-from analysis.identify._common import RunAverage, linear_fit
+from analysis.identify._common import RunAverage
+from analysis.identify._linear import linear_fit
 from analysis.identify.endmill import _cut
 
 __all__ = ["AxesCandidate", "AxesCheck", "AxesChoice", "AxisMap", "check_axes", "choose_axes",

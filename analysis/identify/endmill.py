@@ -33,18 +33,15 @@ from analysis.forces.endmill import (
 from analysis.forces.models import ENDMILL
 from analysis.identify._common import (
     ForceRun,
-    LinearFit,
     RunAverage,
-    RunBlock,
     RunConditions,
-    bootstrap_intervals,
     check_units,
-    linear_fit,
     reduce_runs,
     synthetic_run,
     too_few_runs,
     validation_line,
 )
+from analysis.identify._linear import LinearFit, RunBlock, bootstrap_intervals, linear_fit
 from analysis.identify._types import SyntheticOptions, with_rejected
 from analysis.identify.adequacy import Adequacy, runs_adequacy
 from analysis.runs import IDENTIFY_TOLERANCE

@@ -40,20 +40,22 @@ from analysis.forces.facemill import (
 from analysis.forces.models import FACEMILL
 from analysis.identify._common import (
     ForceRun,
-    LinearFit,
     RunAverage,
-    RunBlock,
     RunConditions,
     axis_order,
-    bootstrap_intervals,
     check_units,
-    linear_fit,
-    ratio_with_error,
     reduce_run,
     reduce_run_file,
     synthetic_run,
     too_few_runs,
     validation_line,
+)
+from analysis.identify._linear import (
+    LinearFit,
+    RunBlock,
+    bootstrap_intervals,
+    linear_fit,
+    ratio_with_error,
 )
 from analysis.identify._types import StatsRow, SyntheticOptions, with_rejected
 from analysis.identify.adequacy import Adequacy, runs_adequacy

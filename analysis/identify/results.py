@@ -11,7 +11,8 @@ import numpy as np
 
 from analysis.config import Dynamometer, EndMill, EndMillCoefficients, FaceMillCoefficients
 from analysis.forces.models import ENDMILL, FACEMILL, ModelTool
-from analysis.identify._common import LinearFit, RunAverage
+from analysis.identify._common import RunAverage
+from analysis.identify._linear import LinearFit
 from analysis.identify._types import StatsRow
 from analysis.identify.adequacy import Adequacy, AdequacyDict
 from analysis.identify.axes import AxesCandidate

@@ -23,7 +23,8 @@ import numpy as np
 
 from analysis.config import EndMill
 from analysis.errors import AnalysisError
-from analysis.identify._common import LinearFit, RunAverage, linear_fit
+from analysis.identify._common import RunAverage
+from analysis.identify._linear import LinearFit, linear_fit
 
 __all__ = ["Influence", "InfluenceRun", "RunResidual", "by_direction", "influence",
            "outside_limits", "per_run_residuals", "statuses"]  # fmt: skip
