@@ -381,14 +381,11 @@ FUNCTION_MAX_LINES = 80
 # Today's offenders (issue 30 item 5), each with its size as a ceiling: an entry may shrink
 # and go, never grow; a new module or function over the limit is not allowed in.
 MODULES_OVER: dict[str, int] = {
-    "analysis/identify/_common.py": 628,
-    "analysis/identify/files.py": 604,
     "planning/rough/planner.py": 534,
     # branch sizes (issue 30 item 5) did not get to these yet
     "rig/log/writer.py": 714,
 }
 FUNCTIONS_OVER: dict[str, int] = {
-    "analysis/identify/files.py::fit_files": 150,
     "planning/orient/job.py::run_orient": 158,
     "planning/orient/kinematics.py::inverse": 100,
     "planning/rough/planner.py::RoughPlanner.plan_optimal": 86,
