@@ -500,8 +500,9 @@ depth_mm = 0.9
 
 
 # The live page in real time (the slot's ~30 s cut) in CI's command (long): the lobes, the
-# detected peak, the logger's health and the executed path it draws are the server's data, checked
-# quick in tests/test_console_instrument.py, and the page's 3-D view draws a path in the browse test.
+# detected peak, the logger's health and the executed path it draws are the server's data,
+# checked quick in tests/test_console_instrument.py; the page's 3-D view draws a path in the
+# browse test.
 @pytest.mark.long
 def test_live_page_shows_the_3d_path_the_chatter_frequency_and_the_logger(tmp_path: Path) -> None:
     """The 3-D view draws the planned and executed paths and the tool where GRBL reports it (on
