@@ -499,6 +499,11 @@ depth_mm = 0.9
 """
 
 
+# The live page in real time (the slot's ~30 s cut) in CI's command (long): the lobes, the
+# detected peak, the logger's health and the executed path it draws are the server's data,
+# checked quick in tests/test_console_instrument.py; the page's 3-D view draws a path in the
+# browse test.
+@pytest.mark.long
 def test_live_page_shows_the_3d_path_the_chatter_frequency_and_the_logger(tmp_path: Path) -> None:
     """The 3-D view draws the planned and executed paths and the tool where GRBL reports it (on
     screen where the page's own projection puts it, and following it); the spectrum carries the
@@ -741,6 +746,9 @@ def _logger_shown(page: Page) -> dict[str, Any]:
     return lg
 
 
+# long: a real-time campaign (~15 s); the flag's figures are checked quick in
+# tests/test_console_instrument.py (logger health), its red here in CI's command
+@pytest.mark.long
 def test_the_logger_flag_when_the_daq_loses_samples(tmp_path: Path) -> None:
     """A DAQ overflow that loses half a second of samples (blocks of 0.5 s, one lost 1 s into
     the run; the campaign continues): the page flags the logger beyond 5 %, in red, with the

@@ -112,10 +112,11 @@ def test_regression_validation_at_other_feeds_within_3_percent(fitted, modes, dy
 
 
 def test_too_few_runs_or_one_depth(modes, dyno):
-    runs = _runs(0.236, modes, seed=1, cut_s=1.0, depths=(1.0, 2.0))
+    # refused on the runs' count and depths, not their length: half-second runs
+    runs = _runs(0.236, modes, seed=1, cut_s=0.5, depths=(1.0, 2.0))
     out = fit_facemill_runs(runs, TOOL, dyno)
     assert not out.success and "too few runs" in out.message
-    same = _runs(0.236, modes, seed=2, cut_s=1.0, depths=(2.0, 2.0, 2.0))
+    same = _runs(0.236, modes, seed=2, cut_s=0.5, depths=(2.0, 2.0, 2.0))
     out = fit_facemill_runs(same, TOOL, dyno)
     assert not out.success and "1 depth" in out.message
 
@@ -136,7 +137,7 @@ def test_runs_without_cutting_are_named(modes, dyno):
 
 
 def test_mixed_units_and_foreign_conditions(modes, dyno):
-    runs = _runs(0.236, modes, seed=6, cut_s=1.0, depths=(0.5, 1.5, 3.0))
+    runs = _runs(0.236, modes, seed=6, cut_s=0.5, depths=(0.5, 1.5, 3.0))  # refused on units
     kn = ForceRun(runs[0].name, runs[0].force_n / 1000, RATE, runs[0].conditions, force_unit="kN")
     with pytest.raises(AnalysisError, match="mix force units"):
         fit_facemill_runs([kn, *runs[1:]], TOOL, dyno)
@@ -151,7 +152,7 @@ def test_mixed_units_and_foreign_conditions(modes, dyno):
 
 
 def test_a_tool_the_model_cannot_describe(modes, dyno):
-    runs = _runs(0.236, modes, seed=9, cut_s=1.0, depths=(0.5, 1.5, 3.0))
+    runs = _runs(0.236, modes, seed=9, cut_s=0.5, depths=(0.5, 1.5, 3.0))  # refused on the tool
     avgs = [reduce_run(r, 1) for r in runs]
     em = EndMill(kind="flat", diameter_mm=10, flute_length_mm=20, flutes=3)
     with pytest.raises(AnalysisError, match="face mills only"):

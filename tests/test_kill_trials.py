@@ -107,7 +107,13 @@ def _kill_moments(n: int, seed: int) -> list[tuple[str, float]]:
             else ("recording", rng.uniform(0.0, 1.8)) for _ in range(n)]  # fmt: skip
 
 
-@pytest.mark.parametrize("moment", [("start", 2.0), ("recording", 0.3), ("recording", 1.1)])
+# The kill during a recording (the interrupted attempt kept and repaired) in the quick tier; the
+# kill at start-up and the later one, the same kill-and-resume path, in CI's command (long).
+@pytest.mark.parametrize("moment", [
+    pytest.param(("start", 2.0), marks=pytest.mark.long),
+    ("recording", 0.3),
+    pytest.param(("recording", 1.1), marks=pytest.mark.long),
+], ids=["moment0", "moment1", "moment2"])  # fmt: skip
 def test_kill_and_resume_fast(tmp_path: Path, reference, moment: tuple[str, float]) -> None:
     _trial(tmp_path, moment, reference)
 

@@ -70,6 +70,9 @@ N60 M30
 """
 
 
+# long: two plan feed runs of the phi 30 ball (~10 s); the limited feeds themselves are checked
+# quick in tests/test_plan_limits.py (test_limited_feeds_break_no_limit_and_keep_the_path)
+@pytest.mark.long
 def test_feed_limit_leaves_no_violation(tmp_path: Path, capsys) -> None:
     (tmp_path / "step.nc").write_text(STEP)
     save_rule(derive_rule("r", 100, 1000, 3500, slot_load_percent("ball", 30, 0.7, 30)),

@@ -43,6 +43,9 @@ def test_json_program_and_pictures(small_part, tmp_path, capsys):
         assert open(png, "rb").read(8) == b"\x89PNG\r\n\x1a\n"
 
 
+# long: a second whole plan (optimal); `plan rough` is run quick by the JSON test above and the
+# optimal method checked quick in tests/test_rough.py (optimal equals brute force)
+@pytest.mark.long
 def test_table_output_and_other_method(small_part, tmp_path, capsys):
     out = tmp_path / "o.nc"
     code = main(["plan", "rough", str(small_part), "-o", str(out), "--method", "optimal",
