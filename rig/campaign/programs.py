@@ -22,7 +22,8 @@ from analysis.forces.models import FACEMILL
 from planning.nc.dialects import get as get_dialect
 from planning.nc.program import format_number
 from planning.stock import SteppedBlock
-from rig.campaign.config import ProgramSection, RunConditions
+from rig.campaign.config import RunConditions
+from rig.campaign.schema import ProgramSection
 
 if TYPE_CHECKING:
     from analysis.config import MachineConfig
