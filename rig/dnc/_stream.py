@@ -8,7 +8,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from analysis.config import SerialConfig
 from rig.dnc.errors import DncError, StreamFault
@@ -19,6 +19,9 @@ from rig.dnc.progress import Progress
 from rig.dnc.protocols import protocol_of
 from rig.dnc.record import BlockRow, BlockSink, MemorySink
 from rig.dnc.result import StreamResult
+
+if TYPE_CHECKING:
+    import serial
 
 
 class Fault(Exception):
@@ -136,7 +139,7 @@ class StreamerBase:
     def _open(self) -> SerialLink:
         return self._make_link().start()
 
-    def _serial(self):  # noqa: ANN202 - pyserial object
+    def _serial(self) -> serial.SerialBase:
         return open_port(self.cfg, self.protocol)
 
     #: appended to a write timeout's reason (what may be holding the line)
