@@ -20,7 +20,7 @@ def files() -> list[tuple[str, str, type]]:
     from planning.orient.config import OrientConfig
     from planning.rough.part import PartConfig
     from planning.stock.plans import _PlanModel
-    from rig.campaign.config import CampaignFile
+    from rig.campaign.schema import CampaignFile
 
     return [
         ("configs/machines/*.toml", "A machine: travel, feeds, spindle, dialect, serial link.",

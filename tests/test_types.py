@@ -1,5 +1,6 @@
-"""Typed contracts: mypy strict on analysis/ and planning/ (the ``[tool.mypy]`` section of
-pyproject.toml), no ``Any`` in the signature of a public function there, and no bare dict
+"""Typed contracts: mypy strict on analysis/, planning/ and rig/ but for the rig modules not
+strict yet (mypy's defaults there), no new error (the ``[tool.mypy]`` section of pyproject.toml;
+rig's files another branch edits now within a per-file ceiling), no ``Any`` in the signature of a public function there, and no bare dict
 returned across a package face of analysis/, planning/ or rig/ (nor ``Any`` in rig's public
 signatures) but for the allow-lists, each entry with why.
 
@@ -10,6 +11,7 @@ minute of CPU, a rerun with few changed modules a few seconds.
 from __future__ import annotations
 
 import ast
+import re
 import subprocess
 import sys
 import tomllib
@@ -46,13 +48,82 @@ def _ignored_patterns() -> list[str]:
     return out
 
 
+# rig/ file -> the mypy errors it may still have. Owned by a concurrent branch; next: once it
+# lands the lead types them and drops the entry (a file not listed may have none).
+RIG_MYPY_CEILING: dict[str, int] = {
+    "rig/cli/analyze.py": 12,
+    "rig/cli/campaign.py": 1,
+    "rig/cli/catalog.py": 1,
+    "rig/cli/daq.py": 1,
+    "rig/cli/dnc.py": 4,
+    "rig/cli/plan_check.py": 2,
+    "rig/cli/plan_feed.py": 5,
+    "rig/cli/plan_orient.py": 4,
+    "rig/cli/plan_rough.py": 3,
+    "rig/cli/rules.py": 6,
+    "rig/console/live.py": 7,
+    "rig/console/ring.py": 3,
+    "rig/log/importer.py": 4,
+    "rig/log/record.py": 1,
+    # imports GrblResult from planning.nc.grbl, which (strict: no implicit re-export) does not
+    # export it: import it from its defining module
+    "rig/sim/grbl.py": 1,
+}
+
+_ERROR = re.compile(r"^(?P<file>[^:\s]+\.pyi?):\d+: error: ")
+
+
+def _mypy_errors(output: str) -> dict[str, list[str]]:
+    """mypy's error lines by file (notes and the summary left out)."""
+    out: dict[str, list[str]] = {}
+    for line in output.splitlines():
+        m = _ERROR.match(line)
+        if m:
+            out.setdefault(m["file"].replace("\\", "/"), []).append(line)
+    return out
+
+
+def _over_ceiling(errors: dict[str, list[str]], ceiling: dict[str, int]) -> list[str]:
+    """The error lines not allowed: any outside rig/ or in a rig file without a ceiling, all of a
+    rig file's when it has more than its ceiling."""
+    bad: list[str] = []
+    for path, lines in sorted(errors.items()):
+        if len(lines) > (ceiling.get(path, 0) if path.startswith("rig/") else 0):
+            bad += lines
+    return bad
+
+
 @pytest.mark.timeout(900)
-def test_mypy_strict_on_analysis_and_planning() -> None:
+def test_mypy_strict_on_analysis_and_planning_and_rig_within_ceilings() -> None:
     cmd = [sys.executable, "-m", "mypy", "--config-file", "pyproject.toml"]
     cmd += ["--cache-dir", ".mypy_cache", "--no-color-output", "--no-error-summary"]
     proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=840)
-    lines = [ln for ln in (proc.stdout + proc.stderr).splitlines() if ln.strip()]
-    assert proc.returncode == 0, f"mypy exit {proc.returncode}:\n" + "\n".join(lines)
+    output = proc.stdout + proc.stderr
+    errors = _mypy_errors(output)
+    if proc.returncode not in (0, 1) or (proc.returncode == 1 and not errors):
+        pytest.fail(f"mypy did not run (exit {proc.returncode}):\n{output}")
+    bad = _over_ceiling(errors, RIG_MYPY_CEILING)
+    assert not bad, "new mypy errors (fix them; RIG_MYPY_CEILING only shrinks):\n" + "\n".join(bad)
+    lower = {p: len(errors.get(p, [])) for p, n in RIG_MYPY_CEILING.items()
+             if len(errors.get(p, [])) < n}  # fmt: skip
+    assert not lower, f"RIG_MYPY_CEILING above the errors left: lower it to {lower}"
+
+
+def test_the_ceiling_check_sees_new_errors() -> None:
+    out = (
+        "rig/a.py:3: error: Incompatible types  [assignment]\n"
+        "rig/a.py:3: note: a note\n"
+        "rig/b.py:9: error: Name x is not defined  [name-defined]\n"
+        "rig/b.py:10: error: Name y is not defined  [name-defined]\n"
+        "planning/c.py:1: error: Missing return  [return]\n"
+        "Found 4 errors in 3 files\n"
+    )
+    errors = _mypy_errors(out)
+    assert {p: len(v) for p, v in errors.items()} == {"rig/a.py": 1, "rig/b.py": 2,
+                                                      "planning/c.py": 1}  # fmt: skip
+    bad = _over_ceiling(errors, {"rig/a.py": 1, "rig/b.py": 1, "planning/c.py": 5})
+    assert [ln.split(":")[0] for ln in bad] == ["planning/c.py", "rig/b.py", "rig/b.py"]
+    assert _over_ceiling(errors, {"rig/a.py": 1, "rig/b.py": 2}) == [bad[0]]
 
 
 def _matches(module: str, pattern: str) -> bool:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 from rig.adaptive.controller import AdaptiveController
 from rig.adaptive.results import AdaptiveSummary
@@ -20,6 +20,7 @@ from rig.dnc import DncError, protocol_of
 if TYPE_CHECKING:
     from rig.daq import Daq
     from rig.dnc import SendJob
+    from rig.dnc.grbl import GrblStreamer
 
 #: wall s the DAQ may take to deliver the zeroing rest before the send is refused
 ZERO_WAIT_S = 10.0
@@ -89,7 +90,8 @@ class SendLoop:
                 raise DncError(f"--adaptive: no rest samples from the DAQ within {ZERO_WAIT_S:g} "
                                "s: nothing sent")  # fmt: skip
             time.sleep(0.01)
-        self.ctl.attach(self.job.streamer)
+        # __init__ refused a protocol without real-time bytes: the streamer is GRBL's
+        self.ctl.attach(cast("GrblStreamer", self.job.streamer))
         self.ctl.arm()
         return self
 

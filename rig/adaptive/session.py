@@ -9,7 +9,7 @@ the program (feed hold first, then reset), so a held cut never waits for the wat
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 import numpy as np
 
@@ -27,7 +27,7 @@ if TYPE_CHECKING:
     )
     from rig.adaptive.feedforward import FeedForward
     from rig.adaptive.settings import AdaptiveSettings
-    from rig.daq import Calibration
+    from rig.daq import Calibration, Daq
 
 #: the rig session adaptive_session wraps (returned as it is when the test is not under the loop)
 S = TypeVar("S", bound="LoopSession")
@@ -106,7 +106,8 @@ class AdaptiveSession:
         self.drop_after_s = drop_after_s
         self._drop_relative = drop_relative  # drop_after_s counts from the program's start
         self.anticipation = anticipation  # which mode runs, for the run file's start note
-        self.daq = _Daq(session.daq, self)
+        # _Daq tees the blocks and forwards every other member to the session's Daq
+        self.daq = cast("Daq", _Daq(session.daq, self))
         # the live console (rig.console.live) finds the controller on the session it wraps
         session.adaptive_controller = ctl
         self.clock = session.clock
@@ -176,7 +177,8 @@ def max_force_of(campaign: AdaptiveCampaign) -> float | None:
     max_force_n`` and ``[suspenders] force_limit_n`` that are given (the config may only lower
     the tool's cap); None when none is."""
     a = campaign.spec.adaptive
-    given = [float(v) for v in (getattr(campaign.tool, "max_force_n", None), a.max_force_n,
+    a_max = a.max_force_n if a is not None else None  # callers check [adaptive] is there
+    given = [float(v) for v in (getattr(campaign.tool, "max_force_n", None), a_max,
              campaign.spec.suspenders.force_limit_n) if v is not None]  # fmt: skip
     return min(given) if given else None
 
@@ -190,7 +192,7 @@ def target_of(campaign: AdaptiveCampaign, test: AdaptiveTest) -> tuple[float | N
     from analysis.forces.models import ENDMILL
 
     a = campaign.spec.adaptive
-    if a.target_force_n is not None:
+    if a is not None and a.target_force_n is not None:
         return float(a.target_force_n), "[adaptive] target_force_n"
     rule = campaign.spec.feed_rule
     if rule is None:
@@ -253,6 +255,7 @@ def settings_of(campaign: AdaptiveCampaign, test: AdaptiveTest) -> AdaptiveSetti
     from rig.adaptive.settings import AdaptiveSettings
 
     a = campaign.spec.adaptive
+    assert a is not None  # only under [adaptive] (under_loop)
     target, why = target_of(campaign, test)
     cap = max_force_of(campaign)
     if target is None or cap is None:  # check_adaptive refuses both first, naming the file
@@ -301,6 +304,7 @@ def adaptive_session(
         return session
     check_adaptive(campaign)
     a = campaign.spec.adaptive
+    assert a is not None  # under_loop: [adaptive] is there
     rate = campaign.spec.daq.rate_hz or campaign.rig.daq.rate_hz
     ff, anticipation = None, "feedback only: the spindle mode holds no force target"
     if a.mode in ("feed", "both"):

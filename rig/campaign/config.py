@@ -43,7 +43,7 @@ from analysis.config import (
     user_catalogs,
 )
 from analysis.errors import ConfigError
-from analysis.forces import ENDMILL, FACEMILL
+from analysis.forces import ENDMILL, FACEMILL, ForceModel, model_for
 from analysis.validation import read_toml, validate
 from rig.campaign.results import RunConditionsJson
 from rig.campaign.schema import (  # noqa: F401 - the tables, importable from here as before
@@ -116,7 +116,7 @@ class Campaign:
 
 
 def _teeth(tool: EndMill | FaceMill) -> int:
-    return tool.inserts if FACEMILL.describes(tool) else tool.flutes
+    return model_for(tool).teeth(tool)  # inserts of a face mill, flutes of an end mill
 
 
 def _as_list(v: Any) -> list[Any]:
@@ -298,7 +298,7 @@ def _table_line(text: str, table: str) -> int:
     return next((i + 1 for i, ln in enumerate(text.splitlines()) if pat.match(ln)), 0)
 
 
-def _field_line(text: str, table_line: int, field: str) -> int:
+def _field_line(text: str, table_line: int | None, field: str) -> int:
     """1-based line of ``field = ...`` in the table whose header is at ``table_line`` (0: none)."""
     if not text or not table_line:
         return 0
@@ -386,6 +386,7 @@ def load_campaign(path: str | Path) -> Campaign:
                 problems += str(exc).splitlines()
     if problems:
         raise ConfigError("\n".join(problems))
+    assert tool is not None and material is not None  # else load() added a problem
     return Campaign(p, text, spec, machine, tool, material, rig, tuple(tests), sources)
 
 
@@ -409,8 +410,12 @@ def _rate_problems(spec: CampaignFile, rig: RigConfig, where: str) -> list[str]:
     return out
 
 
-_ANALYSIS_TOOL = {"facemill-coefficients": FACEMILL, "feed-rule": ENDMILL, "afc-compare": ENDMILL,
-                  "stability-sweep": ENDMILL}  # fmt: skip
+_ANALYSIS_TOOL: dict[str, ForceModel] = {
+    "facemill-coefficients": FACEMILL,
+    "feed-rule": ENDMILL,
+    "afc-compare": ENDMILL,
+    "stability-sweep": ENDMILL,
+}
 
 
 def _analysis_problems(

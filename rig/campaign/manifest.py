@@ -15,7 +15,7 @@ import datetime as dt
 import hashlib
 import json
 import os
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, Unpack
 
@@ -133,7 +133,7 @@ class Manifest:
                 lines.append(f"run {run} ({entry.get('file', '')}) is no longer in the campaign")
         return lines
 
-    def accept_inputs(self, forced_changes: list[str] = ()) -> None:
+    def accept_inputs(self, forced_changes: Sequence[str] = ()) -> None:
         """Store the current inputs; ``forced_changes`` (a forced resume) are recorded."""
         if forced_changes:
             self.data.setdefault("forced_resumes", []).append(

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -21,7 +22,12 @@ from analysis.forces.models import FACEMILL
 from planning.nc.dialects import get as get_dialect
 from planning.nc.program import format_number
 from planning.stock import SteppedBlock
-from rig.campaign.config import ProgramSection, RunConditions
+from rig.campaign.config import RunConditions
+from rig.campaign.schema import ProgramSection
+
+if TYPE_CHECKING:
+    from analysis.config import MachineConfig
+    from analysis.rules import FeedRule
 
 
 @dataclass(frozen=True)
@@ -101,8 +107,10 @@ def generate_program(
         y_path = prog.offset_y_mm
         block = SteppedBlock(-half_w, half_w, edges, tops)
     else:
-        w = test.width_mm if test.width_mm == test.width_mm else tool.diameter_mm
-        y_path = prog.offset_y_mm + (0.0 if w >= tool.diameter_mm else half_w + r - w)
+        width_mm = test.width_mm if test.width_mm == test.width_mm else tool.diameter_mm
+        y_path = prog.offset_y_mm + (
+            0.0 if width_mm >= tool.diameter_mm else half_w + r - width_mm
+        )
         block = SteppedBlock(-half_w, half_w, edges, tops)
     x_start = -r - prog.approach_mm
     if face_mill:
@@ -151,7 +159,11 @@ def campaign_rule(spec: object, tool: EndMill, name: str = "campaign"):  # noqa:
 
 
 def post_process_program(
-    cut: CutProgram, tool: EndMill, rule: object, machine: object, min_piece_mm: float
+    cut: CutProgram,
+    tool: EndMill,
+    rule: FeedRule,
+    machine: MachineConfig | None,
+    min_piece_mm: float,
 ) -> tuple[str, dict]:
     """The load-based feed post-processor (``planning.feed.post``, seed 001) over a test program,
     on the Z-map of its block. Returns (program text, the post-processor's summary)."""

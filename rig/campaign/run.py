@@ -45,8 +45,11 @@ WATCHDOG_MARGIN_S = 30.0
 class RigSession(Protocol):
     """What a run needs from a rig (simulated or real), for one program."""
 
-    daq: Daq
     clock: Callable[[], float]
+
+    @property
+    def daq(self) -> Daq:
+        """The rig's DAQ (read only here: a session has its own kind, simulated or NI)."""
 
     def start(self, program: Program, writer: RunRecorder) -> None:
         """Begin streaming ``program`` in the background; blocks are recorded in ``writer``."""

@@ -4,12 +4,15 @@ as :class:`CampaignFile`. What they mean together (the matrix, the checks) is
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import Field, model_validator
 
 from analysis.config import ToolMode
 from analysis.validation import Model
+
+if TYPE_CHECKING:
+    from analysis.chatter import ChatterSettings
 
 FloatOrList = float | list[float]
 
@@ -167,7 +170,7 @@ class ChatterSection(Model):
     growth_ratio: float = Field(0.8, gt=0, description="off-harmonic RMS, last / first third")
     cut_fraction: float = Field(0.5, gt=0, lt=1, description="where a revolution counts as cut")
 
-    def settings(self):  # noqa: ANN201 - analysis.chatter.ChatterSettings
+    def settings(self) -> ChatterSettings:
         from analysis.chatter import ChatterSettings
 
         return ChatterSettings(self.energy_ratio, self.opr_ratio, cut_fraction=self.cut_fraction,

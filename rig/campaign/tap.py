@@ -93,9 +93,11 @@ class RunTap:
         else:
             self.writer.on_block(first_sample, data)
         info = self.info
+        assert info is not None  # on_start comes before the first block
         n = data.shape[1]
         self.samples = first_sample + n
         if info.sample_format == SAMPLE_FORMAT_RAW:
+            assert info.scaling_coeff is not None  # a raw format comes with its scaling
             volts = rf.raw_to_volts(data.T, info.scaling_coeff)
         else:
             volts = np.array(data.T, dtype=float)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import threading
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -58,7 +58,9 @@ def lobes_at(case: CutCase, rpm: float) -> LobesAt:
     and kind of instability of ``case`` at ``rpm``."""
     from analysis.stability import endmill_case, stability_lobes
 
-    sc = endmill_case(case["modes"], case["kt_n_m2"], case["kn_n_m2"], case["teeth"],
+    # the ring's JSON keeps each mode as a list [axis, Hz, damping, N/m]: endmill_case unzips it
+    modes = cast("list[tuple[str, float, float, float]]", case["modes"])
+    sc = endmill_case(modes, case["kt_n_m2"], case["kn_n_m2"], case["teeth"],
                       case["radial_immersion"], [rpm], "console")  # fmt: skip
     lobes = stability_lobes(sc, "sd")
     limit, hz = float(lobes.depth_limit_mm[0]), float(lobes.chatter_hz[0])
@@ -81,7 +83,11 @@ class StabilityAt:
         with self._lock:
             key = self._key
             same_run = key is not None and key[0] == run
-            near = same_run and abs(rpm - key[1]) <= RPM_STEP_REL * max(key[1], 1.0)
+            near = (
+                key is not None
+                and same_run
+                and abs(rpm - key[1]) <= RPM_STEP_REL * max(key[1], 1.0)
+            )
             if (not near) and not self._busy:
                 self._key, self._busy = (run, rpm), True
                 if not same_run:
@@ -109,13 +115,16 @@ def margin(lobes: LobesAt | None, case: CutCase) -> Margin:
         return {"reason": case["reason"]}
     if lobes is None:
         return {"reason": "lobes being computed for this speed"}
+    out: Margin = {**lobes}
     if "reason" in lobes:
-        return dict(lobes)
+        return out
     depth, limit = case["depth_mm"], lobes["depth_limit_mm"]
-    out = dict(lobes) | {"depth_mm": depth}
+    out["depth_mm"] = depth
     if limit is None or not math.isfinite(depth):
-        return out | {"depth_pct": None, "stable": True}
-    return out | {"depth_pct": round(100.0 * depth / limit, 1), "stable": depth < limit}
+        out["depth_pct"], out["stable"] = None, True
+        return out
+    out["depth_pct"], out["stable"] = round(100.0 * depth / limit, 1), depth < limit
+    return out
 
 
 def detected_peak(force_n: np.ndarray, rate_hz: float, rpm: float) -> Peak:

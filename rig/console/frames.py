@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -14,6 +14,7 @@ from analysis.runs import file as rf
 from rig.console.chatter import detected_peak, margin
 from rig.console.forces import force_n
 from rig.console.hub import Hub, _num
+from rig.console.results import CutCase, LiveState, Margin, Peak
 from rig.console.ring import RingReader
 
 DEFAULT_PX, DEFAULT_WINDOW_S = 1000, 10.0
@@ -98,7 +99,7 @@ class _Client:
         self.catch_up = True
         self.frames = 0
         self.runs_sig: tuple[Any, ...] | None = None
-        self.live_state: dict[str, Any] | None = None
+        self.live_state: LiveState | None = None
         self.last_rev = -1
         self.seen: tuple[int, int] = (-1, -1)
         self.written_ns = 0  # the ring's last block already timed on the page
@@ -209,15 +210,19 @@ class _Client:
                 "peak": self._peak(f, rate, rpm), "channels": meta.get("channels", []),
                 "unit": "N"}  # fmt: skip
 
-    def _stability(self, hub: Hub, rpm: float) -> dict[str, Any]:
+    def _stability(self, hub: Hub, rpm: float) -> Margin:
         meta = self.meta or {}
-        case = meta.get("stability") or {"reason": "no lobes: the campaign gives no cut for them"}
+        # the ring's run meta (JSON): its "stability" entry is the campaign's CutCase
+        case = cast(
+            CutCase,
+            meta.get("stability") or {"reason": "no lobes: the campaign gives no cut for them"},
+        )
         lobes = None if "reason" in case or rpm <= 0 else hub.stability.get(meta.get("run"),
                                                                             case, rpm)  # fmt: skip
         return margin(lobes, case)
 
     @staticmethod
-    def _peak(f: np.ndarray, rate: float, rpm: float) -> dict[str, Any]:
+    def _peak(f: np.ndarray, rate: float, rpm: float) -> Peak:
         try:
             return detected_peak(f, rate, rpm)
         except Exception as exc:  # noqa: BLE001 - the spectrum shows without it

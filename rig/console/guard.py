@@ -12,11 +12,14 @@ import math
 import secrets
 import socket
 import sys
-from collections.abc import Awaitable, Callable
-from typing import Any
+from collections.abc import Awaitable, Callable, Mapping
+from typing import TYPE_CHECKING, Any
 from urllib.parse import parse_qs, urlsplit
 
 from rig.console.common import WILDCARD_BINDS
+
+if TYPE_CHECKING:
+    from starlette.datastructures import State
 
 LOOPBACK_NAMES = frozenset({"localhost", "127.0.0.1", "::1"})
 COMMANDS = ("hold", "resume", "abort")
@@ -70,7 +73,7 @@ def host_allowed(host: str | None, allow: frozenset[str], any_ip: bool) -> bool:
     return False
 
 
-def _peer(scope: dict[str, Any]) -> str:
+def _peer(scope: Mapping[str, Any]) -> str:
     c = scope.get("client")
     if not c:
         return "an unknown client"
@@ -90,6 +93,9 @@ class Guard:
     """ASGI middleware in front of the console app: the Host allowlist, the websocket's Origin,
     the token (see the module docstring); and a last net under the app: an exception is one
     logged line and a 500 (or a closed websocket), never an ASGI traceback."""
+
+    #: the inner app's state (rig.console.server.make_app sets it: the hub, the token)
+    state: State
 
     def __init__(self, app: Any, token: str, bind: str = "127.0.0.1") -> None:
         if not token:

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from typing import Any
+from typing import Any, cast
 
 from rig.console.results import LoggerStatus, WriterCounts
 
@@ -68,7 +68,7 @@ class LoggerHealth:
         out["flag"] = bool(bad)
         out["why"] = "; ".join(bad) if bad else ("" if judged else
                                                  f"judged after {JUDGE_AFTER_S:g} s")  # fmt: skip
-        return out
+        return cast(LoggerStatus, out)  # built key by key above: LoggerStatus's keys
 
     def _received_before(self, t_s: float) -> int:
         """Samples received by the newest arrival at or before ``t_s`` (0: none that old)."""

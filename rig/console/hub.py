@@ -68,22 +68,24 @@ class Hub:
                 self.ring, self.pid, self.gone_since = ring, int(ptr.get("pid", 0)), None
         self._pointer = text or self._pointer
         if self.ring is not None and not self.ring.closed and not self.alive():
-            self._mark_gone()
+            gone_since = self._mark_gone()
             # A killed campaign's ring and live.json are removed now (issue 31); the mapping
             # keeps its last state for the page.
             self._clean_up()
-            if self.linger_s is not None and time.monotonic() - self.gone_since > self.linger_s:
+            if self.linger_s is not None and time.monotonic() - gone_since > self.linger_s:
                 self.should_exit = True
         elif self.ring is not None and self.ring.closed and self.linger_s is not None:
-            self._mark_gone()
-            if time.monotonic() - self.gone_since > self.linger_s:
+            gone_since = self._mark_gone()
+            if time.monotonic() - gone_since > self.linger_s:
                 self.should_exit = True
 
-    def _mark_gone(self) -> None:
+    def _mark_gone(self) -> float:
+        """When the campaign was first seen gone (now, if it just went), monotonic s."""
         if self.gone_since is None:
             self.gone_since = time.monotonic()
             if self.linger_s is not None:
                 self.until_wall = round(time.time() + self.linger_s, 1)
+        return self.gone_since
 
     def alive(self) -> bool:
         """The campaign process is there and beating."""
@@ -174,9 +176,9 @@ def _history(folder: Path | None) -> dict[str, Any]:
             df = load_index(index)
             out = []
             for name, g in df.groupby("campaign", sort=True):
-                counts = g["status"].value_counts().to_dict()
+                by_status = g["status"].value_counts().to_dict()
                 out.append({"campaign": str(name), "runs": len(g), "statuses": {
-                    str(k): int(v) for k, v in counts.items()},
+                    str(k): int(v) for k, v in by_status.items()},
                     "latest_utc": str(g["indexed_utc"].max())})  # fmt: skip
             return {"source": f"the run catalogue {index}", "campaigns": out[:MAX_HISTORY]}
     out = []

@@ -107,7 +107,7 @@ def machine_report(session: object) -> MachineReport:
     control's panel; nothing from a drip feed (state "" and source says so)."""
     streamer = getattr(session, "streamer", None)
     st = getattr(streamer, "last_status", None)
-    out: dict[str, Any] = {"state": "", "pos_mm": None, "feed_mm_min": None, "spindle_rpm": None}
+    out: MachineReport = {"state": "", "pos_mm": None, "feed_mm_min": None, "spindle_rpm": None}
     if st is not None:
         pos = st.wpos_mm
         wco = getattr(streamer, "_wco", None)
@@ -116,9 +116,10 @@ def machine_report(session: object) -> MachineReport:
             pos = tuple(m - o for m, o in zip(st.mpos_mm, off))
         ov = getattr(st, "overrides", None)
         overrides = dict(zip(("feed", "rapid", "spindle"), ov)) if ov else None
-        return out | {"state": st.full_state, "pos_mm": _round(pos), "source": "GRBL status",
-                      "feed_mm_min": st.feed_mm_min, "spindle_rpm": st.spindle_rpm,
-                      "overrides_pct": overrides, "estimated": False}  # fmt: skip
+        out.update({"state": st.full_state, "pos_mm": _round(pos), "source": "GRBL status",
+                    "feed_mm_min": st.feed_mm_min, "spindle_rpm": st.spindle_rpm,
+                    "overrides_pct": overrides, "estimated": False})  # fmt: skip
+        return out
     ctrl = getattr(session, "controller", None)  # the simulated rig's control
     if ctrl is not None:
         if hasattr(ctrl, "state_name"):
@@ -126,6 +127,8 @@ def machine_report(session: object) -> MachineReport:
         else:
             state = "Alarm" if ctrl.alarm else "Hold" if ctrl.held else "Run"
         pos = ctrl.position_mm() if hasattr(ctrl, "position_mm") else None
-        return out | {"state": state, "pos_mm": _round(pos), "source": "simulated control"}
+        out.update({"state": state, "pos_mm": _round(pos), "source": "simulated control"})
+        return out
     state = getattr(streamer, "controller_state", "") or ""
-    return out | {"state": state, "source": "none: a drip feed reports no state"}
+    out.update({"state": state, "source": "none: a drip feed reports no state"})
+    return out

@@ -22,7 +22,8 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 
-from analysis.runs.file import SAMPLE_FORMAT_RAW, SAMPLE_FORMAT_VOLTS  # the run file's names
+from analysis.runs.file import SAMPLE_FORMAT_RAW as SAMPLE_FORMAT_RAW  # the run file's names
+from analysis.runs.file import SAMPLE_FORMAT_VOLTS as SAMPLE_FORMAT_VOLTS
 from rig.errors import RigError
 
 if TYPE_CHECKING:

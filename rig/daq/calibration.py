@@ -35,6 +35,15 @@ class CalibrationError(RigError, ValueError):
     """A calibration has the wrong shape, a singular cross-talk matrix or unusable zero data."""
 
 
+#: zero_v's and drift_v_s's default: none given, zeros (__post_init__ makes them (c,) arrays)
+_NONE_GIVEN = np.zeros(0)
+
+
+def _or_zero(v: object) -> object:
+    """0.0 for a zero or drift not given (the default, or None as a caller may pass)."""
+    return 0.0 if v is None or v is _NONE_GIVEN else v
+
+
 def _vec(name: str, v: object, n: int) -> np.ndarray:
     a = np.asarray(v, dtype=np.float64)
     if a.ndim == 0:
@@ -67,9 +76,9 @@ class Calibration:
     amp_sensitivity_pc_n: np.ndarray
     calibration_id: str = ""
     dynamometer: str = ""
-    zero_v: np.ndarray = field(default=None)  # type: ignore[assignment]
+    zero_v: np.ndarray = field(default_factory=lambda: _NONE_GIVEN)
     zero_time_s: float = math.nan
-    drift_v_s: np.ndarray = field(default=None)  # type: ignore[assignment]
+    drift_v_s: np.ndarray = field(default_factory=lambda: _NONE_GIVEN)
 
     def __post_init__(self) -> None:
         n = len(self.channel_names)
@@ -80,12 +89,8 @@ class Calibration:
         s(self, "range_n_v", _vec("range_n_v", self.range_n_v, n))
         s(self, "sign", _vec("sign", self.sign, n))
         s(self, "amp_sensitivity_pc_n", _vec("amp_sensitivity_pc_n", self.amp_sensitivity_pc_n, n))
-        s(self, "zero_v", _vec("zero_v", 0.0 if self.zero_v is None else self.zero_v, n))
-        s(
-            self,
-            "drift_v_s",
-            _vec("drift_v_s", 0.0 if self.drift_v_s is None else self.drift_v_s, n),
-        )
+        s(self, "zero_v", _vec("zero_v", _or_zero(self.zero_v), n))
+        s(self, "drift_v_s", _vec("drift_v_s", _or_zero(self.drift_v_s), n))
         if np.any(self.sensitivity_pc_n == 0) or np.any(self.amp_sensitivity_pc_n == 0):
             raise CalibrationError("sensitivity_pc_n must be non-zero on every channel (pC/N)")
         if np.any(self.range_n_v <= 0):
@@ -118,14 +123,14 @@ class Calibration:
                 f"({', '.join(c.name for c in dyno.channels)}) but daq.channels has "
                 f"{n_daq_channels}: the calibration must have one entry per DAQ channel"
             )
-        sens = [c.sensitivity_pc_n for c in dyno.channels]
+        sens = np.array([c.sensitivity_pc_n for c in dyno.channels], dtype=np.float64)
         return cls(
             channel_names=tuple(c.name for c in dyno.channels),
             sensitivity_pc_n=sens,
-            range_n_v=[c.range_n_v for c in dyno.channels],
-            sign=[c.sign for c in dyno.channels],
+            range_n_v=np.array([c.range_n_v for c in dyno.channels], dtype=np.float64),
+            sign=np.array([c.sign for c in dyno.channels], dtype=np.float64),
             crosstalk=np.eye(n) if dyno.crosstalk is None else np.asarray(dyno.crosstalk),
-            amp_sensitivity_pc_n=sens,
+            amp_sensitivity_pc_n=sens.copy(),  # its own array, as two lists gave
             calibration_id=dyno.calibration_id,
             dynamometer=dyno.model,
         )
@@ -186,8 +191,9 @@ class Calibration:
             )
         if np.any(self.drift_v_s) and time_s is None:
             raise CalibrationError("a drift is set: force_from_volts needs time_s (s)")
+        t_s = np.zeros(0) if time_s is None else time_s  # read with a drift only (checked)
         return rf.volts_to_force(
-            v, time_s, self.volts_to_n, self.zero_v, self.zero_time_s, self.drift_v_s
+            v, t_s, self.volts_to_n, self.zero_v, self.zero_time_s, self.drift_v_s
         )
 
     # -- zeroing and drift -------------------------------------------------------------------
@@ -202,7 +208,9 @@ class Calibration:
             raise CalibrationError(
                 f"zero samples have shape {v.shape}: expected (n >= 1, {self.n_channels})"
             )
-        return replace(self, zero_v=v.mean(axis=0), zero_time_s=float(time_s), drift_v_s=None)
+        return replace(
+            self, zero_v=v.mean(axis=0), zero_time_s=float(time_s), drift_v_s=_NONE_GIVEN
+        )
 
     def with_drift(self, drift_v_s: np.ndarray) -> Calibration:
         return replace(self, drift_v_s=drift_v_s)

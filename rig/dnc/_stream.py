@@ -8,6 +8,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Literal
 
 from analysis.config import SerialConfig
 from rig.dnc.errors import DncError, StreamFault
@@ -18,6 +19,9 @@ from rig.dnc.progress import Progress
 from rig.dnc.protocols import protocol_of
 from rig.dnc.record import BlockRow, BlockSink, MemorySink
 from rig.dnc.result import StreamResult
+
+if TYPE_CHECKING:
+    import serial
 
 
 class Fault(Exception):
@@ -77,7 +81,7 @@ class StreamerBase:
         *,
         sink: BlockSink | None = None,
         clock: Callable[[], float] | None = None,
-        pace_bytes_per_s: float | str | None = "auto",
+        pace_bytes_per_s: float | Literal["auto"] | None = "auto",
         progress: bool = False,
     ) -> None:
         check_settings(cfg, self.protocol)
@@ -85,9 +89,11 @@ class StreamerBase:
         self.cfg = cfg
         self.sink: BlockSink = sink if sink is not None else MemorySink()
         self.clock = clock if clock is not None else time.time
-        if pace_bytes_per_s == "auto":
-            pace_bytes_per_s = line_bytes_per_s(cfg) if is_pty(cfg.port) else None
-        self.pace = pace_bytes_per_s
+        self.pace: float | None = (
+            (line_bytes_per_s(cfg) if is_pty(cfg.port) else None)
+            if pace_bytes_per_s == "auto"
+            else pace_bytes_per_s
+        )
         self.show_progress = progress
         self.link: SerialLink | None = None
         self.interrupted = ""  # why the stream was interrupted ("SIGINT", ...), "" if not
@@ -133,7 +139,7 @@ class StreamerBase:
     def _open(self) -> SerialLink:
         return self._make_link().start()
 
-    def _serial(self):  # noqa: ANN202 - pyserial object
+    def _serial(self) -> serial.SerialBase:
         return open_port(self.cfg, self.protocol)
 
     #: appended to a write timeout's reason (what may be holding the line)

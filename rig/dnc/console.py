@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import queue
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TypedDict
 
@@ -107,7 +108,7 @@ class _Console:
             self.lines.append(line)
         return None
 
-    def wait_line(self, pred, timeout: float) -> str | None:  # noqa: ANN001
+    def wait_line(self, pred: Callable[[str], bool], timeout: float) -> str | None:
         end = time.perf_counter() + timeout
         while time.perf_counter() < end:
             line = self.next_line(0.05)

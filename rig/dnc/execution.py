@@ -68,8 +68,8 @@ def line_paths(
 ) -> list[LinePath]:
     """The path of each line of ``texts`` run in order from ``start_mm`` (a line the interpreter
     refuses gets no path; the others go on from the state before it)."""
-    it = Interpreter(machine, strict=False, dialect=dialect)  # type: ignore[arg-type]
-    it.state.position_mm = tuple(float(c) for c in start_mm)  # type: ignore[assignment]
+    it = Interpreter(machine, strict=False, dialect=dialect)
+    it.state.position_mm = tuple(float(c) for c in start_mm)
     out = []
     for k, t in enumerate(texts):
         if t.lstrip().startswith("$"):

@@ -36,7 +36,7 @@ class GrblReceiver:
         self.partial = bytearray()
         self.queries: deque[int] = deque()  # bytes written before each '?' not yet answered
         self.report_written: int | None = None  # ... before the '?' of the last report
-        self.alive_key: tuple | None = None
+        self.alive_key: tuple[Any, ...] | None = None
         self.noise = self.noise_reports = 0
         self.noise_example = ""
         self.heard_any = False

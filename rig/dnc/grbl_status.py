@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from rig.dnc.errors import DncError
 
@@ -49,7 +50,7 @@ def parse_status(text: str) -> GrblStatus:
     if not parts or not parts[0]:
         raise DncError(f"GRBL status report {text!r}: no state")
     state, _, sub = parts[0].partition(":")
-    kw: dict = {"state": state, "substate": sub}
+    kw: dict[str, Any] = {"state": state, "substate": sub}  # GrblStatus's fields, as parsed
     for p in parts[1:]:
         key, _, val = p.partition(":")
         nums = val.split(",")

@@ -31,7 +31,8 @@ import signal
 import threading
 import time
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING, Any
+from types import FrameType
+from typing import TYPE_CHECKING, Any, cast
 
 from rig.dnc.errors import DncError
 from rig.dnc.protocols import protocol_of
@@ -45,6 +46,18 @@ KEYS = {"!": "hold", " ": "hold", "~": "resume", "r": "resume", "R": "resume", "
         "Q": "abort"}  # fmt: skip
 #: signal name -> action
 SIGNALS = {"SIGUSR1": "hold", "SIGUSR2": "resume"}
+
+
+def _signal_handler(
+    ctl: OperatorControl, action: str, name: str
+) -> Callable[[int, FrameType | None], None]:
+    """A signal handler requesting ``action`` from the signal ``name``."""
+
+    def handle(signum: int, frame: FrameType | None) -> None:
+        ctl.request(action, name)
+
+    return handle
+
 HELP = (
     "while sending: '!' or space = feed hold, '~' or 'r' = resume, 'q' or Ctrl-C = abort "
     "(feed hold first); SIGUSR1 = feed hold, SIGUSR2 = resume"
@@ -159,7 +172,7 @@ class OperatorControl:
     def _hold(self, source: str) -> str:
         if not self.rules.realtime_bytes:
             return "a Fanuc takes no feed hold over the line: press FEED HOLD on the control"
-        self.streamer.feed_hold()
+        cast("GrblStreamer", self.streamer).feed_hold()  # realtime bytes: GRBL's streamer
         state = self._wait_state(lambda s: s.startswith("Hold"), self.confirm_s, idle_ok=True)
         if not state:
             return f"'!' sent; GRBL has not reported Hold within {self.confirm_s:g} s"
@@ -170,7 +183,7 @@ class OperatorControl:
             return "a Fanuc takes no cycle start over the line: press CYCLE START on the control"
         if self._state() == "Hold:1":  # GRBL ignores '~' while the hold decelerates
             self._wait_state(lambda s: s != "Hold:1", self.confirm_s)
-        self.streamer.cycle_start()
+        cast("GrblStreamer", self.streamer).cycle_start()  # realtime bytes: GRBL's streamer
         state = self._wait_state(lambda s: s in ("Run", "Jog"), self.confirm_s, idle_ok=True)
         if not state:
             now = self._state() or "nothing"
@@ -251,7 +264,7 @@ def operator_control(
             for name, action in SIGNALS.items():
                 sig = getattr(signal, name, None)
                 if sig is not None:
-                    old[sig] = signal.signal(sig, lambda s, f, a=action, n=name: ctl.request(a, n))
+                    old[sig] = signal.signal(sig, _signal_handler(ctl, action, name))
         yield ctl
     finally:
         for sig, h in old.items():

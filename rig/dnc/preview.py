@@ -3,7 +3,7 @@ protocol sends them; nothing is opened or sent."""
 
 from __future__ import annotations
 
-from analysis.validation import JsonObject
+from analysis.validation import JsonObject, JsonValue
 from rig.dnc.connect import SendJob
 
 __all__ = ["DRY_RUN_BLOCKS", "preview", "preview_lines"]
@@ -15,10 +15,11 @@ DRY_RUN_BLOCKS = 10
 def preview(job: SendJob) -> JsonObject:
     """The send's first items: ``preamble`` (restart lines) and ``first_blocks``."""
     items = job.items_to_send()
-    pre: list[str] = [it.text for it in items if it.block < 0]
-    blocks: list[dict[str, int | str]] = [
-        {"block": it.block, "line": it.line, "text": it.text} for it in items if it.block >= 0
-    ][:DRY_RUN_BLOCKS]
+    pre: list[JsonValue] = [it.text for it in items if it.block < 0]
+    first = [it for it in items if it.block >= 0][:DRY_RUN_BLOCKS]
+    blocks: list[JsonValue] = [
+        {"block": it.block, "line": it.line, "text": it.text} for it in first
+    ]
     return {"dry_run": True, "program": job.program.name, "protocol": job.protocol,
             "start_block": job.start_block, "restart": list(job.restart_notes),
             "preamble": pre, "first_blocks": blocks, "sent": False}  # fmt: skip

@@ -20,6 +20,7 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 from analysis.config import MachineConfig, SerialConfig
 from rig.dnc.errors import DncError
@@ -78,7 +79,7 @@ class RemoteServer:
         *,
         machine: MachineConfig | None = None,
         sink: BlockSink | None = None,
-        pace_bytes_per_s: float | str | None = "auto",
+        pace_bytes_per_s: float | Literal["auto"] | None = "auto",
         on_listening: Callable[[], None] | None = None,
     ) -> None:
         self.cfg = cfg

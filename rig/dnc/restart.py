@@ -337,9 +337,9 @@ def _arc_text(m: object, st: object, original: str) -> str:
     kinds = np.asarray(m.kind)  # type: ignore[attr-defined]
     idx = np.flatnonzero((kinds == ARC_CW) | (kinds == ARC_CCW))
     i0, i1 = int(idx[0]), int(idx[-1])
-    start = np.asarray(m.start[i0], float)  # type: ignore[attr-defined]
-    end = np.asarray(m.end[len(kinds) - 1], float)  # type: ignore[attr-defined]
-    center = np.asarray(m.center[i0], float)  # type: ignore[attr-defined]
+    start = np.asarray(m.start[i0], np.float64)  # type: ignore[attr-defined]
+    end = np.asarray(m.end[len(kinds) - 1], np.float64)  # type: ignore[attr-defined]
+    center = np.asarray(m.center[i0], np.float64)  # type: ignore[attr-defined]
     plane = int(m.plane[i0])  # type: ignore[attr-defined]
     code = "G2" if kinds[i0] == ARC_CW else "G3"
     scale = 1.0 / INCH_MM if st.inch else 1.0  # type: ignore[attr-defined]

@@ -5,6 +5,7 @@ feeds (a ``feed_mode = "post-processed"`` run of the campaign)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 from rig.adaptive.session import target_of, under_loop
@@ -76,8 +77,8 @@ def adaptive_entries(campaign: Campaign, runs: list[Any]) -> tuple[list[dict[str
                      and _same_cut(b, lr)), None)  # fmt: skip
         holds = a.mode in ("feed", "both")  # a spindle-only loop holds no force target
         target, target_from = target_of(campaign, test_of(lr))
-        w: dict[str, Any] = {"within": None}
-        wb: dict[str, Any] | None = None
+        w: Mapping[str, object] = {"within": None}  # BandFigures when judged
+        wb: Mapping[str, object] | None = None
         if holds and target is not None:
             w = within_band(lr, target)
             wb = within_band(base, target) if base is not None else None

@@ -11,7 +11,7 @@ spans), never the one as the other."""
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -114,7 +114,7 @@ def chatter_decay(
     ``threshold`` (the detector's ``energy_ratio``) for ``HOLD_REVS`` revolutions (or to the
     end of the steady cut); None when it never does. Also ``shares`` and the residual's RMS N
     per revolution."""
-    out: dict[str, Any] = {"cleared_revs": None, "shares": [], "rms_n": [], "revolutions": 0}
+    out: ChatterDecay = {"cleared_revs": None, "shares": [], "rms_n": [], "revolutions": 0}
     if run.force_n is None:  # no calibration: no force to judge
         return out
     x = np.asarray(run.force_n[:, :2], float)
@@ -148,6 +148,6 @@ def chatter_decay(
     hold = min(HOLD_REVS, int(end))
     cleared = next((k for k in range(int(end) - hold + 1) if below[k : k + hold].all()), None)
     rms_n = np.sqrt(e_res / np.diff(edges[: end + 1]))
-    out.update(shares=shares.tolist(), revolutions=int(end), rms_n=rms_n.tolist(),
-               cleared_revs=cleared)  # fmt: skip
-    return out
+    return ChatterDecay(
+        cleared_revs=cleared, shares=shares.tolist(), rms_n=rms_n.tolist(), revolutions=int(end)
+    )

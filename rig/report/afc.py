@@ -47,6 +47,10 @@ def cutting_revolutions(lr: LoadedRun) -> RevolutionStats:
     run = lr.run
     rpm = float(lr.conditions["spindle_rpm"])
     f = run.force_n
+    if f is None:  # a run file without a calibration holds volts only
+        from analysis.errors import AnalysisError
+
+        raise AnalysisError(f"{lr.path}: no forces (recorded without a calibration): no CV")
     fxy = np.hypot(f[:, 0], f[:, 1])
     means, _ = per_revolution(fxy, run.rate_hz, rpm)
     period = 60.0 / abs(rpm)
@@ -98,7 +102,7 @@ def afc_section(campaign: Campaign, runs: list[LoadedRun], out: Path) -> Section
                      "mean_force_N": s["mean_N"], "max_force_N": s.get("max_N", math.nan),
                      "cv": s["cv"]})  # fmt: skip
     c, a = stats["constant"], stats["adjusted"]
-    summary = {
+    summary: dict[str, Any] = {  # the section's JSON summary
         "success": True,
         "cv_constant": c["cv"],
         "cv_adjusted": a["cv"],
@@ -148,7 +152,7 @@ def afc_section(campaign: Campaign, runs: list[LoadedRun], out: Path) -> Section
         + md_table(rows)
         + "\n![force and feed along the cut](force_and_feed.png)\n"
     )
-    if summary.get("steps_at_max_feed"):
+    if summary.get("steps_at_max_feed") and fr is not None:  # set only with a feed rule
         md += (
             f"\nSteps {summary['steps_at_max_feed']} (0-based, in cutting order) run at the "
             f"rule's maximum feed {fr.max_feed_mm_min:g} mm/min, where the post-processor cannot "

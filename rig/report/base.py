@@ -12,7 +12,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -108,4 +108,4 @@ def load_runs(folder: Path) -> tuple[list[LoadedRun], list[ManifestRow]]:
         path = folder / e["file"]
         run = rf.load_run(path)
         runs.append(LoadedRun(e["index"], e["name"], e.get("group", ""), path, run))
-    return runs, entries
+    return runs, cast(list[ManifestRow], entries)  # the manifest's JSON as the campaign wrote it

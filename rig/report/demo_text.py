@@ -31,5 +31,6 @@ def demo_lines(res: DemoResult) -> list[str]:
             f"validation ({fm.get('validate_runs', 0)} runs at other feeds per tooth): "
             f"predicted mean force within {err:.2f} % of measured"
         )
+    assert res.report is not None  # a demo run to its end has its report (stopped: no lines)
     out.append(f"report: {Path(res.report.folder) / 'report.md'}  ({res.wall_s:.0f} s)")
     return out

@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import pandas as pd
@@ -19,6 +19,13 @@ from rig.report.base import LoadedRun, Section, md_table
 if TYPE_CHECKING:
     from analysis.identify.facemill import ForceRun
     from rig.campaign.config import Campaign
+
+#: (axis, its key in LoadedRun.steady_means)
+_MEAN_N: tuple[tuple[str, Literal["Fx_mean_N", "Fy_mean_N", "Fz_mean_N"]], ...] = (
+    ("x", "Fx_mean_N"),
+    ("y", "Fy_mean_N"),
+    ("z", "Fz_mean_N"),
+)
 
 #: Said under the table: what the bootstrap intervals are.
 BOOT_NOTE = (
@@ -58,13 +65,16 @@ def _truth(runs: list[LoadedRun]) -> dict[str, float] | None:
 
 
 def facemill_section(campaign: Campaign, runs: list[LoadedRun], out: Path) -> Section:
+    from analysis.forces import FACEMILL
     from analysis.identify import fit_facemill_runs
 
+    tool = campaign.tool
+    assert FACEMILL.describes(tool)  # the config refuses this analysis without a face mill
     spec = campaign.spec.analysis
     ident = [lr for lr in runs if lr.group in spec.identify_groups]
     valid = [lr for lr in runs if lr.group in spec.validate_groups]
     # The library's steady window (analysis.runs.IDENTIFY_TOLERANCE), as `cutlab analyze forces`.
-    fit = fit_facemill_runs([force_run(lr) for lr in ident], campaign.tool,
+    fit = fit_facemill_runs([force_run(lr) for lr in ident], tool,
                             campaign.rig.dynamometer)  # fmt: skip
     truth = _truth(runs)
     summary: dict[str, Any] = {
@@ -78,6 +88,8 @@ def facemill_section(campaign: Campaign, runs: list[LoadedRun], out: Path) -> Se
     if not fit.success:
         (out / "coefficients.json").write_text(json.dumps(summary, indent=2))
         return Section("facemill-coefficients", "\n".join(md), summary)
+    # a successful fit has its linear fit, adequacy and split
+    assert fit.fit is not None and fit.adequacy is not None and fit.split is not None
     rows = _coefficient_rows(fit, truth)
     pd.DataFrame(rows).to_csv(out / "coefficients.csv", index=False)
     summary["coefficients"] = rows
@@ -158,8 +170,8 @@ def _validation_rows(campaign: Campaign, fit: Any, runs: list[LoadedRun]) -> lis
         pred = _predicted_mean(campaign.tool, fit.coefficients, lr.conditions)
         row = {"run": lr.name, "group": lr.group, "fz_mm": lr.conditions["fz_mm"],
                "depth_mm": lr.conditions["depth_mm"]}  # fmt: skip
-        for k, a in enumerate("xyz"):
-            m = meas[f"F{a}_mean_N"]
+        for k, (a, key) in enumerate(_MEAN_N):
+            m = meas[key]
             row[f"F{a}_measured_N"] = m
             row[f"F{a}_predicted_N"] = float(pred[k])
         res_m = math.hypot(meas["Fx_mean_N"], meas["Fy_mean_N"])
@@ -177,7 +189,7 @@ def _plot_fit(campaign: Campaign, coef: Any, ident: list[LoadedRun], path: Path)
         return
     fig, ax = plt.subplots(figsize=(5.5, 3.8))
     d = np.array([lr.conditions["depth_mm"] for lr in ident])
-    meas = np.array([[lr.steady_means[f"F{a}_mean_N"] for a in "xyz"] for lr in ident])
+    meas = np.array([[lr.steady_means[key] for _, key in _MEAN_N] for lr in ident])
     c0 = dict(ident[0].conditions)
     dd = np.linspace(max(0.05, d.min() * 0.5), d.max() * 1.05, 40)
     pred = np.array([_predicted_mean(campaign.tool, coef, {**c0, "depth_mm": x}) for x in dd])

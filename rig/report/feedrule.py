@@ -40,7 +40,10 @@ def feed_rule_section(campaign: Campaign, runs: list[LoadedRun], out: Path) -> S
         msg = f"no base feed: {exc}"
         return Section("feed-rule", msg + "\n", {"success": False, "message": msg})
     fr = campaign.spec.feed_rule
-    base = res.base_feed_mm_min if res.found else (fr.base_feed_mm_min if fr else math.nan)
+    if res.found and res.base_feed_mm_min is not None:  # found: the base feed is set
+        base = res.base_feed_mm_min
+    else:
+        base = fr.base_feed_mm_min if fr else math.nan
     rows = [
         {"feed_mm_min": s.feed_mm_min, "mean_resultant_N": s.mean_resultant_n,
          "peak_resultant_N": s.peak_resultant_n, "vibration_rms_N": s.vibration_rms_n,

@@ -87,6 +87,8 @@ class OnsetRow(TypedDict, total=False):
     stable_above_onset_mm: list[float]
     error_pct: float | None
     within_tolerance: bool
+    true_limit_mm: float  # the twin's true modes' limit (a simulated rig only)
+    predicted_chatter_hz: float
 
 
 class DemoSummary(TypedDict):

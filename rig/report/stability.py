@@ -21,8 +21,9 @@ marked stable or chatter).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import pandas as pd
@@ -55,17 +56,25 @@ def _measured_modes(campaign: Campaign, folder: Path, out: Path) -> tuple[Any, l
         if not rec.exists():
             raise AnalysisError(f"{rec}: no tap record in direction {axis}: run the campaign")
         res = modal_file(rec, response=tap.response if tap else None, save=saved)
-        notes += [f"tap {axis}: {w}" for w in res["warnings"]]
-        notes += [f"tap {axis}: {s['channel']}: {s['reason']}" for s in res["skipped"]]
+        # modal_file's JSON: warnings are lines, skipped channels {channel, reason, ...}
+        warnings = cast(list[str], res["warnings"])
+        skipped = cast(list[dict[str, str]], res["skipped"])
+        notes += [f"tap {axis}: {w}" for w in warnings]
+        notes += [f"tap {axis}: {s['channel']}: {s['reason']}" for s in skipped]
     return load_modes(saved), notes
 
 
-def _case(campaign: Campaign, runs: list[LoadedRun], modes: list[tuple[str, float, float, float]],
-          rpm: np.ndarray) -> Any:  # fmt: skip
+def _case(
+    campaign: Campaign,
+    runs: list[LoadedRun],
+    modes: Sequence[tuple[str, float, float, float]],
+    rpm: np.ndarray,
+) -> Any:
     """The stability case of the sweep's cut with ``modes`` (direction, f Hz, zeta, k N/m)."""
     from analysis.stability import StabilityCase
 
     coef = campaign.material.endmill
+    assert coef is not None  # stability_sweep_section refuses a material without them
     tool = campaign.tool
     widths = {round(float(r.conditions.get("width_mm", tool.diameter_mm)), 6) for r in runs}
     if len(widths) != 1:
@@ -165,6 +174,12 @@ def stability_sweep_section(
 
     if not runs:
         raise AnalysisError(f"{folder}: stability sweep: no successful cut to judge")
+    coef = campaign.material.endmill
+    if coef is None:  # a real rig's campaign is not checked for them (the twin's is)
+        raise AnalysisError(
+            f"{folder}: stability sweep: material {campaign.spec.campaign.material!r} has no "
+            "[endmill] coefficients (Ktc, Krc, N/mm^2): no lobes"
+        )
     modeset, notes = _measured_modes(campaign, folder, out)
     measured = [(d, m.frequency_hz, m.damping_ratio, m.stiffness_n_m)
                 for d, ms in modeset.directions.items() if d in ("x", "y") for m in ms
@@ -212,7 +227,7 @@ def stability_sweep_section(
     md = [
         "Tap test -> modes (report/modes.toml):\n", md_table(mode_rows),
         f"\nLobes ({method.upper()}) from the tapped modes and the material's Ktc = "
-        f"{campaign.material.endmill.Ktc_n_mm2:g}, Krc = {campaign.material.endmill.Krc_n_mm2:g}"
+        f"{coef.Ktc_n_mm2:g}, Krc = {coef.Krc_n_mm2:g}"
         " N/mm^2; onset = the shallowest cut detected as chatter, bracketed by the deepest "
         "stable cut below it.\n", md_table(table), "\n![lobes](lobes.png)\n",
         "Cuts:\n", md_table(cut_rows),

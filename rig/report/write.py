@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -40,7 +41,7 @@ from rig.report.stability import stability_sweep_section
 
 
 def _run_rows(
-    runs: list[LoadedRun], entries: list[dict[str, Any]], settings: Any = None
+    runs: list[LoadedRun], entries: Sequence[Mapping[str, Any]], settings: Any = None
 ) -> list[dict[str, Any]]:
     by_name = {r.name: r for r in runs}
     rows = []

@@ -23,13 +23,13 @@ from analysis.config import MachineConfig
 from planning.nc import Interpreter
 from rig.dnc.protocols import FALLBACK, protocol_of
 from rig.errors import RigError
-from rig.sim._controller_exec import (  # noqa: F401 - the records are part of this API
-    ControllerEvent,
-    ExecutedBlock,
-    ExecutedSegment,
-    ExecutorMixin,
-    _Planned,
-)
+
+# the records are part of this API: re-exported (the protocol classes import _Planned from here)
+from rig.sim._controller_exec import ControllerEvent as ControllerEvent
+from rig.sim._controller_exec import ExecutedBlock as ExecutedBlock
+from rig.sim._controller_exec import ExecutedSegment as ExecutedSegment
+from rig.sim._controller_exec import ExecutorMixin
+from rig.sim._controller_exec import _Planned as _Planned
 from rig.sim._controller_lockstep import LockstepMixin
 from rig.sim.clock import SimClock
 

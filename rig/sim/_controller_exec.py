@@ -7,12 +7,20 @@ current block, the clock, the listeners).
 from __future__ import annotations
 
 import re
+import threading
+from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from planning.nc import ARC_CCW, ARC_CW, LINE, Motion
 from rig.dnc.nc import segment_durations_s
+
+if TYPE_CHECKING:
+    from planning.nc import Interpreter
+    from rig.sim.clock import SimClock
 
 
 @dataclass(frozen=True)
@@ -84,10 +92,78 @@ class _Planned:
     done: bool = False  # executed to its end
 
 
+def _xyz(a: np.ndarray) -> tuple[float, float, float]:
+    """A point of a Motion's (3,) rows as three floats."""
+    return (float(a[0]), float(a[1]), float(a[2]))
+
+
 _N_WORD = re.compile(r"\s*/?\s*[Nn]\s*(\d+)")
 
 
-class ExecutorMixin:
+# -- the state the mixins share -----------------------------------------------------------------
+# SimControllerBase (rig.sim._controller) sets these fields (__init__, _init_state) and defines the
+# hooks; LockstepMixin and ExecutorMixin read and write them. Declarations for the type checker:
+# a class body annotation without a value creates no attribute at run time.
+
+
+class ControllerState:
+    """Fields of SimControllerBase that its mixins use (declarations, no values)."""
+
+    clock: SimClock
+    interp: Interpreter
+    rapid_mm_min: float
+    lockstep: bool
+    sim_alarm_at_block: tuple[int, int] | None
+    _lock: threading.RLock
+    _master: int
+    _seq: int
+    # the executor
+    executed: list[ExecutedBlock]
+    silent: bool
+    alarm: str
+    held: bool
+    starved_s: float
+    busy_s: float
+    _started: bool
+    _wire: deque[tuple[float, int, bytes]]
+    _line_free_t: float
+    _plan: deque[_Planned]
+    _cur: _Planned | None
+    _seg_i: int
+    _seg_t0: float
+    _seg_t1: float
+    _seg_frac0: float
+    _hold_t: float
+    _hold_stop_at: float | None
+    _hold_frac: float | None
+    _block_t0: float
+    _spindle: float
+    _pos: tuple[float, float, float]
+    _seg_listeners: list[Callable[[ExecutedSegment], None]]
+    _spindle_listeners: list[Callable[[float, float], None]]
+    _event_listeners: list[Callable[[ControllerEvent], None]]
+    # the lockstep gates
+    _expecting: bool
+    _stream_done: bool
+    _stream_bytes: int | None
+    _bytes_read: int
+    _bytes_read0: int
+    _line_mark: float
+    _expect_t: float
+
+    if TYPE_CHECKING:
+        # hooks SimControllerBase (and its protocol classes) define
+
+        def _event(self, kind: str, detail: str = "", t: float | None = None) -> None: ...
+
+        def _new_interpreter(self) -> None: ...
+
+        def _next_block(self, now: float) -> _Planned | None: ...
+
+        def _update_gates(self) -> None: ...
+
+
+class ExecutorMixin(ControllerState):
     """Execution half of a simulated controller (state lives in SimControllerBase)."""
 
     # -- planning ------------------------------------------------------------------------------
@@ -183,18 +259,18 @@ class ExecutorMixin:
         dur = float(b.durations_s[i]) * (1.0 - frac0) * self._time_scale(b, i)
         self._seg_t0, self._seg_t1, self._seg_frac0 = t0, t0 + dur, frac0
         self.busy_s += dur
-        start = self._point(i, frac0) if frac0 > 0 else tuple(map(float, m.start[i]))
-        self._pos = tuple(map(float, m.end[i]))  # type: ignore[assignment]
+        start = self._point(i, frac0) if frac0 > 0 else _xyz(m.start[i])
+        self._pos = _xyz(m.end[i])
         c = m.center[i]
         seg = ExecutedSegment(
             t_start_s=t0,
             t_end_s=t0 + dur,
             start_mm=start,
-            end_mm=tuple(map(float, m.end[i])),
+            end_mm=_xyz(m.end[i]),
             spindle_rpm=float(m.spindle_rpm[i]) * self._rpm_scale(),
             block=b.seq,
             kind=int(m.kind[i]),
-            center_mm=None if np.isnan(c[0]) else tuple(map(float, c)),
+            center_mm=None if np.isnan(c[0]) else _xyz(c),
             feed_mm_min=float(m.feed_mm_min[i]),
             tool=int(m.tool[i]),
             coolant=bool(m.coolant[i]),
@@ -215,7 +291,8 @@ class ExecutorMixin:
 
     def _point(self, i: int, frac: float) -> tuple[float, float, float]:
         """Where segment ``i`` of the current block is after ``frac`` of its time."""
-        m = self._cur.motion  # type: ignore[union-attr]
+        assert self._cur is not None  # only called while a block runs
+        m = self._cur.motion
         p0, p1 = m.start[i], m.end[i]
         if m.kind[i] in (ARC_CW, ARC_CCW) and m.plane[i] == 17:
             c = m.center[i]
@@ -229,7 +306,7 @@ class ExecutorMixin:
             a = a0 + frac * sweep
             z = p0[2] + frac * (p1[2] - p0[2])
             return (float(c[0] + r * np.cos(a)), float(c[1] + r * np.sin(a)), float(z))
-        return tuple(map(float, p0 + frac * (p1 - p0)))  # type: ignore[return-value]
+        return _xyz(p0 + frac * (p1 - p0))
 
     def _finish_block(self, t_end: float) -> None:
         b = self._cur

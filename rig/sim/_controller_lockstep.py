@@ -8,12 +8,14 @@ from __future__ import annotations
 import select
 import time
 
+from rig.sim._controller_exec import ControllerState
+
 #: wall s the line gate waits for the streamer's next byte before it gives up (a stalled streamer
 #: must not stop simulated time for good: the run's own timeouts then see it)
 LINE_GATE_WALL_S = 10.0
 
 
-class LockstepMixin:
+class LockstepMixin(ControllerState):
     """The lockstep part of SimControllerBase (its state is set by SimControllerBase)."""
 
     def expect_stream(self) -> None:

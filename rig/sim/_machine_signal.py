@@ -81,6 +81,7 @@ class DynoChain:
             return np.array(force_n[::k], dtype=float)
         if not contiguous:
             self._state = self._modes.stream()
+        assert self._state is not None  # with modes, a stream is set (above or in __init__)
         return self._state.process(force_n)[::k]
 
     def volts(self, force_n: np.ndarray, t0_s: float) -> np.ndarray:

@@ -70,7 +70,7 @@ class MotionTimeline:
             self._arrays = None
             if seg.spindle_rpm != self._sp_rpm[-1]:
                 t = max(seg.t_start_s, self._sp_t[-1])
-                a = self._sp_a[-1] + _omega(self._sp_rpm[-1]) * (t - self._sp_t[-1])
+                a = self._sp_a[-1] + float(_omega(self._sp_rpm[-1])) * (t - self._sp_t[-1])
                 self._sp_t.append(t)
                 self._sp_a.append(a)
                 self._sp_rpm.append(seg.spindle_rpm)
@@ -84,7 +84,7 @@ class MotionTimeline:
             if rpm == self._sp_rpm[-1]:
                 return
             t = max(t_s, self._sp_t[-1])
-            a = self._sp_a[-1] + _omega(self._sp_rpm[-1]) * (t - self._sp_t[-1])
+            a = self._sp_a[-1] + float(_omega(self._sp_rpm[-1])) * (t - self._sp_t[-1])
             self._sp_t.append(t)
             self._sp_a.append(a)
             self._sp_rpm.append(rpm)

@@ -266,11 +266,13 @@ class RegenEndMill:
         db = eng.dz_mm / np.where(sk > 1e-12, sk, 1.0)
         ad, bd = self._zoh
         p = np.ascontiguousarray(st.position_mm[:, :2].T)
+        grid = self._grid
+        assert grid is not None  # the caller set it up for this engagement
         _kernel(
-            eng.engaged, eng.theta_rad, eng.edge_rad, p[0], p[1], eng.fz_mm, self._grid.offset,
+            eng.engaged, eng.theta_rad, eng.edge_rad, p[0], p[1], eng.fz_mm, grid.offset,
             m_rev, overload_factor(eng, self.tool), sk, np.cos(eng.kappa_rad), db, self.coef,
             sense, self._memory, self._valid, self.state, ad, bd, self.axis,
-            0.5 * self._grid.dt_s, force,
+            0.5 * grid.dt_s, force,
         )  # fmt: skip
 
     def _march_free(self, dt: float, n_steps: int) -> None:

@@ -79,7 +79,7 @@ def valid_knobs(protocol: str) -> list[str]:
             name.removeprefix("sim_")
             for klass in _CLASSES[protocol].__mro__
             if "__init__" in vars(klass)
-            for name in inspect.signature(klass.__init__).parameters
+            for name in inspect.signature(vars(klass)["__init__"]).parameters
             if name.startswith("sim_")
         }
     )

@@ -334,7 +334,9 @@ class SimDaq(Daq):
                 )  # fmt: skip
                 np.clip(v, -r, r, out=v)
         if self._codes is not None:
-            lsb = self.info.scaling_coeff[0, 1]
+            coeff = self.info.scaling_coeff
+            assert coeff is not None  # codes are kept only with a scaling (__init__)
+            lsb = coeff[0, 1]
             np.clip(np.rint(v / lsb), -32768, 32767, out=v)
             self._codes[:, :n] = v
 

@@ -359,7 +359,10 @@ def _per_insert(values: Sequence[float], z: int, default: float) -> np.ndarray:
 
 def _mode(x: np.ndarray, freq_hz: float, zeta: float, rate_hz: float) -> np.ndarray:
     wn = 2 * np.pi * freq_hz
-    b, a, _ = signal.cont2discrete(([wn**2], [1, 2 * zeta * wn, wn**2]), 1 / rate_hz, "foh")
+    # scipy-stubs 1.17 types a transfer function's numerator 2-D only; SciPy takes it 1-D
+    b, a, _ = signal.cont2discrete(  # type: ignore[call-overload]
+        ([wn**2], [1, 2 * zeta * wn, wn**2]), 1 / rate_hz, "foh"
+    )
     return signal.lfilter(np.ravel(b), a, x)
 
 

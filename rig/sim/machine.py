@@ -386,9 +386,9 @@ class SimMachine:
     def _block_sides(self, st: Any) -> tuple[np.ndarray, np.ndarray] | None:
         """The block's sides as Y' (mm from the cutter axis, the force model's frame) per sample,
         when the stock is a block with sides along X and the cutter feeds along X; else None."""
-        block = getattr(self.stock, "block", None)
-        if not isinstance(self.stock, BlockStock) or not hasattr(block, "y_min_mm"):
+        if not isinstance(self.stock, BlockStock) or not hasattr(self.stock.block, "y_min_mm"):
             return None
+        block = cast(Any, self.stock.block)  # duck-typed: a SteppedBlock-like block (y_min_mm)
         d = np.asarray(st.direction, float)
         if np.any(np.abs(d[:, 1]) > 1e-9):
             return None

@@ -34,6 +34,8 @@ from rig.sim.daq import SimDaq
 from rig.sim.machine import BlockStock, SignalSettings, SimMachine, ZMapStock
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from rig.sim.fanuc import SimFanuc
     from rig.sim.grbl import SimGrbl
 
@@ -111,7 +113,7 @@ class SimSession:
         self._stop = threading.Event()
         self.port = self.controller.start()
 
-    def _source(self, t0_s: float, n: int, rate_hz: float):
+    def _source(self, t0_s: float, n: int, rate_hz: float) -> np.ndarray:
         """The machine's volts, after the controller has run up to the last sample's time."""
         self.controller.advance_to(t0_s + max(n - 1, 0) / rate_hz)
         return self.machine.source(t0_s, n, rate_hz)
