@@ -15,16 +15,17 @@ from __future__ import annotations
 
 import argparse
 
-from rig.cli.common import count, image_file, number, positive
+from rig.cli.common import count, image_file, number, positive  # isort: split
+
+from rig.cli.common import print_json, print_lines, print_table, status
 from rig.cli.options import import_group, import_options, json_option, rate_option, rig_option
+from rig.terminal import Progress
 
 
 def _forces(args: argparse.Namespace) -> int:
     from analysis.identify import fit_files
     from analysis.identify.conditions_arg import runs_or_catalog
     from analysis.identify.text import forces_lines
-    from rig.cli.common import print_json, print_lines, status
-    from rig.terminal import Progress
 
     pairs, opts = import_options(args)
     kw = dict(model=args.model, tool=args.tool, overrides=pairs, rig_path=args.rig,
@@ -54,7 +55,6 @@ def _forces(args: argparse.Namespace) -> int:
 
 def _modal(args: argparse.Namespace) -> int:
     from analysis.modal import modal_file
-    from rig.cli.common import print_json, print_table, status
 
     out = modal_file(
         args.file, args.hammer, rate_hz=args.rate, record_s=args.record_s,

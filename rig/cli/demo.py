@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import argparse
 
+from rig.cli.common import print_json, print_lines, status
+
 CAMPAIGN = (
     "facemill-ploughing"  # rig.report.DEMO_CAMPAIGN (not imported: `cutlab --help` stays fast)
 )
@@ -43,7 +45,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from rig.cli.common import print_json, print_lines, status
     from rig.report import run_demo
 
     out = args.out or ("out/demo-independent" if args.forces == "independent" else "out/demo")

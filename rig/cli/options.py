@@ -35,12 +35,12 @@ def add_options(p: argparse.ArgumentParser, rows: Sequence[tuple]) -> None:
             kw["type"] = kind
         if default is REQUIRED:
             kw["required"] = True
-        elif kind is not bool:
-            kw["default"] = default
+        elif kind is not bool and (default is not None or flags.startswith("-")):
+            kw["default"] = default  # (a positional given a default is optional)
         p.add_argument(*flags.split(), **kw)
 
 
-#: unit suffixes a field name carries that its option's name drops (tool_diameter_mm: --tool-diameter)
+#: unit suffixes of a field's name that its option's name drops (tool_diameter_mm: --tool-diameter)
 _UNIT_SUFFIXES = ("_mm_min", "_mm", "_rpm", "_n", "_s", "_hz", "_pct")
 
 

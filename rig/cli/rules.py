@@ -6,9 +6,10 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-from rig.cli.common import add_catalog_options, count, image_file, positive, print_json
-from rig.cli.common import print_lines, print_table, status
 from analysis.rules.rulebase import GroupKey
+from rig.cli.common import add_catalog_options, count, image_file, positive  # isort: split
+
+from rig.cli.common import print_json, print_lines, print_table, status
 from rig.cli.options import REQUIRED, add_options, json_option, model_options, rule_db_option
 
 FEED = positive("mm/min", 200_000)

@@ -20,7 +20,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import count, image_file, positive
+from rig.cli.common import count, image_file, positive, print_json, status
 
 
 def register_stability(psub: argparse._SubParsersAction) -> None:
@@ -51,7 +51,6 @@ def run(args: argparse.Namespace) -> int:
 
     from analysis.stability import load_case, plot_lobes, stability_lobes
     from analysis.stability.output import summary_line, write_lobes_csv
-    from rig.cli.common import print_json, status
 
     case = load_case(args.config)
     if args.max_depth is not None:
