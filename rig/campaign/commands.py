@@ -17,7 +17,6 @@ from rig.campaign.dryrun import DryRun
 
 if TYPE_CHECKING:
     from rig.campaign.runner import CampaignResult
-    from rig.report import Report
 
 __all__ = ["dry_run_lines", "missing_folder_note", "run_lines", "run_rows", "runs_done",
            "status_lines", "with_adaptive"]  # fmt: skip
@@ -71,9 +70,9 @@ def run_rows(result: CampaignResult) -> list[dict[str, object]]:
              "reason": r.reason[:60]} for r in result.runs]  # fmt: skip
 
 
-def run_lines(result: CampaignResult, report: Report | None) -> list[str]:
+def run_lines(result: CampaignResult, folder: Path | None) -> list[str]:
     """``campaign run``'s text: the runs' table, then the report folder (if one was written)."""
-    return [*table_lines(run_rows(result)), *([f"report: {report.folder}"] if report else [])]
+    return [*table_lines(run_rows(result)), *([f"report: {folder}"] if folder else [])]
 
 
 def status_lines(status: Mapping[str, Any]) -> list[str]:

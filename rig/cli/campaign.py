@@ -108,7 +108,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.json:
         print_json(result.summary(report.summary if report is not None else None))
     else:
-        print_lines(run_lines(result, report))
+        print_lines(run_lines(result, report and report.folder))
     if result.stopped:
         status(f"cutlab: campaign stopped; run the same command again to resume ({result.folder})")
         return 130
