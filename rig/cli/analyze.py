@@ -46,10 +46,7 @@ def _forces(args: argparse.Namespace) -> int:
         status(f"analyze forces: wrote {', '.join(out['plots'])}")
     for w in out["warnings"]:
         status(f"analyze forces: warning: {w}")
-    if args.json:
-        print_json(out)
-        return 0 if out["success"] else 1
-    print_lines(forces_lines(out))
+    print_json(out) if args.json else print_lines(forces_lines(out))
     return 0 if out["success"] else 1
 
 

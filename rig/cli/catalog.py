@@ -23,11 +23,9 @@ def _index(args: argparse.Namespace) -> int:
 
     with Progress("indexing run files", "file", quiet=args.json) as bar:
         out = update_index(args.dirs, args.index, progress=bar)
-    if args.json:
-        print_json(out)
-        return 0
-    status(f"catalog index: {out['index']}")
-    print(index_line(out))
+    if not args.json:
+        status(f"catalog index: {out['index']}")
+    print_json(out) if args.json else print(index_line(out))
     return 0
 
 

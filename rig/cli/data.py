@@ -28,10 +28,8 @@ def _plot(args: argparse.Namespace) -> int:
 
     png, samples = plot_file(args.file, args.output, args.rate, args.start_s, args.stop_s)
     status(f"data plot: wrote {png}")
-    if args.json:
-        print_json({"file": args.file, "plot": str(png), "samples": samples})
-    else:
-        print(png)
+    out = {"file": args.file, "plot": str(png), "samples": samples}
+    print_json(out) if args.json else print(png)
     return 0
 
 

@@ -53,10 +53,7 @@ def _demo(args: argparse.Namespace) -> int:
     if res.stopped:
         status(f"demo: stopped; run `cutlab demo --resume` to continue ({res.folder})")
         return 130
-    if args.json:
-        print_json(res.summary())
-        return 0 if res.ok else 1
     from rig.report.demo_text import demo_lines
 
-    print_lines(demo_lines(res))
+    print_json(res.summary()) if args.json else print_lines(demo_lines(res))
     return 0 if res.ok else 1

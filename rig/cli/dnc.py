@@ -81,11 +81,9 @@ def _dry_run(job, args: argparse.Namespace) -> int:  # noqa: ANN001 - a SendJob
     from rig.dnc.preview import preview, preview_lines
 
     p = preview(job)
-    if args.json:
-        print_json(p)
-        return 0
-    print_lines(preview_lines(p))
-    status(f"dry run: nothing was sent to {job.settings.port}")
+    print_json(p) if args.json else print_lines(preview_lines(p))
+    if not args.json:
+        status(f"dry run: nothing was sent to {job.settings.port}")
     return 0
 
 
@@ -113,13 +111,8 @@ def _grbl(args: argparse.Namespace) -> int:
     _, machine = dnc_machine("grbl", args.machine)
     cfg = serial_settings(machine, args.port, args.baud, args.timeout)
     reply = grbl_command(cfg, args.dnc_command)
-    if args.json:
-        print_json(reply.as_dict())
-    else:
-        for line in reply.lines:
-            status(f"grbl: {line}")
-        status(reply.summary)
-    return 0 if reply.state_after not in ("", "Alarm") or args.dnc_command == "status" else 1
+    print_json(reply.as_dict()) if args.json else status("\n".join(reply.status_lines()))
+    return 0 if reply.ok or args.dnc_command == "status" else 1
 
 
 def _sim_controller(args: argparse.Namespace) -> int:
@@ -135,10 +128,7 @@ def _sim_controller(args: argparse.Namespace) -> int:
                f"speed x{args.speed:g})")  # fmt: skip
 
     summary = run_controller(ctl, args.duration, on_started=started)
-    if args.json:
-        print_json(summary)
-    else:
-        status(", ".join(f"{k} {v}" for k, v in summary.items()))
+    print_json(summary) if args.json else status(", ".join(f"{k} {v}" for k, v in summary.items()))
     return 0
 
 

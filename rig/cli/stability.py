@@ -62,8 +62,6 @@ def run(args: argparse.Namespace) -> int:
         status(f"analyze stability: wrote {plot_lobes(lobes, args.plot, case.name, case)}")
     for w in lobes.warnings:
         status(f"analyze stability: warning: {w}")
-    if args.json:
-        print_json({"config": str(args.config), "csv": str(args.output), **lobes.to_json()})
-        return 0
-    print(summary_line(case.name, lobes))
+    out = {"config": str(args.config), "csv": str(args.output), **lobes.to_json()}
+    print_json(out) if args.json else print(summary_line(case.name, lobes))
     return 0
