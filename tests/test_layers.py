@@ -513,7 +513,7 @@ def test_the_dialect_comparison_check_finds_comparisons(tmp_path: Path) -> None:
 #: issue 30 item 5: the CLI (rig/cli/*.py) under 1 500 lines; the ceiling it may not grow over
 #: meanwhile (lower it as the CLI gets thinner)
 CLI_TARGET_LINES = 1500
-CLI_CEILING_LINES = 2080
+CLI_CEILING_LINES = 2048
 
 
 def _cli_lines() -> int:
