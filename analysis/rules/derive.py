@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from analysis.errors import AnalysisError
+from analysis.output import table_lines
 from analysis.rules.basefeed import (
     BaseFeedResult,
     BaseFeedSettings,
@@ -52,6 +53,19 @@ class DerivedRule:
             "intervals": _rows(det.table()) if det else [],
             "bins": _rows(self.rule.table()),
         }
+
+    def summary_line(self, rule_path: str | Path) -> str:
+        """What was written, one line."""
+        return (f"wrote {rule_path} ({self.rule.n_bins} bins, base {self.base_feed_mm_min:g} "
+                f"mm/min at {self.reference_load_pct:.4g} %)")  # fmt: skip
+
+    def lines(self) -> list[str]:
+        """The text `cutlab rules derive` prints: the base feed's reason, the sweep's runs and
+        intervals (with a detection), the bins."""
+        det, text = self.detection, [self.base_feed_reason]
+        if det:
+            text += [*table_lines([vars(r) for r in det.runs]), "", *table_lines(det.table())]
+        return [*text, "", *table_lines(self.rule.table())]
 
 
 def _rows(rows: Sequence[Mapping[str, JsonValue]]) -> list[JsonValue]:

@@ -22,7 +22,7 @@ import os
 import sqlite3
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 from analysis.config import REPO_ROOT, config_dir
@@ -88,14 +88,15 @@ def _key_text(key: GroupKey) -> str:
 class GroupKey:
     """What identifies a machining group (seed 001 Table 1)."""
 
-    part_family: str
-    operation: str
-    tool_diameter_mm: float
-    flute_length_mm: float
+    # the metadata: `cutlab rules add|lookup`'s options (rig.cli.options.model_options)
+    part_family: str = field(metadata={"help": "e.g. trunk/outer/draw/lower-die"})
+    operation: str = field(metadata={"help": "roughing, pencil, rest-roughing, ..."})
+    tool_diameter_mm: float = field(metadata={"unit": "mm", "gt": 0, "le": 1000})
+    flute_length_mm: float = field(metadata={"unit": "mm", "gt": 0, "le": 1000})
     material: str
-    spindle_rpm: float
-    depth_mm: float
-    tolerance_mm: float
+    spindle_rpm: float = field(metadata={"unit": "rpm", "gt": 0, "le": 100_000})
+    depth_mm: float = field(metadata={"unit": "mm", "gt": 0, "le": 1000})
+    tolerance_mm: float = field(metadata={"unit": "mm", "gt": 0, "le": 100})
 
     def __post_init__(self) -> None:
         for f in fields(self):

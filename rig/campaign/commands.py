@@ -6,18 +6,20 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from analysis.errors import ConfigError
+from analysis.output import table_lines
 from rig.campaign.config import Campaign
 from rig.campaign.dryrun import DryRun
 
 if TYPE_CHECKING:
     from rig.campaign.runner import CampaignResult
 
-__all__ = ["dry_run_lines", "missing_folder_note", "run_rows", "runs_done", "with_adaptive"]
+__all__ = ["dry_run_lines", "missing_folder_note", "run_lines", "run_rows", "runs_done",
+           "status_lines", "with_adaptive"]  # fmt: skip
 
 
 def dry_run_lines(d: DryRun) -> list[str]:
@@ -66,6 +68,16 @@ def run_rows(result: CampaignResult) -> list[dict[str, object]]:
     of its reason."""
     return [{"run": r.index, "name": r.name, "status": r.status, "peak_N": r.peak_force_n,
              "reason": r.reason[:60]} for r in result.runs]  # fmt: skip
+
+
+def run_lines(result: CampaignResult, folder: Path | None) -> list[str]:
+    """``campaign run``'s text: the runs' table, then the report folder (if one was written)."""
+    return [*table_lines(run_rows(result)), *([f"report: {folder}"] if folder else [])]
+
+
+def status_lines(status: Mapping[str, Any]) -> list[str]:
+    """``campaign status``'s text: the campaign folder, then each run's row."""
+    return [f"campaign folder: {Path(status['folder']).resolve()}", *table_lines(status["runs"])]
 
 
 def missing_folder_note(folder: Path) -> str | None:

@@ -15,16 +15,17 @@ from __future__ import annotations
 
 import argparse
 
-from rig.cli.common import count, image_file, number, positive
+from rig.cli.common import count, image_file, number, positive  # isort: split
+
+from rig.cli.common import print_json, print_lines, print_table, status
 from rig.cli.options import import_group, import_options, json_option, rate_option, rig_option
+from rig.terminal import Progress
 
 
 def _forces(args: argparse.Namespace) -> int:
     from analysis.identify import fit_files
     from analysis.identify.conditions_arg import runs_or_catalog
     from analysis.identify.text import forces_lines
-    from rig.cli.common import print_json, print_lines, status
-    from rig.terminal import Progress
 
     pairs, opts = import_options(args)
     kw = dict(model=args.model, tool=args.tool, overrides=pairs, rig_path=args.rig,
@@ -45,16 +46,12 @@ def _forces(args: argparse.Namespace) -> int:
         status(f"analyze forces: wrote {', '.join(out['plots'])}")
     for w in out["warnings"]:
         status(f"analyze forces: warning: {w}")
-    if args.json:
-        print_json(out)
-        return 0 if out["success"] else 1
-    print_lines(forces_lines(out))
+    print_json(out) if args.json else print_lines(forces_lines(out))
     return 0 if out["success"] else 1
 
 
 def _modal(args: argparse.Namespace) -> int:
     from analysis.modal import modal_file
-    from rig.cli.common import print_json, print_table, status
 
     out = modal_file(
         args.file, args.hammer, rate_hz=args.rate, record_s=args.record_s,

@@ -13,44 +13,45 @@ import argparse
 import contextlib
 from pathlib import Path
 
-from rig.cli.common import add_catalog_options, error_line, print_json, print_table, status
+from rig.cli.common import add_catalog_options, error_line, print_json, print_lines, status
+from rig.cli.options import add_options
 from rig.terminal import progress_note
+
+# fmt: off
+RUN = (
+    ("config", None, None, "campaign TOML, or a name in configs/campaigns/"),
+    ("--dry-run", bool, None, "check config, hardware and programs"),
+    ("--out", None, None, "folder of campaign folders (default: campaign.output_dir)"),
+    ("--no-report", bool, None, "skip the analysis and report"),
+    ("--fresh", bool, None, "start over: earlier runs are moved to <folder>/before-<time>/"),
+    ("--force-resume", bool, None, "resume although inputs changed (recorded in campaign.json)"),
+    ("--json", bool, None, "machine-readable summary on stdout"),
+    ("--quiet", bool, None, "no progress display"),
+    ("--adaptive", ("feed", "spindle", "both"), None,
+     "GRBL: the [adaptive] loop in this mode (its target and limits: the config's [adaptive])"),
+    ("--live", bool, None, "serve the live console beside the campaign (--port, --bind); its "
+     "address, printed, carries the session's token"),
+)
+# fmt: on
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
+    from rig.cli.console import add_server_options
+
     p = sub.add_parser("campaign", help="run a campaign of test cuts (simulated or real rig)")
     csub = p.add_subparsers(dest="campaign_command", metavar="CAMPAIGN_COMMAND")
     csub.required = True
-
     r = csub.add_parser("run", help="run (or resume) a campaign; --dry-run checks without cutting")
-    r.add_argument("config", help="campaign TOML, or a name in configs/campaigns/")
-    r.add_argument("--dry-run", action="store_true", help="check config, hardware and programs")
-    r.add_argument("--out", help="folder of campaign folders (default: campaign.output_dir)")
-    r.add_argument("--no-report", action="store_true", help="skip the analysis and report")
-    r.add_argument("--fresh", action="store_true",
-                   help="start over: earlier runs are moved to <folder>/before-<time>/")
-    r.add_argument("--force-resume", action="store_true",
-                   help="resume although inputs changed (recorded in campaign.json)")
-    r.add_argument("--json", action="store_true", help="machine-readable summary on stdout")
-    r.add_argument("--quiet", action="store_true", help="no progress display")
-    r.add_argument("--adaptive", choices=("feed", "spindle", "both"),
-                   help="GRBL: the [adaptive] loop in this mode (its target and limits: the "
-                   "config's [adaptive])")  # fmt: skip
-    r.add_argument("--live", action="store_true",
-                   help="serve the live console beside the campaign (--port, --bind); its "
-                   "address, printed, carries the session's token")  # fmt: skip
-    from rig.cli.console import add_server_options
-
+    add_options(r, RUN)
     add_server_options(r)
     r.set_defaults(func=_run)
     add_catalog_options(r)
     s = csub.add_parser("status", help="each run's status and reason")
     rep = csub.add_parser("report", help="analyse a campaign's runs and write its report folder")
     for q, func in ((s, _status), (rep, _report)):
-        q.add_argument("config")
-        q.add_argument("--out")
-        q.add_argument("--json", action="store_true")
+        add_options(q, [("config", None, None, None), ("--out", None, None, None),
+                        ("--json", bool, None, None)])  # fmt: skip
         q.set_defaults(func=func)
         add_catalog_options(q)
 
@@ -58,7 +59,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 def _dry_run(campaign, as_json: bool, out_root: str | None) -> int:  # noqa: ANN001 - a Campaign
     from rig.campaign import dry_run
     from rig.campaign.commands import dry_run_lines
-    from rig.cli.common import print_lines
 
     d = dry_run(campaign, out_root)
     print_json(d.as_dict()) if as_json else print_lines(dry_run_lines(d))
@@ -68,7 +68,7 @@ def _dry_run(campaign, as_json: bool, out_root: str | None) -> int:  # noqa: ANN
 def _run(args: argparse.Namespace) -> int:
     from analysis.errors import CutlabError
     from rig.campaign import campaign_folder, load_campaign, run_campaign
-    from rig.campaign.commands import run_rows, runs_done
+    from rig.campaign.commands import run_lines, runs_done
 
     try:
         campaign = load_campaign(args.config)
@@ -108,9 +108,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.json:
         print_json(result.summary(report.summary if report is not None else None))
     else:
-        print_table(run_rows(result))
-        if report is not None:
-            print(f"report: {report.folder}")
+        print_lines(run_lines(result, report and report.folder))
     if result.stopped:
         status(f"cutlab: campaign stopped; run the same command again to resume ({result.folder})")
         return 130
@@ -119,16 +117,14 @@ def _run(args: argparse.Namespace) -> int:
 
 def _status(args: argparse.Namespace) -> int:
     from rig.campaign import campaign_status, load_campaign
-    from rig.campaign.commands import missing_folder_note
+    from rig.campaign.commands import missing_folder_note, status_lines
 
     st = campaign_status(load_campaign(args.config), args.out)
-    folder = Path(st["folder"])
     if args.json:
         print_json(st)
         return 0
-    print(f"campaign folder: {folder.resolve()}")
-    print_table(st["runs"])
-    if (note := missing_folder_note(folder)) is not None:
+    print_lines(status_lines(st))
+    if (note := missing_folder_note(Path(st["folder"]))) is not None:
         status(note)
     return 0
 
@@ -140,9 +136,5 @@ def _report(args: argparse.Namespace) -> int:
     folder = campaign_folder(load_campaign(args.config), args.out)
     progress_note("analysing the runs")  # the report of a large campaign takes a while
     rep = write_report(folder)
-    if args.json:
-        print_json(rep.summary)
-    else:
-        print(rep.markdown)
-        print(f"report: {rep.folder}")
+    print_json(rep.summary) if args.json else print_lines([rep.markdown, f"report: {rep.folder}"])
     return 0

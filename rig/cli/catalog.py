@@ -13,21 +13,19 @@ from __future__ import annotations
 
 import argparse
 
+from rig.cli.common import print_json, print_lines, print_table, status
 from rig.cli.options import json_option
+from rig.terminal import Progress
 
 
 def _index(args: argparse.Namespace) -> int:
     from analysis.catalog import index_line, update_index
-    from rig.cli.common import print_json, status
-    from rig.terminal import Progress
 
     with Progress("indexing run files", "file", quiet=args.json) as bar:
         out = update_index(args.dirs, args.index, progress=bar)
-    if args.json:
-        print_json(out)
-        return 0
-    status(f"catalog index: {out['index']}")
-    print(index_line(out))
+    if not args.json:
+        status(f"catalog index: {out['index']}")
+    print_json(out) if args.json else print(index_line(out))
     return 0
 
 
@@ -35,7 +33,6 @@ def _query(args: argparse.Namespace) -> int:
     import sys
 
     from analysis.catalog import catalog_named, query_rows, query_runs, records
-    from rig.cli.common import print_json, print_table
 
     df = query_runs(args.expr, catalog_named(args.dir, args.index))
     if args.json:
@@ -49,7 +46,6 @@ def _query(args: argparse.Namespace) -> int:
 
 def _show(args: argparse.Namespace) -> int:
     from analysis.catalog import catalog_named, show_lines, show_run
-    from rig.cli.common import print_json, print_lines
 
     row = show_run(args.run, catalog_named(args.dir, args.index))
     print_json(row) if args.json else print_lines(show_lines(row))

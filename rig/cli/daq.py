@@ -8,14 +8,9 @@ from __future__ import annotations
 
 import argparse
 
-from rig.cli.common import (
-    count,
-    nonnegative,
-    positive,
-    print_json,
-    print_table,
-    status,
-)
+from rig.cli.common import count, nonnegative, positive  # isort: split
+
+from rig.cli.common import print_json, print_table, status
 from rig.terminal import Progress
 
 

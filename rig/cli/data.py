@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import argparse
 
-from rig.cli.common import image_file, nonnegative
+from rig.cli.common import image_file, nonnegative, print_json, print_lines, print_table, status
 from rig.cli.options import import_group, import_options, json_option, rate_option, rig_option
+from rig.terminal import Progress
 
 
 def _info(args: argparse.Namespace) -> int:
     from analysis.runs import file_info_lines, file_summary
-    from rig.cli.common import print_json, print_lines
 
     s = file_summary(args.file, args.rate)
     print_json(s) if args.json else print_lines(file_info_lines(args.file, s))
@@ -25,21 +25,16 @@ def _info(args: argparse.Namespace) -> int:
 
 def _plot(args: argparse.Namespace) -> int:
     from analysis.runs import plot_file
-    from rig.cli.common import print_json, status
 
     png, samples = plot_file(args.file, args.output, args.rate, args.start_s, args.stop_s)
     status(f"data plot: wrote {png}")
-    if args.json:
-        print_json({"file": args.file, "plot": str(png), "samples": samples})
-    else:
-        print(png)
+    out = {"file": args.file, "plot": str(png), "samples": samples}
+    print_json(out) if args.json else print(png)
     return 0
 
 
 def _import(args: argparse.Namespace) -> int:
-    from rig.cli.common import print_json, print_table, status
     from rig.log import import_exports
-    from rig.terminal import Progress
 
     pairs, opts = import_options(args)
     if opts.auto:  # the mapping from an end-mill fit of all the exports, before any is written

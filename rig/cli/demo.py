@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import argparse
 
+from rig.cli.common import print_json, print_lines, status
+
 CAMPAIGN = (
     "facemill-ploughing"  # rig.report.DEMO_CAMPAIGN (not imported: `cutlab --help` stays fast)
 )
@@ -43,7 +45,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _demo(args: argparse.Namespace) -> int:
-    from rig.cli.common import print_json, print_lines, status
     from rig.report import run_demo
 
     out = args.out or ("out/demo-independent" if args.forces == "independent" else "out/demo")
@@ -52,10 +53,7 @@ def _demo(args: argparse.Namespace) -> int:
     if res.stopped:
         status(f"demo: stopped; run `cutlab demo --resume` to continue ({res.folder})")
         return 130
-    if args.json:
-        print_json(res.summary())
-        return 0 if res.ok else 1
     from rig.report.demo_text import demo_lines
 
-    print_lines(demo_lines(res))
+    print_json(res.summary()) if args.json else print_lines(demo_lines(res))
     return 0 if res.ok else 1

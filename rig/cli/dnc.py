@@ -5,8 +5,33 @@ from __future__ import annotations
 
 import argparse
 
-from rig.cli.common import count, number, positive, print_json, status
-from rig.cli.options import json_option, rig_option, serial_options
+from rig.cli.common import count, number, positive, print_json, print_lines, status
+from rig.cli.options import add_options, json_option, rig_option, serial_options
+
+# fmt: off
+SEND = (
+    ("--start-block", count(0), 0, "restart at this block (0-based)"),
+    ("--safe-z", number("mm"), None, "restart: clearance Z to approach from, mm (default: the "
+     "program's)"),
+    ("--plunge-feed", positive("mm/min", 200_000), None, "restart: feed down to the restart "
+     "point, mm/min (default: the program's last plunge before the block)"),
+    ("--dry-run", bool, None, "print the restart preamble and the first blocks that would be "
+     "sent; send nothing"),
+    ("--mode", None, "char-counting", "GRBL: char-counting | send-response"),
+    ("--unlock", bool, None, "GRBL: send $X if it is in Alarm"),
+    ("--no-strip", bool, None, "GRBL: send lines as written (default: no comments, spaces, N and "
+     "O words)"),
+    ("--no-wait-dc1", bool, None, "Fanuc: send without waiting for DC1"),
+    ("--adaptive", ("feed", "spindle", "both"), None, "GRBL: hold a force target with real-time "
+     "overrides (refused for controllers without a real-time override, the Fanuc drip feed)"),
+    ("--target-force", positive("N", 1e6), None,
+     "--adaptive: per-revolution mean |Fxy| to hold, N"),
+    ("--max-force", positive("N", 1e6), None, "--adaptive: resultant force that holds the feed, N"),
+    ("--spindle-rpm", positive("rpm", 1e6), None, "--adaptive: the program's spindle speed, rpm"),
+    ("--stall-revs", positive("revolutions", 1e4), 3.0, "--adaptive: revolutions without a DAQ "
+     "block, beyond one block, before the loop counts the force signal lost and holds (default 3)"),
+)
+# fmt: on
 
 
 def _send(args: argparse.Namespace) -> int:
@@ -53,15 +78,12 @@ def _adaptive_loop(job, args: argparse.Namespace):  # noqa: ANN001, ANN202 - a S
 
 def _dry_run(job, args: argparse.Namespace) -> int:  # noqa: ANN001 - a SendJob
     """Print what a send would send first; nothing is opened or sent."""
-    from rig.cli.common import print_lines
     from rig.dnc.preview import preview, preview_lines
 
     p = preview(job)
-    if args.json:
-        print_json(p)
-        return 0
-    print_lines(preview_lines(p))
-    status(f"dry run: nothing was sent to {job.settings.port}")
+    print_json(p) if args.json else print_lines(preview_lines(p))
+    if not args.json:
+        status(f"dry run: nothing was sent to {job.settings.port}")
     return 0
 
 
@@ -89,13 +111,8 @@ def _grbl(args: argparse.Namespace) -> int:
     _, machine = dnc_machine("grbl", args.machine)
     cfg = serial_settings(machine, args.port, args.baud, args.timeout)
     reply = grbl_command(cfg, args.dnc_command)
-    if args.json:
-        print_json(reply.as_dict())
-    else:
-        for line in reply.lines:
-            status(f"grbl: {line}")
-        status(reply.summary)
-    return 0 if reply.state_after not in ("", "Alarm") or args.dnc_command == "status" else 1
+    print_json(reply.as_dict()) if args.json else status("\n".join(reply.status_lines()))
+    return 0 if reply.ok or args.dnc_command == "status" else 1
 
 
 def _sim_controller(args: argparse.Namespace) -> int:
@@ -111,10 +128,7 @@ def _sim_controller(args: argparse.Namespace) -> int:
                f"speed x{args.speed:g})")  # fmt: skip
 
     summary = run_controller(ctl, args.duration, on_started=started)
-    if args.json:
-        print_json(summary)
-    else:
-        status(", ".join(f"{k} {v}" for k, v in summary.items()))
+    print_json(summary) if args.json else status(", ".join(f"{k} {v}" for k, v in summary.items()))
     return 0
 
 
@@ -133,36 +147,10 @@ def _add_send(dsub: argparse._SubParsersAction) -> None:
     )  # fmt: skip
     s.add_argument("file", help="NC program")
     serial_options(s, "machine name or TOML (default ace-h63 / lab-grbl)", protocol=True)
-    s.add_argument(
-        "--start-block", type=count(0), default=0, help="restart at this block (0-based)"
-    )
-    safe = "restart: clearance Z to approach from, mm (default: the program's)"
-    s.add_argument("--safe-z", type=number("mm"), help=safe)
-    s.add_argument("--plunge-feed", type=positive("mm/min", 200_000),
-                   help="restart: feed down to the restart point, mm/min (default: the "
-                   "program's last plunge before the block)")  # fmt: skip
-    s.add_argument("--dry-run", action="store_true", help="print the restart preamble and the "
-                   "first blocks that would be sent; send nothing")  # fmt: skip
-    s.add_argument("--mode", default="char-counting", help="GRBL: char-counting | send-response")
-    s.add_argument("--unlock", action="store_true", help="GRBL: send $X if it is in Alarm")
-    strip = "GRBL: send lines as written (default: no comments, spaces, N and O words)"
-    s.add_argument("--no-strip", action="store_true", help=strip)
-    s.add_argument("--no-wait-dc1", action="store_true", help="Fanuc: send without waiting for DC1")
-    s.add_argument("--adaptive", choices=("feed", "spindle", "both"),
-                   help="GRBL: hold a force target with real-time overrides (refused for "
-                   "controllers without a real-time override, the Fanuc drip feed)")  # fmt: skip
-    s.add_argument("--target-force", type=positive("N", 1e6),
-                   help="--adaptive: per-revolution mean |Fxy| to hold, N")  # fmt: skip
-    s.add_argument("--max-force", type=positive("N", 1e6),
-                   help="--adaptive: resultant force that holds the feed, N")  # fmt: skip
-    s.add_argument("--spindle-rpm", type=positive("rpm", 1e6),
-                   help="--adaptive: the program's spindle speed, rpm")  # fmt: skip
-    s.add_argument("--stall-revs", type=positive("revolutions", 1e4), default=3.0,
-                   help="--adaptive: revolutions without a DAQ block, beyond one block, before "
-                   "the loop counts the force signal lost and holds (default 3)")  # fmt: skip
+    add_options(s, SEND)
     rig_option(s, "--adaptive: the DAQ's rig TOML (default configs/rig.toml)")
-    s.add_argument("--record", help="write the block record to this CSV file")
-    s.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    add_options(s, [("--record", None, None, "write the block record to this CSV file"),
+                    ("--no-progress", bool, None, "no progress bar on stderr")])  # fmt: skip
     json_option(s, "end with a JSON summary on stdout")
     s.set_defaults(func=_send)
 
@@ -184,21 +172,19 @@ def register(sub: argparse._SubParsersAction) -> None:
         g.set_defaults(func=_grbl)
     r = dsub.add_parser("serve", help="answer remote program requests from a Fanuc control")
     serial_options(r, "machine name or TOML (default ace-h63)", baud_help=None, timeout=False)
-    r.add_argument("--folder", help="program folder (default: serial.program_folder)")
-    r.add_argument("--once", action="store_true", help="serve one request, then exit")
+    add_options(r, [("--folder", None, None, "program folder (default: serial.program_folder)"),
+                    ("--once", bool, None, "serve one request, then exit")])  # fmt: skip
     json_option(r, "a JSON summary per request on stdout")
     r.set_defaults(func=_serve)
     c = dsub.add_parser("sim-controller", help="run a simulated controller on a pseudo-terminal")
     serial_options(c, "machine name or TOML (default ace-h63 / lab-grbl)", port=False,
                    protocol=True, baud_help="emulated baud rate (default: the machine config's)",
                    timeout=False)  # fmt: skip
-    c.add_argument(
-        "--speed", type=positive("x real time", 1e6), default=1.0, help="simulated s per wall s"
-    )
-    c.add_argument(
-        "--duration", type=positive("s"), help="stop after this many wall s (default: Ctrl-C)"
-    )
-    knob = "fault knob, e.g. stop_answering_after_block=100, alarm_at_block=50,2"
-    c.add_argument("--sim", action="append", default=[], metavar="KNOB=VALUE", help=knob)
+    add_options(c, [
+        ("--speed", positive("x real time", 1e6), 1.0, "simulated s per wall s"),
+        ("--duration", positive("s"), None, "stop after this many wall s (default: Ctrl-C)"),
+        ("--sim", None, [], "fault knob, e.g. stop_answering_after_block=100, alarm_at_block=50,2",
+         {"action": "append", "metavar": "KNOB=VALUE"}),
+    ])  # fmt: skip
     json_option(c, "end with a JSON summary on stdout")
     c.set_defaults(func=_sim_controller)

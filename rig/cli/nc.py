@@ -83,11 +83,8 @@ def _motions(args: argparse.Namespace) -> int:
         for w in it.warnings:
             status(f"warning: {w}")
         return 0
-    df = _interpret(args, keep_motion=True).motion_table()
-    if args.json:
-        print_json(df.to_dict(orient="records"))
-    else:
-        print_table(df.to_dict(orient="records"))
+    rows = _interpret(args, keep_motion=True).motion_table().to_dict(orient="records")
+    print_json(rows) if args.json else print_table(rows)
     return 0
 
 

@@ -4,16 +4,88 @@ and reads the same everywhere (name, type, default, help, place in the help)."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from planning.nc import DIALECTS
-from rig.cli.common import count, positive
+from rig.cli.common import MAGNITUDE_LIMIT, count, number, positive
 
 if TYPE_CHECKING:
     from analysis.identify import ImportOptions
 
-#: the order the post-processing commands (plan rough/feed/orient) list the controllers in
+#: a row's default that makes the option required
+REQUIRED = ...
+
+
+def add_options(p: argparse.ArgumentParser, rows: Sequence[tuple]) -> None:
+    """Declare a command's options from a table, one row each: ``(flags, type, default, help)``
+    and an optional dict of further ``add_argument`` keywords (metavar, nargs, dest). ``flags``
+    is ``"file"``, ``"--x"`` or ``"-o --output"``; ``type`` is a parser (:mod:`rig.cli.common`),
+    ``None`` (text), ``bool`` (a flag) or a tuple of choices; default :data:`REQUIRED` makes the
+    option required."""
+    for flags, kind, default, help, *extra in rows:
+        kw: dict[str, Any] = {"help": help, **(extra[0] if extra else {})}
+        if kind is bool:
+            kw["action"] = "store_true"
+        elif isinstance(kind, tuple):
+            kw["choices"] = kind
+        elif kind is not None:
+            kw["type"] = kind
+        if default is REQUIRED:
+            kw["required"] = True
+        elif kind is not bool and (default is not None or flags.startswith("-")):
+            kw["default"] = default  # (a positional given a default is optional)
+        p.add_argument(*flags.split(), **kw)
+
+
+#: unit suffixes of a field's name that its option's name drops (tool_diameter_mm: --tool-diameter)
+_UNIT_SUFFIXES = ("_mm_min", "_mm", "_rpm", "_n", "_s", "_hz", "_pct")
+
+
+def model_options(
+    p: argparse.ArgumentParser, model: type, *, flags: Mapping[str, str] | None = None
+) -> None:
+    """One option per field of a dataclass (its ``metadata``: help, unit, gt/ge, le) or pydantic
+    model (its ``Field``: description, gt/ge, le, ``json_schema_extra`` unit): ``--name`` from the
+    field's name without its unit suffix (or ``flags[field]``), stored under the field's name; a
+    number field is checked against the field's unit and range; a field without a default is
+    required. The help lives once, next to the field it describes."""
+    for name, (kind, default, meta) in _fields(model).items():
+        flag = (flags or {}).get(name) or "--" + _strip_unit(name).replace("_", "-")
+        kw: dict[str, Any] = {"dest": name, "metavar": flag.lstrip("-").replace("-", "_").upper(),
+                              "help": meta.get("help") or meta.get("unit")}  # fmt: skip
+        if kind in ("float", "int", float, int):
+            lo = meta.get("gt", meta.get("ge"))
+            kw["type"] = number(meta.get("unit", ""), lo, meta.get("le", MAGNITUDE_LIMIT),
+                                lo_open="gt" in meta, integer=kind in ("int", int))  # fmt: skip
+        if default is REQUIRED:
+            kw["required"] = True
+        else:
+            kw["default"] = default
+        p.add_argument(flag, **kw)
+
+
+def _strip_unit(name: str) -> str:
+    return next((name.removesuffix(u) for u in _UNIT_SUFFIXES if name.endswith(u)), name)
+
+
+def _fields(model: type) -> dict[str, tuple[object, object, dict[str, Any]]]:
+    """name: (type, default or REQUIRED, {help, unit, gt, ge, le}) of a dataclass or pydantic
+    model's fields."""
+    if dataclasses.is_dataclass(model):
+        return {f.name: (f.type, REQUIRED if f.default is dataclasses.MISSING else f.default,
+                         dict(f.metadata)) for f in dataclasses.fields(model)}  # fmt: skip
+    out = {}
+    for name, info in model.model_fields.items():  # type: ignore[attr-defined]
+        meta = {"help": info.description, **(info.json_schema_extra or {})}
+        for c in info.metadata:  # annotated_types bounds
+            meta.update({k: getattr(c, k) for k in ("gt", "ge", "le") if hasattr(c, k)})
+        out[name] = (info.annotation, REQUIRED if info.is_required() else info.default, meta)
+    return out
+
+
 PORT_HELP = "port name or pyserial URL (default: the machine config's)"
 BAUD_HELP = "override serial.baudrate"
 

@@ -8,8 +8,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import add_catalog_options, positive
+from rig.cli.common import add_catalog_options, positive, print_json, print_lines, status
 from rig.cli.options import limit_options, stock_options
+from rig.terminal import Progress
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -46,7 +47,6 @@ WRITTEN_EXIT = {"within": 0, "violations": 3, "unchecked": 0}
 
 def print_stock(stock: dict) -> None:
     from planning.limits.text import stock_note
-    from rig.cli.common import status
 
     if (note := stock_note(stock)) is not None:
         status(note)
@@ -55,8 +55,6 @@ def print_stock(stock: dict) -> None:
 def run(a: argparse.Namespace) -> int:
     from planning.limits import check_job
     from planning.limits.text import check_lines
-    from rig.cli.common import print_json, print_lines, status
-    from rig.terminal import Progress
 
     with Progress("simulate", unit="piece") as bar:
         _, out = check_job(

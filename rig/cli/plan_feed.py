@@ -6,8 +6,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import add_catalog_options, image_file, positive
+from rig.cli.common import add_catalog_options, image_file, positive  # isort: split
+
+from rig.cli.common import print_json, print_lines, status
 from rig.cli.options import dialect_option, limit_options, rule_db_option, stock_options
+from rig.terminal import Progress
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -69,9 +72,7 @@ def _feed(a: argparse.Namespace) -> int:
     from planning.feed.text import feed_lines, feed_notes
     from planning.limits.feed_options import feed_limits
     from planning.limits.text import verdict_lines, violation_lines
-    from rig.cli.common import print_json, print_lines, status
     from rig.cli.plan_check import WRITTEN_EXIT, print_stock
-    from rig.terminal import Progress
 
     lim = feed_limits(a.rules, a.tool, a.material, a.machine, a.lobes, a.force_limit, a.limit,
                       a.spindle)  # fmt: skip
@@ -99,9 +100,7 @@ def _feed(a: argparse.Namespace) -> int:
 def _simulate(a: argparse.Namespace) -> int:
     from planning.feed import simulate_job
     from planning.feed.text import simulate_lines, simulate_notes
-    from rig.cli.common import print_json, print_lines, status
     from rig.cli.plan_check import print_stock
-    from rig.terminal import Progress
 
     with Progress("simulate", unit="piece") as bar:
         results, out = simulate_job(

@@ -13,8 +13,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import add_catalog_options, count
+from rig.cli.common import add_catalog_options, count, print_json, print_table, status
 from rig.cli.options import dialect_option
+from rig.terminal import Progress
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -47,8 +48,6 @@ def _show(v):
 
 def run(args: argparse.Namespace) -> int:
     from planning.orient import run_orient
-    from rig.cli.common import print_json, print_table, status
-    from rig.terminal import Progress
 
     with Progress("orient", "pt") as bar:
 

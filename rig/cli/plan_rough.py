@@ -21,8 +21,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import add_catalog_options, positive
+from rig.cli.common import add_catalog_options, positive, print_json, print_lines, status
 from rig.cli.options import dialect_option, limit_options
+from rig.terminal import Progress
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -60,8 +61,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from planning.limits import rough_limiter
     from planning.rough import run_rough
-    from rig.cli.common import print_json, print_lines, status
-    from rig.terminal import Progress
 
     with Progress("plan rough", "step") as bar:
 

@@ -3,69 +3,55 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
-from rig.cli.common import (
-    add_catalog_options,
-    count,
-    image_file,
-    positive,
-    print_json,
-    print_table,
-    status,
+from analysis.rules.rulebase import GroupKey
+from rig.cli.common import add_catalog_options, count, image_file, positive  # isort: split
+
+from rig.cli.common import print_json, print_lines, print_table, status
+from rig.cli.options import REQUIRED, add_options, json_option, model_options, rule_db_option
+
+FEED = positive("mm/min", 200_000)
+# fmt: off
+DERIVE = (
+    ("runs", Path, None, "HDF5 run files of the feed sweep", {"nargs": "+"}),
+    ("-o --output", Path, REQUIRED, "rule file to write (TOML)"),
+    ("--name", None, None, "rule name (default: the output file's stem)"),
+    ("--base-feed", FEED, None, "mm/min; skip the detection and use this"),
+    ("--min-feed", FEED, None, "mm/min (default: 0.1 x base, seed 001)"),
+    ("--max-feed", FEED, None, "mm/min (default: 3.5 x base, seed 001)"),
+    ("--machine", None, None, "machine config: min/max feeds are clamped to its limits"),
+    ("--reference-load", positive("%"), None,
+     "%%, load of the base-feed cut (default: a slot at the runs' depth)"),
+    ("--exponent", positive("", 5), 1.0, "p in feed = base (L_ref/L)^p (1: constant removal rate)"),
+    ("--bins", count(3, 200), 20, None),
+    ("--slope-ratio", positive(), 1.6, None),
+    ("--vibration-ratio", positive(), 2.0, None),
+    ("--criterion", ("any", "both", "slope", "vibration"), "any", None),
+    ("--png", image_file, None, "also plot the rule and the sweep here"),
+    ("--json", bool, None, None),
 )
-from rig.cli.options import json_option, rule_db_option
+# fmt: on
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("rules", help="feed rules: derive from feed sweeps, the rule base")
     rs = p.add_subparsers(dest="rules_command", metavar="RULES_COMMAND")
     rs.required = True
-    _register_derive(rs)
-    _register_base(rs)
-
-
-def _register_derive(rs: argparse._SubParsersAction) -> None:
     d = rs.add_parser("derive", help="base feed from a feed sweep, then the 20-bin rule")
-    d.add_argument("runs", nargs="+", type=Path, help="HDF5 run files of the feed sweep")
-    d.add_argument("-o", "--output", type=Path, required=True, help="rule file to write (TOML)")
-    d.add_argument("--name", help="rule name (default: the output file's stem)")
-    for name, text in (("--base-feed", "mm/min; skip the detection and use this"),
-                       ("--min-feed", "mm/min (default: 0.1 x base, seed 001)"),
-                       ("--max-feed", "mm/min (default: 3.5 x base, seed 001)")):  # fmt: skip
-        d.add_argument(name, type=positive("mm/min", 200_000), help=text)
-    d.add_argument("--machine", help="machine config: min/max feeds are clamped to its limits")
-    d.add_argument("--reference-load", type=positive("%"),
-        help="%%, load of the base-feed cut (default: a slot at the runs' depth)")  # fmt: skip
-    d.add_argument("--exponent", type=positive("", 5), default=1.0,
-        help="p in feed = base (L_ref/L)^p (1: constant removal rate)")  # fmt: skip
-    d.add_argument("--bins", type=count(3, 200), default=20)
-    d.add_argument("--slope-ratio", type=positive(), default=1.6)
-    d.add_argument("--vibration-ratio", type=positive(), default=2.0)
-    d.add_argument("--criterion", choices=["any", "both", "slope", "vibration"], default="any")
-    d.add_argument("--png", type=image_file, help="also plot the rule and the sweep here")
-    d.add_argument("--json", action="store_true")
+    add_options(d, DERIVE)
     d.set_defaults(func=_derive)
     add_catalog_options(d)
-
-
-def _key_args(q: argparse.ArgumentParser) -> None:
-    q.add_argument("--part-family", required=True, help="e.g. trunk/outer/draw/lower-die")
-    q.add_argument("--operation", required=True, help="roughing, pencil, rest-roughing, ...")
-    q.add_argument("--tool-diameter", type=positive("mm", 1000), required=True, help="mm")
-    q.add_argument("--flute-length", type=positive("mm", 1000), required=True, help="mm")
-    q.add_argument("--material", required=True)
-    q.add_argument("--spindle", type=positive("rpm", 100_000), required=True, help="rpm")
-    q.add_argument("--depth", type=positive("mm", 1000), required=True, help="mm")
-    q.add_argument("--tolerance", type=positive("mm", 100), required=True, help="mm")
+    _register_base(rs)
 
 
 def _register_base(rs: argparse._SubParsersAction) -> None:
     a = rs.add_parser("add", help="store a rule file in the rule base for a machining group")
     a.add_argument("rule", type=Path)
-    _key_args(a)
-    a.add_argument("--note", default="")
-    a.add_argument("--replace", action="store_true", help="replace the group's existing rule")
+    model_options(a, GroupKey, flags={"spindle_rpm": "--spindle"})
+    add_options(a, [("--note", None, "", None),
+                    ("--replace", bool, None, "replace the group's existing rule")])  # fmt: skip
     rule_db_option(a, "rule base (default from configs/lab.toml)")
     json_option(a, None)
     a.set_defaults(func=_add)
@@ -80,23 +66,21 @@ def _register_base(rs: argparse._SubParsersAction) -> None:
     json_option(sh, None)
     sh.set_defaults(func=_show)
     lk = rs.add_parser("lookup", help="the rule for a job: exact key or nearest match (stated)")
-    _key_args(lk)
+    model_options(lk, GroupKey, flags={"spindle_rpm": "--spindle"})
     lk.add_argument("--exact", action="store_true", help="fail unless the key matches exactly")
     rule_db_option(lk)
     json_option(lk, None)
     lk.set_defaults(func=_lookup)
     ex = rs.add_parser("export", help="write a stored rule to a file, exactly as stored")
-    ex.add_argument("rule", help="rule name or group id")
-    ex.add_argument("-o", "--output", type=Path, required=True)
+    add_options(ex, [("rule", None, None, "rule name or group id"),
+                     ("-o --output", Path, REQUIRED, None)])  # fmt: skip
     rule_db_option(ex)
     ex.set_defaults(func=_export)
 
 
 def _key(a: argparse.Namespace) -> dict[str, object]:
-    """The machining group's key (analysis.rules.GroupKey fields) from the options."""
-    return dict(part_family=a.part_family, operation=a.operation, tool_diameter_mm=a.tool_diameter,
-                flute_length_mm=a.flute_length, material=a.material, spindle_rpm=a.spindle,
-                depth_mm=a.depth, tolerance_mm=a.tolerance)  # fmt: skip
+    """The machining group's key (its options are GroupKey's fields)."""
+    return {f.name: getattr(a, f.name) for f in dataclasses.fields(GroupKey)}
 
 
 def _derive(a: argparse.Namespace) -> int:
@@ -111,19 +95,8 @@ def _derive(a: argparse.Namespace) -> int:
     save_rule(d.rule, a.output)
     if a.png:
         plot_rule(d.rule, a.png)
-    out = d.summary(a.output)
-    base, ref = out["base_feed_mm_min"], out["reference_load_pct"]
-    status(f"wrote {a.output} ({d.rule.n_bins} bins, base {base:g} mm/min at {ref:.4g} %)")
-    if a.json:
-        print_json(out)
-        return 0
-    print(d.base_feed_reason)
-    if d.detection:
-        print_table(out["runs"])
-        print()
-        print_table(out["intervals"])
-    print()
-    print_table(out["bins"])
+    status(d.summary_line(a.output))
+    print_json(d.summary(a.output)) if a.json else print_lines(d.lines())
     return 0
 
 

@@ -20,7 +20,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import count, image_file, positive
+from rig.cli.common import count, image_file, positive, print_json, status
 
 
 def register_stability(psub: argparse._SubParsersAction) -> None:
@@ -51,7 +51,6 @@ def run(args: argparse.Namespace) -> int:
 
     from analysis.stability import load_case, plot_lobes, stability_lobes
     from analysis.stability.output import summary_line, write_lobes_csv
-    from rig.cli.common import print_json, status
 
     case = load_case(args.config)
     if args.max_depth is not None:
@@ -63,8 +62,6 @@ def run(args: argparse.Namespace) -> int:
         status(f"analyze stability: wrote {plot_lobes(lobes, args.plot, case.name, case)}")
     for w in lobes.warnings:
         status(f"analyze stability: warning: {w}")
-    if args.json:
-        print_json({"config": str(args.config), "csv": str(args.output), **lobes.to_json()})
-        return 0
-    print(summary_line(case.name, lobes))
+    out = {"config": str(args.config), "csv": str(args.output), **lobes.to_json()}
+    print_json(out) if args.json else print(summary_line(case.name, lobes))
     return 0

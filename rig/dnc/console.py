@@ -57,6 +57,15 @@ class GrblReply:
                 "state_after": self.state_after, "lines": self.lines,
                 "summary": self.summary}  # fmt: skip
 
+    def status_lines(self) -> list[str]:
+        """What `cutlab dnc unlock|reset` says on stderr: GRBL's lines, then the summary."""
+        return [*(f"grbl: {line}" for line in self.lines), self.summary]
+
+    @property
+    def ok(self) -> bool:
+        """GRBL answered and is not in Alarm after the command."""
+        return self.state_after not in ("", "Alarm")
+
 
 class _Console:
     def __init__(self, cfg: SerialConfig) -> None:
