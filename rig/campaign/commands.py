@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from analysis.errors import ConfigError
 from analysis.output import table_lines
@@ -16,6 +16,7 @@ from rig.campaign.config import Campaign
 from rig.campaign.dryrun import DryRun
 
 if TYPE_CHECKING:
+    from rig.campaign.results import CampaignStatus
     from rig.campaign.runner import CampaignResult
 
 __all__ = ["dry_run_lines", "missing_folder_note", "run_lines", "run_rows", "runs_done",
@@ -75,7 +76,7 @@ def run_lines(result: CampaignResult, folder: Path | None) -> list[str]:
     return [*table_lines(run_rows(result)), *([f"report: {folder}"] if folder else [])]
 
 
-def status_lines(status: Mapping[str, Any]) -> list[str]:
+def status_lines(status: CampaignStatus) -> list[str]:
     """``campaign status``'s text: the campaign folder, then each run's row."""
     return [f"campaign folder: {Path(status['folder']).resolve()}", *table_lines(status["runs"])]
 

@@ -12,10 +12,14 @@ from __future__ import annotations
 import argparse
 import contextlib
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rig.cli.common import add_catalog_options, error_line, print_json, print_lines, status
 from rig.cli.options import add_options
 from rig.terminal import progress_note
+
+if TYPE_CHECKING:
+    from rig.console import LiveCampaign
 
 # fmt: off
 RUN = (
@@ -88,7 +92,7 @@ def _run(args: argparse.Namespace) -> int:
         progress_note("checking every program")
         return _dry_run(campaign, args.json, args.out)
     progress_note(runs_done(campaign_folder(campaign, args.out), len(campaign.tests)))
-    live_ctx = contextlib.nullcontext(None)
+    live_ctx: contextlib.AbstractContextManager[LiveCampaign | None] = contextlib.nullcontext(None)
     if args.live:
         from rig.cli.console import warn_bind
         from rig.console import live_console
@@ -96,9 +100,11 @@ def _run(args: argparse.Namespace) -> int:
         warn_bind(args.bind)
         live_ctx = live_console(campaign, args.out, port=args.port, bind=args.bind)
     with live_ctx as live:
+        on = live.run_kwargs() if live else None
         result = run_campaign(
             campaign, out_root=args.out, progress=not args.quiet, fresh=args.fresh,
-            force_resume=args.force_resume, **(live.run_kwargs() if live else {}),
+            force_resume=args.force_resume, session_factory=on["session_factory"] if on else None,
+            stop=on["stop"] if on else None,
         )  # fmt: skip
     report = None
     if not args.no_report and not result.stopped:
@@ -108,7 +114,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.json:
         print_json(result.summary(report.summary if report is not None else None))
     else:
-        print_lines(run_lines(result, report and report.folder))
+        print_lines(run_lines(result, report.folder if report is not None else None))
     if result.stopped:
         status(f"cutlab: campaign stopped; run the same command again to resume ({result.folder})")
         return 130

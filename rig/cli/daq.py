@@ -7,11 +7,15 @@ cutlab daq record --seconds 5 -o run.h5                 # the NI device of confi
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 from rig.cli.common import count, nonnegative, positive  # isort: split
 
 from rig.cli.common import print_json, print_table, status
 from rig.terminal import Progress
+
+if TYPE_CHECKING:
+    from rig.daq import Daq
 
 
 def _record(args: argparse.Namespace) -> int:
@@ -24,6 +28,7 @@ def _record(args: argparse.Namespace) -> int:
                           min_free_mb=args.min_free_mb)  # fmt: skip
     for w in plan.notes:
         status(f"daq record: {w}")
+    daq: Daq
     if args.sim:
         from rig.sim import SimDaq
 

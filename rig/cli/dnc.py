@@ -97,6 +97,7 @@ def _serve(args: argparse.Namespace) -> int:
     while True:
         res = srv.serve_one()
         req = srv.request
+        assert req is not None  # serve_one returns after answering a request
         if args.json:
             print_json({"program": req.program, "start_block": req.start_block, **res.as_dict()})
         else:
