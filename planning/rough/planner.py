@@ -34,11 +34,11 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-import numpy.typing as npt
 
 from analysis.validation import JsonObject
 from planning.errors import PlanningError
 from planning.rough._levels import CuspTable, LevelGeometry, LevelPaths
+from planning.rough._optimal import level_cost_fn
 from planning.rough.part import Part
 
 METHODS = ("bisection", "equal", "lee", "optimal")
@@ -457,7 +457,7 @@ class RoughPlanner:
                 n_pass[a_lo, c] = len(lp.passes)
                 link[a_lo, c] = lp.link_xy_mm
             self._tick(f"optimal: costs at height {c}/{n - 2}")
-        cost = self._cost_fn(P, path, n_closed, n_pass, link)
+        cost = level_cost_fn(r, self.part.config.cutting, self.top, P, path, n_closed, n_pass, link)
         f = np.zeros((n, n))
         choice = np.full((n, n), -1, dtype=int)
         for span in range(2, n):
@@ -499,36 +499,3 @@ class RoughPlanner:
             self._max_cusp(heights),
             f"objective {r.objective}, {n - 2} candidates",
         )
-
-    def _cost_fn(
-        self,
-        P: npt.NDArray[np.float64],
-        path: npt.NDArray[np.float64],
-        n_closed: npt.NDArray[np.float64],
-        n_pass: npt.NDArray[np.float64],
-        link: npt.NDArray[np.float64],
-    ) -> Callable[[int, npt.NDArray[np.intp], int], npt.NDArray[np.float64]]:
-        """cost(a, cs, b): vector of level costs for lower a, heights cs, upper b."""
-        r, c = self.rough, self.part.config.cutting
-        if r.objective == "path":
-            return lambda a, cs, b: path[a, cs]
-        feed = c.feed_mm_min
-        plunge = c.plunge_feed_mm_min or feed / 2
-        rapid = c.rapid_mm_min
-        safe = self.top + r.clearance_mm
-        sin_a = math.sin(math.radians(r.ramp_angle_deg))
-
-        def cost(a: int, cs: npt.NDArray[np.intp], b: int) -> npt.NDArray[np.float64]:
-            z = P[cs]
-            enter = P[b] + r.clearance_mm - z
-            n_open = n_pass[a, cs] - n_closed[a, cs]
-            seconds: npt.NDArray[np.float64] = (
-                path[a, cs] / feed
-                + n_closed[a, cs] * enter / sin_a / feed
-                + n_open * enter / plunge
-                + n_pass[a, cs] * ((safe - z) + (safe - P[b] - r.clearance_mm)) / rapid
-                + link[a, cs] / rapid
-            )
-            return seconds
-
-        return cost
