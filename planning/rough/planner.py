@@ -34,11 +34,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+import numpy.typing as npt
 
 from analysis.validation import JsonObject
 from planning.errors import PlanningError
 from planning.rough._levels import CuspTable, LevelGeometry, LevelPaths
-from planning.rough._optimal import level_cost_fn
+from planning.rough._optimal import cut_order, level_cost_fn, level_stats, solve_intervals
 from planning.rough.part import Part
 
 METHODS = ("bisection", "equal", "lee", "optimal")
@@ -423,73 +424,21 @@ class RoughPlanner:
         exactly ``candidates_mm`` when given.
         """
         r = self.rough
-        if candidates_mm is not None:
-            extra_heights = list(candidates_mm)
-        elif extra_heights is None:
-            extra_heights = []
-            for m in ("bisection", "equal"):
-                extra_heights += self.plan(m).heights_mm
-            if self.geom2 is self.geom:
-                extra_heights += self.plan_lee().heights_mm
-        grid = self.bottom + r.optimal_dh_mm * np.arange(
-            1, int((self.top - self.bottom) / r.optimal_dh_mm) + 1
-        )
-        if candidates_mm is not None:
-            grid = np.zeros(0)
-        cands = np.unique(np.round(np.concatenate([grid, extra_heights]), 9))
-        cands = cands[(cands > self.bottom + _EPS) & (cands < self.top - _EPS)]
-        P = np.concatenate([[self.bottom], cands, [self.top]])
+        P = self._optimal_candidates(extra_heights, candidates_mm)
         n = len(P)
-        cusp = self.cusps.matrix(P)
-        need = cusp > r.cusp_mm + _EPS
-        # Per (lo, z) statistics of the level: path length and pass counts.
-        path = np.full((n, n), np.inf)
-        n_closed = np.zeros((n, n))
-        n_pass = np.zeros((n, n))
-        link = np.zeros((n, n))
-        for c in range(1, n - 1):
-            z = float(P[c])
-            lo_ok = P[c] - P[:c] > 0
-            for a_lo in np.flatnonzero(lo_ok):
-                lp = self.geom.level(z, None if a_lo == 0 else float(P[a_lo]))
-                path[a_lo, c] = lp.path_mm
-                n_closed[a_lo, c] = lp.n_closed
-                n_pass[a_lo, c] = len(lp.passes)
-                link[a_lo, c] = lp.link_xy_mm
-            self._tick(f"optimal: costs at height {c}/{n - 2}")
+        need = self.cusps.matrix(P) > r.cusp_mm + _EPS
+        path, n_closed, n_pass, link = level_stats(self.geom, P, self._tick)
         cost = level_cost_fn(r, self.part.config.cutting, self.top, P, path, n_closed, n_pass, link)
-        f = np.zeros((n, n))
-        choice = np.full((n, n), -1, dtype=int)
-        for span in range(2, n):
-            for a in range(0, n - span):
-                b = a + span
-                if not need[a, b]:
-                    continue
-                cs = np.arange(a + 1, b)
-                cs = cs[P[b] - P[cs] <= self.L + _EPS]
-                if cs.size == 0:
-                    f[a, b] = np.inf
-                    continue
-                tot = cost(a, cs, b) + f[a, cs] + f[cs, b]
-                k = int(np.argmin(tot))
-                f[a, b], choice[a, b] = tot[k], cs[k]
+        f, choice = solve_intervals(P, need, cost, self.L + _EPS)
         if not np.isfinite(f[0, n - 1]):
             raise PlanningError(
                 "optimal: no set of levels meets the cusp limit within the depth limit "
                 f"L = {self.L} mm on this candidate grid"
             )
-        # Rebuild the cutting order: a cut before the cuts inside its two new shoulders.
         levels: list[Level] = []
-        todo: deque[tuple[int, int]] = deque([(0, n - 1)])
-        while todo:
-            a, b = todo.popleft()
-            c = int(choice[a, b])
-            if c < 0:
-                continue
+        for a, c, b in cut_order(choice):
             lo = None if a == 0 else float(P[a])
             levels.append(self._level(len(levels) + 1, float(P[c]), lo, float(P[b])))
-            todo.append((c, b))
-            todo.append((a, c))
         heights = [lv.z_mm for lv in levels]
         return RoughPlan(
             "optimal",
@@ -499,3 +448,23 @@ class RoughPlanner:
             self._max_cusp(heights),
             f"objective {r.objective}, {n - 2} candidates",
         )
+
+    def _optimal_candidates(
+        self, extra_heights: list[float] | None, candidates_mm: list[float] | None
+    ) -> npt.NDArray[np.float64]:
+        """The optimal planner's heights, bottom and top included (see :meth:`plan_optimal`)."""
+        if candidates_mm is not None:
+            extra_heights = list(candidates_mm)
+        elif extra_heights is None:
+            extra_heights = []
+            for m in ("bisection", "equal"):
+                extra_heights += self.plan(m).heights_mm
+            if self.geom2 is self.geom:
+                extra_heights += self.plan_lee().heights_mm
+        dh = self.rough.optimal_dh_mm
+        grid = self.bottom + dh * np.arange(1, int((self.top - self.bottom) / dh) + 1)
+        if candidates_mm is not None:
+            grid = np.zeros(0)
+        cands = np.unique(np.round(np.concatenate([grid, extra_heights]), 9))
+        cands = cands[(cands > self.bottom + _EPS) & (cands < self.top - _EPS)]
+        return np.concatenate([[self.bottom], cands, [self.top]])
