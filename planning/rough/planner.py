@@ -39,7 +39,13 @@ import numpy.typing as npt
 from analysis.validation import JsonObject
 from planning.errors import PlanningError
 from planning.rough._levels import CuspTable, LevelGeometry, LevelPaths
-from planning.rough._optimal import cut_order, level_cost_fn, level_stats, solve_intervals
+from planning.rough._optimal import (
+    LevelCost,
+    cut_order,
+    level_cost_fn,
+    level_stats,
+    solve_intervals,
+)
 from planning.rough.part import Part
 
 METHODS = ("bisection", "equal", "lee", "optimal")
@@ -428,7 +434,7 @@ class RoughPlanner:
         n = len(P)
         need = self.cusps.matrix(P) > r.cusp_mm + _EPS
         path, n_closed, n_pass, link = level_stats(self.geom, P, self._tick)
-        cost = level_cost_fn(r, self.part.config.cutting, self.top, P, path, n_closed, n_pass, link)
+        cost = self._cost_fn(P, path, n_closed, n_pass, link)
         f, choice = solve_intervals(P, need, cost, self.L + _EPS)
         if not np.isfinite(f[0, n - 1]):
             raise PlanningError(
@@ -448,6 +454,19 @@ class RoughPlanner:
             self._max_cusp(heights),
             f"objective {r.objective}, {n - 2} candidates",
         )
+
+    def _cost_fn(
+        self,
+        P: npt.NDArray[np.float64],
+        path: npt.NDArray[np.float64],
+        n_closed: npt.NDArray[np.float64],
+        n_pass: npt.NDArray[np.float64],
+        link: npt.NDArray[np.float64],
+    ) -> LevelCost:
+        """cost(a, cs, b): vector of level costs for lower a, heights cs, upper b (this part's
+        :func:`planning.rough._optimal.level_cost_fn`)."""
+        cut = self.part.config.cutting
+        return level_cost_fn(self.rough, cut, self.top, P, path, n_closed, n_pass, link)
 
     def _optimal_candidates(
         self, extra_heights: list[float] | None, candidates_mm: list[float] | None
