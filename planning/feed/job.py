@@ -29,7 +29,7 @@ from analysis.rules import FeedRule, RuleBase, load_rule
 from analysis.validation import JsonObject, JsonValue
 from planning.errors import PlanningError
 from planning.feed.post import post_process
-from planning.feed.report import write_report
+from planning.feed.report import FeedReportPaths, write_report
 from planning.feed.result import FeedCap, FeedPostOptions, FeedPostResult, Section
 from planning.nc import Motion, Program, interpret
 from planning.nc.output import DIALECTS, default_dialect, for_dialect
@@ -223,30 +223,11 @@ def feed_program(
     """
     if dialect is not None and dialect not in DIALECTS:
         raise PlanningError(f"dialect = {dialect!r}: expected one of {', '.join(DIALECTS)}")
-    lookup = None
-    rules: FeedRule | dict[str, FeedRule]
-    if rule_spec is None:
-        material = rules_material or options.get("material")
-        if not material:
-            raise PlanningError("no --rules: give --material, each tool's rule is looked up in "
-                                "the rule base by tool and material")  # fmt: skip
-        job = load_job(program_path, machine, tool_name, stock_spec, spacing_mm)
-        rules, lookup = lookup_rules(job, material, db, str(program_path))
-        rule_spec = ",".join(f"{k}={v.name}" for k, v in rules.items()) or "(rule base)"
-    else:
-        rules = resolve_rules(rule_spec, db)  # a missing rule file is named before the program
-        job = load_job(program_path, machine, tool_name, stock_spec, spacing_mm)
-    sections = tool_sections(job, rules, rule_spec, str(program_path))
-    rule = next((sc.rule for sc in sections if sc.rule is not None), None)
-    if rule is None:
-        raise PlanningError(f"{program_path}: --rules = {rule_spec}: no tool of the program has "
-                            "a rule: nothing to adjust")  # fmt: skip
-    for sc in sections:
-        if sc.rule is not None and sc.rule.tool and sc.rule.tool != sc.tool_name and warn:
-            warn(
-                f"warning: rule '{sc.rule.name}' was derived with tool '{sc.rule.tool}', not "
-                f"'{sc.tool_name}': its loads (relative to that tool's size) do not carry over"
-            )
+    material = rules_material or options.get("material")
+    job, rules, lookup, rule_spec = _job_and_rules(
+        program_path, rule_spec, db, material, machine, tool_name, stock_spec, spacing_mm
+    )
+    sections, rule = _rule_sections(job, rules, rule_spec, str(program_path), warn)
     opts = feed_post_options(**options)
     start = job.stock.copy() if limit_step is not None else job.stock
     result = post_process(
@@ -259,11 +240,7 @@ def feed_program(
         program, limits = limit_step(result.program, start, job.machine)
         result = replace(result, program=program)
     dialect = dialect or default_dialect(job.machine)
-    written = for_dialect(result.program, dialect, job.machine)  # the F edits and splits kept
-    out = Path(output)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    written.write(out)
-    report = write_report(result, report_dir or out.parent, out.stem)
+    report = _write_outputs(result, job.machine, dialect, Path(output), report_dir)
     summ = result.summary()
     summ.update(
         {"output": str(output), "dialect": dialect,
@@ -273,17 +250,75 @@ def feed_program(
     summ["tools"] = tool_figures(result)
     if lookup is not None:
         summ["rule_lookup"] = lookup
+    _add_verdict(summ, limits)
+    slower = _slower(result.time_before_s, result.time_after_s)  # as in the summary
+    summ["slower_than_input"] = slower
+    if slower and warn is not None:
+        warn(f"warning: {slower}")
+    return result, summ
+
+
+def _job_and_rules(
+    program_path: str | Path, rule_spec: str | None, db: str | Path | None,
+    material: str | None, machine: str | Path, tool_name: str | None,
+    stock_spec: str | None, spacing_mm: float | None,
+) -> tuple[Job, FeedRule | dict[str, FeedRule], list[JsonValue] | None, str]:  # fmt: skip
+    """The job and its rules (``--rules``, else looked up by tool and ``material``), the
+    look-up's notes (None with ``--rules``) and the rules' spec as said in errors."""
+    if rule_spec is None:
+        if not material:
+            raise PlanningError("no --rules: give --material, each tool's rule is looked up in "
+                                "the rule base by tool and material")  # fmt: skip
+        job = load_job(program_path, machine, tool_name, stock_spec, spacing_mm)
+        found, lookup = lookup_rules(job, material, db, str(program_path))
+        spec = ",".join(f"{k}={v.name}" for k, v in found.items()) or "(rule base)"
+        return job, found, lookup, spec
+    rules = resolve_rules(rule_spec, db)  # a missing rule file is named before the program
+    job = load_job(program_path, machine, tool_name, stock_spec, spacing_mm)
+    return job, rules, None, rule_spec
+
+
+def _rule_sections(
+    job: Job, rules: FeedRule | dict[str, FeedRule], rule_spec: str, file: str,
+    warn: Callable[[str], None] | None,
+) -> tuple[list[Section], FeedRule]:  # fmt: skip
+    """Each tool's run with its rule, and the first rule (an error when no tool has one); a
+    rule derived with another tool is warned of."""
+    sections = tool_sections(job, rules, rule_spec, file)
+    rule = next((sc.rule for sc in sections if sc.rule is not None), None)
+    if rule is None:
+        raise PlanningError(f"{file}: --rules = {rule_spec}: no tool of the program has "
+                            "a rule: nothing to adjust")  # fmt: skip
+    for sc in sections:
+        if sc.rule is not None and sc.rule.tool and sc.rule.tool != sc.tool_name and warn:
+            warn(
+                f"warning: rule '{sc.rule.name}' was derived with tool '{sc.rule.tool}', not "
+                f"'{sc.tool_name}': its loads (relative to that tool's size) do not carry over"
+            )
+    return sections, rule
+
+
+def _write_outputs(
+    result: FeedPostResult, machine: MachineConfig, dialect: str, out: Path,
+    report_dir: str | Path | None,
+) -> FeedReportPaths:  # fmt: skip
+    """The adjusted program written for ``dialect`` to ``out`` and its report beside it (or
+    in ``report_dir``): the report's paths."""
+    written = for_dialect(result.program, dialect, machine)  # the F edits and splits kept
+    out.parent.mkdir(parents=True, exist_ok=True)
+    written.write(out)
+    return write_report(result, report_dir or out.parent, out.stem)
+
+
+def _add_verdict(summ: JsonObject, limits: JsonObject | None) -> None:
+    """The limits' verdict, violations and unchecked limits into the summary ("unchecked"
+    without a limit step)."""
     if limits is not None:
         summ.update(verdict=limits["verdict"], violations=limits["violations"],
                     unchecked=limits["unchecked"], limits=limits)  # fmt: skip
     else:
         why = "no --material: the limits need its force coefficients"
         summ.update(verdict="unchecked", violations=[], unchecked=[{"limit": "all", "reason": why}])
-    slower = _slower(result.time_before_s, result.time_after_s)  # as in the summary
-    summ["slower_than_input"] = slower
-    if slower and warn is not None:
-        warn(f"warning: {slower}")
-    return result, summ
 
 
 def _drilling(motion: Motion) -> bool:

@@ -34,6 +34,7 @@ from analysis.config import FiveAxis, MachineConfig, RotaryAxis
 from planning.errors import PlanningError
 from planning.nc import NumberStyle, Program
 from planning.nc.program import BlockValue
+from planning.orient._branch import solution_branches
 from planning.orient.planner import OrientResult
 
 KINDS = ("table-table-AC", "head-table-AC", "head-head-BC")
@@ -160,6 +161,20 @@ def inverse(
     fa = _five(machine)
     kind = fa.kind
     tip_mm = np.asarray(tip_mm, float).reshape(-1, 3)
+    axis = _unit_axes(axis)
+    # The primary solution (tilt >= 0) for all points at once; the other is (-tilt, C + 180).
+    rho = np.hypot(axis[:, 0], axis[:, 1])
+    t0 = np.degrees(np.arctan2(rho, axis[:, 2]))  # = arccos(uz), without its loss near 0
+    c0 = np.degrees(np.arctan2(*_c_plane_components(kind, axis)))
+    A, C = _rotary_angles(machine, axis, rho, t0, c0, start_c_deg, line)
+    P = _axis_positions(fa, tip_mm, A, C, gauge_length_mm)
+    if check_limits:
+        _check_linear_travel(machine, P)
+    return AxisMoves(P[:, 0], P[:, 1], P[:, 2], A, C, kind)
+
+
+def _unit_axes(axis: np.ndarray) -> np.ndarray:
+    """The tool axes as (m, 3); an error naming the first that is not a unit vector."""
     axis = np.asarray(axis, float).reshape(-1, 3)
     norms = np.linalg.norm(axis, axis=1)
     if np.any(np.abs(norms - 1) > 1e-6):
@@ -167,23 +182,23 @@ def inverse(
         raise PlanningError(
             f"CL point {i}: tool axis length {norms[i]:.6g}, expected a unit vector"
         )
-    pivot = np.asarray(fa.pivot_mm, float)
+    return axis
+
+
+def _rotary_angles(
+    machine: MachineConfig, axis: np.ndarray, rho: np.ndarray, t0: np.ndarray, c0: np.ndarray,
+    start_c_deg: float, line: np.ndarray | None,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """Tilt and C (m,) deg per point from the primary solution (``t0``, ``c0``): the branch
+    inside the tilt limits (both inside: :func:`solution_branches`), C on its turn nearest the
+    previous C inside the C limits."""
+    fa = _five(machine)
     lim = tilt_limits(machine)
     a_lo, a_hi = lim.min_deg, lim.max_deg
-    c_lo, c_hi = fa.c.min_deg, fa.c.max_deg
-    letter = "B" if kind.endswith("BC") else "A"
+    letter = "B" if fa.kind.endswith("BC") else "A"
     m = len(axis)
     A, C = np.zeros(m), np.zeros(m)
-    # The primary solution (tilt >= 0) for all points at once; the other is (-tilt, C + 180).
-    rho = np.hypot(axis[:, 0], axis[:, 1])
-    t0 = np.degrees(np.arctan2(rho, axis[:, 2]))  # = arccos(uz), without its loss near 0
-    if kind == "table-table-AC":
-        c0 = np.degrees(np.arctan2(axis[:, 0], axis[:, 1]))
-    elif kind == "head-table-AC":
-        c0 = np.degrees(np.arctan2(-axis[:, 0], -axis[:, 1]))
-    else:
-        c0 = np.degrees(np.arctan2(axis[:, 1], axis[:, 0]))
-    branch = _branches(t0, c0, rho, a_lo, a_hi, start_c_deg)
+    branch = solution_branches(t0, c0, rho, a_lo, a_hi, start_c_deg)
     prev_a, prev_c = 0.0, float(start_c_deg)
     for i in range(m):
         if line is not None and i and line[i] != line[i - 1]:
@@ -199,81 +214,64 @@ def inverse(
                 f"{sols[0][0]:.3f} or {sols[1][0]:.3f} deg, outside the {letter} limits "
                 f"[{a_lo:g}, {a_hi:g}] deg of machine {machine.name!r}"
             )
-        best = None
-        for a, c in inside:
-            cands = c + 360.0 * np.arange(-3, 4)
-            cands = cands[(cands >= c_lo - 1e-9) & (cands <= c_hi + 1e-9)]
-            if cands.size == 0:
-                continue
-            cc = float(cands[np.argmin(np.abs(cands - prev_c))])
-            cost = abs(a - prev_a) + abs(cc - prev_c)
-            if best is None or cost < best[2]:
-                best = (a, cc, cost)
-        if best is None:
-            raise PlanningError(
-                f"CL point {i}: C = {inside[0][1]:.3f} deg (mod 360) is outside the C limits "
-                f"[{c_lo:g}, {c_hi:g}] deg of machine {machine.name!r}"
-            )
-        A[i], C[i] = best[0], best[1]
+        A[i], C[i] = _nearest_turn(machine, i, inside, prev_a, prev_c)
         prev_a, prev_c = A[i], C[i]
+    return A, C
+
+
+def _nearest_turn(
+    machine: MachineConfig, i: int, inside: list[tuple[float, float]], prev_a: float,
+    prev_c: float,
+) -> tuple[float, float]:  # fmt: skip
+    """Of the solutions ``inside`` the tilt limits, the (tilt, C) with C on the turn inside
+    the C limits that moves least from (``prev_a``, ``prev_c``); an error when none is."""
+    c_lo, c_hi = _five(machine).c.min_deg, _five(machine).c.max_deg
+    best = None
+    for a, c in inside:
+        cands = c + 360.0 * np.arange(-3, 4)
+        cands = cands[(cands >= c_lo - 1e-9) & (cands <= c_hi + 1e-9)]
+        if cands.size == 0:
+            continue
+        cc = float(cands[np.argmin(np.abs(cands - prev_c))])
+        cost = abs(a - prev_a) + abs(cc - prev_c)
+        if best is None or cost < best[2]:
+            best = (a, cc, cost)
+    if best is None:
+        raise PlanningError(
+            f"CL point {i}: C = {inside[0][1]:.3f} deg (mod 360) is outside the C limits "
+            f"[{c_lo:g}, {c_hi:g}] deg of machine {machine.name!r}"
+        )
+    return best[0], best[1]
+
+
+def _axis_positions(
+    fa: FiveAxis, tip_mm: np.ndarray, A: np.ndarray, C: np.ndarray, gauge_length_mm: float
+) -> np.ndarray:
+    """Machine X, Y, Z (m, 3) mm for the tips at tilt ``A`` and ``C`` (deg), per kinematics."""
     Ar, Cr = np.radians(A), np.radians(C)
+    pivot = np.asarray(fa.pivot_mm, float)
     reach = gauge_length_mm + fa.head_pivot_length_mm
-    if kind == "table-table-AC":
+    if fa.kind == "table-table-AC":
         P = np.einsum("mij,mj->mi", _rx(Ar) @ _rz(Cr), tip_mm - pivot) + pivot
-    elif kind == "head-table-AC":
+    elif fa.kind == "head-table-AC":
         P = np.einsum("mij,mj->mi", _rz(Cr), tip_mm - pivot) + pivot + reach * (_rx(Ar) @ Z_HAT)
     else:
         P = tip_mm + reach * ((_rz(Cr) @ _ry(Ar)) @ Z_HAT)
-    moves = AxisMoves(P[:, 0], P[:, 1], P[:, 2], A, C, kind)
-    if check_limits:
-        for label, vals, trav in (
-            ("X", P[:, 0], machine.x),
-            ("Y", P[:, 1], machine.y),
-            ("Z", P[:, 2], machine.z),
-        ):
-            bad = np.flatnonzero((vals < trav.min_mm) | (vals > trav.max_mm))
-            if bad.size:
-                i = int(bad[0])
-                raise PlanningError(
-                    f"CL point {i}: {label} = {vals[i]:.3f} mm is outside the travel "
-                    f"[{trav.min_mm:g}, {trav.max_mm:g}] mm of machine {machine.name!r} "
-                    f"({bad.size} points affected)"
-                )
-    return moves
+    return np.asarray(P)
 
 
-def _branches(t0: np.ndarray, c0: np.ndarray, rho: np.ndarray, a_lo: float, a_hi: float,
-              start_c_deg: float) -> np.ndarray:  # fmt: skip
-    """The solution branch per point (0: (tilt, C), 1: (-tilt, C + 180)) that moves the rotary
-    axes least over the whole program (Viterbi over the two branches; |d tilt| + |d C| with C
-    the shorter way round; a branch outside the tilt limits is barred), so that a branch forced
-    by a limit later on is taken from the start rather than flipped mid-path."""
-    m = len(t0)
-    if m == 0:
-        return np.zeros(0, int)
-    A = np.stack([t0, -t0], 1)
-    C = np.stack([c0, c0 + 180.0], 1)
-    for k in np.flatnonzero(rho < 1e-12):  # C free: carry the previous C through (no cost)
-        C[k] = C[k - 1] if k else np.nan
-    barred = (A < a_lo - 1e-9) | (A > a_hi + 1e-9)
-    cost = np.where(barred[0], np.inf, np.abs(A[0]) + _dc(C[0], start_c_deg))
-    back = np.zeros((m, 2), int)
-    for i in range(1, m):
-        step = np.abs(A[i][None, :] - A[i - 1][:, None]) + _dc(C[i][None, :], C[i - 1][:, None])
-        tot = cost[:, None] + step  # from branch (row) to branch (column)
-        back[i] = np.argmin(tot, 0)
-        cost = np.where(barred[i], np.inf, tot.min(0))
-    out = np.zeros(m, int)
-    out[-1] = int(np.argmin(cost))
-    for i in range(m - 1, 0, -1):
-        out[i - 1] = back[i, out[i]]
-    return out
-
-
-def _dc(c1: float | np.ndarray, c0: float | np.ndarray) -> np.ndarray:
-    """|c1 - c0| the shorter way round, deg; 0 where either is NaN (C free)."""
-    d: np.ndarray = np.abs((np.asarray(c1, float) - np.asarray(c0, float) + 180.0) % 360.0 - 180.0)
-    return np.asarray(np.nan_to_num(d, nan=0.0))
+def _check_linear_travel(machine: MachineConfig, P: np.ndarray) -> None:
+    """An error naming the first point whose X, Y or Z leaves the machine's travel."""
+    for k, label in enumerate("XYZ"):
+        vals, trav = P[:, k], getattr(machine, label.lower())
+        bad = np.flatnonzero((vals < trav.min_mm) | (vals > trav.max_mm))
+        if bad.size:
+            i = int(bad[0])
+            raise PlanningError(
+                f"CL point {i}: {label} = {vals[i]:.3f} mm is outside the travel "
+                f"[{trav.min_mm:g}, {trav.max_mm:g}] mm of machine {machine.name!r} "
+                f"({bad.size} points affected)"
+            )
 
 
 def hold_c(kind: str, axis: np.ndarray, line: np.ndarray, cone_deg: float) -> np.ndarray:

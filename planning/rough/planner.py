@@ -39,6 +39,13 @@ import numpy.typing as npt
 from analysis.validation import JsonObject
 from planning.errors import PlanningError
 from planning.rough._levels import CuspTable, LevelGeometry, LevelPaths
+from planning.rough._optimal import (
+    LevelCost,
+    cut_order,
+    level_cost_fn,
+    level_stats,
+    solve_intervals,
+)
 from planning.rough.part import Part
 
 METHODS = ("bisection", "equal", "lee", "optimal")
@@ -423,73 +430,21 @@ class RoughPlanner:
         exactly ``candidates_mm`` when given.
         """
         r = self.rough
-        if candidates_mm is not None:
-            extra_heights = list(candidates_mm)
-        elif extra_heights is None:
-            extra_heights = []
-            for m in ("bisection", "equal"):
-                extra_heights += self.plan(m).heights_mm
-            if self.geom2 is self.geom:
-                extra_heights += self.plan_lee().heights_mm
-        grid = self.bottom + r.optimal_dh_mm * np.arange(
-            1, int((self.top - self.bottom) / r.optimal_dh_mm) + 1
-        )
-        if candidates_mm is not None:
-            grid = np.zeros(0)
-        cands = np.unique(np.round(np.concatenate([grid, extra_heights]), 9))
-        cands = cands[(cands > self.bottom + _EPS) & (cands < self.top - _EPS)]
-        P = np.concatenate([[self.bottom], cands, [self.top]])
+        P = self._optimal_candidates(extra_heights, candidates_mm)
         n = len(P)
-        cusp = self.cusps.matrix(P)
-        need = cusp > r.cusp_mm + _EPS
-        # Per (lo, z) statistics of the level: path length and pass counts.
-        path = np.full((n, n), np.inf)
-        n_closed = np.zeros((n, n))
-        n_pass = np.zeros((n, n))
-        link = np.zeros((n, n))
-        for c in range(1, n - 1):
-            z = float(P[c])
-            lo_ok = P[c] - P[:c] > 0
-            for a_lo in np.flatnonzero(lo_ok):
-                lp = self.geom.level(z, None if a_lo == 0 else float(P[a_lo]))
-                path[a_lo, c] = lp.path_mm
-                n_closed[a_lo, c] = lp.n_closed
-                n_pass[a_lo, c] = len(lp.passes)
-                link[a_lo, c] = lp.link_xy_mm
-            self._tick(f"optimal: costs at height {c}/{n - 2}")
+        need = self.cusps.matrix(P) > r.cusp_mm + _EPS
+        path, n_closed, n_pass, link = level_stats(self.geom, P, self._tick)
         cost = self._cost_fn(P, path, n_closed, n_pass, link)
-        f = np.zeros((n, n))
-        choice = np.full((n, n), -1, dtype=int)
-        for span in range(2, n):
-            for a in range(0, n - span):
-                b = a + span
-                if not need[a, b]:
-                    continue
-                cs = np.arange(a + 1, b)
-                cs = cs[P[b] - P[cs] <= self.L + _EPS]
-                if cs.size == 0:
-                    f[a, b] = np.inf
-                    continue
-                tot = cost(a, cs, b) + f[a, cs] + f[cs, b]
-                k = int(np.argmin(tot))
-                f[a, b], choice[a, b] = tot[k], cs[k]
+        f, choice = solve_intervals(P, need, cost, self.L + _EPS)
         if not np.isfinite(f[0, n - 1]):
             raise PlanningError(
                 "optimal: no set of levels meets the cusp limit within the depth limit "
                 f"L = {self.L} mm on this candidate grid"
             )
-        # Rebuild the cutting order: a cut before the cuts inside its two new shoulders.
         levels: list[Level] = []
-        todo: deque[tuple[int, int]] = deque([(0, n - 1)])
-        while todo:
-            a, b = todo.popleft()
-            c = int(choice[a, b])
-            if c < 0:
-                continue
+        for a, c, b in cut_order(choice):
             lo = None if a == 0 else float(P[a])
             levels.append(self._level(len(levels) + 1, float(P[c]), lo, float(P[b])))
-            todo.append((c, b))
-            todo.append((a, c))
         heights = [lv.z_mm for lv in levels]
         return RoughPlan(
             "optimal",
@@ -507,28 +462,28 @@ class RoughPlanner:
         n_closed: npt.NDArray[np.float64],
         n_pass: npt.NDArray[np.float64],
         link: npt.NDArray[np.float64],
-    ) -> Callable[[int, npt.NDArray[np.intp], int], npt.NDArray[np.float64]]:
-        """cost(a, cs, b): vector of level costs for lower a, heights cs, upper b."""
-        r, c = self.rough, self.part.config.cutting
-        if r.objective == "path":
-            return lambda a, cs, b: path[a, cs]
-        feed = c.feed_mm_min
-        plunge = c.plunge_feed_mm_min or feed / 2
-        rapid = c.rapid_mm_min
-        safe = self.top + r.clearance_mm
-        sin_a = math.sin(math.radians(r.ramp_angle_deg))
+    ) -> LevelCost:
+        """cost(a, cs, b): vector of level costs for lower a, heights cs, upper b (this part's
+        :func:`planning.rough._optimal.level_cost_fn`)."""
+        cut = self.part.config.cutting
+        return level_cost_fn(self.rough, cut, self.top, P, path, n_closed, n_pass, link)
 
-        def cost(a: int, cs: npt.NDArray[np.intp], b: int) -> npt.NDArray[np.float64]:
-            z = P[cs]
-            enter = P[b] + r.clearance_mm - z
-            n_open = n_pass[a, cs] - n_closed[a, cs]
-            seconds: npt.NDArray[np.float64] = (
-                path[a, cs] / feed
-                + n_closed[a, cs] * enter / sin_a / feed
-                + n_open * enter / plunge
-                + n_pass[a, cs] * ((safe - z) + (safe - P[b] - r.clearance_mm)) / rapid
-                + link[a, cs] / rapid
-            )
-            return seconds
-
-        return cost
+    def _optimal_candidates(
+        self, extra_heights: list[float] | None, candidates_mm: list[float] | None
+    ) -> npt.NDArray[np.float64]:
+        """The optimal planner's heights, bottom and top included (see :meth:`plan_optimal`)."""
+        if candidates_mm is not None:
+            extra_heights = list(candidates_mm)
+        elif extra_heights is None:
+            extra_heights = []
+            for m in ("bisection", "equal"):
+                extra_heights += self.plan(m).heights_mm
+            if self.geom2 is self.geom:
+                extra_heights += self.plan_lee().heights_mm
+        dh = self.rough.optimal_dh_mm
+        grid = self.bottom + dh * np.arange(1, int((self.top - self.bottom) / dh) + 1)
+        if candidates_mm is not None:
+            grid = np.zeros(0)
+        cands = np.unique(np.round(np.concatenate([grid, extra_heights]), 9))
+        cands = cands[(cands > self.bottom + _EPS) & (cands < self.top - _EPS)]
+        return np.concatenate([[self.bottom], cands, [self.top]])

@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 from analysis.config import EndMill, MachineConfig
 from planning.errors import PlanningError
 from planning.nc import DWELL, LINE, RAPID, Motion
-from planning.nc.arcs import PLANE_AXES, arc_radius_mm, linearize
+from planning.nc.arcs import PLANE_AXES, Linearized, arc_radius_mm, linearize
 from planning.stock import _kernels as _k
 from planning.stock._numba import MAX_ARCS, N_ARC
 from planning.stock.pieces import split_pieces
@@ -134,84 +134,113 @@ def check_motion(
     if len(motion) == 0:
         raise PlanningError(f"{file}: the program has no motion")
     lin = linearize(motion, chord_tol_mm)
-    pts = np.concatenate([lin.start, lin.end])
-    src = np.concatenate([lin.source, lin.source])
+    _check_rotary(motion, file)
+    _check_feeds(motion, file)
+    if machine is not None:
+        _check_travel(motion, lin, machine, file)
+        _check_arcs(motion, machine, file)
+    if stock is not None:
+        _check_stock_floor(motion, lin, stock, cutter, file)
 
-    def where(seg: int) -> str:
-        return f"{file}:{int(motion.line[seg])}: block {int(motion.block[seg])}"
 
+def _where(motion: Motion, file: str, seg: int) -> str:
+    return f"{file}:{int(motion.line[seg])}: block {int(motion.block[seg])}"
+
+
+def _check_rotary(motion: Motion, file: str) -> None:
+    """No block turns a rotary axis: the Z-map is 3-axis."""
     turning = motion.has_rotary_travel
     if turning.any():
         i = int(np.argmax(turning))
         raise PlanningError(
-            f"{where(i)}: the block turns a rotary axis (A/B/C); the Z-map is 3-axis, so a "
-            "5-axis program cannot be simulated or post-processed"
+            f"{_where(motion, file, i)}: the block turns a rotary axis (A/B/C); the Z-map is "
+            "3-axis, so a 5-axis program cannot be simulated or post-processed"
         )
-    feed_seg = motion.is_feed
-    bad_feed = feed_seg & ~(motion.feed_mm_min > 0)
+
+
+def _check_feeds(motion: Motion, file: str) -> None:
+    """Every feed move has a feed > 0."""
+    bad_feed = motion.is_feed & ~(motion.feed_mm_min > 0)
     if bad_feed.any():
         i = int(np.argmax(bad_feed))
         raise PlanningError(
-            f"{where(i)}: feed move with F = {motion.feed_mm_min[i]}: needs a feed > 0 mm/min"
+            f"{_where(motion, file, i)}: feed move with F = {motion.feed_mm_min[i]}: needs a "
+            "feed > 0 mm/min"
         )
-    if machine is not None:
-        for axis, name in enumerate("xyz"):
-            travel = getattr(machine, name)
-            out = (pts[:, axis] < travel.min_mm - 1e-9) | (pts[:, axis] > travel.max_mm + 1e-9)
-            if out.any():
-                i = int(np.argmax(out))
-                raise PlanningError(
-                    f"{where(int(src[i]))}: {name.upper()} = {pts[i, axis]:.4f} mm is outside "
-                    f"machine '{machine.name}' travel [{travel.min_mm}, {travel.max_mm}] mm"
-                )
-        arcs = np.nonzero(motion.is_arc)[0]
-        if len(arcs):
-            r0 = arc_radius_mm(motion)[arcs]
-            ax = np.array([PLANE_AXES[int(p)] for p in motion.plane[arcs]])
-            ea = motion.end[arcs, ax[:, 0]] - motion.center[arcs, ax[:, 0]]
-            eb = motion.end[arcs, ax[:, 1]] - motion.center[arcs, ax[:, 1]]
-            r1 = np.hypot(ea, eb)
-            small = r0 < machine.min_arc_radius_mm
-            if small.any():
-                i = int(arcs[np.argmax(small)])
-                raise PlanningError(
-                    f"{where(i)}: arc radius {r0[np.argmax(small)]:.4f} mm is below machine "
-                    f"'{machine.name}' min_arc_radius_mm = {machine.min_arc_radius_mm} mm"
-                )
-            mismatch = np.abs(r1 - r0) > machine.arc_radius_tolerance_mm
-            if mismatch.any():
-                j = int(np.argmax(mismatch))
-                raise PlanningError(
-                    f"{where(int(arcs[j]))}: arc end radius {r1[j]:.4f} mm differs from its start "
-                    f"radius {r0[j]:.4f} mm by more than machine '{machine.name}' "
-                    f"arc_radius_tolerance_mm = {machine.arc_radius_tolerance_mm} mm"
-                )
-    if stock is not None:
-        xmin, xmax, ymin, ymax = stock.extent_mm
-        r = cutter.radius_mm if cutter is not None else 0.0
-        p0, p1 = lin.start, lin.end
-        # Part of each feed move over the stock (plus the cutter radius), Liang-Barsky clipping.
-        t0, t1 = np.zeros(len(p0)), np.ones(len(p0))
-        over = feed_seg[lin.source].copy()
-        for axis, lo, hi in ((0, xmin - r, xmax + r), (1, ymin - r, ymax + r)):
-            d = p1[:, axis] - p0[:, axis]
-            still = d == 0
-            over &= ~still | ((p0[:, axis] >= lo) & (p0[:, axis] <= hi))
-            with np.errstate(divide="ignore", invalid="ignore"):
-                ta = np.where(still, -np.inf, (lo - p0[:, axis]) / d)
-                tb = np.where(still, np.inf, (hi - p0[:, axis]) / d)
-            t0 = np.maximum(t0, np.minimum(ta, tb))
-            t1 = np.minimum(t1, np.maximum(ta, tb))
-        over &= t0 <= t1
-        dz = p1[:, 2] - p0[:, 2]
-        zlow = np.minimum(p0[:, 2] + t0 * dz, p0[:, 2] + t1 * dz)
-        below = over & (zlow < stock.bottom_mm - 1e-6)
-        if below.any():
-            i = int(np.argmax(below))
+
+
+def _check_travel(motion: Motion, lin: Linearized, machine: MachineConfig, file: str) -> None:
+    """Every point of the (linearised) path within the machine's X, Y and Z travel."""
+    pts = np.concatenate([lin.start, lin.end])
+    src = np.concatenate([lin.source, lin.source])
+    for axis, name in enumerate("xyz"):
+        travel = getattr(machine, name)
+        out = (pts[:, axis] < travel.min_mm - 1e-9) | (pts[:, axis] > travel.max_mm + 1e-9)
+        if out.any():
+            i = int(np.argmax(out))
             raise PlanningError(
-                f"{where(int(lin.source[i]))}: Z = {zlow[i]:.4f} mm leaves the stock: below "
-                f"its underside at {stock.bottom_mm} mm (the tool would cut the fixture)"
+                f"{_where(motion, file, int(src[i]))}: {name.upper()} = {pts[i, axis]:.4f} mm is "
+                f"outside machine '{machine.name}' travel [{travel.min_mm}, {travel.max_mm}] mm"
             )
+
+
+def _check_arcs(motion: Motion, machine: MachineConfig, file: str) -> None:
+    """Every arc's radius at least the control's smallest, its end radius within the
+    machine's tolerance of its start radius."""
+    arcs = np.nonzero(motion.is_arc)[0]
+    if not len(arcs):
+        return
+    r0 = arc_radius_mm(motion)[arcs]
+    ax = np.array([PLANE_AXES[int(p)] for p in motion.plane[arcs]])
+    ea = motion.end[arcs, ax[:, 0]] - motion.center[arcs, ax[:, 0]]
+    eb = motion.end[arcs, ax[:, 1]] - motion.center[arcs, ax[:, 1]]
+    r1 = np.hypot(ea, eb)
+    small = r0 < machine.min_arc_radius_mm
+    if small.any():
+        i = int(arcs[np.argmax(small)])
+        raise PlanningError(
+            f"{_where(motion, file, i)}: arc radius {r0[np.argmax(small)]:.4f} mm is below "
+            f"machine '{machine.name}' min_arc_radius_mm = {machine.min_arc_radius_mm} mm"
+        )
+    mismatch = np.abs(r1 - r0) > machine.arc_radius_tolerance_mm
+    if mismatch.any():
+        j = int(np.argmax(mismatch))
+        raise PlanningError(
+            f"{_where(motion, file, int(arcs[j]))}: arc end radius {r1[j]:.4f} mm differs from "
+            f"its start radius {r0[j]:.4f} mm by more than machine '{machine.name}' "
+            f"arc_radius_tolerance_mm = {machine.arc_radius_tolerance_mm} mm"
+        )
+
+
+def _check_stock_floor(
+    motion: Motion, lin: Linearized, stock: ZMap, cutter: Cutter | None, file: str
+) -> None:
+    """No feed move over the stock (plus the cutter radius) goes below its underside."""
+    xmin, xmax, ymin, ymax = stock.extent_mm
+    r = cutter.radius_mm if cutter is not None else 0.0
+    p0, p1 = lin.start, lin.end
+    # Part of each feed move over the stock (plus the cutter radius), Liang-Barsky clipping.
+    t0, t1 = np.zeros(len(p0)), np.ones(len(p0))
+    over = motion.is_feed[lin.source].copy()
+    for axis, lo, hi in ((0, xmin - r, xmax + r), (1, ymin - r, ymax + r)):
+        d = p1[:, axis] - p0[:, axis]
+        still = d == 0
+        over &= ~still | ((p0[:, axis] >= lo) & (p0[:, axis] <= hi))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ta = np.where(still, -np.inf, (lo - p0[:, axis]) / d)
+            tb = np.where(still, np.inf, (hi - p0[:, axis]) / d)
+        t0 = np.maximum(t0, np.minimum(ta, tb))
+        t1 = np.minimum(t1, np.maximum(ta, tb))
+    over &= t0 <= t1
+    dz = p1[:, 2] - p0[:, 2]
+    zlow = np.minimum(p0[:, 2] + t0 * dz, p0[:, 2] + t1 * dz)
+    below = over & (zlow < stock.bottom_mm - 1e-6)
+    if below.any():
+        i = int(np.argmax(below))
+        raise PlanningError(
+            f"{_where(motion, file, int(lin.source[i]))}: Z = {zlow[i]:.4f} mm leaves the stock: "
+            f"below its underside at {stock.bottom_mm} mm (the tool would cut the fixture)"
+        )
 
 
 def _holder_contacts(
@@ -244,6 +273,40 @@ def _holder_contacts(
         if over > _CONTACT_TOL_MM:
             out.append((name, over))
     return out
+
+
+def _holder_check_pieces(
+    stock: ZMap, tool: EndMill, p0: NDArray[np.float64], p1: NDArray[np.float64]
+) -> NDArray[np.int64]:
+    """The pieces after which the holder must be checked. The stock never rises, so its highest
+    point now bounds it for the whole program: pieces whose holder underside stays above it
+    need no check."""
+    if not len(p0):
+        return np.zeros(0, np.int64)
+    lowest_holder = np.minimum(p0[:, 2], p1[:, 2]) + tool.length_mm
+    check: NDArray[np.int64] = np.nonzero(
+        lowest_holder < float(stock.heights_mm.max()) - _CONTACT_TOL_MM
+    )[0]
+    return check
+
+
+def _record_contacts(
+    contacts: dict[tuple[int, str], HolderContact], stock: ZMap, tool: EndMill, motion: Motion,
+    s: int, p0: NDArray[np.float64], p1: NDArray[np.float64],
+) -> None:  # fmt: skip
+    """The holder's and spindle nose's contacts after the piece ``p0``-``p1`` of segment ``s``
+    into ``contacts``: the deepest per block and part."""
+    for name, over in _holder_contacts(stock, tool, p0.tolist(), p1.tolist()):
+        key = (int(motion.block[s]), name)
+        prev = contacts.get(key)
+        if prev is None or over > prev.overlap_mm:
+            contacts[key] = HolderContact(
+                block=int(motion.block[s]),
+                line=int(motion.line[s]),
+                part=name,
+                overlap_mm=over,
+                position_mm=(float(p1[0]), float(p1[1]), float(p1[2])),
+            )
 
 
 def simulate_motion(
@@ -288,13 +351,7 @@ def simulate_motion(
     # float32: 120 bytes a piece (a million-piece program: 120 MB)
     arcs = np.full((len(move), 3 * MAX_ARCS), np.nan, np.float32) if track_depth else None
     contacts: dict[tuple[int, str], HolderContact] = {}
-    # The stock never rises, so its highest point now bounds it for the whole program: pieces
-    # whose holder underside stays above it need no check.
-    if check_holder and len(move):
-        lowest_holder = np.minimum(p0[:, 2], p1[:, 2]) + tool.length_mm
-        check = np.nonzero(lowest_holder < float(stock.heights_mm.max()) - _CONTACT_TOL_MM)[0]
-    else:
-        check = np.zeros(0, np.int64)
+    check = _holder_check_pieces(stock, tool, p0, p1) if check_holder else np.zeros(0, np.int64)
     done = 0
     total = len(move)
 
@@ -315,18 +372,7 @@ def simulate_motion(
                 progress(done, total)
         if k is None:
             break
-        for name, over in _holder_contacts(stock, tool, p0[k].tolist(), p1[k].tolist()):
-            s = int(seg[k])
-            key = (int(motion.block[s]), name)
-            prev = contacts.get(key)
-            if prev is None or over > prev.overlap_mm:
-                contacts[key] = HolderContact(
-                    block=int(motion.block[s]),
-                    line=int(motion.line[s]),
-                    part=name,
-                    overlap_mm=over,
-                    position_mm=(float(p1[k, 0]), float(p1[k, 1]), float(p1[k, 2])),
-                )
+        _record_contacts(contacts, stock, tool, motion, int(seg[k]), p0[k], p1[k])
     # float with weights (numpy's stubs say int); no copy
     per_seg = np.bincount(seg, weights=removed, minlength=len(motion)).astype(
         np.float64, copy=False
