@@ -1,6 +1,7 @@
 """Typed contracts: mypy strict on analysis/, planning/ and rig/ but for the rig modules not
 strict yet (mypy's defaults there), no new error (the ``[tool.mypy]`` section of pyproject.toml;
-rig's files another branch edits now within a per-file ceiling), no ``Any`` in the signature of a public function there, and no bare dict
+rig's files another branch edits now within a per-file ceiling), no ``Any`` in the signature of a
+public function there, and no bare dict
 returned across a package face of analysis/, planning/ or rig/ (nor ``Any`` in rig's public
 signatures) but for the allow-lists, each entry with why.
 

@@ -5,7 +5,8 @@ and holder, machined on the same stock, so that the pencil or rest-roughing prog
 roughing left. :func:`simulate_motion` runs one program's canonical motion on a :class:`ZMap`
 (arcs linearised within a chordal tolerance, long moves cut in pieces), returns the volume removed
 per piece and per segment, and checks the holder and the spindle nose against the stock after
-every move (any contact is reported with its block). :class:`planning.stock.plans.OperationPlan` runs several in order.
+every move (any contact is reported with its block). :class:`planning.stock.plans.OperationPlan`
+runs several in order.
 
 Before anything is cut, :func:`check_motion` refuses a program the machine cannot run or that
 leaves the stock: a point outside the machine's travel, a feed move below the stock's underside,
