@@ -35,8 +35,6 @@ from planning.nc._grbl_steps import (
     _CW,
     _LINEAR,
     _NONE,
-    GrblResult,
-    GrblState,
     _Block,
     _check_block,
     _import_words,
@@ -48,6 +46,12 @@ from planning.nc._grbl_steps import GRBL_MAX_LINE_NUMBER as GRBL_MAX_LINE_NUMBER
 from planning.nc._grbl_steps import GRBL_MAX_TOOL_NUMBER as GRBL_MAX_TOOL_NUMBER
 from planning.nc._grbl_steps import GRBL_N_COORDINATE_SYSTEM as GRBL_N_COORDINATE_SYSTEM
 from planning.nc._grbl_steps import MM_PER_INCH as MM_PER_INCH
+from planning.nc._grbl_steps import (
+    GrblResult as GrblResult,  # re-exported: the simulated GRBL's parse of each line
+)
+from planning.nc._grbl_steps import (
+    GrblState as GrblState,
+)
 
 # -- GRBL 1.1h constants (config.h, planner.h, serial.h, gcode.c, defaults.h) -------------------
 GRBL_LINE_BUFFER_SIZE = 80  # protocol.h LINE_BUFFER_SIZE

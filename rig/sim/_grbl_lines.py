@@ -7,28 +7,17 @@ lines (``$$``, ``$G``, ``$I``, ``$X``, ``$H``, ``$n=value``). Mixed into
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from planning.nc import NCError
-from planning.nc.grbl import GRBL_MSG_PGM_END, GRBL_MSG_UNLOCKED, GrblResult, grbl_filter
+from planning.nc.grbl import GRBL_MSG_PGM_END, GRBL_MSG_UNLOCKED, grbl_filter
 from rig.sim._controller import _Planned
 from rig.sim._grbl_report import gcode_modes
+from rig.sim._grbl_state import GrblFields, _Pending
 
 
-@dataclass
-class _Pending:
-    """The line GRBL is busy with (out of the receive buffer, its answer not sent yet)."""
-
-    k: int  # order among the g-code lines received
-    res: GrblResult
-    planned: _Planned | None
-    stage: str  # "sync" (waits for the planner to empty) or "room" (waits for its answer)
-    t: float
-
-
-class GrblLinesMixin:
+class GrblLinesMixin(GrblFields):
     """The line protocol of SimGrbl: planner room, line processing, answers, ``$`` lines."""
 
     # -- planner ------------------------------------------------------------------------------

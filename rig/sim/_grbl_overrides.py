@@ -9,6 +9,7 @@ import math
 
 from planning.nc import DWELL, RAPID
 from rig.sim._controller import _Planned
+from rig.sim._grbl_state import GrblFields
 
 # config.h: MIN/MAX_FEED_RATE_OVERRIDE, MIN/MAX_SPINDLE_SPEED_OVERRIDE, %
 FEED_OVR_MIN, FEED_OVR_MAX, SPINDLE_OVR_MIN, SPINDLE_OVR_MAX = 10, 200, 10, 200
@@ -48,7 +49,7 @@ def first_new_segment_s(now_s: float) -> float:
     return (math.floor(now_s / DT_SEGMENT_S + 1e-9) + 1 + SEGMENTS_AHEAD) * DT_SEGMENT_S
 
 
-class GrblOverridesMixin:
+class GrblOverridesMixin(GrblFields):
     """Feed, rapid and spindle overrides of SimGrbl: taken at the byte, run at the segment
     boundary after the segments already prepared."""
 

@@ -97,7 +97,7 @@ from planning.nc.grbl import (
     GrblParser,
 )
 from rig.sim._controller import SimControllerBase, _Planned
-from rig.sim._grbl_lines import GrblLinesMixin, _Pending
+from rig.sim._grbl_lines import GrblLinesMixin
 from rig.sim._grbl_overrides import GrblOverridesMixin
 from rig.sim._grbl_report import (
     _CRITICAL_ALARMS,
@@ -107,6 +107,7 @@ from rig.sim._grbl_report import (
     StatusReport,
     wco_mm,
 )
+from rig.sim._grbl_state import _Pending
 
 
 class SimGrbl(GrblLinesMixin, GrblOverridesMixin, SimControllerBase):
