@@ -39,41 +39,25 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import errno
-import hashlib
 import json
 import math
-import os
 import queue
 import threading
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import h5py
 import numpy as np
 
 from analysis.runs import file as rf
 from rig.daq import Calibration, DaqEvent, DaqInfo
 from rig.log import space
-from rig.log._file import (
-    CHUNK_BYTES,
-    RunWriterError,
-    append_rows,
-    create_run_file,
-    disk_full_reason,
-    jsonable,
-    release_blocks,
-    reserve_blocks,
-    utc_now,
-    write_acks,
-    write_text,
-    write_zero_and_drift,
-)
+from rig.log._control import ControlRecords
+from rig.log._file import RunWriterError, create_run_file, release_blocks, utc_now, write_text
+from rig.log._room import DiskRoom
 from rig.log.space import (  # noqa: F401 - MIN_FREE_MB, free_space_problem: importable from here
-    _CLOSE_BYTES,
     _RESERVE_STEP,
     MIN_FREE_MB,
     _file_size_limit,
@@ -101,7 +85,7 @@ class WriterStats:
     max_flush_s: float  # longest flush
 
 
-class RunWriter:
+class RunWriter(ControlRecords, DiskRoom):
     """Write one run file; implements :class:`rig.daq.base.DaqSink`.
 
     Parameters
@@ -255,22 +239,6 @@ class RunWriter:
         np.copyto(buf[:n], data.T)
         self._filled.put((first_sample, n, buf))
 
-    def _record_drop(self, first: int, n: int) -> None:
-        self._blocks_dropped += 1
-        self._samples_dropped += n
-        if self._drop is not None and self._drop[0] + self._drop[1] == first:
-            self._drop[1] += n  # consecutive drops make one event
-        else:
-            if self._drop is not None:
-                self._flush_drop()
-            self._drop = [first, n]
-
-    def _flush_drop(self) -> None:
-        first, n = self._drop  # type: ignore[misc]
-        self._drop = None
-        msg = f"logger queue full: {n} samples dropped"
-        self._control.append(("event", DaqEvent(rf.EV_QUEUE_FULL, first, msg, lost=n)))
-
     def on_event(self, event: DaqEvent) -> None:
         if event.kind == rf.EV_STOP:
             with self._lock:
@@ -283,117 +251,6 @@ class RunWriter:
                     )  # fmt: skip
                     self._expect = event.sample
         self._control.append(("event", event))
-
-    # ------------------------------------------------------------------------------------------
-    # Thread-safe API for other threads.
-    # ------------------------------------------------------------------------------------------
-
-    def event(
-        self,
-        kind: str,
-        message: str = "",
-        *,
-        time_s: float | None = None,
-        sample: int | None = None,
-    ) -> None:
-        """Record an event (interlock, pause, fault, note ...) at run-clock ``time_s`` (default:
-        now) or at device ``sample``."""
-        if kind not in rf.EVENT_KINDS:
-            raise RunWriterError(
-                f"event kind {kind!r}: expected one of {', '.join(rf.EVENT_KINDS)}"
-            )
-        t = self.clock() if time_s is None and sample is None else time_s
-        self._control.append(
-            ("event", DaqEvent(kind, -1 if sample is None else int(sample), message,
-                               time_s=math.nan if t is None else float(t)))
-        )  # fmt: skip
-
-    def append_blocks(
-        self,
-        block: int | Sequence[int],
-        line: int | Sequence[int],
-        text: str | Sequence[str],
-        send_s: float | Sequence[float],
-        ack_s: float | Sequence[float] | None = None,
-        exec_s: float | Sequence[float] | None = None,
-    ) -> None:
-        """Append NC blocks sent by the DNC streamer (scalars or equal-length sequences).
-
-        block : 0-based block index; line : 1-based source line; text : the block as sent;
-        send_s, ack_s : run-clock times, s (ack NaN/None until acknowledged, see ack_blocks);
-        exec_s : run-clock time the control started executing the block, s (NaN/None: unknown).
-        """
-        blocks = np.atleast_1d(np.asarray(block, dtype=np.int64))
-        n = len(blocks)
-        texts = [text] if isinstance(text, str) else list(text)
-        lines = np.broadcast_to(np.asarray(line, dtype=np.int64), (n,))
-        sends = np.broadcast_to(np.asarray(send_s, dtype=np.float64), (n,))
-        acks = np.broadcast_to(
-            np.asarray(np.nan if ack_s is None else ack_s, dtype=np.float64), (n,)
-        )
-        if len(texts) != n:
-            raise RunWriterError(f"append_blocks: {n} block indices but {len(texts)} texts")
-        rows = np.zeros(n, dtype=rf.BLOCK_DTYPE)
-        rows["block"], rows["line"], rows["send_s"], rows["ack_s"] = blocks, lines, sends, acks
-        rows["exec_s"] = np.broadcast_to(
-            np.asarray(np.nan if exec_s is None else exec_s, dtype=np.float64), (n,)
-        )
-        for i, t in enumerate(texts):
-            b = t.encode("utf-8")
-            if len(b) > rf.BLOCK_TEXT_BYTES:
-                self.event(
-                    rf.EV_NOTE,
-                    f"block {blocks[i]} text is {len(b)} bytes; table keeps the first "
-                    f"{rf.BLOCK_TEXT_BYTES} (full text in meta/program)",
-                    time_s=float(sends[i]),
-                )
-            rows["text"][i] = b[: rf.BLOCK_TEXT_BYTES]
-        self._control.append(("blocks", rows))
-
-    def ack_blocks(self, block: int | Sequence[int], ack_s: float | Sequence[float]) -> None:
-        """Set the ack time (run clock, s) of blocks already appended (latest row per block)."""
-        b = np.atleast_1d(np.asarray(block, dtype=np.int64))
-        a = np.broadcast_to(np.asarray(ack_s, dtype=np.float64), b.shape)
-        self._control.append(("ack", (b.copy(), a.copy())))
-
-    def set_exec_times(
-        self, rows: Sequence[int], exec_s: Sequence[float], complete: bool = False
-    ) -> None:
-        """Set ``exec_s`` of the NC-blocks table by row (the k-th block sent is row k; NaN: it
-        never started): the control's own record of when each block ran, which replaces the
-        streamer's estimate (an estimate knows nothing of a feed hold). ``complete``: the record
-        names every block that started, so the rows it does not name never ran (NaN)."""
-        r = np.atleast_1d(np.asarray(rows, dtype=np.int64))
-        e = np.broadcast_to(np.asarray(exec_s, dtype=np.float64), r.shape)
-        self._control.append(("exec", (r.copy(), e.copy(), complete)))
-
-    def set_conditions(self, conditions: object) -> None:
-        """Cutting conditions (tool, material, spindle_rpm, feed_mm_min, fz_mm, depth_mm, ...):
-        a mapping, a dataclass or a pydantic model; stored as JSON, the latest call wins."""
-        self._control.append(("text", (rf.META_CONDITIONS, json.dumps(jsonable(conditions)))))
-
-    def set_rig(self, rig: Mapping[str, object]) -> None:
-        """Rig description (device, dynamometer, amplifier, calibration id, machine ...)."""
-        self._control.append(("text", (rf.META_RIG, json.dumps(jsonable(rig)))))
-
-    def set_program(self, text: str, name: str = "") -> None:
-        """The NC program sent in this run; its SHA-256 and line count go to program_info."""
-        info = {
-            "name": name,
-            "sha256": hashlib.sha256(text.encode("utf-8")).hexdigest(),
-            "lines": text.count("\n") + (0 if text.endswith("\n") or not text else 1),
-        }
-        self._control.append(("text", (rf.META_PROGRAM, text)))
-        self._control.append(("text", (rf.META_PROGRAM_INFO, json.dumps(info))))
-
-    def set_calibration(self, cal: Calibration, message: str = "") -> None:
-        """Update zero and drift (after reset/operate or a drift fit); the sheet values are fixed
-        when the file is created. Also records a ``zero`` event at ``cal.zero_time_s``."""
-        if rf.CAL_VOLTS_TO_N not in self._f:
-            raise RunWriterError(f"{self.path}: created without a calibration; cannot update it")
-        self._control.append(("cal", cal))
-        if math.isfinite(cal.zero_time_s):
-            self.event(rf.EV_ZERO, message or "amplifier zeroed", time_s=cal.zero_time_s)
 
     @contextlib.contextmanager
     def hold(self) -> Iterator[None]:
@@ -477,24 +334,6 @@ class RunWriter:
             raise RunWriterError(self.failure)
         return self.stats()
 
-    def _stored_rows(self) -> int:
-        """Samples per channel the closed file holds (read back; as the next read will see)."""
-        try:
-            with h5py.File(self.path, "r") as f:
-                return int(rf.samples_dataset(f).shape[0])
-        except Exception:  # noqa: BLE001 - not plainly openable: what its repair will keep
-            try:
-                return rf.load_run(self.path, samples=False, repair=False).samples_stored
-            except Exception:  # noqa: BLE001
-                return self._flushed_rows
-
-    def _final_status_of(self, status: str, reason: str) -> tuple[str, str]:
-        if self.failure is None:
-            return status, reason
-        if status == rf.STATUS_SUCCESS:
-            return rf.STATUS_FAIL, self.failure
-        return status, reason if self.failure in reason else f"{reason}; {self.failure}"
-
     def __enter__(self) -> RunWriter:
         return self
 
@@ -553,18 +392,6 @@ class RunWriter:
             with self._idle:
                 self._idle.notify_all()
 
-    def _abandon(self) -> None:
-        """Leave a file HDF5 failed to write: point its descriptor at /dev/null, so that closing
-        it (which HDF5 must, or it crashes at exit) writes nothing more to the disk."""
-        self._abandoned = True
-        with contextlib.suppress(Exception):
-            fd = self._f.id.get_vfd_handle()
-            null = os.open(os.devnull, os.O_RDWR)
-            os.dup2(null, fd)
-            os.close(null)
-        with contextlib.suppress(Exception):
-            self._f.close()
-
     def _take(self, item: tuple[int, int, np.ndarray]) -> None:
         """Append the first n rows of a filled pool buffer (n, c) to the samples dataset and
         return the buffer to the pool."""
@@ -603,112 +430,4 @@ class RunWriter:
                 f"{word}: {self.path.parent} has {free} free bytes ({free / 1e6:.0f} MB"
                 f" free), below the {self.min_free_mb:g} MB margin: recording stopped at sample "
                 f"{self._committed} before the disk fills"
-            )
-
-    def _stop(self, why: str) -> bool:
-        """Stop recording for ``why`` (a ``fault`` event; :attr:`failure`); False."""
-        if self.failure is None:
-            self.failure = why
-            ev = DaqEvent(rf.EV_FAULT, -1, why[-rf.EVENT_MESSAGE_BYTES :], time_s=self.clock())
-            self._control.append(("event", ev))
-        return False
-
-    def _ensure_room(self, add_bytes: int) -> bool:
-        """Hold the disk blocks the next ``add_bytes`` of samples, the samples written since the
-        last flush, a chunk HDF5 may start and the close's writes will go into, before HDF5
-        writes any of them; False (recording stopped) when the disk or the file size limit has
-        no room for them."""
-        if not self._reserving:
-            return self.failure is None
-        try:
-            size = os.fstat(self._fd).st_size
-        except OSError:
-            return self.failure is None
-        need_to = size + self._pending + add_bytes + CHUNK_BYTES + _CLOSE_BYTES
-        if need_to <= self._reserved_to:
-            return True
-        at = f"recording stopped at sample {self._committed}, every sample before it kept"
-        limit = self._size_limit
-        if limit is not None and need_to > limit:
-            return self._stop(f"file size limit reached: {self.path} may grow to {limit} bytes "
-                              f"(ulimit -f, RLIMIT_FSIZE): {at}")  # fmt: skip
-        want = need_to + _RESERVE_STEP + 2 * add_bytes
-        if limit is not None:
-            want = min(want, limit)
-        err = reserve_blocks(self._fd, size, want - size)
-        if err in (errno.ENOSPC, errno.EDQUOT) and want > need_to:
-            want = need_to  # the last bytes of the disk are still worth recording into
-            err = reserve_blocks(self._fd, size, want - size)
-        if err is None:  # the file system cannot: the margin and the write-error path remain
-            self._reserving = False
-            rf.prepare_reason_sidecar(self.path)  # a reason written later needs no new block
-            return self.failure is None
-        if err:
-            why = disk_full_reason(err, self.path.parent) or f"no disk space: {os.strerror(err)}"
-            return self._stop(f"{why}, fewer than the {need_to - size} the next samples and "
-                              f"the close may take: {at}")  # fmt: skip
-        self._reserved_to = want
-        return True
-
-    def _drain_control(self) -> None:
-        events: list[DaqEvent] = []
-        while self._control:
-            kind, payload = self._control.popleft()
-            if kind == "event":
-                events.append(payload)
-                continue
-            if events:  # keep order between events and the rest
-                self._write_events(events)
-                events = []
-            if kind == "text":
-                write_text(self._f, *payload)
-            elif kind == "blocks":
-                self._write_blocks(payload)
-            elif kind == "ack":
-                self._write_acks(*payload)
-            elif kind == "exec":
-                self._write_exec(*payload)
-            elif kind == "cal":
-                write_zero_and_drift(self._f, payload)
-        if events:
-            self._write_events(events)
-
-    def _write_events(self, events: list[DaqEvent]) -> None:
-        rows = np.zeros(len(events), dtype=rf.EVENT_DTYPE)
-        now = time.time()
-        rate, t0 = self.info.rate_hz, self._t0_s
-        for i, e in enumerate(events):
-            sample, t = e.sample, e.time_s
-            if sample < 0 and math.isfinite(t) and math.isfinite(t0):
-                sample = int(round((t - t0) * rate))
-            if not math.isfinite(t) and sample >= 0 and math.isfinite(t0):
-                t = t0 + sample / rate
-            rows[i] = (sample, e.lost, t, now, e.kind.encode()[:16],
-                       e.message.encode("utf-8")[: rf.EVENT_MESSAGE_BYTES])  # fmt: skip
-        append_rows(self._f[rf.EVENTS], rows)
-
-    def _write_blocks(self, rows: np.ndarray) -> None:
-        first = append_rows(self._f[rf.BLOCKS], rows)
-        self._block_rows.update(zip(rows["block"].tolist(), range(first, first + len(rows))))
-
-    def _write_exec(self, rows: np.ndarray, exec_s: np.ndarray, complete: bool) -> None:
-        ds = self._f[rf.BLOCKS]
-        ok = (rows >= 0) & (rows < ds.shape[0])
-        if ds.shape[0] and (ok.any() or complete):
-            table = ds[()]
-            if complete:
-                table["exec_s"] = np.nan
-            table["exec_s"][rows[ok]] = exec_s[ok]
-            ds[...] = table
-        if not ok.all():
-            self._write_events(
-                [DaqEvent(rf.EV_NOTE, -1, f"exec time for rows never appended: "
-                                          f"{rows[~ok][:10].tolist()}")]
-            )  # fmt: skip
-
-    def _write_acks(self, blocks: np.ndarray, acks: np.ndarray) -> None:
-        unknown = write_acks(self._f[rf.BLOCKS], self._block_rows, blocks, acks)
-        if unknown:
-            self._write_events(
-                [DaqEvent(rf.EV_NOTE, -1, f"ack for blocks never appended: {unknown[:10]}")]
             )
