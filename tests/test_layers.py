@@ -381,10 +381,7 @@ FUNCTION_MAX_LINES = 80
 
 # Today's offenders (issue 30 item 5), each with its size as a ceiling: an entry may shrink
 # and go, never grow; a new module or function over the limit is not allowed in.
-MODULES_OVER: dict[str, int] = {
-    # branch sizes (issue 30 item 5) did not get to these yet
-    "rig/log/writer.py": 714,
-}
+MODULES_OVER: dict[str, int] = {}
 FUNCTIONS_OVER: dict[str, int] = {}
 
 
