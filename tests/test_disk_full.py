@@ -208,7 +208,8 @@ import sys, time
 sys.path.insert(0, {str(ROOT)!r})
 import numpy as np
 from rig.log import writer as wm
-wm.reserve_blocks = lambda fd, offset, length: None  # as on a file system without fallocate
+from rig.log import _room  # where the writer reserves its blocks ahead
+_room.reserve_blocks = lambda fd, offset, length: None  # as on a file system without fallocate
 from tests.test_disk_full import _info, _blocks, fill
 from pathlib import Path
 info = _info()
