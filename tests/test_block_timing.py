@@ -21,6 +21,7 @@ import pytest
 
 from analysis.runs import file as rf
 from rig.campaign import load_campaign, run_campaign
+from rig.campaign.run import StopRequest
 from rig.sim.session import SimSession
 
 DATA = Path(__file__).parent / "data" / "campaign"
@@ -40,8 +41,9 @@ class _Holding:
     """A session factory whose session feed-holds the cutting block ``lead_s`` simulated s after
     it started, for ``hold_s`` simulated s, then presses cycle start."""
 
-    def __init__(self, hold_s: float, lead_s: float = 0.05) -> None:
-        self.hold_s, self.lead_s = hold_s, lead_s
+    def __init__(self, hold_s: float, lead_s: float = 0.05, stop: StopRequest | None = None
+                 ) -> None:  # fmt: skip
+        self.hold_s, self.lead_s, self.stop = hold_s, lead_s, stop  # stop: abort, not resume
         self.session: SimSession | None = None
         self.held_at: float | None = None
         self.resumed_at: float | None = None
@@ -72,6 +74,9 @@ class _Holding:
                 self.held_at = ctl._hold_t
                 if not clk.sleep_until(self.held_at + self.hold_s, s._stop):
                     break
+                if self.stop is not None:  # the operator aborts the held run
+                    self.stop.request(kill=True, source="console (client test)")
+                    return
                 ctl.cycle_start()
                 self.resumed_at = clk.now()
                 return
@@ -136,3 +141,38 @@ def test_block_table_follows_the_controller_through_a_feed_hold(
     err_before = max(abs(predicted[int(b)] - s) for b, s in zip(blocks["block"], starts)
                      if int(b) in predicted)  # fmt: skip
     print(f"hold {hold_s} s: streamer's estimate off by up to {err_before:.3f} s; table 0 s")
+
+
+def test_a_run_aborted_in_a_feed_hold_keeps_the_held_block_s_start(tmp_path: Path) -> None:
+    """Abort while the cutting block is held: the stop's reset drops that block from the
+    controller's finished ones, but it ran, so the block table keeps its start, and the browsed
+    toolpath (the console's, from the run file alone) reaches that block. (Without it, a run
+    aborted in its first cutting block browsed with an empty path: the Chromium tier's flake.)"""
+    from rig.console.run_path import run_toolpath
+
+    stop = StopRequest()
+    holder = _Holding(0.5, lead_s=0.3, stop=stop)
+    res = run_campaign(
+        load_campaign(_config(tmp_path)), progress=False, session_factory=holder,
+        only=lambda t: t.index == 0, stop=stop,
+    )  # fmt: skip
+    assert not holder.failed and holder.held_at is not None, holder.failed
+    r = res.runs[0]
+    assert r.status == "abort", (r.status, r.reason)
+    assert holder.session is not None
+    ctl = holder.session.controller
+    assert not any(b.text.startswith(CUT) for b in ctl.executed)  # it never finished
+    run = rf.load_run(r.file)
+    blocks = run.blocks
+    cut = blocks[blocks["text"].str.startswith(CUT)]
+    assert len(cut) == 1 and np.isfinite(cut["exec_s"].iloc[0])
+    assert cut["exec_s"].iloc[0] < holder.held_at  # started before the hold, 0.3 s before
+    path = run_toolpath(Path(r.file))
+    trail = path["trail"]
+    cut_seg = [g for g in path["toolpath"] if g[0] == int(cut["block"].iloc[0])]
+    assert trail and cut_seg and trail[-1][0] > cut["exec_s"].iloc[0], trail[-3:]
+    # it ends on the held block's line (where along it, the file cannot say: the hold was
+    # pressed on the controller's panel, which a drip feed does not hear; the estimate runs on)
+    (_, _, x0, y0, x1, y1, z0, z1) = cut_seg[0][:8]
+    x, y, z = trail[-1][1:4]
+    assert min(x0, x1) - 2e-3 <= x <= max(x0, x1) + 2e-3 and y == y0 == y1 and z == z0 == z1

@@ -126,6 +126,9 @@ class SimControllerBase(LockstepMixin, ExecutorMixin):
         self.framing_errors = 0
         self.max_fill = 0
         self.executed: list[ExecutedBlock] = []
+        # seq -> run-clock start of every block taken, finished or not: a reset after a feed
+        # hold drops the held block from `executed`, but it ran (its cut is in the record)
+        self.started_s: dict[int, float] = {}
         self.events: list[ControllerEvent] = []
         self.blocks_received = 0
         self.silent = False

@@ -241,6 +241,8 @@ class ExecutorMixin(ControllerState):
         self._cur = b
         self._seg_i = 0
         self._block_t0 = t0
+        if b.seq >= 0:
+            self.started_s[b.seq] = t0
         rpm = b.spindle_rpm * self._rpm_scale()
         if rpm != self._spindle:
             self._spindle = rpm

@@ -243,11 +243,8 @@ class SimSession:
         (row of the block table, i.e. order received; start s), the finished blocks and the one
         running or held when it stopped. Blocks it never started are left out."""
         ctl = self.controller
-        with ctl._lock:
-            starts = {b.seq: b.t_start_s for b in ctl.executed if b.seq >= 0}
-            cur = ctl._cur
-            if cur is not None and cur.seq >= 0:
-                starts[cur.seq] = ctl._block_t0
+        with ctl._lock:  # (the held block a stop's reset cut short is among them)
+            starts = dict(ctl.started_s)
         rows = sorted(starts)
         return rows, [starts[k] for k in rows]
 
