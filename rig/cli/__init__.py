@@ -9,6 +9,7 @@ prints its message and exits with status 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import functools
 import importlib
 import sys
 
@@ -40,9 +41,15 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+@functools.cache
+def _parser() -> argparse.ArgumentParser:
+    """Built once per process: the tests call ``main`` about 1 200 times in one process, and
+    argparse reads nothing but ``argv`` (no default depends on the working folder or the env)."""
+    return build_parser()
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    args = _parser().parse_args(argv)
     from rig.cli.common import error_line, heartbeat_for
 
     try:
