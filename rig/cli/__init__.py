@@ -40,12 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
         importlib.import_module(f"rig.cli.{name}").register(plan_sub)
     return parser
 
-
-@functools.cache
-def _parser() -> argparse.ArgumentParser:
-    """Built once per process: the tests call ``main`` about 1 200 times in one process, and
-    argparse reads nothing but ``argv`` (no default depends on the working folder or the env)."""
-    return build_parser()
+_parser = functools.cache(build_parser)  # once per process: tests call main ~1 200 times
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -119,6 +119,7 @@ class ControllerState:
     _seq: int
     # the executor
     executed: list[ExecutedBlock]
+    started_s: dict[int, float]
     silent: bool
     alarm: str
     held: bool
