@@ -145,7 +145,10 @@ def test_fault_then_resume_is_exact(protocol, knobs, kind, recovery, tmp_path) -
 
 
 def test_fanuc_overrun_is_alarm_087() -> None:
-    prog = line_program(60)
+    # ~38 kB, 0.8 s on the paced line: the alarm on byte 400 stops it mid-stream even when the
+    # controller's thread wakes late on a loaded host (60 lines were streamed whole in 43 ms, and
+    # a controller 43 ms late let the send end before its XOFF: the test's flake under load)
+    prog = line_program(1500)
     ctl = fanuc_sim(4.0, sim_overrun_at_byte=400)
     with ctl:
         with pytest.raises(StreamFault) as ei:
