@@ -15,6 +15,7 @@ from rig.report import write_report
 DATA = Path(__file__).parent / "data" / "campaign"
 
 
+@pytest.mark.long
 def test_facemill_campaign_identifies_the_truth_and_writes_the_report(tmp_path: Path) -> None:
     text = (DATA / "quick.toml").read_text().replace('"OUT"', f'"{tmp_path / "out"}"')
     text = text.replace("FAULTS", "hum_n = 0.0").replace("block_length_mm = 10.0",
@@ -71,6 +72,7 @@ def test_facemill_campaign_identifies_the_truth_and_writes_the_report(tmp_path: 
     assert "| K_T_n_mm2 |" in rep.markdown
 
 
+@pytest.mark.long
 def test_afc_post_processed_feeds_shorten_the_cut_and_even_the_force(tmp_path: Path) -> None:
     c = load_campaign("afc-step-depth")
     res = run_campaign(c, out_root=tmp_path, progress=False)

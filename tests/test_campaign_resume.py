@@ -133,6 +133,7 @@ depth_mm = 0.3
 """
 
 
+@pytest.mark.long
 def test_dry_run_lists_every_problem_at_once_and_runs_nothing(tmp_path: Path) -> None:
     cfg = tmp_path / "bad.toml"
     cfg.write_text(BAD.replace('"OUT"', json.dumps(str(tmp_path / "out"))))

@@ -36,6 +36,7 @@ def _runs(result):  # noqa: ANN001, ANN202
     return {r.index: r for r in result.runs}
 
 
+@pytest.mark.long
 def test_campaign_runs_records_everything_and_resumes(tmp_path: Path) -> None:
     c = load_campaign(_config(tmp_path))
     res = run_campaign(c, progress=False)
@@ -67,6 +68,7 @@ def test_status_of_a_campaign_that_has_not_run_lists_every_run_missing(tmp_path:
     assert [(r["run"], r["status"]) for r in st["runs"]] == [(0, "missing"), (1, "missing")]
 
 
+@pytest.mark.long
 def test_controller_that_stops_answering_fails_the_run_and_resume_reruns_it(
     tmp_path: Path,
 ) -> None:

@@ -800,6 +800,7 @@ def test_the_logger_flag_when_the_daq_loses_samples(tmp_path: Path) -> None:
     print(f"logger flagged: {text}")
 
 
+@pytest.mark.long
 def test_browse_shows_a_finished_run_s_toolpath_from_its_file(tmp_path: Path) -> None:
     """A finished run browsed (``cutlab console FOLDER``): both toolpath views show its program
     and its executed path from the run file alone. The page's planned segments are LinuxCNC's

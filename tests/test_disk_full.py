@@ -122,6 +122,7 @@ def _check_recording(res: subprocess.CompletedProcess[str], out: Path, why: str)
     return stored
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("medium", ["tmpfs", "ulimit"])
 def test_disk_full_before_the_first_sample(tmp_path: Path, medium: str) -> None:
     """Room to create the file but not to hold its first chunk and its close: nothing is
@@ -140,6 +141,7 @@ def test_disk_full_before_the_first_sample(tmp_path: Path, medium: str) -> None:
         assert _check_recording(res, out, why) == 0
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("medium", ["tmpfs", "ulimit"])
 def test_disk_full_mid_recording(tmp_path: Path, medium: str) -> None:
     """The recording fills a 8 MiB disk (or hits a 8 MiB file size limit) part way: every sample

@@ -41,6 +41,7 @@ def _stop_sim(proc: subprocess.Popen) -> dict:
     return json.loads(out)
 
 
+@pytest.mark.long
 def test_send_to_sim_controller_with_restart_and_record(tmp_path, capsys) -> None:
     prog = line_program(80, grbl=True)  # 0.7 s of motion: a few 5 Hz status reports
     nc = tmp_path / "part.nc"

@@ -70,6 +70,7 @@ def _entry(depth):
     return entry_s(TOOL, c)
 
 
+@pytest.mark.long
 def test_exports_and_their_imported_run_files_bound_the_entry_alike(exports, tmp_path, capsys):
     d, files, _ = exports
     rc, direct = _analyze(files, capsys)

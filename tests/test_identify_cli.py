@@ -53,6 +53,7 @@ def exports(tmp_path_factory):
     return files
 
 
+@pytest.mark.long
 def test_forces_json_and_validation(exports, tmp_path, capsys):
     fit_files, other = exports[:3], exports[3]
     rc = main(["analyze", "forces", *map(str, fit_files), "--validate", str(other),

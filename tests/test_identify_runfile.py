@@ -143,6 +143,7 @@ def _errors_pct(coefficients: dict) -> dict[str, float]:
     return {k: 100 * (coefficients[k] / getattr(TRUE, k) - 1) for k in coefficients}
 
 
+@pytest.mark.long
 def test_cli_default_steady_window_recovers_the_truth_across_block_entry(block_files, capsys):
     # The bound the demo's report meets (tests/test_campaign_report.py): 2 % on K_T, K_R, P_T,
     # P_R. At the old 5 % window the entry revolutions at 95-98 % of the level bias P_R by ~14 %.

@@ -124,6 +124,7 @@ def test_exports_with_air_recover_the_coefficients(lab):
     assert out["coefficient_units"]["Ktc"] == "N/mm^2" and out["coefficient_units"]["Kae"] == "N/mm"
 
 
+@pytest.mark.long
 def test_steady_only_export_is_taken_as_zeroed_and_says_so(lab):
     ex = load_export(lab["steady"][0], axes=TRUE_AXES, layers=[("row", {
         "spindle_rpm": RPM, "feed_mm_min": 300, "ap_mm": AP_MM, "ae_mm": DIAMETER_MM,

@@ -112,6 +112,7 @@ def test_tool_with_corner_radius_above_radius_is_refused(tmp_path, capsys, monke
     )
 
 
+@pytest.mark.long
 def test_grbl_dialect_is_refused_and_linuxcnc_is_written(tmp_path, capsys):
     cfg = tmp_path / "fan.toml"
     cfg.write_text(small(FAN.read_text(), "[0.5]", 3))

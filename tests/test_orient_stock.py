@@ -65,6 +65,7 @@ def test_two_ball_passes_leave_the_scallop_of_their_stepover():
     assert (dex.top_mm[mid] >= -1e-9).all()  # touching the design surface is no gouge
 
 
+@pytest.mark.long
 def test_a_tilted_flat_cutter_touches_with_its_rim():
     """A flat end mill leaning 10 deg back along the feed, its lowest rim point on the surface:
     the heel cuts nothing below z = 0, the mark is as wide as the cutter. The sharp heel leaves

@@ -24,6 +24,7 @@ def cli(argv: list[str], capsys) -> tuple[int, str, str]:
 DEEP = "G21 G90 G17\nS1000 M3\nG0 X-15 Y0 Z5\nG1 Z-37.8 F100\nG1 X100 F300\nG0 Z5\nM30\n"
 
 
+@pytest.mark.long
 def test_check_flags_the_deep_hss_slot(tmp_path: Path, capsys) -> None:
     prog = tmp_path / "deep.nc"
     prog.write_text(DEEP)

@@ -124,6 +124,7 @@ def cutting_blocks(table: pd.DataFrame) -> pd.DataFrame:
     return table[table["twin_peak_n"] > 1.0]
 
 
+@pytest.mark.long
 def test_every_cutting_block_mean_and_peak_within_10_pct(table: pd.DataFrame) -> None:
     cut = cutting_blocks(table)
     assert len(cut) == 30 and list(table.index.difference(cut.index)) == [44]

@@ -75,6 +75,7 @@ def grows(f: np.ndarray, rpm: float) -> bool:
     return bool(d[10:].max() > 1.2 * d[0])
 
 
+@pytest.mark.long
 def test_closed_form_minimum() -> None:
     a_min = min(zoa_slot(rpm)[0] for rpm in np.linspace(3000, 30000, 400))
     assert 2 * K * ZETA * (1 + ZETA) / (2 * KN * 1e6 / 4) * 1e3 == pytest.approx(0.298, abs=1e-3)

@@ -19,6 +19,7 @@ def small_part(tmp_path):
     return write_toml(tmp_path, part_toml(x, y, z, top=43.0, tool="phi10-flat"))
 
 
+@pytest.mark.long
 def test_json_program_and_pictures(small_part, tmp_path, capsys):
     out = tmp_path / "out" / "rough.nc"
     code = main(["plan", "rough", str(small_part), "-o", str(out), "--json",

@@ -78,6 +78,7 @@ def test_time_objective_plan_is_no_slower_than_the_path_one(tmp_path, bump_text)
     assert plan_p.path_mm <= plan_t.path_mm + 1e-6
 
 
+@pytest.mark.long
 def test_stl_part_plans(tmp_path):
     mesh = trimesh.creation.box(extents=(80, 80, 10))
     mesh.apply_translation((40, 40, 5))

@@ -35,6 +35,7 @@ def _check(part, planner, plan, spacing=1.0):
     )
 
 
+@pytest.mark.long
 def test_shipped_part_is_what_the_issue_asks(shipped):
     part, planner, _ = shipped
     cfg = part.config

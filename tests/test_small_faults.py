@@ -350,6 +350,7 @@ def test_a_matrix_of_4_million_runs_is_one_line_at_once(tmp_path: Path):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.long
 def test_the_matrix_cap_counts_every_table(tmp_path: Path):
     from analysis.errors import ConfigError
     from rig.campaign import load_campaign

@@ -49,6 +49,7 @@ def reference() -> pd.DataFrame:
     return pd.read_csv(DATA)
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("name", list(CASES))
 def test_lobes_match_the_published_code(reference: pd.DataFrame, name: str) -> None:
     ref = reference[reference["case"] == name]
