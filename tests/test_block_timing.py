@@ -48,6 +48,7 @@ class _Holding:
         self.held_at: float | None = None
         self.resumed_at: float | None = None
         self.failed = ""
+        self.writer = None  # the run's writer, once started
 
     def __call__(self, campaign, plan, run_index):  # noqa: ANN001, ANN204
         s = SimSession(campaign, plan, run_index)
@@ -56,6 +57,7 @@ class _Holding:
 
         def start_and_hold(program, writer):  # noqa: ANN001, ANN202
             start(program, writer)
+            self.writer = writer
             threading.Thread(target=self._hold, args=(s,), daemon=True).start()
 
         s.start = start_and_hold  # type: ignore[method-assign]
@@ -74,7 +76,8 @@ class _Holding:
                 self.held_at = ctl._hold_t
                 if not clk.sleep_until(self.held_at + self.hold_s, s._stop):
                     break
-                if self.stop is not None:  # the operator aborts the held run
+                if self.stop is not None:  # held from the console (recorded), then aborted
+                    self.writer.event(rf.EV_PAUSE, "console: feed hold", time_s=self.held_at)
                     self.stop.request(kill=True, source="console (client test)")
                     return
                 ctl.cycle_start()
@@ -146,8 +149,9 @@ def test_block_table_follows_the_controller_through_a_feed_hold(
 def test_a_run_aborted_in_a_feed_hold_keeps_the_held_block_s_start(tmp_path: Path) -> None:
     """Abort while the cutting block is held: the stop's reset drops that block from the
     controller's finished ones, but it ran, so the block table keeps its start, and the browsed
-    toolpath (the console's, from the run file alone) reaches that block. (Without it, a run
-    aborted in its first cutting block browsed with an empty path: the Chromium tier's flake.)"""
+    toolpath (the console's, from the run file alone) ends where the tool was held: the estimate
+    stops through the hold the run file records. (Without the start, a run aborted in its first
+    cutting block browsed with an empty path: the Chromium tier's flake.)"""
     from rig.console.run_path import run_toolpath
 
     stop = StopRequest()
@@ -169,10 +173,24 @@ def test_a_run_aborted_in_a_feed_hold_keeps_the_held_block_s_start(tmp_path: Pat
     assert cut["exec_s"].iloc[0] < holder.held_at  # started before the hold, 0.3 s before
     path = run_toolpath(Path(r.file))
     trail = path["trail"]
-    cut_seg = [g for g in path["toolpath"] if g[0] == int(cut["block"].iloc[0])]
-    assert trail and cut_seg and trail[-1][0] > cut["exec_s"].iloc[0], trail[-3:]
-    # it ends on the held block's line (where along it, the file cannot say: the hold was
-    # pressed on the controller's panel, which a drip feed does not hear; the estimate runs on)
-    (_, _, x0, y0, x1, y1, z0, z1) = cut_seg[0][:8]
-    x, y, z = trail[-1][1:4]
-    assert min(x0, x1) - 2e-3 <= x <= max(x0, x1) + 2e-3 and y == y0 == y1 and z == z0 == z1
+    assert trail and trail[-1][0] > cut["exec_s"].iloc[0], trail[-3:]
+    # the tool stood still from the hold to the end: the path ends where the controller held it
+    assert np.allclose(trail[-1][1:4], ctl._pos, atol=2e-3), (trail[-1], ctl._pos)
+    assert trail[-1][0] <= holder.held_at + 1e-3  # (the end's point: the hold's start)
+
+
+def test_the_browsed_path_s_clock_stands_still_through_the_recorded_holds() -> None:
+    """Held 2-5 s and from 7 s to the end (pause, resume, pause events): by hand, motion time
+    runs 0-2, stands, runs 2-4 from 5 to 7 s, then stands."""
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from rig.console.run_path import _HoldClock
+
+    events = pd.DataFrame({"kind": ["start", "pause", "resume", "note", "pause", "stop"],
+                           "time_s": [0.0, 2.0, 5.0, 6.0, 7.0, 9.0]})  # fmt: skip
+    clock = _HoldClock(SimpleNamespace(events=events))  # type: ignore[arg-type]
+    t = np.array([1.0, 2.0, 3.0, 5.0, 6.0, 7.0, 9.0])
+    assert clock.moving(t).tolist() == [1.0, 2.0, 2.0, 2.0, 3.0, 4.0, 4.0]
+    assert [clock.run(m) for m in (1.0, 2.0, 2.5, 4.0)] == [1.0, 2.0, 5.5, 7.0]

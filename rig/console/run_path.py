@@ -3,7 +3,9 @@ path (the stored program interpreted with the recorded machine, as the live view
 the executed path, estimated as the drip feed's DRO is (a run file holds no positions): each
 executed block's segments at the program's feeds from the block's recorded execution start,
 squeezed to end before the next block started (the controller had finished it by then), the
-last one cut off where the run ended. Each point carries the feed and the force there.
+last one cut off where the run ended; the tool stands still through the feed holds the run
+recorded (a pause event to the next resume, or to the end). Each point carries the feed and the
+force there.
 
 A point is ``[t_s, x_mm, y_mm, z_mm, feed_mm_min, force_n]`` as in :mod:`rig.console.trail`;
 force: the mean resultant of the run file's calibrated forces since the point before (None
@@ -61,10 +63,13 @@ def _executed(pp: ProgramPath, run: rf.Run) -> list[list[float | None]]:
     """The executed points (see the module docstring), in time order."""
     b = run.blocks
     ok = np.isfinite(b["exec_s"].to_numpy(float))
-    starts = sorted(zip(b["exec_s"].to_numpy(float)[ok].tolist(),
+    clock = _HoldClock(run)
+    # on the clock that stops in a hold: the estimate runs at the program's feeds on it
+    starts = sorted(zip(clock.moving(b["exec_s"].to_numpy(float)[ok]).tolist(),
                         b["block"].to_numpy(int)[ok].tolist()))  # fmt: skip
     t_end = run.t0_s + run.duration_s if math.isfinite(run.t0_s) else math.inf
-    forces = _Forces(run)
+    t_end = float(clock.moving(np.array([t_end]))[0]) if math.isfinite(t_end) else t_end
+    forces = _Forces(run, clock)
     points: list[list[float | None]] = []
     for k, (t0, block) in enumerate(starts):
         idx = pp.by_block.get(int(block))
@@ -85,6 +90,43 @@ def _executed(pp: ProgramPath, run: rf.Run) -> list[list[float | None]]:
     return points
 
 
+class _HoldClock:
+    """The run clock without the run's feed holds (a pause event to the next resume, or to the
+    end): ``moving`` maps run-clock times onto it, ``run`` maps back (a hold's start, for a time
+    the tool stood at)."""
+
+    def __init__(self, run: rf.Run) -> None:
+        holds: list[tuple[float, float]] = []
+        t_hold = None
+        ev = run.events
+        for kind, t in zip(ev["kind"], ev["time_s"].to_numpy(float)):
+            if kind == rf.EV_PAUSE and t_hold is None and math.isfinite(t):
+                t_hold = float(t)
+            elif kind == rf.EV_RESUME and t_hold is not None and t >= t_hold:
+                holds.append((t_hold, float(t)))
+                t_hold = None
+        if t_hold is not None:
+            holds.append((t_hold, math.inf))
+        self.start = np.array([a for a, _ in holds])
+        self.held_before = np.concatenate([[0.0], np.cumsum([b - a for a, b in holds])])
+
+    def moving(self, t: np.ndarray) -> np.ndarray:
+        if not len(self.start):
+            return t
+        k = np.searchsorted(self.start, t, side="right")  # holds begun by t
+        i = np.maximum(k - 1, 0)  # the last one begun (where k > 0)
+        inside = np.minimum(t - self.start[i], np.diff(self.held_before)[i])
+        moved: np.ndarray = t - self.held_before[i] - np.where(k > 0, inside, 0.0)
+        return moved
+
+    def run(self, m: float) -> float:
+        if not len(self.start):
+            return m
+        starts_m = self.start - self.held_before[:-1]  # each hold's start on this clock
+        k = int(np.searchsorted(starts_m, m, side="left"))  # holds wholly before m
+        return float(m + self.held_before[k])
+
+
 def _segment(pp: ProgramPath, i: int, t0: float, squeeze: float, t_stop: float,
              points: list[list[float | None]], forces: _Forces) -> float:  # fmt: skip
     """Segment ``i`` from run clock ``t0``: its points added (every STEP_S at most, up to
@@ -95,7 +137,7 @@ def _segment(pp: ProgramPath, i: int, t0: float, squeeze: float, t_stop: float,
     a, e = m.start[i, :3].astype(float), m.end[i, :3].astype(float)
     d_s = float(pp.dur_s[i]) * squeeze
     feed = float(m.feed_mm_min[i]) if m.kind[i] != 0 else pp.rapid_mm_min
-    if not points or float(points[-1][0] or 0.0) < round(t0, 3):  # (it waited there)
+    if not points or float(points[-1][0] or 0.0) < round(forces.clock.run(t0), 3):  # (it waited)
         _add(points, t0, a, feed, forces)
     if d_s <= 0:
         if _mm(e) != points[-1][1:4]:
@@ -116,7 +158,7 @@ def _segment(pp: ProgramPath, i: int, t0: float, squeeze: float, t_stop: float,
 def _add(points: list[list[float | None]], t: float, p: np.ndarray, feed: float,
          forces: _Forces) -> None:  # fmt: skip
     """A point at run clock ``t``, its force over the time since the point before (none first)."""
-    t_ms = round(t, 3)  # the force over the time stated
+    t_ms = round(forces.clock.run(t), 3)  # the force over the time stated, on the run clock
     force = forces.mean(float(points[-1][0]), t_ms) if points else None  # type: ignore[arg-type]
     points.append([t_ms, *_mm(p), round(feed, 1), force])
 
@@ -128,7 +170,8 @@ def _mm(p: np.ndarray) -> list[float]:
 class _Forces:
     """Mean resultant force between two run-clock times, from the run file's samples."""
 
-    def __init__(self, run: rf.Run) -> None:
+    def __init__(self, run: rf.Run, clock: _HoldClock) -> None:
+        self.clock = clock  # the points' times are on the clock without holds
         self.t = np.asarray(run.time_s, float)
         f = run.force_n
         self.resultant = None if f is None else np.sqrt((np.asarray(f, float) ** 2).sum(axis=1))
