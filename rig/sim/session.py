@@ -189,6 +189,12 @@ class SimSession:
         pace = line_bytes_per_s(cfg) * self.sim_clock.speed
         self.streamer = cls(cfg, sink=LoggerSink(writer), clock=self.clock,
                             pace_bytes_per_s=pace)  # fmt: skip
+        if hasattr(self.controller, "peer"):  # GRBL's conversation in lockstep too
+            from rig.sim._grbl_lockstep import StreamerPeer
+
+            peer = StreamerPeer(self.sim_clock, self.controller, self.streamer)
+            self.streamer.lockstep = peer  # type: ignore[union-attr]
+            self.controller.peer = peer  # type: ignore[union-attr]
 
         def stream() -> None:
             try:
