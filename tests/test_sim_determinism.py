@@ -95,6 +95,16 @@ def _reduced_feed_sweep(tmp_path: Path, feeds: str, block_length_mm: float) -> P
     return p
 
 
+def _on_grbl(config: Path) -> Path:
+    """The same campaign on the GRBL mill, streamed with GRBL's protocol (the character-counting
+    window, ``?`` polls, the $G handshake) to the simulated GRBL."""
+    text = config.read_text()
+    text = re.sub(r'machine = "[^"]*"', 'machine = "lab-grbl"', text, count=1)
+    text = text.replace("[sim]\n", '[sim]\nprotocol = "grbl"\n', 1)
+    config.write_text(text)
+    return config
+
+
 def _fingerprint(folder: Path) -> dict[str, tuple[int, str, str, str]]:
     """Per run file: (samples, sha256 of the force dataset, of the zero and drift taken from
     the rests (what turns its volts into newtons), of the block table's execution starts)."""
@@ -146,6 +156,17 @@ def test_a_reduced_feed_sweep_is_bit_identical_beside_two_busy_processes(tmp_pat
     quiet, busy = _quiet_and_busy(cfg, tmp_path)
     assert len(quiet) == 4 and quiet == busy
     assert _base_feed(tmp_path / "quiet") == _base_feed(tmp_path / "busy") == 1000.0
+
+
+@pytest.mark.long
+def test_a_reduced_feed_sweep_on_grbl_is_bit_identical_beside_two_busy_processes(
+    tmp_path: Path,
+) -> None:
+    # GRBL's stream is a conversation (an ok frees room, the next line goes out; '?' polls):
+    # the host's turnaround used to pass on the clock and moved the program's start by 10-60 ms
+    cfg = _on_grbl(_reduced_feed_sweep(tmp_path, "600, 1200", 12.0))
+    quiet, busy = _quiet_and_busy(cfg, tmp_path)
+    assert len(quiet) == 2 and quiet == busy
 
 
 @pytest.mark.slow

@@ -230,6 +230,8 @@ class GrblStreamer(StreamerBase):
         with self._ovr.lock:
             t = self.clock()  # before the write: the byte cannot arrive before its time
             self._rt(bytes([code]))
+            if self.lockstep is not None:  # read before the simulated clock moves on
+                self.lockstep.settle()
             self._ovr.wrote(t, code)
             if not self.sink_closed():
                 with contextlib.suppress(ValueError, DncError):  # closed meanwhile

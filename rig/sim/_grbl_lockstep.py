@@ -133,10 +133,11 @@ class StreamerPeer:
     def sleep_until(self, t_s: float, stop: threading.Event) -> bool:
         return bool(self.clock.sleep_until(t_s, stop))
 
-    def settle(self, stop: threading.Event) -> bool:
+    def settle(self, stop: threading.Event | None = None) -> bool:
         """Wait (wall) until the controller has read every byte the streamer wrote; False if
         ``stop`` was set or :data:`LINE_GATE_WALL_S` passed first."""
         end = time.monotonic() + LINE_GATE_WALL_S
+        stop = stop if stop is not None else threading.Event()
         while self.ctl._bytes_read - self.ctl._bytes_read0 < self._written():
             if time.monotonic() > end or stop.wait(0.0005):
                 return False

@@ -114,8 +114,12 @@ class SimSession:
         self.port = self.controller.start()
 
     def _source(self, t0_s: float, n: int, rate_hz: float) -> np.ndarray:
-        """The machine's volts, after the controller has run up to the last sample's time."""
-        self.controller.advance_to(t0_s + max(n - 1, 0) / rate_hz)
+        """The machine's volts, after the controller has run up to the block's end (the next
+        sample's time, where the DAQ's gate holds the clock): what happens there (a GRBL override
+        due on the segment grid splits the line) is then in the timeline before the samples are
+        computed, not added by the controller's thread while they are (a rounding apart)."""
+        daq_t0 = self.daq._t0_s  # the DAQ's own expression of its gate, to the last bit
+        self.controller.advance_to(daq_t0 + (round((t0_s - daq_t0) * rate_hz) + n) / rate_hz)
         return self.machine.source(t0_s, n, rate_hz)
 
     def _make_controller(self, campaign: SimCampaign, faults: bool) -> SimFanuc | SimGrbl:
@@ -248,6 +252,11 @@ class SimSession:
         """The controller's own record of when each block it took started, on the run clock:
         (row of the block table, i.e. order received; start s), the finished blocks and the one
         running or held when it stopped. Blocks it never started are left out."""
+        # the table's rows are the streamer's: its sink appends them when the stream ends (for
+        # GRBL after the Idle report that follows the program's end); starts set before that
+        # were lost ("rows never appended") and the streamer's estimates stayed, now and then
+        if self._thread is not None:
+            self._stream_done.wait(self.link_timeout_s + 5.0)
         ctl = self.controller
         with ctl._lock:  # (the held block a stop's reset cut short is among them)
             starts = dict(ctl.started_s)
