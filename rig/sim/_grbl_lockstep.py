@@ -60,10 +60,10 @@ class GrblLockstepMixin(GrblLinesMixin):
             # clock there) until the streamer has taken it and reacted
             self.clock.gate(f"reply-{id(self)}", self.clock.now())
             self._reply_mark = time.monotonic()
-        super()._send(data)  # type: ignore[misc]
+        super()._send(data)
 
     def _update_gates(self) -> None:
-        super()._update_gates()  # type: ignore[misc]
+        super()._update_gates()
         if not self.lockstep:
             return
         self.clock.gate(f"grbl-{id(self)}", self._grbl_gate_t())
@@ -78,7 +78,8 @@ class GrblLockstepMixin(GrblLinesMixin):
                                        self._bytes_read - self._bytes_read0)  # fmt: skip
         if not done and time.monotonic() - self._reply_mark > LINE_GATE_WALL_S:
             done = True
-            self._event("lockstep", f"streamer idle for {LINE_GATE_WALL_S:g} wall s: reply gate off")
+            why = f"the streamer took no answer for {LINE_GATE_WALL_S:g} wall s: reply gate off"
+            self._event("lockstep", why)
         if done:
             self._reply_mark = None
             self.clock.gate(f"reply-{id(self)}", None)

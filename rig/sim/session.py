@@ -198,7 +198,7 @@ class SimSession:
 
             peer = StreamerPeer(self.sim_clock, self.controller, self.streamer)
             self.streamer.lockstep = peer  # type: ignore[union-attr]
-            self.controller.peer = peer  # type: ignore[union-attr]
+            self.controller.peer = peer
 
         def stream() -> None:
             try:
