@@ -106,7 +106,8 @@ class GrblStreamer(StreamerBase):
     mode : ``"char-counting"`` or ``"send-response"``
     rx_buffer_bytes : what character counting may have in GRBL's receive buffer (127)
     status_hz : status polls per wall second (0: none; then no executing block, no lost-answer
-        detection: silence for ``timeout_s`` is the only limit)
+        detection: silence for ``timeout_s`` is the only limit); per simulated second under the
+        simulated rig's ``lockstep``
     wait_idle : after the last ``ok``, wait until GRBL reports ``Idle`` (the motion has run)
     unlock : if GRBL is in ``Alarm`` at the start, send ``$X`` (else that is a fault)
     halt_on_error : on ``error:N``, halt (feed hold, Hold:0, soft reset) so nothing after it runs
