@@ -246,17 +246,22 @@ class SimSession:
     def executed_blocks(self) -> list[tuple[int, float, float, str]]:
         """(order received, start s, end s, text) of every block the controller executed, on
         the run clock: the block clock the samples share."""
+        self._stream_over()
         return [(b.seq, b.t_start_s, b.t_end_s, b.text) for b in self.controller.executed]
+
+    def _stream_over(self) -> None:
+        """Wait for the streamer's end: the block table's rows are its, its sink appends them
+        when the stream ends (for GRBL after the Idle report that follows the program's end);
+        starts set before that were lost ("rows never appended") and the streamer's estimates
+        stayed, and its end event fell among the run's notes, now and then."""
+        if self._thread is not None:
+            self._stream_done.wait(self.link_timeout_s + 5.0)
 
     def block_starts(self) -> tuple[list[int], list[float]]:
         """The controller's own record of when each block it took started, on the run clock:
         (row of the block table, i.e. order received; start s), the finished blocks and the one
         running or held when it stopped. Blocks it never started are left out."""
-        # the table's rows are the streamer's: its sink appends them when the stream ends (for
-        # GRBL after the Idle report that follows the program's end); starts set before that
-        # were lost ("rows never appended") and the streamer's estimates stayed, now and then
-        if self._thread is not None:
-            self._stream_done.wait(self.link_timeout_s + 5.0)
+        self._stream_over()
         ctl = self.controller
         with ctl._lock:  # (the held block a stop's reset cut short is among them)
             starts = dict(ctl.started_s)
