@@ -167,6 +167,20 @@ def test_a_reduced_feed_sweep_on_grbl_is_bit_identical_beside_two_busy_processes
     cfg = _on_grbl(_reduced_feed_sweep(tmp_path, "600, 1200", 12.0))
     quiet, busy = _quiet_and_busy(cfg, tmp_path)
     assert len(quiet) == 2 and quiet == busy
+    # and the whole record of the stream: sent, answered, executed, every event at its time
+    assert _nc_record(tmp_path / "quiet") == _nc_record(tmp_path / "busy")
+
+
+def _nc_record(folder: Path) -> dict[str, tuple[str, list]]:
+    """Per run file: sha256 of the NC-blocks table, the events but for their wall times."""
+    out = {}
+    for f in sorted(folder.glob("*/runs/*.h5")):
+        with h5py.File(f, "r") as h:
+            blocks, ev = h[rf.BLOCKS][()], h[rf.EVENTS][()]
+        names = [n for n in ev.dtype.names if "wall" not in n]
+        out[f.name] = (hashlib.sha256(blocks.tobytes()).hexdigest(),
+                       [tuple(e[n] for n in names) for e in ev])  # fmt: skip
+    return out
 
 
 @pytest.mark.slow
