@@ -95,6 +95,16 @@ def _reduced_feed_sweep(tmp_path: Path, feeds: str, block_length_mm: float) -> P
     return p
 
 
+def _on_grbl(config: Path) -> Path:
+    """The same campaign on the GRBL mill, streamed with GRBL's protocol (the character-counting
+    window, ``?`` polls, the $G handshake) to the simulated GRBL."""
+    text = config.read_text()
+    text = re.sub(r'machine = "[^"]*"', 'machine = "lab-grbl"', text, count=1)
+    text = text.replace("[sim]\n", '[sim]\nprotocol = "grbl"\n', 1)
+    config.write_text(text)
+    return config
+
+
 def _fingerprint(folder: Path) -> dict[str, tuple[int, str, str, str]]:
     """Per run file: (samples, sha256 of the force dataset, of the zero and drift taken from
     the rests (what turns its volts into newtons), of the block table's execution starts)."""
@@ -148,6 +158,31 @@ def test_a_reduced_feed_sweep_is_bit_identical_beside_two_busy_processes(tmp_pat
     assert _base_feed(tmp_path / "quiet") == _base_feed(tmp_path / "busy") == 1000.0
 
 
+@pytest.mark.long
+def test_a_reduced_feed_sweep_on_grbl_is_bit_identical_beside_two_busy_processes(
+    tmp_path: Path,
+) -> None:
+    # GRBL's stream is a conversation (an ok frees room, the next line goes out; '?' polls):
+    # the host's turnaround used to pass on the clock and moved the program's start by 10-60 ms
+    cfg = _on_grbl(_reduced_feed_sweep(tmp_path, "600, 1200", 12.0))
+    quiet, busy = _quiet_and_busy(cfg, tmp_path)
+    assert len(quiet) == 2 and quiet == busy
+    # and the whole record of the stream: sent, answered, executed, every event at its time
+    assert _nc_record(tmp_path / "quiet") == _nc_record(tmp_path / "busy")
+
+
+def _nc_record(folder: Path) -> dict[str, tuple[str, list]]:
+    """Per run file: sha256 of the NC-blocks table, the events but for their wall times."""
+    out = {}
+    for f in sorted(folder.glob("*/runs/*.h5")):
+        with h5py.File(f, "r") as h:
+            blocks, ev = h[rf.BLOCKS][()], h[rf.EVENTS][()]
+        names = [n for n in ev.dtype.names if "wall" not in n]
+        out[f.name] = (hashlib.sha256(blocks.tobytes()).hexdigest(),
+                       [tuple(e[n] for n in names) for e in ev])  # fmt: skip
+    return out
+
+
 @pytest.mark.slow
 @pytest.mark.timeout(1800)
 def test_the_shipped_feed_sweep_is_bit_identical_beside_two_busy_processes(
@@ -166,9 +201,10 @@ def test_the_demo_campaign_is_bit_identical_beside_two_busy_processes(tmp_path: 
 
 
 @pytest.mark.faults
+@pytest.mark.parametrize("protocol", ["fanuc", "grbl"])
 @pytest.mark.parametrize("on_force", ["abort", "hold"])
 def test_a_suspender_stop_is_bit_identical_beside_two_busy_processes(
-    tmp_path: Path, on_force: str
+    tmp_path: Path, on_force: str, protocol: str
 ) -> None:
     # the quick face-milling campaign of the runner's tests, with a force limit it exceeds: the
     # hold comes at the end of the DAQ block that went over, the abort at once or 0.3 simulated
@@ -178,6 +214,8 @@ def test_a_suspender_stop_is_bit_identical_beside_two_busy_processes(
     text += f'\n[suspenders]\nforce_limit_n = 250\non_force = "{on_force}"\nhold_timeout_s = 0.3\n'
     cfg = tmp_path / "quick.toml"
     cfg.write_text(text)
+    if protocol == "grbl":  # the stop's reset reaches the streamer as GRBL's banner mid-stream
+        _on_grbl(cfg)
     for out, busy in (("quiet", 0), ("busy", BUSY_PROCESSES)):
         hogs = [subprocess.Popen([sys.executable, "-c", BUSY_CODE]) for _ in range(busy)]
         try:
@@ -190,6 +228,34 @@ def test_a_suspender_stop_is_bit_identical_beside_two_busy_processes(
         assert [r.status for r in res.runs] == ["abort"], [r.reason for r in res.runs]
     quiet, busy = _fingerprint(tmp_path / "quiet"), _fingerprint(tmp_path / "busy")
     assert len(quiet) == 1 and quiet == busy
+
+
+@pytest.mark.long
+def test_the_adaptive_feed_loop_is_bit_identical_beside_two_busy_processes(tmp_path: Path) -> None:
+    # configs/campaigns/adaptive-step.toml's adaptive run on a shorter block: the loop decides
+    # on each DAQ block at its end in simulated time (the DAQ's gate), and its override bytes
+    # are read by the simulated GRBL before the clock moves on, so they land at the same times
+    text = (CAMPAIGNS / "adaptive-step.toml").read_text()
+    cfg = tmp_path / "adaptive-step.toml"
+    cfg.write_text(text.replace("block_length_mm = 100.0", "block_length_mm = 40.0"))
+    overrides = {}
+    for out, busy in (("quiet", 0), ("busy", BUSY_PROCESSES)):
+        hogs = [subprocess.Popen([sys.executable, "-c", BUSY_CODE]) for _ in range(busy)]
+        try:
+            res = run_campaign(load_campaign(cfg), out_root=tmp_path / out, progress=False,
+                               only=lambda t: t.group == "adaptive")  # fmt: skip
+        finally:
+            for p in hogs:
+                p.kill()
+                p.wait(timeout=10)
+        assert [r.status for r in res.runs] == ["success"], [r.reason for r in res.runs]
+        (f,) = (tmp_path / out).glob("*/runs/*.h5")
+        with h5py.File(f, "r") as h:
+            ev = h[rf.EVENTS][()]
+        overrides[out] = [(e[2], e[5]) for e in ev if e[5].startswith(b"dnc override")]
+    quiet, busy = _fingerprint(tmp_path / "quiet"), _fingerprint(tmp_path / "busy")
+    assert len(quiet) == 1 and quiet == busy
+    assert len(overrides["quiet"]) > 10 and overrides["quiet"] == overrides["busy"]
 
 
 def test_the_line_gate_holds_until_every_byte_the_streamer_wrote_was_read() -> None:

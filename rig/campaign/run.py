@@ -370,8 +370,10 @@ class _Run:
         if starts is not None and set_exec is not None:
             rows, t_starts = starts()
             set_exec(rows, t_starts, complete=True)
+            # at the last start (the simulated rig's record), not when this thread got here
             writer.event(rf.EV_NOTE, "block table: execution starts from the controller's "
-                                     f"record ({len(rows)} blocks started)")  # fmt: skip
+                                     f"record ({len(rows)} blocks started)",
+                         time_s=max(t_starts) if t_starts else None)  # fmt: skip
 
     def _rest_after(self, t_zero: np.ndarray, v_zero: np.ndarray, cal0: Calibration) -> None:
         """Rest after the cut: zero and drift from both rests (not after a failure: the rig may

@@ -106,7 +106,8 @@ class GrblStreamer(StreamerBase):
     mode : ``"char-counting"`` or ``"send-response"``
     rx_buffer_bytes : what character counting may have in GRBL's receive buffer (127)
     status_hz : status polls per wall second (0: none; then no executing block, no lost-answer
-        detection: silence for ``timeout_s`` is the only limit)
+        detection: silence for ``timeout_s`` is the only limit); per simulated second under the
+        simulated rig's ``lockstep``
     wait_idle : after the last ``ok``, wait until GRBL reports ``Idle`` (the motion has run)
     unlock : if GRBL is in ``Alarm`` at the start, send ``$X`` (else that is a fault)
     halt_on_error : on ``error:N``, halt (feed hold, Hold:0, soft reset) so nothing after it runs
@@ -174,6 +175,9 @@ class GrblStreamer(StreamerBase):
         #: (stream clock s, byte) of every override byte written, in order
         self.override_log = self._ovr.log
         self._ctl = GrblControl(self)
+        #: the simulated rig's lockstep (rig.sim._grbl_lockstep.StreamerPeer, set by its session;
+        #: None on a real port): the status poll then runs on the simulated clock
+        self.lockstep: Any = None
         self._begin()
 
     # -- real-time commands (any thread) ---------------------------------------------------------
@@ -227,6 +231,8 @@ class GrblStreamer(StreamerBase):
         with self._ovr.lock:
             t = self.clock()  # before the write: the byte cannot arrive before its time
             self._rt(bytes([code]))
+            if self.lockstep is not None:  # read before the simulated clock moves on
+                self.lockstep.settle()
             self._ovr.wrote(t, code)
             if not self.sink_closed():
                 with contextlib.suppress(ValueError, DncError):  # closed meanwhile
@@ -306,6 +312,25 @@ class GrblStreamer(StreamerBase):
             except (LinkLost, LinkTimeout, OSError):
                 return
 
+    def _poll_sim(self, t_first: float) -> None:
+        """The poll in lockstep: ``status_hz`` a simulated second, each ``?`` written while the
+        simulated clock stands at its time (a gate) and read by the controller before it moves
+        on, so the reports come at the same simulated times however busy the host."""
+        lk, period = self.lockstep, 1.0 / self.status_hz
+        k = 0
+        try:
+            while lk.sleep_until(t_first + k * period, self._poll_stop):
+                try:
+                    self._write_rt(self.link, STATUS)  # type: ignore[arg-type]
+                except (LinkLost, LinkTimeout, OSError):
+                    return
+                if not lk.settle(self._poll_stop):
+                    return
+                k += 1
+                lk.gate("poll", t_first + k * period)
+        finally:
+            lk.gate("poll", None)
+
     def _work_pos(self, st: GrblStatus) -> tuple[float, float, float] | None:
         if st.wpos_mm is not None:
             return st.wpos_mm
@@ -322,7 +347,12 @@ class GrblStreamer(StreamerBase):
         self._poll_stop = threading.Event()
         poller = None
         if self.status_hz > 0:
-            poller = threading.Thread(target=self._poll_status, name="grbl-status", daemon=True)
+            target, args = self._poll_status, ()
+            if self.lockstep is not None:  # the first poll's gate before the clock can pass it
+                t_first = self.clock() + 1.0 / self.status_hz
+                self.lockstep.gate("poll", t_first)
+                target, args = self._poll_sim, (t_first,)  # type: ignore[assignment]
+            poller = threading.Thread(target=target, args=args, name="grbl-status", daemon=True)
             poller.start()
         clean = False
         try:

@@ -94,7 +94,9 @@ class GrblControl:
             ev = self.s._rx.get(heard)
             now = time.perf_counter()
             if ev is None:
-                if self.s.status_hz <= 0 or now - last_poll > 1.0:
+                # (in lockstep the poll runs on the simulated clock: no wall-timed extra '?')
+                wall_repoll = now - last_poll > 1.0 and self.s.lockstep is None
+                if self.s.status_hz <= 0 or wall_repoll:
                     self.s._rt_safe(STATUS)
                     last_poll = now
                 continue

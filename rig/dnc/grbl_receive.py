@@ -40,18 +40,23 @@ class GrblReceiver:
         self.noise = self.noise_reports = 0
         self.noise_example = ""
         self.heard_any = False
+        # for the simulated rig's lockstep (the streamer's ``lockstep``): bytes and lines read,
+        # lines taken by the stream, and taken and handled (it came back for the next)
+        self.bytes_in = self.put_n = self.taken_n = self.handled_n = 0
 
     def on_data(self, data: bytes) -> None:
         self.partial.extend(data)
         while True:
             i = self.partial.find(b"\n")
             if i < 0:
+                self.bytes_in += len(data)  # once the lines it completes are queued
                 return
             raw = bytes(self.partial[:i]).strip()
             del self.partial[: i + 1]
             if raw.startswith(b"<"):
                 self.s._ovr.note_report(raw)
             if raw:
+                self.put_n += 1
                 self.lines.put((self.s.clock(), raw.decode("ascii", "replace")))
 
     def next_line(self, heard: list[float], deadline: float, what: str) -> str:
@@ -109,10 +114,14 @@ class GrblReceiver:
         if time.perf_counter() - heard[0] > self.s.cfg.timeout_s + self.s._extra_wait_s:
             limit = self.s.cfg.timeout_s + self.s._extra_wait_s
             raise Fault("timeout", self.no_answer(f"no answer from GRBL for {limit:g} s"))
+        self.handled_n = self.taken_n  # back for more: every line taken was handled
+        if self.s.lockstep is not None:
+            self.s.lockstep.idle()
         try:
             item = self.lines.get(timeout=timeout)
         except queue.Empty:
             return None
+        self.taken_n += 1
         if item[1].startswith("<"):
             if self.queries:  # the i-th report answers at least the i-th '?'
                 self.report_written = self.queries.popleft()

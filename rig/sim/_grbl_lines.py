@@ -81,7 +81,10 @@ class GrblLinesMixin(GrblFields):
                 return None
         elif b is not None and b.blocks > 0:
             t_room = self._room_time()
-            if self._planner_used() > self.planner_blocks:
+            # in lockstep the clock stands at t_room (a gate): the room is there then, whatever
+            # the last bit of the count's rounding says
+            at_room = self.lockstep and t_room is not None and self.clock.now() >= t_room
+            if self._planner_used() > self.planner_blocks and not at_room:
                 return None
         self._pending = None
         if p.res.program_flow == "end":

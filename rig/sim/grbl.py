@@ -98,6 +98,7 @@ from planning.nc.grbl import (
 )
 from rig.sim._controller import SimControllerBase, _Planned
 from rig.sim._grbl_lines import GrblLinesMixin
+from rig.sim._grbl_lockstep import GrblLockstepMixin
 from rig.sim._grbl_overrides import GrblOverridesMixin
 from rig.sim._grbl_report import (
     _CRITICAL_ALARMS,
@@ -110,7 +111,7 @@ from rig.sim._grbl_report import (
 from rig.sim._grbl_state import _Pending
 
 
-class SimGrbl(GrblLinesMixin, GrblOverridesMixin, SimControllerBase):
+class SimGrbl(GrblLockstepMixin, GrblLinesMixin, GrblOverridesMixin, SimControllerBase):
     """GRBL 1.1h-like controller (see the module docstring).
 
     ``base_kw``: clock, speed and the ``sim_`` fault knobs of :class:`SimControllerBase` (a
@@ -184,7 +185,8 @@ class SimGrbl(GrblLinesMixin, GrblOverridesMixin, SimControllerBase):
     def start(self) -> str:
         path = super().start()
         with self._lock:
-            self._send(BANNER)
+            if not self.lockstep:  # (lockstep: see rig.sim._grbl_lockstep.StreamerPeer)
+                self._send(BANNER)
             if self.alarm:
                 self._send(GRBL_MSG_ALARM_LOCK.encode() + b"\r\n")
         return path

@@ -114,8 +114,12 @@ class SimSession:
         self.port = self.controller.start()
 
     def _source(self, t0_s: float, n: int, rate_hz: float) -> np.ndarray:
-        """The machine's volts, after the controller has run up to the last sample's time."""
-        self.controller.advance_to(t0_s + max(n - 1, 0) / rate_hz)
+        """The machine's volts, after the controller has run up to the block's end (the next
+        sample's time, where the DAQ's gate holds the clock): what happens there (a GRBL override
+        due on the segment grid splits the line) is then in the timeline before the samples are
+        computed, not added by the controller's thread while they are (a rounding apart)."""
+        daq_t0 = self.daq._t0_s  # the DAQ's own expression of its gate, to the last bit
+        self.controller.advance_to(daq_t0 + (round((t0_s - daq_t0) * rate_hz) + n) / rate_hz)
         return self.machine.source(t0_s, n, rate_hz)
 
     def _make_controller(self, campaign: SimCampaign, faults: bool) -> SimFanuc | SimGrbl:
@@ -189,6 +193,12 @@ class SimSession:
         pace = line_bytes_per_s(cfg) * self.sim_clock.speed
         self.streamer = cls(cfg, sink=LoggerSink(writer), clock=self.clock,
                             pace_bytes_per_s=pace)  # fmt: skip
+        if hasattr(self.controller, "peer"):  # GRBL's conversation in lockstep too
+            from rig.sim._grbl_lockstep import StreamerPeer
+
+            peer = StreamerPeer(self.sim_clock, self.controller, self.streamer)
+            self.streamer.lockstep = peer  # type: ignore[union-attr]
+            self.controller.peer = peer
 
         def stream() -> None:
             try:
@@ -236,12 +246,22 @@ class SimSession:
     def executed_blocks(self) -> list[tuple[int, float, float, str]]:
         """(order received, start s, end s, text) of every block the controller executed, on
         the run clock: the block clock the samples share."""
+        self._stream_over()
         return [(b.seq, b.t_start_s, b.t_end_s, b.text) for b in self.controller.executed]
+
+    def _stream_over(self) -> None:
+        """Wait for the streamer's end: the block table's rows are its, its sink appends them
+        when the stream ends (for GRBL after the Idle report that follows the program's end);
+        starts set before that were lost ("rows never appended") and the streamer's estimates
+        stayed, and its end event fell among the run's notes, now and then."""
+        if self._thread is not None:
+            self._stream_done.wait(self.link_timeout_s + 5.0)
 
     def block_starts(self) -> tuple[list[int], list[float]]:
         """The controller's own record of when each block it took started, on the run clock:
         (row of the block table, i.e. order received; start s), the finished blocks and the one
         running or held when it stopped. Blocks it never started are left out."""
+        self._stream_over()
         ctl = self.controller
         with ctl._lock:  # (the held block a stop's reset cut short is among them)
             starts = dict(ctl.started_s)
