@@ -14,8 +14,9 @@ import contextlib
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from rig.cli.common import add_catalog_options, error_line, print_json, print_lines, status
-from rig.cli.options import add_options
+from rig.cli.common import error_line, print_json, print_lines, status
+from rig.cli.console import SERVER
+from rig.cli.options import command, group
 from rig.terminal import progress_note
 
 if TYPE_CHECKING:
@@ -41,23 +42,14 @@ RUN = (
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
-    from rig.cli.console import add_server_options
-
-    p = sub.add_parser("campaign", help="run a campaign of test cuts (simulated or real rig)")
-    csub = p.add_subparsers(dest="campaign_command", metavar="CAMPAIGN_COMMAND")
-    csub.required = True
-    r = csub.add_parser("run", help="run (or resume) a campaign; --dry-run checks without cutting")
-    add_options(r, RUN)
-    add_server_options(r)
-    r.set_defaults(func=_run)
-    add_catalog_options(r)
-    s = csub.add_parser("status", help="each run's status and reason")
-    rep = csub.add_parser("report", help="analyse a campaign's runs and write its report folder")
-    for q, func in ((s, _status), (rep, _report)):
-        add_options(q, [("config", None, None, None), ("--out", None, None, None),
-                        ("--json", bool, None, None)])  # fmt: skip
-        q.set_defaults(func=func)
-        add_catalog_options(q)
+    csub = group(sub, "campaign", "run a campaign of test cuts (simulated or real rig)")
+    command(csub, "run", "run (or resume) a campaign; --dry-run checks without cutting",
+            [RUN, SERVER], _run, catalogs=True)  # fmt: skip
+    where = [("config", None, None, None), ("--out", None, None, None),
+             ("--json", bool, None, None)]  # fmt: skip
+    command(csub, "status", "each run's status and reason", where, _status, catalogs=True)
+    command(csub, "report", "analyse a campaign's runs and write its report folder", where,
+            _report, catalogs=True)  # fmt: skip
 
 
 def _dry_run(campaign, as_json: bool, out_root: str | None) -> int:  # noqa: ANN001 - a Campaign

@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 
 from rig.cli.common import print_json, print_lines, print_table, status
-from rig.cli.options import json_option
+from rig.cli.options import add_options, command, group, json_row
 from rig.terminal import Progress
 
 
@@ -52,37 +52,35 @@ def _show(args: argparse.Namespace) -> int:
     return 0
 
 
-def _where_options(p: argparse.ArgumentParser) -> None:
-    """DIR and ``--index``: the catalogue a query or show reads."""
-    p.add_argument("dir", nargs="?", metavar="DIR",
-                   help="the archive folder indexed (or its index file); default: --index, "
-                   "else the current folder's or a parent's catalogue")  # fmt: skip
-    p.add_argument("--index", metavar="FILE|DIR",
-                   help="the catalogue (default: the current folder's or a parent's)")  # fmt: skip
+# fmt: off
+#: DIR and ``--index``: the catalogue a query or show reads
+WHERE = [
+    ("dir", None, None, "the archive folder indexed (or its index file); default: --index, else "
+     "the current folder's or a parent's catalogue", {"nargs": "?", "metavar": "DIR"}),
+    ("--index", None, None, "the catalogue (default: the current folder's or a parent's)",
+     {"metavar": "FILE|DIR"}),
+]
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
-    p = sub.add_parser("catalog", help="index an archive of run files; query it")
-    psub = p.add_subparsers(dest="catalog_command", metavar="CATALOG_COMMAND")
-    psub.required = True
-    i = psub.add_parser("index", help="index (or update the index of) the run files under DIRs")
-    i.add_argument("dirs", nargs="+", metavar="DIR", help="folders of run files (.h5)")
-    i.add_argument("--index", metavar="FILE",
-                   help="the index file (default DIR/.cutlab-catalog.sqlite, the first DIR)")
-    json_option(i)
-    i.set_defaults(func=_index)
-    q = psub.add_parser("query", help="the runs matching an expression, one row each")
-    q.add_argument("expr", metavar="EXPR",
-                   help="e.g. \"material == 'GM241' and 0.2 <= fz_mm <= 0.4\" ('' for all)")
-    _where_options(q)
+    psub = group(sub, "catalog", "index an archive of run files; query it")
+    command(psub, "index", "index (or update the index of) the run files under DIRs", [
+        ("dirs", None, None, "folders of run files (.h5)", {"nargs": "+", "metavar": "DIR"}),
+        ("--index", None, None, "the index file (default DIR/.cutlab-catalog.sqlite, the first "
+         "DIR)", {"metavar": "FILE"}),
+        json_row(),
+    ], _index)
+    q = command(psub, "query", "the runs matching an expression, one row each", [
+        ("expr", None, None, "e.g. \"material == 'GM241' and 0.2 <= fz_mm <= 0.4\" ('' for all)",
+         {"metavar": "EXPR"}),
+        WHERE,
+    ], _query)
     fmt = q.add_mutually_exclusive_group()
-    fmt.add_argument("--json", action="store_true", help="JSON on stdout")
-    fmt.add_argument("--csv", action="store_true", help="CSV on stdout (every column)")
-    q.add_argument("--all-columns", action="store_true", help="every column in the text table")
-    q.set_defaults(func=_query)
-    s = psub.add_parser("show", help="one run's catalogue row")
-    s.add_argument("run", metavar="RUN", help="run name, CAMPAIGN/RUN, or path")
-    _where_options(s)
-    json_option(s)
-    s.set_defaults(func=_show)
+    add_options(fmt, [json_row(), ("--csv", bool, None, "CSV on stdout (every column)")])
+    add_options(q, [("--all-columns", bool, None, "every column in the text table")])
+    command(psub, "show", "one run's catalogue row", [
+        ("run", None, None, "run name, CAMPAIGN/RUN, or path", {"metavar": "RUN"}), WHERE,
+        json_row(),
+    ], _show)
+# fmt: on

@@ -16,7 +16,7 @@ import argparse
 import sys
 
 from rig.cli.common import image_file, print_json, print_table, status
-from rig.cli.options import dialect_option, json_option
+from rig.cli.options import REQUIRED, command, dialect_row, group, json_row
 from rig.terminal import Progress
 
 
@@ -100,33 +100,29 @@ def _plot(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_parser(nsub, name: str, text: str, func) -> argparse.ArgumentParser:
-    p = nsub.add_parser(name, help=text)
-    p.add_argument("file", help="NC program (RS-274 / Fanuc style)")
-    machine_help = "machine config name or path (rapid rate, arc tolerance, dialect)"
-    p.add_argument("--machine", default=None, help=machine_help)
-    lenient_help = "report unknown codes as warnings instead of errors"
-    p.add_argument("--lenient", action="store_true", help=lenient_help)
-    if name != "check":  # check's --dialect also lists what the control would refuse
-        dialect_option(p, "interpret as this controller does (default: the machine's, else fanuc)")
-    p.set_defaults(func=func)
-    return p
+#: each command's first options: the program, its machine, how strict
+# fmt: off
+PROGRAM = [
+    ("file", None, None, "NC program (RS-274 / Fanuc style)"),
+    ("--machine", None, None, "machine config name or path (rapid rate, arc tolerance, dialect)"),
+    ("--lenient", bool, None, "report unknown codes as warnings instead of errors"),
+]
+DIALECT = "interpret as this controller does (default: the machine's, else fanuc)"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
-    nc = sub.add_parser("nc", help="check, list and plot NC programs")
-    nsub = nc.add_subparsers(dest="nc_command", metavar="NC_COMMAND")
-    nsub.required = True
-    p = _add_parser(nsub, "check", "parse + interpret; print lengths, time, bbox (or the error)",
-                    _check)  # fmt: skip
-    json_option(p, "machine-readable output")
-    dialect_option(p, "interpret as this controller does (default: the machine's, else fanuc) "
-                   "and list what it would refuse (exit 2 if any)")  # fmt: skip
-    p = _add_parser(nsub, "motions", "one row per canonical motion segment", _motions)
-    p.add_argument("--csv", action="store_true", help="CSV to stdout (or to -o)")
-    p.add_argument("-o", "--output", default=None, help="write CSV to this file")
-    json_option(p, "JSON records")
-    p = _add_parser(nsub, "plot", "PNG of the tool path (3-D and top views)", _plot)
-    p.add_argument("-o", "--output", type=image_file, required=True, help="PNG path")
-    json_option(p, "machine-readable output")
+    nsub = group(sub, "nc", "check, list and plot NC programs")
+    command(nsub, "check", "parse + interpret; print lengths, time, bbox (or the error)", [
+        PROGRAM, json_row("machine-readable output"),
+        dialect_row(DIALECT + " and list what it would refuse (exit 2 if any)"),
+    ], _check)
+    command(nsub, "motions", "one row per canonical motion segment", [
+        PROGRAM, dialect_row(DIALECT), ("--csv", bool, None, "CSV to stdout (or to -o)"),
+        ("-o --output", None, None, "write CSV to this file"), json_row("JSON records"),
+    ], _motions)
+    command(nsub, "plot", "PNG of the tool path (3-D and top views)", [
+        PROGRAM, dialect_row(DIALECT), ("-o --output", image_file, REQUIRED, "PNG path"),
+        json_row("machine-readable output"),
+    ], _plot)
+# fmt: on

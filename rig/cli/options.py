@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from planning.nc import DIALECTS
-from rig.cli.common import MAGNITUDE_LIMIT, count, number, positive
+from rig.cli.common import MAGNITUDE_LIMIT, add_catalog_options, count, number, positive
 
 if TYPE_CHECKING:
     from analysis.identify import ImportOptions
@@ -19,13 +19,18 @@ if TYPE_CHECKING:
 REQUIRED = ...
 
 
-def add_options(p: argparse.ArgumentParser, rows: Sequence[tuple]) -> None:
+def add_options(p: argparse.ArgumentParser, rows: Sequence[tuple | list]) -> None:
     """Declare a command's options from a table, one row each: ``(flags, type, default, help)``
-    and an optional dict of further ``add_argument`` keywords (metavar, nargs, dest). ``flags``
-    is ``"file"``, ``"--x"`` or ``"-o --output"``; ``type`` is a parser (:mod:`rig.cli.common`),
-    ``None`` (text), ``bool`` (a flag) or a tuple of choices; default :data:`REQUIRED` makes the
-    option required."""
-    for flags, kind, default, help, *extra in rows:
+    and an optional dict of further ``add_argument`` keywords (metavar, nargs, dest); a sequence
+    of rows in the table is a shared group (e.g. :func:`serial_rows`). ``flags`` is ``"file"``,
+    ``"--x"`` or ``"-o --output"``; ``type`` is a parser (:mod:`rig.cli.common`), ``None``
+    (text), ``bool`` (a flag) or a tuple of choices; default :data:`REQUIRED` makes the option
+    required."""
+    for row in rows:
+        if not isinstance(row[0], str):  # a group of rows
+            add_options(p, row)
+            continue
+        flags, kind, default, help, *extra = row
         kw: dict[str, Any] = {"help": help, **(extra[0] if extra else {})}
         if kind is bool:
             kw["action"] = "store_true"
@@ -38,6 +43,28 @@ def add_options(p: argparse.ArgumentParser, rows: Sequence[tuple]) -> None:
         elif kind is not bool and (default is not None or flags.startswith("-")):
             kw["default"] = default  # (a positional given a default is optional)
         p.add_argument(*flags.split(), **kw)
+
+
+def group(sub: argparse._SubParsersAction, name: str, help: str) -> argparse._SubParsersAction:
+    """A command group ``cutlab NAME NAME_COMMAND``: its subparsers (a subcommand is required)."""
+    p = sub.add_parser(name, help=help)
+    gsub = p.add_subparsers(dest=f"{name}_command", metavar=f"{name.upper()}_COMMAND")
+    gsub.required = True
+    return gsub
+
+
+def command(
+    sub: argparse._SubParsersAction, name: str, help: str, rows: Sequence[tuple | list],
+    func: Callable[[argparse.Namespace], int], *, catalogs: bool = False, **kw: Any,
+) -> argparse.ArgumentParser:  # fmt: skip
+    """A subcommand: its options from ``rows`` (:func:`add_options`), run by ``func``, with
+    the user catalogues' --tools/--materials if ``catalogs``; ``kw`` to ``add_parser``."""
+    p = sub.add_parser(name, help=help, **kw)
+    add_options(p, rows)
+    p.set_defaults(func=func)
+    if catalogs:
+        add_catalog_options(p)
+    return p
 
 
 #: unit suffixes of a field's name that its option's name drops (tool_diameter_mm: --tool-diameter)
@@ -86,100 +113,84 @@ def _fields(model: type) -> dict[str, tuple[object, object, dict[str, Any]]]:
     return out
 
 
-PORT_HELP = "port name or pyserial URL (default: the machine config's)"
-BAUD_HELP = "override serial.baudrate"
-
-
-def json_option(p: argparse.ArgumentParser, help: str | None = "JSON on stdout") -> None:
+def json_row(help: str | None = "JSON on stdout") -> tuple:
     """``--json``: the command's result as JSON on stdout."""
-    p.add_argument("--json", action="store_true", help=help)
+    return ("--json", bool, None, help)
 
 
-def rate_option(p: argparse.ArgumentParser, what: str = "exports") -> None:
+def rate_row(what: str = "exports") -> tuple:
     """``--rate HZ`` for a file that does not say its sample rate."""
-    p.add_argument("--rate", type=positive("Hz", 10_000_000), default=None,
-                   help=f"Hz, for {what} without a rate")  # fmt: skip
+    return ("--rate", positive("Hz", 10_000_000), None, f"Hz, for {what} without a rate")
 
 
-def rig_option(
-    p: argparse.ArgumentParser, help: str = "rig config (default configs/rig.toml)"
-) -> None:
+def rig_row(help: str = "rig config (default configs/rig.toml)") -> tuple:
     """``--rig TOML``: the rig config (DAQ, dynamometer)."""
-    p.add_argument("--rig", default=None, help=help)
+    return ("--rig", None, None, help)
 
 
-def dialect_option(
-    p: argparse.ArgumentParser, help: str, choices: tuple[str, ...] = DIALECTS
-) -> None:
+def dialect_row(help: str, choices: tuple[str, ...] = DIALECTS) -> tuple:
     """``--dialect NAME``: the controller a program is read or written for (default None: the
     machine's)."""
-    p.add_argument("--dialect", choices=choices, default=None, help=help)
+    return ("--dialect", choices, None, help)
 
 
-def serial_options(
-    p: argparse.ArgumentParser, machine_help: str, *, port: bool = True,
-    protocol: bool = False, baud_help: str | None = BAUD_HELP, timeout: bool = True,
-) -> None:  # fmt: skip
+def db_row(help: str | None = None) -> tuple:
+    """``--db FILE``: the rule base (default from configs/lab.toml)."""
+    return ("--db", Path, None, help)
+
+
+def serial_rows(
+    machine_help: str, *, port: bool = True, protocol: bool = False,
+    baud_help: str | None = "override serial.baudrate", timeout: bool = True,
+) -> list[tuple]:  # fmt: skip
     """The serial link to a controller, in this order: ``--port``, ``--protocol`` (required),
     ``--machine``, ``--baud``, ``--timeout`` (each but ``--machine`` optional here)."""
-    if port:
-        p.add_argument("--port", help=PORT_HELP)
+    port_help = "port name or pyserial URL (default: the machine config's)"
+    rows = [("--port", None, None, port_help)] if port else []
     if protocol:
-        p.add_argument("--protocol", required=True, help="fanuc or grbl")
-    p.add_argument("--machine", help=machine_help)
+        rows.append(("--protocol", None, REQUIRED, "fanuc or grbl"))
+    rows.append(("--machine", None, None, machine_help))
     if baud_help is not None:
-        p.add_argument("--baud", type=count(1, 4_000_000, "baud"), help=baud_help)
+        rows.append(("--baud", count(1, 4_000_000, "baud"), None, baud_help))
     if timeout:
-        p.add_argument("--timeout", type=positive("s", 3600), help="override serial.timeout_s, s")
+        rows.append(("--timeout", positive("s", 3600), None, "override serial.timeout_s, s"))
+    return rows
 
 
-def rule_db_option(p: argparse.ArgumentParser, help: str | None = None) -> None:
-    """``--db FILE``: the rule base (default from configs/lab.toml)."""
-    p.add_argument("--db", type=Path, help=help)
-
-
-def stock_options(p: argparse.ArgumentParser) -> None:
-    """``--stock`` and ``--spacing``: the stock a program is cut from on the Z-map (plan check,
-    feed and simulate)."""
-    p.add_argument("--stock", help="box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP | mesh (.stl) | stock TOML "
-        "(default: derived from the program's feed moves, printed)")  # fmt: skip
-    p.add_argument(
-        "--spacing", type=positive("mm", 100), help="Z-map grid spacing, mm (default 0.25)"
-    )
-
-
-def limit_options(p: argparse.ArgumentParser) -> None:
-    """``--lobes`` (plan check, feed and rough)."""
-    p.add_argument("--lobes", type=Path, help="stability lobes CSV (spindle_rpm,depth_limit_mm; "
-                   "`cutlab analyze stability -o`), default: the tool's modes if any")  # fmt: skip
-
-
-def import_group(p: argparse.ArgumentParser) -> None:
-    """How exports are read (`analyze forces`, `data import`): ``--axes``,
-    ``--conditions-pattern``, ``--zero``, ``--zeroed``, ``--tools``, ``--materials``."""
-    p.add_argument(
-        "--axes", metavar="x=COL,y=COL,z=COL",
-        help="file columns (or run-file channels) for cutlab's x (feed), y (cross-feed), z (tool "
-        "axis), a '-' flips the sign: x=-Fy,y=Fx,z=-Fz; or 'auto': the signed permutation whose "
-        "end-mill fit gives positive Ktc, Krc, Kac with the smallest residual (refused when the "
-        "runs cannot tell; slots alone cannot tell x from y) (default: the rig config's "
-        "dynamometer, else columns named Fx, Fy, Fz; a mapping giving a negative cutting "
-        "coefficient or fitting clearly worse than another is refused)",
-    )  # fmt: skip
-    for name, metavar, text in (
-        ("--conditions-pattern", "PATTERN",
-         "conditions from file names: 'cut_{spindle_rpm}rpm_f{feed_mm_min}.txt'"),
-        ("--zero", "FILE", "an export of the same channels at rest: its mean is the offset"),
-        ("--zeroed", None, "the exports are already zeroed: subtract no offset"),
-        ("--tools", "FILE", "your tool catalogue (TOML, [tools.NAME]), before configs/tools.toml"),
-        ("--materials", "FILE", "your material catalogue (TOML), before configs/materials.toml"),
-    ):  # fmt: skip
-        kw = {"action": "store_true"} if metavar is None else {"metavar": metavar}
-        p.add_argument(name, help=text, **kw)  # type: ignore[arg-type]
+#: ``--stock`` and ``--spacing``: the stock a program is cut from on the Z-map (plan check, feed
+#: and simulate)
+STOCK = [
+    ("--stock", None, None, "box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP | mesh (.stl) | stock TOML "
+     "(default: derived from the program's feed moves, printed)"),
+    ("--spacing", positive("mm", 100), None, "Z-map grid spacing, mm (default 0.25)"),
+]  # fmt: skip
+#: ``--lobes`` (plan check, feed and rough)
+LOBES = ("--lobes", Path, None, "stability lobes CSV (spindle_rpm,depth_limit_mm; "
+         "`cutlab analyze stability -o`), default: the tool's modes if any")  # fmt: skip
+#: how exports are read (`analyze forces`, `data import`)
+IMPORT = [
+    ("--axes", None, None, "file columns (or run-file channels) for cutlab's x (feed), y "
+     "(cross-feed), z (tool axis), a '-' flips the sign: x=-Fy,y=Fx,z=-Fz; or 'auto': the signed "
+     "permutation whose end-mill fit gives positive Ktc, Krc, Kac with the smallest residual "
+     "(refused when the runs cannot tell; slots alone cannot tell x from y) (default: the rig "
+     "config's dynamometer, else columns named Fx, Fy, Fz; a mapping giving a negative cutting "
+     "coefficient or fitting clearly worse than another is refused)",
+     {"metavar": "x=COL,y=COL,z=COL"}),
+    ("--conditions-pattern", None, None,
+     "conditions from file names: 'cut_{spindle_rpm}rpm_f{feed_mm_min}.txt'",
+     {"metavar": "PATTERN"}),
+    ("--zero", None, None, "an export of the same channels at rest: its mean is the offset",
+     {"metavar": "FILE"}),
+    ("--zeroed", bool, None, "the exports are already zeroed: subtract no offset"),
+    ("--tools", None, None, "your tool catalogue (TOML, [tools.NAME]), before configs/tools.toml",
+     {"metavar": "FILE"}),
+    ("--materials", None, None, "your material catalogue (TOML), before configs/materials.toml",
+     {"metavar": "FILE"}),
+]  # fmt: skip
 
 
 def import_options(args: argparse.Namespace) -> tuple[dict[str, Any], ImportOptions]:
-    """``--conditions`` (pairs, or a table) and :func:`import_group`'s options as
+    """``--conditions`` (pairs, or a table) and the :data:`IMPORT` options as
     (pairs, :class:`analysis.identify.ImportOptions`)."""
     from analysis.identify import ImportOptions
     from analysis.identify.conditions_arg import conditions_arg

@@ -8,33 +8,27 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import add_catalog_options, positive, print_json, print_lines, status
-from rig.cli.options import limit_options, stock_options
+from rig.cli.common import positive, print_json, print_lines, status
+from rig.cli.options import LOBES, STOCK, command
 from rig.terminal import Progress
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``check`` to the ``plan`` group."""
-    p = sub.add_parser(
-        "check", help="check a program's blocks against machine and tool limits",
-        description="Exit status: 0 every block within every limit (verdict 'within'); 3 a block "
-        "breaks a limit ('violations'); 4 none breaks one but a limit could not be checked (no "
-        "tool modes or lobes, no spindle curve, a drill, nothing cut: 'unchecked', listed); "
-        "2 bad input.",
-    )  # fmt: skip
-    p.add_argument("program", type=Path, help="NC program")
-    p.add_argument("--tool", help="end mill in configs/tools.toml, or T1=NAME,T2=NAME for a "
-                   "program that changes tools (each section checked with its own)")  # fmt: skip
-    p.add_argument("--material", help="material (configs/materials.toml): force coefficients")
-    p.add_argument("--machine", default="ace-h63", help="machine config name or path")
-    stock_options(p)
-    limit_options(p)
-    p.add_argument("--spindle", type=positive("rpm", 100_000),
-                   help="rpm where the program has no S")  # fmt: skip
-    p.add_argument("--plot", type=Path, help="PNG of each quantity per block against its limit")
-    p.add_argument("--json", action="store_true", help="machine-readable output on stdout")
-    p.set_defaults(func=run)
-    add_catalog_options(p)
+    command(sub, "check", "check a program's blocks against machine and tool limits", [
+        ("program", Path, None, "NC program"),
+        ("--tool", None, None, "end mill in configs/tools.toml, or T1=NAME,T2=NAME for a program "
+         "that changes tools (each section checked with its own)"),
+        ("--material", None, None, "material (configs/materials.toml): force coefficients"),
+        ("--machine", None, "ace-h63", "machine config name or path"),
+        STOCK, LOBES,
+        ("--spindle", positive("rpm", 100_000), None, "rpm where the program has no S"),
+        ("--plot", Path, None, "PNG of each quantity per block against its limit"),
+        ("--json", bool, None, "machine-readable output on stdout"),
+    ], run, catalogs=True, description="Exit status: 0 every block within every limit (verdict "
+       "'within'); 3 a block breaks a limit ('violations'); 4 none breaks one but a limit could "
+       "not be checked (no tool modes or lobes, no spindle curve, a drill, nothing cut: "
+       "'unchecked', listed); 2 bad input.")  # fmt: skip
 
 
 #: exit status of each verdict (0 within, 3 violations, 4 unchecked; 2 is bad input)

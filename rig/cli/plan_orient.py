@@ -13,32 +13,24 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import add_catalog_options, count, print_json, print_table, status
-from rig.cli.options import dialect_option
+from rig.cli.common import count, print_json, print_table, status
+from rig.cli.options import REQUIRED, command, dialect_row
 from rig.terminal import Progress
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``orient`` to the ``plan`` group."""
-    p = sub.add_parser(
-        "orient",
-        help="collision-free 5-axis tool orientation (potential energy, seed 002)",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument(
-        "config", type=Path, help="orientation config, e.g. configs/orient/impeller.toml"
-    )
-    p.add_argument("-o", "--out", type=Path, required=True, help="output folder")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON")
-    p.add_argument("--map-point", type=count(0), default=None, help="CC point for the energy map "
-                   "(default: the one that needed most energy evaluations)")  # fmt: skip
-    p.add_argument("--no-plot", action="store_true",
-                   help="skip both PNGs (energy map and orientation)")  # fmt: skip
-    dialect_option(p, "controller to write for (default: the machine's); grbl has no rotary axes "
-                   "and is refused")  # fmt: skip
-    p.set_defaults(func=run)
-    add_catalog_options(p)
+    command(sub, "orient", "collision-free 5-axis tool orientation (potential energy, seed 002)", [
+        ("config", Path, None, "orientation config, e.g. configs/orient/impeller.toml"),
+        ("-o --out", Path, REQUIRED, "output folder"),
+        ("--json", bool, None, "print the summary as JSON"),
+        ("--map-point", count(0), None, "CC point for the energy map (default: the one that "
+         "needed most energy evaluations)"),
+        ("--no-plot", bool, None, "skip both PNGs (energy map and orientation)"),
+        dialect_row("controller to write for (default: the machine's); grbl has no rotary axes "
+                    "and is refused"),
+    ], run, catalogs=True, description=__doc__,
+       formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
 
 
 def _show(v):

@@ -7,10 +7,10 @@ import dataclasses
 from pathlib import Path
 
 from analysis.rules.rulebase import GroupKey
-from rig.cli.common import add_catalog_options, count, image_file, positive  # isort: split
+from rig.cli.common import count, image_file, positive  # isort: split
 
 from rig.cli.common import print_json, print_lines, print_table, status
-from rig.cli.options import REQUIRED, add_options, json_option, model_options, rule_db_option
+from rig.cli.options import REQUIRED, add_options, command, db_row, group, json_row, model_options
 
 FEED = positive("mm/min", 200_000)
 # fmt: off
@@ -35,47 +35,32 @@ DERIVE = (
 # fmt: on
 
 
+# fmt: off
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("rules", help="feed rules: derive from feed sweeps, the rule base")
-    rs = p.add_subparsers(dest="rules_command", metavar="RULES_COMMAND")
-    rs.required = True
-    d = rs.add_parser("derive", help="base feed from a feed sweep, then the 20-bin rule")
-    add_options(d, DERIVE)
-    d.set_defaults(func=_derive)
-    add_catalog_options(d)
-    _register_base(rs)
-
-
-def _register_base(rs: argparse._SubParsersAction) -> None:
-    a = rs.add_parser("add", help="store a rule file in the rule base for a machining group")
-    a.add_argument("rule", type=Path)
+    rs = group(sub, "rules", "feed rules: derive from feed sweeps, the rule base")
+    command(rs, "derive", "base feed from a feed sweep, then the 20-bin rule", DERIVE, _derive,
+            catalogs=True)
+    a = command(rs, "add", "store a rule file in the rule base for a machining group",
+                [("rule", Path, None, None)], _add)
     model_options(a, GroupKey, flags={"spindle_rpm": "--spindle"})
     add_options(a, [("--note", None, "", None),
-                    ("--replace", bool, None, "replace the group's existing rule")])  # fmt: skip
-    rule_db_option(a, "rule base (default from configs/lab.toml)")
-    json_option(a, None)
-    a.set_defaults(func=_add)
-    ls = rs.add_parser("list", help="the machining groups in the rule base")
-    rule_db_option(ls)
-    json_option(ls, None)
-    ls.set_defaults(func=_list)
-    sh = rs.add_parser("show", help="one rule: its bins (by rule name, group id or rule file)")
-    sh.add_argument("rule", help="rule name or group id in the rule base, or a rule file")
-    rule_db_option(sh)
-    sh.add_argument("--png", type=image_file, help="plot load vs feed with the bins")
-    json_option(sh, None)
-    sh.set_defaults(func=_show)
-    lk = rs.add_parser("lookup", help="the rule for a job: exact key or nearest match (stated)")
+                    ("--replace", bool, None, "replace the group's existing rule"),
+                    db_row("rule base (default from configs/lab.toml)"), json_row(None)])
+    command(rs, "list", "the machining groups in the rule base", [db_row(), json_row(None)], _list)
+    command(rs, "show", "one rule: its bins (by rule name, group id or rule file)", [
+        ("rule", None, None, "rule name or group id in the rule base, or a rule file"), db_row(),
+        ("--png", image_file, None, "plot load vs feed with the bins"), json_row(None),
+    ], _show)
+    lk = command(rs, "lookup", "the rule for a job: exact key or nearest match (stated)", [],
+                 _lookup)
     model_options(lk, GroupKey, flags={"spindle_rpm": "--spindle"})
-    lk.add_argument("--exact", action="store_true", help="fail unless the key matches exactly")
-    rule_db_option(lk)
-    json_option(lk, None)
-    lk.set_defaults(func=_lookup)
-    ex = rs.add_parser("export", help="write a stored rule to a file, exactly as stored")
-    add_options(ex, [("rule", None, None, "rule name or group id"),
-                     ("-o --output", Path, REQUIRED, None)])  # fmt: skip
-    rule_db_option(ex)
-    ex.set_defaults(func=_export)
+    add_options(lk, [("--exact", bool, None, "fail unless the key matches exactly"), db_row(),
+                     json_row(None)])
+    command(rs, "export", "write a stored rule to a file, exactly as stored", [
+        ("rule", None, None, "rule name or group id"), ("-o --output", Path, REQUIRED, None),
+        db_row(),
+    ], _export)
+# fmt: on
 
 
 def _key(a: argparse.Namespace) -> dict[str, object]:
