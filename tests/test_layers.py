@@ -34,6 +34,7 @@ MAY_IMPORT: dict[str, set[str]] = {
         "analysis.validation",
         "analysis.config",
         "analysis.runs",
+        "analysis.output",
     },
     "analysis.rules": {
         "analysis.errors",

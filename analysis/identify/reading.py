@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from analysis.config import (
@@ -68,13 +68,26 @@ class ImportOptions:
     the files' own), a conditions ``table`` (path or loaded), a file-name ``pattern``, a
     ``zero_file`` or ``zeroed`` (exports), the user's ``tools_path`` and ``materials_path``."""
 
-    axes: AxisMap | str | None = None
+    # the metadata: the options of `cutlab analyze forces` and `data import` (rig.cli.options)
+    axes: AxisMap | str | None = field(default=None, metadata={
+        "metavar": "x=COL,y=COL,z=COL",
+        "help": "file columns (or run-file channels) for cutlab's x (feed), y (cross-feed), z "
+        "(tool axis), a '-' flips the sign: x=-Fy,y=Fx,z=-Fz; or 'auto': the signed permutation "
+        "whose end-mill fit gives positive Ktc, Krc, Kac with the smallest residual (refused "
+        "when the runs cannot tell; slots alone cannot tell x from y) (default: the rig config's "
+        "dynamometer, else columns named Fx, Fy, Fz; a mapping giving a negative cutting "
+        "coefficient or fitting clearly worse than another is refused)"})
     table: ConditionsTable | str | Path | None = None
-    pattern: str | None = None
-    zero_file: str | Path | None = None
-    zeroed: bool = False
-    tools_path: str | Path | None = None
-    materials_path: str | Path | None = None
+    pattern: str | None = field(default=None, metadata={"metavar": "PATTERN", "help":
+        "conditions from file names: 'cut_{spindle_rpm}rpm_f{feed_mm_min}.txt'"})
+    zero_file: str | Path | None = field(default=None, metadata={"metavar": "FILE", "help":
+        "an export of the same channels at rest: its mean is the offset"})
+    zeroed: bool = field(default=False, metadata={
+        "help": "the exports are already zeroed: subtract no offset"})
+    tools_path: str | Path | None = field(default=None, metadata={"metavar": "FILE", "help":
+        "your tool catalogue (TOML, [tools.NAME]), before configs/tools.toml"})
+    materials_path: str | Path | None = field(default=None, metadata={"metavar": "FILE", "help":
+        "your material catalogue (TOML), before configs/materials.toml"})
 
     @property
     def auto(self) -> bool:

@@ -18,8 +18,8 @@ import argparse
 from analysis.runs import IDENTIFY_TOLERANCE
 from rig.cli.common import count, image_file, number, positive  # isort: split
 
-from rig.cli.common import print_json, print_lines, print_table, status
-from rig.cli.options import IMPORT, command, group, import_options, json_row, rate_row, rig_row
+from rig.cli.common import print_notes, show, status
+from rig.cli.options import command, group, import_options, import_rows, json_row, rate_row, rig_row
 from rig.terminal import Progress
 
 
@@ -33,26 +33,19 @@ def _forces(args: argparse.Namespace) -> int:
               rate_hz=args.rate, tolerance=args.steady_tolerance, validate=args.validate,
               plot_dir=args.plot, options=opts, keep=args.keep)  # fmt: skip
     if runs_or_catalog(args.runs, args.catalog, where=args.where, scheduler=args.scheduler):
-        from analysis.catalog import fit_catalog
+        from analysis.catalog import fit_catalog, fit_line
 
         out = fit_catalog(args.catalog, args.where, args.scheduler, not args.json, **kw)
-        c = out["catalog"]
-        how = ("the fit from the cache" if c["fit_cached"] else
-               f"{c['cached']} from the cache, {c['reduced']} reduced")  # fmt: skip
-        status(f"analyze forces: {c['runs']} run(s) from {c['index']}: {how}")
+        status(f"analyze forces: {fit_line(out)}")
     else:
         with Progress("reducing runs", "run", quiet=args.json or len(args.runs) < 2) as bar:
             out = fit_files(args.runs, progress=bar, **kw)
-    if "plots" in out:
-        status(f"analyze forces: wrote {', '.join(out['plots'])}")
-    for w in out["warnings"]:
-        status(f"analyze forces: warning: {w}")
-    print_json(out) if args.json else print_lines(forces_lines(out))
-    return 0 if out["success"] else 1
+    print_notes("analyze forces", out, wrote=("plots",))
+    return show(args.json, out, lambda: forces_lines(out), 0 if out["success"] else 1)
 
 
 def _modal(args: argparse.Namespace) -> int:
-    from analysis.modal import modal_file
+    from analysis.modal import modal_file, modal_lines
 
     out = modal_file(
         args.file, args.hammer, rate_hz=args.rate, record_s=args.record_s,
@@ -60,18 +53,8 @@ def _modal(args: argparse.Namespace) -> int:
         plot_png=args.plot, response=args.response, stabilisation_png=args.stabilisation,
         save=args.save, columns=args.columns,
     )  # fmt: skip
-    for key in ("plot", "stabilisation_plot", "saved"):
-        if key in out:
-            status(f"analyze modal: wrote {out[key]}")
-    for w in out["warnings"]:
-        status(f"analyze modal: warning: {w}")
-    if args.json:
-        print_json(out)
-    else:
-        print_table(out["modes"])
-        for s in out["skipped"]:
-            print(f"skipped {s['channel']}: {s['reason']}")
-    return 0
+    print_notes("analyze modal", out, wrote=("plot", "stabilisation_plot", "saved"))
+    return show(args.json, out, lambda: modal_lines(out))
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -102,7 +85,7 @@ FORCES = (
      "row per file: file,spindle_rpm,feed_mm_min|fz_mm,ap_mm,ae_mm[,teeth,tool,mode])",
      {"nargs": "*", "metavar": "KEY=VALUE|TABLE"}),
     rate_row(),
-    IMPORT,
+    import_rows(),
     ("--steady-tolerance", number("fraction", 0, 1, lo_open=True), IDENTIFY_TOLERANCE,
      "revolutions whose mean force is within this fraction of the steady level (median) count "
      f"as steady cutting; fraction, default {IDENTIFY_TOLERANCE} (0.02 = 2 %%)",

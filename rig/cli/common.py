@@ -106,6 +106,28 @@ def print_json(obj: Any) -> None:
     sys.stdout.write("\n")
 
 
+def show(as_json: bool, obj: Any, lines: Callable[[], Sequence[str]], code: int = 0) -> int:
+    """A command's result: ``obj`` as JSON on stdout if ``as_json``, else the ``lines()`` it
+    renders to; returns ``code`` (the command's exit status)."""
+    print_json(obj) if as_json else print_lines(lines())
+    return code
+
+
+def print_notes(cmd: str, out: Mapping[str, Any], wrote: Sequence[str] = ()) -> None:
+    """A result's notes on stderr: ``CMD: wrote FILE`` for each of its keys ``wrote`` it has (a
+    list of files on one line), then ``CMD: warning: W`` for each of its ``warnings``."""
+    for key in (k for k in wrote if k in out):
+        files = out[key]
+        status(f"{cmd}: wrote {', '.join(files) if isinstance(files, list) else files}")
+    for w in out.get("warnings", ()):
+        status(f"{cmd}: warning: {w}")
+
+
+def noter(cmd: str) -> Callable[[str], None]:
+    """A package's ``note`` callback: each note a status line ``CMD: NOTE`` on stderr."""
+    return lambda message: status(f"{cmd}: {message}")
+
+
 def print_table(rows: Sequence[Mapping[str, Any]], floatfmt: str = ".4g",
                 cell_max: int = TABLE_CELL_MAX) -> None:  # fmt: skip
     """A plain aligned text table of dict rows to stdout (:func:`analysis.output.table_lines`)."""

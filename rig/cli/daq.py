@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 from rig.cli.common import count, nonnegative, positive  # isort: split
 
 from rig.cli.common import print_json, print_table, status
-from rig.cli.options import REQUIRED, command, group
+from rig.cli.options import REQUIRED, Rows, command, group
 from rig.terminal import Progress
 
 if TYPE_CHECKING:
@@ -56,7 +56,7 @@ def _record(args: argparse.Namespace) -> int:
 
 
 # fmt: off
-RECORD = (
+RECORD: Rows = (
     ("--sim", bool, None, "simulated DAQ instead of the NI device"),
     ("--seconds", positive("s", 1e6), REQUIRED, "s of acquisition"),
     ("--rate-hz", positive("Hz", 1e7), None, "Hz per channel (default: config)"),

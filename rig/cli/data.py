@@ -11,16 +11,9 @@ from __future__ import annotations
 import argparse
 
 from rig.cli.common import image_file, nonnegative, print_json, print_lines, print_table, status
-from rig.cli.options import (
-    IMPORT,
-    REQUIRED,
-    command,
-    group,
-    import_options,
-    json_row,
-    rate_row,
-    rig_row,
-)
+from rig.cli.options import REQUIRED, command, group, import_options, import_rows  # isort: split
+
+from rig.cli.options import json_row, rate_row, rig_row
 from rig.terminal import Progress
 
 
@@ -90,7 +83,7 @@ def register(sub: argparse._SubParsersAction) -> None:
          "spindle_rpm,feed_mm_min|fz_mm,ap_mm,ae_mm[,teeth,tool,mode]) or KEY=VALUE pairs for "
          "every file", {"nargs": "*", "metavar": "KEY=VALUE|TABLE"}),
         ("--tool", None, None, "tool name (configs/tools.toml or --tools)"),
-        rate_row(), rig_row(), IMPORT, ("--force", bool, None, "replace existing run files"),
+        rate_row(), rig_row(), import_rows(), ("--force", bool, None, "replace existing run files"),
         json_row(),
     ], _import)
 # fmt: on

@@ -7,7 +7,7 @@ import argparse
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 from planning.nc import DIALECTS
 from rig.cli.common import MAGNITUDE_LIMIT, add_catalog_options, count, number, positive
@@ -17,9 +17,13 @@ if TYPE_CHECKING:
 
 #: a row's default that makes the option required
 REQUIRED = ...
+#: an option's row, ``(flags, type, default, help[, add_argument keywords])``; a table of rows
+#: and groups of rows (nested)
+Row = tuple[Any, ...]
+Rows = Sequence[Any]
 
 
-def add_options(p: argparse.ArgumentParser, rows: Sequence[tuple | list]) -> None:
+def add_options(p: argparse._ActionsContainer, rows: Rows) -> None:
     """Declare a command's options from a table, one row each: ``(flags, type, default, help)``
     and an optional dict of further ``add_argument`` keywords (metavar, nargs, dest); a sequence
     of rows in the table is a shared group (e.g. :func:`serial_rows`). ``flags`` is ``"file"``,
@@ -30,7 +34,7 @@ def add_options(p: argparse.ArgumentParser, rows: Sequence[tuple | list]) -> Non
         if not isinstance(row[0], str):  # a group of rows
             add_options(p, row)
             continue
-        flags, kind, default, help, *extra = row
+        flags, kind, default, help, *extra = cast(Row, row)
         kw: dict[str, Any] = {"help": help, **(extra[0] if extra else {})}
         if kind is bool:
             kw["action"] = "store_true"
@@ -54,7 +58,7 @@ def group(sub: argparse._SubParsersAction, name: str, help: str) -> argparse._Su
 
 
 def command(
-    sub: argparse._SubParsersAction, name: str, help: str, rows: Sequence[tuple | list],
+    sub: argparse._SubParsersAction, name: str, help: str, rows: Rows,
     func: Callable[[argparse.Namespace], int], *, catalogs: bool = False, **kw: Any,
 ) -> argparse.ArgumentParser:  # fmt: skip
     """A subcommand: its options from ``rows`` (:func:`add_options`), run by ``func``, with
@@ -74,24 +78,41 @@ _UNIT_SUFFIXES = ("_mm_min", "_mm", "_rpm", "_n", "_s", "_hz", "_pct")
 def model_options(
     p: argparse.ArgumentParser, model: type, *, flags: Mapping[str, str] | None = None
 ) -> None:
-    """One option per field of a dataclass (its ``metadata``: help, unit, gt/ge, le) or pydantic
-    model (its ``Field``: description, gt/ge, le, ``json_schema_extra`` unit): ``--name`` from the
-    field's name without its unit suffix (or ``flags[field]``), stored under the field's name; a
-    number field is checked against the field's unit and range; a field without a default is
+    """One option per field of ``model``, from :func:`model_rows`."""
+    add_options(p, model_rows(model, flags=flags))
+
+
+def model_rows(
+    model: type, *, flags: Mapping[str, str] | None = None, skip: Sequence[str] = ()
+) -> list[Row]:
+    """:func:`add_options` rows, one per field of a dataclass (its ``metadata``: help, unit,
+    gt/ge, le, metavar) or pydantic model (its ``Field``: description, gt/ge, le,
+    ``json_schema_extra`` unit) but ``skip``: ``--name`` from the field's name without its unit
+    suffix (or ``flags[field]``), stored under the field's name; a number field is checked
+    against the field's unit and range, a bool field is a flag; a field without a default is
     required. The help lives once, next to the field it describes."""
+    rows = []
     for name, (kind, default, meta) in _fields(model).items():
+        if name in skip:
+            continue
         flag = (flags or {}).get(name) or "--" + _strip_unit(name).replace("_", "-")
-        kw: dict[str, Any] = {"dest": name, "metavar": flag.lstrip("-").replace("-", "_").upper(),
-                              "help": meta.get("help") or meta.get("unit")}  # fmt: skip
-        if kind in ("float", "int", float, int):
-            lo = meta.get("gt", meta.get("ge"))
-            kw["type"] = number(meta.get("unit", ""), lo, meta.get("le", MAGNITUDE_LIMIT),
-                                lo_open="gt" in meta, integer=kind in ("int", int))  # fmt: skip
-        if default is REQUIRED:
-            kw["required"] = True
+        kw = {"dest": name}
+        if kind in ("bool", bool):
+            kind = bool
         else:
-            kw["default"] = default
-        p.add_argument(flag, **kw)
+            kw["metavar"] = meta.get("metavar") or flag.lstrip("-").replace("-", "_").upper()
+            kind = _number(kind, meta)
+        rows.append((flag, kind, default, meta.get("help") or meta.get("unit"), kw))
+    return rows
+
+
+def _number(kind: object, meta: Mapping[str, Any]) -> Callable[[str], float] | None:
+    """A number field's parser (its unit and range), None for text."""
+    if kind not in ("float", "int", float, int):
+        return None
+    lo = meta.get("gt", meta.get("ge"))
+    return number(meta.get("unit", ""), lo, meta.get("le", MAGNITUDE_LIMIT), lo_open="gt" in meta,
+                  integer=kind in ("int", int))  # fmt: skip
 
 
 def _strip_unit(name: str) -> str:
@@ -113,28 +134,28 @@ def _fields(model: type) -> dict[str, tuple[object, object, dict[str, Any]]]:
     return out
 
 
-def json_row(help: str | None = "JSON on stdout") -> tuple:
+def json_row(help: str | None = "JSON on stdout") -> Row:
     """``--json``: the command's result as JSON on stdout."""
     return ("--json", bool, None, help)
 
 
-def rate_row(what: str = "exports") -> tuple:
+def rate_row(what: str = "exports") -> Row:
     """``--rate HZ`` for a file that does not say its sample rate."""
     return ("--rate", positive("Hz", 10_000_000), None, f"Hz, for {what} without a rate")
 
 
-def rig_row(help: str = "rig config (default configs/rig.toml)") -> tuple:
+def rig_row(help: str = "rig config (default configs/rig.toml)") -> Row:
     """``--rig TOML``: the rig config (DAQ, dynamometer)."""
     return ("--rig", None, None, help)
 
 
-def dialect_row(help: str, choices: tuple[str, ...] = DIALECTS) -> tuple:
+def dialect_row(help: str, choices: tuple[str, ...] = DIALECTS) -> Row:
     """``--dialect NAME``: the controller a program is read or written for (default None: the
     machine's)."""
     return ("--dialect", choices, None, help)
 
 
-def db_row(help: str | None = None) -> tuple:
+def db_row(help: str | None = None) -> Row:
     """``--db FILE``: the rule base (default from configs/lab.toml)."""
     return ("--db", Path, None, help)
 
@@ -142,11 +163,11 @@ def db_row(help: str | None = None) -> tuple:
 def serial_rows(
     machine_help: str, *, port: bool = True, protocol: bool = False,
     baud_help: str | None = "override serial.baudrate", timeout: bool = True,
-) -> list[tuple]:  # fmt: skip
+) -> list[Row]:  # fmt: skip
     """The serial link to a controller, in this order: ``--port``, ``--protocol`` (required),
     ``--machine``, ``--baud``, ``--timeout`` (each but ``--machine`` optional here)."""
     port_help = "port name or pyserial URL (default: the machine config's)"
-    rows = [("--port", None, None, port_help)] if port else []
+    rows: list[Row] = [("--port", None, None, port_help)] if port else []
     if protocol:
         rows.append(("--protocol", None, REQUIRED, "fanuc or grbl"))
     rows.append(("--machine", None, None, machine_help))
@@ -167,36 +188,25 @@ STOCK = [
 #: ``--lobes`` (plan check, feed and rough)
 LOBES = ("--lobes", Path, None, "stability lobes CSV (spindle_rpm,depth_limit_mm; "
          "`cutlab analyze stability -o`), default: the tool's modes if any")  # fmt: skip
-#: how exports are read (`analyze forces`, `data import`)
-IMPORT = [
-    ("--axes", None, None, "file columns (or run-file channels) for cutlab's x (feed), y "
-     "(cross-feed), z (tool axis), a '-' flips the sign: x=-Fy,y=Fx,z=-Fz; or 'auto': the signed "
-     "permutation whose end-mill fit gives positive Ktc, Krc, Kac with the smallest residual "
-     "(refused when the runs cannot tell; slots alone cannot tell x from y) (default: the rig "
-     "config's dynamometer, else columns named Fx, Fy, Fz; a mapping giving a negative cutting "
-     "coefficient or fitting clearly worse than another is refused)",
-     {"metavar": "x=COL,y=COL,z=COL"}),
-    ("--conditions-pattern", None, None,
-     "conditions from file names: 'cut_{spindle_rpm}rpm_f{feed_mm_min}.txt'",
-     {"metavar": "PATTERN"}),
-    ("--zero", None, None, "an export of the same channels at rest: its mean is the offset",
-     {"metavar": "FILE"}),
-    ("--zeroed", bool, None, "the exports are already zeroed: subtract no offset"),
-    ("--tools", None, None, "your tool catalogue (TOML, [tools.NAME]), before configs/tools.toml",
-     {"metavar": "FILE"}),
-    ("--materials", None, None, "your material catalogue (TOML), before configs/materials.toml",
-     {"metavar": "FILE"}),
-]  # fmt: skip
+#: the flags of :class:`analysis.identify.ImportOptions`'s fields
+IMPORT_FLAGS = {"pattern": "--conditions-pattern", "zero_file": "--zero", "tools_path": "--tools",
+                "materials_path": "--materials"}  # fmt: skip
+
+
+def import_rows() -> list[Row]:
+    """How exports are read (`analyze forces`, `data import`): the options of
+    :class:`analysis.identify.ImportOptions` (its conditions table: ``--conditions``)."""
+    from analysis.identify import ImportOptions
+
+    return model_rows(ImportOptions, flags=IMPORT_FLAGS, skip=("table",))
 
 
 def import_options(args: argparse.Namespace) -> tuple[dict[str, Any], ImportOptions]:
-    """``--conditions`` (pairs, or a table) and the :data:`IMPORT` options as
+    """``--conditions`` (pairs, or a table) and :func:`import_rows`' options as
     (pairs, :class:`analysis.identify.ImportOptions`)."""
     from analysis.identify import ImportOptions
     from analysis.identify.conditions_arg import conditions_arg
 
     pairs, table = conditions_arg(args.conditions)
-    opts = ImportOptions(axes=args.axes, table=table, pattern=args.conditions_pattern,
-                         zero_file=args.zero, zeroed=args.zeroed, tools_path=args.tools,
-                         materials_path=args.materials)  # fmt: skip
-    return pairs, opts
+    names = [f.name for f in dataclasses.fields(ImportOptions) if f.name != "table"]
+    return pairs, ImportOptions(table=table, **{k: getattr(args, k) for k in names})

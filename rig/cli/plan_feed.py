@@ -9,7 +9,7 @@ from pathlib import Path
 from rig.cli.common import image_file, positive  # isort: split
 
 from rig.cli.common import print_json, print_lines, status
-from rig.cli.options import LOBES, REQUIRED, STOCK, command, db_row, dialect_row
+from rig.cli.options import LOBES, REQUIRED, STOCK, Rows, command, db_row, dialect_row
 from rig.terminal import Progress
 
 
@@ -29,7 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 #: what feed and simulate share: the machine, the tool, the stock
-COMMON = [
+COMMON: Rows = [
     ("--machine", None, "ace-h63", "machine config name or path"),
     ("--tool", None, None, "end mill of the tool catalogue, or T1=NAME,T2=NAME for a program "
      "that changes tools (needed for a program; plans name theirs)"),
@@ -37,7 +37,7 @@ COMMON = [
     ("--no-holder-check", bool, None, "skip holder/stock checks"),
     ("--json", bool, None, "machine-readable output on stdout"),
 ]
-FEED = (
+FEED: Rows = (
     ("program", Path, None, "NC program (G21 or G20)"),
     ("--rules", None, None, "rule file (TOML) or rule-base name / id; T1=RULE,T2=RULE for a "
      "program that changes tools (a tool left out, e.g. a drill, keeps its feeds); default: each "

@@ -3,13 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 from pathlib import Path
 
-from analysis.rules.rulebase import GroupKey
-from rig.cli.common import count, image_file, positive  # isort: split
-
-from rig.cli.common import print_json, print_lines, print_table, status
+from analysis import rules
+from analysis.output import table_lines
+from rig.cli.common import count, image_file, positive, show, status
 from rig.cli.options import REQUIRED, add_options, command, db_row, group, json_row, model_options
 
 FEED = positive("mm/min", 200_000)
@@ -42,7 +40,7 @@ def register(sub: argparse._SubParsersAction) -> None:
             catalogs=True)
     a = command(rs, "add", "store a rule file in the rule base for a machining group",
                 [("rule", Path, None, None)], _add)
-    model_options(a, GroupKey, flags={"spindle_rpm": "--spindle"})
+    model_options(a, rules.GroupKey, flags={"spindle_rpm": "--spindle"})
     add_options(a, [("--note", None, "", None),
                     ("--replace", bool, None, "replace the group's existing rule"),
                     db_row("rule base (default from configs/lab.toml)"), json_row(None)])
@@ -53,7 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     ], _show)
     lk = command(rs, "lookup", "the rule for a job: exact key or nearest match (stated)", [],
                  _lookup)
-    model_options(lk, GroupKey, flags={"spindle_rpm": "--spindle"})
+    model_options(lk, rules.GroupKey, flags={"spindle_rpm": "--spindle"})
     add_options(lk, [("--exact", bool, None, "fail unless the key matches exactly"), db_row(),
                      json_row(None)])
     command(rs, "export", "write a stored rule to a file, exactly as stored", [
@@ -63,73 +61,48 @@ def register(sub: argparse._SubParsersAction) -> None:
 # fmt: on
 
 
-def _key(a: argparse.Namespace) -> dict[str, object]:
-    """The machining group's key (its options are GroupKey's fields)."""
-    return {f.name: getattr(a, f.name) for f in dataclasses.fields(GroupKey)}
-
-
 def _derive(a: argparse.Namespace) -> int:
-    from analysis.rules import derive_from_sweep, plot_rule, save_rule
-
-    d = derive_from_sweep(
+    d = rules.derive_from_sweep(
         a.runs, a.name or a.output.stem, base_feed_mm_min=a.base_feed, min_feed_mm_min=a.min_feed,
         max_feed_mm_min=a.max_feed, machine=a.machine, reference_load_pct=a.reference_load,
         exponent=a.exponent, n_bins=a.bins, slope_ratio=a.slope_ratio,
         vibration_ratio=a.vibration_ratio, criterion=a.criterion,
     )  # fmt: skip
-    save_rule(d.rule, a.output)
+    rules.save_rule(d.rule, a.output)
     if a.png:
-        plot_rule(d.rule, a.png)
+        rules.plot_rule(d.rule, a.png)
     status(d.summary_line(a.output))
-    print_json(d.summary(a.output)) if a.json else print_lines(d.lines())
-    return 0
+    return show(a.json, d.summary(a.output), d.lines)
 
 
 def _add(a: argparse.Namespace) -> int:
-    from analysis.rules import add_rule_file
-
     def creating(db: Path) -> None:
         status(f"rules add: {db} does not exist: creating a new rule base there")
 
-    g, db = add_rule_file(a.rule, _key(a), a.db, note=a.note, replace=a.replace, on_create=creating)
-    print_json(g) if a.json else print(f"stored {a.rule} as group {g['id']} in {db}")
-    return 0
+    g, db = rules.add_rule_file(a.rule, rules.GroupKey.of(vars(a)), a.db, note=a.note,
+                                replace=a.replace, on_create=creating)
+    return show(a.json, g, lambda: [f"stored {a.rule} as group {g['id']} in {db}"])
 
 
 def _list(a: argparse.Namespace) -> int:
-    from analysis.rules import list_groups
-
-    rows = list_groups(a.db)
-    print_json(rows) if a.json else print_table(rows)
-    return 0
+    rows = rules.list_groups(a.db)
+    return show(a.json, rows, lambda: table_lines(rows))
 
 
 def _show(a: argparse.Namespace) -> int:
-    from analysis.rules import plot_rule, rule_info
-
-    rule, info = rule_info(a.rule, a.db)
+    rule, info = rules.rule_info(a.rule, a.db)
     if a.png:
-        plot_rule(rule, a.png)
+        rules.plot_rule(rule, a.png)
         status(f"wrote {a.png}")
-    if a.json:
-        print_json(info)
-        return 0
-    print("\n".join(f"{k}: {v}" for k, v in info.items() if k != "bins"))
-    print_table(info["bins"])
-    return 0
+    return show(a.json, info, lambda: rules.rule_info_lines(info))
 
 
 def _lookup(a: argparse.Namespace) -> int:
-    from analysis.rules import lookup_group
-
-    m = lookup_group(_key(a), a.db, exact_only=a.exact)
-    print_json(m) if a.json else print(m["statement"])
-    return 0
+    m = rules.lookup_group(rules.GroupKey.of(vars(a)), a.db, exact_only=a.exact)
+    return show(a.json, m, lambda: [str(m["statement"])])
 
 
 def _export(a: argparse.Namespace) -> int:
-    from analysis.rules import export_rule
-
-    export_rule(a.rule, a.output, a.db)
+    rules.export_rule(a.rule, a.output, a.db)
     status(f"wrote {a.output}")
     return 0

@@ -20,7 +20,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import count, image_file, positive, print_json, status
+from rig.cli.common import count, image_file, noter, positive, show
 from rig.cli.options import REQUIRED, command, json_row
 
 
@@ -41,21 +41,8 @@ def register_stability(psub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import dataclasses
+    from analysis.stability.output import lobes_file
 
-    from analysis.stability import load_case, plot_lobes, stability_lobes
-    from analysis.stability.output import summary_line, write_lobes_csv
-
-    case = load_case(args.config)
-    if args.max_depth is not None:
-        case = dataclasses.replace(case, depth_max_mm=args.max_depth)
-    lobes = stability_lobes(case, args.method, args.steps)
-    write_lobes_csv(lobes, args.output)
-    status(f"analyze stability: wrote {args.output} ({lobes.depth_limit_mm.size} speeds)")
-    if args.plot:
-        status(f"analyze stability: wrote {plot_lobes(lobes, args.plot, case.name, case)}")
-    for w in lobes.warnings:
-        status(f"analyze stability: warning: {w}")
-    out = {"config": str(args.config), "csv": str(args.output), **lobes.to_json()}
-    print_json(out) if args.json else print(summary_line(case.name, lobes))
-    return 0
+    out, line = lobes_file(args.config, args.output, args.method, args.steps, args.max_depth,
+                           args.plot, note=noter("analyze stability"))  # fmt: skip
+    return show(args.json, out, lambda: [line])
