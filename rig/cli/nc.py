@@ -15,61 +15,31 @@ from __future__ import annotations
 import argparse
 import sys
 
-from rig.cli.common import image_file, print_json, print_table, status
+from analysis.output import table_lines
+from rig.cli.common import image_file, show, status
 from rig.cli.options import REQUIRED, command, dialect_row, group, json_row
 from rig.terminal import Progress
 
 
-def _interpret(args: argparse.Namespace, *, warn: bool = True, keep_motion: bool = False):
-    """``args.file`` interpreted; its warnings go to stderr unless ``warn`` is False."""
+def _interpret(args: argparse.Namespace):
+    """``args.file`` interpreted, its motion kept; its warnings go to stderr."""
     from planning.nc import check_program
 
     with Progress("interpreting", "B", unit_scale=True) as bar:
         run = check_program(args.file, args.machine, strict=not args.lenient, progress=bar,
-                            keep_motion=keep_motion, dialect=args.dialect)  # fmt: skip
-    for w in run.warnings if warn else ():
+                            keep_motion=True, dialect=args.dialect)  # fmt: skip
+    for w in run.warnings:
         status(f"warning: {w}")
     return run
 
 
 def _check(args: argparse.Namespace) -> int:
-    from planning.nc import NCError
-    from planning.nc.check_text import refused_summary, summary_rows
+    from planning.nc.check_text import check_answer
 
-    problems = None
-    if args.dialect:
-        from planning.nc.check import dialect_problems
-
-        problems = dialect_problems(args.file, args.dialect)
-        if not args.json:
-            for p in problems:
-                status(f"{p.severity}: {p}")
-    refused = sum(p.severity == "error" for p in problems or ())
-    try:
-        run = _interpret(args, warn=not args.json)
-    except NCError as exc:
-        if not refused:
-            raise
-        # the controller refuses a line, so its reading of the program stops there: the
-        # refusals are the answer (in --json as well), and the summary is not made
-        if args.json:
-            print_json(refused_summary(args.file, args.dialect, problems or (), str(exc)))
-        else:
-            status(f"{args.file}: {args.dialect} would refuse {refused} line(s)")
-        return 2
-    out = run.summary()
-    if problems is not None:
-        out["dialect"] = args.dialect
-        out["dialect_problems"] = [p.as_dict() for p in problems]
-    if args.json:
-        print_json(out)
-        return 2 if refused else 0
-    if refused:
-        status(f"{args.file}: {args.dialect} would refuse {refused} line(s)")
-    for p in out["warnings"][len(run.warnings) :]:  # the machine's travel limits
-        status("warning: " + p)
-    print_table(summary_rows(out))
-    return 2 if refused else 0
+    with Progress("interpreting", "B", unit_scale=True) as bar:
+        answer = check_answer(args.file, args.machine, args.dialect, strict=not args.lenient,
+                              progress=bar, note=(lambda m: None) if args.json else status)
+    return show(args.json, answer.summary, answer.lines, answer.code)
 
 
 def _motions(args: argparse.Namespace) -> int:
@@ -83,21 +53,19 @@ def _motions(args: argparse.Namespace) -> int:
         for w in it.warnings:
             status(f"warning: {w}")
         return 0
-    rows = _interpret(args, keep_motion=True).motion_table().to_dict(orient="records")
-    print_json(rows) if args.json else print_table(rows)
-    return 0
+    rows = _interpret(args).motion_table().to_dict(orient="records")
+    return show(args.json, rows, lambda: table_lines(rows))
 
 
 def _plot(args: argparse.Namespace) -> int:
     from planning.nc.plot import plot_motion
 
-    motion = _interpret(args, keep_motion=True).motion
+    motion = _interpret(args).motion
     path = plot_motion(motion, args.output, title=args.file)
-    if args.json:
-        print_json({"file": args.file, "plot": str(path), "motions": len(motion)})
-    else:
+    if not args.json:
         status(f"wrote {path} ({len(motion)} segments)")
-    return 0
+    return show(args.json, {"file": args.file, "plot": str(path), "motions": len(motion)},
+                lambda: [])  # fmt: skip
 
 
 #: each command's first options: the program, its machine, how strict
