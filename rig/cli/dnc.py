@@ -4,9 +4,14 @@ controller."""
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
-from rig.cli.common import count, number, positive, print_json, print_lines, status
+from rig.cli.common import count, noter, number, positive, print_json, show, status
 from rig.cli.options import command, group, json_row, rig_row, serial_rows
+
+if TYPE_CHECKING:
+    from rig.adaptive.send import SendLoop
+    from rig.dnc import SendJob
 
 # fmt: off
 SEND = (
@@ -36,6 +41,7 @@ SEND = (
 
 def _send(args: argparse.Namespace) -> int:
     from rig.dnc import prepare_send
+    from rig.dnc.preview import preview, preview_lines
     from rig.dnc.session import send_under_control
 
     if args.adaptive:
@@ -53,38 +59,30 @@ def _send(args: argparse.Namespace) -> int:
     )  # fmt: skip
     if job.start_block:
         status(f"restart at block {job.start_block}: " + "; ".join(job.restart_notes))
-    if args.dry_run:
-        return _dry_run(job, args)
+    if args.dry_run:  # what a send would send first; nothing is opened or sent
+        p = preview(job)
+        show(args.json, p, lambda: preview_lines(p))
+        if not args.json:
+            status(f"dry run: nothing was sent to {job.settings.port}")
+        return 0
     # the DAQ started and zeroed before anything is sent: no force, no send
     loop = _adaptive_loop(job, args).start() if args.adaptive else None
     status(f"sending {job.program.name} ({len(job.program)} blocks) to {job.settings.port} "
            f"[{job.protocol}]")  # fmt: skip
-    show = (lambda o: print_json(o.as_dict())) if args.json else None
-    out = send_under_control(job, loop, on_fault=show)
+    on_fault = (lambda o: print_json(o.as_dict())) if args.json else None
+    out = send_under_control(job, loop, on_fault=on_fault)
     print_json(out.as_dict()) if args.json else status(out.result.summary_line())
     return 0
 
 
-def _adaptive_loop(job, args: argparse.Namespace):  # noqa: ANN001, ANN202 - a SendLoop
+def _adaptive_loop(job: SendJob, args: argparse.Namespace) -> SendLoop:
     """The rig's DAQ opened and zeroed, the loop on the send's streamer (rig.adaptive.send)."""
     from rig.adaptive import AdaptiveSettings
     from rig.adaptive.send import SendLoop
 
     settings = AdaptiveSettings(mode=args.adaptive, target_force_n=args.target_force,
                                 max_force_n=args.max_force, stall_revs=args.stall_revs)  # fmt: skip
-    return SendLoop(job, settings, args.spindle_rpm, rig=args.rig,
-                    say=lambda m: status(f"dnc send: {m}"))  # fmt: skip
-
-
-def _dry_run(job, args: argparse.Namespace) -> int:  # noqa: ANN001 - a SendJob
-    """Print what a send would send first; nothing is opened or sent."""
-    from rig.dnc.preview import preview, preview_lines
-
-    p = preview(job)
-    print_json(p) if args.json else print_lines(preview_lines(p))
-    if not args.json:
-        status(f"dry run: nothing was sent to {job.settings.port}")
-    return 0
+    return SendLoop(job, settings, args.spindle_rpm, rig=args.rig, say=noter("dnc send"))
 
 
 def _serve(args: argparse.Namespace) -> int:
