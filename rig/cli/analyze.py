@@ -1,14 +1,7 @@
-"""`cutlab analyze` commands: force coefficients from runs (``forces``), modes from a hammer test
-(``modal``), stability lobes (``stability``, :mod:`rig.cli.stability`); `--help` gives each one's
-options.
-
-RUN is an HDF5 run file (conditions from the file) or a DynoWare/plain CSV export (conditions
-from its header lines), then a conditions table's row and the file-name pattern;
---conditions KEY=VALUE overrides them key by key for every run. A run that records
-another tool than --tool is refused. With --catalog the runs are those of a run catalogue
-(`cutlab catalog`) matching --where, each reduced as a dask task (local threads, or the
-dask.distributed scheduler at --scheduler) and cached by file hash. A fit that the runs
-cannot support prints its reason and exits with status 1; bad input exits with status 2.
+"""`cutlab analyze` commands: force coefficients from runs (``forces``: how runs are read,
+:mod:`analysis.identify.reading`; a catalogue's runs, :mod:`analysis.catalog`), modes from a
+hammer test (``modal``), stability lobes (``stability``, :mod:`rig.cli.stability`). A fit that
+the runs cannot support prints its reason and exits with status 1; bad input exits with status 2.
 """
 
 from __future__ import annotations

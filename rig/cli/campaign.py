@@ -1,11 +1,5 @@
-"""`cutlab campaign run|status|report` — run a campaign of test cuts, see where it is, report it.
-
-cutlab campaign run facemill-ploughing            # a name in configs/campaigns, or a path
-cutlab campaign run my.toml --dry-run             # check config, hardware, programs; no cut
-cutlab campaign run my.toml --fresh               # start over (earlier runs moved aside)
-cutlab campaign status facemill-ploughing --json  # every run's status and reason
-cutlab campaign report facemill-ploughing         # (re)write the report folder
-"""
+"""`cutlab campaign run|status|report` — run a campaign of test cuts, see where it is, report it
+(:mod:`rig.campaign`, :mod:`rig.report`)."""
 
 from __future__ import annotations
 

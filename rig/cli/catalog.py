@@ -1,19 +1,11 @@
-"""`cutlab catalog` commands: an index of the run files of an archive, and queries over it.
-
-``index`` reads new and changed run files (metadata only) and hashes them, skips unchanged ones,
-drops deleted ones; runs still being written are indexed as running. ``query`` EXPR compares
-columns (campaign, run, group, status, tool, material, spindle_rpm, feed_mm_min, fz_mm, depth_mm,
-width_mm, ...) joined by and / or / not; each row carries its path (two copies of a run differ).
-
-DIR (or --index) names the archive folder that holds the catalogue, or the index file; without
-either, query and show use the catalogue of the current folder or its nearest parent.
-"""
+"""`cutlab catalog` commands: index the run files of an archive, query the index, show a run
+(what each does: :mod:`analysis.catalog`)."""
 
 from __future__ import annotations
 
 import argparse
 
-from rig.cli.common import print_json, print_lines, print_table, status
+from rig.cli.common import print_json, print_table, show, status
 from rig.cli.options import add_options, command, group, json_row
 from rig.terminal import Progress
 
@@ -25,8 +17,7 @@ def _index(args: argparse.Namespace) -> int:
         out = update_index(args.dirs, args.index, progress=bar)
     if not args.json:
         status(f"catalog index: {out['index']}")
-    print_json(out) if args.json else print(index_line(out))
-    return 0
+    return show(args.json, out, lambda: [index_line(out)])
 
 
 def _query(args: argparse.Namespace) -> int:
@@ -48,8 +39,7 @@ def _show(args: argparse.Namespace) -> int:
     from analysis.catalog import catalog_named, show_lines, show_run
 
     row = show_run(args.run, catalog_named(args.dir, args.index))
-    print_json(row) if args.json else print_lines(show_lines(row))
-    return 0
+    return show(args.json, row, lambda: show_lines(row))
 
 
 # fmt: off

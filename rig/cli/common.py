@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from analysis.output import TABLE_CELL_MAX, finite_json, json_default, table_lines
-from rig.terminal import Heartbeat
+from rig.terminal import Heartbeat, Progress
 
 #: analysis.validation.MAGNITUDE_LIMIT, the bound of every config number (not imported: pydantic
 #: would slow `cutlab --help`; tests/test_faults.py checks the two agree)
@@ -121,6 +121,16 @@ def print_notes(cmd: str, out: Mapping[str, Any], wrote: Sequence[str] = ()) -> 
         status(f"{cmd}: wrote {', '.join(files) if isinstance(files, list) else files}")
     for w in out.get("warnings", ()):
         status(f"{cmd}: warning: {w}")
+
+
+def bar_note(bar: Progress) -> Callable[[str], None]:
+    """A job's status callback once its steps are done: the bar gives way to the status line."""
+
+    def note(message: str) -> None:
+        bar.close()
+        status(message)
+
+    return note
 
 
 def noter(cmd: str) -> Callable[[str], None]:

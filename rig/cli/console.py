@@ -1,14 +1,5 @@
-"""`cutlab console [CAMPAIGN_DIR|RUN.h5]` — the live lab console in a local web page.
-
-cutlab console out/quick                  # a campaign folder: live while it runs, then its runs
-cutlab console out/quick/runs/000-a.h5    # browse one run file by block
-cutlab console out/quick --port 9000 --bind 0.0.0.0   # reachable from the network (warns)
-
-`cutlab campaign run CONFIG --live [--port P]` starts the same page beside a campaign (it stays
-10 minutes after the campaign, `CUTLAB_CONSOLE_LINGER_S`, to browse the runs). The address
-printed carries the session's token (`http://127.0.0.1:8765/?token=...`): the page, its data and
-its feed hold / resume / abort answer only with it, always (also with `--bind`).
-"""
+"""`cutlab console [CAMPAIGN_DIR|RUN.h5]` — the live lab console in a local web page
+(:mod:`rig.console.server`: what it serves, and the session's token every request needs)."""
 
 from __future__ import annotations
 

@@ -1,8 +1,4 @@
-"""`cutlab daq` commands: record dynamometer forces into an HDF5 run file.
-
-cutlab daq record --sim --seconds 5 --rate-hz 20000 --channels 3 -o run.h5
-cutlab daq record --seconds 5 -o run.h5                 # the NI device of configs/rig.toml
-"""
+"""`cutlab daq record`: record dynamometer forces into an HDF5 run file (:mod:`rig.log`)."""
 
 from __future__ import annotations
 

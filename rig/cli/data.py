@@ -1,16 +1,12 @@
-"""`cutlab data` commands: look at run files and exports; import exports as run files.
-
-``info``: a run file's channels, rate, duration, samples, events, gaps and status, or an
-export's columns, units, rate, samples and header. ``import``: DynoWare / CSV exports into
-ordinary run files (DIR/<name>.h5), conditions and all, so every command that reads run files
-reads them.
-"""
+"""`cutlab data` commands: look at run files and exports (:mod:`analysis.runs`); import exports
+as run files (:mod:`rig.log`)."""
 
 from __future__ import annotations
 
 import argparse
 
-from rig.cli.common import image_file, nonnegative, print_json, print_lines, print_table, status
+from analysis.output import table_lines
+from rig.cli.common import image_file, nonnegative, show, status
 from rig.cli.options import REQUIRED, command, group, import_options, import_rows  # isort: split
 
 from rig.cli.options import json_row, rate_row, rig_row
@@ -21,8 +17,7 @@ def _info(args: argparse.Namespace) -> int:
     from analysis.runs import file_info_lines, file_summary
 
     s = file_summary(args.file, args.rate)
-    print_json(s) if args.json else print_lines(file_info_lines(args.file, s))
-    return 0
+    return show(args.json, s, lambda: file_info_lines(args.file, s))
 
 
 def _plot(args: argparse.Namespace) -> int:
@@ -30,9 +25,8 @@ def _plot(args: argparse.Namespace) -> int:
 
     png, samples = plot_file(args.file, args.output, args.rate, args.start_s, args.stop_s)
     status(f"data plot: wrote {png}")
-    out = {"file": args.file, "plot": str(png), "samples": samples}
-    print_json(out) if args.json else print(png)
-    return 0
+    return show(args.json, {"file": args.file, "plot": str(png), "samples": samples},
+                lambda: [str(png)])  # fmt: skip
 
 
 def _import(args: argparse.Namespace) -> int:
@@ -53,12 +47,9 @@ def _import(args: argparse.Namespace) -> int:
                                  progress=bar)  # fmt: skip
     for w in written:
         status(f"data import: {w['source']} -> {w['file']}: axes {w['axes']}; offset: {w['zero']}")
-    if args.json:
-        print_json({"written": written})
-        return 0
-    print_table([{"run file": w["file"], "samples": w["samples"], "rate_hz": w["rate_hz"],
-                  "axes": w["axes"], "offset": w["zero"]} for w in written])  # fmt: skip
-    return 0
+    rows = [{"run file": w["file"], "samples": w["samples"], "rate_hz": w["rate_hz"],
+             "axes": w["axes"], "offset": w["zero"]} for w in written]  # fmt: skip
+    return show(args.json, {"written": written}, lambda: table_lines(rows))
 
 
 FILE = ("file", None, None, "run file (.h5) or DynoWare/CSV export")

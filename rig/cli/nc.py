@@ -1,14 +1,6 @@
-"""`cutlab nc` — check, list and plot NC programs (planning.nc).
-
-``check`` prints the errors (exit 2, one line) or the program's lengths, time, bbox and warnings;
-with ``--dialect`` also what that controller would refuse (``--json``: ``dialect_problems``; exit
-2 if it would refuse a line). ``motions``: one row per canonical segment; ``plot``: the tool path.
-
-``--dialect NAME`` on all three interprets the program as that controller does (LinuxCNC: G10
-L20, F in the units of a G20/G21 in the same block, its arc tolerance, its order of execution;
-no machine file needed) unless ``--machine`` names a machine, whose own dialect then interprets
-(``--dialect`` beside it only lists what the other control would refuse).
-"""
+"""`cutlab nc` — check, list and plot NC programs (:mod:`planning.nc.check`: ``--dialect``
+interprets as that controller does unless ``--machine`` names a machine, whose own dialect then
+interprets; ``nc check --dialect`` also lists what that controller would refuse, exit 2)."""
 
 from __future__ import annotations
 

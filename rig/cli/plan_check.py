@@ -1,7 +1,5 @@
-"""`cutlab plan check PROGRAM --tool T --material M [--machine M] [--stock S] [--lobes CSV]
-[--json] [--plot PNG]`: every block of a program against what the machine and tool can take
-(spindle power and torque, tool deflection and chip thickness, the stability limit); what it
-does is :func:`planning.limits.check_job`."""
+"""`cutlab plan check`: every block of a program against what the machine and tool can take
+(:func:`planning.limits.check_job`)."""
 
 from __future__ import annotations
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import count, print_json, print_table, status
+from rig.cli.common import bar_note, count, show
 from rig.cli.options import REQUIRED, command, dialect_row
 from rig.terminal import Progress
 
@@ -33,27 +33,10 @@ def register(sub: argparse._SubParsersAction) -> None:
        formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
 
 
-def _show(v):
-    """Ranges as "lo .. hi" with 4 significant digits, not raw float lists."""
-    return f"{v[0]:.4g} .. {v[1]:.4g}" if isinstance(v, list) and len(v) == 2 else v
-
-
 def run(args: argparse.Namespace) -> int:
-    from planning.orient import run_orient
+    from planning.orient import run_orient, summary_lines
 
-    with Progress("orient", "pt") as bar:
-
-        def note(msg: str) -> None:  # the points are planned: the bar gives way to the line
-            bar.close()
-            status(msg)
-
-        summary = run_orient(
-            args.config, args.out, args.map_point, not args.no_plot, bar, note, args.dialect
-        )
-    if args.json:
-        print_json(summary)
-        return 0
-    print_table([{"quantity": k, "value": _show(v)} for k, v in summary.items() if k != "files"])
-    for f in summary["files"]:
-        print(f)
-    return 0
+    with Progress("orient", "pt") as bar:  # the points planned, the bar gives way to the notes
+        summary = run_orient(args.config, args.out, args.map_point, not args.no_plot, bar,
+                             bar_note(bar), args.dialect)  # fmt: skip
+    return show(args.json, summary, lambda: summary_lines(summary))

@@ -21,7 +21,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import positive, print_json, print_lines, status
+from rig.cli.common import bar_note, positive, show
 from rig.cli.options import LOBES, REQUIRED, command, dialect_row
 from rig.terminal import Progress
 
@@ -57,34 +57,18 @@ ROUGH = (
 
 def run(args: argparse.Namespace) -> int:
     from planning.limits import rough_limiter
+    from planning.limits.text import rough_answer, rough_text
     from planning.rough import run_rough
-
-    with Progress("plan rough", "step") as bar:
-
-        def note(msg: str) -> None:  # planning is over: the bar gives way to the status lines
-            bar.close()
-            status(msg)
-
-        res = run_rough(args.config, args.output, args.method, args.cusp_model,
-                        check=not args.no_check, check_spacing_mm=args.check_spacing,
-                        png=not args.no_png, progress=bar.step, status=note,
-                        dialect=args.dialect, machine=args.machine,
-                        limits=rough_limiter(fix=args.limit, machine=args.machine,
-                                             material=args.material, lobes=args.lobes))  # fmt: skip
     from rig.cli.plan_check import WRITTEN_EXIT
 
+    with Progress("plan rough", "step") as bar:  # planned, the bar gives way to the notes
+        res = rough_answer(run_rough(
+            args.config, args.output, args.method, args.cusp_model, check=not args.no_check,
+            check_spacing_mm=args.check_spacing, png=not args.no_png, progress=bar.step,
+            status=bar_note(bar), dialect=args.dialect, machine=args.machine,
+            limits=rough_limiter(fix=args.limit, machine=args.machine, material=args.material,
+                                 lobes=args.lobes),
+        ))  # fmt: skip
     c = res["check"]
-    lim = res["limits"] or {}  # the limits' verdict of the written program
-    res["verdict"] = lim.get("verdict", "unchecked")
     code = 3 if c is not None and not c["ok"] else WRITTEN_EXIT[res["verdict"]]
-    res["unchecked"] = lim.get("unchecked", [{"limit": "all", "reason": "limits not run"}])
-    if args.json:
-        print_json(res)
-        return code
-    from planning.limits.text import rough_limit_lines, verdict_lines
-    from planning.rough.text import rough_lines
-
-    print_lines([*rough_lines(res, args.method), *rough_limit_lines(res), *verdict_lines(res)])
-    for k, v in res["png"].items():
-        print(f"{k}: {v}")
-    return code
+    return show(args.json, res, lambda: rough_text(res), code)
