@@ -102,10 +102,8 @@ def _status(args: argparse.Namespace) -> int:
     from rig.campaign.commands import missing_folder_note, status_lines
 
     st = campaign_status(load_campaign(args.config), args.out)
-    show(args.json, st, lambda: status_lines(st))
-    if not args.json and (note := missing_folder_note(Path(st["folder"]))) is not None:
-        status(note)
-    return 0
+    return show(args.json, st, lambda: status_lines(st),
+                after=[missing_folder_note(Path(st["folder"]))])  # fmt: skip
 
 
 def _report(args: argparse.Namespace) -> int:

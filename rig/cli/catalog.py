@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import argparse
 
-from rig.cli.common import print_json, print_table, show, status
+from rig.cli.common import print_json, print_table, show
 from rig.cli.options import add_options, command, group, json_row
 from rig.terminal import Progress
 
@@ -15,9 +15,8 @@ def _index(args: argparse.Namespace) -> int:
 
     with Progress("indexing run files", "file", quiet=args.json) as bar:
         out = update_index(args.dirs, args.index, progress=bar)
-    if not args.json:
-        status(f"catalog index: {out['index']}")
-    return show(args.json, out, lambda: [index_line(out)])
+    return show(args.json, out, lambda: [index_line(out)],
+                notes=lambda: [f"catalog index: {out['index']}"])  # fmt: skip
 
 
 def _query(args: argparse.Namespace) -> int:

@@ -106,10 +106,23 @@ def print_json(obj: Any) -> None:
     sys.stdout.write("\n")
 
 
-def show(as_json: bool, obj: Any, lines: Callable[[], Sequence[str]], code: int = 0) -> int:
-    """A command's result: ``obj`` as JSON on stdout if ``as_json``, else the ``lines()`` it
-    renders to; returns ``code`` (the command's exit status)."""
-    print_json(obj) if as_json else print_lines(lines())
+def show(
+    as_json: bool, obj: Any, lines: Callable[[], Sequence[str]] = list, code: int = 0, *,
+    notes: Callable[[], Sequence[str | None]] = list, after: Sequence[str | None] = (),
+) -> int:  # fmt: skip
+    """A command's result: ``obj`` as JSON on stdout if ``as_json``, else the ``notes()`` on
+    stderr, the ``lines()`` it renders to on stdout and the notes ``after`` on stderr (a note
+    None is none); returns ``code`` (the command's exit status)."""
+    if as_json:
+        print_json(obj)
+        return code
+    for note in notes():
+        if note is not None:
+            status(note)
+    print_lines(lines())
+    for note in after:
+        if note is not None:
+            status(note)
     return code
 
 

@@ -61,10 +61,8 @@ def _send(args: argparse.Namespace) -> int:
         status(f"restart at block {job.start_block}: " + "; ".join(job.restart_notes))
     if args.dry_run:  # what a send would send first; nothing is opened or sent
         p = preview(job)
-        show(args.json, p, lambda: preview_lines(p))
-        if not args.json:
-            status(f"dry run: nothing was sent to {job.settings.port}")
-        return 0
+        return show(args.json, p, lambda: preview_lines(p),
+                    after=[f"dry run: nothing was sent to {job.settings.port}"])  # fmt: skip
     # the DAQ started and zeroed before anything is sent: no force, no send
     loop = _adaptive_loop(job, args).start() if args.adaptive else None
     status(f"sending {job.program.name} ({len(job.program)} blocks) to {job.settings.port} "

@@ -54,10 +54,8 @@ def _plot(args: argparse.Namespace) -> int:
 
     motion = _interpret(args).motion
     path = plot_motion(motion, args.output, title=args.file)
-    if not args.json:
-        status(f"wrote {path} ({len(motion)} segments)")
     return show(args.json, {"file": args.file, "plot": str(path), "motions": len(motion)},
-                lambda: [])  # fmt: skip
+                after=[f"wrote {path} ({len(motion)} segments)"])  # fmt: skip
 
 
 #: each command's first options: the program, its machine, how strict

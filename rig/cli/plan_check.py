@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import positive, print_json, print_lines, status
+from rig.cli.common import positive, show
 from rig.cli.options import LOBES, STOCK, command
 from rig.terminal import Progress
 
@@ -37,16 +37,9 @@ VERDICT_EXIT = {"within": 0, "violations": 3, "unchecked": 4}
 WRITTEN_EXIT = {"within": 0, "violations": 3, "unchecked": 0}
 
 
-def print_stock(stock: dict) -> None:
-    from planning.limits.text import stock_note
-
-    if (note := stock_note(stock)) is not None:
-        status(note)
-
-
 def run(a: argparse.Namespace) -> int:
     from planning.limits import check_job
-    from planning.limits.text import check_lines
+    from planning.limits.text import check_lines, stock_note
 
     with Progress("simulate", unit="piece") as bar:
         _, out = check_job(
@@ -54,12 +47,6 @@ def run(a: argparse.Namespace) -> int:
             stock_spec=a.stock, spacing_mm=a.spacing, lobes=a.lobes, spindle_rpm=a.spindle,
             plot=a.plot, progress=bar,
         )  # fmt: skip
-    code = VERDICT_EXIT[out["verdict"]]
-    if a.json:
-        print_json(out)
-        return code
-    print_stock(out["stock"])
-    print_lines(check_lines(out))
-    if out["png"]:
-        status(f"wrote {out['png']}")
-    return code
+    return show(a.json, out, lambda: check_lines(out), VERDICT_EXIT[out["verdict"]],
+                notes=lambda: [stock_note(out["stock"])],
+                after=[f"wrote {out['png']}" if out["png"] else None])  # fmt: skip

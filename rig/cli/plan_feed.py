@@ -8,7 +8,7 @@ from pathlib import Path
 
 from rig.cli.common import image_file, positive  # isort: split
 
-from rig.cli.common import print_json, print_lines, status
+from rig.cli.common import show, status
 from rig.cli.options import LOBES, REQUIRED, STOCK, Rows, command, db_row, dialect_row
 from rig.terminal import Progress
 
@@ -65,8 +65,8 @@ def _feed(a: argparse.Namespace) -> int:
     from planning.feed import feed_program
     from planning.feed.text import feed_lines, feed_notes
     from planning.limits.feed_options import feed_limits
-    from planning.limits.text import verdict_lines, violation_lines
-    from rig.cli.plan_check import WRITTEN_EXIT, print_stock
+    from planning.limits.text import stock_note, verdict_lines, violation_lines
+    from rig.cli.plan_check import WRITTEN_EXIT
 
     lim = feed_limits(a.rules, a.tool, a.material, a.machine, a.lobes, a.force_limit, a.limit,
                       a.spindle)  # fmt: skip
@@ -79,35 +79,25 @@ def _feed(a: argparse.Namespace) -> int:
             material=None if lim.lookup_only else a.material, spindle_rpm=a.spindle,
             dialect=a.dialect, limit_step=lim.step, feed_cap=lim.cap, rules_material=a.material,
         )  # fmt: skip
-    if a.json:
-        s.setdefault("violations", [])  # the command contract: always a list
-        print_json(s)
-        return WRITTEN_EXIT[s["verdict"]]
-    print_stock(s["stock"])
-    print_lines(violation_lines(s["violations"]))
-    for line in feed_notes(s, result.simulation.contacts, a.program, a.output):
-        status(line)
-    print_lines([*feed_lines(s), *verdict_lines(s)])
-    return WRITTEN_EXIT[s["verdict"]]
+    s.setdefault("violations", [])  # the command contract: always a list
+    if not a.json:  # the violations come between the stock's note and the feeds' notes
+        show(False, s, lambda: violation_lines(s["violations"]),
+             notes=lambda: [stock_note(s["stock"])])  # fmt: skip
+    return show(a.json, s, lambda: [*feed_lines(s), *verdict_lines(s)], WRITTEN_EXIT[s["verdict"]],
+                notes=lambda: feed_notes(s, result.simulation.contacts, a.program, a.output))
 
 
 def _simulate(a: argparse.Namespace) -> int:
     from planning.feed import simulate_job
     from planning.feed.text import simulate_lines, simulate_notes
-    from rig.cli.plan_check import print_stock
+    from planning.limits.text import stock_note
 
     with Progress("simulate", unit="piece") as bar:
         results, out = simulate_job(
             a.program, machine=a.machine, tool_name=a.tool, stock_spec=a.stock,
             spacing_mm=a.spacing, check_holder=not a.no_holder_check, png=a.png, progress=bar,
         )  # fmt: skip
-    if a.json:
-        print_json(out)
-        return 0
-    print_stock(out["stock"])
-    for line in simulate_notes(out, [r.simulation.contacts for r in results]):
-        status(line)
-    print_lines(simulate_lines(out))
-    if a.png:
-        status(f"wrote {a.png}")
-    return 0
+    contacts = [r.simulation.contacts for r in results]
+    return show(a.json, out, lambda: simulate_lines(out),
+                notes=lambda: [stock_note(out["stock"]), *simulate_notes(out, contacts)],
+                after=[f"wrote {a.png}" if a.png else None])  # fmt: skip
