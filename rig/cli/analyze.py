@@ -9,9 +9,7 @@ from __future__ import annotations
 import argparse
 
 from analysis.runs import IDENTIFY_TOLERANCE
-from rig.cli.common import count, image_file, number, positive  # isort: split
-
-from rig.cli.common import print_notes, show, status
+from rig.cli.common import count, image_file, number, positive, print_notes, show, status
 from rig.cli.options import command, group, import_options, import_rows, json_row, rate_row, rig_row
 from rig.terminal import Progress
 

@@ -181,29 +181,3 @@ def heartbeat_for(args: argparse.Namespace) -> Heartbeat:
     quiet = (not words or words[0] in _NO_HEARTBEAT or bool(getattr(args, "quiet", False))
              or bool(getattr(args, "live", False)))  # fmt: skip
     return Heartbeat(" ".join(["cutlab", *words]), quiet=quiet)
-
-
-# ---------------------------------------------------------------------------- user catalogues
-
-
-def add_catalog_options(p: argparse.ArgumentParser) -> None:
-    """``--tools FILE`` / ``--materials FILE`` (issue 17: user catalogues next to the data, never
-    edits inside the install), applied around the command's ``func``: call it after
-    ``p.set_defaults(func=...)``."""
-    run = p.get_default("func")
-    if run is None:
-        raise RuntimeError(f"{p.prog}: add_catalog_options needs set_defaults(func=...) first")
-    p.add_argument("--tools", dest="catalog_tools", type=Path, metavar="FILE",
-                   help="your tool catalogue (TOML, [tools.NAME]), read before "
-                   "configs/tools.toml: a name in it shadows the shipped one")  # fmt: skip
-    p.add_argument("--materials", dest="catalog_materials", type=Path, metavar="FILE",
-                   help="your material catalogue (TOML, [materials.NAME]), read before "
-                   "configs/materials.toml: a name in it shadows the shipped one")  # fmt: skip
-
-    def with_catalogs(a: argparse.Namespace) -> Any:
-        from analysis.config import user_catalogs
-
-        with user_catalogs(a.catalog_tools, a.catalog_materials):
-            return run(a)
-
-    p.set_defaults(func=with_catalogs)

@@ -5,9 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING
 
-from rig.cli.common import count, nonnegative, positive  # isort: split
-
-from rig.cli.common import print_json, print_table, status
+from analysis.output import table_lines
+from rig.cli.common import count, nonnegative, noter, positive, show, status
 from rig.cli.options import REQUIRED, Rows, command, group
 from rig.terminal import Progress
 
@@ -33,7 +32,7 @@ def _record(args: argparse.Namespace) -> int:
             plan.rig, rate_hz=plan.rate_hz, seconds=plan.seconds, channels=args.channels,
             speed=args.speed, raw=args.raw, noise_v=args.sim_noise_v,
             overflow_at=args.sim_overflow_at, where=plan.where,
-            warn=lambda msg: status(f"daq record: {msg}"),
+            warn=noter("daq record"),
         )  # fmt: skip
     else:
         from rig.daq.ni import NiDaq
@@ -44,11 +43,8 @@ def _record(args: argparse.Namespace) -> int:
         res = record_rig(daq, plan, flush_interval_s=args.flush_s, progress=bar)
     status(f"daq record: wrote {res.path} ({res.status}{': ' + res.reason if res.reason else ''})")
     summary = res.summary()
-    if args.json:
-        print_json(summary)
-    else:
-        print_table([{"quantity": k, "value": v} for k, v in summary.items()])
-    return 0 if res.status == "success" else 1
+    rows = [{"quantity": k, "value": v} for k, v in summary.items()]
+    return show(args.json, summary, lambda: table_lines(rows), 0 if res.status == "success" else 1)
 
 
 # fmt: off

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import argparse
 
-from rig.cli.common import print_json, print_lines, status
+from rig.cli.common import show, status
 from rig.cli.options import command
 
 CAMPAIGN = (
@@ -42,6 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _demo(args: argparse.Namespace) -> int:
     from rig.report import run_demo
+    from rig.report.demo_text import demo_lines
 
     out = args.out or ("out/demo-independent" if args.forces == "independent" else "out/demo")
     res = run_demo(args.campaign, out, resume=args.resume, progress=not args.quiet,
@@ -49,7 +50,4 @@ def _demo(args: argparse.Namespace) -> int:
     if res.stopped:
         status(f"demo: stopped; run `cutlab demo --resume` to continue ({res.folder})")
         return 130
-    from rig.report.demo_text import demo_lines
-
-    print_json(res.summary()) if args.json else print_lines(demo_lines(res))
-    return 0 if res.ok else 1
+    return show(args.json, res.summary(), lambda: demo_lines(res), 0 if res.ok else 1)

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
 from planning.nc import DIALECTS
-from rig.cli.common import MAGNITUDE_LIMIT, add_catalog_options, count, number, positive
+from rig.cli.common import MAGNITUDE_LIMIT, count, number, positive
 
 if TYPE_CHECKING:
     from analysis.identify import ImportOptions
@@ -64,11 +64,33 @@ def command(
     """A subcommand: its options from ``rows`` (:func:`add_options`), run by ``func``, with
     the user catalogues' --tools/--materials if ``catalogs``; ``kw`` to ``add_parser``."""
     p = sub.add_parser(name, help=help, **kw)
-    add_options(p, rows)
-    p.set_defaults(func=func)
-    if catalogs:
-        add_catalog_options(p)
+    add_options(p, [*rows, CATALOGS] if catalogs else rows)
+    p.set_defaults(func=_with_catalogs(func) if catalogs else func)
     return p
+
+
+#: ``--tools FILE`` / ``--materials FILE``: the user's catalogues, read before the shipped ones
+#: (issue 17: next to the data, never edits inside the install)
+CATALOGS = [
+    ("--tools", Path, None, "your tool catalogue (TOML, [tools.NAME]), read before "
+     "configs/tools.toml: a name in it shadows the shipped one",
+     {"dest": "catalog_tools", "metavar": "FILE"}),
+    ("--materials", Path, None, "your material catalogue (TOML, [materials.NAME]), read before "
+     "configs/materials.toml: a name in it shadows the shipped one",
+     {"dest": "catalog_materials", "metavar": "FILE"}),
+]  # fmt: skip
+
+
+def _with_catalogs(run: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+    """``run`` with the user's catalogues (:data:`CATALOGS`) in force."""
+
+    def with_catalogs(a: argparse.Namespace) -> int:
+        from analysis.config import user_catalogs
+
+        with user_catalogs(a.catalog_tools, a.catalog_materials):
+            return run(a)
+
+    return with_catalogs
 
 
 #: unit suffixes of a field's name that its option's name drops (tool_diameter_mm: --tool-diameter)

@@ -6,9 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import image_file, positive  # isort: split
-
-from rig.cli.common import show, status
+from rig.cli.common import image_file, positive, show, status
 from rig.cli.options import LOBES, REQUIRED, STOCK, Rows, command, db_row, dialect_row
 from rig.terminal import Progress
 
