@@ -88,7 +88,7 @@ def _key_text(key: GroupKey) -> str:
 class GroupKey:
     """What identifies a machining group (seed 001 Table 1)."""
 
-    # the metadata: `cutlab rules add|lookup`'s options (rig.cli.options.model_options)
+    # the metadata: `cutlab rules add|lookup`'s options (rig.cli.options.model_rows)
     part_family: str = field(metadata={"help": "e.g. trunk/outer/draw/lower-die"})
     operation: str = field(metadata={"help": "roughing, pencil, rest-roughing, ..."})
     tool_diameter_mm: float = field(metadata={"unit": "mm", "gt": 0, "le": 1000})

@@ -1,5 +1,7 @@
-"""Options shared by several commands, one function per group: a shared option is defined once
-and reads the same everywhere (name, type, default, help, place in the help)."""
+"""How commands are declared: a table of option rows per command (:func:`add_options`), a
+command or a group in one call (:func:`command`, :func:`group`), options made from a model's
+fields, their help next to the field (:func:`model_rows`), and the rows shared by several commands
+(defined once, read the same everywhere: name, type, default, help, place in the help)."""
 
 from __future__ import annotations
 
@@ -95,13 +97,6 @@ def _with_catalogs(run: Callable[[argparse.Namespace], int]) -> Callable[[argpar
 
 #: unit suffixes of a field's name that its option's name drops (tool_diameter_mm: --tool-diameter)
 _UNIT_SUFFIXES = ("_mm_min", "_mm", "_rpm", "_n", "_s", "_hz", "_pct")
-
-
-def model_options(
-    p: argparse.ArgumentParser, model: type, *, flags: Mapping[str, str] | None = None
-) -> None:
-    """One option per field of ``model``, from :func:`model_rows`."""
-    add_options(p, model_rows(model, flags=flags))
 
 
 def model_rows(

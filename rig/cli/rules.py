@@ -8,7 +8,7 @@ from pathlib import Path
 from analysis import rules
 from analysis.output import table_lines
 from rig.cli.common import count, image_file, positive, show, status
-from rig.cli.options import REQUIRED, add_options, command, db_row, group, json_row, model_options
+from rig.cli.options import REQUIRED, command, db_row, group, json_row, model_rows
 
 FEED = positive("mm/min", 200_000)
 # fmt: off
@@ -38,22 +38,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     rs = group(sub, "rules", "feed rules: derive from feed sweeps, the rule base")
     command(rs, "derive", "base feed from a feed sweep, then the 20-bin rule", DERIVE, _derive,
             catalogs=True)
-    a = command(rs, "add", "store a rule file in the rule base for a machining group",
-                [("rule", Path, None, None)], _add)
-    model_options(a, rules.GroupKey, flags={"spindle_rpm": "--spindle"})
-    add_options(a, [("--note", None, "", None),
-                    ("--replace", bool, None, "replace the group's existing rule"),
-                    db_row("rule base (default from configs/lab.toml)"), json_row(None)])
+    key = model_rows(rules.GroupKey, flags={"spindle_rpm": "--spindle"})  # the machining group
+    command(rs, "add", "store a rule file in the rule base for a machining group", [
+        ("rule", Path, None, None), key, ("--note", None, "", None),
+        ("--replace", bool, None, "replace the group's existing rule"),
+        db_row("rule base (default from configs/lab.toml)"), json_row(None),
+    ], _add)
     command(rs, "list", "the machining groups in the rule base", [db_row(), json_row(None)], _list)
     command(rs, "show", "one rule: its bins (by rule name, group id or rule file)", [
         ("rule", None, None, "rule name or group id in the rule base, or a rule file"), db_row(),
         ("--png", image_file, None, "plot load vs feed with the bins"), json_row(None),
     ], _show)
-    lk = command(rs, "lookup", "the rule for a job: exact key or nearest match (stated)", [],
-                 _lookup)
-    model_options(lk, rules.GroupKey, flags={"spindle_rpm": "--spindle"})
-    add_options(lk, [("--exact", bool, None, "fail unless the key matches exactly"), db_row(),
-                     json_row(None)])
+    command(rs, "lookup", "the rule for a job: exact key or nearest match (stated)", [
+        key, ("--exact", bool, None, "fail unless the key matches exactly"), db_row(),
+        json_row(None),
+    ], _lookup)
     command(rs, "export", "write a stored rule to a file, exactly as stored", [
         ("rule", None, None, "rule name or group id"), ("-o --output", Path, REQUIRED, None),
         db_row(),
