@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import image_file, positive, show, status
+from rig.cli.common import image_file, positive, print_lines, show, status
 from rig.cli.options import LOBES, REQUIRED, STOCK, Rows, command, db_row, dialect_row
 from rig.terminal import Progress
 
@@ -77,11 +77,14 @@ def _feed(a: argparse.Namespace) -> int:
             material=None if lim.lookup_only else a.material, spindle_rpm=a.spindle,
             dialect=a.dialect, limit_step=lim.step, feed_cap=lim.cap, rules_material=a.material,
         )  # fmt: skip
-    s.setdefault("violations", [])  # the command contract: always a list
-    if not a.json:  # the violations come between the stock's note and the feeds' notes
-        show(False, s, lambda: violation_lines(s["violations"]),
-             notes=lambda: [stock_note(s["stock"])])  # fmt: skip
-    return show(a.json, s, lambda: [*feed_lines(s), *verdict_lines(s)], WRITTEN_EXIT[s["verdict"]],
+    code = WRITTEN_EXIT[s["verdict"]]
+    if a.json:
+        s.setdefault("violations", [])  # the command contract: always a list
+        return show(True, s, code=code)
+    if (note := stock_note(s["stock"])) is not None:
+        status(note)
+    print_lines(violation_lines(s["violations"]))  # between the stock's note and the feeds' notes
+    return show(False, s, lambda: [*feed_lines(s), *verdict_lines(s)], code,
                 notes=lambda: feed_notes(s, result.simulation.contacts, a.program, a.output))
 
 
