@@ -79,6 +79,7 @@ LOCAL_SCHEDULERS = ("threads", "processes", "sync", "synchronous", "single-threa
 _REDUCTION_CODE = (
     "analysis.identify._common",
     "analysis.identify.reading",
+    "analysis.identify.options",
     "analysis.identify.facemill",
     "analysis.identify.conditions",
     "analysis.identify.axes",
