@@ -57,7 +57,7 @@ if TYPE_CHECKING:
     from distributed import Client
     from typing_extensions import Unpack
 
-    from analysis.identify.reading import ImportOptions
+    from analysis.identify.options import ImportOptions
 
 
 class FitOptions(TypedDict, total=False):
