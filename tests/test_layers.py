@@ -34,6 +34,7 @@ MAY_IMPORT: dict[str, set[str]] = {
         "analysis.validation",
         "analysis.config",
         "analysis.runs",
+        "analysis.output",
     },
     "analysis.rules": {
         "analysis.errors",
@@ -495,8 +496,9 @@ def test_the_dialect_comparison_check_finds_comparisons(tmp_path: Path) -> None:
 
 
 #: issue 30 item 5 asks for the CLI (rig/cli/*.py) under 1 500 lines; until then, the ceiling it
-#: may not grow over (lower it as the CLI gets thinner)
-CLI_CEILING_LINES = 2062
+#: may not grow over (lower it as the CLI gets thinner): 2 067 lines before the option tables
+#: and the results' own text, 1 794 after
+CLI_CEILING_LINES = 1794
 
 
 def _cli_lines() -> int:
@@ -506,5 +508,5 @@ def _cli_lines() -> int:
 def test_the_cli_does_not_grow() -> None:
     assert _cli_lines() <= CLI_CEILING_LINES, (
         f"rig/cli/*.py: {_cli_lines()} lines, over the ceiling {CLI_CEILING_LINES}: declare "
-        "options from a model (rig.cli.options.model_options) and print what results render"
+        "options from a model (rig.cli.options.model_rows) and print what results render"
     )

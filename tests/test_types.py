@@ -53,13 +53,9 @@ def _ignored_patterns() -> list[str]:
 # the console's ring meta, the importer's scalar calibration): typed next, each entry only
 # shrinks and goes (a file not listed may have none).
 RIG_MYPY_CEILING: dict[str, int] = {
-    "rig/cli/analyze.py": 12,
     "rig/cli/catalog.py": 1,
     "rig/cli/plan_check.py": 2,
-    "rig/cli/plan_feed.py": 5,
-    "rig/cli/plan_orient.py": 4,
-    "rig/cli/plan_rough.py": 3,
-    "rig/cli/rules.py": 3,
+    "rig/cli/plan_feed.py": 4,
     "rig/console/live.py": 7,
     "rig/console/ring.py": 3,
     "rig/log/importer.py": 4,

@@ -21,7 +21,7 @@ from analysis.catalog.query import (
     records,
     show_run,
 )
-from analysis.catalog.text import catalog_named, index_line, query_rows, show_lines
+from analysis.catalog.text import catalog_named, fit_line, index_line, query_rows, show_lines
 
 __all__ = [
     "CONNECT_TIMEOUT_S",
@@ -35,6 +35,7 @@ __all__ = [
     "check_query",
     "compute",
     "fit_catalog",
+    "fit_line",
     "index_file",
     "index_line",
     "load_index",

@@ -57,7 +57,7 @@ if TYPE_CHECKING:
     from distributed import Client
     from typing_extensions import Unpack
 
-    from analysis.identify.reading import ImportOptions
+    from analysis.identify.options import ImportOptions
 
 
 class FitOptions(TypedDict, total=False):
@@ -79,6 +79,7 @@ LOCAL_SCHEDULERS = ("threads", "processes", "sync", "synchronous", "single-threa
 _REDUCTION_CODE = (
     "analysis.identify._common",
     "analysis.identify.reading",
+    "analysis.identify.options",
     "analysis.identify.facemill",
     "analysis.identify.conditions",
     "analysis.identify.axes",

@@ -10,7 +10,7 @@ import pandas as pd
 
 from analysis.catalog.query import MAIN_COLUMNS
 
-__all__ = ["catalog_named", "index_line", "query_rows", "show_lines"]
+__all__ = ["catalog_named", "fit_line", "index_line", "query_rows", "show_lines"]
 
 
 def catalog_named(folder: str | None, index: str | None) -> str | None:
@@ -35,6 +35,16 @@ def index_line(out: Mapping[str, object]) -> str:
             f"{out['unchanged']} unchanged, {out['removed']} removed; {out['runs_in_index']} in "
             f"the index ({', '.join(f'{k} {v}' for k, v in sorted(statuses.items()))}); "
             f"{seconds:.2f} s")  # fmt: skip
+
+
+def fit_line(out: Mapping[str, object]) -> str:
+    """A catalogue fit (:func:`~analysis.catalog.fit_catalog`): its runs, and what came from the
+    cache."""
+    c = out["catalog"]
+    assert isinstance(c, Mapping)
+    how = ("the fit from the cache" if c["fit_cached"] else
+           f"{c['cached']} from the cache, {c['reduced']} reduced")  # fmt: skip
+    return f"{c['runs']} run(s) from {c['index']}: {how}"
 
 
 def query_rows(df: pd.DataFrame, all_columns: bool = False) -> list[dict[str, object]]:

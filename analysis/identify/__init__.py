@@ -28,8 +28,8 @@ if TYPE_CHECKING:  # the names as the type checker sees them; at run time each l
         merge_conditions,
         read_force_table,
     )
+    from analysis.identify.options import ImportOptions
     from analysis.identify.reading import (
-        ImportOptions,
         find_tool,
         load_exports,
         reduce_files,
@@ -66,8 +66,8 @@ _LAZY = {
         "reduce_run_file",
     ),
     "analysis.identify.files": ("fit_files",),
+    "analysis.identify.options": ("ImportOptions",),
     "analysis.identify.reading": (
-        "ImportOptions",
         "find_tool",
         "load_exports",
         "reduce_files",

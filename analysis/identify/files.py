@@ -31,8 +31,8 @@ from analysis.identify.axes import AxesChoice, check_axes, choose_axes, parse_ax
 from analysis.identify.endmill import EndMillFit, fit_endmill
 from analysis.identify.facemill import FaceMillFit, fit_facemill
 from analysis.identify.importers import NO_AIR_ZEROED
+from analysis.identify.options import ImportOptions
 from analysis.identify.reading import (
-    ImportOptions,
     Mapper,
     Progress,
     find_tool,

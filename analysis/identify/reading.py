@@ -31,17 +31,15 @@ from analysis.identify._common import (
     reduce_run,
     reduce_run_file,
 )
-from analysis.identify.axes import AxisMap, parse_axes, remap
+from analysis.identify.axes import AxisMap, remap
 from analysis.identify.conditions import (
     Conditions,
-    ConditionsTable,
-    load_conditions_table,
     normalize,
-    pattern_conditions,
     resolve_conditions,
 )
 from analysis.identify.facemill import tool_entry_s
 from analysis.identify.importers import Export, load_export
+from analysis.identify.options import ImportOptions
 from analysis.runs import IDENTIFY_TOLERANCE, NoSteadyCutError, load_run
 
 Progress = Callable[[int, int], None]
@@ -60,47 +58,6 @@ def tool_teeth(name: str, tools_path: str | Path | None = None) -> int:
         return 1
     tool = find_tool(name, tools_path)
     return model_for(tool).teeth(tool)
-
-
-@dataclass(frozen=True)
-class ImportOptions:
-    """How to read each file: ``axes`` (``x=-Fy,y=Fx,z=-Fz`` or None for the rig config's /
-    the files' own), a conditions ``table`` (path or loaded), a file-name ``pattern``, a
-    ``zero_file`` or ``zeroed`` (exports), the user's ``tools_path`` and ``materials_path``."""
-
-    axes: AxisMap | str | None = None
-    table: ConditionsTable | str | Path | None = None
-    pattern: str | None = None
-    zero_file: str | Path | None = None
-    zeroed: bool = False
-    tools_path: str | Path | None = None
-    materials_path: str | Path | None = None
-
-    @property
-    def auto(self) -> bool:
-        """``--axes auto``: the mapping is chosen from the fit (:func:`choose_axes`)."""
-        return isinstance(self.axes, str) and self.axes.strip().lower() == "auto"
-
-    def loaded(self) -> ImportOptions:
-        """Parsed once: the mapping and the table (``auto`` stays ``"auto"``)."""
-        axes = self.axes
-        if isinstance(axes, str) and not self.auto:
-            axes = parse_axes(axes)
-        table = self.table
-        if table is not None and not isinstance(table, ConditionsTable):
-            table = load_conditions_table(table)
-        return ImportOptions(axes, table, self.pattern, self.zero_file, self.zeroed,
-                             self.tools_path, self.materials_path)  # fmt: skip
-
-    def layers(self, path: str | Path) -> list[tuple[str, Mapping[str, object]]]:
-        """The conditions from the table row and the file-name pattern of ``path``."""
-        out: list[tuple[str, Mapping[str, object]]] = []
-        if isinstance(self.table, ConditionsTable):
-            out.append(self.table.row(path))
-        if self.pattern:
-            out.append((f"{Path(str(path)).name} (--conditions-pattern)",
-                        pattern_conditions(self.pattern, path)))  # fmt: skip
-        return out
 
 
 def _check_tool(path: str | Path, recorded: str, expected: str | None, by: str) -> None:

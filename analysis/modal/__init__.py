@@ -5,7 +5,7 @@ from a file: :mod:`~analysis.modal.files`), the modes file a stability calculati
 (:mod:`~analysis.modal.filter`).
 """
 
-from analysis.modal.files import hammer_file_record, modal_file
+from analysis.modal.files import hammer_file_record, modal_file, modal_lines
 from analysis.modal.filter import DynamometerFilter
 from analysis.modal.hammer import ImpactRecord, modal_analysis, tooth_passing_warnings
 from analysis.modal.modes import ModalMode, ModeSet, load_modes, renamed_mode_fields, save_modes
@@ -20,6 +20,7 @@ __all__ = [
     "load_modes",
     "modal_analysis",
     "modal_file",
+    "modal_lines",
     "plot_frf",
     "renamed_mode_fields",
     "save_modes",

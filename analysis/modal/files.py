@@ -13,8 +13,9 @@ brackets (``time[s],hammer[N],accel[m/s^2]``); the rate comes from the time colu
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import pandas as pd
@@ -30,6 +31,7 @@ from analysis.modal.hammer import (
     tooth_passing_warnings,
 )
 from analysis.modal.plot import plot_frf
+from analysis.output import table_lines
 from analysis.runs import FORCE_UNIT_TO_N, load_run, read_force_table
 from analysis.validation import JsonObject, JsonValue
 
@@ -276,3 +278,11 @@ def modal_file(
         out["saved"] = str(saved)
         warn += notes  # the list out["warnings"] holds
     return out
+
+
+def modal_lines(out: Mapping[str, JsonValue]) -> list[str]:
+    """``cutlab analyze modal``'s text: :func:`modal_file`'s modes as a table, then each channel
+    skipped and why."""
+    modes = cast("list[Mapping[str, object]]", out["modes"])
+    skipped = cast("list[Mapping[str, object]]", out["skipped"])
+    return [*table_lines(modes), *(f"skipped {s['channel']}: {s['reason']}" for s in skipped)]

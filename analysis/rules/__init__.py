@@ -11,6 +11,7 @@ from analysis.rules.derive import (
     list_groups,
     lookup_group,
     rule_info,
+    rule_info_lines,
 )
 from analysis.rules.load import cutting_load_percent, slot_load_percent
 from analysis.rules.rule import FeedRule, derive_rule, load_rule, plot_rule, save_rule
@@ -35,6 +36,7 @@ __all__ = [
     "lookup_group",
     "plot_rule",
     "rule_info",
+    "rule_info_lines",
     "save_rule",
     "slot_load_percent",
     "sweep_runs_from_files",

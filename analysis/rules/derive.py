@@ -8,6 +8,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 from analysis.errors import AnalysisError
 from analysis.output import table_lines
@@ -190,6 +191,13 @@ def rule_info(spec: str, db: str | Path | None = None) -> tuple[FeedRule, JsonOb
         "bins": _rows(rule.table()),
     }
     return rule, info
+
+
+def rule_info_lines(info: Mapping[str, JsonValue]) -> list[str]:
+    """``cutlab rules show``: :func:`rule_info`'s settings as ``key: value`` lines, then the
+    bins as a table."""
+    bins = cast("list[Mapping[str, object]]", info["bins"])
+    return [*(f"{k}: {v}" for k, v in info.items() if k != "bins"), *table_lines(bins)]
 
 
 def lookup_group(

@@ -20,7 +20,7 @@ from __future__ import annotations
 import datetime as _dt
 import os
 import sqlite3
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
@@ -88,7 +88,7 @@ def _key_text(key: GroupKey) -> str:
 class GroupKey:
     """What identifies a machining group (seed 001 Table 1)."""
 
-    # the metadata: `cutlab rules add|lookup`'s options (rig.cli.options.model_options)
+    # the metadata: `cutlab rules add|lookup`'s options (rig.cli.options.model_rows)
     part_family: str = field(metadata={"help": "e.g. trunk/outer/draw/lower-die"})
     operation: str = field(metadata={"help": "roughing, pencil, rest-roughing, ..."})
     tool_diameter_mm: float = field(metadata={"unit": "mm", "gt": 0, "le": 1000})
@@ -97,6 +97,12 @@ class GroupKey:
     spindle_rpm: float = field(metadata={"unit": "rpm", "gt": 0, "le": 100_000})
     depth_mm: float = field(metadata={"unit": "mm", "gt": 0, "le": 1000})
     tolerance_mm: float = field(metadata={"unit": "mm", "gt": 0, "le": 100})
+
+    @classmethod
+    def of(cls, values: Mapping[str, object]) -> GroupKey:
+        """The key of the fields in ``values`` (e.g. `cutlab rules add`'s options); each
+        field's value is checked by :meth:`__post_init__`."""
+        return cls(**{f.name: values[f.name] for f in fields(cls)})  # type: ignore[arg-type]
 
     def __post_init__(self) -> None:
         for f in fields(self):

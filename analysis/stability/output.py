@@ -3,15 +3,41 @@ exact) and the one-line summary."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
 from analysis.errors import AnalysisError
-from analysis.stability.lobes import Lobes
+from analysis.stability.case import load_case
+from analysis.stability.lobes import Lobes, plot_lobes, stability_lobes
+from analysis.validation import JsonObject
 
-__all__ = ["summary_line", "write_lobes_csv"]
+__all__ = ["lobes_file", "summary_line", "write_lobes_csv"]
+
+
+def lobes_file(
+    config: str | Path, csv: Path, method: str = "sd", steps: int | None = None,
+    max_depth_mm: float | None = None, png: Path | None = None,
+    note: Callable[[str], None] = lambda message: None,
+) -> tuple[JsonObject, str]:  # fmt: skip
+    """``cutlab analyze stability``: the lobes of the case file ``config`` (searched to
+    ``max_depth_mm`` if given) by ``method`` written to ``csv`` (and plotted to ``png``), each
+    file written and each warning told to ``note``; the result as JSON and its summary line."""
+    case = load_case(config)
+    if max_depth_mm is not None:
+        case = dataclasses.replace(case, depth_max_mm=max_depth_mm)
+    lobes = stability_lobes(case, method, steps)
+    write_lobes_csv(lobes, csv)
+    note(f"wrote {csv} ({lobes.depth_limit_mm.size} speeds)")
+    if png:
+        note(f"wrote {plot_lobes(lobes, png, case.name, case)}")
+    for w in lobes.warnings:
+        note(f"warning: {w}")
+    out: JsonObject = {"config": str(config), "csv": str(csv), **lobes.to_json()}
+    return out, summary_line(case.name, lobes)
 
 
 def write_lobes_csv(lobes: Lobes, path: Path) -> None:

@@ -5,11 +5,15 @@ rough --limit`, and the note on a derived stock."""
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, cast
 
 from analysis.output import table_lines
+from analysis.validation import JsonValue
+from planning.rough.job import RoughResult
+from planning.rough.text import rough_lines
 
-__all__ = ["check_lines", "rough_limit_lines", "stock_note", "verdict_lines", "violation_lines"]
+__all__ = ["RoughAnswer", "check_lines", "rough_answer", "rough_limit_lines", "rough_text",
+           "stock_note", "verdict_lines", "violation_lines"]  # fmt: skip
 
 #: violations listed in the text (--json lists all)
 VIOLATIONS_SHOWN = 20
@@ -109,3 +113,29 @@ def rough_limit_lines(res_json: Mapping[str, object]) -> list[str]:
     if lim["feeds_lowered"]:
         lines.append(f"  lowered the feed of {len(lim['feeds_lowered'])} blocks")
     return lines + violation_lines(res["violations"])
+
+
+class RoughAnswer(RoughResult):
+    """``cutlab plan rough``'s result: the job's, with the written program's limits verdict
+    and the limits that were not checked."""
+
+    verdict: str
+    unchecked: JsonValue
+
+
+def rough_answer(res: RoughResult) -> RoughAnswer:
+    """``res`` with the limits' verdict of the written program (``unchecked`` when the limits
+    were not run) and what they could not check."""
+    lim = res["limits"] or {}
+    answer = cast(RoughAnswer, res)
+    answer["verdict"] = str(lim.get("verdict", "unchecked"))
+    answer["unchecked"] = lim.get("unchecked", [{"limit": "all", "reason": "limits not run"}])
+    return answer
+
+
+def rough_text(res: RoughAnswer) -> list[str]:
+    """``cutlab plan rough``'s text: the chosen method's levels and every method's totals, what
+    the limits changed, the verdict, then the pictures written."""
+    pictures = [f"{k}: {v}" for k, v in res["png"].items()]
+    return [*rough_lines(res, res["method"]), *rough_limit_lines(res), *verdict_lines(res),
+            *pictures]  # fmt: skip

@@ -75,6 +75,8 @@ class ProgramSummary(TypedDict):
     bbox: dict[str, list[float]]
     warnings: list[str]
     rotary_range_deg: NotRequired[dict[str, list[float]]]
+    dialect: NotRequired[str]
+    dialect_problems: NotRequired[list[dict[str, object]]]
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ from planning.orient._search import _Context as SearchContext
 from planning.orient._search import descend, solve_point
 from planning.orient.check import verify
 from planning.orient.config import load_orient
-from planning.orient.job import run_orient
+from planning.orient.job import run_orient, summary_lines
 from planning.orient.kinematics import inverse, nc_program, write_cl_csv
 from planning.orient.planner import energy_map, plan_orientation, require_feasible
 from planning.orient.tool import ToolSystem
@@ -27,6 +27,7 @@ __all__ = [
     "plan_orientation",
     "require_feasible",
     "run_orient",
+    "summary_lines",
     "solve_point",
     "verify",
     "write_cl_csv",

@@ -322,3 +322,17 @@ def _check_figures(
         "stock_allowance_mm": STOCK_ALLOWANCE_MM,
         "stock_s": round(checked.stock_s, 3),
     }
+
+
+def summary_lines(summary: JsonObject) -> list[str]:
+    """``cutlab plan orient``'s text: :func:`run_orient`'s summary as quantity / value rows
+    (ranges as "lo .. hi", 4 significant digits), then the files written."""
+    from analysis.output import table_lines
+
+    def shown(v: JsonValue) -> JsonValue:
+        return f"{v[0]:.4g} .. {v[1]:.4g}" if isinstance(v, list) and len(v) == 2 else v
+
+    files = summary["files"]
+    assert isinstance(files, list)
+    rows = [{"quantity": k, "value": shown(v)} for k, v in summary.items() if k != "files"]
+    return [*table_lines(rows), *(str(f) for f in files)]

@@ -1,24 +1,21 @@
-"""`cutlab campaign run|status|report` — run a campaign of test cuts, see where it is, report it.
-
-cutlab campaign run facemill-ploughing            # a name in configs/campaigns, or a path
-cutlab campaign run my.toml --dry-run             # check config, hardware, programs; no cut
-cutlab campaign run my.toml --fresh               # start over (earlier runs moved aside)
-cutlab campaign status facemill-ploughing --json  # every run's status and reason
-cutlab campaign report facemill-ploughing         # (re)write the report folder
-"""
+"""`cutlab campaign run|status|report` — run a campaign of test cuts, see where it is, report it
+(:mod:`rig.campaign`, :mod:`rig.report`)."""
 
 from __future__ import annotations
 
 import argparse
 import contextlib
+from contextlib import AbstractContextManager as ContextManager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from rig.cli.common import add_catalog_options, error_line, print_json, print_lines, status
-from rig.cli.options import add_options
+from rig.cli.common import error_line, show, status
+from rig.cli.console import SERVER
+from rig.cli.options import command, group
 from rig.terminal import progress_note
 
 if TYPE_CHECKING:
+    from rig.campaign.config import Campaign
     from rig.console import LiveCampaign
 
 # fmt: off
@@ -41,38 +38,21 @@ RUN = (
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
-    from rig.cli.console import add_server_options
-
-    p = sub.add_parser("campaign", help="run a campaign of test cuts (simulated or real rig)")
-    csub = p.add_subparsers(dest="campaign_command", metavar="CAMPAIGN_COMMAND")
-    csub.required = True
-    r = csub.add_parser("run", help="run (or resume) a campaign; --dry-run checks without cutting")
-    add_options(r, RUN)
-    add_server_options(r)
-    r.set_defaults(func=_run)
-    add_catalog_options(r)
-    s = csub.add_parser("status", help="each run's status and reason")
-    rep = csub.add_parser("report", help="analyse a campaign's runs and write its report folder")
-    for q, func in ((s, _status), (rep, _report)):
-        add_options(q, [("config", None, None, None), ("--out", None, None, None),
-                        ("--json", bool, None, None)])  # fmt: skip
-        q.set_defaults(func=func)
-        add_catalog_options(q)
-
-
-def _dry_run(campaign, as_json: bool, out_root: str | None) -> int:  # noqa: ANN001 - a Campaign
-    from rig.campaign import dry_run
-    from rig.campaign.commands import dry_run_lines
-
-    d = dry_run(campaign, out_root)
-    print_json(d.as_dict()) if as_json else print_lines(dry_run_lines(d))
-    return 0 if d.ok else 2
+    csub = group(sub, "campaign", "run a campaign of test cuts (simulated or real rig)")
+    command(csub, "run", "run (or resume) a campaign; --dry-run checks without cutting",
+            [RUN, SERVER], _run, catalogs=True)  # fmt: skip
+    where = [("config", None, None, None), ("--out", None, None, None),
+             ("--json", bool, None, None)]  # fmt: skip
+    command(csub, "status", "each run's status and reason", where, _status, catalogs=True)
+    command(csub, "report", "analyse a campaign's runs and write its report folder", where,
+            _report, catalogs=True)  # fmt: skip
 
 
 def _run(args: argparse.Namespace) -> int:
     from analysis.errors import CutlabError
-    from rig.campaign import campaign_folder, load_campaign, run_campaign
-    from rig.campaign.commands import run_lines, runs_done
+    from rig.campaign import campaign_folder, dry_run, load_campaign, run_campaign
+    from rig.campaign.commands import dry_run_lines, run_lines, runs_done, with_adaptive
+    from rig.report import write_report
 
     try:
         campaign = load_campaign(args.config)
@@ -80,45 +60,41 @@ def _run(args: argparse.Namespace) -> int:
         if not args.dry_run:
             raise
         # the dry run lists every problem, one line each (the config's problems come joined)
-        for line in str(exc).splitlines():
-            if line.strip():
-                error_line(line.strip())
+        for line in filter(None, map(str.strip, str(exc).splitlines())):
+            error_line(line)
         return 2
-    if getattr(args, "adaptive", None):
-        from rig.campaign.commands import with_adaptive
-
+    if args.adaptive:
         campaign = with_adaptive(campaign, args.adaptive)
     if args.dry_run:
         progress_note("checking every program")
-        return _dry_run(campaign, args.json, args.out)
+        d = dry_run(campaign, args.out)
+        return show(args.json, d.as_dict(), lambda: dry_run_lines(d), 0 if d.ok else 2)
     progress_note(runs_done(campaign_folder(campaign, args.out), len(campaign.tests)))
-    live_ctx: contextlib.AbstractContextManager[LiveCampaign | None] = contextlib.nullcontext(None)
-    if args.live:
-        from rig.cli.console import warn_bind
-        from rig.console import live_console
-
-        warn_bind(args.bind)
-        live_ctx = live_console(campaign, args.out, port=args.port, bind=args.bind)
-    with live_ctx as live:
+    with _live(campaign, args) as live:
         on = live.run_kwargs() if live else None
         result = run_campaign(
             campaign, out_root=args.out, progress=not args.quiet, fresh=args.fresh,
             force_resume=args.force_resume, session_factory=on["session_factory"] if on else None,
             stop=on["stop"] if on else None,
         )  # fmt: skip
-    report = None
-    if not args.no_report and not result.stopped:
-        from rig.report import write_report
-
-        report = write_report(result.folder)
-    if args.json:
-        print_json(result.summary(report.summary if report is not None else None))
-    else:
-        print_lines(run_lines(result, report.folder if report is not None else None))
+    report = None if args.no_report or result.stopped else write_report(result.folder)
+    show(args.json, result.summary(report.summary if report else None),
+         lambda: run_lines(result, report.folder if report else None))  # fmt: skip
     if result.stopped:
         status(f"cutlab: campaign stopped; run the same command again to resume ({result.folder})")
         return 130
     return 0 if result.ok else 1
+
+
+def _live(campaign: Campaign, args: argparse.Namespace) -> ContextManager[LiveCampaign | None]:
+    """The live console beside the campaign with ``--live`` (its address printed), else none."""
+    if not args.live:
+        return contextlib.nullcontext(None)
+    from rig.cli.console import warn_bind
+    from rig.console import live_console
+
+    warn_bind(args.bind)
+    return live_console(campaign, args.out, port=args.port, bind=args.bind)
 
 
 def _status(args: argparse.Namespace) -> int:
@@ -126,13 +102,8 @@ def _status(args: argparse.Namespace) -> int:
     from rig.campaign.commands import missing_folder_note, status_lines
 
     st = campaign_status(load_campaign(args.config), args.out)
-    if args.json:
-        print_json(st)
-        return 0
-    print_lines(status_lines(st))
-    if (note := missing_folder_note(Path(st["folder"]))) is not None:
-        status(note)
-    return 0
+    return show(args.json, st, lambda: status_lines(st),
+                after=[missing_folder_note(Path(st["folder"]))])  # fmt: skip
 
 
 def _report(args: argparse.Namespace) -> int:
@@ -142,5 +113,4 @@ def _report(args: argparse.Namespace) -> int:
     folder = campaign_folder(load_campaign(args.config), args.out)
     progress_note("analysing the runs")  # the report of a large campaign takes a while
     rep = write_report(folder)
-    print_json(rep.summary) if args.json else print_lines([rep.markdown, f"report: {rep.folder}"])
-    return 0
+    return show(args.json, rep.summary, lambda: [rep.markdown, f"report: {rep.folder}"])

@@ -1,20 +1,12 @@
-"""`cutlab catalog` commands: an index of the run files of an archive, and queries over it.
-
-``index`` reads new and changed run files (metadata only) and hashes them, skips unchanged ones,
-drops deleted ones; runs still being written are indexed as running. ``query`` EXPR compares
-columns (campaign, run, group, status, tool, material, spindle_rpm, feed_mm_min, fz_mm, depth_mm,
-width_mm, ...) joined by and / or / not; each row carries its path (two copies of a run differ).
-
-DIR (or --index) names the archive folder that holds the catalogue, or the index file; without
-either, query and show use the catalogue of the current folder or its nearest parent.
-"""
+"""`cutlab catalog` commands: index the run files of an archive, query the index, show a run
+(what each does: :mod:`analysis.catalog`)."""
 
 from __future__ import annotations
 
 import argparse
 
-from rig.cli.common import print_json, print_lines, print_table, status
-from rig.cli.options import json_option
+from rig.cli.common import print_json, print_table, show
+from rig.cli.options import add_options, command, group, json_row
 from rig.terminal import Progress
 
 
@@ -23,10 +15,8 @@ def _index(args: argparse.Namespace) -> int:
 
     with Progress("indexing run files", "file", quiet=args.json) as bar:
         out = update_index(args.dirs, args.index, progress=bar)
-    if not args.json:
-        status(f"catalog index: {out['index']}")
-    print_json(out) if args.json else print(index_line(out))
-    return 0
+    return show(args.json, out, lambda: [index_line(out)],
+                notes=lambda: [f"catalog index: {out['index']}"])  # fmt: skip
 
 
 def _query(args: argparse.Namespace) -> int:
@@ -48,41 +38,38 @@ def _show(args: argparse.Namespace) -> int:
     from analysis.catalog import catalog_named, show_lines, show_run
 
     row = show_run(args.run, catalog_named(args.dir, args.index))
-    print_json(row) if args.json else print_lines(show_lines(row))
-    return 0
+    return show(args.json, row, lambda: show_lines(row))
 
 
-def _where_options(p: argparse.ArgumentParser) -> None:
-    """DIR and ``--index``: the catalogue a query or show reads."""
-    p.add_argument("dir", nargs="?", metavar="DIR",
-                   help="the archive folder indexed (or its index file); default: --index, "
-                   "else the current folder's or a parent's catalogue")  # fmt: skip
-    p.add_argument("--index", metavar="FILE|DIR",
-                   help="the catalogue (default: the current folder's or a parent's)")  # fmt: skip
+# fmt: off
+#: DIR and ``--index``: the catalogue a query or show reads
+WHERE = [
+    ("dir", None, None, "the archive folder indexed (or its index file); default: --index, else "
+     "the current folder's or a parent's catalogue", {"nargs": "?", "metavar": "DIR"}),
+    ("--index", None, None, "the catalogue (default: the current folder's or a parent's)",
+     {"metavar": "FILE|DIR"}),
+]
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
-    p = sub.add_parser("catalog", help="index an archive of run files; query it")
-    psub = p.add_subparsers(dest="catalog_command", metavar="CATALOG_COMMAND")
-    psub.required = True
-    i = psub.add_parser("index", help="index (or update the index of) the run files under DIRs")
-    i.add_argument("dirs", nargs="+", metavar="DIR", help="folders of run files (.h5)")
-    i.add_argument("--index", metavar="FILE",
-                   help="the index file (default DIR/.cutlab-catalog.sqlite, the first DIR)")
-    json_option(i)
-    i.set_defaults(func=_index)
-    q = psub.add_parser("query", help="the runs matching an expression, one row each")
-    q.add_argument("expr", metavar="EXPR",
-                   help="e.g. \"material == 'GM241' and 0.2 <= fz_mm <= 0.4\" ('' for all)")
-    _where_options(q)
+    psub = group(sub, "catalog", "index an archive of run files; query it")
+    command(psub, "index", "index (or update the index of) the run files under DIRs", [
+        ("dirs", None, None, "folders of run files (.h5)", {"nargs": "+", "metavar": "DIR"}),
+        ("--index", None, None, "the index file (default DIR/.cutlab-catalog.sqlite, the first "
+         "DIR)", {"metavar": "FILE"}),
+        json_row(),
+    ], _index)
+    q = command(psub, "query", "the runs matching an expression, one row each", [
+        ("expr", None, None, "e.g. \"material == 'GM241' and 0.2 <= fz_mm <= 0.4\" ('' for all)",
+         {"metavar": "EXPR"}),
+        WHERE,
+    ], _query)
     fmt = q.add_mutually_exclusive_group()
-    fmt.add_argument("--json", action="store_true", help="JSON on stdout")
-    fmt.add_argument("--csv", action="store_true", help="CSV on stdout (every column)")
-    q.add_argument("--all-columns", action="store_true", help="every column in the text table")
-    q.set_defaults(func=_query)
-    s = psub.add_parser("show", help="one run's catalogue row")
-    s.add_argument("run", metavar="RUN", help="run name, CAMPAIGN/RUN, or path")
-    _where_options(s)
-    json_option(s)
-    s.set_defaults(func=_show)
+    add_options(fmt, [json_row(), ("--csv", bool, None, "CSV on stdout (every column)")])
+    add_options(q, [("--all-columns", bool, None, "every column in the text table")])
+    command(psub, "show", "one run's catalogue row", [
+        ("run", None, None, "run name, CAMPAIGN/RUN, or path", {"metavar": "RUN"}), WHERE,
+        json_row(),
+    ], _show)
+# fmt: on

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from analysis.output import TABLE_CELL_MAX, finite_json, json_default, table_lines
-from rig.terminal import Heartbeat
+from rig.terminal import Heartbeat, Progress
 
 #: analysis.validation.MAGNITUDE_LIMIT, the bound of every config number (not imported: pydantic
 #: would slow `cutlab --help`; tests/test_faults.py checks the two agree)
@@ -106,6 +106,51 @@ def print_json(obj: Any) -> None:
     sys.stdout.write("\n")
 
 
+def show(
+    as_json: bool, obj: Any, lines: Callable[[], Sequence[str]] = list, code: int = 0, *,
+    notes: Callable[[], Sequence[str | None]] = list, after: Sequence[str | None] = (),
+) -> int:  # fmt: skip
+    """A command's result: ``obj`` as JSON on stdout if ``as_json``, else the ``notes()`` on
+    stderr, the ``lines()`` it renders to on stdout and the notes ``after`` on stderr (a note
+    None is none); returns ``code`` (the command's exit status)."""
+    if as_json:
+        print_json(obj)
+        return code
+    for note in notes():
+        if note is not None:
+            status(note)
+    print_lines(lines())
+    for note in after:
+        if note is not None:
+            status(note)
+    return code
+
+
+def print_notes(cmd: str, out: Mapping[str, Any], wrote: Sequence[str] = ()) -> None:
+    """A result's notes on stderr: ``CMD: wrote FILE`` for each of its keys ``wrote`` it has (a
+    list of files on one line), then ``CMD: warning: W`` for each of its ``warnings``."""
+    for key in (k for k in wrote if k in out):
+        files = out[key]
+        status(f"{cmd}: wrote {', '.join(files) if isinstance(files, list) else files}")
+    for w in out.get("warnings", ()):
+        status(f"{cmd}: warning: {w}")
+
+
+def bar_note(bar: Progress) -> Callable[[str], None]:
+    """A job's status callback once its steps are done: the bar gives way to the status line."""
+
+    def note(message: str) -> None:
+        bar.close()
+        status(message)
+
+    return note
+
+
+def noter(cmd: str) -> Callable[[str], None]:
+    """A package's ``note`` callback: each note a status line ``CMD: NOTE`` on stderr."""
+    return lambda message: status(f"{cmd}: {message}")
+
+
 def print_table(rows: Sequence[Mapping[str, Any]], floatfmt: str = ".4g",
                 cell_max: int = TABLE_CELL_MAX) -> None:  # fmt: skip
     """A plain aligned text table of dict rows to stdout (:func:`analysis.output.table_lines`)."""
@@ -136,29 +181,3 @@ def heartbeat_for(args: argparse.Namespace) -> Heartbeat:
     quiet = (not words or words[0] in _NO_HEARTBEAT or bool(getattr(args, "quiet", False))
              or bool(getattr(args, "live", False)))  # fmt: skip
     return Heartbeat(" ".join(["cutlab", *words]), quiet=quiet)
-
-
-# ---------------------------------------------------------------------------- user catalogues
-
-
-def add_catalog_options(p: argparse.ArgumentParser) -> None:
-    """``--tools FILE`` / ``--materials FILE`` (issue 17: user catalogues next to the data, never
-    edits inside the install), applied around the command's ``func``: call it after
-    ``p.set_defaults(func=...)``."""
-    run = p.get_default("func")
-    if run is None:
-        raise RuntimeError(f"{p.prog}: add_catalog_options needs set_defaults(func=...) first")
-    p.add_argument("--tools", dest="catalog_tools", type=Path, metavar="FILE",
-                   help="your tool catalogue (TOML, [tools.NAME]), read before "
-                   "configs/tools.toml: a name in it shadows the shipped one")  # fmt: skip
-    p.add_argument("--materials", dest="catalog_materials", type=Path, metavar="FILE",
-                   help="your material catalogue (TOML, [materials.NAME]), read before "
-                   "configs/materials.toml: a name in it shadows the shipped one")  # fmt: skip
-
-    def with_catalogs(a: argparse.Namespace) -> Any:
-        from analysis.config import user_catalogs
-
-        with user_catalogs(a.catalog_tools, a.catalog_materials):
-            return run(a)
-
-    p.set_defaults(func=with_catalogs)

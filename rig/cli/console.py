@@ -1,43 +1,34 @@
-"""`cutlab console [CAMPAIGN_DIR|RUN.h5]` — the live lab console in a local web page.
-
-cutlab console out/quick                  # a campaign folder: live while it runs, then its runs
-cutlab console out/quick/runs/000-a.h5    # browse one run file by block
-cutlab console out/quick --port 9000 --bind 0.0.0.0   # reachable from the network (warns)
-
-`cutlab campaign run CONFIG --live [--port P]` starts the same page beside a campaign (it stays
-10 minutes after the campaign, `CUTLAB_CONSOLE_LINGER_S`, to browse the runs). The address
-printed carries the session's token (`http://127.0.0.1:8765/?token=...`): the page, its data and
-its feed hold / resume / abort answer only with it, always (also with `--bind`).
-"""
+"""`cutlab console [CAMPAIGN_DIR|RUN.h5]` — the live lab console in a local web page
+(:mod:`rig.console.server`: what it serves, and the session's token every request needs)."""
 
 from __future__ import annotations
 
 import argparse
 
 from rig.cli.common import count, nonnegative, status
+from rig.cli.options import command
 
 DEFAULT_PORT = 8765
 
 
+#: ``--port`` and ``--bind`` (shared with ``campaign run --live``)
+SERVER = [
+    ("--port", count(1, 65535, "TCP port"), DEFAULT_PORT,
+     f"TCP port of the page (default {DEFAULT_PORT})"),
+    ("--bind", None, "127.0.0.1", "address to listen on (default 127.0.0.1, this computer only)"),
+]  # fmt: skip
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's command to ``sub``."""
-    p = sub.add_parser("console", help="the live lab console in a local web page")
-    p.add_argument("target", nargs="?", default=".",
-                   help="campaign folder or run file (.h5); default: the current folder")
-    add_server_options(p)
-    p.add_argument("--linger-s", type=nonnegative("s"),
-                   help="exit this long after the campaign process is gone (default: never)")
-    p.add_argument("--quiet", action="store_true",
-                   help="only the address (with its token) on stderr")  # fmt: skip
-    p.set_defaults(func=_console)
-
-
-def add_server_options(p: argparse.ArgumentParser) -> None:
-    """``--port`` and ``--bind`` (shared with ``campaign run --live``)."""
-    p.add_argument("--port", type=count(1, 65535, "TCP port"), default=DEFAULT_PORT,
-                   help=f"TCP port of the page (default {DEFAULT_PORT})")  # fmt: skip
-    p.add_argument("--bind", default="127.0.0.1",
-                   help="address to listen on (default 127.0.0.1, this computer only)")  # fmt: skip
+    command(sub, "console", "the live lab console in a local web page", [
+        ("target", None, ".", "campaign folder or run file (.h5); default: the current folder",
+         {"nargs": "?"}),
+        SERVER,
+        ("--linger-s", nonnegative("s"), None, "exit this long after the campaign process is gone "
+         "(default: never)"),
+        ("--quiet", bool, None, "only the address (with its token) on stderr"),
+    ], _console)  # fmt: skip
 
 
 def warn_bind(bind: str) -> None:

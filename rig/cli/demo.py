@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import argparse
 
-from rig.cli.common import print_json, print_lines, status
+from rig.cli.common import show, status
+from rig.cli.options import command
 
 CAMPAIGN = (
     "facemill-ploughing"  # rig.report.DEMO_CAMPAIGN (not imported: `cutlab --help` stays fast)
@@ -25,27 +26,23 @@ CAMPAIGN = (
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
-    p = sub.add_parser(
-        "demo",
-        help="run seed 003's face-milling campaign on the simulated rig and report it",
-        description=__doc__.split("\n\n")[1] if __doc__ else None,
-    )
-    p.add_argument("--out", default=None,
-                   help="output folder (default: out/demo, out/demo-independent with --forces "
-                   "independent)")  # fmt: skip
-    p.add_argument("--campaign", default=CAMPAIGN, help="campaign to run (default: %(default)s)")
-    p.add_argument("--resume", action="store_true", help="keep finished runs of an earlier demo")
-    p.add_argument("--forces", choices=("seed003", "independent"), default=None,
-                   help="where the twin's face-milling forces come from: seed003 "
-                   "(analysis.forces, the model the fit inverts) or independent (a simulator "
-                   "written apart from it); default: the campaign's [sim] force_model")  # fmt: skip
-    p.add_argument("--json", action="store_true", help="machine-readable summary on stdout")
-    p.add_argument("--quiet", action="store_true", help="no progress display")
-    p.set_defaults(func=_demo)
+    what = "run seed 003's face-milling campaign on the simulated rig and report it"
+    command(sub, "demo", what, [
+        ("--out", None, None, "output folder (default: out/demo, out/demo-independent with "
+         "--forces independent)"),
+        ("--campaign", None, CAMPAIGN, "campaign to run (default: %(default)s)"),
+        ("--resume", bool, None, "keep finished runs of an earlier demo"),
+        ("--forces", ("seed003", "independent"), None, "where the twin's face-milling forces come "
+         "from: seed003 (analysis.forces, the model the fit inverts) or independent (a simulator "
+         "written apart from it); default: the campaign's [sim] force_model"),
+        ("--json", bool, None, "machine-readable summary on stdout"),
+        ("--quiet", bool, None, "no progress display"),
+    ], _demo, description=__doc__.split("\n\n")[1] if __doc__ else None)  # fmt: skip
 
 
 def _demo(args: argparse.Namespace) -> int:
     from rig.report import run_demo
+    from rig.report.demo_text import demo_lines
 
     out = args.out or ("out/demo-independent" if args.forces == "independent" else "out/demo")
     res = run_demo(args.campaign, out, resume=args.resume, progress=not args.quiet,
@@ -53,7 +50,4 @@ def _demo(args: argparse.Namespace) -> int:
     if res.stopped:
         status(f"demo: stopped; run `cutlab demo --resume` to continue ({res.folder})")
         return 130
-    from rig.report.demo_text import demo_lines
-
-    print_json(res.summary()) if args.json else print_lines(demo_lines(res))
-    return 0 if res.ok else 1
+    return show(args.json, res.summary(), lambda: demo_lines(res), 0 if res.ok else 1)

@@ -4,9 +4,14 @@ controller."""
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
-from rig.cli.common import count, number, positive, print_json, print_lines, status
-from rig.cli.options import add_options, json_option, rig_option, serial_options
+from rig.cli.common import count, noter, number, positive, print_json, show, status
+from rig.cli.options import command, group, json_row, rig_row, serial_rows
+
+if TYPE_CHECKING:
+    from rig.adaptive.send import SendLoop
+    from rig.dnc import SendJob
 
 # fmt: off
 SEND = (
@@ -36,6 +41,7 @@ SEND = (
 
 def _send(args: argparse.Namespace) -> int:
     from rig.dnc import prepare_send
+    from rig.dnc.preview import preview, preview_lines
     from rig.dnc.session import send_under_control
 
     if args.adaptive:
@@ -53,38 +59,28 @@ def _send(args: argparse.Namespace) -> int:
     )  # fmt: skip
     if job.start_block:
         status(f"restart at block {job.start_block}: " + "; ".join(job.restart_notes))
-    if args.dry_run:
-        return _dry_run(job, args)
+    if args.dry_run:  # what a send would send first; nothing is opened or sent
+        p = preview(job)
+        return show(args.json, p, lambda: preview_lines(p),
+                    after=[f"dry run: nothing was sent to {job.settings.port}"])  # fmt: skip
     # the DAQ started and zeroed before anything is sent: no force, no send
     loop = _adaptive_loop(job, args).start() if args.adaptive else None
     status(f"sending {job.program.name} ({len(job.program)} blocks) to {job.settings.port} "
            f"[{job.protocol}]")  # fmt: skip
-    show = (lambda o: print_json(o.as_dict())) if args.json else None
-    out = send_under_control(job, loop, on_fault=show)
+    on_fault = (lambda o: print_json(o.as_dict())) if args.json else None
+    out = send_under_control(job, loop, on_fault=on_fault)
     print_json(out.as_dict()) if args.json else status(out.result.summary_line())
     return 0
 
 
-def _adaptive_loop(job, args: argparse.Namespace):  # noqa: ANN001, ANN202 - a SendLoop
+def _adaptive_loop(job: SendJob, args: argparse.Namespace) -> SendLoop:
     """The rig's DAQ opened and zeroed, the loop on the send's streamer (rig.adaptive.send)."""
     from rig.adaptive import AdaptiveSettings
     from rig.adaptive.send import SendLoop
 
     settings = AdaptiveSettings(mode=args.adaptive, target_force_n=args.target_force,
                                 max_force_n=args.max_force, stall_revs=args.stall_revs)  # fmt: skip
-    return SendLoop(job, settings, args.spindle_rpm, rig=args.rig,
-                    say=lambda m: status(f"dnc send: {m}"))  # fmt: skip
-
-
-def _dry_run(job, args: argparse.Namespace) -> int:  # noqa: ANN001 - a SendJob
-    """Print what a send would send first; nothing is opened or sent."""
-    from rig.dnc.preview import preview, preview_lines
-
-    p = preview(job)
-    print_json(p) if args.json else print_lines(preview_lines(p))
-    if not args.json:
-        status(f"dry run: nothing was sent to {job.settings.port}")
-    return 0
+    return SendLoop(job, settings, args.spindle_rpm, rig=args.rig, say=noter("dnc send"))
 
 
 def _serve(args: argparse.Namespace) -> int:
@@ -133,59 +129,51 @@ def _sim_controller(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_send(dsub: argparse._SubParsersAction) -> None:
-    from rig.dnc.keys import HELP as KEYS_HELP
-
-    s = dsub.add_parser(
-        "send", help="stream an NC program to a controller over serial",
-        description="Stream an NC program to a controller over serial. Operator control, "
-        f"{KEYS_HELP}: each action is one status line on stderr and is recorded (--json: "
-        "operator_actions). GRBL: hold is '!', resume '~', abort '!' then Hold:0 then a soft "
-        "reset; Fanuc drip feed: the line takes no feed hold, press FEED HOLD / CYCLE START on "
-        "the control, abort stops feeding. A restart (--start-block) approaches at the "
-        "program's clearance (its highest rapid before the block, or the R plane; --safe-z "
-        "overrides) and plunges at the program's plunge feed (--plunge-feed if it has none).",
-    )  # fmt: skip
-    s.add_argument("file", help="NC program")
-    serial_options(s, "machine name or TOML (default ace-h63 / lab-grbl)", protocol=True)
-    add_options(s, SEND)
-    rig_option(s, "--adaptive: the DAQ's rig TOML (default configs/rig.toml)")
-    add_options(s, [("--record", None, None, "write the block record to this CSV file"),
-                    ("--no-progress", bool, None, "no progress bar on stderr")])  # fmt: skip
-    json_option(s, "end with a JSON summary on stdout")
-    s.set_defaults(func=_send)
+SEND_HELP = (
+    "Stream an NC program to a controller over serial. Operator control, {keys}: each action is "
+    "one status line on stderr and is recorded (--json: operator_actions). GRBL: hold is '!', "
+    "resume '~', abort '!' then Hold:0 then a soft reset; Fanuc drip feed: the line takes no "
+    "feed hold, press FEED HOLD / CYCLE START on the control, abort stops feeding. A restart "
+    "(--start-block) approaches at the program's clearance (its highest rapid before the block, "
+    "or the R plane; --safe-z overrides) and plunges at the program's plunge feed (--plunge-feed "
+    "if it has none)."
+)
 
 
+# fmt: off
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
-    what = "DNC streaming (Fanuc drip feed, GRBL) and simulated controllers"
-    p = sub.add_parser("dnc", help=what)
-    dsub = p.add_subparsers(dest="dnc_command", metavar="DNC_COMMAND")
-    dsub.required = True
-    _add_send(dsub)
+    from rig.dnc.keys import HELP as KEYS_HELP
+
+    dsub = group(sub, "dnc", "DNC streaming (Fanuc drip feed, GRBL) and simulated controllers")
+    command(dsub, "send", "stream an NC program to a controller over serial", [
+        ("file", None, None, "NC program"),
+        serial_rows("machine name or TOML (default ace-h63 / lab-grbl)", protocol=True), SEND,
+        rig_row("--adaptive: the DAQ's rig TOML (default configs/rig.toml)"),
+        ("--record", None, None, "write the block record to this CSV file"),
+        ("--no-progress", bool, None, "no progress bar on stderr"),
+        json_row("end with a JSON summary on stdout"),
+    ], _send, description=SEND_HELP.format(keys=KEYS_HELP))
     for name, text in (
         ("unlock", "GRBL: leave the Alarm state ($X) after checking the machine"),
         ("reset", "GRBL: clean soft reset (feed hold and Hold:0 first if it moves)"),
     ):
-        g = dsub.add_parser(name, help=text)
-        serial_options(g, "machine name or TOML (default lab-grbl)")
-        json_option(g, "a JSON reply on stdout")
-        g.set_defaults(func=_grbl)
-    r = dsub.add_parser("serve", help="answer remote program requests from a Fanuc control")
-    serial_options(r, "machine name or TOML (default ace-h63)", baud_help=None, timeout=False)
-    add_options(r, [("--folder", None, None, "program folder (default: serial.program_folder)"),
-                    ("--once", bool, None, "serve one request, then exit")])  # fmt: skip
-    json_option(r, "a JSON summary per request on stdout")
-    r.set_defaults(func=_serve)
-    c = dsub.add_parser("sim-controller", help="run a simulated controller on a pseudo-terminal")
-    serial_options(c, "machine name or TOML (default ace-h63 / lab-grbl)", port=False,
-                   protocol=True, baud_help="emulated baud rate (default: the machine config's)",
-                   timeout=False)  # fmt: skip
-    add_options(c, [
+        command(dsub, name, text, [serial_rows("machine name or TOML (default lab-grbl)"),
+                                   json_row("a JSON reply on stdout")], _grbl)
+    command(dsub, "serve", "answer remote program requests from a Fanuc control", [
+        serial_rows("machine name or TOML (default ace-h63)", baud_help=None, timeout=False),
+        ("--folder", None, None, "program folder (default: serial.program_folder)"),
+        ("--once", bool, None, "serve one request, then exit"),
+        json_row("a JSON summary per request on stdout"),
+    ], _serve)
+    command(dsub, "sim-controller", "run a simulated controller on a pseudo-terminal", [
+        serial_rows("machine name or TOML (default ace-h63 / lab-grbl)", port=False,
+                    protocol=True, baud_help="emulated baud rate (default: the machine config's)",
+                    timeout=False),
         ("--speed", positive("x real time", 1e6), 1.0, "simulated s per wall s"),
         ("--duration", positive("s"), None, "stop after this many wall s (default: Ctrl-C)"),
         ("--sim", None, [], "fault knob, e.g. stop_answering_after_block=100, alarm_at_block=50,2",
          {"action": "append", "metavar": "KNOB=VALUE"}),
-    ])  # fmt: skip
-    json_option(c, "end with a JSON summary on stdout")
-    c.set_defaults(func=_sim_controller)
+        json_row("end with a JSON summary on stdout"),
+    ], _sim_controller)
+# fmt: on

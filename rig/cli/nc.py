@@ -1,75 +1,37 @@
-"""`cutlab nc` — check, list and plot NC programs (planning.nc).
-
-``check`` prints the errors (exit 2, one line) or the program's lengths, time, bbox and warnings;
-with ``--dialect`` also what that controller would refuse (``--json``: ``dialect_problems``; exit
-2 if it would refuse a line). ``motions``: one row per canonical segment; ``plot``: the tool path.
-
-``--dialect NAME`` on all three interprets the program as that controller does (LinuxCNC: G10
-L20, F in the units of a G20/G21 in the same block, its arc tolerance, its order of execution;
-no machine file needed) unless ``--machine`` names a machine, whose own dialect then interprets
-(``--dialect`` beside it only lists what the other control would refuse).
-"""
+"""`cutlab nc` — check, list and plot NC programs (:mod:`planning.nc.check`: ``--dialect``
+interprets as that controller does unless ``--machine`` names a machine, whose own dialect then
+interprets; ``nc check --dialect`` also lists what that controller would refuse, exit 2)."""
 
 from __future__ import annotations
 
 import argparse
 import sys
 
-from rig.cli.common import image_file, print_json, print_table, status
-from rig.cli.options import dialect_option, json_option
+from analysis.output import table_lines
+from rig.cli.common import image_file, show, status
+from rig.cli.options import REQUIRED, command, dialect_row, group, json_row
 from rig.terminal import Progress
 
 
-def _interpret(args: argparse.Namespace, *, warn: bool = True, keep_motion: bool = False):
-    """``args.file`` interpreted; its warnings go to stderr unless ``warn`` is False."""
+def _interpret(args: argparse.Namespace):
+    """``args.file`` interpreted, its motion kept; its warnings go to stderr."""
     from planning.nc import check_program
 
     with Progress("interpreting", "B", unit_scale=True) as bar:
         run = check_program(args.file, args.machine, strict=not args.lenient, progress=bar,
-                            keep_motion=keep_motion, dialect=args.dialect)  # fmt: skip
-    for w in run.warnings if warn else ():
+                            keep_motion=True, dialect=args.dialect)  # fmt: skip
+    for w in run.warnings:
         status(f"warning: {w}")
     return run
 
 
 def _check(args: argparse.Namespace) -> int:
-    from planning.nc import NCError
-    from planning.nc.check_text import refused_summary, summary_rows
+    from planning.nc.check_text import check_answer
 
-    problems = None
-    if args.dialect:
-        from planning.nc.check import dialect_problems
-
-        problems = dialect_problems(args.file, args.dialect)
-        if not args.json:
-            for p in problems:
-                status(f"{p.severity}: {p}")
-    refused = sum(p.severity == "error" for p in problems or ())
-    try:
-        run = _interpret(args, warn=not args.json)
-    except NCError as exc:
-        if not refused:
-            raise
-        # the controller refuses a line, so its reading of the program stops there: the
-        # refusals are the answer (in --json as well), and the summary is not made
-        if args.json:
-            print_json(refused_summary(args.file, args.dialect, problems or (), str(exc)))
-        else:
-            status(f"{args.file}: {args.dialect} would refuse {refused} line(s)")
-        return 2
-    out = run.summary()
-    if problems is not None:
-        out["dialect"] = args.dialect
-        out["dialect_problems"] = [p.as_dict() for p in problems]
-    if args.json:
-        print_json(out)
-        return 2 if refused else 0
-    if refused:
-        status(f"{args.file}: {args.dialect} would refuse {refused} line(s)")
-    for p in out["warnings"][len(run.warnings) :]:  # the machine's travel limits
-        status("warning: " + p)
-    print_table(summary_rows(out))
-    return 2 if refused else 0
+    with Progress("interpreting", "B", unit_scale=True) as bar:
+        answer = check_answer(args.file, args.machine, args.dialect, strict=not args.lenient,
+                              progress=bar, note=(lambda m: None) if args.json else status)
+    return show(args.json, answer.summary, answer.lines, answer.code)
 
 
 def _motions(args: argparse.Namespace) -> int:
@@ -83,50 +45,42 @@ def _motions(args: argparse.Namespace) -> int:
         for w in it.warnings:
             status(f"warning: {w}")
         return 0
-    rows = _interpret(args, keep_motion=True).motion_table().to_dict(orient="records")
-    print_json(rows) if args.json else print_table(rows)
-    return 0
+    rows = _interpret(args).motion_table().to_dict(orient="records")
+    return show(args.json, rows, lambda: table_lines(rows))
 
 
 def _plot(args: argparse.Namespace) -> int:
     from planning.nc.plot import plot_motion
 
-    motion = _interpret(args, keep_motion=True).motion
+    motion = _interpret(args).motion
     path = plot_motion(motion, args.output, title=args.file)
-    if args.json:
-        print_json({"file": args.file, "plot": str(path), "motions": len(motion)})
-    else:
-        status(f"wrote {path} ({len(motion)} segments)")
-    return 0
+    return show(args.json, {"file": args.file, "plot": str(path), "motions": len(motion)},
+                after=[f"wrote {path} ({len(motion)} segments)"])  # fmt: skip
 
 
-def _add_parser(nsub, name: str, text: str, func) -> argparse.ArgumentParser:
-    p = nsub.add_parser(name, help=text)
-    p.add_argument("file", help="NC program (RS-274 / Fanuc style)")
-    machine_help = "machine config name or path (rapid rate, arc tolerance, dialect)"
-    p.add_argument("--machine", default=None, help=machine_help)
-    lenient_help = "report unknown codes as warnings instead of errors"
-    p.add_argument("--lenient", action="store_true", help=lenient_help)
-    if name != "check":  # check's --dialect also lists what the control would refuse
-        dialect_option(p, "interpret as this controller does (default: the machine's, else fanuc)")
-    p.set_defaults(func=func)
-    return p
+#: each command's first options: the program, its machine, how strict
+# fmt: off
+PROGRAM = [
+    ("file", None, None, "NC program (RS-274 / Fanuc style)"),
+    ("--machine", None, None, "machine config name or path (rapid rate, arc tolerance, dialect)"),
+    ("--lenient", bool, None, "report unknown codes as warnings instead of errors"),
+]
+DIALECT = "interpret as this controller does (default: the machine's, else fanuc)"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
-    nc = sub.add_parser("nc", help="check, list and plot NC programs")
-    nsub = nc.add_subparsers(dest="nc_command", metavar="NC_COMMAND")
-    nsub.required = True
-    p = _add_parser(nsub, "check", "parse + interpret; print lengths, time, bbox (or the error)",
-                    _check)  # fmt: skip
-    json_option(p, "machine-readable output")
-    dialect_option(p, "interpret as this controller does (default: the machine's, else fanuc) "
-                   "and list what it would refuse (exit 2 if any)")  # fmt: skip
-    p = _add_parser(nsub, "motions", "one row per canonical motion segment", _motions)
-    p.add_argument("--csv", action="store_true", help="CSV to stdout (or to -o)")
-    p.add_argument("-o", "--output", default=None, help="write CSV to this file")
-    json_option(p, "JSON records")
-    p = _add_parser(nsub, "plot", "PNG of the tool path (3-D and top views)", _plot)
-    p.add_argument("-o", "--output", type=image_file, required=True, help="PNG path")
-    json_option(p, "machine-readable output")
+    nsub = group(sub, "nc", "check, list and plot NC programs")
+    command(nsub, "check", "parse + interpret; print lengths, time, bbox (or the error)", [
+        PROGRAM, json_row("machine-readable output"),
+        dialect_row(DIALECT + " and list what it would refuse (exit 2 if any)"),
+    ], _check)
+    command(nsub, "motions", "one row per canonical motion segment", [
+        PROGRAM, dialect_row(DIALECT), ("--csv", bool, None, "CSV to stdout (or to -o)"),
+        ("-o --output", None, None, "write CSV to this file"), json_row("JSON records"),
+    ], _motions)
+    command(nsub, "plot", "PNG of the tool path (3-D and top views)", [
+        PROGRAM, dialect_row(DIALECT), ("-o --output", image_file, REQUIRED, "PNG path"),
+        json_row("machine-readable output"),
+    ], _plot)
+# fmt: on

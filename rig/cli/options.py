@@ -1,13 +1,15 @@
-"""Options shared by several commands, one function per group: a shared option is defined once
-and reads the same everywhere (name, type, default, help, place in the help)."""
+"""How commands are declared: a table of option rows per command (:func:`add_options`), a
+command or a group in one call (:func:`command`, :func:`group`), options made from a model's
+fields, their help next to the field (:func:`model_rows`), and the rows shared by several commands
+(defined once, read the same everywhere: name, type, default, help, place in the help)."""
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 from planning.nc import DIALECTS
 from rig.cli.common import MAGNITUDE_LIMIT, count, number, positive
@@ -17,15 +19,24 @@ if TYPE_CHECKING:
 
 #: a row's default that makes the option required
 REQUIRED = ...
+#: an option's row, ``(flags, type, default, help[, add_argument keywords])``; a table of rows
+#: and groups of rows (nested)
+Row = tuple[Any, ...]
+Rows = Sequence[Any]
 
 
-def add_options(p: argparse.ArgumentParser, rows: Sequence[tuple]) -> None:
+def add_options(p: argparse._ActionsContainer, rows: Rows) -> None:
     """Declare a command's options from a table, one row each: ``(flags, type, default, help)``
-    and an optional dict of further ``add_argument`` keywords (metavar, nargs, dest). ``flags``
-    is ``"file"``, ``"--x"`` or ``"-o --output"``; ``type`` is a parser (:mod:`rig.cli.common`),
-    ``None`` (text), ``bool`` (a flag) or a tuple of choices; default :data:`REQUIRED` makes the
-    option required."""
-    for flags, kind, default, help, *extra in rows:
+    and an optional dict of further ``add_argument`` keywords (metavar, nargs, dest); a sequence
+    of rows in the table is a shared group (e.g. :func:`serial_rows`). ``flags`` is ``"file"``,
+    ``"--x"`` or ``"-o --output"``; ``type`` is a parser (:mod:`rig.cli.common`), ``None``
+    (text), ``bool`` (a flag) or a tuple of choices; default :data:`REQUIRED` makes the option
+    required."""
+    for row in rows:
+        if not isinstance(row[0], str):  # a group of rows
+            add_options(p, row)
+            continue
+        flags, kind, default, help, *extra = cast(Row, row)
         kw: dict[str, Any] = {"help": help, **(extra[0] if extra else {})}
         if kind is bool:
             kw["action"] = "store_true"
@@ -40,31 +51,85 @@ def add_options(p: argparse.ArgumentParser, rows: Sequence[tuple]) -> None:
         p.add_argument(*flags.split(), **kw)
 
 
+def group(sub: argparse._SubParsersAction, name: str, help: str) -> argparse._SubParsersAction:
+    """A command group ``cutlab NAME NAME_COMMAND``: its subparsers (a subcommand is required)."""
+    p = sub.add_parser(name, help=help)
+    gsub = p.add_subparsers(dest=f"{name}_command", metavar=f"{name.upper()}_COMMAND")
+    gsub.required = True
+    return gsub
+
+
+def command(
+    sub: argparse._SubParsersAction, name: str, help: str, rows: Rows,
+    func: Callable[[argparse.Namespace], int], *, catalogs: bool = False, **kw: Any,
+) -> argparse.ArgumentParser:  # fmt: skip
+    """A subcommand: its options from ``rows`` (:func:`add_options`), run by ``func``, with
+    the user catalogues' --tools/--materials if ``catalogs``; ``kw`` to ``add_parser``."""
+    p = sub.add_parser(name, help=help, **kw)
+    add_options(p, [*rows, CATALOGS] if catalogs else rows)
+    p.set_defaults(func=_with_catalogs(func) if catalogs else func)
+    return p
+
+
+#: ``--tools FILE`` / ``--materials FILE``: the user's catalogues, read before the shipped ones
+#: (issue 17: next to the data, never edits inside the install)
+CATALOGS = [
+    ("--tools", Path, None, "your tool catalogue (TOML, [tools.NAME]), read before "
+     "configs/tools.toml: a name in it shadows the shipped one",
+     {"dest": "catalog_tools", "metavar": "FILE"}),
+    ("--materials", Path, None, "your material catalogue (TOML, [materials.NAME]), read before "
+     "configs/materials.toml: a name in it shadows the shipped one",
+     {"dest": "catalog_materials", "metavar": "FILE"}),
+]  # fmt: skip
+
+
+def _with_catalogs(run: Callable[[argparse.Namespace], int]) -> Callable[[argparse.Namespace], int]:
+    """``run`` with the user's catalogues (:data:`CATALOGS`) in force."""
+
+    def with_catalogs(a: argparse.Namespace) -> int:
+        from analysis.config import user_catalogs
+
+        with user_catalogs(a.catalog_tools, a.catalog_materials):
+            return run(a)
+
+    return with_catalogs
+
+
 #: unit suffixes of a field's name that its option's name drops (tool_diameter_mm: --tool-diameter)
 _UNIT_SUFFIXES = ("_mm_min", "_mm", "_rpm", "_n", "_s", "_hz", "_pct")
 
 
-def model_options(
-    p: argparse.ArgumentParser, model: type, *, flags: Mapping[str, str] | None = None
-) -> None:
-    """One option per field of a dataclass (its ``metadata``: help, unit, gt/ge, le) or pydantic
-    model (its ``Field``: description, gt/ge, le, ``json_schema_extra`` unit): ``--name`` from the
-    field's name without its unit suffix (or ``flags[field]``), stored under the field's name; a
-    number field is checked against the field's unit and range; a field without a default is
+def model_rows(
+    model: type, *, flags: Mapping[str, str] | None = None, skip: Sequence[str] = ()
+) -> list[Row]:
+    """:func:`add_options` rows, one per field of a dataclass (its ``metadata``: help, unit,
+    gt/ge, le, metavar) or pydantic model (its ``Field``: description, gt/ge, le,
+    ``json_schema_extra`` unit) but ``skip``: ``--name`` from the field's name without its unit
+    suffix (or ``flags[field]``), stored under the field's name; a number field is checked
+    against the field's unit and range, a bool field is a flag; a field without a default is
     required. The help lives once, next to the field it describes."""
+    rows = []
     for name, (kind, default, meta) in _fields(model).items():
+        if name in skip:
+            continue
         flag = (flags or {}).get(name) or "--" + _strip_unit(name).replace("_", "-")
-        kw: dict[str, Any] = {"dest": name, "metavar": flag.lstrip("-").replace("-", "_").upper(),
-                              "help": meta.get("help") or meta.get("unit")}  # fmt: skip
-        if kind in ("float", "int", float, int):
-            lo = meta.get("gt", meta.get("ge"))
-            kw["type"] = number(meta.get("unit", ""), lo, meta.get("le", MAGNITUDE_LIMIT),
-                                lo_open="gt" in meta, integer=kind in ("int", int))  # fmt: skip
-        if default is REQUIRED:
-            kw["required"] = True
+        kw = {"dest": name}
+        if kind in ("bool", bool):
+            kind = bool
         else:
-            kw["default"] = default
-        p.add_argument(flag, **kw)
+            kw["metavar"] = meta.get("metavar") or flag.lstrip("-").replace("-", "_").upper()
+            kind = _number(kind, meta)
+        rows.append((flag, kind, default, meta.get("help") or meta.get("unit"), kw))
+    return rows
+
+
+def _number(kind: object, meta: Mapping[str, Any]) -> Callable[[str], float] | None:
+    """A number field's parser (its unit and range), None for text."""
+    if kind not in ("float", "int", float, int):
+        return None
+    lo = meta.get("gt", meta.get("ge"))
+    return number(meta.get("unit", ""), lo, meta.get("le", MAGNITUDE_LIMIT), lo_open="gt" in meta,
+                  integer=kind in ("int", int))  # fmt: skip
 
 
 def _strip_unit(name: str) -> str:
@@ -86,106 +151,79 @@ def _fields(model: type) -> dict[str, tuple[object, object, dict[str, Any]]]:
     return out
 
 
-PORT_HELP = "port name or pyserial URL (default: the machine config's)"
-BAUD_HELP = "override serial.baudrate"
-
-
-def json_option(p: argparse.ArgumentParser, help: str | None = "JSON on stdout") -> None:
+def json_row(help: str | None = "JSON on stdout") -> Row:
     """``--json``: the command's result as JSON on stdout."""
-    p.add_argument("--json", action="store_true", help=help)
+    return ("--json", bool, None, help)
 
 
-def rate_option(p: argparse.ArgumentParser, what: str = "exports") -> None:
+def rate_row(what: str = "exports") -> Row:
     """``--rate HZ`` for a file that does not say its sample rate."""
-    p.add_argument("--rate", type=positive("Hz", 10_000_000), default=None,
-                   help=f"Hz, for {what} without a rate")  # fmt: skip
+    return ("--rate", positive("Hz", 10_000_000), None, f"Hz, for {what} without a rate")
 
 
-def rig_option(
-    p: argparse.ArgumentParser, help: str = "rig config (default configs/rig.toml)"
-) -> None:
+def rig_row(help: str = "rig config (default configs/rig.toml)") -> Row:
     """``--rig TOML``: the rig config (DAQ, dynamometer)."""
-    p.add_argument("--rig", default=None, help=help)
+    return ("--rig", None, None, help)
 
 
-def dialect_option(
-    p: argparse.ArgumentParser, help: str, choices: tuple[str, ...] = DIALECTS
-) -> None:
+def dialect_row(help: str, choices: tuple[str, ...] = DIALECTS) -> Row:
     """``--dialect NAME``: the controller a program is read or written for (default None: the
     machine's)."""
-    p.add_argument("--dialect", choices=choices, default=None, help=help)
+    return ("--dialect", choices, None, help)
 
 
-def serial_options(
-    p: argparse.ArgumentParser, machine_help: str, *, port: bool = True,
-    protocol: bool = False, baud_help: str | None = BAUD_HELP, timeout: bool = True,
-) -> None:  # fmt: skip
+def db_row(help: str | None = None) -> Row:
+    """``--db FILE``: the rule base (default from configs/lab.toml)."""
+    return ("--db", Path, None, help)
+
+
+def serial_rows(
+    machine_help: str, *, port: bool = True, protocol: bool = False,
+    baud_help: str | None = "override serial.baudrate", timeout: bool = True,
+) -> list[Row]:  # fmt: skip
     """The serial link to a controller, in this order: ``--port``, ``--protocol`` (required),
     ``--machine``, ``--baud``, ``--timeout`` (each but ``--machine`` optional here)."""
-    if port:
-        p.add_argument("--port", help=PORT_HELP)
+    port_help = "port name or pyserial URL (default: the machine config's)"
+    rows: list[Row] = [("--port", None, None, port_help)] if port else []
     if protocol:
-        p.add_argument("--protocol", required=True, help="fanuc or grbl")
-    p.add_argument("--machine", help=machine_help)
+        rows.append(("--protocol", None, REQUIRED, "fanuc or grbl"))
+    rows.append(("--machine", None, None, machine_help))
     if baud_help is not None:
-        p.add_argument("--baud", type=count(1, 4_000_000, "baud"), help=baud_help)
+        rows.append(("--baud", count(1, 4_000_000, "baud"), None, baud_help))
     if timeout:
-        p.add_argument("--timeout", type=positive("s", 3600), help="override serial.timeout_s, s")
+        rows.append(("--timeout", positive("s", 3600), None, "override serial.timeout_s, s"))
+    return rows
 
 
-def rule_db_option(p: argparse.ArgumentParser, help: str | None = None) -> None:
-    """``--db FILE``: the rule base (default from configs/lab.toml)."""
-    p.add_argument("--db", type=Path, help=help)
+#: ``--stock`` and ``--spacing``: the stock a program is cut from on the Z-map (plan check, feed
+#: and simulate)
+STOCK = [
+    ("--stock", None, None, "box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP | mesh (.stl) | stock TOML "
+     "(default: derived from the program's feed moves, printed)"),
+    ("--spacing", positive("mm", 100), None, "Z-map grid spacing, mm (default 0.25)"),
+]  # fmt: skip
+#: ``--lobes`` (plan check, feed and rough)
+LOBES = ("--lobes", Path, None, "stability lobes CSV (spindle_rpm,depth_limit_mm; "
+         "`cutlab analyze stability -o`), default: the tool's modes if any")  # fmt: skip
+#: the flags of :class:`analysis.identify.ImportOptions`'s fields
+IMPORT_FLAGS = {"pattern": "--conditions-pattern", "zero_file": "--zero", "tools_path": "--tools",
+                "materials_path": "--materials"}  # fmt: skip
 
 
-def stock_options(p: argparse.ArgumentParser) -> None:
-    """``--stock`` and ``--spacing``: the stock a program is cut from on the Z-map (plan check,
-    feed and simulate)."""
-    p.add_argument("--stock", help="box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP | mesh (.stl) | stock TOML "
-        "(default: derived from the program's feed moves, printed)")  # fmt: skip
-    p.add_argument(
-        "--spacing", type=positive("mm", 100), help="Z-map grid spacing, mm (default 0.25)"
-    )
+def import_rows() -> list[Row]:
+    """How exports are read (`analyze forces`, `data import`): the options of
+    :class:`analysis.identify.ImportOptions` (its conditions table: ``--conditions``)."""
+    from analysis.identify import ImportOptions
 
-
-def limit_options(p: argparse.ArgumentParser) -> None:
-    """``--lobes`` (plan check, feed and rough)."""
-    p.add_argument("--lobes", type=Path, help="stability lobes CSV (spindle_rpm,depth_limit_mm; "
-                   "`cutlab analyze stability -o`), default: the tool's modes if any")  # fmt: skip
-
-
-def import_group(p: argparse.ArgumentParser) -> None:
-    """How exports are read (`analyze forces`, `data import`): ``--axes``,
-    ``--conditions-pattern``, ``--zero``, ``--zeroed``, ``--tools``, ``--materials``."""
-    p.add_argument(
-        "--axes", metavar="x=COL,y=COL,z=COL",
-        help="file columns (or run-file channels) for cutlab's x (feed), y (cross-feed), z (tool "
-        "axis), a '-' flips the sign: x=-Fy,y=Fx,z=-Fz; or 'auto': the signed permutation whose "
-        "end-mill fit gives positive Ktc, Krc, Kac with the smallest residual (refused when the "
-        "runs cannot tell; slots alone cannot tell x from y) (default: the rig config's "
-        "dynamometer, else columns named Fx, Fy, Fz; a mapping giving a negative cutting "
-        "coefficient or fitting clearly worse than another is refused)",
-    )  # fmt: skip
-    for name, metavar, text in (
-        ("--conditions-pattern", "PATTERN",
-         "conditions from file names: 'cut_{spindle_rpm}rpm_f{feed_mm_min}.txt'"),
-        ("--zero", "FILE", "an export of the same channels at rest: its mean is the offset"),
-        ("--zeroed", None, "the exports are already zeroed: subtract no offset"),
-        ("--tools", "FILE", "your tool catalogue (TOML, [tools.NAME]), before configs/tools.toml"),
-        ("--materials", "FILE", "your material catalogue (TOML), before configs/materials.toml"),
-    ):  # fmt: skip
-        kw = {"action": "store_true"} if metavar is None else {"metavar": metavar}
-        p.add_argument(name, help=text, **kw)  # type: ignore[arg-type]
+    return model_rows(ImportOptions, flags=IMPORT_FLAGS, skip=("table",))
 
 
 def import_options(args: argparse.Namespace) -> tuple[dict[str, Any], ImportOptions]:
-    """``--conditions`` (pairs, or a table) and :func:`import_group`'s options as
+    """``--conditions`` (pairs, or a table) and :func:`import_rows`' options as
     (pairs, :class:`analysis.identify.ImportOptions`)."""
     from analysis.identify import ImportOptions
     from analysis.identify.conditions_arg import conditions_arg
 
     pairs, table = conditions_arg(args.conditions)
-    opts = ImportOptions(axes=args.axes, table=table, pattern=args.conditions_pattern,
-                         zero_file=args.zero, zeroed=args.zeroed, tools_path=args.tools,
-                         materials_path=args.materials)  # fmt: skip
-    return pairs, opts
+    names = [f.name for f in dataclasses.fields(ImportOptions) if f.name != "table"]
+    return pairs, ImportOptions(table=table, **{k: getattr(args, k) for k in names})

@@ -6,73 +6,65 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import add_catalog_options, image_file, positive  # isort: split
-
-from rig.cli.common import print_json, print_lines, status
-from rig.cli.options import dialect_option, limit_options, rule_db_option, stock_options
+from rig.cli.common import image_file, positive, print_lines, show, status
+from rig.cli.options import LOBES, REQUIRED, STOCK, Rows, command, db_row, dialect_row
 from rig.terminal import Progress
 
 
+# fmt: off
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``feed`` and ``simulate`` to the ``plan`` group."""
-    f = sub.add_parser(
-        "feed", help="adjust feeds by predicted cutting load (seed 001)",
-        description="Exit status: 0 when the program is written and its verdict (printed, and "
-        "'verdict' in --json) is 'within' or 'unchecked' (without --material: the limits not "
-        "checked are listed); 3 when it is written but a block breaks a limit ('violations'); "
-        "2 bad input, or a program that removes nothing from its stock.",
-    )  # fmt: skip
-    f.add_argument("program", type=Path, help="NC program (G21 or G20)")
-    f.add_argument("--rules", help="rule file (TOML) or rule-base name / id; "
-                   "T1=RULE,T2=RULE for a program that changes tools (a tool left out, e.g. a "
-                   "drill, keeps its feeds); default: each tool's rule from the rule base by "
-                   "tool and --material (a tool it lacks keeps its feeds)")  # fmt: skip
-    rule_db_option(f, "rule base for a name / id (default from lab.toml)")
-    _common(f)
-    f.add_argument("-o", "--output", type=Path, required=True, help="adjusted program to write")
-    dialect_option(f, "controller to write for (default: the machine's)")
-    f.add_argument("--report", type=Path, help="report folder (default: OUT's folder)")
-    f.add_argument(
-        "--min-piece", type=positive("mm", 1000), default=5.0, help="shortest split block, mm"
-    )
-    f.add_argument("--no-split", action="store_true", help="one feed per block, no splits")
-    f.add_argument("--force-limit", type=positive("N", 1e6), help="largest predicted peak force, N")
-    f.add_argument("--material", help="material (configs/materials.toml): predicted peak force "
-        "per block, and the coefficients for --force-limit")  # fmt: skip
-    f.add_argument(
-        "--spindle",
-        type=positive("rpm", 100_000),
-        help="rpm for the force model if the program has no S",
-    )
-    f.add_argument("--limit", action="store_true", help="cap every feed by the machine's and "
-                   "tool's limits (planning.limits; needs --material)")  # fmt: skip
-    limit_options(f)
-    f.set_defaults(func=_feed)
-    add_catalog_options(f)
-
-    s = sub.add_parser("simulate", help="Z-map virtual machining of a program or a plan")
-    s.add_argument("program", type=Path, help="NC program, or an operation plan (.toml)")
-    _common(s)
-    s.add_argument("--png", type=image_file, help="final stock PNG")
-    s.set_defaults(func=_simulate)
-    add_catalog_options(s)
+    command(sub, "feed", "adjust feeds by predicted cutting load (seed 001)", FEED, _feed,
+            catalogs=True, description="Exit status: 0 when the program is written and its "
+            "verdict (printed, and 'verdict' in --json) is 'within' or 'unchecked' (without "
+            "--material: the limits not checked are listed); 3 when it is written but a block "
+            "breaks a limit ('violations'); 2 bad input, or a program that removes nothing from "
+            "its stock.")
+    command(sub, "simulate", "Z-map virtual machining of a program or a plan", [
+        ("program", Path, None, "NC program, or an operation plan (.toml)"), COMMON,
+        ("--png", image_file, None, "final stock PNG"),
+    ], _simulate, catalogs=True)
 
 
-def _common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--machine", default="ace-h63", help="machine config name or path")
-    p.add_argument("--tool", help="end mill of the tool catalogue, or T1=NAME,T2=NAME for a "
-                   "program that changes tools (needed for a program; plans name theirs)")
-    stock_options(p)
-    p.add_argument("--no-holder-check", action="store_true", help="skip holder/stock checks")
-    p.add_argument("--json", action="store_true", help="machine-readable output on stdout")
+#: what feed and simulate share: the machine, the tool, the stock
+COMMON: Rows = [
+    ("--machine", None, "ace-h63", "machine config name or path"),
+    ("--tool", None, None, "end mill of the tool catalogue, or T1=NAME,T2=NAME for a program "
+     "that changes tools (needed for a program; plans name theirs)"),
+    STOCK,
+    ("--no-holder-check", bool, None, "skip holder/stock checks"),
+    ("--json", bool, None, "machine-readable output on stdout"),
+]
+FEED: Rows = (
+    ("program", Path, None, "NC program (G21 or G20)"),
+    ("--rules", None, None, "rule file (TOML) or rule-base name / id; T1=RULE,T2=RULE for a "
+     "program that changes tools (a tool left out, e.g. a drill, keeps its feeds); default: each "
+     "tool's rule from the rule base by tool and --material (a tool it lacks keeps its feeds)"),
+    db_row("rule base for a name / id (default from lab.toml)"),
+    COMMON,
+    ("-o --output", Path, REQUIRED, "adjusted program to write"),
+    dialect_row("controller to write for (default: the machine's)"),
+    ("--report", Path, None, "report folder (default: OUT's folder)"),
+    ("--min-piece", positive("mm", 1000), 5.0, "shortest split block, mm"),
+    ("--no-split", bool, None, "one feed per block, no splits"),
+    ("--force-limit", positive("N", 1e6), None, "largest predicted peak force, N"),
+    ("--material", None, None, "material (configs/materials.toml): predicted peak force per "
+     "block, and the coefficients for --force-limit"),
+    ("--spindle", positive("rpm", 100_000), None, "rpm for the force model if the program has "
+     "no S"),
+    ("--limit", bool, None, "cap every feed by the machine's and tool's limits (planning.limits; "
+     "needs --material)"),
+    LOBES,
+)
+# fmt: on
 
 
 def _feed(a: argparse.Namespace) -> int:
     from planning.feed import feed_program
     from planning.feed.text import feed_lines, feed_notes
     from planning.limits.feed_options import feed_limits
-    from planning.limits.text import verdict_lines, violation_lines
-    from rig.cli.plan_check import WRITTEN_EXIT, print_stock
+    from planning.limits.text import stock_note, verdict_lines, violation_lines
+    from rig.cli.plan_check import WRITTEN_EXIT
 
     lim = feed_limits(a.rules, a.tool, a.material, a.machine, a.lobes, a.force_limit, a.limit,
                       a.spindle)  # fmt: skip
@@ -85,35 +77,28 @@ def _feed(a: argparse.Namespace) -> int:
             material=None if lim.lookup_only else a.material, spindle_rpm=a.spindle,
             dialect=a.dialect, limit_step=lim.step, feed_cap=lim.cap, rules_material=a.material,
         )  # fmt: skip
+    code = WRITTEN_EXIT[s["verdict"]]
     if a.json:
         s.setdefault("violations", [])  # the command contract: always a list
-        print_json(s)
-        return WRITTEN_EXIT[s["verdict"]]
-    print_stock(s["stock"])
-    print_lines(violation_lines(s["violations"]))
-    for line in feed_notes(s, result.simulation.contacts, a.program, a.output):
-        status(line)
-    print_lines([*feed_lines(s), *verdict_lines(s)])
-    return WRITTEN_EXIT[s["verdict"]]
+        return show(True, s, code=code)
+    if (note := stock_note(s["stock"])) is not None:
+        status(note)
+    print_lines(violation_lines(s["violations"]))  # between the stock's note and the feeds' notes
+    return show(False, s, lambda: [*feed_lines(s), *verdict_lines(s)], code,
+                notes=lambda: feed_notes(s, result.simulation.contacts, a.program, a.output))
 
 
 def _simulate(a: argparse.Namespace) -> int:
     from planning.feed import simulate_job
     from planning.feed.text import simulate_lines, simulate_notes
-    from rig.cli.plan_check import print_stock
+    from planning.limits.text import stock_note
 
     with Progress("simulate", unit="piece") as bar:
         results, out = simulate_job(
             a.program, machine=a.machine, tool_name=a.tool, stock_spec=a.stock,
             spacing_mm=a.spacing, check_holder=not a.no_holder_check, png=a.png, progress=bar,
         )  # fmt: skip
-    if a.json:
-        print_json(out)
-        return 0
-    print_stock(out["stock"])
-    for line in simulate_notes(out, [r.simulation.contacts for r in results]):
-        status(line)
-    print_lines(simulate_lines(out))
-    if a.png:
-        status(f"wrote {a.png}")
-    return 0
+    contacts = [r.simulation.contacts for r in results]
+    return show(a.json, out, lambda: simulate_lines(out),
+                notes=lambda: [stock_note(out["stock"]), *simulate_notes(out, contacts)],
+                after=[f"wrote {a.png}" if a.png else None])  # fmt: skip

@@ -13,55 +13,30 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import add_catalog_options, count, print_json, print_table, status
-from rig.cli.options import dialect_option
+from rig.cli.common import bar_note, count, show
+from rig.cli.options import REQUIRED, command, dialect_row
 from rig.terminal import Progress
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``orient`` to the ``plan`` group."""
-    p = sub.add_parser(
-        "orient",
-        help="collision-free 5-axis tool orientation (potential energy, seed 002)",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument(
-        "config", type=Path, help="orientation config, e.g. configs/orient/impeller.toml"
-    )
-    p.add_argument("-o", "--out", type=Path, required=True, help="output folder")
-    p.add_argument("--json", action="store_true", help="print the summary as JSON")
-    p.add_argument("--map-point", type=count(0), default=None, help="CC point for the energy map "
-                   "(default: the one that needed most energy evaluations)")  # fmt: skip
-    p.add_argument("--no-plot", action="store_true",
-                   help="skip both PNGs (energy map and orientation)")  # fmt: skip
-    dialect_option(p, "controller to write for (default: the machine's); grbl has no rotary axes "
-                   "and is refused")  # fmt: skip
-    p.set_defaults(func=run)
-    add_catalog_options(p)
-
-
-def _show(v):
-    """Ranges as "lo .. hi" with 4 significant digits, not raw float lists."""
-    return f"{v[0]:.4g} .. {v[1]:.4g}" if isinstance(v, list) and len(v) == 2 else v
+    command(sub, "orient", "collision-free 5-axis tool orientation (potential energy, seed 002)", [
+        ("config", Path, None, "orientation config, e.g. configs/orient/impeller.toml"),
+        ("-o --out", Path, REQUIRED, "output folder"),
+        ("--json", bool, None, "print the summary as JSON"),
+        ("--map-point", count(0), None, "CC point for the energy map (default: the one that "
+         "needed most energy evaluations)"),
+        ("--no-plot", bool, None, "skip both PNGs (energy map and orientation)"),
+        dialect_row("controller to write for (default: the machine's); grbl has no rotary axes "
+                    "and is refused"),
+    ], run, catalogs=True, description=__doc__,
+       formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:
-    from planning.orient import run_orient
+    from planning.orient import run_orient, summary_lines
 
-    with Progress("orient", "pt") as bar:
-
-        def note(msg: str) -> None:  # the points are planned: the bar gives way to the line
-            bar.close()
-            status(msg)
-
-        summary = run_orient(
-            args.config, args.out, args.map_point, not args.no_plot, bar, note, args.dialect
-        )
-    if args.json:
-        print_json(summary)
-        return 0
-    print_table([{"quantity": k, "value": _show(v)} for k, v in summary.items() if k != "files"])
-    for f in summary["files"]:
-        print(f)
-    return 0
+    with Progress("orient", "pt") as bar:  # the points planned, the bar gives way to the notes
+        summary = run_orient(args.config, args.out, args.map_point, not args.no_plot, bar,
+                             bar_note(bar), args.dialect)  # fmt: skip
+    return show(args.json, summary, lambda: summary_lines(summary))

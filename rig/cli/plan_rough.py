@@ -21,73 +21,54 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import add_catalog_options, positive, print_json, print_lines, status
-from rig.cli.options import dialect_option, limit_options
+from rig.cli.common import bar_note, positive, show
+from rig.cli.options import LOBES, REQUIRED, command, dialect_row
 from rig.terminal import Progress
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``rough`` to the ``plan`` group."""
-    p = sub.add_parser(
-        "rough",
-        help="Z-level roughing: levels by bisection for maximum removal rate (seed 000)",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
-    p.add_argument("config", help="part file, e.g. configs/parts/seed000-bump.toml (or its name)")
-    p.add_argument(
-        "--method", choices=("bisection", "equal", "lee", "optimal"), default="bisection"
-    )
-    p.add_argument("-o", "--output", type=Path, required=True, help="NC program to write")
-    dialect_option(p, "controller to write for (default: the machine's)")
-    p.add_argument("--machine", default=None, help="machine config name or path: its dialect "
-                   "and tool changer (default: none, fanuc)")  # fmt: skip
-    p.add_argument("--json", action="store_true", help="print everything as JSON")
-    p.add_argument("--cusp-model", choices=("paper", "exact"), default=None,
-                   help="override rough.cusp_model (paper: (h1-h2)cos(beta); exact: measured "
-                   "distance)")  # fmt: skip
-    p.add_argument("--no-png", action="store_true", help="skip the pictures")
-    p.add_argument("--no-check", action="store_true", help="skip the Z-map check")
-    p.add_argument("--check-spacing", type=positive("mm", 100), default=0.5,
-                   help="Z-map grid spacing of the check, mm")  # fmt: skip
-    p.add_argument("--limit", action="store_true", help="split levels or lower feeds until "
-                   "every block is within the machine's and tool's limits")  # fmt: skip
-    p.add_argument("--material", help="workpiece material (default: the part's cutting.material)")
-    limit_options(p)
-    p.set_defaults(func=run)
-    add_catalog_options(p)
+    command(sub, "rough", "Z-level roughing: levels by bisection for maximum removal rate (seed "
+            "000)", ROUGH, run, catalogs=True, description=__doc__,
+            formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+
+
+# fmt: off
+ROUGH = (
+    ("config", None, None, "part file, e.g. configs/parts/seed000-bump.toml (or its name)"),
+    ("--method", ("bisection", "equal", "lee", "optimal"), "bisection", None),
+    ("-o --output", Path, REQUIRED, "NC program to write"),
+    dialect_row("controller to write for (default: the machine's)"),
+    ("--machine", None, None, "machine config name or path: its dialect and tool changer "
+     "(default: none, fanuc)"),
+    ("--json", bool, None, "print everything as JSON"),
+    ("--cusp-model", ("paper", "exact"), None, "override rough.cusp_model (paper: (h1-h2)cos(beta);"
+     " exact: measured distance)"),
+    ("--no-png", bool, None, "skip the pictures"),
+    ("--no-check", bool, None, "skip the Z-map check"),
+    ("--check-spacing", positive("mm", 100), 0.5, "Z-map grid spacing of the check, mm"),
+    ("--limit", bool, None, "split levels or lower feeds until every block is within the "
+     "machine's and tool's limits"),
+    ("--material", None, None, "workpiece material (default: the part's cutting.material)"),
+    LOBES,
+)
+# fmt: on
 
 
 def run(args: argparse.Namespace) -> int:
     from planning.limits import rough_limiter
+    from planning.limits.text import rough_answer, rough_text
     from planning.rough import run_rough
-
-    with Progress("plan rough", "step") as bar:
-
-        def note(msg: str) -> None:  # planning is over: the bar gives way to the status lines
-            bar.close()
-            status(msg)
-
-        res = run_rough(args.config, args.output, args.method, args.cusp_model,
-                        check=not args.no_check, check_spacing_mm=args.check_spacing,
-                        png=not args.no_png, progress=bar.step, status=note,
-                        dialect=args.dialect, machine=args.machine,
-                        limits=rough_limiter(fix=args.limit, machine=args.machine,
-                                             material=args.material, lobes=args.lobes))  # fmt: skip
     from rig.cli.plan_check import WRITTEN_EXIT
 
+    with Progress("plan rough", "step") as bar:  # planned, the bar gives way to the notes
+        res = rough_answer(run_rough(
+            args.config, args.output, args.method, args.cusp_model, check=not args.no_check,
+            check_spacing_mm=args.check_spacing, png=not args.no_png, progress=bar.step,
+            status=bar_note(bar), dialect=args.dialect, machine=args.machine,
+            limits=rough_limiter(fix=args.limit, machine=args.machine, material=args.material,
+                                 lobes=args.lobes),
+        ))  # fmt: skip
     c = res["check"]
-    lim = res["limits"] or {}  # the limits' verdict of the written program
-    res["verdict"] = lim.get("verdict", "unchecked")
     code = 3 if c is not None and not c["ok"] else WRITTEN_EXIT[res["verdict"]]
-    res["unchecked"] = lim.get("unchecked", [{"limit": "all", "reason": "limits not run"}])
-    if args.json:
-        print_json(res)
-        return code
-    from planning.limits.text import rough_limit_lines, verdict_lines
-    from planning.rough.text import rough_lines
-
-    print_lines([*rough_lines(res, args.method), *rough_limit_lines(res), *verdict_lines(res)])
-    for k, v in res["png"].items():
-        print(f"{k}: {v}")
-    return code
+    return show(args.json, res, lambda: rough_text(res), code)

@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 from pathlib import Path
 
-from analysis.rules.rulebase import GroupKey
-from rig.cli.common import add_catalog_options, count, image_file, positive  # isort: split
-
-from rig.cli.common import print_json, print_lines, print_table, status
-from rig.cli.options import REQUIRED, add_options, json_option, model_options, rule_db_option
+from analysis import rules
+from analysis.output import table_lines
+from rig.cli.common import count, image_file, positive, show, status
+from rig.cli.options import REQUIRED, command, db_row, group, json_row, model_rows
 
 FEED = positive("mm/min", 200_000)
 # fmt: off
@@ -35,116 +33,75 @@ DERIVE = (
 # fmt: on
 
 
+# fmt: off
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("rules", help="feed rules: derive from feed sweeps, the rule base")
-    rs = p.add_subparsers(dest="rules_command", metavar="RULES_COMMAND")
-    rs.required = True
-    d = rs.add_parser("derive", help="base feed from a feed sweep, then the 20-bin rule")
-    add_options(d, DERIVE)
-    d.set_defaults(func=_derive)
-    add_catalog_options(d)
-    _register_base(rs)
-
-
-def _register_base(rs: argparse._SubParsersAction) -> None:
-    a = rs.add_parser("add", help="store a rule file in the rule base for a machining group")
-    a.add_argument("rule", type=Path)
-    model_options(a, GroupKey, flags={"spindle_rpm": "--spindle"})
-    add_options(a, [("--note", None, "", None),
-                    ("--replace", bool, None, "replace the group's existing rule")])  # fmt: skip
-    rule_db_option(a, "rule base (default from configs/lab.toml)")
-    json_option(a, None)
-    a.set_defaults(func=_add)
-    ls = rs.add_parser("list", help="the machining groups in the rule base")
-    rule_db_option(ls)
-    json_option(ls, None)
-    ls.set_defaults(func=_list)
-    sh = rs.add_parser("show", help="one rule: its bins (by rule name, group id or rule file)")
-    sh.add_argument("rule", help="rule name or group id in the rule base, or a rule file")
-    rule_db_option(sh)
-    sh.add_argument("--png", type=image_file, help="plot load vs feed with the bins")
-    json_option(sh, None)
-    sh.set_defaults(func=_show)
-    lk = rs.add_parser("lookup", help="the rule for a job: exact key or nearest match (stated)")
-    model_options(lk, GroupKey, flags={"spindle_rpm": "--spindle"})
-    lk.add_argument("--exact", action="store_true", help="fail unless the key matches exactly")
-    rule_db_option(lk)
-    json_option(lk, None)
-    lk.set_defaults(func=_lookup)
-    ex = rs.add_parser("export", help="write a stored rule to a file, exactly as stored")
-    add_options(ex, [("rule", None, None, "rule name or group id"),
-                     ("-o --output", Path, REQUIRED, None)])  # fmt: skip
-    rule_db_option(ex)
-    ex.set_defaults(func=_export)
-
-
-def _key(a: argparse.Namespace) -> dict[str, object]:
-    """The machining group's key (its options are GroupKey's fields)."""
-    return {f.name: getattr(a, f.name) for f in dataclasses.fields(GroupKey)}
+    rs = group(sub, "rules", "feed rules: derive from feed sweeps, the rule base")
+    command(rs, "derive", "base feed from a feed sweep, then the 20-bin rule", DERIVE, _derive,
+            catalogs=True)
+    key = model_rows(rules.GroupKey, flags={"spindle_rpm": "--spindle"})  # the machining group
+    command(rs, "add", "store a rule file in the rule base for a machining group", [
+        ("rule", Path, None, None), key, ("--note", None, "", None),
+        ("--replace", bool, None, "replace the group's existing rule"),
+        db_row("rule base (default from configs/lab.toml)"), json_row(None),
+    ], _add)
+    command(rs, "list", "the machining groups in the rule base", [db_row(), json_row(None)], _list)
+    command(rs, "show", "one rule: its bins (by rule name, group id or rule file)", [
+        ("rule", None, None, "rule name or group id in the rule base, or a rule file"), db_row(),
+        ("--png", image_file, None, "plot load vs feed with the bins"), json_row(None),
+    ], _show)
+    command(rs, "lookup", "the rule for a job: exact key or nearest match (stated)", [
+        key, ("--exact", bool, None, "fail unless the key matches exactly"), db_row(),
+        json_row(None),
+    ], _lookup)
+    command(rs, "export", "write a stored rule to a file, exactly as stored", [
+        ("rule", None, None, "rule name or group id"), ("-o --output", Path, REQUIRED, None),
+        db_row(),
+    ], _export)
+# fmt: on
 
 
 def _derive(a: argparse.Namespace) -> int:
-    from analysis.rules import derive_from_sweep, plot_rule, save_rule
-
-    d = derive_from_sweep(
+    d = rules.derive_from_sweep(
         a.runs, a.name or a.output.stem, base_feed_mm_min=a.base_feed, min_feed_mm_min=a.min_feed,
         max_feed_mm_min=a.max_feed, machine=a.machine, reference_load_pct=a.reference_load,
         exponent=a.exponent, n_bins=a.bins, slope_ratio=a.slope_ratio,
         vibration_ratio=a.vibration_ratio, criterion=a.criterion,
     )  # fmt: skip
-    save_rule(d.rule, a.output)
+    rules.save_rule(d.rule, a.output)
     if a.png:
-        plot_rule(d.rule, a.png)
+        rules.plot_rule(d.rule, a.png)
     status(d.summary_line(a.output))
-    print_json(d.summary(a.output)) if a.json else print_lines(d.lines())
-    return 0
+    return show(a.json, d.summary(a.output), d.lines)
 
 
 def _add(a: argparse.Namespace) -> int:
-    from analysis.rules import add_rule_file
-
     def creating(db: Path) -> None:
         status(f"rules add: {db} does not exist: creating a new rule base there")
 
-    g, db = add_rule_file(a.rule, _key(a), a.db, note=a.note, replace=a.replace, on_create=creating)
-    print_json(g) if a.json else print(f"stored {a.rule} as group {g['id']} in {db}")
-    return 0
+    g, db = rules.add_rule_file(a.rule, rules.GroupKey.of(vars(a)), a.db, note=a.note,
+                                replace=a.replace, on_create=creating)
+    return show(a.json, g, lambda: [f"stored {a.rule} as group {g['id']} in {db}"])
 
 
 def _list(a: argparse.Namespace) -> int:
-    from analysis.rules import list_groups
-
-    rows = list_groups(a.db)
-    print_json(rows) if a.json else print_table(rows)
-    return 0
+    rows = rules.list_groups(a.db)
+    return show(a.json, rows, lambda: table_lines(rows))
 
 
 def _show(a: argparse.Namespace) -> int:
-    from analysis.rules import plot_rule, rule_info
-
-    rule, info = rule_info(a.rule, a.db)
+    rule, info = rules.rule_info(a.rule, a.db)
     if a.png:
-        plot_rule(rule, a.png)
+        rules.plot_rule(rule, a.png)
         status(f"wrote {a.png}")
-    if a.json:
-        print_json(info)
-        return 0
-    print("\n".join(f"{k}: {v}" for k, v in info.items() if k != "bins"))
-    print_table(info["bins"])
-    return 0
+    return show(a.json, info, lambda: rules.rule_info_lines(info))
 
 
 def _lookup(a: argparse.Namespace) -> int:
-    from analysis.rules import lookup_group
-
-    m = lookup_group(_key(a), a.db, exact_only=a.exact)
-    print_json(m) if a.json else print(m["statement"])
-    return 0
+    m = rules.lookup_group(rules.GroupKey.of(vars(a)), a.db, exact_only=a.exact)
+    return show(a.json, m, lambda: [str(m["statement"])])
 
 
 def _export(a: argparse.Namespace) -> int:
-    from analysis.rules import export_rule
-
-    export_rule(a.rule, a.output, a.db)
+    rules.export_rule(a.rule, a.output, a.db)
     status(f"wrote {a.output}")
     return 0

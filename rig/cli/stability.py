@@ -20,48 +20,29 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from rig.cli.common import count, image_file, positive, print_json, status
+from rig.cli.common import count, image_file, noter, positive, show
+from rig.cli.options import REQUIRED, command, json_row
 
 
 def register_stability(psub: argparse._SubParsersAction) -> None:
     """Add ``stability`` to the ``analyze`` group's subparsers."""
-    p = psub.add_parser(
-        "stability", help="stability lobes: chatter-free depth per spindle speed",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
-    )  # fmt: skip
-    p.add_argument("config", help="stability case (TOML), e.g. configs/stability/*.toml")
-    p.add_argument("-o", "--output", type=Path, required=True, help="CSV of the lobes to write")
-    p.add_argument("--method", choices=("sd", "zoa"), default="sd",
-                   help="sd: semi-discretization (default); zoa: zero-order approx.")  # fmt: skip
-    p.add_argument("--steps", type=count(4, 400), default=None, metavar="M",
-                   help="fixed steps per tooth period of sd (default: start at the config's, "
-                        "30, and double per speed until within 1 %%)")  # fmt: skip
-    p.add_argument("--max-depth", type=positive("mm", 1000.0), default=None, metavar="MM",
-                   help="deepest cut searched, mm (default: the config's, else 30 x the "
-                        "lowest ZOA limit)")  # fmt: skip
-    p.add_argument(
-        "--plot", type=image_file, default=None, metavar="PNG", help="write the lobes plot"
-    )
-    p.add_argument("--json", action="store_true", help="JSON on stdout")
-    p.set_defaults(func=run)
+    command(psub, "stability", "stability lobes: chatter-free depth per spindle speed", [
+        ("config", None, None, "stability case (TOML), e.g. configs/stability/*.toml"),
+        ("-o --output", Path, REQUIRED, "CSV of the lobes to write"),
+        ("--method", ("sd", "zoa"), "sd", "sd: semi-discretization (default); zoa: zero-order "
+         "approx."),
+        ("--steps", count(4, 400), None, "fixed steps per tooth period of sd (default: start at "
+         "the config's, 30, and double per speed until within 1 %%)", {"metavar": "M"}),
+        ("--max-depth", positive("mm", 1000.0), None, "deepest cut searched, mm (default: the "
+         "config's, else 30 x the lowest ZOA limit)", {"metavar": "MM"}),
+        ("--plot", image_file, None, "write the lobes plot", {"metavar": "PNG"}),
+        json_row(),
+    ], run, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:
-    import dataclasses
+    from analysis.stability.output import lobes_file
 
-    from analysis.stability import load_case, plot_lobes, stability_lobes
-    from analysis.stability.output import summary_line, write_lobes_csv
-
-    case = load_case(args.config)
-    if args.max_depth is not None:
-        case = dataclasses.replace(case, depth_max_mm=args.max_depth)
-    lobes = stability_lobes(case, args.method, args.steps)
-    write_lobes_csv(lobes, args.output)
-    status(f"analyze stability: wrote {args.output} ({lobes.depth_limit_mm.size} speeds)")
-    if args.plot:
-        status(f"analyze stability: wrote {plot_lobes(lobes, args.plot, case.name, case)}")
-    for w in lobes.warnings:
-        status(f"analyze stability: warning: {w}")
-    out = {"config": str(args.config), "csv": str(args.output), **lobes.to_json()}
-    print_json(out) if args.json else print(summary_line(case.name, lobes))
-    return 0
+    out, line = lobes_file(args.config, args.output, args.method, args.steps, args.max_depth,
+                           args.plot, note=noter("analyze stability"))  # fmt: skip
+    return show(args.json, out, lambda: [line])
