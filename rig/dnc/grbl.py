@@ -90,6 +90,7 @@ from rig.dnc.grbl_overrides import (  # noqa: F401 - override_bytes: importable 
     OverrideState,
     override_bytes,
 )
+from rig.dnc.grbl_poll import StatusPoller
 from rig.dnc.grbl_receive import GrblReceiver, is_answer
 from rig.dnc.grbl_status import GrblStatus, parse_status  # noqa: F401 - importable from here
 from rig.dnc.grbl_window import Window
@@ -304,33 +305,6 @@ class GrblStreamer(StreamerBase):
             self._guard_proc = HoldGuard.start_for(ser)
         return SerialLink(ser, pace_bytes_per_s=self.pace, on_data=self._rx.on_data)
 
-    def _poll_status(self) -> None:
-        period = 1.0 / self.status_hz
-        while not self._poll_stop.wait(period):
-            try:
-                self._write_rt(self.link, STATUS)  # type: ignore[arg-type]
-            except (LinkLost, LinkTimeout, OSError):
-                return
-
-    def _poll_sim(self, t_first: float) -> None:
-        """The poll in lockstep: ``status_hz`` a simulated second, each ``?`` written while the
-        simulated clock stands at its time (a gate) and read by the controller before it moves
-        on, so the reports come at the same simulated times however busy the host."""
-        lk, period = self.lockstep, 1.0 / self.status_hz
-        k = 0
-        try:
-            while lk.sleep_until(t_first + k * period, self._poll_stop):
-                try:
-                    self._write_rt(self.link, STATUS)  # type: ignore[arg-type]
-                except (LinkLost, LinkTimeout, OSError):
-                    return
-                if not lk.settle(self._poll_stop):
-                    return
-                k += 1
-                lk.gate("poll", t_first + k * period)
-        finally:
-            lk.gate("poll", None)
-
     def _work_pos(self, st: GrblStatus) -> tuple[float, float, float] | None:
         if st.wpos_mm is not None:
             return st.wpos_mm
@@ -344,16 +318,7 @@ class GrblStreamer(StreamerBase):
 
     # -- the stream --------------------------------------------------------------------------------
     def _run(self, link: SerialLink, items: list[Item]) -> None:
-        self._poll_stop = threading.Event()
-        poller = None
-        if self.status_hz > 0:
-            target, args = self._poll_status, ()
-            if self.lockstep is not None:  # the first poll's gate before the clock can pass it
-                t_first = self.clock() + 1.0 / self.status_hz
-                self.lockstep.gate("poll", t_first)
-                target, args = self._poll_sim, (t_first,)  # type: ignore[assignment]
-            poller = threading.Thread(target=target, args=args, name="grbl-status", daemon=True)
-            poller.start()
+        poller = StatusPoller(self).start() if self.status_hz > 0 else None
         clean = False
         try:
             self._ctl.handshake()
@@ -366,9 +331,8 @@ class GrblStreamer(StreamerBase):
         finally:
             if not clean:  # a crash of the streamer itself (or a second Ctrl-C): hold first
                 self._rt_safe(FEED_HOLD)
-            self._poll_stop.set()
             if poller is not None:
-                poller.join(timeout=2.0)
+                poller.stop()
             if self._reports:
                 self.starved_fraction = self._starved_reports / self._reports
             if self._guard_proc is not None:

@@ -21,8 +21,8 @@ What the streamer has read is counted from the port's opening against what went 
 :meth:`expect_stream`: so in lockstep the controller sends no power-up banner (before the port is
 open; pyserial's open flushes it anyway, but a count must not depend on that).
 
-The streamer's ``?`` poll runs on simulated time too (:meth:`rig.dnc.grbl.GrblStreamer.
-_poll_sim`). The reply gate gives way after :data:`LINE_GATE_WALL_S` wall s, the first-byte one
+The streamer's ``?`` poll runs on simulated time too (:class:`rig.dnc.grbl_poll.
+StatusPoller`). The reply gate gives way after :data:`LINE_GATE_WALL_S` wall s, the first-byte one
 with the line gate (a stalled streamer must not stop simulated time for good: the run's own
 timeouts then see it); the byte and room gates are the controller's own work, as its segment's.
 """
