@@ -140,7 +140,10 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
     text = (DATA / "quick.toml").read_text()
     text = text.replace('"OUT"', json.dumps(str(tmp_path / "out"))).replace("FAULTS", "")
     cfg = tmp_path / "live.toml"
-    cfg.write_text(text.replace("speed = 50", "speed = 1"))  # slow enough to press buttons
+    # slow enough to press buttons, and a 30 mm block (6 s of cut a run): a page that lags
+    # behind a loaded host still sees both runs cut (a 10 mm one was over before it looked)
+    cfg.write_text(text.replace("speed = 50", "speed = 1")
+                   .replace("block_length_mm = 10.0", "block_length_mm = 30.0"))  # fmt: skip
     port = _free_port()
     if _has_live_option():
         cmd = [sys.executable, "-m", "rig.cli", "campaign", "run", str(cfg), "--live", "--port",
@@ -258,7 +261,8 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
     # the abort names its source: the console and the page's address (not Ctrl-C)
     assert last.reason.startswith("operator stopped the run from the console (client 127.0.0.1:")
     assert not (tmp_path / "out" / "quick" / "live.json").exists()
-    _readouts_match_the_run_file(readouts, rf.load_run(runs[0]))
+    for k, run_file in enumerate(runs, 1):
+        _readouts_match_the_run_file([r for r in readouts if r["run"] == k], rf.load_run(run_file))
     # the aborted run's toolpath as browsed: its program, its path up to where it stopped
     _planned_is_rs274_s(aborted["toolpath"], last, tmp_path)
     _executed_follows_the_block_table(aborted["trail"], aborted["toolpath"], last)
@@ -297,13 +301,13 @@ def _watch_the_machine(page: Page) -> list[dict[str, Any]]:
     the block the controller executes, on screen where the page's own data puts it, and the
     per-revolution readouts come (returned, to check against the run file)."""
     xs: set[str] = set()
-    readouts: dict[int, dict[str, Any]] = {}
+    readouts: dict[tuple[int, int], dict[str, Any]] = {}  # (run, revolution): checked by run
 
     def moving() -> bool:
         xs.add(page.text("dro-x"))
         r = page.js("window.cutlab.readouts")
-        if r and r["run"] == 1:
-            readouts[r["rev"]] = r
+        if r:
+            readouts[(r["run"], r["rev"])] = r
         return len(xs - {"-"}) >= 3 and len(readouts) >= 3
 
     page.wait("the DRO to move and readouts to come", moving, 30)
