@@ -109,6 +109,7 @@ class _HoldClock:
             holds.append((t_hold, math.inf))
         self.start = np.array([a for a, _ in holds])
         self.held_before = np.concatenate([[0.0], np.cumsum([b - a for a, b in holds])])
+        self.start_moving = self.start - self.held_before[:-1]  # each hold's start on this clock
 
     def moving(self, t: np.ndarray) -> np.ndarray:
         if not len(self.start):
@@ -122,8 +123,7 @@ class _HoldClock:
     def run(self, m: float) -> float:
         if not len(self.start):
             return m
-        starts_m = self.start - self.held_before[:-1]  # each hold's start on this clock
-        k = int(np.searchsorted(starts_m, m, side="left"))  # holds wholly before m
+        k = int(np.searchsorted(self.start_moving, m, side="left"))  # holds wholly before m
         return float(m + self.held_before[k])
 
 
