@@ -41,8 +41,11 @@ README = ROOT / "README.md"
 
 #: what a command line starts with
 _COMMAND = re.compile(r"^(cutlab|\.venv/bin/\S+|python3?|cd|\.ci/run|pytest)(\s|$)")
-#: an argument that stands for something the reader fills in (FILE, IN.nc, KEY=VALUE, T, ...)
-_PLACEHOLDER = re.compile(r"^(-[-\w]+=)?[A-Z][A-Z0-9_]*(\.[a-z0-9]+)?(=[A-Z]+)?$|\.\.\.|\|")
+#: an argument that stands for something the reader fills in (FILE, IN.nc, KEY=VALUE, T, OUT/x.nc,
+#: ...)
+_PLACEHOLDER = re.compile(
+    r"^(-[-\w]+=)?[A-Z][A-Z0-9_]*(\.[a-z0-9]+)?(=[A-Z]+)?$|^[A-Z][A-Z0-9_]*/|\.\.\.|\|"
+)
 
 #: (pattern searched in the command, reason): not run here
 SKIP: list[tuple[str, str]] = [
