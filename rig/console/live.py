@@ -161,7 +161,18 @@ class LiveCampaign:
         self._info, self._t0_s, self._expect = info, float(t0_s), 0
         self._health = LoggerHealth(info.rate_hz, t0_s)
         self._meta = self._run_meta(info, t0_s)
-        self.ring.begin_run(self._meta, info.n_channels, info.dtype)
+        self.ring.begin_run(self._meta, info.n_channels, info.dtype, info.block_samples)
+
+    def share_with(self, sink: object) -> None:
+        """The run writer behind the DAQ's ``sink`` (a tap's ``writer``, a tee's ``sink``)
+        takes its queue buffers from the ring: its one copy of each block is the page's too
+        (after :meth:`on_start`; a writer that cannot leaves the ring copying blocks itself)."""
+        for _ in range(5):
+            share = getattr(sink, "share_buffers", None)
+            if share is not None:
+                share(self.ring)
+                return
+            sink = getattr(sink, "writer", None) or getattr(sink, "sink", None)
 
     def on_block(self, first_sample: int, data: np.ndarray) -> None:
         if first_sample > self._expect and self._info is not None:
