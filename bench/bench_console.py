@@ -131,6 +131,7 @@ class Setup:
     port: int
     frames_per_s: list[float] = field(default_factory=list)
     probe_s: float = 0.0  # the two clock reads around each tap call (counted in its calls)
+    stores_s: float = 0.0  # what sharing adds to the writer's call a block (timed alone)
 
 
 def _probe_s() -> float:
@@ -144,6 +145,30 @@ def _probe_s() -> float:
             tap_s += time.thread_time() - c0
         runs.append(tap_s / n)
     return statistics.median(runs)
+
+
+def _stores_s(folder: Path, info: DaqInfo) -> float:
+    """CPU s a block of what sharing adds to the writer's own call, timed alone: the buffer's
+    slot looked up, the slot's sequence raised before the copy, the block published after (the
+    paired difference of whole calls below is that plus noise of +-10 us)."""
+    from rig.console.ring import RingWriter
+
+    ring = RingWriter(folder / "stores.ring")
+    try:
+        ring.begin_run({}, info.n_channels, info.dtype, info.block_samples)
+        views = ring.buffers(64, info.block_samples) or []
+        slot_of = {id(v): (k, v) for k, v in enumerate(views)}
+        runs = []
+        for _ in range(5):
+            n, c0 = 20_000, time.thread_time()
+            for j in range(n):
+                k = slot_of[id(views[j % 64])][0]
+                ring.begin(k)
+                ring.publish(k, j * info.block_samples, info.block_samples)
+            runs.append((time.thread_time() - c0) / n)
+        return statistics.median(runs)
+    finally:
+        ring.close(unlink=True)
 
 
 def _thread_cpu_s(tid: int | None) -> float:
@@ -402,7 +427,15 @@ def main() -> None:
     with tempfile.TemporaryDirectory(dir=args.dir) as tmp:
         folder = Path(tmp)
         (folder / "runs").mkdir()  # a campaign folder to the server
-        st = Setup(folder, campaign, info, blocks, _free_port(), probe_s=_probe_s())
+        st = Setup(
+            folder,
+            campaign,
+            info,
+            blocks,
+            _free_port(),
+            probe_s=_probe_s(),
+            stores_s=_stores_s(folder, info),
+        )
         server = start_server(folder, st.port, "127.0.0.1", TOKEN)
         try:
             if args.only in (None, "lab"):
@@ -475,6 +508,13 @@ def _print_flat(args: argparse.Namespace, st: Setup, res: dict[str, list[Trial]]
               f"{thread * 100:.2f} %): the logger's speed {1 - share:.3f} of what it is without "
               f"them, 95 % [{1 - hi:.3f}, {1 - lo:.3f}]: {_verdict(1 - hi, 1 - lo)}")  # fmt: skip
         _print_put(res[k], res["without"], (share, lo, hi))
+        per_block = np.median([t.cpu_s / max(t.blocks, 1) for t in res[k]])
+        added = st.stores_s / per_block
+        print(f"    the writer's added stores (slot looked up, sequence raised, block published), "
+              f"timed alone: {st.stores_s * 1e6:.2f} us a block, {added * 100:.2f} %: with the "
+              f"console's own, {(share + added) * 100:.2f} %, 95 % [{(lo + added) * 100:.2f}, "
+              f"{(hi + added) * 100:.2f}]: the logger's speed {1 - share - added:.3f} of its bare "
+              f"speed: {_verdict(1 - hi - added, 1 - lo - added)}")  # fmt: skip
         blocks = -(-args.samples // st.blocks[0].shape[1]) * len(res[k])
         probe = blocks * st.probe_s / sum(t.cpu_s for t in res[k])
         print(f"    of which the probe (two clock reads around each tap call, "
