@@ -49,7 +49,10 @@ MAX_SLOTS = 4096
 SEQS_BYTES = 8 * MAX_SLOTS
 LOG_ENTRIES = 1024  # published blocks a reader can still find: 100 s of 0.1 s blocks
 LOG_BYTES = 4 * 8 * LOG_ENTRIES
-SAMPLE_BYTES = 32 << 20  # the slots: 279 blocks of 0.1 s of 3 float64 channels at 40 kHz
+# the slots' address space (sparse: only the slots a writer takes are given memory, reserved
+# with fallocate so a full /dev/shm refuses them instead of failing a store with SIGBUS)
+SAMPLE_BYTES = 1 << 30
+OWN_SLOTS = 64  # slots :meth:`RingWriter.write` cycles through (no writer to share with)
 MIRROR_BYTES = 32 << 20  # a reader's history: 60 s of 3 channels of float32 volts at 40 kHz
 DEFAULT_SLOT_ROWS = 4096  # rows a slot when the run's block size is not given
 
@@ -249,6 +252,11 @@ class RingWriter(_Mapped):
         slots = self._slots
         if slots is None or rows != slots.shape[1] or n > len(slots):
             return None
+        try:  # their memory now, or no sharing (the writer keeps its own buffers)
+            with open(self.path, "r+b") as f:
+                os.posix_fallocate(f.fileno(), _SAMPLES_AT, n * slots[0].nbytes)
+        except OSError:
+            return None
         self._shared = True
         return [slots[k] for k in range(n)]
 
@@ -276,7 +284,7 @@ class RingWriter(_Mapped):
         rows, n = slots.shape[1], data.shape[1]
         for a in range(0, n, rows):
             m, k = min(rows, n - a), self._next
-            self._next = (k + 1) % len(slots)
+            self._next = (k + 1) % min(len(slots), OWN_SLOTS)
             self.begin(k)
             np.copyto(slots[k, :m], data[:, a : a + m].T, casting="same_kind")
             self.publish(k, first_sample + a, m)
