@@ -7,9 +7,10 @@ It fits in through the runner's existing entry points (:func:`rig.campaign.run_c
     with live_console(campaign, out_root, port=8765) as live:
         result = run_campaign(campaign, out_root=out_root, **live.run_kwargs())
 
-- Samples: each rig session's DAQ sink is teed: the run writer gets every block first, then the
-  ring (:mod:`rig.console.ring`) gets a copy; an error in the ring is dropped, never raised into
-  the acquisition thread.
+- Samples: each rig session's DAQ sink is teed: the run writer gets every block first, its
+  queue buffers the ring's slots (:mod:`rig.console.ring`: its one copy is the page's too), then
+  the live side (gaps, the logger's health); an error there is dropped, never raised into the
+  acquisition thread.
 - State, about 25 times a second: the machine as the controller reports it (GRBL status reports;
   the simulated control's panel; a drip feed reports nothing), the streamer's sent /
   acknowledged / executing blocks, the executed blocks' spans, run i of N, elapsed and remaining
