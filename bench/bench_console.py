@@ -119,6 +119,7 @@ class Trial:
     tap_cpu_s: float = 0.0
     status_cpu_s: float = 0.0
     put_cpu_s: float = 0.0  # the writer's calls, timed on the DAQ's thread (its copy is in them)
+    setup_cpu_s: float = 0.0  # the run's start with the console: the slots given to the writer
     blocks: int = 0
 
 
@@ -193,12 +194,16 @@ def _trial(st: Setup, n_total: int, live: LiveCampaign | None, paced: bool) -> T
     period_s = block_n / info.rate_hz
     put = writer.on_block if paced else writer.put_block  # a DAQ's call never waits
     tid = None if live is None else live._thread.native_id
-    tap_s, put_s, status0 = 0.0, 0.0, _thread_cpu_s(tid)
-    t0, cpu0 = time.perf_counter(), time.process_time()
+    # A run's setup, before the trial's clocks, as the writer's own buffers are made before
+    # them: the ring's slots given to the writer (their pages touched), timed on its own.
     writer.on_start(info, 0.0)
+    setup_s = time.process_time()
     if ring_only is not None and live is not None:
         ring_only.on_start(info, 0.0)
         live.share_with(writer)  # as the console's tee does: the writer's buffers are the slots
+    setup_s = time.process_time() - setup_s
+    tap_s, put_s, status0 = 0.0, 0.0, _thread_cpu_s(tid)
+    t0, cpu0 = time.perf_counter(), time.process_time()
 
     for j, k in enumerate(range(0, n_total, block_n)):
         block = blocks[j % len(blocks)]
@@ -217,7 +222,8 @@ def _trial(st: Setup, n_total: int, live: LiveCampaign | None, paced: bool) -> T
     path.unlink()
     lost = stats.samples_dropped + stats.samples_missing + (n_total - stats.samples_written)
     out = Trial(lost=lost, load=os.getloadavg()[0], cpu_s=cpu, tap_cpu_s=tap_s,
-                status_cpu_s=status_s, put_cpu_s=put_s, blocks=-(-n_total // block_n))  # fmt: skip
+                status_cpu_s=status_s, put_cpu_s=put_s, blocks=-(-n_total // block_n),
+                setup_cpu_s=setup_s)  # fmt: skip
     if paced:
         out.cpu_share = cpu / (n_total / info.rate_hz)
     else:
@@ -519,6 +525,10 @@ def _print_flat(args: argparse.Namespace, st: Setup, res: dict[str, list[Trial]]
         probe = blocks * st.probe_s / sum(t.cpu_s for t in res[k])
         print(f"    of which the probe (two clock reads around each tap call, "
               f"{st.probe_s * 1e6:.2f} us timed empty): {probe * 100:.2f} %")  # fmt: skip
+        setup = np.median([t.setup_cpu_s for t in res[k]]) * 1e3
+        print(f"    a run's start with the console (the ring's slots given to the writer, their "
+              f"pages touched; before the trial's clocks, as the writer's own buffers): "
+              f"{setup:.1f} ms CPU (median)")  # fmt: skip
 
 
 def _print_put(trials: list[Trial], bare: list[Trial], inside: tuple[float, float, float]) -> None:
