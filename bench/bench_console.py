@@ -15,7 +15,8 @@ The design that makes the figure robust to that load:
   than 5 %" only if its high end is < 0.95).
 
 Conditions: ``without``: blocks go straight into :class:`rig.log.RunWriter`; ``console``: through
-the console's tee (the writer first, then the shared-memory ring) with the live side's status
+the console's tee (the writer first, its queue buffers the shared-memory ring's slots, then the
+live side, which has the block already) with the live side's status
 thread running, the console server in its own process and a websocket client (another process,
 standing in for the browser) taking its frames; ``--tap`` adds ``tap``: the tee and the status
 thread with no server (the cost inside the logger's process alone).
@@ -106,7 +107,7 @@ class _Null:
 class Trial:
     """One trial's figures: samples/s per channel by the wall clock and per CPU s of the logger's
     process (flat out), CPU s per s of data (paced), samples lost, the load average after it;
-    and inside the trial, the CPU the console took in the logger's process: the tap's copies
+    and inside the trial, the CPU the console took in the logger's process: the tap's calls
     into the ring (timed on the DAQ's thread around each call) and the status thread."""
 
     wall_rate: float = 0.0
@@ -118,6 +119,7 @@ class Trial:
     tap_cpu_s: float = 0.0
     status_cpu_s: float = 0.0
     put_cpu_s: float = 0.0  # the writer's calls, timed on the DAQ's thread (its copy is in them)
+    setup_cpu_s: float = 0.0  # the run's start with the console: the slots given to the writer
     blocks: int = 0
 
 
@@ -129,7 +131,8 @@ class Setup:
     blocks: list[np.ndarray]
     port: int
     frames_per_s: list[float] = field(default_factory=list)
-    probe_s: float = 0.0  # the two clock reads around each tap call (counted in its copies)
+    probe_s: float = 0.0  # the two clock reads around each tap call (counted in its calls)
+    stores_s: float = 0.0  # what sharing adds to the writer's call a block (timed alone)
 
 
 def _probe_s() -> float:
@@ -143,6 +146,30 @@ def _probe_s() -> float:
             tap_s += time.thread_time() - c0
         runs.append(tap_s / n)
     return statistics.median(runs)
+
+
+def _stores_s(folder: Path, info: DaqInfo) -> float:
+    """CPU s a block of what sharing adds to the writer's own call, timed alone: the buffer's
+    slot looked up, the slot's sequence raised before the copy, the block published after (the
+    paired difference of whole calls below is that plus noise of +-10 us)."""
+    from rig.console.ring import RingWriter
+
+    ring = RingWriter(folder / "stores.ring")
+    try:
+        ring.begin_run({}, info.n_channels, info.dtype, info.block_samples)
+        views = ring.buffers(64, info.block_samples) or []
+        slot_of = {id(v): (k, v) for k, v in enumerate(views)}
+        runs = []
+        for _ in range(5):
+            n, c0 = 20_000, time.thread_time()
+            for j in range(n):
+                k = slot_of[id(views[j % 64])][0]
+                ring.begin(k)
+                ring.publish(k, j * info.block_samples, info.block_samples)
+            runs.append((time.thread_time() - c0) / n)
+        return statistics.median(runs)
+    finally:
+        ring.close(unlink=True)
 
 
 def _thread_cpu_s(tid: int | None) -> float:
@@ -167,11 +194,16 @@ def _trial(st: Setup, n_total: int, live: LiveCampaign | None, paced: bool) -> T
     period_s = block_n / info.rate_hz
     put = writer.on_block if paced else writer.put_block  # a DAQ's call never waits
     tid = None if live is None else live._thread.native_id
+    # A run's setup, before the trial's clocks, as the writer's own buffers are made before
+    # them: the ring's slots given to the writer (their pages touched), timed on its own.
+    writer.on_start(info, 0.0)
+    setup_s = time.process_time()
+    if ring_only is not None and live is not None:
+        ring_only.on_start(info, 0.0)
+        live.share_with(writer)  # as the console's tee does: the writer's buffers are the slots
+    setup_s = time.process_time() - setup_s
     tap_s, put_s, status0 = 0.0, 0.0, _thread_cpu_s(tid)
     t0, cpu0 = time.perf_counter(), time.process_time()
-    writer.on_start(info, 0.0)
-    if ring_only is not None:
-        ring_only.on_start(info, 0.0)
 
     for j, k in enumerate(range(0, n_total, block_n)):
         block = blocks[j % len(blocks)]
@@ -190,7 +222,8 @@ def _trial(st: Setup, n_total: int, live: LiveCampaign | None, paced: bool) -> T
     path.unlink()
     lost = stats.samples_dropped + stats.samples_missing + (n_total - stats.samples_written)
     out = Trial(lost=lost, load=os.getloadavg()[0], cpu_s=cpu, tap_cpu_s=tap_s,
-                status_cpu_s=status_s, put_cpu_s=put_s, blocks=-(-n_total // block_n))  # fmt: skip
+                status_cpu_s=status_s, put_cpu_s=put_s, blocks=-(-n_total // block_n),
+                setup_cpu_s=setup_s)  # fmt: skip
     if paced:
         out.cpu_share = cpu / (n_total / info.rate_hz)
     else:
@@ -203,10 +236,6 @@ def _with_live(st: Setup, cond: str, ready: float, n_total: int, paced: bool) ->
     attached to it and a client taking its frames."""
     live = LiveCampaign(st.campaign, st.folder)
     live._run_k = 0  # a run in progress, as the session factory sets it
-    live.on_start(st.info, 0.0)  # the ring's pages touched, as by a campaign's earlier runs
-    cap = live.ring._rows.shape[1]
-    for k in range(0, cap, st.blocks[0].shape[1]):
-        live.ring.write(k, st.blocks[0])
     client = None
     try:
         if cond == "console":
@@ -256,7 +285,7 @@ def _median_ci(x: np.ndarray, n_boot: int = 10_000) -> tuple[float, float, float
 
 
 def _inside(trials: list[Trial]) -> tuple[float, float, float, float, float]:
-    """The console's share of the logger process's CPU inside its own trials (the tap's copies
+    """The console's share of the logger process's CPU inside its own trials (the tap's calls
     and the status thread over all the process's CPU), as a ratio of sums over the trials with
     a bootstrap 95 % interval (trials resampled); and the tap's and the thread's shares."""
     tap = np.array([t.tap_cpu_s for t in trials])
@@ -404,7 +433,15 @@ def main() -> None:
     with tempfile.TemporaryDirectory(dir=args.dir) as tmp:
         folder = Path(tmp)
         (folder / "runs").mkdir()  # a campaign folder to the server
-        st = Setup(folder, campaign, info, blocks, _free_port(), probe_s=_probe_s())
+        st = Setup(
+            folder,
+            campaign,
+            info,
+            blocks,
+            _free_port(),
+            probe_s=_probe_s(),
+            stores_s=_stores_s(folder, info),
+        )
         server = start_server(folder, st.port, "127.0.0.1", TOKEN)
         try:
             if args.only in (None, "lab"):
@@ -447,7 +484,7 @@ def _print_lab(args: argparse.Namespace, res: dict[str, list[Trial]]) -> None:
         data_s = sum(t.cpu_s / t.cpu_share for t in res[k])
         tap = sum(t.tap_cpu_s for t in res[k]) / data_s * 100
         thread = sum(t.status_cpu_s for t in res[k]) / data_s * 100
-        print(f"  {k}, its own CPU inside its trials: the tap's copies {tap:.3f} % of a core, "
+        print(f"  {k}, its own CPU inside its trials: the tap's calls {tap:.3f} % of a core, "
               f"the status thread {thread:.2f} %")  # fmt: skip
 
 
@@ -471,30 +508,50 @@ def _print_flat(args: argparse.Namespace, st: Setup, res: dict[str, list[Trial]]
             print(f"  {k} / without, {clock}: median of {n} paired ratios {med:.3f}, "
                   f"95 % [{lo:.3f}, {hi:.3f}]{note}")  # fmt: skip
         share, lo, hi, tap, thread = _inside(res[k])
-        print(f"  {k}, its own CPU inside its trials (the tap's copies timed on the DAQ's thread,"
+        print(f"  {k}, its own CPU inside its trials (the tap's calls timed on the DAQ's thread,"
               f" the status thread's CPU): {share * 100:.2f} % of the logger process's CPU, "
-              f"95 % [{lo * 100:.2f}, {hi * 100:.2f}] (copies {tap * 100:.2f} %, thread "
+              f"95 % [{lo * 100:.2f}, {hi * 100:.2f}] (tap {tap * 100:.2f} %, thread "
               f"{thread * 100:.2f} %): the logger's speed {1 - share:.3f} of what it is without "
               f"them, 95 % [{1 - hi:.3f}, {1 - lo:.3f}]: {_verdict(1 - hi, 1 - lo)}")  # fmt: skip
-        _print_put(res[k], res["without"], share)
+        _print_put(res[k], res["without"], (share, lo, hi))
+        per_block = np.median([t.cpu_s / max(t.blocks, 1) for t in res[k]])
+        added = st.stores_s / per_block
+        print(f"    the writer's added stores (slot looked up, sequence raised, block published), "
+              f"timed alone: {st.stores_s * 1e6:.2f} us a block, {added * 100:.2f} %: with the "
+              f"console's own, {(share + added) * 100:.2f} %, 95 % [{(lo + added) * 100:.2f}, "
+              f"{(hi + added) * 100:.2f}]: the logger's speed {1 - share - added:.3f} of its bare "
+              f"speed: {_verdict(1 - hi - added, 1 - lo - added)}")  # fmt: skip
         blocks = -(-args.samples // st.blocks[0].shape[1]) * len(res[k])
         probe = blocks * st.probe_s / sum(t.cpu_s for t in res[k])
         print(f"    of which the probe (two clock reads around each tap call, "
               f"{st.probe_s * 1e6:.2f} us timed empty): {probe * 100:.2f} %")  # fmt: skip
+        setup = np.median([t.setup_cpu_s for t in res[k]]) * 1e3
+        print(f"    a run's start with the console (the ring's slots given to the writer, their "
+              f"pages touched; before the trial's clocks, as the writer's own buffers): "
+              f"{setup:.1f} ms CPU (median)")  # fmt: skip
 
 
-def _print_put(trials: list[Trial], bare: list[Trial], share: float) -> None:
+def _print_put(trials: list[Trial], bare: list[Trial], inside: tuple[float, float, float]) -> None:
     """The writer's calls on the DAQ's thread, with the console and without: a console that made
-    the writer's own work dearer (a one-copy design that has it copy into the ring, measured at
-    +14.9 us a block) would hide that from the tap's timing; here it is counted."""
+    the writer's own work dearer (its buffers in the ring: the stores around its copy; a design
+    that had it copy into a 64 MB ring measured +14.9 us a block) would hide that from the tap's
+    timing; here it is counted, and the verdict is on both intervals added."""
     us = [np.array([t.put_cpu_s / max(t.blocks, 1) for t in x]) * 1e6 for x in (trials, bare)]
     med, lo, hi = _median_ci(us[0] - us[1])  # paired: round by round
     per_block = np.median([t.cpu_s / max(t.blocks, 1) for t in trials]) * 1e6
-    total = share + med / per_block
-    print(f"    the writer's calls on the DAQ's thread: {np.median(us[0]):.1f} us a block with "
-          f"it, {np.median(us[1]):.1f} without; paired difference {med:+.1f} us, 95 % "
-          f"[{lo:+.1f}, {hi:+.1f}] of {per_block:.0f} us a block: with it, the console's cost "
-          f"{total * 100:.2f} %, the logger's speed {1 - total:.3f} of its bare speed")
+    share, share_lo, share_hi = inside
+    total, t_lo, t_hi = (
+        share + med / per_block,
+        share_lo + lo / per_block,
+        share_hi + hi / per_block,
+    )
+    print(
+        f"    the writer's calls on the DAQ's thread: {np.median(us[0]):.1f} us a block with "
+        f"it, {np.median(us[1]):.1f} without; paired difference {med:+.1f} us, 95 % "
+        f"[{lo:+.1f}, {hi:+.1f}] of {per_block:.0f} us a block: with it, the console's cost "
+        f"{total * 100:.2f} %, the logger's speed {1 - total:.3f} of its bare speed, 95 % "
+        f"[{1 - t_hi:.3f}, {1 - t_lo:.3f}]: {_verdict(1 - t_hi, 1 - t_lo)}"
+    )
 
 
 def _print_page(

@@ -33,13 +33,14 @@ def _meta(c: int = 3, zero: list[float] | None = None) -> dict:
 
 
 def test_ring_round_trip_wraps_and_drops_what_was_overwritten(tmp_path: Path) -> None:
-    w = RingWriter(tmp_path / "r.ring", sample_bytes=3 * 4 * 100)  # 100 rows of 3 float32
-    r = RingReader(w.path)
-    w.begin_run(_meta(), 3, np.dtype(np.float64))
+    w = RingWriter(tmp_path / "r.ring", sample_bytes=3 * 8 * 30 * 4)  # 4 slots of 30 rows
+    r = RingReader(w.path, mirror_bytes=3 * 4 * 100)  # a history of 100 rows of 3 float32
+    w.begin_run(_meta(), 3, np.dtype(np.float64), 30)
     ramp = np.arange(250, dtype=float)
-    for k in range(0, 250, 30):  # blocks of 30 samples, the ring wraps twice
+    for k in range(0, 250, 30):  # blocks of 30 samples, the reader's history wraps twice
         n = min(30, 250 - k)
         w.write(k, np.vstack([ramp[k : k + n], -ramp[k : k + n], ramp[k : k + n] * 2]))
+        r.pull()  # (the server looks every frame)
     gen, first, offset, rows = r.rows_since(-1, 0)
     assert gen == 1 and first == 150 and offset == 0  # the last 100 rows are left
     assert np.array_equal(rows[:, 0], ramp[150:]) and np.array_equal(rows[:, 1], -ramp[150:])
@@ -49,6 +50,12 @@ def test_ring_round_trip_wraps_and_drops_what_was_overwritten(tmp_path: Path) ->
     w.write(300, np.ones((3, 10)))
     _, first, offset, rows = r.rows_since(1, 250)
     assert first == 250 and first + offset == 300 and len(rows) == 10
+    # a reader that looked away finds what the 4 slots still hold (blocks from 180 on)
+    late = RingReader(w.path)
+    _, first, offset, rows = late.rows_since(-1, 0)
+    assert first == 0 and len(rows) == 80 and first + offset + len(rows) == 310
+    assert np.array_equal(rows[:, 0], np.r_[ramp[180:], np.ones(10)])
+    late.close()
     # JSON regions and commands
     w.put_status({"phase": "running", "run": 1})
     assert r.get_json("status")[1] == {"phase": "running", "run": 1}
@@ -61,10 +68,10 @@ def test_ring_round_trip_wraps_and_drops_what_was_overwritten(tmp_path: Path) ->
 
 
 def test_ring_keeps_volts_as_float32_and_codes_as_int16(tmp_path: Path) -> None:
-    # Half the bytes to copy on the acquisition thread (issue 21); the page rounds to 0.1 N.
-    w = RingWriter(tmp_path / "r.ring", sample_bytes=3 * 4 * 64)
-    r = RingReader(w.path)
-    w.begin_run(_meta(), 3, np.dtype(np.float64))
+    # The reader's history: half the memory of float64; the page rounds to 0.1 N.
+    w = RingWriter(tmp_path / "r.ring", sample_bytes=3 * 8 * 60 * 2)
+    r = RingReader(w.path, mirror_bytes=3 * 4 * 64)
+    w.begin_run(_meta(), 3, np.dtype(np.float64), 60)
     t = np.arange(100) / RATE_HZ
     volts = np.vstack([np.sin(2 * np.pi * 7 * t), 3.3 * np.cos(t), np.full(100, -9.87654321)])
     w.write(0, volts[:, :60])
@@ -73,7 +80,7 @@ def test_ring_keeps_volts_as_float32_and_codes_as_int16(tmp_path: Path) -> None:
     assert first == 36 and rows.dtype == np.float32
     assert np.array_equal(rows, volts[:, 36:].T.astype(np.float32))
     assert np.abs(rows - volts[:, 36:].T).max() < 1e-6  # volts to a microvolt
-    w.begin_run(_meta(), 2, np.dtype(np.int16))
+    w.begin_run(_meta(), 2, np.dtype(np.int16), 3)
     codes = np.array([[-32768, 0, 32767], [1, -1, 12345]], np.int16)
     w.write(0, codes)
     _, _, _, rows = r.rows_since(-1, 0)

@@ -7,9 +7,10 @@ It fits in through the runner's existing entry points (:func:`rig.campaign.run_c
     with live_console(campaign, out_root, port=8765) as live:
         result = run_campaign(campaign, out_root=out_root, **live.run_kwargs())
 
-- Samples: each rig session's DAQ sink is teed: the run writer gets every block first, then the
-  ring (:mod:`rig.console.ring`) gets a copy; an error in the ring is dropped, never raised into
-  the acquisition thread.
+- Samples: each rig session's DAQ sink is teed: the run writer gets every block first, its
+  queue buffers the ring's slots (:mod:`rig.console.ring`: its one copy is the page's too), then
+  the live side (gaps, the logger's health); an error there is dropped, never raised into the
+  acquisition thread.
 - State, about 25 times a second: the machine as the controller reports it (GRBL status reports;
   the simulated control's panel; a drip feed reports nothing), the streamer's sent /
   acknowledged / executing blocks, the executed blocks' spans, run i of N, elapsed and remaining
@@ -161,7 +162,18 @@ class LiveCampaign:
         self._info, self._t0_s, self._expect = info, float(t0_s), 0
         self._health = LoggerHealth(info.rate_hz, t0_s)
         self._meta = self._run_meta(info, t0_s)
-        self.ring.begin_run(self._meta, info.n_channels, info.dtype)
+        self.ring.begin_run(self._meta, info.n_channels, info.dtype, info.block_samples)
+
+    def share_with(self, sink: object) -> None:
+        """The run writer behind the DAQ's ``sink`` (a tap's ``writer``, a tee's ``sink``)
+        takes its queue buffers from the ring: its one copy of each block is the page's too
+        (after :meth:`on_start`; a writer that cannot leaves the ring copying blocks itself)."""
+        for _ in range(5):
+            share = getattr(sink, "share_buffers", None)
+            if share is not None:
+                share(self.ring)
+                return
+            sink = getattr(sink, "writer", None) or getattr(sink, "sink", None)
 
     def on_block(self, first_sample: int, data: np.ndarray) -> None:
         if first_sample > self._expect and self._info is not None:

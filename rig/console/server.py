@@ -64,6 +64,7 @@ STATIC = Path(__file__).parent / "static"
 WS_MAX_BYTES = 64 * 1024  # a page's messages are < 100 bytes; larger ones are closed (1009)
 POLL_S = 0.005  # how often a connection looks for new samples between frames
 MIN_FRAME_S = 0.025  # frames of new samples at most this often (the page redraws on each)
+PULL_S = 0.1  # the ring into the server's history this often (a slot lives seconds)
 
 __all__ = ["make_app", "resolve_target", "serve"]
 
@@ -122,7 +123,8 @@ def make_app(
 
     @contextlib.asynccontextmanager
     async def lifespan(app: Starlette):  # noqa: ANN202 - an async context
-        tasks = [asyncio.create_task(watch()), asyncio.create_task(_follow_trail(hub))]
+        tasks = [asyncio.create_task(watch()), asyncio.create_task(_follow_trail(hub)),
+                 asyncio.create_task(_follow_ring(hub))]  # fmt: skip
         yield
         for task in tasks:
             task.cancel()
@@ -143,6 +145,15 @@ def make_app(
     app.state = inner.state
     app.state.token = token
     return app
+
+
+async def _follow_ring(hub: Hub) -> None:
+    """The ring's new blocks into the server's own history, with or without a page: before the
+    run writer reuses their slots (its 64 buffers: seconds of blocks)."""
+    while True:
+        await asyncio.sleep(PULL_S)
+        if hub.ring is not None:
+            hub.ring.pull()
 
 
 async def _follow_trail(hub: Hub) -> None:

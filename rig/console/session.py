@@ -29,7 +29,8 @@ class LiveSink(Protocol):
 
 
 class _Tee:
-    """The DAQ sink given to the DAQ: the run's own sink first, then the live ring."""
+    """The DAQ sink given to the DAQ: the run's own sink first, then the live ring (which has
+    the block already when the run writer's buffers are its slots)."""
 
     def __init__(self, sink: Any, live: Any) -> None:
         self.sink, self.live = sink, live
@@ -37,6 +38,7 @@ class _Tee:
     def on_start(self, info: DaqInfo, t0_s: float) -> None:
         self.sink.on_start(info, t0_s)
         self.live.guard(self.live.on_start, info, t0_s)
+        self.live.guard(self.live.share_with, self.sink)  # the writer's copy feeds the ring
 
     def on_block(self, first_sample: int, data: np.ndarray) -> None:
         self.sink.on_block(first_sample, data)

@@ -47,7 +47,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -65,9 +65,32 @@ from rig.log.space import (  # noqa: F401 - MIN_FREE_MB, free_space_problem: imp
     free_space_problem,
 )
 
-__all__ = ["MIN_FREE_MB", "RunWriter", "RunWriterError", "WriterStats", "free_space_problem"]
+__all__ = [
+    "MIN_FREE_MB",
+    "RunWriter",
+    "RunWriterError",
+    "SharedBuffers",
+    "WriterStats",
+    "free_space_problem",
+]
 
 _STOP = object()
+
+
+class SharedBuffers(Protocol):
+    """Memory a reader beside the writer shares (the console's live ring, rig.console.ring):
+    the writer's queue buffers are its slots, so the one copy of each block the writer makes
+    is the reader's too. The writer marks a slot before it copies a block in and publishes it
+    after."""
+
+    def buffers(self, n: int, rows: int) -> list[np.ndarray] | None:
+        """``n`` buffers (rows, c) of the run's type, or None (the writer keeps its own)."""
+
+    def begin(self, k: int) -> None:
+        """Buffer ``k`` is about to be overwritten."""
+
+    def publish(self, k: int, first_sample: int, n: int) -> None:
+        """Buffer ``k`` holds ``n`` rows from device sample ``first_sample``."""
 
 
 @dataclass(frozen=True)
@@ -99,6 +122,10 @@ class RunWriter(ControlRecords, DiskRoom):
     compression : "auto" (gzip level 1 + shuffle for int16 codes, none for float64), "gzip", None.
     min_free_mb : free space (MB) below which recording stops before the disk fills.
     """
+
+    #: a reader's buffers the queue uses (:meth:`share_buffers`), and each one's slot by its id
+    _shared: SharedBuffers | None = None
+    _slot_of: dict[int, tuple[int, np.ndarray]]
 
     def __init__(
         self,
@@ -233,11 +260,39 @@ class RunWriter(ControlRecords, DiskRoom):
                 return
             if self._drop is not None:
                 self._flush_drop()
+        shared = self._shared
+        k = -1 if shared is None else self._slot_of[id(buf)][0]
         if buf.shape[0] < n:
             buf = np.empty((n, self._c), self._dtype)  # a longer block than announced (rare)
+            k = -1  # (not in a shared slot: a reader misses it, the file has it)
         # The one copy: (c, n) from the DAQ into (n, c) rows, the file's layout.
+        if k >= 0 and shared is not None:
+            shared.begin(k)
         np.copyto(buf[:n], data.T)
+        if k >= 0 and shared is not None:
+            shared.publish(k, first_sample, n)
         self._filled.put((first_sample, n, buf))
+
+    def share_buffers(self, shared: SharedBuffers) -> bool:
+        """Take the queue's buffers from ``shared`` (the console's live ring) for this run:
+        the one copy of each block is then the reader's too. Only before the first block
+        (from the acquisition thread, e.g. in the DAQ's ``on_start``); False: not taken (no
+        buffers of this shape there, or blocks already came), the writer keeps its own."""
+        with self._lock:
+            if self._expect != 0 or self._shared is not None:
+                return False
+            views = shared.buffers(self._pool_size, self.info.block_samples)
+            want = (self.info.block_samples, self._c)
+            if not views or any(v.shape != want or v.dtype != self._dtype for v in views):
+                return False
+            for _ in range(self._pool_size):  # none is out: no block has come
+                self._free.get_nowait()
+            for v in views:
+                v.fill(0)  # touch the pages now, not on the acquisition thread's first copy
+                self._free.put(v)
+            self._slot_of = {id(v): (k, v) for k, v in enumerate(views)}
+            self._shared = shared
+            return True
 
     def on_event(self, event: DaqEvent) -> None:
         if event.kind == rf.EV_STOP:
