@@ -63,6 +63,9 @@ MAY_IMPORT: dict[str, set[str]] = {
         "analysis.runs",
         "analysis.identify",
     },
+    # what `cutlab analyze forces|modal` ask (rig.cli.options.model_rows), and the job
+    "analysis.forces_request": {"analysis.runs", "analysis.identify", "analysis.catalog"},
+    "analysis.modal_request": {"analysis.validation", "analysis.modal"},
     "planning": set(),
     "planning.errors": set(),
     "planning.nc": {"planning.errors"},
