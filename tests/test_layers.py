@@ -90,6 +90,7 @@ MAY_IMPORT: dict[str, set[str]] = {
     "rig.log": {"rig.errors", "rig.daq"},
     "rig.sim": {"rig.errors", "rig.daq", "rig.dnc", "rig.log"},
     "rig.adaptive": {"rig.errors", "rig.daq", "rig.dnc"},
+    "rig.recording": {"rig.errors", "rig.daq", "rig.log", "rig.sim"},  # `cutlab daq record`
     "rig.campaign": {"rig.errors", "rig.daq", "rig.dnc", "rig.log", "rig.sim", "rig.adaptive"},
     "rig.report": {"rig.errors", "rig.daq", "rig.log", "rig.campaign", "rig.adaptive"},
     "rig.console": {"rig.errors", "rig.daq", "rig.dnc", "rig.adaptive", "rig.campaign"},
@@ -106,6 +107,7 @@ MAY_IMPORT: dict[str, set[str]] = {
         "rig.report",
         "rig.console",
         "rig.adaptive",
+        "rig.recording",
     },
 }
 
