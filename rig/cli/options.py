@@ -112,10 +112,10 @@ def model_rows(
 ) -> list[Row]:  # fmt: skip
     """:func:`add_options` rows, one per field of a dataclass (its ``metadata``: help, unit,
     gt/ge, le, metavar) or pydantic model (its ``Field``: description, gt/ge, le,
-    ``json_schema_extra``: unit, flag, metavar, nargs, kind ``path``/``picture``) but ``skip``:
-    ``--name`` from the field's name without its unit suffix (or ``flags[field]``, or its
-    ``flag``, a positional if without dashes), stored under the field's name; a number field is
-    checked against the field's unit and range, a ``Literal`` field offers its choices, a list
+    ``json_schema_extra``: unit, flag, metavar, nargs, choices, kind ``path``/``picture``) but
+    ``skip``: ``--name`` from the field's name without its unit suffix (or ``flags[field]``, or
+    its ``flag``, a positional if without dashes), stored under the field's name; a number field
+    is checked against the field's unit and range, a ``Literal`` field offers its choices, a list
     field takes several values, a bool field is a flag; a field without a default is required.
     The help lives once, next to the field it describes; ``after[field]``: rows that follow
     the field's in the help."""
@@ -131,8 +131,8 @@ def model_rows(
         kind = _inner(kind)
         if kind in ("bool", bool):
             kind = bool
-        elif get_origin(kind) is Literal:
-            kind = get_args(kind)
+        elif get_origin(kind) is Literal or "choices" in meta:
+            kind = meta.get("choices") or get_args(kind)
         else:
             if flag.startswith("-"):
                 kw.setdefault("metavar", flag.split()[-1].lstrip("-").replace("-", "_").upper())
