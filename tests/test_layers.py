@@ -93,6 +93,7 @@ MAY_IMPORT: dict[str, set[str]] = {
     "rig.sim": {"rig.errors", "rig.daq", "rig.dnc", "rig.log"},
     "rig.adaptive": {"rig.errors", "rig.daq", "rig.dnc"},
     "rig.recording": {"rig.errors", "rig.daq", "rig.log", "rig.sim"},  # `cutlab daq record`
+    "rig.send_request": {"rig.errors", "rig.dnc", "rig.adaptive"},  # `cutlab dnc send`
     "rig.campaign": {"rig.errors", "rig.daq", "rig.dnc", "rig.log", "rig.sim", "rig.adaptive"},
     "rig.report": {"rig.errors", "rig.daq", "rig.log", "rig.campaign", "rig.adaptive"},
     "rig.console": {"rig.errors", "rig.daq", "rig.dnc", "rig.adaptive", "rig.campaign"},
@@ -110,6 +111,7 @@ MAY_IMPORT: dict[str, set[str]] = {
         "rig.console",
         "rig.adaptive",
         "rig.recording",
+        "rig.send_request",
     },
 }
 
