@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import inspect
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from types import UnionType
@@ -70,7 +71,10 @@ def command(
     func: Callable[[argparse.Namespace], int], *, catalogs: bool = False, **kw: Any,
 ) -> argparse.ArgumentParser:  # fmt: skip
     """A subcommand: its options from ``rows`` (:func:`add_options`), run by ``func``, with
-    the user catalogues' --tools/--materials if ``catalogs``; ``kw`` to ``add_parser``."""
+    the user catalogues' --tools/--materials if ``catalogs``; ``kw`` to ``add_parser`` (a
+    ``description`` may be a docstring: its indentation goes)."""
+    if kw.get("description"):
+        kw["description"] = inspect.cleandoc(kw["description"])
     p = sub.add_parser(name, help=help, **kw)
     add_options(p, [*rows, CATALOGS] if catalogs else rows)
     p.set_defaults(func=_with_catalogs(func) if catalogs else func)
