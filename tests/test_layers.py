@@ -81,8 +81,8 @@ MAY_IMPORT: dict[str, set[str]] = {
         "planning.feed",
         "planning.rough",
     },
-    # what `cutlab plan feed|simulate` ask (rig.cli.options.model_rows), and the jobs
-    "planning.feed_request": {"planning.nc", "planning.stock", "planning.feed", "planning.limits"},
+    # what the `cutlab plan` commands ask (rig.cli.options.model_rows), and the jobs
+    "planning.requests": {"planning.nc", "planning.stock", "planning.feed", "planning.limits"},
     "rig": set(),
     "rig.errors": set(),
     "rig.terminal": set(),

@@ -1,12 +1,12 @@
 """`cutlab plan feed` and `cutlab plan simulate` (seed 001): the load-based feed post-processor
-and Z-map virtual machining; what they ask is :mod:`planning.feed_request`, what they do
+and Z-map virtual machining; what they ask is :mod:`planning.requests`, what they do
 :mod:`planning.feed.job`."""
 
 from __future__ import annotations
 
 import argparse
 
-from planning.feed_request import FeedRequest, SimulateRequest
+from planning.requests import FeedRequest, SimulateRequest
 from rig.cli.common import print_lines, show, status
 from rig.cli.options import command, from_args, json_row, model_rows
 from rig.terminal import Progress
@@ -26,8 +26,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _feed(a: argparse.Namespace) -> int:
     from planning.feed.text import feed_lines, feed_notes
-    from planning.feed_request import feed_job
     from planning.limits.text import stock_note, verdict_lines, violation_lines
+    from planning.requests import feed_job
     from rig.cli.plan_check import WRITTEN_EXIT
 
     req = from_args(FeedRequest, a, "plan feed")
@@ -47,8 +47,8 @@ def _feed(a: argparse.Namespace) -> int:
 
 def _simulate(a: argparse.Namespace) -> int:
     from planning.feed.text import simulate_lines, simulate_notes
-    from planning.feed_request import simulate_request
     from planning.limits.text import stock_note
+    from planning.requests import simulate_request
 
     req = from_args(SimulateRequest, a, "plan simulate")
     with Progress("simulate", unit="piece") as bar:

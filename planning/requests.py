@@ -1,6 +1,6 @@
-"""What `cutlab plan feed` and `cutlab plan simulate` ask (:class:`FeedRequest`,
-:class:`SimulateRequest`: one model each, read by the API and the CLI alike, the options being
-their fields: rig.cli.options.model_rows) and the jobs that answer them (:func:`feed_job`,
+"""What the `cutlab plan` commands ask (:class:`FeedRequest`, :class:`SimulateRequest`: one model
+each, read by the API and the CLI alike, the options being their fields:
+rig.cli.options.model_rows) and the jobs that answer them (:func:`feed_job`,
 :func:`simulate_request`; the work: :mod:`planning.feed.job`)."""
 
 from __future__ import annotations
