@@ -82,7 +82,14 @@ MAY_IMPORT: dict[str, set[str]] = {
         "planning.rough",
     },
     # what the `cutlab plan` commands ask (rig.cli.options.model_rows), and the jobs
-    "planning.requests": {"planning.nc", "planning.stock", "planning.feed", "planning.limits"},
+    "planning.requests": {
+        "planning.nc",
+        "planning.stock",
+        "planning.feed",
+        "planning.rough",
+        "planning.orient",
+        "planning.limits",
+    },
     "rig": set(),
     "rig.errors": set(),
     "rig.terminal": set(),

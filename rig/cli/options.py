@@ -241,16 +241,6 @@ def serial_rows(
     return rows
 
 
-#: ``--stock`` and ``--spacing``: the stock a program is cut from on the Z-map (plan check, feed
-#: and simulate)
-STOCK = [
-    ("--stock", None, None, "box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP | mesh (.stl) | stock TOML "
-     "(default: derived from the program's feed moves, printed)"),
-    ("--spacing", positive("mm", 100), None, "Z-map grid spacing, mm (default 0.25)"),
-]  # fmt: skip
-#: ``--lobes`` (plan check, feed and rough)
-LOBES = ("--lobes", Path, None, "stability lobes CSV (spindle_rpm,depth_limit_mm; "
-         "`cutlab analyze stability -o`), default: the tool's modes if any")  # fmt: skip
 #: the flags of :class:`analysis.identify.ImportOptions`'s fields
 IMPORT_FLAGS = {"pattern": "--conditions-pattern", "zero_file": "--zero", "tools_path": "--tools",
                 "materials_path": "--materials"}  # fmt: skip
