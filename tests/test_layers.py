@@ -63,9 +63,10 @@ MAY_IMPORT: dict[str, set[str]] = {
         "analysis.runs",
         "analysis.identify",
     },
-    # what `cutlab analyze forces|modal` ask (rig.cli.options.model_rows), and the job
+    # what `cutlab analyze forces|modal|stability` ask (rig.cli.options.model_rows), and the job
     "analysis.forces_request": {"analysis.runs", "analysis.identify", "analysis.catalog"},
     "analysis.modal_request": {"analysis.validation", "analysis.modal"},
+    "analysis.stability_request": {"analysis.validation", "analysis.stability"},
     "planning": set(),
     "planning.errors": set(),
     "planning.nc": {"planning.errors"},
