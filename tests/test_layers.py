@@ -517,7 +517,7 @@ def test_the_dialect_comparison_check_finds_comparisons(tmp_path: Path) -> None:
 #: issue 30 item 5 asks for the CLI (rig/cli/*.py) under 1 500 lines; until then, the ceiling it
 #: may not grow over (lower it as the CLI gets thinner): 2 067 lines before the option tables
 #: and the results' own text, 1 789 after
-CLI_CEILING_LINES = 1475
+CLI_CEILING_LINES = 1470
 
 
 def _cli_lines() -> int:

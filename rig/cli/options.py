@@ -241,17 +241,12 @@ def serial_rows(
     return rows
 
 
-#: the flags of :class:`analysis.identify.ImportOptions`'s fields
-IMPORT_FLAGS = {"pattern": "--conditions-pattern", "zero_file": "--zero", "tools_path": "--tools",
-                "materials_path": "--materials"}  # fmt: skip
-
-
 def import_rows() -> list[Row]:
     """How exports are read (`analyze forces`, `data import`): the options of
     :class:`analysis.identify.ImportOptions` (its conditions table: ``--conditions``)."""
     from analysis.identify import ImportOptions
 
-    return model_rows(ImportOptions, flags=IMPORT_FLAGS, skip=("table",))
+    return model_rows(ImportOptions, skip=("table",))
 
 
 def import_options(args: argparse.Namespace, table: Any = None) -> ImportOptions:
