@@ -103,6 +103,7 @@ MAY_IMPORT: dict[str, set[str]] = {
     "rig.recording": {"rig.errors", "rig.daq", "rig.log", "rig.sim"},  # `cutlab daq record`
     "rig.send_request": {"rig.errors", "rig.dnc", "rig.adaptive"},  # `cutlab dnc send`
     "rig.demo_request": {"rig.report"},  # `cutlab demo`
+    "rig.campaign_request": {"rig.campaign"},  # `cutlab campaign run`
     "rig.campaign": {"rig.errors", "rig.daq", "rig.dnc", "rig.log", "rig.sim", "rig.adaptive"},
     "rig.report": {"rig.errors", "rig.daq", "rig.log", "rig.campaign", "rig.adaptive"},
     "rig.console": {"rig.errors", "rig.daq", "rig.dnc", "rig.adaptive", "rig.campaign"},
@@ -122,6 +123,7 @@ MAY_IMPORT: dict[str, set[str]] = {
         "rig.recording",
         "rig.send_request",
         "rig.demo_request",
+        "rig.campaign_request",
     },
 }
 
@@ -517,7 +519,7 @@ def test_the_dialect_comparison_check_finds_comparisons(tmp_path: Path) -> None:
 #: issue 30 item 5 asks for the CLI (rig/cli/*.py) under 1 500 lines; until then, the ceiling it
 #: may not grow over (lower it as the CLI gets thinner): 2 067 lines before the option tables
 #: and the results' own text, 1 789 after
-CLI_CEILING_LINES = 1470
+CLI_CEILING_LINES = 1456
 
 
 def _cli_lines() -> int:
