@@ -63,6 +63,10 @@ MAY_IMPORT: dict[str, set[str]] = {
         "analysis.runs",
         "analysis.identify",
     },
+    # what `cutlab analyze forces|modal|stability` ask (rig.cli.options.model_rows), and the job
+    "analysis.forces_request": {"analysis.runs", "analysis.identify", "analysis.catalog"},
+    "analysis.modal_request": {"analysis.validation", "analysis.modal"},
+    "analysis.stability_request": {"analysis.validation", "analysis.stability"},
     "planning": set(),
     "planning.errors": set(),
     "planning.nc": {"planning.errors"},
@@ -78,6 +82,15 @@ MAY_IMPORT: dict[str, set[str]] = {
         "planning.feed",
         "planning.rough",
     },
+    # what the `cutlab plan` commands ask (rig.cli.options.model_rows), and the jobs
+    "planning.requests": {
+        "planning.nc",
+        "planning.stock",
+        "planning.feed",
+        "planning.rough",
+        "planning.orient",
+        "planning.limits",
+    },
     "rig": set(),
     "rig.errors": set(),
     "rig.terminal": set(),
@@ -87,6 +100,10 @@ MAY_IMPORT: dict[str, set[str]] = {
     "rig.log": {"rig.errors", "rig.daq"},
     "rig.sim": {"rig.errors", "rig.daq", "rig.dnc", "rig.log"},
     "rig.adaptive": {"rig.errors", "rig.daq", "rig.dnc"},
+    "rig.recording": {"rig.errors", "rig.daq", "rig.log", "rig.sim"},  # `cutlab daq record`
+    "rig.send_request": {"rig.errors", "rig.dnc", "rig.adaptive"},  # `cutlab dnc send`
+    "rig.demo_request": {"rig.report"},  # `cutlab demo`
+    "rig.campaign_request": {"rig.campaign"},  # `cutlab campaign run`
     "rig.campaign": {"rig.errors", "rig.daq", "rig.dnc", "rig.log", "rig.sim", "rig.adaptive"},
     "rig.report": {"rig.errors", "rig.daq", "rig.log", "rig.campaign", "rig.adaptive"},
     "rig.console": {"rig.errors", "rig.daq", "rig.dnc", "rig.adaptive", "rig.campaign"},
@@ -103,6 +120,10 @@ MAY_IMPORT: dict[str, set[str]] = {
         "rig.report",
         "rig.console",
         "rig.adaptive",
+        "rig.recording",
+        "rig.send_request",
+        "rig.demo_request",
+        "rig.campaign_request",
     },
 }
 
@@ -498,7 +519,7 @@ def test_the_dialect_comparison_check_finds_comparisons(tmp_path: Path) -> None:
 #: issue 30 item 5 asks for the CLI (rig/cli/*.py) under 1 500 lines; until then, the ceiling it
 #: may not grow over (lower it as the CLI gets thinner): 2 067 lines before the option tables
 #: and the results' own text, 1 789 after
-CLI_CEILING_LINES = 1789
+CLI_CEILING_LINES = 1456
 
 
 def _cli_lines() -> int:

@@ -33,9 +33,11 @@ class ImportOptions:
         "dynamometer, else columns named Fx, Fy, Fz; a mapping giving a negative cutting "
         "coefficient or fitting clearly worse than another is refused)"})
     table: ConditionsTable | str | Path | None = None
-    pattern: str | None = field(default=None, metadata={"metavar": "PATTERN", "help":
+    pattern: str | None = field(default=None, metadata={
+        "flag": "--conditions-pattern", "metavar": "PATTERN", "help":
         "conditions from file names: 'cut_{spindle_rpm}rpm_f{feed_mm_min}.txt'"})
-    zero_file: str | Path | None = field(default=None, metadata={"metavar": "FILE", "help":
+    zero_file: str | Path | None = field(default=None, metadata={"flag": "--zero",
+        "metavar": "FILE", "help":
         "an export of the same channels at rest: its mean is the offset"})
     zeroed: bool = field(default=False, metadata={
         "help": "the exports are already zeroed: subtract no offset"})

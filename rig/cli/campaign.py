@@ -9,38 +9,27 @@ from contextlib import AbstractContextManager as ContextManager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from rig.campaign_request import CampaignRunRequest
 from rig.cli.common import error_line, show, status
 from rig.cli.console import SERVER
-from rig.cli.options import command, group
+from rig.cli.options import command, from_args, group, model_rows
 from rig.terminal import progress_note
 
 if TYPE_CHECKING:
     from rig.campaign.config import Campaign
     from rig.console import LiveCampaign
 
-# fmt: off
-RUN = (
-    ("config", None, None, "campaign TOML, or a name in configs/campaigns/"),
-    ("--dry-run", bool, None, "check config, hardware and programs"),
-    ("--out", None, None, "folder of campaign folders (default: campaign.output_dir)"),
-    ("--no-report", bool, None, "skip the analysis and report"),
-    ("--fresh", bool, None, "start over: earlier runs are moved to <folder>/before-<time>/"),
-    ("--force-resume", bool, None, "resume although inputs changed (recorded in campaign.json)"),
-    ("--json", bool, None, "machine-readable summary on stdout"),
-    ("--quiet", bool, None, "no progress display"),
-    ("--adaptive", ("feed", "spindle", "both"), None,
-     "GRBL: the [adaptive] loop in this mode (its target and limits: the config's [adaptive])"),
-    ("--live", bool, None, "serve the live console beside the campaign (--port, --bind); its "
-     "address, printed, carries the session's token"),
-)
-# fmt: on
-
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add this group's subcommands to ``sub``."""
     csub = group(sub, "campaign", "run a campaign of test cuts (simulated or real rig)")
+    ui = [("--json", bool, None, "machine-readable summary on stdout"),
+          ("--quiet", bool, None, "no progress display")]  # fmt: skip
+    live = ("--live", bool, None, "serve the live console beside the campaign (--port, --bind); "
+            "its address, printed, carries the session's token")  # fmt: skip
     command(csub, "run", "run (or resume) a campaign; --dry-run checks without cutting",
-            [RUN, SERVER], _run, catalogs=True)  # fmt: skip
+            [model_rows(CampaignRunRequest, after={"force_resume": ui}), live, SERVER], _run,
+            catalogs=True)  # fmt: skip
     where = [("config", None, None, None), ("--out", None, None, None),
              ("--json", bool, None, None)]  # fmt: skip
     command(csub, "status", "each run's status and reason", where, _status, catalogs=True)
@@ -50,34 +39,31 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _run(args: argparse.Namespace) -> int:
     from analysis.errors import CutlabError
-    from rig.campaign import campaign_folder, dry_run, load_campaign, run_campaign
-    from rig.campaign.commands import dry_run_lines, run_lines, runs_done, with_adaptive
+    from rig.campaign import campaign_folder, dry_run
+    from rig.campaign.commands import dry_run_lines, run_lines, runs_done
+    from rig.campaign_request import request_campaign, run_request
     from rig.report import write_report
 
+    req = from_args(CampaignRunRequest, args, "campaign run")
     try:
-        campaign = load_campaign(args.config)
+        campaign = request_campaign(req)
     except CutlabError as exc:
-        if not args.dry_run:
+        if not req.dry_run:
             raise
         # the dry run lists every problem, one line each (the config's problems come joined)
         for line in filter(None, map(str.strip, str(exc).splitlines())):
             error_line(line)
         return 2
-    if args.adaptive:
-        campaign = with_adaptive(campaign, args.adaptive)
-    if args.dry_run:
+    if req.dry_run:
         progress_note("checking every program")
-        d = dry_run(campaign, args.out)
+        d = dry_run(campaign, req.out)
         return show(args.json, d.as_dict(), lambda: dry_run_lines(d), 0 if d.ok else 2)
-    progress_note(runs_done(campaign_folder(campaign, args.out), len(campaign.tests)))
+    progress_note(runs_done(campaign_folder(campaign, req.out), len(campaign.tests)))
     with _live(campaign, args) as live:
         on = live.run_kwargs() if live else None
-        result = run_campaign(
-            campaign, out_root=args.out, progress=not args.quiet, fresh=args.fresh,
-            force_resume=args.force_resume, session_factory=on["session_factory"] if on else None,
-            stop=on["stop"] if on else None,
-        )  # fmt: skip
-    report = None if args.no_report or result.stopped else write_report(result.folder)
+        result = run_request(campaign, req, not args.quiet, on["session_factory"] if on else None,
+                             on["stop"] if on else None)  # fmt: skip
+    report = None if req.no_report or result.stopped else write_report(result.folder)
     show(args.json, result.summary(report.summary if report else None),
          lambda: run_lines(result, report.folder if report else None))  # fmt: skip
     if result.stopped:

@@ -30,9 +30,11 @@ def _plot(args: argparse.Namespace) -> int:
 
 
 def _import(args: argparse.Namespace) -> int:
+    from analysis.identify.conditions_arg import conditions_arg
     from rig.log import import_exports
 
-    pairs, opts = import_options(args)
+    pairs, table = conditions_arg(args.conditions)
+    opts = import_options(args, table)
     if opts.auto:  # the mapping from an end-mill fit of all the exports, before any is written
         from dataclasses import replace
 

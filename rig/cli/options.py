@@ -7,15 +7,21 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import inspect
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from types import UnionType
+from typing import TYPE_CHECKING, Any, Literal, TypeVar, Union, cast, get_args, get_origin
 
 from planning.nc import DIALECTS
-from rig.cli.common import MAGNITUDE_LIMIT, count, number, positive
+from rig.cli.common import MAGNITUDE_LIMIT, count, image_file, number, positive
 
 if TYPE_CHECKING:
+    from pydantic import BaseModel
+
     from analysis.identify import ImportOptions
+
+    M = TypeVar("M", bound=BaseModel)
 
 #: a row's default that makes the option required
 REQUIRED = ...
@@ -45,7 +51,8 @@ def add_options(p: argparse._ActionsContainer, rows: Rows) -> None:
         elif kind is not None:
             kw["type"] = kind
         if default is REQUIRED:
-            kw["required"] = True
+            kw["required"] = flags.startswith("-") or None  # a positional is required anyway
+            kw = {k: v for k, v in kw.items() if v is not None}
         elif kind is not bool and (default is not None or flags.startswith("-")):
             kw["default"] = default  # (a positional given a default is optional)
         p.add_argument(*flags.split(), **kw)
@@ -64,7 +71,10 @@ def command(
     func: Callable[[argparse.Namespace], int], *, catalogs: bool = False, **kw: Any,
 ) -> argparse.ArgumentParser:  # fmt: skip
     """A subcommand: its options from ``rows`` (:func:`add_options`), run by ``func``, with
-    the user catalogues' --tools/--materials if ``catalogs``; ``kw`` to ``add_parser``."""
+    the user catalogues' --tools/--materials if ``catalogs``; ``kw`` to ``add_parser`` (a
+    ``description`` may be a docstring: its indentation goes)."""
+    if kw.get("description"):
+        kw["description"] = inspect.cleandoc(kw["description"])
     p = sub.add_parser(name, help=help, **kw)
     add_options(p, [*rows, CATALOGS] if catalogs else rows)
     p.set_defaults(func=_with_catalogs(func) if catalogs else func)
@@ -95,32 +105,67 @@ def _with_catalogs(run: Callable[[argparse.Namespace], int]) -> Callable[[argpar
     return with_catalogs
 
 
-#: unit suffixes of a field's name that its option's name drops (tool_diameter_mm: --tool-diameter)
-_UNIT_SUFFIXES = ("_mm_min", "_mm", "_rpm", "_n", "_s", "_hz", "_pct")
+#: suffixes of a field's name (units, what a path is) that its option's name drops
+#: (tool_diameter_mm: --tool-diameter, rig_path: --rig)
+_UNIT_SUFFIXES = ("_mm_min", "_mm", "_rpm", "_n", "_s", "_hz", "_pct", "_png", "_path")
 
 
 def model_rows(
-    model: type, *, flags: Mapping[str, str] | None = None, skip: Sequence[str] = ()
-) -> list[Row]:
+    model: type, *, flags: Mapping[str, str] | None = None, skip: Sequence[str] = (),
+    after: Mapping[str, Rows] | None = None,
+) -> list[Row]:  # fmt: skip
     """:func:`add_options` rows, one per field of a dataclass (its ``metadata``: help, unit,
     gt/ge, le, metavar) or pydantic model (its ``Field``: description, gt/ge, le,
-    ``json_schema_extra`` unit) but ``skip``: ``--name`` from the field's name without its unit
-    suffix (or ``flags[field]``), stored under the field's name; a number field is checked
-    against the field's unit and range, a bool field is a flag; a field without a default is
-    required. The help lives once, next to the field it describes."""
-    rows = []
+    ``json_schema_extra``: unit, flag, metavar, nargs, choices, kind ``path``/``picture``) but
+    ``skip``: ``--name`` from the field's name without its unit suffix (or ``flags[field]``, or
+    its ``flag``, a positional if without dashes), stored under the field's name; a number field
+    is checked against the field's unit and range, a ``Literal`` field offers its choices, a list
+    field takes several values, a bool field is a flag; a field without a default is required.
+    The help lives once, next to the field it describes; ``after[field]``: rows that follow
+    the field's in the help."""
+    rows: list[Row] = []
     for name, (kind, default, meta) in _fields(model).items():
         if name in skip:
             continue
-        flag = (flags or {}).get(name) or "--" + _strip_unit(name).replace("_", "-")
-        kw = {"dest": name}
+        flag = (flags or {}).get(name) or meta.get("flag") or "--" + _strip_unit(name).replace(
+            "_", "-")  # fmt: skip
+        kw: dict[str, Any] = {k: meta[k] for k in ("metavar", "nargs", "action") if k in meta}
+        if flag.startswith("-"):
+            kw["dest"] = name
+        kind = _inner(kind)
         if kind in ("bool", bool):
             kind = bool
+        elif get_origin(kind) is Literal or "choices" in meta:
+            kind = meta.get("choices") or get_args(kind)
         else:
-            kw["metavar"] = meta.get("metavar") or flag.lstrip("-").replace("-", "_").upper()
-            kind = _number(kind, meta)
-        rows.append((flag, kind, default, meta.get("help") or meta.get("unit"), kw))
+            if flag.startswith("-"):
+                kw.setdefault("metavar", flag.split()[-1].lstrip("-").replace("-", "_").upper())
+            parse = _KINDS.get(meta.get("kind", ""))
+            kind = parse or (Path if kind is Path else _number(kind, meta))
+        help = meta.get("help") or meta.get("unit")
+        rows.append((flag, kind, default, help and help.replace("%", "%%"), kw))
+        rows.extend((after or {}).get(name, ()))
     return rows
+
+
+def from_args(model: type[M], args: argparse.Namespace, where: str) -> M:
+    """The request ``model`` of a command's options (:func:`model_rows`), checked: a bad value
+    is one line naming ``where`` (the command) and the field."""
+    from analysis.validation import validate
+
+    return validate(model, {k: getattr(args, k) for k in model.model_fields}, where)
+
+
+#: parsers named by a field's ``kind`` (json_schema_extra)
+_KINDS: dict[str, Callable[[str], Any]] = {"path": Path, "picture": image_file}
+
+
+def _inner(kind: Any) -> Any:
+    """A field's type without ``None`` and the list around it (``list[float] | None``: float)."""
+    args = [a for a in get_args(kind) if a is not type(None)]
+    if get_origin(kind) in (Union, UnionType) and len(args) == 1:
+        return _inner(args[0])
+    return _inner(args[0]) if get_origin(kind) is list and args else kind
 
 
 def _number(kind: object, meta: Mapping[str, Any]) -> Callable[[str], float] | None:
@@ -137,8 +182,8 @@ def _strip_unit(name: str) -> str:
 
 
 def _fields(model: type) -> dict[str, tuple[object, object, dict[str, Any]]]:
-    """name: (type, default or REQUIRED, {help, unit, gt, ge, le}) of a dataclass or pydantic
-    model's fields."""
+    """name: (type, default or REQUIRED, {help, unit, gt, ge, le, ...}) of a dataclass or
+    pydantic model's fields."""
     if dataclasses.is_dataclass(model):
         return {f.name: (f.type, REQUIRED if f.default is dataclasses.MISSING else f.default,
                          dict(f.metadata)) for f in dataclasses.fields(model)}  # fmt: skip
@@ -147,7 +192,8 @@ def _fields(model: type) -> dict[str, tuple[object, object, dict[str, Any]]]:
         meta = {"help": info.description, **(info.json_schema_extra or {})}
         for c in info.metadata:  # annotated_types bounds
             meta.update({k: getattr(c, k) for k in ("gt", "ge", "le") if hasattr(c, k)})
-        out[name] = (info.annotation, REQUIRED if info.is_required() else info.default, meta)
+        default = REQUIRED if info.is_required() else info.get_default(call_default_factory=True)
+        out[name] = (info.annotation, default, meta)
     return out
 
 
@@ -195,35 +241,18 @@ def serial_rows(
     return rows
 
 
-#: ``--stock`` and ``--spacing``: the stock a program is cut from on the Z-map (plan check, feed
-#: and simulate)
-STOCK = [
-    ("--stock", None, None, "box:XMIN,XMAX,YMIN,YMAX,BOTTOM,TOP | mesh (.stl) | stock TOML "
-     "(default: derived from the program's feed moves, printed)"),
-    ("--spacing", positive("mm", 100), None, "Z-map grid spacing, mm (default 0.25)"),
-]  # fmt: skip
-#: ``--lobes`` (plan check, feed and rough)
-LOBES = ("--lobes", Path, None, "stability lobes CSV (spindle_rpm,depth_limit_mm; "
-         "`cutlab analyze stability -o`), default: the tool's modes if any")  # fmt: skip
-#: the flags of :class:`analysis.identify.ImportOptions`'s fields
-IMPORT_FLAGS = {"pattern": "--conditions-pattern", "zero_file": "--zero", "tools_path": "--tools",
-                "materials_path": "--materials"}  # fmt: skip
-
-
 def import_rows() -> list[Row]:
     """How exports are read (`analyze forces`, `data import`): the options of
     :class:`analysis.identify.ImportOptions` (its conditions table: ``--conditions``)."""
     from analysis.identify import ImportOptions
 
-    return model_rows(ImportOptions, flags=IMPORT_FLAGS, skip=("table",))
+    return model_rows(ImportOptions, skip=("table",))
 
 
-def import_options(args: argparse.Namespace) -> tuple[dict[str, Any], ImportOptions]:
-    """``--conditions`` (pairs, or a table) and :func:`import_rows`' options as
-    (pairs, :class:`analysis.identify.ImportOptions`)."""
+def import_options(args: argparse.Namespace, table: Any = None) -> ImportOptions:
+    """:func:`import_rows`' options as :class:`analysis.identify.ImportOptions` (with the
+    conditions ``table`` if any)."""
     from analysis.identify import ImportOptions
-    from analysis.identify.conditions_arg import conditions_arg
 
-    pairs, table = conditions_arg(args.conditions)
     names = [f.name for f in dataclasses.fields(ImportOptions) if f.name != "table"]
-    return pairs, ImportOptions(table=table, **{k: getattr(args, k) for k in names})
+    return ImportOptions(table=table, **{k: getattr(args, k) for k in names})

@@ -7,37 +7,16 @@ from pathlib import Path
 
 from analysis import rules
 from analysis.output import table_lines
-from rig.cli.common import count, image_file, positive, show, status
-from rig.cli.options import REQUIRED, command, db_row, group, json_row, model_rows
-
-FEED = positive("mm/min", 200_000)
-# fmt: off
-DERIVE = (
-    ("runs", Path, None, "HDF5 run files of the feed sweep", {"nargs": "+"}),
-    ("-o --output", Path, REQUIRED, "rule file to write (TOML)"),
-    ("--name", None, None, "rule name (default: the output file's stem)"),
-    ("--base-feed", FEED, None, "mm/min; skip the detection and use this"),
-    ("--min-feed", FEED, None, "mm/min (default: 0.1 x base, seed 001)"),
-    ("--max-feed", FEED, None, "mm/min (default: 3.5 x base, seed 001)"),
-    ("--machine", None, None, "machine config: min/max feeds are clamped to its limits"),
-    ("--reference-load", positive("%"), None,
-     "%%, load of the base-feed cut (default: a slot at the runs' depth)"),
-    ("--exponent", positive("", 5), 1.0, "p in feed = base (L_ref/L)^p (1: constant removal rate)"),
-    ("--bins", count(3, 200), 20, None),
-    ("--slope-ratio", positive(), 1.6, None),
-    ("--vibration-ratio", positive(), 2.0, None),
-    ("--criterion", ("any", "both", "slope", "vibration"), "any", None),
-    ("--png", image_file, None, "also plot the rule and the sweep here"),
-    ("--json", bool, None, None),
-)
-# fmt: on
+from analysis.rules.request import DeriveRequest
+from rig.cli.common import image_file, show, status
+from rig.cli.options import REQUIRED, command, db_row, from_args, group, json_row, model_rows
 
 
 # fmt: off
 def register(sub: argparse._SubParsersAction) -> None:
     rs = group(sub, "rules", "feed rules: derive from feed sweeps, the rule base")
-    command(rs, "derive", "base feed from a feed sweep, then the 20-bin rule", DERIVE, _derive,
-            catalogs=True)
+    command(rs, "derive", "base feed from a feed sweep, then the 20-bin rule",
+            [model_rows(DeriveRequest), json_row(None)], _derive, catalogs=True)
     key = model_rows(rules.GroupKey, flags={"spindle_rpm": "--spindle"})  # the machining group
     command(rs, "add", "store a rule file in the rule base for a machining group", [
         ("rule", Path, None, None), key, ("--note", None, "", None),
@@ -61,17 +40,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _derive(a: argparse.Namespace) -> int:
-    d = rules.derive_from_sweep(
-        a.runs, a.name or a.output.stem, base_feed_mm_min=a.base_feed, min_feed_mm_min=a.min_feed,
-        max_feed_mm_min=a.max_feed, machine=a.machine, reference_load_pct=a.reference_load,
-        exponent=a.exponent, n_bins=a.bins, slope_ratio=a.slope_ratio,
-        vibration_ratio=a.vibration_ratio, criterion=a.criterion,
-    )  # fmt: skip
-    rules.save_rule(d.rule, a.output)
-    if a.png:
-        rules.plot_rule(d.rule, a.png)
-    status(d.summary_line(a.output))
-    return show(a.json, d.summary(a.output), d.lines)
+    from analysis.rules.request import derive_rule
+
+    req = from_args(DeriveRequest, a, "rules derive")
+    d = derive_rule(req)
+    status(d.summary_line(req.output))
+    return show(a.json, d.summary(req.output), d.lines)
 
 
 def _add(a: argparse.Namespace) -> int:
