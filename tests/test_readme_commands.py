@@ -84,9 +84,7 @@ EXIT: list[tuple[str, int]] = [
 ]
 #: (pattern, why): commands that fail as typed today, for a reason named here (strict: a fix
 #: that makes one pass fails the case until its line is removed)
-KNOWN_BROKEN: list[tuple[str, str]] = [
-    (r"slot_\*\.csv", "end-mill slot exports are not shipped (data/dynoware has end-mill exports)"),
-]
+KNOWN_BROKEN: list[tuple[str, str]] = []
 #: seconds a command may take (the slowest shipped campaign is a few minutes)
 TIMEOUT_S = 900
 

@@ -71,3 +71,22 @@ def test_default_mapping_warns_with_figures(lab, capsys):
     assert "negative cutting coefficient" in cap.err and "Krc -7" in cap.err
     # slots at one depth fit several mappings alike: said, and --axes asked for
     assert "Ktc 72" in cap.err and "cannot tell them apart" in cap.err and "give --axes" in cap.err
+
+
+def test_readme_endmill_slot_example(tmp_path, monkeypatch, capsys):
+    """The README's end-mill example on data/slots/ (tests/make_slot_example.py, from the same
+    independent simulation): each export states its feed in a ``fz_mm`` header line; the 0.1 mm
+    cut is beyond phi10-flat's largest chip and is named and left out."""
+    slots = DATA.parent / "slots"
+    shutil.copytree(slots, tmp_path / "slots")
+    monkeypatch.chdir(tmp_path / "slots")
+    truth = json.loads(Path("truth.json").read_text())["coefficients"]
+    exports = sorted(str(p.name) for p in Path().glob("slot_*.csv"))
+    conditions = ["--conditions", "spindle_rpm=3000", "depth_mm=2", "mode=slot"]
+    rc = main(["analyze", "forces", *exports, "--model", "endmill", "--tool", "phi10-flat",
+               *conditions, "--json"])  # fmt: skip
+    out = json.loads(capsys.readouterr().out)
+    assert rc == 0 and out["success"] and len(exports) == 5
+    _check(out["coefficients"], truth)
+    assert out["adequacy"]["edge_identified"]
+    assert [(e["run"], e["kept"]) for e in out["outside_limits"]] == [("slot_0.1", False)]

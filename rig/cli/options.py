@@ -1,11 +1,7 @@
 """How commands are declared: a table of option rows per command (:func:`add_options`), a
 command or a group in one call (:func:`command`, :func:`group`), options made from a model's
 fields, their help next to the field (:func:`model_rows`), and the rows shared by several commands
-(defined once, read the same everywhere: name, type, default, help, place in the help).
-
-A command's request model lives in a light module beside the subpackage that does the job
-(analysis/forces_request.py beside analysis/forces/, rig/send_request.py beside rig/dnc/): the
-parser imports every model, and importing the subpackages themselves costs 0.5-3 s each."""
+(defined once, read the same everywhere: name, type, default, help, place in the help)."""
 
 from __future__ import annotations
 
