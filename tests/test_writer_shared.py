@@ -255,3 +255,23 @@ def test_the_file_is_the_same_with_and_without_the_ring(tmp_path: Path) -> None:
             sa, sb = rf.samples_dataset(a), rf.samples_dataset(b)
             assert sa.dtype == sb.dtype == info.dtype and sa.chunks == sb.chunks
             np.testing.assert_array_equal(sa[()], sb[()])
+
+
+def test_a_ring_closed_mid_run_leaves_the_recording_whole(tmp_path: Path) -> None:
+    # the console's side ends (its ring closed, even failing) while the DAQ still delivers
+    info = _info()
+    ring = RingWriter(tmp_path / "r.ring", sample_bytes=C * 8 * B * 8)
+    w = RunWriter(tmp_path / "run.h5", info, queue_blocks=4)
+    w.on_start(info, 0.0)
+    ring.begin_run(_meta(), C, info.dtype, B)
+    assert w.share_buffers(ring)
+    buf = np.empty((C, B))
+    for k in range(10):
+        if k == 3:
+            ring.close(unlink=True)
+        if k == 6:
+            ring.publish = None  # type: ignore[method-assign, assignment]  # (a broken reader)
+        w.put_block(k * B, _fill(buf, k * B))
+    w.close()
+    np.testing.assert_array_equal(rf.load_run(tmp_path / "run.h5").volts,
+                                  _expected(np.arange(10 * B)))  # fmt: skip

@@ -267,11 +267,21 @@ class RunWriter(ControlRecords, DiskRoom):
             k = -1  # (not in a shared slot: a reader misses it, the file has it)
         # The one copy: (c, n) from the DAQ into (n, c) rows, the file's layout.
         if k >= 0 and shared is not None:
-            shared.begin(k)
+            k = self._tell(shared.begin, k)
         np.copyto(buf[:n], data.T)
         if k >= 0 and shared is not None:
-            shared.publish(k, first_sample, n)
+            self._tell(shared.publish, k, first_sample, n)
         self._filled.put((first_sample, n, buf))
+
+    def _tell(self, fn: Callable[..., None], k: int, *args: int) -> int:
+        """A call to the reader sharing the buffers; -1 if it failed (a closed ring): the reader
+        is not told again, the recording goes on."""
+        try:
+            fn(k, *args)
+            return k
+        except Exception:  # noqa: BLE001 - a reader's view must never stop the recording
+            self._shared = None
+            return -1
 
     def share_buffers(self, shared: SharedBuffers) -> bool:
         """Take the queue's buffers from ``shared`` (the console's live ring) for this run:
