@@ -127,7 +127,9 @@ def test_runs_without_cutting_are_named(modes, dyno):
         "air", rng.normal(0, 1.0, (40_000, 3)) + [4, -2, 1], RATE,
         RunConditions(spindle_rpm=600, fz_mm=0.236, depth_mm=1.0, width_mm=100.0),
     )  # fmt: skip
-    runs = _runs(0.236, modes, seed=4, cut_s=1.5, depths=(0.5, 1.5, 3.0)) + [air]
+    # half-second cuts: naming the air run does not depend on the cuts' length (the refusals
+    # above fit such runs too); the fit's accuracy is test_regression_*'s
+    runs = _runs(0.236, modes, seed=4, cut_s=0.5, depths=(0.5, 1.5, 3.0)) + [air]
     out = fit_facemill_runs(runs, TOOL, dyno)
     assert out.success
     assert out.rejected[0][0] == "air" and "no cutting" in out.rejected[0][1]
