@@ -40,7 +40,8 @@ def readme_paths() -> list[str]:
     found = []
     for m in PATH.finditer(text):
         p = m.group(1)
-        if any(c in p for c in "*<>") or "NNN" in p or "NAME" in p or p.startswith(WRITTEN):
+        glob = text[m.end() : m.end() + 1] in ("*", "?", "[")  # data/x/slot_*.csv: stops at *
+        if glob or any(c in p for c in "*<>") or "NNN" in p or "NAME" in p or p.startswith(WRITTEN):
             continue
         found.append(p)
     return sorted(set(found))

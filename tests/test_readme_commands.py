@@ -350,7 +350,6 @@ def test_readme_command(k: int, scratch: Scratch) -> None:
 #: wrote; they run with -m slow only
 SLOW_ONLY_SECTIONS: list[tuple[str, str]] = [
     (r"^The demo", "the demo is a 23-cut campaign with its identification"),
-    (r"^Cutting forces", "its examples fit the demo's runs"),
     (r"^Stability sweep", "an 18-cut campaign and its report"),
     (r"^Feed rules", "the rules are derived from the feed-sweep campaign's runs"),
     (r"^Z-level roughing", "plan rough of seed 000's part: about 25 s of CPU"),
