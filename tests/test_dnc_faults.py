@@ -55,6 +55,8 @@ CASES = [
     ("grbl", {"sim_error_at_block": (K, 33)}, "error", "unlock"),
     ("grbl", {"sim_alarm_at_block": (K, 2)}, "alarm", "reset+unlock"),
 ]
+#: a second cause of a kind and recovery already in the quick tier: with CI's `long` tests
+SECOND_CAUSE = {2, 3, 7}
 
 
 def _streamer(protocol, path, sink, clock, unlock=False):
@@ -65,9 +67,10 @@ def _streamer(protocol, path, sink, clock, unlock=False):
                         pace_bytes_per_s=GRBL_LINE_B_S * GRBL_SPEED)  # fmt: skip
 
 
-@pytest.mark.parametrize(
-    "protocol,knobs,kind,recovery", CASES, ids=[f"{c[0]}-{c[2]}-{i}" for i, c in enumerate(CASES)]
-)
+@pytest.mark.parametrize("protocol,knobs,kind,recovery", [
+    pytest.param(*c, id=f"{c[0]}-{c[2]}-{i}", marks=[pytest.mark.long] * (i in SECOND_CAUSE))
+    for i, c in enumerate(CASES)
+])  # fmt: skip
 def test_fault_then_resume_is_exact(protocol, knobs, kind, recovery, tmp_path) -> None:
     # GRBL: 75 ms blocks, so a feed hold sent on error:N lands (within the 15-block planner,
     # 110 ms wall at x10, room for a loaded CI machine) before lines sent after the failing one

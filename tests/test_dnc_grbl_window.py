@@ -80,7 +80,8 @@ def test_the_1504_move_program_runs_to_the_end(mode) -> None:
 
 
 @pytest.mark.faults
-@pytest.mark.parametrize("mask", [3, 1], ids=["Bf", "no-Bf"])
+# without Bf (the loss given away by the Idle machine instead) with CI's `long` tests
+@pytest.mark.parametrize("mask", [3, pytest.param(1, marks=pytest.mark.long)], ids=["Bf", "no-Bf"])
 def test_a_lost_ok_is_held_and_stated_mid_stream(mask) -> None:
     """Line 100's ok is lost while GRBL, starved by the line, stands Idle between lines: the
     oldest unanswered line, wholly arrived, out of GRBL's buffer (Bf) or already run (the

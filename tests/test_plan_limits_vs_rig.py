@@ -27,6 +27,10 @@ from planning.stock import ZMap
 
 DEMO = Path(__file__).resolve().parent.parent / "data" / "programs" / "demo-part.nc"
 TOOL, MATERIAL, MACHINE = "phi10-flat", "al6061-t6", "ace-h63"
+#: the twin cuts the whole demo part sample by sample: 14 s of CPU, with CI's `long` tests (the
+#: quick tier keeps the check's own tests: test_plan_limits*.py)
+pytestmark = pytest.mark.long
+
 RATE_HZ = 20_000.0  # 50 samples per tooth period at 8000 rpm, 3 teeth
 TOLERANCE_PCT = 10.0  # the issue's: mean and peak per block
 

@@ -201,8 +201,13 @@ def test_the_demo_campaign_is_bit_identical_beside_two_busy_processes(tmp_path: 
 
 
 @pytest.mark.faults
-@pytest.mark.parametrize("protocol", ["fanuc", "grbl"])
-@pytest.mark.parametrize("on_force", ["abort", "hold"])
+# one of each protocol and each stop in the quick tier, the other two with CI's `long` ones
+@pytest.mark.parametrize("on_force,protocol", [
+    ("abort", "fanuc"),
+    pytest.param("abort", "grbl", marks=pytest.mark.long),
+    pytest.param("hold", "fanuc", marks=pytest.mark.long),
+    ("hold", "grbl"),
+])  # fmt: skip
 def test_a_suspender_stop_is_bit_identical_beside_two_busy_processes(
     tmp_path: Path, on_force: str, protocol: str
 ) -> None:
