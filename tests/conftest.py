@@ -9,6 +9,8 @@ from pathlib import Path
 import pytest
 from hypothesis import settings
 
+from tests import _mypy_background
+
 settings.register_profile("fixed", derandomize=True)
 settings.register_profile("explore", derandomize=False)
 settings.load_profile("fixed")  # pytest's --hypothesis-profile, read later, overrides this
@@ -36,3 +38,11 @@ def pytest_cmdline_main(config: pytest.Config) -> None:
     config.option.numprocesses = workers
     if config.option.dist == "no":
         config.option.dist = "loadfile"
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    _mypy_background.start_if_selected(session)
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    _mypy_background.finish(session)
