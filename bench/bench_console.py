@@ -51,6 +51,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -61,6 +62,7 @@ from analysis.runs import file as rf
 from rig.campaign import load_campaign
 from rig.campaign.config import Campaign
 from rig.console.live import LIVE_FILE, LiveCampaign, _Tee, start_server, stop_server
+from rig.console.ring import MIRROR_BYTES, RingReader, RingWriter
 from rig.console.server import STATIC
 from rig.daq import DaqInfo
 from rig.log import RunWriter
@@ -410,8 +412,8 @@ def main() -> None:
     ap.add_argument("--paced-s", type=float, default=3.0, help="s of data per lab-rate trial")
     ap.add_argument("--tap", action="store_true",
                     help="also the tap without a server (the cost inside the logger)")  # fmt: skip
-    ap.add_argument("--only", choices=("lab", "flat", "page"), default=None,
-                    help="one part only (default: all three)")  # fmt: skip
+    ap.add_argument("--only", choices=("lab", "flat", "page", "trace"), default=None,
+                    help="one part only (default: all four)")  # fmt: skip
     ap.add_argument("--page-s", type=float, default=8.0,
                     help="s of data a trial with the page in Chromium (0: none)")  # fmt: skip
     ap.add_argument("--page-rounds", type=int, default=5, help="paired rounds with the page")
@@ -460,11 +462,55 @@ def main() -> None:
                 print("the page in Chromium: not measured (no chromium, or --page-s 0)")
         finally:
             stop_server(server, 0.0)
+        if args.only in (None, "trace"):
+            _print_trace(folder)
     if args.only is None:
         # every file the page loads (index.html names them: the panels and the 3-D view too)
         names = re.findall(r'(?:src|href)="/static/([^"]+)"', (STATIC / "index.html").read_text())
         load = sum((STATIC / f).stat().st_size for f in ["index.html", *names])
         print(f"page load: {load / 1024:.1f} KiB (html and the {len(names)} files it loads)")
+
+
+def _print_trace(folder: Path, seconds: float = 5.0) -> None:
+    """A frame's read of the live history (the newest 2 000 rows, every 10 ms, a block of 5 000
+    rows published before each) while another thread copies the whole history back to back (the
+    page's whole-run trace, ``/api/trace?live=1``, asked without pause): the frame's wait."""
+    w = RingWriter(folder / "trace.ring")
+    w.begin_run({"rate_hz": 50_000.0}, 3, np.dtype(np.float64), block_rows=5000)
+    r = RingReader(w.path)
+    block = np.random.default_rng(1).normal(size=(3, 5000))
+    first = 0
+    while r.rows_written < MIRROR_BYTES // (3 * 4):  # the history full: the longest copy
+        w.write(first, block)
+        first += 5000
+        r.pull()
+    stop, whole = threading.Event(), []
+
+    def copy_whole() -> None:
+        while not stop.is_set():
+            t = time.perf_counter()
+            r.rows_since(r.generation, 0)
+            whole.append(time.perf_counter() - t)
+
+    thread = threading.Thread(target=copy_whole)
+    thread.start()
+    waits, end = [], time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        w.write(first, block)
+        first += 5000
+        t = time.perf_counter()
+        r.rows_since(r.generation, r.rows_written - 2000)
+        waits.append(time.perf_counter() - t)
+        time.sleep(0.01)
+    stop.set()
+    thread.join(timeout=10)
+    r.close()
+    w.close(unlink=True)
+    ms = np.array(waits) * 1e3
+    print(f"a frame's read beside whole-history copies ({MIRROR_BYTES >> 20} MB, median "
+          f"{statistics.median(whole) * 1e3:.1f} ms, {len(whole)} in {seconds:g} s): p50 "
+          f"{np.percentile(ms, 50):.2f} ms, p95 {np.percentile(ms, 95):.2f} ms, max "
+          f"{ms.max():.2f} ms over {len(ms)} frames")  # fmt: skip
 
 
 def _print_lab(args: argparse.Namespace, res: dict[str, list[Trial]]) -> None:

@@ -67,6 +67,45 @@ def test_ring_round_trip_wraps_and_drops_what_was_overwritten(tmp_path: Path) ->
     r.close()
 
 
+def test_a_copy_taken_while_the_history_wraps_drops_the_rows_overwritten(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """rows_since copies outside the reader's lock (a whole run's copy must not hold up every
+    frame). Another thread's pull that wraps the history over the oldest rows being copied: those
+    rows are dropped, what is returned is the generator's."""
+    import rig.console.ring as ring_module
+
+    w = RingWriter(tmp_path / "r.ring", sample_bytes=3 * 8 * 30 * 8)  # 8 slots of 30 rows
+    r = RingReader(w.path, mirror_bytes=3 * 4 * 100)  # a history of 100 rows
+    w.begin_run(_meta(), 3, np.dtype(np.float64), 30)
+    ramp = np.arange(400, dtype=float)
+
+    def block(k: int) -> np.ndarray:
+        return np.vstack([ramp[k : k + 30], -ramp[k : k + 30], ramp[k : k + 30] * 2])
+
+    for k in range(0, 120, 30):
+        w.write(k, block(k))
+    r.pull()  # rows 20..119 in the history
+    copy = ring_module._oldest_first
+
+    def copy_while_two_blocks_arrive(buf: np.ndarray, start: int, stop: int) -> np.ndarray:
+        half = copy(buf, start, start + (stop - start) // 2)
+        for k in (120, 150):  # meanwhile: rows 120..179 overwrite rows 20..79
+            w.write(k, block(k))
+        r.pull()
+        return np.concatenate([half, copy(buf, start + len(half), stop)])
+
+    monkeypatch.setattr(ring_module, "_oldest_first", copy_while_two_blocks_arrive)
+    gen, first, offset, rows = r.rows_since(-1, 0)
+    assert gen == 1 and offset == 0 and first == 80 and len(rows) == 40  # 80..119 intact
+    assert np.array_equal(rows, np.c_[ramp[80:120], -ramp[80:120], 2 * ramp[80:120]])
+    monkeypatch.undo()
+    _, first, _, rows = r.rows_since(1, 0)  # the next look: the history as it now stands
+    assert first == 80 and np.array_equal(rows[:, 0], ramp[80:180])
+    r.close()
+    w.close(unlink=True)
+
+
 def test_ring_keeps_volts_as_float32_and_codes_as_int16(tmp_path: Path) -> None:
     # The reader's history: half the memory of float64; the page rounds to 0.1 N.
     w = RingWriter(tmp_path / "r.ring", sample_bytes=3 * 8 * 60 * 2)

@@ -435,12 +435,22 @@ class RingReader(_Mapped):
         (generation, first row, row-to-sample offset, rows)."""
         with self._lock:
             self._pull()
-            g, w, cap = self._g, self._w, self._rows.shape[1]
+            g, w, offset, mirror = self._g, self._w, self._offset, self._rows
             if self._slots is None:
-                return g, 0, 0, np.zeros((0, self._rows.shape[0]))
-            start = cursor if g == gen else 0
-            start = max(start, w - cap, w - most if most is not None else 0, 0)
-            return g, start, self._offset, _oldest_first(self._rows, start, max(start, w))
+                return g, 0, 0, np.zeros((0, mirror.shape[0]))
+        cap = mirror.shape[1]
+        start = cursor if g == gen else 0
+        start = max(start, w - cap, w - most if most is not None else 0, 0)
+        # The copy is made outside the lock: a whole run's (up to MIRROR_BYTES) takes 10-20 ms,
+        # which every frame would wait for. Rows before ``start`` are never written meanwhile;
+        # a pull that wrapped the ring over the oldest ones copied leaves them dropped here.
+        rows = _oldest_first(mirror, start, max(start, w))
+        with self._lock:
+            if self._rows is mirror:  # else a new run has a new mirror: this one is intact
+                lost = min(self._w - cap - start, len(rows))
+                if lost > 0:
+                    rows, start = rows[lost:], start + lost
+        return g, start, offset, rows
 
     def send_command(self, command: dict[str, Any]) -> int:
         """Post a command for the campaign process; returns its sequence number."""
