@@ -31,6 +31,13 @@ def _folder(config: pytest.Config) -> Path:
     return Path(tempfile.gettempdir()) / f"cutlab-mypy-{main_pid}"
 
 
+def clear(config: pytest.Config) -> None:
+    """At the start, in the run's main process: a folder left by a killed run whose main process
+    had this pid is not this run's answer."""
+    if not hasattr(config, "workerinput"):
+        shutil.rmtree(_folder(config), ignore_errors=True)
+
+
 def start_if_selected(session: pytest.Session) -> None:
     """Start mypy once per run when the type-check test is among this session's items."""
     if not any(item.nodeid == TEST_ID for item in session.items):
@@ -83,5 +90,4 @@ def finish(session: pytest.Session) -> None:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait(timeout=10)
-    if not hasattr(session.config, "workerinput"):
-        shutil.rmtree(_folder(session.config), ignore_errors=True)
+    clear(session.config)

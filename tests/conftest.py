@@ -43,6 +43,10 @@ def pytest_cmdline_main(config: pytest.Config) -> None:
         config.option.dist = "loadfile"
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    _mypy_background.clear(config)
+
+
 def pytest_collection_finish(session: pytest.Session) -> None:
     _mypy_background.start_if_selected(session)
 
