@@ -16,7 +16,7 @@ import numpy as np
 from analysis.runs import file as rf
 from rig.console.ring import RingReader, RingWriter
 from rig.daq import DaqInfo
-from rig.log import RunWriter
+from rig.log import RunWriter, WriterStats
 
 B = 400  # samples per block
 C = 3
@@ -117,6 +117,21 @@ def _record(
     return w
 
 
+def _record_read(
+    tmp_path: Path, slots: int, n_blocks: int, *, lossless: bool, queue_blocks: int = 8
+) -> tuple[RingWriter, _Reader, WriterStats]:
+    """:func:`_record` into run.h5 through a ring of ``slots`` blocks while a :class:`_Reader`
+    reads it; the ring (still open), the stopped reader and the writer's closing counts."""
+    ring = RingWriter(tmp_path / "r.ring", sample_bytes=C * 8 * B * slots)
+    reader = _Reader(ring.path)
+    try:
+        w = _record(tmp_path / "run.h5", ring, n_blocks, lossless=lossless,
+                    queue_blocks=queue_blocks)  # fmt: skip
+        return ring, reader, w.close()
+    finally:
+        reader.stop()
+
+
 def _expected(index: np.ndarray) -> np.ndarray:
     x = index.astype(float)
     return np.column_stack([x, -x, x + 0.25])
@@ -127,13 +142,7 @@ def test_a_slow_writer_and_a_fast_daq_lose_nothing_through_the_shared_ring(
 ) -> None:
     # The writer's 8 buffers are 8 of the ring's slots: a stalled writer holds them, a fast DAQ
     # waits (lossless) and the reader, copying while they are refilled, sees whole rows only.
-    ring = RingWriter(tmp_path / "r.ring", sample_bytes=C * 8 * B * 10)
-    reader = _Reader(ring.path)
-    try:
-        w = _record(tmp_path / "run.h5", ring, 300, lossless=True)
-        stats = w.close()
-    finally:
-        reader.stop()
+    ring, reader, stats = _record_read(tmp_path, 10, 300, lossless=True)
     assert stats.samples_dropped == 0 and stats.samples_missing == 0
     run = rf.load_run(tmp_path / "run.h5")
     assert run.samples_stored == 300 * B
@@ -154,13 +163,7 @@ def test_blocks_dropped_on_a_full_queue_are_counted_and_the_rest_is_exact(
     # on_block never waits: with the writer stalled, blocks are dropped (queue_full events with
     # their ranges); every delivered sample is in the file or in a dropped range, and the file
     # holds exactly the delivered values of what it kept (no slot overwritten before its append).
-    ring = RingWriter(tmp_path / "r.ring", sample_bytes=C * 8 * B * 64)
-    reader = _Reader(ring.path)
-    try:
-        w = _record(tmp_path / "run.h5", ring, 600, lossless=False, queue_blocks=4)
-        stats = w.close()
-    finally:
-        reader.stop()
+    ring, reader, stats = _record_read(tmp_path, 64, 600, lossless=False, queue_blocks=4)
     run = rf.load_run(tmp_path / "run.h5")
     q = run.events[run.events["kind"] == rf.EV_QUEUE_FULL]
     dropped = np.concatenate([np.arange(s, s + n) for s, n in zip(q["sample"], q["lost"])])
